@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs the Debian bookworm packages gissar needs to build, test and run.
+# Idempotent: packages already installed are left alone; when all are present
+# nothing is run at all (no apt-get update, no network).
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake pkg-config
+  libgdal-dev gdal-bin libproj-dev proj-bin   # geo: raster/vector I/O, CRS
+  libcgal-dev libgeos-dev                      # scene: triangulation, buffers
+  libembree-dev                                # render: ray tracing (Embree 3)
+  libeigen3-dev                                # linear algebra
+  libtbb-dev                                   # parallelism
+  libcli11-dev nlohmann-json3-dev              # CLI, config and JSON
+  libgtest-dev libgmock-dev libbenchmark-dev   # tests and benchmarks
+  libopencv-dev                                # image processing, features
+  libfftw3-dev                                 # FFT
+  libssl-dev python3
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}" >&2
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done" >&2

@@ -1,0 +1,81 @@
+// Digital elevation models read through GDAL: any raster format GDAL reads,
+// in any CRS PROJ knows (geographic EPSG:4326 or projected). Heights are the
+// raster's values in metres as given (SRTM: above the EGM96 geoid).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "gissar/geo/local_frame.h"
+
+namespace gissar::geo {
+
+struct DemReadOptions {
+  // Fill no-data cells (GDAL FillNodata, inverse-distance interpolation)
+  // instead of failing.
+  bool fill_nodata = false;
+  // Largest distance, in DEM cells, searched for valid values when filling.
+  double fill_max_search_cells = 200.0;
+  // 1-based band index.
+  int band = 1;
+  // Refuse rasters whose heights would need more than this many bytes.
+  int64_t max_bytes = int64_t{8} << 30;
+};
+
+// A DEM: heights on a grid of posts. Post (col, row) sits at the centre of
+// raster cell (col, row); its map coordinates follow the GDAL geotransform.
+struct Dem {
+  std::string source;                  // file it was read from
+  int width = 0;                       // posts per row
+  int height = 0;                      // rows
+  std::vector<float> heights_m;        // row-major, width*height, all finite
+  std::array<double, 6> geotransform;  // GDAL convention (cell corners)
+  std::string crs_wkt;                 // CRS of the map coordinates
+  int64_t filled_nodata_cells = 0;     // no-data cells filled on reading
+
+  float HeightAt(int col, int row) const { return heights_m[size_t(row) * width + col]; }
+  // Map coordinates of a (fractional) post position.
+  Eigen::Vector2d MapFromPost(double col, double row) const;
+  // Fractional post position of map coordinates; false when the geotransform
+  // is singular.
+  bool PostFromMap(double x, double y, double* col, double* row) const;
+  // Bilinear height at a fractional post position; nullopt outside the grid.
+  std::optional<double> InterpolateHeight(double col, double row) const;
+};
+
+// Reads band `options.band` of a raster as a DEM. Throws InputError naming
+// the file when it is missing, not a raster, has no geotransform or CRS, is
+// smaller than 2x2 posts, or holds no-data cells (value equal to the band's
+// no-data value, NaN or infinite) and `fill_nodata` is false: the message
+// gives their count. With `fill_nodata`, cells that cannot be filled within
+// the search distance are also an InputError.
+Dem ReadDem(const std::filesystem::path& path, const DemReadOptions& options = {});
+
+// WGS84 longitude/latitude (degrees) and DEM height of the scene centre.
+struct GeoPoint {
+  double lon_deg = 0.0;
+  double lat_deg = 0.0;
+  double height_m = 0.0;
+};
+
+// The scene centre: `lon_lat` if given, else `map_xy` (DEM CRS) if given,
+// else the centre of the DEM extent; its height is the DEM's bilinear height
+// there. Throws ConfigError when the point lies outside the DEM.
+GeoPoint ResolveSceneCentre(const Dem& dem, const std::optional<Eigen::Vector2d>& lon_lat,
+                            const std::optional<Eigen::Vector2d>& map_xy);
+
+// ENU positions (metres, `frame`) of every DEM post, row-major like
+// heights_m. Heights are used as ellipsoidal heights (see local_frame.h).
+std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& frame);
+
+// Mean post spacing in metres along columns and rows, measured in `frame`
+// at the DEM centre.
+Eigen::Vector2d DemPostSpacingMetres(const Dem& dem, const LocalFrame& frame);
+
+}  // namespace gissar::geo

@@ -1,0 +1,70 @@
+// Local metric frame of a scene: a local East-North-Up (ENU) tangent frame on
+// the WGS84 ellipsoid, with its origin at the scene centre (longitude,
+// latitude) at ellipsoidal height 0. x = East, y = North (true north at the
+// origin), z = Up, metres. Earth curvature is kept: a point 15 km from the
+// origin at height 0 lies ~17.6 m below the tangent plane, as a real sensor
+// sees it. DEM heights are used as given (no geoid correction; see
+// docs/geometry.md).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace gissar::geo {
+
+class LocalFrame {
+ public:
+  // Origin at geodetic (lon_deg, lat_deg, height_m) on WGS84. Throws
+  // ConfigError when the latitude is outside [-90, 90] or any value is not
+  // finite.
+  LocalFrame(double lon_deg, double lat_deg, double height_m = 0.0);
+
+  double origin_lon_deg() const { return lon0_deg_; }
+  double origin_lat_deg() const { return lat0_deg_; }
+  double origin_height_m() const { return h0_m_; }
+
+  // WGS84 geodetic (degrees, metres above the ellipsoid) -> ENU metres.
+  Eigen::Vector3d EnuFromGeodetic(double lon_deg, double lat_deg, double height_m) const;
+  // ENU metres -> (lon_deg, lat_deg, height_m).
+  Eigen::Vector3d GeodeticFromEnu(const Eigen::Vector3d& enu) const;
+
+  // WGS84 geodetic -> Earth-centred Earth-fixed metres, and back.
+  static Eigen::Vector3d EcefFromGeodetic(double lon_deg, double lat_deg, double height_m);
+  static Eigen::Vector3d GeodeticFromEcef(const Eigen::Vector3d& ecef);
+
+ private:
+  double lon0_deg_, lat0_deg_, h0_m_;
+  Eigen::Vector3d origin_ecef_;
+  Eigen::Matrix3d enu_from_ecef_;  // rows: east, north, up unit vectors
+};
+
+// Transforms coordinates of a CRS (given as WKT or any string OGR accepts)
+// to WGS84 longitude/latitude in degrees, and back, through PROJ. Axis order
+// is always (x/easting/longitude, y/northing/latitude).
+class CrsTransform {
+ public:
+  // Throws InputError when the CRS cannot be parsed or no transformation
+  // exists.
+  explicit CrsTransform(const std::string& crs_definition);
+  ~CrsTransform();
+  CrsTransform(const CrsTransform&) = delete;
+  CrsTransform& operator=(const CrsTransform&) = delete;
+
+  bool source_is_geographic() const { return source_is_geographic_; }
+
+  // In place: map x,y -> lon,lat (degrees). Throws InputError if any point
+  // fails to transform.
+  void ToLonLat(std::vector<double>& x, std::vector<double>& y) const;
+  // In place: lon,lat -> map x,y.
+  void FromLonLat(std::vector<double>& lon, std::vector<double>& lat) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  bool source_is_geographic_ = false;
+};
+
+}  // namespace gissar::geo

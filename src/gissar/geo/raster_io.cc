@@ -1,0 +1,143 @@
+#include "gissar/geo/raster_io.h"
+
+#include <gdal_priv.h>
+
+#include <memory>
+
+#include "gissar/geo/gdal_env.h"
+#include "gissar/util/error.h"
+
+namespace gissar::geo {
+namespace fs = std::filesystem;
+namespace {
+
+struct GdalDatasetCloser {
+  void operator()(GDALDataset* ds) const { GDALClose(ds); }
+};
+using DatasetPtr = std::unique_ptr<GDALDataset, GdalDatasetCloser>;
+
+GDALDriver* Driver(const char* name) {
+  EnsureGdal();
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(name);
+  if (driver == nullptr) throw IoError(std::string("GDAL driver missing: ") + name, "");
+  return driver;
+}
+
+void SetMetadata(GDALDataset* ds, const Metadata& metadata) {
+  for (const auto& [key, value] : metadata) ds->SetMetadataItem(key.c_str(), value.c_str());
+}
+
+// Closes the dataset and turns a failure during flushing into IoError.
+void CloseChecked(DatasetPtr ds, const fs::path& path) {
+  CPLErrorReset();
+  GDALDataset* raw = ds.release();
+  GDALClose(raw);
+  if (CPLGetLastErrorType() >= CE_Failure) {
+    throw IoError("failed writing raster: " + LastGdalMessage(), path.string());
+  }
+}
+
+DatasetPtr OpenForReading(const fs::path& path) {
+  EnsureGdal();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw InputError("raster file does not exist", path.string());
+  DatasetPtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) throw InputError("not a raster GDAL can read", path.string());
+  return ds;
+}
+
+}  // namespace
+
+void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
+  const int nbands = static_cast<int>(raster.bands.size());
+  if (nbands == 0) throw IoError("no band to write", path.string());
+  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "PREDICTOR=1", nullptr};
+  DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), raster.width, raster.height, nbands,
+                                        GDT_Float32, const_cast<char**>(options)));
+  if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+  SetMetadata(ds.get(), raster.metadata);
+  for (int b = 0; b < nbands; ++b) {
+    GDALRasterBand* band = ds->GetRasterBand(b + 1);
+    if (b < static_cast<int>(raster.band_names.size())) {
+      band->SetDescription(raster.band_names[b].c_str());
+    }
+    if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
+                       const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
+                       GDT_Float32, 0, 0, nullptr) != CE_None) {
+      throw IoError("cannot write GeoTIFF band: " + LastGdalMessage(), path.string());
+    }
+  }
+  CloseChecked(std::move(ds), path);
+}
+
+void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width,
+                      int height, const Metadata& metadata) {
+  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", nullptr};
+  DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, 1, GDT_Byte,
+                                        const_cast<char**>(options)));
+  if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+  SetMetadata(ds.get(), metadata);
+  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
+                                     const_cast<uint8_t*>(data.data()), width, height, GDT_Byte,
+                                     0, 0, nullptr) != CE_None) {
+    throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
+  }
+  CloseChecked(std::move(ds), path);
+}
+
+void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,
+              int channels) {
+  DatasetPtr mem(Driver("MEM")->Create("", width, height, channels, GDT_Byte, nullptr));
+  if (!mem) throw IoError("cannot stage PNG in memory", path.string());
+  for (int c = 0; c < channels; ++c) {
+    if (mem->GetRasterBand(c + 1)->RasterIO(
+            GF_Write, 0, 0, width, height, const_cast<uint8_t*>(data.data()) + c, width, height,
+            GDT_Byte, channels, static_cast<GSpacing>(channels) * width, nullptr) != CE_None) {
+      throw IoError("cannot stage PNG band", path.string());
+    }
+  }
+  DatasetPtr png(Driver("PNG")->CreateCopy(path.c_str(), mem.get(), FALSE, nullptr, nullptr,
+                                           nullptr));
+  if (!png) throw IoError("cannot write PNG: " + LastGdalMessage(), path.string());
+  CloseChecked(std::move(png), path);
+}
+
+FloatRaster ReadFloatRaster(const fs::path& path) {
+  DatasetPtr ds = OpenForReading(path);
+  FloatRaster raster;
+  raster.width = ds->GetRasterXSize();
+  raster.height = ds->GetRasterYSize();
+  for (int b = 1; b <= ds->GetRasterCount(); ++b) {
+    GDALRasterBand* band = ds->GetRasterBand(b);
+    std::vector<float> values(size_t(raster.width) * raster.height);
+    if (band->RasterIO(GF_Read, 0, 0, raster.width, raster.height, values.data(), raster.width,
+                       raster.height, GDT_Float32, 0, 0, nullptr) != CE_None) {
+      throw InputError("cannot read raster band: " + LastGdalMessage(), path.string());
+    }
+    raster.bands.push_back(std::move(values));
+    raster.band_names.emplace_back(band->GetDescription());
+  }
+  if (char** items = ds->GetMetadata()) {
+    for (char** item = items; *item != nullptr; ++item) {
+      char* key = nullptr;
+      const char* value = CPLParseNameValue(*item, &key);
+      if (key != nullptr && value != nullptr) raster.metadata[key] = value;
+      CPLFree(key);
+    }
+  }
+  return raster;
+}
+
+std::vector<uint8_t> ReadByteRaster(const fs::path& path, int* width, int* height) {
+  DatasetPtr ds = OpenForReading(path);
+  *width = ds->GetRasterXSize();
+  *height = ds->GetRasterYSize();
+  std::vector<uint8_t> values(size_t(*width) * *height);
+  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, *width, *height, values.data(), *width,
+                                     *height, GDT_Byte, 0, 0, nullptr) != CE_None) {
+    throw InputError("cannot read raster: " + LastGdalMessage(), path.string());
+  }
+  return values;
+}
+
+}  // namespace gissar::geo

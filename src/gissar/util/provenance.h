@@ -1,0 +1,30 @@
+// Provenance records for output sidecars: every output carries a JSON file
+// with the options, the input files (path, size, SHA-256) and the version.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace gissar {
+
+// "gissar <semver> (<git describe>)".
+std::string VersionString();
+
+// SHA-256 of a file's bytes as lowercase hex. Throws IoError when the file
+// cannot be read.
+std::string Sha256OfFile(const std::filesystem::path& path);
+
+// {"path": absolute path, "bytes": size, "sha256": hex}. Throws IoError when
+// the file cannot be read.
+nlohmann::json InputFileRecord(const std::filesystem::path& path);
+
+// Writes `value` pretty-printed to `path` (a plain write: callers route it
+// through AtomicOutputs). Throws IoError on failure.
+void WriteJsonFile(const nlohmann::json& value, const std::filesystem::path& path);
+
+// Current UTC time as ISO 8601 ("2026-11-23T10:00:00Z").
+std::string UtcTimestamp();
+
+}  // namespace gissar
