@@ -1,0 +1,93 @@
+#include "gissar/scene/triangle_mesh.h"
+
+#include "gissar/util/check.h"
+
+namespace gissar::scene {
+
+Eigen::Vector3f TriangleMesh::Normal(size_t t) const {
+  const Eigen::Vector3i& tri = triangles[t];
+  const Eigen::Vector3f n =
+      (vertices[tri[1]] - vertices[tri[0]]).cross(vertices[tri[2]] - vertices[tri[0]]);
+  const float norm = n.norm();
+  return norm > 0.0f ? Eigen::Vector3f(n / norm) : Eigen::Vector3f::Zero();
+}
+
+Eigen::AlignedBox3d TriangleMesh::Bounds() const {
+  Eigen::AlignedBox3d box;
+  for (const Eigen::Vector3f& v : vertices) box.extend(v.cast<double>());
+  return box;
+}
+
+void TriangleMesh::Append(const TriangleMesh& other) {
+  const int offset = static_cast<int>(vertices.size());
+  vertices.insert(vertices.end(), other.vertices.begin(), other.vertices.end());
+  for (const Eigen::Vector3i& t : other.triangles) {
+    triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+  }
+  classes.insert(classes.end(), other.classes.begin(), other.classes.end());
+}
+
+void TriangleMesh::AddTriangle(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                               const Eigen::Vector3f& c, ClassId cls) {
+  const int i = static_cast<int>(vertices.size());
+  vertices.insert(vertices.end(), {a, b, c});
+  triangles.emplace_back(i, i + 1, i + 2);
+  classes.push_back(cls);
+}
+
+void TriangleMesh::AddQuad(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                           const Eigen::Vector3f& c, const Eigen::Vector3f& d, ClassId cls) {
+  const int i = static_cast<int>(vertices.size());
+  vertices.insert(vertices.end(), {a, b, c, d});
+  triangles.emplace_back(i, i + 1, i + 2);
+  triangles.emplace_back(i, i + 2, i + 3);
+  classes.push_back(cls);
+  classes.push_back(cls);
+}
+
+size_t TriangleMesh::MemoryBytes() const {
+  return vertices.capacity() * sizeof(Eigen::Vector3f) +
+         triangles.capacity() * sizeof(Eigen::Vector3i) + classes.capacity() * sizeof(ClassId);
+}
+
+TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height) {
+  GISSAR_CHECK(width >= 2 && height >= 2);
+  GISSAR_CHECK(posts.size() == size_t(width) * height);
+  TriangleMesh mesh;
+  mesh.vertices = posts;
+  mesh.triangles.reserve(size_t(width - 1) * (height - 1) * 2);
+  // Orientation of the grid: does (next column) x (next row) point up?
+  const Eigen::Vector3f du = posts[1] - posts[0];
+  const Eigen::Vector3f dv = posts[width] - posts[0];
+  const bool column_cross_row_up = du.cross(dv).z() > 0.0f;
+  for (int r = 0; r + 1 < height; ++r) {
+    for (int c = 0; c + 1 < width; ++c) {
+      const int a = r * width + c, b = a + 1, d = a + width, e = d + 1;
+      if (column_cross_row_up) {
+        mesh.triangles.emplace_back(a, b, d);
+        mesh.triangles.emplace_back(b, e, d);
+      } else {
+        mesh.triangles.emplace_back(a, d, b);
+        mesh.triangles.emplace_back(b, d, e);
+      }
+    }
+  }
+  mesh.classes.assign(mesh.triangles.size(), kDefaultClass);
+  return mesh;
+}
+
+TriangleMesh MeshFromHeights(const std::vector<float>& heights, int width, int height,
+                             double spacing_m, double x0, double y0) {
+  GISSAR_CHECK(heights.size() == size_t(width) * height);
+  std::vector<Eigen::Vector3f> posts(heights.size());
+  for (int r = 0; r < height; ++r) {
+    for (int c = 0; c < width; ++c) {
+      posts[size_t(r) * width + c] = Eigen::Vector3f(static_cast<float>(x0 + c * spacing_m),
+                                                     static_cast<float>(y0 + r * spacing_m),
+                                                     heights[size_t(r) * width + c]);
+    }
+  }
+  return MeshFromGrid(posts, width, height);
+}
+
+}  // namespace gissar::scene

@@ -1,0 +1,58 @@
+// The scene geometry every renderer consumes: a triangle mesh in the scene's
+// local ENU frame (metres) with a radar class per triangle.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace gissar::scene {
+
+// Radar class of a triangle; indexes the material table. 0 is "default"
+// (bare terrain).
+using ClassId = uint8_t;
+inline constexpr ClassId kDefaultClass = 0;
+
+struct TriangleMesh {
+  std::vector<Eigen::Vector3f> vertices;   // ENU metres
+  std::vector<Eigen::Vector3i> triangles;  // vertex indices, counter-clockwise seen
+                                           // from the side the normal points to
+  std::vector<ClassId> classes;            // one per triangle
+
+  size_t triangle_count() const { return triangles.size(); }
+
+  // Unit normal of triangle `t` (right-hand rule on its vertex order); zero
+  // for a degenerate triangle.
+  Eigen::Vector3f Normal(size_t t) const;
+
+  // Axis-aligned bounds of all vertices (empty box for an empty mesh).
+  Eigen::AlignedBox3d Bounds() const;
+
+  // Appends `other`, re-indexing its triangles.
+  void Append(const TriangleMesh& other);
+
+  // Adds a triangle (a, b, c) of class `cls`, the vertices appended.
+  void AddTriangle(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c,
+                   ClassId cls = kDefaultClass);
+  // Adds the quad a-b-c-d (in order around its boundary) as two triangles.
+  void AddQuad(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c,
+               const Eigen::Vector3f& d, ClassId cls = kDefaultClass);
+
+  // Bytes held by the mesh arrays.
+  size_t MemoryBytes() const;
+};
+
+// Terrain mesh of a grid of posts (row-major, `width` x `height`, e.g. the
+// DEM posts in ENU): two triangles per cell, normals pointing up (+z), class
+// kDefaultClass. CHECKs that the grid has at least 2x2 posts.
+TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height);
+
+// Terrain mesh of a regular height grid in the ENU frame: post (c, r) at
+// x = x0 + c * spacing_m, y = y0 + r * spacing_m, z = heights[r * width + c].
+// Convenience for synthetic scenes and tests.
+TriangleMesh MeshFromHeights(const std::vector<float>& heights, int width, int height,
+                             double spacing_m, double x0 = 0.0, double y0 = 0.0);
+
+}  // namespace gissar::scene

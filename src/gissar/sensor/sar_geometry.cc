@@ -1,0 +1,165 @@
+#include "gissar/sensor/sar_geometry.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <sstream>
+
+#include "gissar/util/error.h"
+
+namespace gissar::sensor {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+std::string Num(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+LookSide ParseLookSide(const std::string& text) {
+  if (text == "right") return LookSide::kRight;
+  if (text == "left") return LookSide::kLeft;
+  throw ConfigError("look side must be 'right' or 'left', got '" + text + "'", "--look");
+}
+
+ProjectionMode ParseProjectionMode(const std::string& text) {
+  if (text == "affine") return ProjectionMode::kAffine;
+  if (text == "exact") return ProjectionMode::kExact;
+  throw ConfigError("mode must be 'affine' or 'exact', got '" + text + "'", "--mode");
+}
+
+std::string ToString(LookSide side) { return side == LookSide::kRight ? "right" : "left"; }
+std::string ToString(ProjectionMode mode) {
+  return mode == ProjectionMode::kAffine ? "affine" : "exact";
+}
+
+void SarGeometryOptions::Check() const {
+  if (!std::isfinite(heading_deg)) throw ConfigError("heading must be a finite number", "--heading");
+  if (!std::isfinite(depression_deg) || depression_deg <= 0.0 || depression_deg >= 90.0) {
+    throw ConfigError("depression must be in (0, 90) degrees, got " + Num(depression_deg),
+                      "--depression");
+  }
+  if (!std::isfinite(slant_range_m) || slant_range_m <= 0.0) {
+    throw ConfigError("slant range must be positive, got " + Num(slant_range_m), "--range");
+  }
+  if (!std::isfinite(range_spacing_m) || range_spacing_m <= 0.0) {
+    throw ConfigError("range pixel spacing must be positive, got " + Num(range_spacing_m),
+                      "--range-res");
+  }
+  if (!std::isfinite(azimuth_spacing_m) || azimuth_spacing_m <= 0.0) {
+    throw ConfigError("azimuth pixel spacing must be positive, got " + Num(azimuth_spacing_m),
+                      "--azimuth-res");
+  }
+  if (width < 0 || height < 0) throw ConfigError("image size must not be negative", "--width/--height");
+}
+
+SarGeometry::SarGeometry(const SarGeometryOptions& options, const Eigen::Vector3d& scene_centre,
+                         double u0, double v0, int width, int height)
+    : options_(options), xc_(scene_centre), u0_(u0), v0_(v0), width_(width), height_(height) {
+  options_.Check();
+  if (width <= 0 || height <= 0) throw ConfigError("image size must be positive", "--width/--height");
+  const double psi = options.heading_deg * kDegToRad;
+  const double dep = options.depression_deg * kDegToRad;
+  h_ = Eigen::Vector3d(std::sin(psi), std::cos(psi), 0.0);
+  Eigen::Vector3d r_h(std::cos(psi), -std::sin(psi), 0.0);
+  if (options.look_side == LookSide::kLeft) r_h = -r_h;
+  l_ = std::cos(dep) * r_h - std::sin(dep) * Eigen::Vector3d::UnitZ();
+  n_ = l_.cross(h_);
+  options_.width = width;
+  options_.height = height;
+}
+
+SarGeometry SarGeometry::Covering(const SarGeometryOptions& options,
+                                  const Eigen::Vector3d& scene_centre,
+                                  const std::vector<Eigen::Vector3f>& points, int margin_px,
+                                  int64_t max_pixels) {
+  options.Check();
+  if (options.width > 0 && options.height > 0) {
+    return SarGeometry(options, scene_centre, (options.width - 1) / 2.0,
+                       (options.height - 1) / 2.0, options.width, options.height);
+  }
+  // Project with a provisional frame (Xc at pixel 0,0), then shift.
+  const SarGeometry probe(options, scene_centre, 0.0, 0.0, 1, 1);
+  double cmin = 0, cmax = 0, rmin = 0, rmax = 0;
+  for (const Eigen::Vector3f& p : points) {
+    const Eigen::Vector2d px = probe.Project(p.cast<double>());
+    cmin = std::min(cmin, px.x());
+    cmax = std::max(cmax, px.x());
+    rmin = std::min(rmin, px.y());
+    rmax = std::max(rmax, px.y());
+  }
+  const double u0 = std::ceil(-cmin) + margin_px;
+  const double v0 = std::ceil(-rmin) + margin_px;
+  const double width_d = std::ceil(cmax + u0) + margin_px + 1;
+  const double height_d = std::ceil(rmax + v0) + margin_px + 1;
+  int width = options.width > 0 ? options.width : 0;
+  int height = options.height > 0 ? options.height : 0;
+  if (width_d * height_d > static_cast<double>(max_pixels) || width_d > 1e9 || height_d > 1e9) {
+    throw ConfigError("image of " + Num(width_d) + " x " + Num(height_d) +
+                          " pixels is too large; use coarser pixel spacing or a smaller scene",
+                      "--range-res/--azimuth-res");
+  }
+  return SarGeometry(options, scene_centre, width > 0 ? (width - 1) / 2.0 : u0,
+                     height > 0 ? (height - 1) / 2.0 : v0,
+                     width > 0 ? width : static_cast<int>(width_d),
+                     height > 0 ? height : static_cast<int>(height_d));
+}
+
+Eigen::Vector3d SarGeometry::SensorPosition(double along_track_m) const {
+  return xc_ - options_.slant_range_m * l_ + along_track_m * h_;
+}
+
+double SarGeometry::SlantRange(const Eigen::Vector3d& p) const {
+  if (options_.mode == ProjectionMode::kAffine) {
+    return options_.slant_range_m + (p - xc_).dot(l_);
+  }
+  return (p - SensorPosition(AlongTrack(p))).norm();
+}
+
+Eigen::Vector2d SarGeometry::Project(const Eigen::Vector3d& p) const {
+  return {ColumnOfRange(SlantRange(p)), RowOfAlongTrack(AlongTrack(p))};
+}
+
+Eigen::Vector3d SarGeometry::RayDirectionTo(const Eigen::Vector3d& p) const {
+  if (options_.mode == ProjectionMode::kAffine) return l_;
+  return (p - SensorPosition(AlongTrack(p))).normalized();
+}
+
+Eigen::Vector3d SarGeometry::UpwardRangePlaneNormal(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d n = RayDirectionTo(p).cross(h_);
+  return n.z() >= 0.0 ? n : Eigen::Vector3d(-n);
+}
+
+double SarGeometry::ColumnOfRange(double slant_range_m) const {
+  return (slant_range_m - options_.slant_range_m) / options_.range_spacing_m + u0_;
+}
+
+double SarGeometry::RowOfAlongTrack(double along_track_m) const {
+  return along_track_m / options_.azimuth_spacing_m + v0_;
+}
+
+std::map<std::string, std::string> SarGeometry::ToMetadata() const {
+  const Eigen::Vector3d sensor = SensorPosition(0.0);
+  return {
+      {"GISSAR_PROJECTION_MODE", ToString(options_.mode)},
+      {"GISSAR_HEADING_DEG", Num(options_.heading_deg)},
+      {"GISSAR_DEPRESSION_DEG", Num(options_.depression_deg)},
+      {"GISSAR_LOOK_SIDE", ToString(options_.look_side)},
+      {"GISSAR_SLANT_RANGE_M", Num(options_.slant_range_m)},
+      {"GISSAR_RANGE_SPACING_M", Num(options_.range_spacing_m)},
+      {"GISSAR_AZIMUTH_SPACING_M", Num(options_.azimuth_spacing_m)},
+      {"GISSAR_U0", Num(u0_)},
+      {"GISSAR_V0", Num(v0_)},
+      {"GISSAR_SCENE_CENTRE_ENU", Num(xc_.x()) + "," + Num(xc_.y()) + "," + Num(xc_.z())},
+      {"GISSAR_SENSOR_ENU_AT_CENTRE", Num(sensor.x()) + "," + Num(sensor.y()) + "," + Num(sensor.z())},
+      {"GISSAR_PIXEL_CONVENTION",
+       "x=column=slant range away from radar, y=row=azimuth along flight, pixel centres at "
+       "integers"},
+  };
+}
+
+}  // namespace gissar::sensor

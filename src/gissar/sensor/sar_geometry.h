@@ -1,0 +1,115 @@
+// SAR acquisition geometry and the projection of scene points (ENU metres)
+// into the azimuth x slant-range image. Conventions (docs/geometry.md):
+//  - heading psi: flight direction, degrees clockwise from true north;
+//    h = [sin psi, cos psi, 0].
+//  - right-looking: horizontal look r_h = [cos psi, -sin psi, 0] (left: -r_h);
+//    line of sight to the scene centre l = cos(d) r_h - sin(d) z for the
+//    depression angle d; n = l x h.
+//  - pixel x (column) = slant range, increasing away from the radar;
+//    pixel y (row) = azimuth, increasing along the flight. Pixel centres sit
+//    at integer coordinates; the scene centre Xc projects to (u0, v0).
+//  - affine mode: parallel rays along l; slant range = R + (X - Xc).l,
+//    azimuth = (X - Xc).h. This is the camera P_SAR = C_SAR P_par G_perp.
+//  - exact mode: straight, level flight line P(a) = Xc - R l + a h; a point is
+//    imaged at its zero-Doppler position a = (X - Xc).h with its true slant
+//    range |X - P(a)|; depression varies across the swath.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace gissar::sensor {
+
+enum class LookSide { kRight, kLeft };
+enum class ProjectionMode { kAffine, kExact };
+
+// Parses "right"/"left" and "affine"/"exact"; throws ConfigError otherwise.
+LookSide ParseLookSide(const std::string& text);
+ProjectionMode ParseProjectionMode(const std::string& text);
+std::string ToString(LookSide side);
+std::string ToString(ProjectionMode mode);
+
+struct SarGeometryOptions {
+  double heading_deg = 0.0;       // flight direction, clockwise from north
+  double depression_deg = 40.0;   // at the scene centre, in (0, 90)
+  LookSide look_side = LookSide::kRight;
+  double slant_range_m = 10000.0;  // sensor to scene centre, > 0
+  double range_spacing_m = 0.0;    // pixel spacing in slant range, > 0
+  double azimuth_spacing_m = 0.0;  // pixel spacing along track, > 0
+  ProjectionMode mode = ProjectionMode::kAffine;
+  int width = 0;   // image columns (range); 0 = cover the whole scene
+  int height = 0;  // image rows (azimuth); 0 = cover the whole scene
+
+  // Throws ConfigError naming the option when a value is out of range or
+  // not finite (spacings must already be resolved to positive values).
+  void Check() const;
+};
+
+class SarGeometry {
+ public:
+  // `scene_centre`: Xc in ENU metres; (u0, v0): its pixel; image size
+  // `width` x `height`. Calls options.Check().
+  SarGeometry(const SarGeometryOptions& options, const Eigen::Vector3d& scene_centre, double u0,
+              double v0, int width, int height);
+
+  // The geometry whose image just covers every point of `points` (plus
+  // `margin_px` on each side); with options.width/height set, that size
+  // centred on Xc instead. Throws ConfigError when the image would exceed
+  // `max_pixels`.
+  static SarGeometry Covering(const SarGeometryOptions& options,
+                              const Eigen::Vector3d& scene_centre,
+                              const std::vector<Eigen::Vector3f>& points, int margin_px = 2,
+                              int64_t max_pixels = int64_t{1} << 30);
+
+  const SarGeometryOptions& options() const { return options_; }
+  ProjectionMode mode() const { return options_.mode; }
+  const Eigen::Vector3d& scene_centre() const { return xc_; }
+  double u0() const { return u0_; }
+  double v0() const { return v0_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  double range_spacing_m() const { return options_.range_spacing_m; }
+  double azimuth_spacing_m() const { return options_.azimuth_spacing_m; }
+  double slant_range_m() const { return options_.slant_range_m; }
+
+  // Unit vectors of the geometry (ENU).
+  const Eigen::Vector3d& flight_direction() const { return h_; }   // h
+  const Eigen::Vector3d& look_direction() const { return l_; }     // l
+  const Eigen::Vector3d& range_plane_normal() const { return n_; } // n = l x h
+
+  // Sensor position at along-track coordinate `along_track_m` (exact mode's
+  // flight line; in affine mode the nominal sensor position at that time).
+  Eigen::Vector3d SensorPosition(double along_track_m) const;
+
+  // Along-track (azimuth) coordinate of a point, metres from Xc.
+  double AlongTrack(const Eigen::Vector3d& p) const { return (p - xc_).dot(h_); }
+  // Slant range of a point, metres (see the modes above).
+  double SlantRange(const Eigen::Vector3d& p) const;
+  // Continuous pixel (column = range, row = azimuth) of a point.
+  Eigen::Vector2d Project(const Eigen::Vector3d& p) const;
+  // Unit direction of the radar ray that reaches `p` (sensor -> p).
+  Eigen::Vector3d RayDirectionTo(const Eigen::Vector3d& p) const;
+  // Normal of the slant-range plane through `p`, oriented so that its dot
+  // product with up (+z) is positive. A surface whose normal has a negative
+  // dot product with it is imaged flipped: the layover condition.
+  Eigen::Vector3d UpwardRangePlaneNormal(const Eigen::Vector3d& p) const;
+
+  // Column of a slant range and row of an along-track coordinate.
+  double ColumnOfRange(double slant_range_m) const;
+  double RowOfAlongTrack(double along_track_m) const;
+
+  // All parameters as "GISSAR_*" key/value strings for image metadata.
+  std::map<std::string, std::string> ToMetadata() const;
+
+ private:
+  SarGeometryOptions options_;
+  Eigen::Vector3d xc_;
+  double u0_, v0_;
+  int width_, height_;
+  Eigen::Vector3d h_, l_, n_;
+};
+
+}  // namespace gissar::sensor
