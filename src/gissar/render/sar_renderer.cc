@@ -1,0 +1,299 @@
+#include "gissar/render/sar_renderer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+
+#include "gissar/util/check.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+
+namespace gissar::render {
+namespace {
+
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+
+// Where the primary rays start and how they are spaced. Ray (i, j) lies in
+// the zero-Doppler plane of along-track coordinate a_i = a0 + i * da; j steps
+// across that plane: an offset along n (affine mode, metres) or an angle from
+// l towards n (exact mode, radians).
+struct RayGrid {
+  int n_az = 0;
+  double a0 = 0.0, da = 0.0;
+  int n_el = 0;
+  double e0 = 0.0, de = 0.0;
+  double back_off_m = 0.0;  // affine: origin plane distance behind Xc along -l
+  double ray_weight = 0.0;  // 1 / rays per cell
+};
+
+RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box,
+                    double rays_per_cell) {
+  RayGrid grid;
+  const int k_az = std::max(1, static_cast<int>(std::lround(std::sqrt(rays_per_cell))));
+  const double k_el = rays_per_cell / k_az;
+  grid.ray_weight = 1.0 / rays_per_cell;
+  grid.da = g.azimuth_spacing_m() / k_az;
+  grid.n_az = g.height() * k_az;
+  grid.a0 = (-0.5 - g.v0()) * g.azimuth_spacing_m() + 0.5 * grid.da;
+  // Across-range spacing: flat ground at depression d gets k_el rays per
+  // slant-range pixel when rays are de = dr * tan(d) / k_el apart.
+  const double dep = g.options().depression_deg * M_PI / 180.0;
+  const double de_m = g.range_spacing_m() * std::tan(dep) / k_el;
+  const Vector3d& l = g.look_direction();
+  const Vector3d& n = g.range_plane_normal();
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, back = 0.0;
+  for (int c = 0; c < 8; ++c) {
+    const Vector3d corner = box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
+    double e;
+    if (g.mode() == sensor::ProjectionMode::kAffine) {
+      e = (corner - g.scene_centre()).dot(n);
+      back = std::max(back, -(corner - g.scene_centre()).dot(l));
+    } else {
+      const Vector3d v = corner - g.SensorPosition(g.AlongTrack(corner));
+      e = std::atan2(v.dot(n), v.dot(l));
+    }
+    lo = std::min(lo, e);
+    hi = std::max(hi, e);
+  }
+  grid.de = g.mode() == sensor::ProjectionMode::kAffine ? de_m : de_m / g.slant_range_m();
+  grid.e0 = lo - grid.de;
+  grid.n_el = static_cast<int>(std::ceil((hi - lo) / grid.de)) + 3;
+  grid.back_off_m = back + 1.0;
+  return grid;
+}
+
+// Distance along the ray to the entry of `box` (0 when starting inside);
+// +inf when the ray misses it.
+double EntryDistance(const Vector3d& origin, const Vector3d& dir, const Eigen::AlignedBox3d& box) {
+  double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(dir[k]) < 1e-15) {
+      if (origin[k] < box.min()[k] || origin[k] > box.max()[k]) return t1;
+      continue;
+    }
+    double ta = (box.min()[k] - origin[k]) / dir[k];
+    double tb = (box.max()[k] - origin[k]) / dir[k];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  return t0 <= t1 ? t0 : std::numeric_limits<double>::infinity();
+}
+
+// Accumulation band of image rows [row0, row0 + rows).
+struct Band {
+  int row0 = 0;
+  int rows = 0;
+  std::vector<float> values;
+};
+
+void Splat(Band& band, int width, double col, double row, float value) {
+  const double c0f = std::floor(col), r0f = std::floor(row);
+  const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
+  const float fc = static_cast<float>(col - c0f), fr = static_cast<float>(row - r0f);
+  const float w[2][2] = {{(1 - fr) * (1 - fc), (1 - fr) * fc}, {fr * (1 - fc), fr * fc}};
+  for (int dr = 0; dr < 2; ++dr) {
+    const int r = r0 + dr - band.row0;
+    if (r < 0 || r >= band.rows) continue;
+    for (int dc = 0; dc < 2; ++dc) {
+      const int c = c0 + dc;
+      if (c < 0 || c >= width) continue;
+      band.values[size_t(r) * width + c] += value * w[dr][dc];
+    }
+  }
+}
+
+// Small offset along a ray that clears float rounding of scene coordinates.
+float RayEpsilon(const Eigen::AlignedBox3d& box) {
+  const double extent = std::max(box.max().cwiseAbs().maxCoeff(), box.min().cwiseAbs().maxCoeff());
+  return static_cast<float>(std::max(0.01, 4e-7 * extent));
+}
+
+}  // namespace
+
+void RenderOptions::Check() const {
+  if (!std::isfinite(rays_per_cell) || rays_per_cell < 1.0 || rays_per_cell > 1024.0) {
+    throw ConfigError("rays per cell must be in [1, 1024]", "--rays-per-cell");
+  }
+}
+
+std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
+                                             const scene::TriangleMesh& mesh,
+                                             const sensor::SarGeometry& geometry,
+                                             int64_t* shadow_rays) {
+  const int width = geometry.width(), height = geometry.height();
+  std::vector<std::atomic<uint8_t>> flags(size_t(width) * height);
+  for (auto& f : flags) f.store(0, std::memory_order_relaxed);
+  const Eigen::AlignedBox3d box = mesh.Bounds();
+  const float eps = RayEpsilon(box);
+  const double far_affine = geometry.slant_range_m() + box.diagonal().norm();
+  std::atomic<int64_t> rays{0};
+
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangle_count(), 4096),
+                    [&](const tbb::blocked_range<size_t>& range) {
+    int64_t local_rays = 0;
+    for (size_t t = range.begin(); t != range.end(); ++t) {
+      const Eigen::Vector3i& tri = mesh.triangles[t];
+      const Vector3d v[3] = {mesh.vertices[tri[0]].cast<double>(),
+                             mesh.vertices[tri[1]].cast<double>(),
+                             mesh.vertices[tri[2]].cast<double>()};
+      const Vector3d normal = mesh.Normal(t).cast<double>();
+      if (normal.isZero()) continue;
+      const Eigen::Vector2d p[3] = {geometry.Project(v[0]), geometry.Project(v[1]),
+                                    geometry.Project(v[2])};
+      const double area2 = (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
+      if (std::abs(area2) < 1e-12) continue;  // seen edge-on: covers no pixel centre
+      const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].x(), p[1].x(), p[2].x()}))));
+      const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max({p[0].x(), p[1].x(), p[2].x()}))));
+      const int r_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].y(), p[1].y(), p[2].y()}))));
+      const int r_hi = std::min(height - 1, static_cast<int>(std::floor(std::max({p[0].y(), p[1].y(), p[2].y()}))));
+      for (int r = r_lo; r <= r_hi; ++r) {
+        for (int c = c_lo; c <= c_hi; ++c) {
+          // Barycentric coordinates of the pixel centre in the projected triangle.
+          const Eigen::Vector2d q(c, r);
+          const double w1 = ((q - p[0]).x() * (p[2] - p[0]).y() - (q - p[0]).y() * (p[2] - p[0]).x()) / area2;
+          const double w2 = ((p[1] - p[0]).x() * (q - p[0]).y() - (p[1] - p[0]).y() * (q - p[0]).x()) / area2;
+          const double w0 = 1.0 - w1 - w2;
+          constexpr double kTol = -1e-9;
+          if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
+          const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
+          const Vector3d dir = geometry.RayDirectionTo(point);
+          uint8_t code = kMaskNone;
+          if (normal.dot(-dir) <= 1e-9) {
+            code = kMaskShadow;  // turned away from the radar
+          } else {
+            const double t_far =
+                geometry.mode() == sensor::ProjectionMode::kAffine
+                    ? far_affine
+                    : (geometry.SensorPosition(geometry.AlongTrack(point)) - point).norm();
+            ++local_rays;
+            if (embree.Occluded(point.cast<float>(), (-dir).cast<float>(), eps,
+                                static_cast<float>(t_far))) {
+              code = kMaskShadow;
+            } else if (normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0) {
+              code = kMaskLayover;
+            }
+          }
+          if (code != kMaskNone) {
+            flags[size_t(r) * width + c].fetch_or(code, std::memory_order_relaxed);
+          }
+        }
+      }
+    }
+    rays.fetch_add(local_rays, std::memory_order_relaxed);
+  });
+  if (shadow_rays != nullptr) *shadow_rays = rays.load();
+  std::vector<uint8_t> mask(flags.size());
+  for (size_t i = 0; i < flags.size(); ++i) mask[i] = flags[i].load(std::memory_order_relaxed);
+  return mask;
+}
+
+SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                   const material::MaterialTable& materials, const sensor::SarGeometry& geometry,
+                   const RenderOptions& options) {
+  options.Check();
+  GISSAR_CHECK(mesh.classes.size() == mesh.triangles.size());
+  SarImage image;
+  image.width = geometry.width();
+  image.height = geometry.height();
+  const int width = image.width;
+  const Eigen::AlignedBox3d box = mesh.Bounds();
+  const RayGrid grid = MakeRayGrid(geometry, box, options.rays_per_cell);
+  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
+  const Vector3d& l = geometry.look_direction();
+  const Vector3d& n = geometry.range_plane_normal();
+  const Vector3d& h = geometry.flight_direction();
+  const Vector3d& xc = geometry.scene_centre();
+  const double range0 = geometry.slant_range_m();
+
+  // Per-triangle unit normals and reflectivities, looked up once.
+  std::vector<Vector3f> normals(mesh.triangle_count());
+  std::vector<float> rho(mesh.triangle_count());
+  for (size_t t = 0; t < normals.size(); ++t) {
+    normals[t] = mesh.Normal(t);
+    rho[t] = static_cast<float>(materials.Get(mesh.classes[t]).diffuse);
+  }
+
+  // Blocks of azimuth ray rows, each accumulating into its own band of image
+  // rows; bands are summed in block order, so the result does not depend on
+  // the thread count or scheduling.
+  const int rows_per_block = 16 * std::max(1, static_cast<int>(std::lround(grid.n_az / std::max(1, image.height))));
+  const int n_blocks = (grid.n_az + rows_per_block - 1) / rows_per_block;
+  std::vector<Band> bands(n_blocks);
+  std::atomic<int64_t> hits{0};
+  Progress progress("simulate: tracing", n_blocks, options.show_progress);
+  Stopwatch trace_watch;
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, n_blocks, 1), [&](const tbb::blocked_range<int>& blocks) {
+    for (int b = blocks.begin(); b != blocks.end(); ++b) {
+      const int i0 = b * rows_per_block, i1 = std::min(grid.n_az, i0 + rows_per_block);
+      Band& band = bands[b];
+      band.row0 = static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + i0 * grid.da)));
+      band.rows = static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + (i1 - 1) * grid.da))) + 2 - band.row0;
+      band.values.assign(size_t(band.rows) * width, 0.0f);
+      int64_t local_hits = 0;
+      for (int i = i0; i < i1; ++i) {
+        const double a = grid.a0 + i * grid.da;
+        const double row = geometry.RowOfAlongTrack(a);
+        const Vector3d sensor = geometry.SensorPosition(a);
+        for (int j = 0; j < grid.n_el; ++j) {
+          const double e = grid.e0 + j * grid.de;
+          Vector3d origin, dir;
+          double offset;  // slant range already travelled at the origin
+          if (affine) {
+            dir = l;
+            origin = xc + a * h + e * n - grid.back_off_m * l;
+            offset = range0 - grid.back_off_m;
+          } else {
+            dir = std::cos(e) * l + std::sin(e) * n;
+            const double entry = EntryDistance(sensor, dir, box);
+            if (!std::isfinite(entry)) continue;
+            offset = std::max(0.0, entry - 1.0);
+            origin = sensor + offset * dir;
+          }
+          const Vector3f dir_f = dir.cast<float>();
+          const auto hit = embree.Intersect(origin.cast<float>(), dir_f, 0.0f,
+                                            std::numeric_limits<float>::infinity());
+          if (!hit) continue;
+          ++local_hits;
+          const float cos_inc = -normals[hit->triangle].dot(dir_f);
+          if (cos_inc <= 0.0f) continue;  // back face: blocked, returns nothing
+          const double range = offset + hit->t;
+          double weight = grid.ray_weight;
+          if (!affine) weight *= range / range0;
+          Splat(band, width, geometry.ColumnOfRange(range), row,
+                static_cast<float>(weight) * rho[hit->triangle] * cos_inc);
+        }
+      }
+      hits.fetch_add(local_hits, std::memory_order_relaxed);
+      progress.Advance(1);
+    }
+  });
+  progress.Done();
+
+  image.intensity.assign(size_t(width) * image.height, 0.0f);
+  for (const Band& band : bands) {
+    for (int r = 0; r < band.rows; ++r) {
+      const int row = band.row0 + r;
+      if (row < 0 || row >= image.height) continue;
+      float* dst = image.intensity.data() + size_t(row) * width;
+      const float* src = band.values.data() + size_t(r) * width;
+      for (int c = 0; c < width; ++c) dst[c] += src[c];
+    }
+  }
+  image.stats.rays = int64_t{grid.n_az} * grid.n_el;
+  image.stats.hits = hits.load();
+  image.stats.trace_seconds = trace_watch.ElapsedSeconds();
+
+  Stopwatch mask_watch;
+  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays);
+  image.stats.mask_seconds = mask_watch.ElapsedSeconds();
+  return image;
+}
+
+}  // namespace gissar::render

@@ -1,0 +1,255 @@
+#include "gissar/render/sar_renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "gissar/util/error.h"
+
+namespace gissar::render {
+namespace {
+
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+constexpr double kDeg = M_PI / 180.0;
+
+sensor::SarGeometryOptions Options(double heading, double depression, double spacing) {
+  sensor::SarGeometryOptions o;
+  o.heading_deg = heading;
+  o.depression_deg = depression;
+  o.range_spacing_m = spacing;
+  o.azimuth_spacing_m = spacing;
+  return o;
+}
+
+RenderOptions Quiet(double rays_per_cell = 4.0) {
+  RenderOptions r;
+  r.rays_per_cell = rays_per_cell;
+  r.show_progress = false;
+  return r;
+}
+
+// Adds the rectangle a-b-c-d, ordered so that its normal points along `facing`.
+void AddFacingQuad(scene::TriangleMesh& mesh, Vector3f a, Vector3f b, Vector3f c, Vector3f d,
+                   const Vector3f& facing) {
+  if ((b - a).cross(c - a).dot(facing) < 0) std::swap(b, d);
+  mesh.AddQuad(a, b, c, d);
+}
+
+// Flat ground z = 0 over [x0, x1] x [y0, y1].
+void AddGround(scene::TriangleMesh& mesh, float x0, float x1, float y0, float y1) {
+  AddFacingQuad(mesh, {x0, y0, 0}, {x1, y0, 0}, {x1, y1, 0}, {x0, y1, 0}, Vector3f::UnitZ());
+}
+
+SarImage Render(const scene::TriangleMesh& mesh, const sensor::SarGeometry& g,
+                double rays_per_cell = 4.0) {
+  const EmbreeScene embree(mesh);
+  return RenderSar(embree, mesh, material::MaterialTable(), g, Quiet(rays_per_cell));
+}
+
+// Flat ground reads rho * cos(incidence) = sin(depression) everywhere, with
+// no speckle-like ripple from the ray layout.
+TEST(SarRendererTest, FlatPlaneReadsTheLambertianValue) {
+  for (double depression : {25.0, 40.0, 60.0}) {
+    for (double heading : {0.0, 30.0, 200.0}) {
+      scene::TriangleMesh mesh;
+      AddGround(mesh, -300, 300, -300, 300);
+      const auto g = sensor::SarGeometry::Covering(Options(heading, depression, 2.0),
+                                                   Vector3d::Zero(), mesh.vertices);
+      const SarImage image = Render(mesh, g);
+      double sum = 0, sum2 = 0;
+      int n = 0;
+      for (int r = int(g.v0()) - 60; r <= int(g.v0()) + 60; ++r) {
+        for (int c = int(g.u0()) - 40; c <= int(g.u0()) + 40; ++c) {
+          const double v = image.intensity[size_t(r) * image.width + c];
+          sum += v;
+          sum2 += v * v;
+          ++n;
+          EXPECT_EQ(image.mask[size_t(r) * image.width + c], kMaskNone);
+        }
+      }
+      const double mean = sum / n;
+      const double cv = std::sqrt(std::max(0.0, sum2 / n - mean * mean)) / mean;
+      const double expected = std::sin(depression * kDeg);
+      EXPECT_NEAR(mean / expected, 1.0, 0.01) << "depression " << depression << " heading " << heading;
+      EXPECT_LT(cv, 0.02) << "depression " << depression << " heading " << heading;
+    }
+  }
+}
+
+TEST(SarRendererTest, ReflectivityScalesTheImage) {
+  scene::TriangleMesh mesh;
+  AddGround(mesh, -100, 100, -100, 100);
+  mesh.classes.assign(mesh.triangle_count(), 2);
+  material::MaterialTable materials;
+  materials.Set(2, material::Material{"dark", 0.25});
+  const auto g = sensor::SarGeometry::Covering(Options(0, 40, 1.0), Vector3d::Zero(), mesh.vertices);
+  const EmbreeScene embree(mesh);
+  const SarImage image = RenderSar(embree, mesh, materials, g, Quiet());
+  const size_t centre = size_t(g.v0()) * image.width + size_t(g.u0());
+  EXPECT_NEAR(image.intensity[centre], 0.25 * std::sin(40 * kDeg), 1e-4);
+}
+
+// A box of height H with vertical walls on flat ground, radar looking east
+// (heading 0, right-looking). In slant range the front wall spans H sin(d)
+// in front of its foot (layover); behind the box, the self-shadowed back wall
+// and the shadowed ground span H sin(d) + H cos^2(d) / sin(d) = H / sin(d).
+// The box edges are placed so that the layover band ends and the shadow band
+// starts on pixel boundaries; counting pixel centres then gives the closed
+// forms rounded to the nearest pixel.
+TEST(SarRendererTest, BoxLayoverAndShadowMatchClosedForms) {
+  struct Case {
+    double height, depression;
+  };
+  for (const Case& k : {Case{10, 30}, Case{10, 45}, Case{23, 40}, Case{17, 60}, Case{31, 35}}) {
+    const double d = k.depression * kDeg, H = k.height;
+    const double spacing = 1.0;
+    // Front foot and back roof edge at half-integer slant ranges (u0 is an
+    // integer: pixel boundaries are at half-integer columns).
+    const float x0 = static_cast<float>((20 + 0.5) / std::cos(d));
+    const float x1 = static_cast<float>((60 + 0.5 + H * std::sin(d)) / std::cos(d));
+    scene::TriangleMesh mesh;
+    const float X = 400, Y = 200, B = 50;  // ground half-extent, box half-width
+    AddGround(mesh, -X, X, -Y, -B);
+    AddGround(mesh, -X, X, B, Y);
+    AddGround(mesh, -X, x0, -B, B);
+    AddGround(mesh, x1, X, -B, B);
+    const float h = static_cast<float>(H);
+    AddFacingQuad(mesh, {x0, -B, 0}, {x0, B, 0}, {x0, B, h}, {x0, -B, h}, -Vector3f::UnitX());
+    AddFacingQuad(mesh, {x1, -B, 0}, {x1, B, 0}, {x1, B, h}, {x1, -B, h}, Vector3f::UnitX());
+    AddFacingQuad(mesh, {x0, -B, 0}, {x1, -B, 0}, {x1, -B, h}, {x0, -B, h}, -Vector3f::UnitY());
+    AddFacingQuad(mesh, {x0, B, 0}, {x1, B, 0}, {x1, B, h}, {x0, B, h}, Vector3f::UnitY());
+    AddFacingQuad(mesh, {x0, -B, h}, {x1, -B, h}, {x1, B, h}, {x0, B, h}, Vector3f::UnitZ());
+
+    const auto g = sensor::SarGeometry::Covering(Options(0, k.depression, spacing),
+                                                 Vector3d::Zero(), mesh.vertices);
+    ASSERT_EQ(g.u0(), std::round(g.u0()));
+    const SarImage image = Render(mesh, g);
+    const int row = static_cast<int>(g.v0());  // azimuth line through the box middle
+    int layover = 0, shadow = 0, both = 0;
+    for (int c = 0; c < image.width; ++c) {
+      const uint8_t m = image.mask[size_t(row) * image.width + c];
+      layover += m == kMaskLayover;
+      shadow += m == kMaskShadow;
+      both += m == (kMaskLayover | kMaskShadow);
+    }
+    const double layover_px = H * std::sin(d) / spacing;
+    const double shadow_px = H / std::sin(d) / spacing;
+    SCOPED_TRACE("H=" + std::to_string(H) + " depression=" + std::to_string(k.depression));
+    EXPECT_LE(std::abs(layover - layover_px), 0.5) << layover << " vs " << layover_px;
+    EXPECT_LE(std::abs(shadow - shadow_px), 0.5) << shadow << " vs " << shadow_px;
+    EXPECT_EQ(both, 0);
+    // Layover band: right in front of the wall foot. Shadow band: after the
+    // roof's back edge. Shadow pixels (away from their edges) are black,
+    // layover pixels brighter than open ground.
+    const int foot_col = static_cast<int>(std::floor(g.Project(Vector3d(x0, 0, 0)).x()));
+    EXPECT_EQ(image.mask[size_t(row) * image.width + foot_col], kMaskLayover);
+    EXPECT_EQ(image.mask[size_t(row) * image.width + foot_col + 1], kMaskNone);
+    const int roof_back_col = static_cast<int>(std::ceil(g.Project(Vector3d(x1, 0, H)).x()));
+    EXPECT_EQ(image.mask[size_t(row) * image.width + roof_back_col], kMaskShadow);
+    EXPECT_EQ(image.mask[size_t(row) * image.width + roof_back_col - 1], kMaskNone);
+    const float ground = static_cast<float>(std::sin(d));
+    EXPECT_EQ(image.intensity[size_t(row) * image.width + roof_back_col + 2], 0.0f);
+    EXPECT_GT(image.intensity[size_t(row) * image.width + foot_col - 1], 1.2f * ground);
+  }
+}
+
+// A small raised plate: the centroid of its return (image with the plate
+// minus image without) lands on the projection of its centre.
+Eigen::Vector2d TargetCentroid(const sensor::SarGeometry& g, const Vector3d& target) {
+  scene::TriangleMesh ground;
+  AddGround(ground, -150, 150, -150, 150);
+  scene::TriangleMesh with_target = ground;
+  const float s = 1.0f;  // plate half-size, metres
+  const Vector3f t = target.cast<float>();
+  AddFacingQuad(with_target, t + Vector3f(-s, -s, 0), t + Vector3f(s, -s, 0), t + Vector3f(s, s, 0),
+                t + Vector3f(-s, s, 0), Vector3f::UnitZ());
+  const SarImage a = Render(with_target, g, 16.0);
+  const SarImage b = Render(ground, g, 16.0);
+  const Eigen::Vector2d predicted = g.Project(target);
+  double w = 0, wc = 0, wr = 0;
+  for (int r = int(predicted.y()) - 6; r <= int(predicted.y()) + 6; ++r) {
+    for (int c = int(predicted.x()) - 6; c <= int(predicted.x()) + 6; ++c) {
+      const double v = a.intensity[size_t(r) * a.width + c] - b.intensity[size_t(r) * a.width + c];
+      if (v <= 0) continue;
+      w += v;
+      wc += v * c;
+      wr += v * r;
+    }
+  }
+  EXPECT_GT(w, 0.0);
+  return {wc / w, wr / w};
+}
+
+TEST(SarRendererTest, RaisedTargetLandsOnItsPredictedPixelInBothModes) {
+  const Vector3d target(37.0, -21.0, 30.0);
+  for (auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    for (double heading : {0.0, 30.0}) {
+      sensor::SarGeometryOptions o = Options(heading, 40.0, 0.5);
+      o.mode = mode;
+      o.slant_range_m = 1500.0;
+      const sensor::SarGeometry g(o, Vector3d::Zero(), 300, 300, 600, 600);
+      const Eigen::Vector2d centroid = TargetCentroid(g, target);
+      EXPECT_LT((centroid - g.Project(target)).norm(), 0.5)
+          << sensor::ToString(mode) << " heading " << heading << ": " << centroid.transpose()
+          << " vs " << g.Project(target).transpose();
+    }
+  }
+}
+
+TEST(SarRendererTest, ExactRenderingFollowsTrueRangeAtShortRange) {
+  // At 1.5 km the exact and affine positions of the target differ by
+  // several pixels; the exact-mode image follows the exact prediction.
+  const Vector3d target(120.0, 10.0, 30.0);
+  sensor::SarGeometryOptions o = Options(0.0, 40.0, 0.5);
+  o.slant_range_m = 1500.0;
+  const sensor::SarGeometry affine(o, Vector3d::Zero(), 300, 300, 600, 600);
+  o.mode = sensor::ProjectionMode::kExact;
+  const sensor::SarGeometry exact(o, Vector3d::Zero(), 300, 300, 600, 600);
+  const double shift = exact.Project(target).x() - affine.Project(target).x();
+  EXPECT_GT(std::abs(shift), 3.0);
+  const Eigen::Vector2d centroid = TargetCentroid(exact, target);
+  EXPECT_LT((centroid - exact.Project(target)).norm(), 0.5);
+}
+
+TEST(SarRendererTest, SlopeTurnedAwayIsShadowAndFacingSlopeIsBrighter) {
+  // A ridge along north-south: the west slope faces the radar (brighter, and
+  // in layover when steeper than 90 - depression); the east slope at 60 deg
+  // is steeper than the 40 deg depression: shadow.
+  std::vector<float> heights;
+  const int n = 81;
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) {
+      const double x = -80.0 + 2.0 * c;  // metres
+      heights.push_back(static_cast<float>(x < 0 ? 60.0 + 0.5 * x : 60.0 - std::tan(60 * kDeg) * x));
+    }
+  scene::TriangleMesh mesh = scene::MeshFromHeights(heights, n, n, 2.0, -80.0, -80.0);
+  for (auto& v : mesh.vertices) v.z() = std::max(v.z(), 0.0f);
+  const auto g = sensor::SarGeometry::Covering(Options(0, 40, 1.0), Vector3d::Zero(), mesh.vertices);
+  const SarImage image = Render(mesh, g);
+  const int row = static_cast<int>(g.v0());
+  // West slope (z = 60 + 0.5x): local incidence from normal (-0.5, 0, 1).
+  const Vector3d west_normal = Vector3d(-0.5, 0, 1).normalized();
+  const double cos_west = west_normal.dot(-g.look_direction());
+  const Eigen::Vector2d west_px = g.Project(Vector3d(-40, 0, 40));
+  // Rays are de apart across the beam; on a surface of local incidence t
+  // consecutive hits are de * tan(t) apart in slant range, so a pixel gets
+  // tan(t_flat) / tan(t) times flat ground's rays, each returning cos(t):
+  // I = cot(d) * cos^2(t) / sin(t) (flat ground: sin(d)).
+  const double d = 40 * kDeg;
+  const double expected = (1 / std::tan(d)) * cos_west * cos_west / std::sqrt(1 - cos_west * cos_west);
+  const double measured = image.intensity[size_t(row) * image.width + std::lround(west_px.x())];
+  EXPECT_NEAR(measured, expected, 0.02 * expected);
+  EXPECT_GT(measured, 1.3 * std::sin(d));
+  const Eigen::Vector2d east_px = g.Project(Vector3d(10, 0, 60 - std::tan(60 * kDeg) * 10));
+  EXPECT_EQ(image.mask[size_t(row) * image.width + std::lround(east_px.x())], kMaskShadow);
+}
+
+TEST(SarRendererTest, RejectsBadRaysPerCell) {
+  RenderOptions o;
+  o.rays_per_cell = 0.5;
+  EXPECT_THROW(o.Check(), ConfigError);
+}
+
+}  // namespace
+}  // namespace gissar::render
