@@ -1,0 +1,217 @@
+#include "gissar/cli/simulate.h"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "gissar/geo/dem.h"
+#include "gissar/geo/local_frame.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/image/quicklook.h"
+#include "gissar/material/material.h"
+#include "gissar/render/embree_scene.h"
+#include "gissar/scene/triangle_mesh.h"
+#include "gissar/util/atomic_output.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+#include "gissar/util/provenance.h"
+
+namespace gissar::cli {
+namespace fs = std::filesystem;
+
+Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option) {
+  std::istringstream in(text);
+  double a = 0, b = 0;
+  char comma = 0;
+  std::string rest;
+  if (!(in >> a >> comma >> b) || comma != ',' || (in >> rest) || !std::isfinite(a) ||
+      !std::isfinite(b)) {
+    throw ConfigError("expected two numbers 'A,B', got '" + text + "'", option);
+  }
+  return {a, b};
+}
+
+void SimulateOptions::Check() const {
+  if (dem.empty()) throw ConfigError("a DEM is required", "--dem");
+  if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
+  if (center_lonlat && center_map) {
+    throw ConfigError("give the scene centre once: --center or --center-map", "--center");
+  }
+  sensor::SarGeometryOptions probe = geometry;
+  if (probe.range_spacing_m == 0.0) probe.range_spacing_m = 1.0;
+  if (probe.azimuth_spacing_m == 0.0) probe.azimuth_spacing_m = 1.0;
+  probe.Check();
+  render::RenderOptions render_options;
+  render_options.rays_per_cell = rays_per_cell;
+  render_options.Check();
+  std::error_code ec;
+  for (const char* suffix : {".tif", ".png", "_mask.tif", ".json"}) {
+    const fs::path out = out_prefix + suffix;
+    if (fs::exists(dem, ec) && fs::exists(out, ec) && fs::equivalent(out, dem, ec)) {
+      throw ConfigError("output would overwrite the input DEM", out.string());
+    }
+  }
+}
+
+nlohmann::json SimulateOptions::ToJson() const {
+  nlohmann::json j;
+  j["dem"] = dem;
+  j["fill_nodata"] = fill_nodata;
+  j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
+                                     : nlohmann::json(nullptr);
+  j["center_map"] = center_map ? nlohmann::json{center_map->x(), center_map->y()}
+                               : nlohmann::json(nullptr);
+  j["heading_deg"] = geometry.heading_deg;
+  j["depression_deg"] = geometry.depression_deg;
+  j["look_side"] = sensor::ToString(geometry.look_side);
+  j["slant_range_m"] = geometry.slant_range_m;
+  j["range_spacing_m"] = geometry.range_spacing_m;
+  j["azimuth_spacing_m"] = geometry.azimuth_spacing_m;
+  j["mode"] = sensor::ToString(geometry.mode);
+  j["width"] = geometry.width;
+  j["height"] = geometry.height;
+  j["rays_per_cell"] = rays_per_cell;
+  j["out_prefix"] = out_prefix;
+  j["quiet"] = quiet;
+  return j;
+}
+
+SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line) {
+  options.Check();
+  Stopwatch total;
+  nlohmann::json timings;
+  auto say = [&](const std::string& line) {
+    if (!options.quiet) std::fprintf(stderr, "simulate: %s\n", line.c_str());
+  };
+
+  // Reserve every output first: a missing or read-only directory fails now.
+  AtomicOutputs outputs;
+  const fs::path tif = outputs.Add(options.out_prefix + ".tif");
+  const fs::path png = outputs.Add(options.out_prefix + ".png");
+  const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
+  const fs::path json = outputs.Add(options.out_prefix + ".json");
+
+  Stopwatch step;
+  geo::DemReadOptions read_options;
+  read_options.fill_nodata = options.fill_nodata;
+  const geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  if (dem.filled_nodata_cells > 0) {
+    say("filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
+  }
+  const geo::GeoPoint centre =
+      geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
+  const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
+  const Eigen::Vector3d xc = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
+  timings["read_dem"] = step.ElapsedSeconds();
+
+  step = Stopwatch();
+  const scene::TriangleMesh mesh =
+      scene::MeshFromGrid(geo::DemPostsInFrame(dem, frame), dem.width, dem.height);
+  const Eigen::Vector2d post_spacing = geo::DemPostSpacingMetres(dem, frame);
+  timings["mesh"] = step.ElapsedSeconds();
+
+  sensor::SarGeometryOptions geometry_options = options.geometry;
+  const double dem_spacing = 0.5 * (post_spacing.x() + post_spacing.y());
+  if (geometry_options.range_spacing_m == 0.0) geometry_options.range_spacing_m = dem_spacing;
+  if (geometry_options.azimuth_spacing_m == 0.0) geometry_options.azimuth_spacing_m = dem_spacing;
+  const sensor::SarGeometry geometry =
+      sensor::SarGeometry::Covering(geometry_options, xc, mesh.vertices);
+  say("image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
+      " pixels, " + std::to_string(mesh.triangle_count()) + " triangles");
+
+  step = Stopwatch();
+  const render::EmbreeScene embree(mesh);
+  timings["bvh"] = step.ElapsedSeconds();
+  render::RenderOptions render_options;
+  render_options.rays_per_cell = options.rays_per_cell;
+  render_options.show_progress = !options.quiet;
+  const render::SarImage image =
+      render::RenderSar(embree, mesh, material::MaterialTable(), geometry, render_options);
+  timings["trace"] = image.stats.trace_seconds;
+  timings["mask"] = image.stats.mask_seconds;
+
+  step = Stopwatch();
+  geo::Metadata metadata;
+  for (const auto& [k, v] : geometry.ToMetadata()) metadata[k] = v;
+  metadata["GISSAR_FRAME"] = "local ENU tangent frame on WGS84, origin lon,lat,h=" +
+                             std::to_string(frame.origin_lon_deg()) + "," +
+                             std::to_string(frame.origin_lat_deg()) + ",0";
+  metadata["GISSAR_UNITS"] = "linear intensity, flat ground = rho*sin(depression)";
+  metadata["GISSAR_DEM"] = fs::absolute(options.dem).string();
+  metadata["GISSAR_VERSION"] = VersionString();
+  geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
+  geo::WriteFloatGeoTiff(tif, raster);
+  image::DbStretch stretch;
+  geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width,
+                image.height, 1);
+  geo::Metadata mask_metadata = metadata;
+  mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
+  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata);
+  int64_t mask_counts[4] = {0, 0, 0, 0};
+  for (uint8_t m : image.mask) ++mask_counts[m & 3];
+
+  nlohmann::json provenance;
+  provenance["command"] = "simulate";
+  provenance["command_line"] = command_line;
+  provenance["version"] = VersionString();
+  provenance["created_utc"] = UtcTimestamp();
+  provenance["options"] = options.ToJson();
+  provenance["inputs"] = nlohmann::json::array({InputFileRecord(options.dem)});
+  provenance["dem"] = {{"width", dem.width},
+                       {"height", dem.height},
+                       {"filled_nodata_cells", dem.filled_nodata_cells},
+                       {"post_spacing_m", {post_spacing.x(), post_spacing.y()}},
+                       {"crs_wkt", dem.crs_wkt}};
+  provenance["frame"] = {{"type", "ENU tangent frame, WGS84; DEM heights used as ellipsoidal"},
+                         {"origin_lon_deg", frame.origin_lon_deg()},
+                         {"origin_lat_deg", frame.origin_lat_deg()},
+                         {"origin_height_m", frame.origin_height_m()}};
+  provenance["scene_centre"] = {{"lon_deg", centre.lon_deg},
+                                {"lat_deg", centre.lat_deg},
+                                {"height_m", centre.height_m},
+                                {"enu_m", {xc.x(), xc.y(), xc.z()}}};
+  const Eigen::Vector3d sensor_position = geometry.SensorPosition(0.0);
+  provenance["geometry"] = {{"width", geometry.width()},
+                            {"height", geometry.height()},
+                            {"u0", geometry.u0()},
+                            {"v0", geometry.v0()},
+                            {"range_spacing_m", geometry.range_spacing_m()},
+                            {"azimuth_spacing_m", geometry.azimuth_spacing_m()},
+                            {"sensor_enu_m_at_centre",
+                             {sensor_position.x(), sensor_position.y(), sensor_position.z()}},
+                            {"flight_direction_enu",
+                             {geometry.flight_direction().x(), geometry.flight_direction().y(),
+                              geometry.flight_direction().z()}},
+                            {"look_direction_enu",
+                             {geometry.look_direction().x(), geometry.look_direction().y(),
+                              geometry.look_direction().z()}}};
+  provenance["stats"] = {{"triangles", mesh.triangle_count()},
+                         {"rays", image.stats.rays},
+                         {"hits", image.stats.hits},
+                         {"shadow_rays", image.stats.shadow_rays},
+                         {"mask_pixels",
+                          {{"none", mask_counts[0]},
+                           {"layover", mask_counts[1]},
+                           {"shadow", mask_counts[2]},
+                           {"layover_and_shadow", mask_counts[3]}}}};
+  provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db},
+                             {"percentiles", {2, 98}}};
+  std::vector<std::string> final_names;
+  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
+  provenance["outputs"] = final_names;
+  timings["write"] = step.ElapsedSeconds();
+  timings["total"] = total.ElapsedSeconds();
+  provenance["timings_s"] = timings;
+  WriteJsonFile(provenance, json);
+  outputs.Commit();
+
+  SimulateResult result;
+  result.outputs = outputs.final_paths();
+  result.stats = image.stats;
+  result.width = image.width;
+  result.height = image.height;
+  result.total_seconds = total.ElapsedSeconds();
+  return result;
+}
+
+}  // namespace gissar::cli

@@ -1,0 +1,53 @@
+// `gissar simulate`: DEM in, SAR image out. SimulateOptions is the single
+// source of truth for the command's flags, its JSON provenance and (later)
+// config files and Python.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "gissar/render/sar_renderer.h"
+#include "gissar/sensor/sar_geometry.h"
+
+namespace gissar::cli {
+
+struct SimulateOptions {
+  std::string dem;                               // DEM raster (any GDAL format)
+  bool fill_nodata = false;                      // fill DEM voids instead of failing
+  std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
+  std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units
+  // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".
+  sensor::SarGeometryOptions geometry;
+  double rays_per_cell = 4.0;
+  std::string out_prefix;  // writes PREFIX.tif, PREFIX.png, PREFIX_mask.tif, PREFIX.json
+  bool quiet = false;      // no progress on stderr
+
+  // Throws ConfigError naming the option for every value that is out of
+  // range before any file is read (spacings may still be 0 = automatic).
+  void Check() const;
+  nlohmann::json ToJson() const;
+};
+
+struct SimulateResult {
+  std::vector<std::filesystem::path> outputs;  // committed files
+  render::RenderStats stats;
+  int width = 0;
+  int height = 0;
+  double total_seconds = 0.0;
+};
+
+// Runs the whole job. Every output is written under a temporary name and
+// renamed only when all of them succeeded. Throws the gissar::Error family
+// (InputError, ConfigError, IoError) with context on failure, leaving no
+// output behind. `command_line` is recorded in the provenance JSON.
+SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line);
+
+// Parses "A,B" into two finite numbers; throws ConfigError naming `option`.
+Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option);
+
+}  // namespace gissar::cli

@@ -1,0 +1,61 @@
+// `gissar simulate` flags, bound to SimulateOptions.
+#include <memory>
+
+#include "gissar/cli/command.h"
+#include "gissar/cli/simulate.h"
+
+namespace gissar::cli {
+
+void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
+  auto options = std::make_shared<SimulateOptions>();
+  auto center = std::make_shared<std::string>();
+  auto center_map = std::make_shared<std::string>();
+  auto mode = std::make_shared<std::string>("affine");
+  auto look = std::make_shared<std::string>("right");
+  CLI::App* cmd = root.add_subcommand(
+      "simulate", "Simulate a SAR image (azimuth x slant range) of a DEM by ray tracing.");
+  cmd->add_option("--dem", options->dem, "DEM raster, any GDAL format and CRS")->required();
+  cmd->add_flag("--fill-nodata", options->fill_nodata,
+                "Fill DEM no-data cells (GDAL FillNodata) instead of failing");
+  cmd->add_option("--heading", options->geometry.heading_deg,
+                  "Flight heading, degrees clockwise from north")
+      ->required();
+  cmd->add_option("--depression", options->geometry.depression_deg,
+                  "Depression angle at the scene centre, degrees in (0, 90)")
+      ->required();
+  cmd->add_option("--look", *look, "Look side: right or left")->capture_default_str();
+  cmd->add_option("--center", *center, "Scene centre LON,LAT in degrees (default: DEM centre)");
+  cmd->add_option("--center-map", *center_map, "Scene centre X,Y in the DEM's CRS");
+  cmd->add_option("--range", options->geometry.slant_range_m,
+                  "Slant range from the sensor to the scene centre, metres")
+      ->capture_default_str();
+  cmd->add_option("--range-res", options->geometry.range_spacing_m,
+                  "Slant-range pixel spacing, metres (default: DEM post spacing)");
+  cmd->add_option("--azimuth-res", options->geometry.azimuth_spacing_m,
+                  "Azimuth pixel spacing, metres (default: DEM post spacing)");
+  cmd->add_option("--mode", *mode, "Projection: affine (parallel rays) or exact (flight line)")
+      ->capture_default_str();
+  cmd->add_option("--width", options->geometry.width,
+                  "Image columns (range); default: cover the scene");
+  cmd->add_option("--height", options->geometry.height,
+                  "Image rows (azimuth); default: cover the scene");
+  cmd->add_option("--rays-per-cell", options->rays_per_cell,
+                  "Rays per resolution cell on flat ground")
+      ->capture_default_str();
+  cmd->add_option("--out", options->out_prefix,
+                  "Output prefix: PREFIX.tif, PREFIX.png, PREFIX_mask.tif, PREFIX.json")
+      ->required();
+  cmd->add_flag("--quiet", options->quiet, "No progress on stderr");
+
+  registry.Add(cmd, [=](const CommandContext& context) {
+    SimulateOptions resolved = *options;
+    resolved.geometry.mode = sensor::ParseProjectionMode(*mode);
+    resolved.geometry.look_side = sensor::ParseLookSide(*look);
+    if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");
+    if (!center_map->empty()) resolved.center_map = ParseNumberPair(*center_map, "--center-map");
+    const SimulateResult result = RunSimulate(resolved, context.command_line);
+    for (const auto& path : result.outputs) context.out << path.string() << "\n";
+  });
+}
+
+}  // namespace gissar::cli

@@ -1,0 +1,109 @@
+#include "gissar/cli/simulate.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "gissar/geo/raster_io.h"
+#include "gissar/util/error.h"
+#include "gissar/util/testing.h"
+
+namespace gissar::cli {
+namespace {
+namespace fs = std::filesystem;
+
+SimulateOptions AndorraOptions(const fs::path& out_dir, double heading) {
+  SimulateOptions o;
+  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_raw.tif").string();
+  o.fill_nodata = true;
+  o.geometry.heading_deg = heading;
+  o.geometry.depression_deg = 40.0;
+  o.geometry.range_spacing_m = 150.0;
+  o.geometry.azimuth_spacing_m = 150.0;
+  o.out_prefix = (out_dir / ("andorra_" + std::to_string(int(heading)))).string();
+  o.quiet = true;
+  return o;
+}
+
+TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
+  const fs::path dir = testing::MakeTempDir();
+  const SimulateOptions options = AndorraOptions(dir, 30.0);
+  const SimulateResult result = RunSimulate(options, "gissar simulate (test)");
+  ASSERT_EQ(result.outputs.size(), 4u);
+  for (const auto& p : result.outputs) EXPECT_TRUE(fs::exists(p)) << p;
+
+  const geo::FloatRaster image = geo::ReadFloatRaster(options.out_prefix + ".tif");
+  EXPECT_EQ(image.width, result.width);
+  EXPECT_EQ(image.metadata.at("GISSAR_HEADING_DEG"), "30");
+  EXPECT_EQ(image.metadata.at("GISSAR_PROJECTION_MODE"), "affine");
+  double sum = 0;
+  int positive = 0;
+  for (float v : image.bands[0]) {
+    ASSERT_TRUE(std::isfinite(v));
+    ASSERT_GE(v, 0.0f);
+    sum += v;
+    positive += v > 0;
+  }
+  EXPECT_GT(positive, image.width * image.height / 3);
+
+  int w = 0, h = 0;
+  const auto mask = geo::ReadByteRaster(options.out_prefix + "_mask.tif", &w, &h);
+  EXPECT_EQ(w, image.width);
+  int shadow = 0, layover = 0;
+  for (uint8_t m : mask) {
+    ASSERT_LE(m, 3);
+    shadow += (m & 2) != 0;
+    layover += (m & 1) != 0;
+  }
+  // Pyrenean relief at 40 deg depression: slopes turned away steeper than
+  // 40 deg cast shadows; slopes facing the radar fold over.
+  EXPECT_GT(shadow, 0);
+  EXPECT_GT(layover, 0);
+
+  nlohmann::json provenance;
+  std::ifstream(options.out_prefix + ".json") >> provenance;
+  EXPECT_EQ(provenance["options"]["heading_deg"], 30.0);
+  EXPECT_EQ(provenance["dem"]["filled_nodata_cells"], 403);
+  EXPECT_EQ(provenance["inputs"][0]["sha256"].get<std::string>().size(), 64u);
+  EXPECT_EQ(provenance["stats"]["mask_pixels"]["shadow"].get<int>() +
+                provenance["stats"]["mask_pixels"]["layover_and_shadow"].get<int>(),
+            shadow);
+  EXPECT_TRUE(provenance["timings_s"].contains("trace"));
+  EXPECT_NE(provenance["version"].get<std::string>().find("gissar"), std::string::npos);
+}
+
+TEST(SimulateTest, SameInputsGiveIdenticalImages) {
+  const fs::path a = testing::MakeTempDir(), b = testing::MakeTempDir();
+  RunSimulate(AndorraOptions(a, 0.0), "");
+  RunSimulate(AndorraOptions(b, 0.0), "");
+  const auto ia = geo::ReadFloatRaster(a / "andorra_0.tif");
+  const auto ib = geo::ReadFloatRaster(b / "andorra_0.tif");
+  EXPECT_EQ(ia.bands[0], ib.bands[0]);
+}
+
+TEST(SimulateTest, FailureLeavesNoOutput) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateOptions options = AndorraOptions(dir, 0.0);
+  options.fill_nodata = false;  // the raw DEM has voids
+  EXPECT_THROW(RunSimulate(options, ""), InputError);
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(SimulateTest, OutputMayNotOverwriteTheDem) {
+  const fs::path dir = testing::MakeTempDir();
+  fs::copy_file(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"), dir / "dem.tif");
+  SimulateOptions options = AndorraOptions(dir, 0.0);
+  options.dem = (dir / "dem.tif").string();
+  options.out_prefix = (dir / "dem").string();
+  EXPECT_THROW(options.Check(), ConfigError);
+}
+
+TEST(SimulateTest, ParsesNumberPairs) {
+  EXPECT_EQ(ParseNumberPair("1.6,42.5", "--center"), Eigen::Vector2d(1.6, 42.5));
+  EXPECT_THROW(ParseNumberPair("1.6", "--center"), ConfigError);
+  EXPECT_THROW(ParseNumberPair("1.6,42.5,3", "--center"), ConfigError);
+  EXPECT_THROW(ParseNumberPair("a,b", "--center"), ConfigError);
+}
+
+}  // namespace
+}  // namespace gissar::cli

@@ -1,0 +1,44 @@
+#include "gissar/image/quicklook.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "gissar/util/check.h"
+
+namespace gissar::image {
+namespace {
+
+double Percentile(std::vector<float>& values, double p) {
+  const size_t k = static_cast<size_t>(std::llround(p / 100.0 * double(values.size() - 1)));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[k];
+}
+
+}  // namespace
+
+std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low_percentile,
+                                 double high_percentile, DbStretch* stretch) {
+  GISSAR_CHECK(0.0 <= low_percentile && low_percentile < high_percentile && high_percentile <= 100.0);
+  std::vector<float> db;
+  db.reserve(intensity.size());
+  for (float v : intensity) {
+    if (std::isfinite(v) && v > 0.0f) db.push_back(10.0f * std::log10(v));
+  }
+  std::vector<uint8_t> grey(intensity.size(), 0);
+  DbStretch s;
+  if (!db.empty()) {
+    s.low_db = Percentile(db, low_percentile);
+    s.high_db = Percentile(db, high_percentile);
+    const double span = std::max(s.high_db - s.low_db, 1e-6);
+    for (size_t i = 0; i < intensity.size(); ++i) {
+      const float v = intensity[i];
+      if (!(std::isfinite(v) && v > 0.0f)) continue;
+      const double t = (10.0 * std::log10(v) - s.low_db) / span;
+      grey[i] = static_cast<uint8_t>(1 + std::lround(254.0 * std::clamp(t, 0.0, 1.0)));
+    }
+  }
+  if (stretch != nullptr) *stretch = s;
+  return grey;
+}
+
+}  // namespace gissar::image

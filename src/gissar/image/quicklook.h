@@ -1,0 +1,22 @@
+// Display products of radar images.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace gissar::image {
+
+struct DbStretch {
+  double low_db = 0.0;   // maps to grey 1
+  double high_db = 0.0;  // maps to grey 255
+};
+
+// Robust dB stretch of a linear intensity image: 10 log10(I) of the pixels
+// with I > 0 is mapped linearly from its `low_percentile` (grey 1) to its
+// `high_percentile` (grey 255), clipped; pixels with I <= 0 or not finite
+// (no return, shadow) are 0. Percentiles in [0, 100], low < high. When no
+// pixel is positive every grey value is 0 and the stretch is {0, 0}.
+std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low_percentile,
+                                 double high_percentile, DbStretch* stretch = nullptr);
+
+}  // namespace gissar::image

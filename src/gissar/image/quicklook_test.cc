@@ -1,0 +1,41 @@
+#include "gissar/image/quicklook.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace gissar::image {
+namespace {
+
+TEST(QuicklookTest, StretchesDecibelsBetweenPercentiles) {
+  // Intensities 10^0 .. 10^10: 0 .. 100 dB in 10 dB steps, plus a shadow pixel.
+  std::vector<float> intensity;
+  for (int i = 0; i <= 10; ++i) intensity.push_back(static_cast<float>(std::pow(10.0, i)));
+  intensity.push_back(0.0f);
+  DbStretch stretch;
+  const auto grey = DbQuicklook(intensity, 0.0, 100.0, &stretch);
+  EXPECT_NEAR(stretch.low_db, 0.0, 1e-4);
+  EXPECT_NEAR(stretch.high_db, 100.0, 1e-3);
+  EXPECT_EQ(grey[0], 1);
+  EXPECT_EQ(grey[5], 1 + 127);  // 50 dB: halfway, 254 * 0.5 = 127
+  EXPECT_EQ(grey[10], 255);
+  EXPECT_EQ(grey[11], 0);       // no return stays black
+}
+
+TEST(QuicklookTest, ClipsOutsideThePercentiles) {
+  std::vector<float> intensity(100, 1.0f);
+  intensity[0] = 1e-6f;
+  intensity[1] = 1e6f;
+  for (int i = 2; i < 100; ++i) intensity[i] = 1.0f + i * 0.01f;
+  const auto grey = DbQuicklook(intensity, 2.0, 98.0);
+  EXPECT_EQ(grey[0], 1);
+  EXPECT_EQ(grey[1], 255);
+}
+
+TEST(QuicklookTest, AllDarkImageIsBlack) {
+  const auto grey = DbQuicklook(std::vector<float>(10, 0.0f), 2.0, 98.0);
+  for (uint8_t g : grey) EXPECT_EQ(g, 0);
+}
+
+}  // namespace
+}  // namespace gissar::image
