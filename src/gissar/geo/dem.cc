@@ -2,6 +2,7 @@
 
 #include <gdal_alg.h>
 #include <gdal_priv.h>
+#include <ogr_spatialref.h>
 
 #include <cmath>
 #include <memory>
@@ -85,6 +86,20 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   dem.source = where;
   dem.width = ds->GetRasterXSize();
   dem.height = ds->GetRasterYSize();
+  int col0 = 0, row0 = 0;
+  if (options.window) {
+    const auto [c, r, w, h] = *options.window;
+    if (c < 0 || r < 0 || w < 2 || h < 2 || c + w > dem.width || r + h > dem.height) {
+      throw ConfigError("window " + std::to_string(c) + "," + std::to_string(r) + "," +
+                            std::to_string(w) + "," + std::to_string(h) + " is not inside the " +
+                            std::to_string(dem.width) + "x" + std::to_string(dem.height) + " DEM",
+                        "--window");
+    }
+    col0 = c;
+    row0 = r;
+    dem.width = w;
+    dem.height = h;
+  }
   if (dem.width < 2 || dem.height < 2) {
     throw InputError("DEM must have at least 2x2 posts, has " + std::to_string(dem.width) + "x" +
                          std::to_string(dem.height),
@@ -100,6 +115,13 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   if (ds->GetGeoTransform(dem.geotransform.data()) != CE_None) {
     throw InputError("raster has no geotransform (not georeferenced)", where);
   }
+  {
+    auto& g = dem.geotransform;
+    const double x0 = g[0] + col0 * g[1] + row0 * g[2];
+    const double y0 = g[3] + col0 * g[4] + row0 * g[5];
+    g[0] = x0;
+    g[3] = y0;
+  }
   const OGRSpatialReference* srs = ds->GetSpatialRef();
   if (srs == nullptr) throw InputError("raster has no coordinate reference system", where);
   char* wkt = nullptr;
@@ -111,8 +133,8 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   int has_nodata = 0;
   const double nodata = band->GetNoDataValue(&has_nodata);
   std::vector<double> raw(size_t(dem.width) * dem.height);
-  if (band->RasterIO(GF_Read, 0, 0, dem.width, dem.height, raw.data(), dem.width, dem.height,
-                     GDT_Float64, 0, 0, nullptr) != CE_None) {
+  if (band->RasterIO(GF_Read, col0, row0, dem.width, dem.height, raw.data(), dem.width,
+                     dem.height, GDT_Float64, 0, 0, nullptr) != CE_None) {
     throw InputError("cannot read DEM heights: " + LastGdalMessage(), where);
   }
   int64_t voids = 0;
@@ -144,6 +166,25 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     dem.filled_nodata_cells = voids;
   }
   return dem;
+}
+
+void WriteDemGeoTiff(const fs::path& path, const std::vector<float>& heights, int width,
+                     int height, const std::array<double, 6>& geotransform, const std::string& crs,
+                     double nodata) {
+  EnsureGdal();
+  OGRSpatialReference srs;
+  if (srs.SetFromUserInput(crs.c_str()) != OGRERR_NONE) throw IoError("cannot parse CRS " + crs, path.string());
+  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+  DatasetPtr ds(gtiff->Create(path.c_str(), width, height, 1, GDT_Float32, nullptr));
+  if (!ds) throw IoError("cannot create DEM: " + LastGdalMessage(), path.string());
+  ds->SetGeoTransform(const_cast<double*>(geotransform.data()));
+  ds->SetSpatialRef(&srs);
+  if (std::isfinite(nodata)) ds->GetRasterBand(1)->SetNoDataValue(nodata);
+  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
+                                     const_cast<float*>(heights.data()), width, height,
+                                     GDT_Float32, 0, 0, nullptr) != CE_None) {
+    throw IoError("cannot write DEM: " + LastGdalMessage(), path.string());
+  }
 }
 
 GeoPoint ResolveSceneCentre(const Dem& dem, const std::optional<Eigen::Vector2d>& lon_lat,

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +27,9 @@ struct DemReadOptions {
   int band = 1;
   // Refuse rasters whose heights would need more than this many bytes.
   int64_t max_bytes = int64_t{8} << 30;
+  // Optional window (first column, first row, columns, rows) in raster
+  // cells: only that part is read, so large DEMs need not be loaded whole.
+  std::optional<std::array<int, 4>> window;
 };
 
 // A DEM: heights on a grid of posts. Post (col, row) sits at the centre of
@@ -69,6 +73,14 @@ struct GeoPoint {
 // there. Throws ConfigError when the point lies outside the DEM.
 GeoPoint ResolveSceneCentre(const Dem& dem, const std::optional<Eigen::Vector2d>& lon_lat,
                             const std::optional<Eigen::Vector2d>& map_xy);
+
+// Writes `heights` (row-major, width x height) as a float32 GeoTIFF with the
+// given geotransform and CRS (any definition OGR accepts, e.g. "EPSG:32631"
+// or a PROJ string); `nodata` is set when finite. For synthetic scenes and
+// tests. Throws IoError on failure.
+void WriteDemGeoTiff(const std::filesystem::path& path, const std::vector<float>& heights,
+                     int width, int height, const std::array<double, 6>& geotransform,
+                     const std::string& crs, double nodata = std::numeric_limits<double>::quiet_NaN());
 
 // ENU positions (metres, `frame`) of every DEM post, row-major like
 // heights_m. Heights are used as ellipsoidal heights (see local_frame.h).
