@@ -211,12 +211,12 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   const Vector3d& xc = geometry.scene_centre();
   const double range0 = geometry.slant_range_m();
 
-  // Per-triangle unit normals and reflectivities, looked up once.
+  // Per-triangle unit normals and materials, looked up once.
   std::vector<Vector3f> normals(mesh.triangle_count());
-  std::vector<float> rho(mesh.triangle_count());
+  std::vector<const material::Material*> material_of(mesh.triangle_count());
   for (size_t t = 0; t < normals.size(); ++t) {
     normals[t] = mesh.Normal(t);
-    rho[t] = static_cast<float>(materials.Get(mesh.classes[t]).diffuse);
+    material_of[t] = &materials.Get(mesh.classes[t]);
   }
 
   // Blocks of azimuth ray rows, each accumulating into its own band of image
@@ -267,7 +267,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
           double weight = grid.ray_weight;
           if (!affine) weight *= range / range0;
           Splat(band, width, geometry.ColumnOfRange(range), row,
-                static_cast<float>(weight) * rho[hit->triangle] * cos_inc);
+                static_cast<float>(weight * material_of[hit->triangle]->Backscatter(cos_inc)));
         }
       }
       hits.fetch_add(local_hits, std::memory_order_relaxed);

@@ -51,8 +51,9 @@ struct SarImage {
 // `mesh` (already in `embree`) seen with `geometry`.
 //
 // Intensity: every ray carries an equal share of the power crossing the
-// beam; a hit with local incidence theta on a surface of diffuse
-// reflectivity rho returns rho * cos(theta) of it, splatted bilinearly onto
+// beam; a hit with local incidence theta returns its material's
+// Backscatter(cos theta) of it (diffuse rho * cos(theta) plus the specular
+// highlight, see material.h), splatted bilinearly onto
 // the four pixel centres around its continuous (column, row). The image is
 // normalised so that flat ground at the scene-centre depression d reads
 // rho * cos(90 deg - d) = rho * sin(d); foreshortened slopes read more,

@@ -1,0 +1,166 @@
+#include "gissar/scene/scene_io.h"
+
+#include <cstring>
+#include <fstream>
+
+#include "gissar/util/error.h"
+
+namespace gissar::scene {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr char kMagic[8] = {'G', 'I', 'S', 'S', 'A', 'R', 'S', 'C'};
+constexpr char kEndMagic[8] = {'G', 'S', 'C', 'N', 'E', 'N', 'D', '1'};
+
+template <typename T>
+void Put(std::ofstream& out, const T& value) {
+  out.write(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+class Reader {
+ public:
+  Reader(const fs::path& path) : path_(path), in_(path, std::ios::binary) {
+    if (!in_) throw InputError("scene file does not exist or cannot be read", path.string());
+    in_.seekg(0, std::ios::end);
+    size_ = static_cast<uint64_t>(in_.tellg());
+    in_.seekg(0);
+  }
+  void Bytes(void* dst, uint64_t n) {
+    if (n > size_ - static_cast<uint64_t>(in_.tellg()) || !in_.read(static_cast<char*>(dst), n)) {
+      throw InputError("scene file is truncated", path_.string());
+    }
+  }
+  template <typename T>
+  T Get() {
+    T v;
+    Bytes(&v, sizeof(T));
+    return v;
+  }
+  uint64_t remaining() { return size_ - static_cast<uint64_t>(in_.tellg()); }
+
+ private:
+  fs::path path_;
+  std::ifstream in_;
+  uint64_t size_ = 0;
+};
+
+}  // namespace
+
+void WriteScene(const fs::path& path, const SceneFile& scene) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw IoError("cannot open scene file for writing", path.string());
+  nlohmann::json header = {
+      {"origin_lon_deg", scene.origin_lon_deg},
+      {"origin_lat_deg", scene.origin_lat_deg},
+      {"centre_enu", {scene.centre_enu.x(), scene.centre_enu.y(), scene.centre_enu.z()}},
+      {"centre_lon_deg", scene.centre_lon_deg},
+      {"centre_lat_deg", scene.centre_lat_deg},
+      {"centre_height_m", scene.centre_height_m},
+      {"class_names", scene.class_names},
+      {"materials", scene.materials},
+      {"provenance", scene.provenance}};
+  const std::string text = header.dump();
+  out.write(kMagic, sizeof(kMagic));
+  Put(out, kSceneFileVersion);
+  Put(out, static_cast<uint64_t>(text.size()));
+  out.write(text.data(), static_cast<std::streamsize>(text.size()));
+  const TriangleMesh& mesh = scene.mesh;
+  Put(out, static_cast<uint64_t>(mesh.vertices.size()));
+  Put(out, static_cast<uint64_t>(mesh.triangles.size()));
+  out.write(reinterpret_cast<const char*>(mesh.vertices.data()),
+            static_cast<std::streamsize>(mesh.vertices.size() * sizeof(Eigen::Vector3f)));
+  out.write(reinterpret_cast<const char*>(mesh.triangles.data()),
+            static_cast<std::streamsize>(mesh.triangles.size() * sizeof(Eigen::Vector3i)));
+  out.write(reinterpret_cast<const char*>(mesh.classes.data()),
+            static_cast<std::streamsize>(mesh.classes.size()));
+  out.write(kEndMagic, sizeof(kEndMagic));
+  out.close();
+  if (!out) throw IoError("failed writing scene file", path.string());
+}
+
+SceneFile ReadScene(const fs::path& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw InputError("scene path is a directory", path.string());
+  Reader in(path);
+  char magic[8] = {};
+  if (in.remaining() < sizeof(magic)) throw InputError("not a gissar scene file (too short)", path.string());
+  in.Bytes(magic, sizeof(magic));
+  if (std::memcmp(magic, kMagic, sizeof(kMagic)) != 0) {
+    throw InputError("not a gissar scene file", path.string());
+  }
+  const uint32_t version = in.Get<uint32_t>();
+  if (version != kSceneFileVersion) {
+    throw InputError("scene file version " + std::to_string(version) + " is not supported (this gissar reads " +
+                         std::to_string(kSceneFileVersion) + "); rebuild the scene",
+                     path.string());
+  }
+  const uint64_t json_bytes = in.Get<uint64_t>();
+  if (json_bytes > in.remaining()) throw InputError("scene file is truncated", path.string());
+  std::string text(json_bytes, '\0');
+  in.Bytes(text.data(), json_bytes);
+  SceneFile scene;
+  try {
+    const nlohmann::json header = nlohmann::json::parse(text);
+    scene.origin_lon_deg = header.at("origin_lon_deg");
+    scene.origin_lat_deg = header.at("origin_lat_deg");
+    const auto& c = header.at("centre_enu");
+    scene.centre_enu = Eigen::Vector3d(c.at(0), c.at(1), c.at(2));
+    scene.centre_lon_deg = header.at("centre_lon_deg");
+    scene.centre_lat_deg = header.at("centre_lat_deg");
+    scene.centre_height_m = header.at("centre_height_m");
+    scene.class_names = header.at("class_names").get<std::vector<std::string>>();
+    scene.materials = header.at("materials");
+    scene.provenance = header.at("provenance");
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(std::string("scene header is corrupt: ") + e.what(), path.string());
+  }
+  const uint64_t n = in.Get<uint64_t>(), m = in.Get<uint64_t>();
+  const uint64_t needed = n * sizeof(Eigen::Vector3f) + m * (sizeof(Eigen::Vector3i) + 1) + sizeof(kEndMagic);
+  if (n > (uint64_t{1} << 34) || m > (uint64_t{1} << 34) || needed > in.remaining()) {
+    throw InputError("scene file is truncated", path.string());
+  }
+  scene.mesh.vertices.resize(n);
+  scene.mesh.triangles.resize(m);
+  scene.mesh.classes.resize(m);
+  in.Bytes(scene.mesh.vertices.data(), n * sizeof(Eigen::Vector3f));
+  in.Bytes(scene.mesh.triangles.data(), m * sizeof(Eigen::Vector3i));
+  in.Bytes(scene.mesh.classes.data(), m);
+  char end[8] = {};
+  in.Bytes(end, sizeof(end));
+  if (std::memcmp(end, kEndMagic, sizeof(kEndMagic)) != 0) {
+    throw InputError("scene file is corrupt (bad end marker)", path.string());
+  }
+  for (const Eigen::Vector3i& t : scene.mesh.triangles) {
+    if ((t.array() < 0).any() || (t.array() >= static_cast<int>(n)).any()) {
+      throw InputError("scene file is corrupt (vertex index out of range)", path.string());
+    }
+  }
+  for (const Eigen::Vector3f& v : scene.mesh.vertices) {
+    if (!v.allFinite()) throw InputError("scene file is corrupt (non-finite vertex)", path.string());
+  }
+  return scene;
+}
+
+void WritePly(const fs::path& path, const TriangleMesh& mesh, const std::vector<std::string>& class_names) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw IoError("cannot open PLY for writing", path.string());
+  out << "ply\nformat binary_little_endian 1.0\ncomment gissar scene, ENU metres\n";
+  for (size_t i = 0; i < class_names.size(); ++i) {
+    out << "comment class " << i << " " << class_names[i] << "\n";
+  }
+  out << "element vertex " << mesh.vertices.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "element face " << mesh.triangles.size()
+      << "\nproperty list uchar int vertex_indices\nproperty uchar class\nend_header\n";
+  out.write(reinterpret_cast<const char*>(mesh.vertices.data()),
+            static_cast<std::streamsize>(mesh.vertices.size() * sizeof(Eigen::Vector3f)));
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    Put(out, static_cast<uint8_t>(3));
+    out.write(reinterpret_cast<const char*>(mesh.triangles[t].data()), 3 * sizeof(int));
+    Put(out, mesh.classes[t]);
+  }
+  out.close();
+  if (!out) throw IoError("failed writing PLY", path.string());
+}
+
+}  // namespace gissar::scene

@@ -1,0 +1,48 @@
+// Scene files: a compact binary format that loads fast (".gscene"), and PLY
+// export with a per-face class property for MeshLab/Blender.
+//
+// .gscene layout (little-endian): magic "GISSARSC", uint32 version (1),
+// uint64 JSON byte count + JSON (frame origin, scene centre, class names,
+// materials, provenance), uint64 vertex count, uint64 triangle count,
+// float32[3 n] ENU vertices, int32[3 m] triangles, uint8[m] classes,
+// magic "GSCNEND1".
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "gissar/scene/triangle_mesh.h"
+
+namespace gissar::scene {
+
+inline constexpr uint32_t kSceneFileVersion = 1;
+
+struct SceneFile {
+  TriangleMesh mesh;              // ENU metres
+  double origin_lon_deg = 0.0;    // ENU frame origin (WGS84, height 0)
+  double origin_lat_deg = 0.0;
+  Eigen::Vector3d centre_enu = Eigen::Vector3d::Zero();  // default scene centre
+  double centre_lon_deg = 0.0, centre_lat_deg = 0.0, centre_height_m = 0.0;
+  std::vector<std::string> class_names;  // index = ClassId
+  nlohmann::json materials = nlohmann::json::object();  // overrides from the config
+  nlohmann::json provenance = nlohmann::json::object();
+};
+
+// Writes the binary scene. Throws IoError on failure.
+void WriteScene(const std::filesystem::path& path, const SceneFile& scene);
+
+// Reads a binary scene. Throws InputError naming the file when it is
+// missing, not a gissar scene, of another version, truncated, or holds
+// out-of-range indices.
+SceneFile ReadScene(const std::filesystem::path& path);
+
+// Binary little-endian PLY with vertex x,y,z (float, ENU metres) and faces
+// with vertex_indices and a uchar `class` property; class names in comments.
+void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh,
+              const std::vector<std::string>& class_names);
+
+}  // namespace gissar::scene

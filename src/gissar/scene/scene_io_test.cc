@@ -1,0 +1,85 @@
+#include "gissar/scene/scene_io.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "gissar/util/error.h"
+#include "gissar/util/testing.h"
+
+namespace gissar::scene {
+namespace {
+namespace fs = std::filesystem;
+
+SceneFile Sample() {
+  SceneFile s;
+  s.mesh = MeshFromHeights({0, 1, 2, 3, 4, 5}, 3, 2, 10.0);
+  s.mesh.classes[1] = 4;
+  s.origin_lon_deg = 1.6;
+  s.origin_lat_deg = 42.5;
+  s.centre_enu = {1, 2, 3};
+  s.class_names = {"default", "water", "forest", "urban", "road", "building"};
+  s.materials = {{"water", {{"diffuse", 0.01}}}};
+  return s;
+}
+
+TEST(SceneIoTest, RoundTrips) {
+  const fs::path path = testing::MakeTempDir() / "s.gscene";
+  WriteScene(path, Sample());
+  const SceneFile back = ReadScene(path);
+  EXPECT_EQ(back.mesh.vertices, Sample().mesh.vertices);
+  EXPECT_EQ(back.mesh.triangles, Sample().mesh.triangles);
+  EXPECT_EQ(back.mesh.classes, Sample().mesh.classes);
+  EXPECT_EQ(back.origin_lat_deg, 42.5);
+  EXPECT_EQ(back.centre_enu, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(back.class_names[4], "road");
+  EXPECT_EQ(back.materials["water"]["diffuse"], 0.01);
+}
+
+TEST(SceneIoTest, TruncatedWrongVersionAndForeignFilesAreInputErrors) {
+  const fs::path dir = testing::MakeTempDir();
+  WriteScene(dir / "s.gscene", Sample());
+  std::string bytes;
+  {
+    std::ifstream in(dir / "s.gscene", std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    bytes = ss.str();
+  }
+  auto expect = [&](const std::string& content, const std::string& needle) {
+    std::ofstream(dir / "bad.gscene", std::ios::binary) << content;
+    try {
+      ReadScene(dir / "bad.gscene");
+      FAIL() << needle;
+    } catch (const InputError& e) {
+      EXPECT_NE(e.message().find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect(bytes.substr(0, bytes.size() - 20), "truncated");
+  expect(bytes.substr(0, 30), "truncated");
+  std::string other_version = bytes;
+  other_version[8] = 7;
+  expect(other_version, "version 7 is not supported");
+  expect("solid cube\nfacet normal 0 0 1\n", "not a gissar scene");
+  expect("", "too short");
+  EXPECT_THROW(ReadScene(dir / "missing.gscene"), InputError);
+}
+
+TEST(SceneIoTest, PlyHasClassPerFace) {
+  const fs::path path = testing::MakeTempDir() / "s.ply";
+  const SceneFile s = Sample();
+  WritePly(path, s.mesh, s.class_names);
+  std::ifstream in(path, std::ios::binary);
+  std::string header, line;
+  while (std::getline(in, line) && line != "end_header") header += line + "\n";
+  EXPECT_NE(header.find("element vertex 6"), std::string::npos);
+  EXPECT_NE(header.find("element face 4"), std::string::npos);
+  EXPECT_NE(header.find("property uchar class"), std::string::npos);
+  EXPECT_NE(header.find("comment class 4 road"), std::string::npos);
+  const auto body_bytes = fs::file_size(path) - header.size() - std::string("end_header\n").size();
+  EXPECT_EQ(body_bytes, 6u * 12u + 4u * (1u + 12u + 1u));
+}
+
+}  // namespace
+}  // namespace gissar::scene
