@@ -41,6 +41,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   app.require_subcommand(1);
   CommandRegistry registry;
   AddSimulateCommand(app, registry);
+  AddSceneCommands(app, registry);
 
   try {
     app.parse(argc, argv);

@@ -43,5 +43,7 @@ class CommandRegistry {
 
 // Declares `gissar simulate`.
 void AddSimulateCommand(CLI::App& root, CommandRegistry& registry);
+// Declares `gissar scene build` and `gissar scene info`.
+void AddSceneCommands(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli

@@ -10,7 +10,9 @@
 #include "gissar/image/quicklook.h"
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
+#include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
+#include <limits>
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
@@ -32,7 +34,9 @@ Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& opti
 }
 
 void SimulateOptions::Check() const {
-  if (dem.empty()) throw ConfigError("a DEM is required", "--dem");
+  if (dem.empty() == scene.empty()) {
+    throw ConfigError("give exactly one terrain: a DEM or a scene", "--dem/--scene");
+  }
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
   if (center_lonlat && center_map) {
     throw ConfigError("give the scene centre once: --center or --center-map", "--center");
@@ -47,8 +51,11 @@ void SimulateOptions::Check() const {
   std::error_code ec;
   for (const char* suffix : {".tif", ".png", "_mask.tif", ".json"}) {
     const fs::path out = out_prefix + suffix;
-    if (fs::exists(dem, ec) && fs::exists(out, ec) && fs::equivalent(out, dem, ec)) {
-      throw ConfigError("output would overwrite the input DEM", out.string());
+    for (const std::string& input : {dem, scene}) {
+      if (!input.empty() && fs::exists(input, ec) && fs::exists(out, ec) &&
+          fs::equivalent(out, input, ec)) {
+        throw ConfigError("output would overwrite an input", out.string());
+      }
     }
   }
 }
@@ -56,6 +63,7 @@ void SimulateOptions::Check() const {
 nlohmann::json SimulateOptions::ToJson() const {
   nlohmann::json j;
   j["dem"] = dem;
+  j["scene"] = scene;
   j["fill_nodata"] = fill_nodata;
   j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
                                      : nlohmann::json(nullptr);
@@ -76,6 +84,62 @@ nlohmann::json SimulateOptions::ToJson() const {
   return j;
 }
 
+namespace {
+
+struct Terrain {
+  scene::TriangleMesh mesh;
+  geo::LocalFrame frame{0.0, 0.0};
+  geo::GeoPoint centre;
+  Eigen::Vector3d centre_enu = Eigen::Vector3d::Zero();
+  double post_spacing_m = 30.0;  // default pixel spacing
+  material::MaterialTable materials;
+  nlohmann::json description;
+};
+
+template <typename Say>
+Terrain TerrainFromDem(const SimulateOptions& options, Say say) {
+  geo::DemReadOptions read_options;
+  read_options.fill_nodata = options.fill_nodata;
+  const geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  if (dem.filled_nodata_cells > 0) {
+    say("filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
+  }
+  Terrain t;
+  t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
+  t.frame = geo::LocalFrame(t.centre.lon_deg, t.centre.lat_deg, 0.0);
+  t.centre_enu = t.frame.EnuFromGeodetic(t.centre.lon_deg, t.centre.lat_deg, t.centre.height_m);
+  t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
+  const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame);
+  t.post_spacing_m = 0.5 * (spacing.x() + spacing.y());
+  t.description = {{"type", "DEM"},
+                   {"width", dem.width},
+                   {"height", dem.height},
+                   {"filled_nodata_cells", dem.filled_nodata_cells},
+                   {"post_spacing_m", {spacing.x(), spacing.y()}},
+                   {"crs_wkt", dem.crs_wkt}};
+  return t;
+}
+
+Terrain TerrainFromScene(const SimulateOptions& options) {
+  scene::SceneFile file = scene::ReadScene(options.scene);
+  Terrain t;
+  t.frame = geo::LocalFrame(file.origin_lon_deg, file.origin_lat_deg, 0.0);
+  t.centre = {file.centre_lon_deg, file.centre_lat_deg, file.centre_height_m};
+  t.centre_enu = file.centre_enu;
+  t.materials = material::SceneMaterials(file.materials, options.scene);
+  if (file.provenance.contains("post_spacing_m")) {
+    t.post_spacing_m = file.provenance["post_spacing_m"].get<double>();
+  }
+  t.description = {{"type", "scene"},
+                   {"triangles", file.mesh.triangle_count()},
+                   {"class_names", file.class_names},
+                   {"scene_provenance", file.provenance}};
+  t.mesh = std::move(file.mesh);
+  return t;
+}
+
+}  // namespace
+
 SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line) {
   options.Check();
   Stopwatch total;
@@ -92,41 +156,45 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   const fs::path json = outputs.Add(options.out_prefix + ".json");
 
   Stopwatch step;
-  geo::DemReadOptions read_options;
-  read_options.fill_nodata = options.fill_nodata;
-  const geo::Dem dem = geo::ReadDem(options.dem, read_options);
-  if (dem.filled_nodata_cells > 0) {
-    say("filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
-  }
-  const geo::GeoPoint centre =
-      geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
-  const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
-  const Eigen::Vector3d xc = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
-  timings["read_dem"] = step.ElapsedSeconds();
-
-  step = Stopwatch();
-  const scene::TriangleMesh mesh =
-      scene::MeshFromGrid(geo::DemPostsInFrame(dem, frame), dem.width, dem.height);
-  const Eigen::Vector2d post_spacing = geo::DemPostSpacingMetres(dem, frame);
-  timings["mesh"] = step.ElapsedSeconds();
+  // The terrain: a DEM (bare terrain, unit Lambertian class 0) or a GIS
+  // scene (classes and their materials, frame and centre stored with it).
+  Terrain terrain = options.scene.empty() ? TerrainFromDem(options, say)
+                                          : TerrainFromScene(options);
+  timings["terrain"] = step.ElapsedSeconds();
+  const scene::TriangleMesh& mesh = terrain.mesh;
+  const geo::LocalFrame& frame = terrain.frame;
 
   sensor::SarGeometryOptions geometry_options = options.geometry;
-  const double dem_spacing = 0.5 * (post_spacing.x() + post_spacing.y());
-  if (geometry_options.range_spacing_m == 0.0) geometry_options.range_spacing_m = dem_spacing;
-  if (geometry_options.azimuth_spacing_m == 0.0) geometry_options.azimuth_spacing_m = dem_spacing;
+  if (geometry_options.range_spacing_m == 0.0) geometry_options.range_spacing_m = terrain.post_spacing_m;
+  if (geometry_options.azimuth_spacing_m == 0.0) geometry_options.azimuth_spacing_m = terrain.post_spacing_m;
+  step = Stopwatch();
+  const render::EmbreeScene embree(mesh);
+  timings["bvh"] = step.ElapsedSeconds();
+  if (!options.scene.empty() && (options.center_lonlat || options.center_map)) {
+    if (options.center_map) {
+      throw ConfigError("a scene's centre is given as --center LON,LAT", "--center-map");
+    }
+    const Eigen::Vector3d top = frame.EnuFromGeodetic(options.center_lonlat->x(), options.center_lonlat->y(),
+                                                      mesh.Bounds().max().z() + 100.0);
+    const auto hit = embree.Intersect(top.cast<float>(), Eigen::Vector3f(0, 0, -1), 0.0f,
+                                      std::numeric_limits<float>::infinity());
+    if (!hit) throw ConfigError("scene centre lies outside the scene", "--center");
+    terrain.centre = {options.center_lonlat->x(), options.center_lonlat->y(),
+                      frame.GeodeticFromEnu(top - Eigen::Vector3d(0, 0, hit->t)).z()};
+    terrain.centre_enu = top - Eigen::Vector3d(0, 0, hit->t);
+  }
+  const Eigen::Vector3d xc = terrain.centre_enu;
+  const geo::GeoPoint centre = terrain.centre;
   const sensor::SarGeometry geometry =
       sensor::SarGeometry::Covering(geometry_options, xc, mesh.vertices);
   say("image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
       " pixels, " + std::to_string(mesh.triangle_count()) + " triangles");
 
-  step = Stopwatch();
-  const render::EmbreeScene embree(mesh);
-  timings["bvh"] = step.ElapsedSeconds();
   render::RenderOptions render_options;
   render_options.rays_per_cell = options.rays_per_cell;
   render_options.show_progress = !options.quiet;
   const render::SarImage image =
-      render::RenderSar(embree, mesh, material::MaterialTable(), geometry, render_options);
+      render::RenderSar(embree, mesh, terrain.materials, geometry, render_options);
   timings["trace"] = image.stats.trace_seconds;
   timings["mask"] = image.stats.mask_seconds;
 
@@ -137,7 +205,7 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
                              std::to_string(frame.origin_lon_deg()) + "," +
                              std::to_string(frame.origin_lat_deg()) + ",0";
   metadata["GISSAR_UNITS"] = "linear intensity, flat ground = rho*sin(depression)";
-  metadata["GISSAR_DEM"] = fs::absolute(options.dem).string();
+  metadata["GISSAR_TERRAIN"] = fs::absolute(options.scene.empty() ? options.dem : options.scene).string();
   metadata["GISSAR_VERSION"] = VersionString();
   geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
   geo::WriteFloatGeoTiff(tif, raster);
@@ -156,12 +224,10 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   provenance["version"] = VersionString();
   provenance["created_utc"] = UtcTimestamp();
   provenance["options"] = options.ToJson();
-  provenance["inputs"] = nlohmann::json::array({InputFileRecord(options.dem)});
-  provenance["dem"] = {{"width", dem.width},
-                       {"height", dem.height},
-                       {"filled_nodata_cells", dem.filled_nodata_cells},
-                       {"post_spacing_m", {post_spacing.x(), post_spacing.y()}},
-                       {"crs_wkt", dem.crs_wkt}};
+  provenance["inputs"] = nlohmann::json::array(
+      {InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
+  provenance["terrain"] = terrain.description;
+  provenance["materials"] = terrain.materials.ToJson();
   provenance["frame"] = {{"type", "ENU tangent frame, WGS84; DEM heights used as ellipsoidal"},
                          {"origin_lon_deg", frame.origin_lon_deg()},
                          {"origin_lat_deg", frame.origin_lat_deg()},

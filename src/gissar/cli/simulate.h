@@ -18,6 +18,7 @@ namespace gissar::cli {
 
 struct SimulateOptions {
   std::string dem;                               // DEM raster (any GDAL format)
+  std::string scene;                             // or a scene built by `gissar scene build`
   bool fill_nodata = false;                      // fill DEM voids instead of failing
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units

@@ -14,7 +14,8 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   auto look = std::make_shared<std::string>("right");
   CLI::App* cmd = root.add_subcommand(
       "simulate", "Simulate a SAR image (azimuth x slant range) of a DEM by ray tracing.");
-  cmd->add_option("--dem", options->dem, "DEM raster, any GDAL format and CRS")->required();
+  cmd->add_option("--dem", options->dem, "DEM raster, any GDAL format and CRS");
+  cmd->add_option("--scene", options->scene, "Scene file from `gissar scene build` (instead of --dem)");
   cmd->add_flag("--fill-nodata", options->fill_nodata,
                 "Fill DEM no-data cells (GDAL FillNodata) instead of failing");
   cmd->add_option("--heading", options->geometry.heading_deg,

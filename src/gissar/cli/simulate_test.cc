@@ -63,7 +63,7 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   nlohmann::json provenance;
   std::ifstream(options.out_prefix + ".json") >> provenance;
   EXPECT_EQ(provenance["options"]["heading_deg"], 30.0);
-  EXPECT_EQ(provenance["dem"]["filled_nodata_cells"], 403);
+  EXPECT_EQ(provenance["terrain"]["filled_nodata_cells"], 403);
   EXPECT_EQ(provenance["inputs"][0]["sha256"].get<std::string>().size(), 64u);
   EXPECT_EQ(provenance["stats"]["mask_pixels"]["shadow"].get<int>() +
                 provenance["stats"]["mask_pixels"]["layover_and_shadow"].get<int>(),

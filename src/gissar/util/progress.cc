@@ -1,6 +1,8 @@
 #include "gissar/util/progress.h"
 
 #include <cstdio>
+#include <fstream>
+#include <string>
 
 namespace gissar {
 
@@ -28,6 +30,20 @@ void Progress::Done() {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   std::fprintf(stderr, "%s: done in %.2f s\n", label_.c_str(), seconds);
+}
+
+int64_t PeakResidentBytes() {
+  std::ifstream status("/proc/self/status");
+  std::string key;
+  while (status >> key) {
+    if (key == "VmHWM:") {
+      int64_t kib = 0;
+      status >> kib;
+      return kib * 1024;
+    }
+    std::getline(status, key);
+  }
+  return 0;
 }
 
 }  // namespace gissar

@@ -32,6 +32,10 @@ class Progress {
   std::chrono::steady_clock::time_point start_;
 };
 
+// Peak resident set size of this process so far, bytes (VmHWM); 0 when
+// the platform does not report it.
+int64_t PeakResidentBytes();
+
 // Wall-clock stopwatch in seconds.
 class Stopwatch {
  public:

@@ -1,0 +1,194 @@
+#include "gissar/cli/scene_build.h"
+
+#include <cstdio>
+#include <iomanip>
+#include <sstream>
+
+#include "gissar/geo/dem.h"
+#include "gissar/geo/local_frame.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/image/class_map.h"
+#include "gissar/material/material.h"
+#include "gissar/scene/gis_scene.h"
+#include "gissar/scene/scene_config.h"
+#include "gissar/scene/scene_io.h"
+#include "gissar/util/atomic_output.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+#include "gissar/util/provenance.h"
+
+namespace gissar::cli {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::array<int, 4> ParseWindow(const std::string& text, const std::string& option) {
+  std::array<int, 4> w{};
+  char sep[3] = {};
+  std::istringstream in(text);
+  std::string rest;
+  if (!(in >> w[0] >> sep[0] >> w[1] >> sep[1] >> w[2] >> sep[2] >> w[3]) || (in >> rest) ||
+      sep[0] != ',' || sep[1] != ',' || sep[2] != ',') {
+    throw ConfigError("expected a window 'COL,ROW,COLS,ROWS', got '" + text + "'", option);
+  }
+  return w;
+}
+
+void SceneBuildOptions::Check() const {
+  if (dem.empty()) throw ConfigError("a DEM is required", "--dem");
+  if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
+  const int sources = !config.empty() + !osm.empty() + !vectors.empty();
+  if (sources > 1) throw ConfigError("give one of --config, --osm, --vectors", "--config/--osm/--vectors");
+}
+
+json SceneBuildOptions::ToJson() const {
+  return {{"dem", dem},
+          {"fill_nodata", fill_nodata},
+          {"window", window ? json(*window) : json(nullptr)},
+          {"vectors", vectors},
+          {"osm", osm},
+          {"config", config},
+          {"center_lonlat", center_lonlat ? json{center_lonlat->x(), center_lonlat->y()} : json(nullptr)},
+          {"out_prefix", out_prefix},
+          {"quiet", quiet}};
+}
+
+SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::string& command_line) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path scene_path = outputs.Add(options.out_prefix + ".gscene");
+  const fs::path ply_path = outputs.Add(options.out_prefix + ".ply");
+  const fs::path png_path = outputs.Add(options.out_prefix + "_classes.png");
+  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+
+  // Config first: a bad config fails before any heavy work.
+  std::vector<std::string> warnings;
+  scene::SceneConfig config;
+  if (!options.config.empty()) {
+    config = scene::LoadSceneConfig(options.config);
+  } else if (!options.osm.empty()) {
+    config = scene::OsmPreset(options.osm);
+  } else if (!options.vectors.empty()) {
+    config = scene::LayerNamePreset(options.vectors, &warnings);
+  } else {
+    config.source = "no vector data";
+  }
+  const material::MaterialTable materials = material::SceneMaterials(config.materials, config.source);
+
+  geo::DemReadOptions read_options;
+  read_options.fill_nodata = options.fill_nodata;
+  read_options.window = options.window;
+  const geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, options.center_lonlat, std::nullopt);
+  const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
+  scene::GisScene built = scene::BuildGisScene(dem, frame, config, !options.quiet);
+  warnings.insert(warnings.end(), built.warnings.begin(), built.warnings.end());
+  for (const std::string& w : warnings) std::fprintf(stderr, "gissar: warning: %s\n", w.c_str());
+
+  const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, frame);
+  json stats;
+  json classes = json::object();
+  const auto& names = scene::ClassNames();
+  for (int c = 0; c < scene::kClassCount; ++c) {
+    classes[names[c]] = {{"triangles", built.stats.triangles[c]},
+                         {"mesh_area_m2", built.stats.mesh_area_m2[c]},
+                         {"region_area_m2", built.stats.region_area_m2[c]}};
+  }
+  stats = {{"classes", classes},
+           {"triangles", built.mesh.triangle_count()},
+           {"vertices", built.mesh.vertices.size()},
+           {"dem_posts", built.stats.dem_posts},
+           {"inserted_vertices", built.stats.inserted_vertices},
+           {"constraint_segments", built.stats.constraint_segments},
+           {"features_read", built.stats.features_read},
+           {"features_outside", built.stats.features_outside},
+           {"repaired_geometries", built.stats.repaired_geometries},
+           {"buildings", built.stats.buildings},
+           {"build_seconds", built.stats.seconds}};
+
+  json inputs = json::array({InputFileRecord(options.dem)});
+  std::vector<std::string> seen;
+  for (const scene::LayerSpec& l : config.layers) {
+    if (std::find(seen.begin(), seen.end(), l.source.path) != seen.end()) continue;
+    seen.push_back(l.source.path);
+    if (fs::is_regular_file(l.source.path)) inputs.push_back(InputFileRecord(l.source.path));
+  }
+  if (!options.config.empty()) inputs.push_back(InputFileRecord(options.config));
+
+  scene::SceneFile file;
+  file.mesh = std::move(built.mesh);
+  file.origin_lon_deg = frame.origin_lon_deg();
+  file.origin_lat_deg = frame.origin_lat_deg();
+  file.centre_enu = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
+  file.centre_lon_deg = centre.lon_deg;
+  file.centre_lat_deg = centre.lat_deg;
+  file.centre_height_m = centre.height_m;
+  file.class_names.assign(names.begin(), names.end());
+  file.materials = config.materials;
+  file.provenance = {{"version", VersionString()},
+                     {"dem", fs::absolute(options.dem).string()},
+                     {"post_spacing_m", 0.5 * (spacing.x() + spacing.y())},
+                     {"config", config.ToJson()}};
+  scene::WriteScene(scene_path, file);
+  scene::WritePly(ply_path, file.mesh, file.class_names);
+  const image::RgbImage class_map = image::RenderClassMap(file.mesh, file.class_names);
+  geo::WritePng(png_path, class_map.rgb, class_map.width, class_map.height, 3);
+
+  const Eigen::AlignedBox3d box = file.mesh.Bounds();
+  json summary = {{"command", "scene build"},
+                  {"command_line", command_line},
+                  {"version", VersionString()},
+                  {"created_utc", UtcTimestamp()},
+                  {"options", options.ToJson()},
+                  {"config", config.ToJson()},
+                  {"materials", materials.ToJson()},
+                  {"inputs", inputs},
+                  {"frame", {{"type", "ENU tangent frame, WGS84"},
+                             {"origin_lon_deg", file.origin_lon_deg},
+                             {"origin_lat_deg", file.origin_lat_deg}}},
+                  {"extent_enu_m", {{"min", {box.min().x(), box.min().y(), box.min().z()}},
+                                    {"max", {box.max().x(), box.max().y(), box.max().z()}}}},
+                  {"stats", stats},
+                  {"warnings", warnings},
+                  {"mesh_bytes", file.mesh.MemoryBytes()},
+                  {"peak_rss_bytes", PeakResidentBytes()},
+                  {"total_seconds", total.ElapsedSeconds()}};
+  std::vector<std::string> final_names;
+  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
+  summary["outputs"] = final_names;
+  WriteJsonFile(summary, json_path);
+  outputs.Commit();
+  return {outputs.final_paths(), summary};
+}
+
+void PrintSceneInfo(const std::string& scene_path, std::ostream& out) {
+  const scene::SceneFile file = scene::ReadScene(scene_path);
+  const scene::TriangleMesh& mesh = file.mesh;
+  std::vector<int64_t> triangles(file.class_names.size(), 0);
+  std::vector<double> area(file.class_names.size(), 0.0), plan(file.class_names.size(), 0.0);
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const size_t c = std::min<size_t>(mesh.classes[t], file.class_names.size() - 1);
+    const Eigen::Vector3f a = mesh.vertices[mesh.triangles[t][0]];
+    const Eigen::Vector3f cross =
+        (mesh.vertices[mesh.triangles[t][1]] - a).cross(mesh.vertices[mesh.triangles[t][2]] - a);
+    ++triangles[c];
+    area[c] += 0.5 * cross.norm();
+    plan[c] += 0.5 * std::abs(cross.z());
+  }
+  const Eigen::AlignedBox3d box = mesh.Bounds();
+  out << std::fixed << std::setprecision(1);
+  out << "scene      " << scene_path << "\n";
+  out << "frame      ENU, origin lon " << std::setprecision(6) << file.origin_lon_deg << " lat "
+      << file.origin_lat_deg << std::setprecision(1) << "\n";
+  out << "extent     x " << box.min().x() << " .. " << box.max().x() << " m, y " << box.min().y()
+      << " .. " << box.max().y() << " m, z " << box.min().z() << " .. " << box.max().z() << " m\n";
+  out << "triangles  " << mesh.triangle_count() << "\nvertices   " << mesh.vertices.size() << "\n";
+  out << "memory     " << std::setprecision(2) << mesh.MemoryBytes() / 1048576.0 << " MiB (mesh arrays)\n";
+  out << "class        triangles     plan km2  surface km2\n";
+  for (size_t c = 0; c < file.class_names.size(); ++c) {
+    out << std::left << std::setw(12) << file.class_names[c] << std::right << std::setw(11) << triangles[c]
+        << std::setprecision(4) << std::setw(13) << plan[c] / 1e6 << std::setw(13) << area[c] / 1e6 << "\n";
+  }
+}
+
+}  // namespace gissar::cli

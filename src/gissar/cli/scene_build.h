@@ -1,0 +1,53 @@
+// `gissar scene build` and `gissar scene info`: a GIS scene (DEM + vector
+// layers -> classified constrained triangulation) written to disk, and a
+// summary of a scene file.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+namespace gissar::cli {
+
+struct SceneBuildOptions {
+  std::string dem;                               // DEM raster
+  bool fill_nodata = false;
+  std::optional<std::array<int, 4>> window;      // col, row, cols, rows of the DEM
+  std::vector<std::string> vectors;              // files whose layer names give classes
+  std::string osm;                               // OSM file, built-in preset
+  std::string config;                            // JSON scene config
+  std::optional<Eigen::Vector2d> center_lonlat;  // scene centre (default DEM centre)
+  std::string out_prefix;  // PREFIX.gscene, PREFIX.ply, PREFIX_classes.png, PREFIX.json
+  bool quiet = false;
+
+  // Throws ConfigError naming the option: DEM and output required, at most
+  // one of --config / --osm / --vectors.
+  void Check() const;
+  nlohmann::json ToJson() const;
+};
+
+struct SceneBuildResult {
+  std::vector<std::filesystem::path> outputs;
+  nlohmann::json summary;  // stats, warnings, timings, peak memory
+};
+
+// Builds and writes the scene (all outputs or none). Warnings (repaired
+// geometries, empty layers, features outside the DEM) are printed as
+// "gissar: warning: ..." lines on stderr and recorded in the JSON. Throws the
+// gissar::Error family on failure.
+SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::string& command_line);
+
+// Prints counts per class, extent, triangle count and memory of a scene
+// file. Throws InputError for unreadable or invalid files.
+void PrintSceneInfo(const std::string& scene_path, std::ostream& out);
+
+// Parses "C,R,W,H" (integers); throws ConfigError naming `option`.
+std::array<int, 4> ParseWindow(const std::string& text, const std::string& option);
+
+}  // namespace gissar::cli

@@ -1,0 +1,198 @@
+#include "gissar/cli/scene_build.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "gissar/cli/simulate.h"
+#include "gissar/geo/dem.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/material/material.h"
+#include "gissar/scene/scene_io.h"
+#include "gissar/util/error.h"
+#include "gissar/util/testing.h"
+
+namespace gissar::cli {
+namespace {
+namespace fs = std::filesystem;
+
+// Flat ground at 100 m, 1 km x 1 km, 10 m posts, in a local transverse
+// Mercator CRS (map metres = ENU metres near the origin).
+const char* kLocalTm =
+    "+proj=tmerc +lat_0=42.5 +lon_0=1.6 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+
+std::string FlatDem(const fs::path& dir) {
+  const auto path = dir / "flat.tif";
+  geo::WriteDemGeoTiff(path, std::vector<float>(101 * 101, 100.0f), 101, 101,
+                       {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, kLocalTm);
+  return path.string();
+}
+
+// A GeoJSON file (WGS84) with one feature given in local TM metres.
+std::string GeoJson(const fs::path& path, const std::string& type, std::vector<Eigen::Vector2d> pts,
+                    const std::string& properties = "{}") {
+  const geo::CrsTransform tm(kLocalTm);
+  std::vector<double> x, y;
+  for (const auto& p : pts) {
+    x.push_back(p.x());
+    y.push_back(p.y());
+  }
+  tm.ToLonLat(x, y);
+  std::ostringstream coords;
+  coords.precision(12);
+  coords << "[";
+  for (size_t i = 0; i < x.size(); ++i) coords << (i ? "," : "") << "[" << x[i] << "," << y[i] << "]";
+  coords << "]";
+  std::ofstream(path) << R"({"type":"FeatureCollection","features":[{"type":"Feature","properties":)"
+                      << properties << R"(,"geometry":{"type":")" << type << R"(","coordinates":)"
+                      << (type == "Polygon" ? "[" + coords.str() + "]" : coords.str()) << "}}]}";
+  return path.string();
+}
+
+SceneBuildOptions BuildOptions(const std::string& dem, const std::string& config, const fs::path& out) {
+  SceneBuildOptions o;
+  o.dem = dem;
+  o.config = config;
+  o.out_prefix = (out / "scene").string();
+  o.quiet = true;
+  return o;
+}
+
+geo::FloatRaster Simulate(const std::string& scene, const fs::path& out, double spacing) {
+  SimulateOptions o;
+  o.scene = scene;
+  o.geometry.heading_deg = 0.0;
+  o.geometry.depression_deg = 40.0;
+  o.geometry.range_spacing_m = spacing;
+  o.geometry.azimuth_spacing_m = spacing;
+  o.out_prefix = (out / "sim").string();
+  o.quiet = true;
+  RunSimulate(o, "test");
+  return geo::ReadFloatRaster(out / "sim.tif");
+}
+
+// A flat scene with a water square: the water is darker than the ground by
+// exactly the ratio of the materials' backscatter at 50 deg incidence.
+TEST(SceneBuildTest, WaterIsDarkerByTheMaterialRatio) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string water = GeoJson(dir / "water.geojson", "Polygon",
+                                    {{-150, -150}, {150, -150}, {150, 150}, {-150, 150}, {-150, -150}});
+  std::ofstream(dir / "scene.json") << R"({"layers": [{"path": "water.geojson", "class": "water"}]})";
+  RunSceneBuild(BuildOptions(FlatDem(dir), (dir / "scene.json").string(), dir), "test");
+  const geo::FloatRaster image = Simulate((dir / "scene.gscene").string(), dir, 5.0);
+  const double u0 = std::stod(image.metadata.at("GISSAR_U0")), v0 = std::stod(image.metadata.at("GISSAR_V0"));
+  auto mean = [&](double x_m, double y_m) {
+    // 5 x 5 pixels around the projection of ground point (x, y) (heading 0:
+    // range along x, azimuth along y).
+    const int c = int(std::lround(u0 + x_m * std::cos(40 * M_PI / 180) / 5.0));
+    const int r = int(std::lround(v0 + y_m / 5.0));
+    double sum = 0;
+    for (int dr = -2; dr <= 2; ++dr)
+      for (int dc = -2; dc <= 2; ++dc) sum += image.bands[0][size_t(r + dr) * image.width + c + dc];
+    return sum / 25;
+  };
+  const double cos_inc = std::sin(40 * M_PI / 180);
+  const double expected_ratio = material::DefaultMaterial(scene::kClassWater).Backscatter(cos_inc) /
+                                material::DefaultMaterial(scene::kClassDefault).Backscatter(cos_inc);
+  const double ground = mean(-350, 0), water_level = mean(0, 0);
+  EXPECT_NEAR(ground, material::DefaultMaterial(scene::kClassDefault).Backscatter(cos_inc), 0.01 * ground);
+  EXPECT_NEAR(water_level / ground, expected_ratio, 0.02 * expected_ratio);
+}
+
+// A 20 m road running north (along track for heading 0) at x = 100 m
+// appears as a dark strip of 20 cos(40 deg) / 2 = 7.7 columns at the
+// predicted column.
+TEST(SceneBuildTest, RoadStripAppearsWhereItsGeometryPredicts) {
+  const fs::path dir = testing::MakeTempDir();
+  GeoJson(dir / "road.geojson", "LineString", {{100, -400}, {100, 400}}, R"({"highway": "primary"})");
+  std::ofstream(dir / "scene.json")
+      << R"({"layers": [{"path": "road.geojson", "class": "road", "geometry": "line", "width_m": 20}]})";
+  RunSceneBuild(BuildOptions(FlatDem(dir), (dir / "scene.json").string(), dir), "test");
+  const double spacing = 2.0;
+  const geo::FloatRaster image = Simulate((dir / "scene.gscene").string(), dir, spacing);
+  const double u0 = std::stod(image.metadata.at("GISSAR_U0")), v0 = std::stod(image.metadata.at("GISSAR_V0"));
+  const int row = int(v0);
+  const double cos_inc = std::sin(40 * M_PI / 180);
+  const double ground = material::DefaultMaterial(scene::kClassDefault).Backscatter(cos_inc);
+  const double road = material::DefaultMaterial(scene::kClassRoad).Backscatter(cos_inc);
+  const double threshold = 0.5 * (ground + road);
+  int dark = 0;
+  double first = -1, last = -1;
+  const double predicted_centre = u0 + 100.0 * std::cos(40 * M_PI / 180) / spacing;
+  // Search +-30 px around it (away from the scene's own edges).
+  for (int c = int(predicted_centre) - 30; c <= int(predicted_centre) + 30; ++c) {
+    const double v = image.bands[0][size_t(row) * image.width + c];
+    if (v > 0 && v < threshold) {
+      ++dark;
+      if (first < 0) first = c;
+      last = c;
+    }
+  }
+  const double width_px = 20.0 * std::cos(40 * M_PI / 180) / spacing;
+  EXPECT_NEAR(dark, width_px, 1.0);
+  EXPECT_NEAR(0.5 * (first + last), predicted_centre, 0.75);
+  EXPECT_NEAR(image.bands[0][size_t(row) * image.width + int(std::lround(predicted_centre))], road, 0.02);
+}
+
+TEST(SceneBuildTest, AndorraSceneBuildsAndSimulates) {
+  const fs::path dir = testing::MakeTempDir();
+  SceneBuildOptions o;
+  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  o.vectors = {testing::DataPath("andorra/andorra_osm.gpkg").string()};
+  o.out_prefix = (dir / "andorra").string();
+  o.quiet = true;
+  const SceneBuildResult result = RunSceneBuild(o, "test");
+  ASSERT_EQ(result.outputs.size(), 4u);
+  for (const auto& p : result.outputs) EXPECT_GT(fs::file_size(p), 100u) << p;
+  const auto& classes = result.summary["stats"]["classes"];
+  EXPECT_GT(classes["water"]["triangles"].get<int64_t>(), 100);
+  EXPECT_GT(classes["road"]["triangles"].get<int64_t>(), 1000);
+  EXPECT_GT(result.summary["peak_rss_bytes"].get<int64_t>(), 0);
+  std::ostringstream info;
+  PrintSceneInfo(o.out_prefix + ".gscene", info);
+  EXPECT_NE(info.str().find("road"), std::string::npos);
+  EXPECT_NE(info.str().find("triangles  " + std::to_string(result.summary["stats"]["triangles"].get<int64_t>())),
+            std::string::npos) << info.str();
+  const geo::FloatRaster image = Simulate(o.out_prefix + ".gscene", dir, 120.0);
+  double sum = 0;
+  for (float v : image.bands[0]) sum += v;
+  EXPECT_GT(sum, 0);
+}
+
+TEST(SceneBuildTest, BadVectorInputGivesClearErrorsOrCountedWarnings) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = FlatDem(dir);
+  const std::string gpkg = testing::DataPath("andorra/andorra_osm.gpkg").string();
+  auto config = [&](const std::string& text) {
+    std::ofstream(dir / "c.json") << text;
+    return (dir / "c.json").string();
+  };
+  // Missing layer: names file and the layers there are.
+  try {
+    RunSceneBuild(BuildOptions(dem, config(R"({"layers": [{"path": ")" + gpkg + R"(", "layer": "lakes", "class": "water"}]})"), dir), "t");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(e.message().find("no layer 'lakes'"), std::string::npos) << e.what();
+    EXPECT_EQ(e.where(), gpkg);
+  }
+  // Unknown class: names key and file.
+  try {
+    RunSceneBuild(BuildOptions(dem, config(R"({"layers": [{"path": "x.gpkg", "class": "glacier"}]})"), dir), "t");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(e.message().find("unknown class 'glacier' at 'layers[0].class'"), std::string::npos) << e.what();
+    EXPECT_EQ(e.where(), (dir / "c.json").string());
+  }
+  // Andorra polygons lie entirely outside this synthetic DEM: counted
+  // warnings, and the scene is still written.
+  const auto result = RunSceneBuild(
+      BuildOptions(dem, config(R"({"layers": [{"path": ")" + gpkg + R"(", "layer": "water", "class": "water"}]})"), dir), "t");
+  ASSERT_EQ(result.summary["warnings"].size(), 1u);
+  EXPECT_NE(result.summary["warnings"][0].get<std::string>().find("89 features outside the DEM"), std::string::npos);
+  EXPECT_TRUE(fs::exists(dir / "scene.gscene"));
+}
+
+}  // namespace
+}  // namespace gissar::cli

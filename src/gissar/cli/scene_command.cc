@@ -1,0 +1,46 @@
+// `gissar scene build` and `gissar scene info` flags, bound to SceneBuildOptions.
+#include <memory>
+
+#include "gissar/cli/command.h"
+#include "gissar/cli/scene_build.h"
+#include "gissar/cli/simulate.h"
+
+namespace gissar::cli {
+
+void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
+  CLI::App* scene = root.add_subcommand("scene", "Build GIS scenes and inspect scene files.");
+  scene->require_subcommand(1);
+
+  auto options = std::make_shared<SceneBuildOptions>();
+  auto window = std::make_shared<std::string>();
+  auto center = std::make_shared<std::string>();
+  CLI::App* build = scene->add_subcommand(
+      "build", "DEM + vector layers -> classified constrained Delaunay mesh (.gscene, .ply, class map).");
+  build->add_option("--dem", options->dem, "DEM raster, any GDAL format and CRS")->required();
+  build->add_flag("--fill-nodata", options->fill_nodata, "Fill DEM no-data cells instead of failing");
+  build->add_option("--window", *window, "DEM window COL,ROW,COLS,ROWS in cells (default: whole DEM)");
+  build->add_option("--vectors", options->vectors,
+                    "Vector files whose layer names say the class (water, forest, urban, roads, "
+                    "waterways, buildings)");
+  build->add_option("--osm", options->osm, "OpenStreetMap file (.osm.pbf, .osm, .osm.gz): built-in preset");
+  build->add_option("--config", options->config, "Scene config JSON (layers, classes, widths, materials)");
+  build->add_option("--center", *center, "Scene centre LON,LAT (default: DEM centre)");
+  build->add_option("--out", options->out_prefix,
+                    "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png, PREFIX.json")
+      ->required();
+  build->add_flag("--quiet", options->quiet, "No progress on stderr");
+  registry.Add(build, [=](const CommandContext& context) {
+    SceneBuildOptions resolved = *options;
+    if (!window->empty()) resolved.window = ParseWindow(*window, "--window");
+    if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");
+    const SceneBuildResult result = RunSceneBuild(resolved, context.command_line);
+    for (const auto& path : result.outputs) context.out << path.string() << "\n";
+  });
+
+  auto info_path = std::make_shared<std::string>();
+  CLI::App* info = scene->add_subcommand("info", "Counts per class, extent, triangles and memory of a scene.");
+  info->add_option("scene", *info_path, "Scene file (.gscene)")->required();
+  registry.Add(info, [=](const CommandContext& context) { PrintSceneInfo(*info_path, context.out); });
+}
+
+}  // namespace gissar::cli
