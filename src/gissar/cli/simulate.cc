@@ -7,6 +7,7 @@
 #include "gissar/geo/dem.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
+#include "gissar/image/impulse_response.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
@@ -48,6 +49,17 @@ void SimulateOptions::Check() const {
   render::RenderOptions render_options;
   render_options.rays_per_cell = rays_per_cell;
   render_options.Check();
+  if (!(range_resolution_m >= 0.0) || !std::isfinite(range_resolution_m)) {
+    throw ConfigError("range resolution must be >= 0 metres", "--range-resolution");
+  }
+  if (!(azimuth_resolution_m >= 0.0) || !std::isfinite(azimuth_resolution_m)) {
+    throw ConfigError("azimuth resolution must be >= 0 metres", "--azimuth-resolution");
+  }
+  image::ParseSpectralWindow(psf_window, "--psf-window");
+  if (!(speckle_looks == 0.0 || (speckle_looks >= 1.0 && std::isfinite(speckle_looks)))) {
+    throw ConfigError("speckle looks must be 0 (off) or >= 1", "--speckle-looks");
+  }
+  if (std::isinf(nesz_db)) throw ConfigError("NESZ must be a finite number of dB", "--nesz");
   std::error_code ec;
   for (const char* suffix : {".tif", ".png", "_mask.tif", ".json"}) {
     const fs::path out = out_prefix + suffix;
@@ -79,6 +91,12 @@ nlohmann::json SimulateOptions::ToJson() const {
   j["width"] = geometry.width;
   j["height"] = geometry.height;
   j["rays_per_cell"] = rays_per_cell;
+  j["range_resolution_m"] = range_resolution_m;
+  j["azimuth_resolution_m"] = azimuth_resolution_m;
+  j["psf_window"] = psf_window;
+  j["speckle_looks"] = speckle_looks;
+  j["nesz_db"] = std::isnan(nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(nesz_db);
+  j["seed"] = seed;
   j["out_prefix"] = out_prefix;
   j["quiet"] = quiet;
   return j;
@@ -193,8 +211,19 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   render::RenderOptions render_options;
   render_options.rays_per_cell = options.rays_per_cell;
   render_options.show_progress = !options.quiet;
-  const render::SarImage image =
+  render::SarImage image =
       render::RenderSar(embree, mesh, terrain.materials, geometry, render_options);
+  // Sensor effects: impulse response, speckle, thermal noise (in this order).
+  step = Stopwatch();
+  image::ApplyImpulseResponse(image.intensity, image.width, image.height,
+                              options.range_resolution_m / geometry.range_spacing_m(),
+                              options.azimuth_resolution_m / geometry.azimuth_spacing_m(),
+                              image::ParseSpectralWindow(options.psf_window, "--psf-window"));
+  if (options.speckle_looks >= 1.0) {
+    image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
+  }
+  if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
+  timings["sensor_effects"] = step.ElapsedSeconds();
   timings["trace"] = image.stats.trace_seconds;
   timings["mask"] = image.stats.mask_seconds;
 

@@ -3,7 +3,9 @@
 // config files and Python.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -25,6 +27,16 @@ struct SimulateOptions {
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".
   sensor::SarGeometryOptions geometry;
   double rays_per_cell = 4.0;
+  // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
+  // spectral window ("none", "hamming", "taylor").
+  double range_resolution_m = 0.0;
+  double azimuth_resolution_m = 0.0;
+  std::string psf_window = "none";
+  // Multiplicative L-look gamma speckle (0 = off) and thermal noise floor
+  // (NESZ, dB in image units; NaN = off), both seeded.
+  double speckle_looks = 0.0;
+  double nesz_db = std::numeric_limits<double>::quiet_NaN();
+  uint64_t seed = 1;
   std::string out_prefix;  // writes PREFIX.tif, PREFIX.png, PREFIX_mask.tif, PREFIX.json
   bool quiet = false;      // no progress on stderr
 

@@ -43,6 +43,17 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--rays-per-cell", options->rays_per_cell,
                   "Rays per resolution cell on flat ground")
       ->capture_default_str();
+  cmd->add_option("--range-resolution", options->range_resolution_m,
+                  "Impulse response: 3 dB slant-range resolution, metres (0 = none)");
+  cmd->add_option("--azimuth-resolution", options->azimuth_resolution_m,
+                  "Impulse response: 3 dB azimuth resolution, metres (0 = none)");
+  cmd->add_option("--psf-window", options->psf_window, "Spectral window: none, hamming or taylor")
+      ->capture_default_str();
+  cmd->add_option("--speckle-looks", options->speckle_looks,
+                  "Multiplicative L-look gamma speckle (0 = off)")
+      ->capture_default_str();
+  cmd->add_option("--nesz", options->nesz_db, "Thermal noise floor (NESZ), dB in image units");
+  cmd->add_option("--seed", options->seed, "Seed of speckle and noise")->capture_default_str();
   cmd->add_option("--out", options->out_prefix,
                   "Output prefix: PREFIX.tif, PREFIX.png, PREFIX_mask.tif, PREFIX.json")
       ->required();
