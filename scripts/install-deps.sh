@@ -15,6 +15,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev   # tests and benchmarks
   libopencv-dev                                # image processing, features
   libfftw3-dev                                 # FFT
+  libgif-dev                                   # animated GIF (heading sequences)
   libssl-dev python3
 )
 

@@ -29,3 +29,24 @@ TEST(ClassMapTest, PaintsEachClassWithItsColour) {
 
 }  // namespace
 }  // namespace gissar::image
+
+#include "gissar/image/contact_sheet.h"
+
+namespace gissar::image {
+namespace {
+
+TEST(ContactSheetTest, TilesFramesInAGrid) {
+  std::vector<std::vector<uint8_t>> frames = {std::vector<uint8_t>(30 * 20, 10), std::vector<uint8_t>(30 * 20, 200),
+                                              std::vector<uint8_t>(30 * 20, 90)};
+  const RgbImage sheet = ContactSheet(frames, 30, 20, {"a", "b", "c"});
+  // 3 frames -> 2 columns x 2 rows of (30 + 4) x (20 + 24 + 4), plus a 4 px border.
+  EXPECT_EQ(sheet.width, 2 * 34 + 4);
+  EXPECT_EQ(sheet.height, 2 * 48 + 4);
+  auto at = [&](int x, int y) { return sheet.rgb[(size_t(y) * sheet.width + x) * 3]; };
+  EXPECT_EQ(at(4 + 15, 4 + 10), 10);
+  EXPECT_EQ(at(4 + 34 + 15, 4 + 10), 200);
+  EXPECT_EQ(at(4 + 15, 4 + 48 + 10), 90);
+}
+
+}  // namespace
+}  // namespace gissar::image

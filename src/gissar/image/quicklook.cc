@@ -24,20 +24,25 @@ std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low
   for (float v : intensity) {
     if (std::isfinite(v) && v > 0.0f) db.push_back(10.0f * std::log10(v));
   }
-  std::vector<uint8_t> grey(intensity.size(), 0);
   DbStretch s;
   if (!db.empty()) {
     s.low_db = Percentile(db, low_percentile);
     s.high_db = Percentile(db, high_percentile);
-    const double span = std::max(s.high_db - s.low_db, 1e-6);
-    for (size_t i = 0; i < intensity.size(); ++i) {
-      const float v = intensity[i];
-      if (!(std::isfinite(v) && v > 0.0f)) continue;
-      const double t = (10.0 * std::log10(v) - s.low_db) / span;
-      grey[i] = static_cast<uint8_t>(1 + std::lround(254.0 * std::clamp(t, 0.0, 1.0)));
-    }
   }
   if (stretch != nullptr) *stretch = s;
+  if (db.empty()) return std::vector<uint8_t>(intensity.size(), 0);
+  return DbQuicklookWithStretch(intensity, s);
+}
+
+std::vector<uint8_t> DbQuicklookWithStretch(const std::vector<float>& intensity, const DbStretch& s) {
+  std::vector<uint8_t> grey(intensity.size(), 0);
+  const double span = std::max(s.high_db - s.low_db, 1e-6);
+  for (size_t i = 0; i < intensity.size(); ++i) {
+    const float v = intensity[i];
+    if (!(std::isfinite(v) && v > 0.0f)) continue;
+    const double t = (10.0 * std::log10(v) - s.low_db) / span;
+    grey[i] = static_cast<uint8_t>(1 + std::lround(254.0 * std::clamp(t, 0.0, 1.0)));
+  }
   return grey;
 }
 

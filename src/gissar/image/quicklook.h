@@ -19,4 +19,8 @@ struct DbStretch {
 std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low_percentile,
                                  double high_percentile, DbStretch* stretch = nullptr);
 
+// The same mapping with a given stretch (e.g. the first frame's, so that a
+// sequence shares one grey scale).
+std::vector<uint8_t> DbQuicklookWithStretch(const std::vector<float>& intensity, const DbStretch& stretch);
+
 }  // namespace gissar::image

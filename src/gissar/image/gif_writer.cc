@@ -1,0 +1,64 @@
+#include "gissar/image/gif_writer.h"
+
+#include <gif_lib.h>
+
+#include <cstring>
+
+#include "gissar/util/check.h"
+#include "gissar/util/error.h"
+
+namespace gissar::image {
+
+void WriteAnimatedGif(const std::filesystem::path& path, const std::vector<std::vector<uint8_t>>& frames,
+                      int width, int height, int delay_cs) {
+  GISSAR_CHECK(!frames.empty());
+  int error = 0;
+  GifFileType* gif = EGifOpenFileName(path.c_str(), false, &error);
+  if (gif == nullptr) throw IoError(std::string("cannot create GIF: ") + GifErrorString(error), path.string());
+  auto fail = [&](const char* what) {
+    int close_error = 0;
+    EGifCloseFile(gif, &close_error);
+    throw IoError(std::string("failed writing GIF: ") + what, path.string());
+  };
+  GifColorType grey[256];
+  for (int i = 0; i < 256; ++i) grey[i] = {static_cast<GifByteType>(i), static_cast<GifByteType>(i), static_cast<GifByteType>(i)};
+  ColorMapObject* palette = GifMakeMapObject(256, grey);
+  EGifSetGifVersion(gif, true);
+  if (EGifPutScreenDesc(gif, width, height, 8, 0, palette) == GIF_ERROR) {
+    GifFreeMapObject(palette);
+    fail("screen descriptor");
+  }
+  GifFreeMapObject(palette);
+  // NETSCAPE2.0 application extension: loop forever.
+  const GifByteType netscape[] = {'N', 'E', 'T', 'S', 'C', 'A', 'P', 'E', '2', '.', '0'};
+  const GifByteType loop[] = {1, 0, 0};
+  if (EGifPutExtensionLeader(gif, APPLICATION_EXT_FUNC_CODE) == GIF_ERROR ||
+      EGifPutExtensionBlock(gif, sizeof(netscape), netscape) == GIF_ERROR ||
+      EGifPutExtensionBlock(gif, sizeof(loop), loop) == GIF_ERROR || EGifPutExtensionTrailer(gif) == GIF_ERROR) {
+    fail("loop extension");
+  }
+  std::vector<GifPixelType> line(width);
+  for (const auto& frame : frames) {
+    GISSAR_CHECK(frame.size() == size_t(width) * height);
+    GraphicsControlBlock gcb;
+    gcb.DisposalMode = DISPOSE_DO_NOT;
+    gcb.UserInputFlag = false;
+    gcb.DelayTime = delay_cs;
+    gcb.TransparentColor = NO_TRANSPARENT_COLOR;
+    GifByteType extension[4];
+    EGifGCBToExtension(&gcb, extension);
+    if (EGifPutExtension(gif, GRAPHICS_EXT_FUNC_CODE, 4, extension) == GIF_ERROR ||
+        EGifPutImageDesc(gif, 0, 0, width, height, false, nullptr) == GIF_ERROR) {
+      fail("frame header");
+    }
+    for (int r = 0; r < height; ++r) {
+      std::memcpy(line.data(), frame.data() + size_t(r) * width, width);
+      if (EGifPutLine(gif, line.data(), width) == GIF_ERROR) fail("frame data");
+    }
+  }
+  if (EGifCloseFile(gif, &error) == GIF_ERROR) {
+    throw IoError(std::string("failed closing GIF: ") + GifErrorString(error), path.string());
+  }
+}
+
+}  // namespace gissar::image
