@@ -42,6 +42,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   CommandRegistry registry;
   AddSimulateCommand(app, registry);
   AddSceneCommands(app, registry);
+  AddViewCommands(app, registry);
 
   try {
     app.parse(argc, argv);

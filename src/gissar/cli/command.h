@@ -45,5 +45,7 @@ class CommandRegistry {
 void AddSimulateCommand(CLI::App& root, CommandRegistry& registry);
 // Declares `gissar scene build` and `gissar scene info`.
 void AddSceneCommands(CLI::App& root, CommandRegistry& registry);
+// Declares `gissar sequence` and `gissar ortho`.
+void AddViewCommands(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli

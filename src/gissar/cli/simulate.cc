@@ -104,23 +104,12 @@ nlohmann::json SimulateOptions::ToJson() const {
 
 namespace {
 
-struct Terrain {
-  scene::TriangleMesh mesh;
-  geo::LocalFrame frame{0.0, 0.0};
-  geo::GeoPoint centre;
-  Eigen::Vector3d centre_enu = Eigen::Vector3d::Zero();
-  double post_spacing_m = 30.0;  // default pixel spacing
-  material::MaterialTable materials;
-  nlohmann::json description;
-};
-
-template <typename Say>
-Terrain TerrainFromDem(const SimulateOptions& options, Say say) {
+Terrain TerrainFromDem(const SimulateOptions& options) {
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
   const geo::Dem dem = geo::ReadDem(options.dem, read_options);
-  if (dem.filled_nodata_cells > 0) {
-    say("filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
+  if (dem.filled_nodata_cells > 0 && !options.quiet) {
+    std::fprintf(stderr, "simulate: filled %lld no-data cells\n", static_cast<long long>(dem.filled_nodata_cells));
   }
   Terrain t;
   t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
@@ -158,6 +147,42 @@ Terrain TerrainFromScene(const SimulateOptions& options) {
 
 }  // namespace
 
+Terrain LoadTerrain(const SimulateOptions& options) {
+  return options.scene.empty() ? TerrainFromDem(options) : TerrainFromScene(options);
+}
+
+void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const SimulateOptions& options) {
+  if (options.scene.empty() || !(options.center_lonlat || options.center_map)) return;
+  if (options.center_map) throw ConfigError("a scene's centre is given as --center LON,LAT", "--center-map");
+  const Eigen::Vector3d top = terrain.frame.EnuFromGeodetic(
+      options.center_lonlat->x(), options.center_lonlat->y(), terrain.mesh.Bounds().max().z() + 100.0);
+  const auto hit = embree.Intersect(top.cast<float>(), Eigen::Vector3f(0, 0, -1), 0.0f,
+                                    std::numeric_limits<float>::infinity());
+  if (!hit) throw ConfigError("scene centre lies outside the scene", "--center");
+  terrain.centre_enu = top - Eigen::Vector3d(0, 0, hit->t);
+  terrain.centre = {options.center_lonlat->x(), options.center_lonlat->y(),
+                    terrain.frame.GeodeticFromEnu(terrain.centre_enu).z()};
+}
+
+sensor::SarGeometryOptions ResolvedGeometry(const SimulateOptions& options, const Terrain& terrain) {
+  sensor::SarGeometryOptions g = options.geometry;
+  if (g.range_spacing_m == 0.0) g.range_spacing_m = terrain.post_spacing_m;
+  if (g.azimuth_spacing_m == 0.0) g.azimuth_spacing_m = terrain.post_spacing_m;
+  return g;
+}
+
+void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
+                        const sensor::SarGeometry& geometry) {
+  image::ApplyImpulseResponse(image.intensity, image.width, image.height,
+                              options.range_resolution_m / geometry.range_spacing_m(),
+                              options.azimuth_resolution_m / geometry.azimuth_spacing_m(),
+                              image::ParseSpectralWindow(options.psf_window, "--psf-window"));
+  if (options.speckle_looks >= 1.0) {
+    image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
+  }
+  if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
+}
+
 SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line) {
   options.Check();
   Stopwatch total;
@@ -176,31 +201,16 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   Stopwatch step;
   // The terrain: a DEM (bare terrain, unit Lambertian class 0) or a GIS
   // scene (classes and their materials, frame and centre stored with it).
-  Terrain terrain = options.scene.empty() ? TerrainFromDem(options, say)
-                                          : TerrainFromScene(options);
+  Terrain terrain = LoadTerrain(options);
   timings["terrain"] = step.ElapsedSeconds();
   const scene::TriangleMesh& mesh = terrain.mesh;
   const geo::LocalFrame& frame = terrain.frame;
 
-  sensor::SarGeometryOptions geometry_options = options.geometry;
-  if (geometry_options.range_spacing_m == 0.0) geometry_options.range_spacing_m = terrain.post_spacing_m;
-  if (geometry_options.azimuth_spacing_m == 0.0) geometry_options.azimuth_spacing_m = terrain.post_spacing_m;
+  const sensor::SarGeometryOptions geometry_options = ResolvedGeometry(options, terrain);
   step = Stopwatch();
   const render::EmbreeScene embree(mesh);
   timings["bvh"] = step.ElapsedSeconds();
-  if (!options.scene.empty() && (options.center_lonlat || options.center_map)) {
-    if (options.center_map) {
-      throw ConfigError("a scene's centre is given as --center LON,LAT", "--center-map");
-    }
-    const Eigen::Vector3d top = frame.EnuFromGeodetic(options.center_lonlat->x(), options.center_lonlat->y(),
-                                                      mesh.Bounds().max().z() + 100.0);
-    const auto hit = embree.Intersect(top.cast<float>(), Eigen::Vector3f(0, 0, -1), 0.0f,
-                                      std::numeric_limits<float>::infinity());
-    if (!hit) throw ConfigError("scene centre lies outside the scene", "--center");
-    terrain.centre = {options.center_lonlat->x(), options.center_lonlat->y(),
-                      frame.GeodeticFromEnu(top - Eigen::Vector3d(0, 0, hit->t)).z()};
-    terrain.centre_enu = top - Eigen::Vector3d(0, 0, hit->t);
-  }
+  PlaceSceneCentre(terrain, embree, options);
   const Eigen::Vector3d xc = terrain.centre_enu;
   const geo::GeoPoint centre = terrain.centre;
   const sensor::SarGeometry geometry =
@@ -215,14 +225,7 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
       render::RenderSar(embree, mesh, terrain.materials, geometry, render_options);
   // Sensor effects: impulse response, speckle, thermal noise (in this order).
   step = Stopwatch();
-  image::ApplyImpulseResponse(image.intensity, image.width, image.height,
-                              options.range_resolution_m / geometry.range_spacing_m(),
-                              options.azimuth_resolution_m / geometry.azimuth_spacing_m(),
-                              image::ParseSpectralWindow(options.psf_window, "--psf-window"));
-  if (options.speckle_looks >= 1.0) {
-    image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
-  }
-  if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
+  ApplySensorEffects(image, options, geometry);
   timings["sensor_effects"] = step.ElapsedSeconds();
   timings["trace"] = image.stats.trace_seconds;
   timings["mask"] = image.stats.mask_seconds;

@@ -13,7 +13,12 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "gissar/geo/dem.h"
+#include "gissar/geo/local_frame.h"
+#include "gissar/material/material.h"
+#include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
+#include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
 
 namespace gissar::cli {
@@ -53,6 +58,36 @@ struct SimulateResult {
   int height = 0;
   double total_seconds = 0.0;
 };
+
+// The terrain a simulation renders: a DEM's mesh (bare terrain, one unit
+// Lambertian class) or a GIS scene (classes and their materials), with its
+// ENU frame, scene centre and default pixel spacing.
+struct Terrain {
+  scene::TriangleMesh mesh;
+  geo::LocalFrame frame{0.0, 0.0};
+  geo::GeoPoint centre;
+  Eigen::Vector3d centre_enu = Eigen::Vector3d::Zero();
+  double post_spacing_m = 30.0;
+  material::MaterialTable materials;
+  nlohmann::json description;  // for provenance
+};
+
+// Loads options.dem or options.scene; the centre follows --center /
+// --center-map for DEMs. Throws the gissar::Error family.
+Terrain LoadTerrain(const SimulateOptions& options);
+
+// For scenes: moves the centre to options.center_lonlat on the scene's
+// surface (found by a vertical ray). Throws ConfigError when it is outside.
+void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree,
+                      const SimulateOptions& options);
+
+// The geometry options with automatic (0) pixel spacings resolved to the
+// terrain's post spacing.
+sensor::SarGeometryOptions ResolvedGeometry(const SimulateOptions& options, const Terrain& terrain);
+
+// Impulse response, speckle and thermal noise of the options, in that order.
+void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
+                        const sensor::SarGeometry& geometry);
 
 // Runs the whole job. Every output is written under a temporary name and
 // renamed only when all of them succeeded. Throws the gissar::Error family
