@@ -85,27 +85,80 @@ double EntryDistance(const Vector3d& origin, const Vector3d& dir, const Eigen::A
   return t0 <= t1 ? t0 : std::numeric_limits<double>::infinity();
 }
 
-// Accumulation band of image rows [row0, row0 + rows).
+// Accumulation band of image rows [row0, row0 + rows), `planes` planes of
+// width x rows each; returns landing outside the band (multi-bounce returns
+// may move in azimuth) are kept in `overflow` and added afterwards.
 struct Band {
   int row0 = 0;
   int rows = 0;
+  int planes = 0;
   std::vector<float> values;
+  struct Overflow {
+    int plane;
+    double col, row;
+    float value;
+    bool amplitude;
+  };
+  std::vector<Overflow> overflow;
 };
 
-void Splat(Band& band, int width, double col, double row, float value) {
+// Bilinear splat of `value` at continuous (col, row) into `plane`. Complex
+// amplitudes (`amplitude` true) use the square roots of the bilinear
+// weights, so that the expected intensity |sum|^2 of random phasors equals
+// the intensity splat.
+void Splat(Band& band, int width, int plane, double col, double row, float value, bool amplitude = false) {
   const double c0f = std::floor(col), r0f = std::floor(row);
   const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
+  if (r0 < band.row0 || r0 + 1 >= band.row0 + band.rows) {
+    band.overflow.push_back({plane, col, row, value, amplitude});
+    return;
+  }
   const float fc = static_cast<float>(col - c0f), fr = static_cast<float>(row - r0f);
-  const float w[2][2] = {{(1 - fr) * (1 - fc), (1 - fr) * fc}, {fr * (1 - fc), fr * fc}};
+  float w[2][2] = {{(1 - fr) * (1 - fc), (1 - fr) * fc}, {fr * (1 - fc), fr * fc}};
+  if (amplitude) {
+    for (auto& line : w)
+      for (float& x : line) x = std::sqrt(x);
+  }
+  float* base = band.values.data() + size_t(plane) * band.rows * width;
   for (int dr = 0; dr < 2; ++dr) {
     const int r = r0 + dr - band.row0;
-    if (r < 0 || r >= band.rows) continue;
     for (int dc = 0; dc < 2; ++dc) {
       const int c = c0 + dc;
       if (c < 0 || c >= width) continue;
-      band.values[size_t(r) * width + c] += value * w[dr][dc];
+      base[size_t(r) * width + c] += value * w[dr][dc];
     }
   }
+}
+
+// Adds a splat directly into full-size planes (for overflow returns).
+void SplatImage(std::vector<float>& plane, int width, int height, double col, double row, float value,
+                bool amplitude) {
+  const double c0f = std::floor(col), r0f = std::floor(row);
+  const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
+  const float fc = static_cast<float>(col - c0f), fr = static_cast<float>(row - r0f);
+  float w[2][2] = {{(1 - fr) * (1 - fc), (1 - fr) * fc}, {fr * (1 - fc), fr * fc}};
+  if (amplitude) {
+    for (auto& line : w)
+      for (float& x : line) x = std::sqrt(x);
+  }
+  for (int dr = 0; dr < 2; ++dr) {
+    const int r = r0 + dr;
+    if (r < 0 || r >= height) continue;
+    for (int dc = 0; dc < 2; ++dc) {
+      const int c = c0 + dc;
+      if (c < 0 || c >= width) continue;
+      plane[size_t(r) * width + c] += value * w[dr][dc];
+    }
+  }
+}
+
+// SplitMix64: a per-scatterer random phase from (seed, ray, bounce).
+double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
+  uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (ray * 17 + bounce + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z ^= z >> 31;
+  return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
 }
 
 // Small offset along a ray that clears float rounding of scene coordinates.
@@ -119,6 +172,10 @@ float RayEpsilon(const Eigen::AlignedBox3d& box) {
 void RenderOptions::Check() const {
   if (!std::isfinite(rays_per_cell) || rays_per_cell < 1.0 || rays_per_cell > 1024.0) {
     throw ConfigError("rays per cell must be in [1, 1024]", "--rays-per-cell");
+  }
+  if (max_bounces < 1 || max_bounces > 16) throw ConfigError("bounces must be in [1, 16]", "--bounces");
+  if (coherent && !(wavelength_m > 0.0 && std::isfinite(wavelength_m))) {
+    throw ConfigError("wavelength must be positive", "--wavelength");
   }
 }
 
@@ -201,7 +258,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   SarImage image;
   image.width = geometry.width();
   image.height = geometry.height();
-  const int width = image.width;
+  const int width = image.width, height = image.height;
   const Eigen::AlignedBox3d box = mesh.Bounds();
   const RayGrid grid = MakeRayGrid(geometry, box, options.rays_per_cell);
   const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
@@ -210,21 +267,31 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   const Vector3d& h = geometry.flight_direction();
   const Vector3d& xc = geometry.scene_centre();
   const double range0 = geometry.slant_range_m();
+  const float eps = RayEpsilon(box);
+  const double far_affine = range0 + box.diagonal().norm();
+  const double wavenumber2 = 4.0 * M_PI / options.wavelength_m;  // phase per metre of slant range
 
   // Per-triangle unit normals and materials, looked up once.
-  std::vector<Vector3f> normals(mesh.triangle_count());
+  std::vector<Vector3d> normals(mesh.triangle_count());
   std::vector<const material::Material*> material_of(mesh.triangle_count());
   for (size_t t = 0; t < normals.size(); ++t) {
-    normals[t] = mesh.Normal(t);
+    normals[t] = mesh.Normal(t).cast<double>();
     material_of[t] = &materials.Get(mesh.classes[t]);
   }
 
+  // Planes: total intensity (coherent: real and imaginary amplitude), then
+  // one per bounce count.
+  const int total_planes = options.coherent ? 2 : 1;
+  const int planes = total_planes + kBounceLayers;
+
   // Blocks of azimuth ray rows, each accumulating into its own band of image
-  // rows; bands are summed in block order, so the result does not depend on
-  // the thread count or scheduling.
-  const int rows_per_block = 16 * std::max(1, static_cast<int>(std::lround(grid.n_az / std::max(1, image.height))));
+  // rows (plus an overflow list); bands and overflows are summed in block
+  // order, so the result does not depend on the thread count or scheduling.
+  const int k_az = std::max(1, static_cast<int>(std::lround(grid.n_az / std::max(1, height))));
+  const int rows_per_block = 16 * k_az;
   const int n_blocks = (grid.n_az + rows_per_block - 1) / rows_per_block;
   std::vector<Band> bands(n_blocks);
+  std::vector<std::vector<Contribution>> block_contributions(options.record_contributions ? n_blocks : 0);
   std::atomic<int64_t> hits{0};
   Progress progress("simulate: tracing", n_blocks, options.show_progress);
   Stopwatch trace_watch;
@@ -233,41 +300,97 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     for (int b = blocks.begin(); b != blocks.end(); ++b) {
       const int i0 = b * rows_per_block, i1 = std::min(grid.n_az, i0 + rows_per_block);
       Band& band = bands[b];
+      band.planes = planes;
       band.row0 = static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + i0 * grid.da)));
       band.rows = static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + (i1 - 1) * grid.da))) + 2 - band.row0;
-      band.values.assign(size_t(band.rows) * width, 0.0f);
+      band.values.assign(size_t(planes) * band.rows * width, 0.0f);
       int64_t local_hits = 0;
       for (int i = i0; i < i1; ++i) {
         const double a = grid.a0 + i * grid.da;
-        const double row = geometry.RowOfAlongTrack(a);
         const Vector3d sensor = geometry.SensorPosition(a);
         for (int j = 0; j < grid.n_el; ++j) {
           const double e = grid.e0 + j * grid.de;
           Vector3d origin, dir;
-          double offset;  // slant range already travelled at the origin
+          double travelled;  // path length from the sensor to `origin`
           if (affine) {
             dir = l;
             origin = xc + a * h + e * n - grid.back_off_m * l;
-            offset = range0 - grid.back_off_m;
+            travelled = range0 - grid.back_off_m;
           } else {
             dir = std::cos(e) * l + std::sin(e) * n;
             const double entry = EntryDistance(sensor, dir, box);
             if (!std::isfinite(entry)) continue;
-            offset = std::max(0.0, entry - 1.0);
-            origin = sensor + offset * dir;
+            travelled = std::max(0.0, entry - 1.0);
+            origin = sensor + travelled * dir;
           }
-          const Vector3f dir_f = dir.cast<float>();
-          const auto hit = embree.Intersect(origin.cast<float>(), dir_f, 0.0f,
-                                            std::numeric_limits<float>::infinity());
-          if (!hit) continue;
-          ++local_hits;
-          const float cos_inc = -normals[hit->triangle].dot(dir_f);
-          if (cos_inc <= 0.0f) continue;  // back face: blocked, returns nothing
-          const double range = offset + hit->t;
-          double weight = grid.ray_weight;
-          if (!affine) weight *= range / range0;
-          Splat(band, width, geometry.ColumnOfRange(range), row,
-                static_cast<float>(weight * material_of[hit->triangle]->Backscatter(cos_inc)));
+          double power = grid.ray_weight;
+          const uint64_t ray_id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
+          for (int bounce = 1; bounce <= options.max_bounces; ++bounce) {
+            const auto hit = embree.Intersect(origin.cast<float>(), dir.cast<float>(),
+                                              bounce == 1 ? 0.0f : eps,
+                                              std::numeric_limits<float>::infinity());
+            if (!hit) break;
+            if (bounce == 1) ++local_hits;
+            const Vector3d p = origin + double(hit->t) * dir;
+            travelled += hit->t;
+            const Vector3d& normal = normals[hit->triangle];
+            const double cos_in = -normal.dot(dir);
+            if (cos_in <= 0.0) break;  // back face: blocked
+            const material::Material& m = *material_of[hit->triangle];
+            if (bounce == 1 && !affine) power *= travelled / range0;  // beam widening with range
+            // Return to the radar from p.
+            const double a_p = geometry.AlongTrack(p);
+            const Vector3d to_radar = affine ? Vector3d(-l) : Vector3d((geometry.SensorPosition(a_p) - p).normalized());
+            const double back = affine ? range0 + (p - xc).dot(l) : (geometry.SensorPosition(a_p) - p).norm();
+            const Vector3d mirror = dir + 2.0 * cos_in * normal;
+            double diffuse_part = 0.0, specular_part = 0.0;
+            if (bounce == 1) {
+              diffuse_part = m.diffuse * cos_in;
+              specular_part = m.Backscatter(cos_in) - diffuse_part;
+            } else {
+              const double cos_out = normal.dot(to_radar);
+              if (cos_out > 0.0 &&
+                  !embree.Occluded(p.cast<float>(), to_radar.cast<float>(), eps,
+                                   static_cast<float>(affine ? far_affine : back))) {
+                diffuse_part = m.diffuse * cos_out;
+                const double cos_spec = mirror.dot(to_radar);
+                if (cos_spec > 0.0 && m.specular > 0.0) specular_part = m.specular * std::pow(cos_spec, 1.0 / m.roughness);
+              }
+            }
+            const double value = power * (diffuse_part + specular_part);
+            if (value > 0.0) {
+              const double range = 0.5 * (travelled + back);
+              const double along = 0.5 * (a + a_p);  // first and last hit
+              const double col = geometry.ColumnOfRange(range), row = geometry.RowOfAlongTrack(along);
+              const int layer = std::min(bounce, kBounceLayers) - 1;
+              Splat(band, width, total_planes + layer, col, row, static_cast<float>(value));
+              if (options.coherent) {
+                const double phase = wavenumber2 * range + RandomPhase(options.seed, ray_id, bounce);
+                const double amplitude = std::sqrt(value);
+                Splat(band, width, 0, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
+                Splat(band, width, 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
+              } else {
+                Splat(band, width, 0, col, row, static_cast<float>(value));
+              }
+              if (options.record_contributions) {
+                Contribution c;
+                c.azimuth_m = along;
+                c.range_m = range;
+                c.elevation_m = (p - xc).dot(n);
+                c.intensity = static_cast<float>(value);
+                c.bounces = static_cast<uint8_t>(bounce);
+                c.specular = specular_part > diffuse_part;
+                c.hit_enu = p.cast<float>();
+                c.class_id = mesh.classes[hit->triangle];
+                block_contributions[b].push_back(c);
+              }
+            }
+            // Continue as the mirror ray.
+            power *= m.mirror;
+            if (power < 1e-9 * grid.ray_weight) break;
+            origin = p;
+            dir = mirror.normalized();
+          }
         }
       }
       hits.fetch_add(local_hits, std::memory_order_relaxed);
@@ -276,15 +399,30 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   });
   progress.Done();
 
-  image.intensity.assign(size_t(width) * image.height, 0.0f);
+  std::vector<std::vector<float>> full(planes, std::vector<float>(size_t(width) * height, 0.0f));
   for (const Band& band : bands) {
-    for (int r = 0; r < band.rows; ++r) {
-      const int row = band.row0 + r;
-      if (row < 0 || row >= image.height) continue;
-      float* dst = image.intensity.data() + size_t(row) * width;
-      const float* src = band.values.data() + size_t(r) * width;
-      for (int c = 0; c < width; ++c) dst[c] += src[c];
+    for (int plane = 0; plane < planes; ++plane) {
+      for (int r = 0; r < band.rows; ++r) {
+        const int row = band.row0 + r;
+        if (row < 0 || row >= height) continue;
+        float* dst = full[plane].data() + size_t(row) * width;
+        const float* src = band.values.data() + (size_t(plane) * band.rows + r) * width;
+        for (int c = 0; c < width; ++c) dst[c] += src[c];
+      }
     }
+    for (const Band::Overflow& o : band.overflow) SplatImage(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
+  }
+  if (options.coherent) {
+    image.intensity.resize(size_t(width) * height);
+    for (size_t k = 0; k < image.intensity.size(); ++k) {
+      image.intensity[k] = full[0][k] * full[0][k] + full[1][k] * full[1][k];
+    }
+  } else {
+    image.intensity = std::move(full[0]);
+  }
+  for (int layer = 0; layer < kBounceLayers; ++layer) image.bounce_layers[layer] = std::move(full[total_planes + layer]);
+  for (auto& list : block_contributions) {
+    image.contributions.insert(image.contributions.end(), list.begin(), list.end());
   }
   image.stats.rays = int64_t{grid.n_az} * grid.n_el;
   image.stats.hits = hits.load();

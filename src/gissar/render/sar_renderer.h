@@ -5,6 +5,7 @@
 // radiometric normalisation.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -24,12 +25,38 @@ struct RenderOptions {
   // Rays per resolution cell on flat ground at the scene-centre depression:
   // round(sqrt(N)) along azimuth times N / that across range. >= 1.
   double rays_per_cell = 4.0;
+  // Reflections followed per ray (1 = single bounce), in [1, 16]: a hit
+  // continues as a mirror ray carrying its material's `mirror` share.
+  int max_bounces = 3;
+  // Keep every contribution in SarImage::contributions (can be large).
+  bool record_contributions = false;
+  // Coherent mode: the total band is |sum of complex contributions|^2 per
+  // cell, each with phase 4 pi r / lambda plus a random phase per
+  // scatterer (seeded) instead of a sum of intensities.
+  bool coherent = false;
+  double wavelength_m = 0.031;  // X band
+  uint64_t seed = 1;
   // Progress lines on stderr.
   bool show_progress = true;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;
 };
+
+// One return to the radar (RaySAR's Contributions.txt, one row each).
+struct Contribution {
+  double azimuth_m = 0.0;    // along-track coordinate (rule: see docs/geometry.md)
+  double range_m = 0.0;      // slant range: half the total path length
+  double elevation_m = 0.0;  // last hit's offset along the slant-range plane normal n
+  float intensity = 0.0f;    // power returned (image units)
+  uint8_t bounces = 1;       // 1 single, 2 double, ...
+  bool specular = false;     // the specular term dominated this return
+  Eigen::Vector3f hit_enu = Eigen::Vector3f::Zero();  // last hit position
+  uint8_t class_id = 0;      // class of the last hit
+};
+
+// Bands of the output: total, then per bounce count.
+inline constexpr int kBounceLayers = 4;  // single, double, triple, >= 4
 
 struct RenderStats {
   int64_t rays = 0;           // primary rays traced
@@ -42,7 +69,11 @@ struct RenderStats {
 struct SarImage {
   int width = 0;                // columns: slant range
   int height = 0;               // rows: azimuth
-  std::vector<float> intensity; // linear, row-major
+  std::vector<float> intensity; // linear, row-major: all bounces (coherent sum in coherent mode)
+  // Intensity per bounce count (incoherent): [0] single, [1] double,
+  // [2] triple, [3] four or more.
+  std::array<std::vector<float>, kBounceLayers> bounce_layers;
+  std::vector<Contribution> contributions;  // when record_contributions
   std::vector<uint8_t> mask;    // kMask* codes, row-major
   RenderStats stats;
 };
@@ -60,6 +91,15 @@ struct SarImage {
 // slopes turned away less, occluded surfaces nothing. In exact mode a ray's
 // share grows with its range (constant angular spacing), so flat ground reads
 // rho * sin(d_p) * tan(d_p) / tan(d) at a point of depression d_p.
+//
+// Multi-bounce (up to max_bounces): at every hit the power sent back to the
+// radar is recorded: at the first hit the material's backscatter; at later
+// hits, if the way back to the radar is free, diffuse * cos(angle to the
+// radar) plus the specular cone around the mirror direction. Each hit
+// continues as a mirror ray with the material's `mirror` share of the power.
+// A return's slant range is half the total path (sensor -> hits -> sensor);
+// its azimuth is the mean of the first and last hit's along-track
+// coordinates (docs/geometry.md). Results do not depend on the thread count.
 //
 // Mask (value at each pixel centre): bit kMaskLayover when a lit surface that
 // is imaged flipped (steeper towards the radar than the local slant-range
