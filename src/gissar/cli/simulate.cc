@@ -48,6 +48,9 @@ void SimulateOptions::Check() const {
   probe.Check();
   render::RenderOptions render_options;
   render_options.rays_per_cell = rays_per_cell;
+  render_options.max_bounces = bounces;
+  render_options.coherent = coherent;
+  render_options.wavelength_m = wavelength_m;
   render_options.Check();
   if (!(range_resolution_m >= 0.0) || !std::isfinite(range_resolution_m)) {
     throw ConfigError("range resolution must be >= 0 metres", "--range-resolution");
@@ -91,6 +94,10 @@ nlohmann::json SimulateOptions::ToJson() const {
   j["width"] = geometry.width;
   j["height"] = geometry.height;
   j["rays_per_cell"] = rays_per_cell;
+  j["bounces"] = bounces;
+  j["coherent"] = coherent;
+  j["wavelength_m"] = wavelength_m;
+  j["contributions"] = contributions;
   j["range_resolution_m"] = range_resolution_m;
   j["azimuth_resolution_m"] = azimuth_resolution_m;
   j["psf_window"] = psf_window;
@@ -145,6 +152,19 @@ Terrain TerrainFromScene(const SimulateOptions& options) {
   return t;
 }
 
+void WriteContributions(const fs::path& path, const std::vector<render::Contribution>& contributions,
+                        const sensor::SarGeometry& geometry) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) throw IoError("cannot open contributions file", path.string());
+  std::fprintf(f, "azimuth_m,range_m,elevation_m,column,row,intensity,bounces,specular,x_enu_m,y_enu_m,z_enu_m,class\n");
+  for (const render::Contribution& c : contributions) {
+    std::fprintf(f, "%.4f,%.4f,%.4f,%.3f,%.3f,%.6g,%d,%d,%.3f,%.3f,%.3f,%d\n", c.azimuth_m, c.range_m, c.elevation_m,
+                 geometry.ColumnOfRange(c.range_m), geometry.RowOfAlongTrack(c.azimuth_m), c.intensity, c.bounces,
+                 c.specular ? 1 : 0, c.hit_enu.x(), c.hit_enu.y(), c.hit_enu.z(), c.class_id);
+  }
+  if (std::fclose(f) != 0) throw IoError("failed writing contributions file", path.string());
+}
+
 }  // namespace
 
 Terrain LoadTerrain(const SimulateOptions& options) {
@@ -197,6 +217,8 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   const fs::path png = outputs.Add(options.out_prefix + ".png");
   const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
   const fs::path json = outputs.Add(options.out_prefix + ".json");
+  const fs::path contributions_csv =
+      options.contributions.empty() ? fs::path() : outputs.Add(options.contributions);
 
   Stopwatch step;
   // The terrain: a DEM (bare terrain, unit Lambertian class 0) or a GIS
@@ -220,6 +242,11 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
 
   render::RenderOptions render_options;
   render_options.rays_per_cell = options.rays_per_cell;
+  render_options.max_bounces = options.bounces;
+  render_options.coherent = options.coherent;
+  render_options.wavelength_m = options.wavelength_m;
+  render_options.seed = options.seed;
+  render_options.record_contributions = !options.contributions.empty();
   render_options.show_progress = !options.quiet;
   render::SarImage image =
       render::RenderSar(embree, mesh, terrain.materials, geometry, render_options);
@@ -240,6 +267,13 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   metadata["GISSAR_TERRAIN"] = fs::absolute(options.scene.empty() ? options.dem : options.scene).string();
   metadata["GISSAR_VERSION"] = VersionString();
   geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
+  const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
+  for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+    raster.bands.push_back(image.bounce_layers[layer]);
+    raster.band_names.push_back(layer_names[layer]);
+  }
+  raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
+  if (!contributions_csv.empty()) WriteContributions(contributions_csv, image.contributions, geometry);
   geo::WriteFloatGeoTiff(tif, raster);
   image::DbStretch stretch;
   geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width,

@@ -32,6 +32,10 @@ struct SimulateOptions {
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".
   sensor::SarGeometryOptions geometry;
   double rays_per_cell = 4.0;
+  int bounces = 3;                 // reflections followed per ray
+  bool coherent = false;           // complex sum with phase 4 pi r / lambda
+  double wavelength_m = 0.031;     // X band
+  std::string contributions;       // optional CSV of every return (RaySAR-style)
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
   // spectral window ("none", "hamming", "taylor").
   double range_resolution_m = 0.0;

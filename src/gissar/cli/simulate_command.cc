@@ -43,6 +43,14 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--rays-per-cell", options->rays_per_cell,
                   "Rays per resolution cell on flat ground")
       ->capture_default_str();
+  cmd->add_option("--bounces", options->bounces, "Reflections followed per ray (1 = single bounce)")
+      ->capture_default_str();
+  cmd->add_flag("--coherent", options->coherent,
+                "Coherent mode: complex sum per cell with phase 4 pi r / lambda and random scatterer phases");
+  cmd->add_option("--wavelength", options->wavelength_m, "Radar wavelength, metres (coherent mode)")
+      ->capture_default_str();
+  cmd->add_option("--contributions", options->contributions,
+                  "CSV with one row per return: azimuth, range, elevation, intensity, bounces, specular, hit, class");
   cmd->add_option("--range-resolution", options->range_resolution_m,
                   "Impulse response: 3 dB slant-range resolution, metres (0 = none)");
   cmd->add_option("--azimuth-resolution", options->azimuth_resolution_m,

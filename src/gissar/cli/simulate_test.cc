@@ -36,6 +36,10 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   EXPECT_EQ(image.width, result.width);
   EXPECT_EQ(image.metadata.at("GISSAR_HEADING_DEG"), "30");
   EXPECT_EQ(image.metadata.at("GISSAR_PROJECTION_MODE"), "affine");
+  ASSERT_EQ(image.bands.size(), 5u);  // total, single, double, triple, >= 4
+  EXPECT_EQ(image.band_names[2], "double");
+  // Bare DEM (no mirror material): everything is single bounce.
+  EXPECT_EQ(image.bands[0], image.bands[1]);
   double sum = 0;
   int positive = 0;
   for (float v : image.bands[0]) {
