@@ -59,6 +59,12 @@ void WriteAnimatedGif(const std::filesystem::path& path, const std::vector<std::
   if (EGifCloseFile(gif, &error) == GIF_ERROR) {
     throw IoError(std::string("failed closing GIF: ") + GifErrorString(error), path.string());
   }
+  // giflib creates the file owner-only (0600); give it ordinary permissions.
+  std::error_code ec;
+  std::filesystem::permissions(path,
+                               std::filesystem::perms::owner_read | std::filesystem::perms::owner_write |
+                                   std::filesystem::perms::group_read | std::filesystem::perms::others_read,
+                               ec);
 }
 
 }  // namespace gissar::image
