@@ -43,6 +43,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddSimulateCommand(app, registry);
   AddSceneCommands(app, registry);
   AddViewCommands(app, registry);
+  AddMvgCommands(app, registry);
 
   try {
     app.parse(argc, argv);

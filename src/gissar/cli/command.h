@@ -47,5 +47,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry);
 void AddSceneCommands(CLI::App& root, CommandRegistry& registry);
 // Declares `gissar sequence` and `gissar ortho`.
 void AddViewCommands(CLI::App& root, CommandRegistry& registry);
+// Declares `gissar fmatrix`, `resect`, `register` and `epipolar`.
+void AddMvgCommands(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli

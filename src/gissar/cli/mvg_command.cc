@@ -1,0 +1,90 @@
+// Flags of `gissar fmatrix`, `resect`, `register` and `epipolar`.
+#include <memory>
+
+#include "gissar/cli/command.h"
+#include "gissar/cli/mvg_commands.h"
+#include "gissar/cli/simulate.h"
+
+namespace gissar::cli {
+
+void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
+  {
+    auto o = std::make_shared<FmatrixOptions>();
+    auto res1 = std::make_shared<std::string>(), res2 = std::make_shared<std::string>();
+    auto depressions = std::make_shared<std::string>();
+    auto all = std::make_shared<bool>(false);
+    CLI::App* cmd = root.add_subcommand(
+        "fmatrix", "Affine fundamental matrix (RANSAC + Gold Standard), KvD decomposition and heading change.");
+    cmd->add_option("--matches", o->matches, "CSV with a header and columns x1,y1,x2,y2 (others ignored)")->required();
+    cmd->add_option("--res1", *res1, "Image 1 pixel spacing RANGE,AZIMUTH in metres (calibrated F)");
+    cmd->add_option("--res2", *res2, "Image 2 pixel spacing RANGE,AZIMUTH in metres");
+    cmd->add_option("--depressions", *depressions, "Depressions D1,D2 in degrees: gives the heading change");
+    cmd->add_option("--threshold", o->threshold_px, "RANSAC inlier threshold, pixels")->capture_default_str();
+    cmd->add_flag("--no-ransac", *all, "One Gold Standard fit to all matches");
+    cmd->add_option("--seed", o->seed, "RANSAC seed")->capture_default_str();
+    cmd->add_option("--json", o->json_out, "Output JSON")->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      FmatrixOptions r = *o;
+      r.robust = !*all;
+      if (!res1->empty()) r.res1 = ParseNumberPair(*res1, "--res1");
+      if (!res2->empty()) r.res2 = ParseNumberPair(*res2, "--res2");
+      if (!depressions->empty()) r.depressions = ParseNumberPair(*depressions, "--depressions");
+      const auto out = RunFmatrix(r, context.command_line);
+      context.out << r.json_out << "\n";
+    });
+  }
+  {
+    auto o = std::make_shared<ResectOptions>();
+    auto centre = std::make_shared<std::vector<double>>();
+    auto range = std::make_shared<double>(0.0);
+    CLI::App* cmd = root.add_subcommand(
+        "resect", "Affine SAR camera (heading, depression, spacings) from >= 4 known 3-D points.");
+    cmd->add_option("--points", o->points, "CSV with a header and columns X,Y,Z,x,y (ENU m, pixels)")->required();
+    cmd->add_option("--scene-centre", *centre, "Scene centre Xc X,Y,Z (ENU m; default 0,0,0)")->delimiter(',')->expected(3);
+    cmd->add_option("--range", *range, "Measured slant range to Xc, metres: also gives the sensor position");
+    cmd->add_option("--json", o->json_out, "Output JSON")->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      ResectOptions r = *o;
+      if (!centre->empty()) r.scene_centre = Eigen::Vector3d((*centre)[0], (*centre)[1], (*centre)[2]);
+      if (*range != 0.0) r.slant_range_m = *range;
+      RunResect(r, context.command_line);
+      context.out << r.json_out << "\n";
+    });
+  }
+  {
+    auto o = std::make_shared<RegisterOptions>();
+    auto all = std::make_shared<bool>(false);
+    CLI::App* cmd = root.add_subcommand(
+        "register", "Register a moving image to a fixed one from control points (cpselect/fitgeotrans).");
+    cmd->add_option("--fixed", o->fixed, "Fixed image (any GDAL raster)")->required();
+    cmd->add_option("--moving", o->moving, "Moving image")->required();
+    cmd->add_option("--points", o->points, "CSV x1,y1 (fixed), x2,y2 (moving)")->required();
+    cmd->add_option("--transform", o->transform, "similarity, affine, projective, poly2 or poly3")
+        ->capture_default_str();
+    cmd->add_option("--threshold", o->threshold_px, "Robust fit inlier threshold, pixels")->capture_default_str();
+    cmd->add_flag("--no-ransac", *all, "Least squares on all pairs");
+    cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.tif, PREFIX_composite.png, PREFIX.json")
+        ->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      RegisterOptions r = *o;
+      r.robust = !*all;
+      RunRegister(r, context.command_line);
+      context.out << r.out_prefix << ".tif\n" << r.out_prefix << "_composite.png\n" << r.out_prefix << ".json\n";
+    });
+  }
+  {
+    auto o = std::make_shared<EpipolarOptions>();
+    CLI::App* cmd = root.add_subcommand("epipolar", "Draw matches and epipolar lines over an image pair.");
+    cmd->add_option("--matches", o->matches, "CSV x1,y1,x2,y2")->required();
+    cmd->add_option("--image1", o->image1, "Image 1")->required();
+    cmd->add_option("--image2", o->image2, "Image 2")->required();
+    cmd->add_option("--threshold", o->threshold_px, "RANSAC threshold, pixels")->capture_default_str();
+    cmd->add_option("--out", o->out_png, "Output PNG")->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      RunEpipolar(*o);
+      context.out << o->out_png << "\n";
+    });
+  }
+}
+
+}  // namespace gissar::cli

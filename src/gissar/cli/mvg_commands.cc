@@ -1,0 +1,311 @@
+#include "gissar/cli/mvg_commands.h"
+
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "gissar/geo/raster_io.h"
+#include "gissar/image/epipolar_plot.h"
+#include "gissar/image/quicklook.h"
+#include "gissar/mvg/affine_camera.h"
+#include "gissar/mvg/affine_fundamental.h"
+#include "gissar/mvg/match_io.h"
+#include "gissar/mvg/registration.h"
+#include "gissar/mvg/resection.h"
+#include "gissar/mvg/two_view.h"
+#include "gissar/util/atomic_output.h"
+#include "gissar/util/error.h"
+#include "gissar/util/provenance.h"
+
+namespace gissar::cli {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+json Matrix(const Eigen::MatrixXd& m) {
+  json rows = json::array();
+  for (int r = 0; r < m.rows(); ++r) {
+    json row = json::array();
+    for (int c = 0; c < m.cols(); ++c) row.push_back(m(r, c));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+json Pair(const std::optional<Eigen::Vector2d>& p) { return p ? json{p->x(), p->y()} : json(nullptr); }
+
+void RequireOutput(const std::string& path, const std::string& option) {
+  if (path.empty()) throw ConfigError("an output file is required", option);
+}
+
+void WriteJsonAtomically(const json& value, const std::string& path) {
+  AtomicOutputs outputs;
+  WriteJsonFile(value, outputs.Add(path));
+  outputs.Commit();
+}
+
+void CheckSpacing(const std::optional<Eigen::Vector2d>& r, const std::string& option) {
+  if (r && !(r->x() > 0 && r->y() > 0)) throw ConfigError("pixel spacings must be positive", option);
+}
+
+// Grey quicklook of any raster's first band (dB stretch).
+std::vector<uint8_t> LoadGrey(const std::string& path, int* width, int* height, std::vector<float>* values) {
+  geo::FloatRaster raster = geo::ReadFloatRaster(path);
+  if (raster.bands.empty()) throw InputError("raster has no band", path);
+  *width = raster.width;
+  *height = raster.height;
+  std::vector<float> band = raster.bands[0];
+  for (float& v : band) v = std::max(v, 0.0f) + 1e-12f;  // byte images: 0 stays displayable
+  std::vector<uint8_t> grey = image::DbQuicklook(band, 1.0, 99.0);
+  if (values != nullptr) *values = std::move(raster.bands[0]);
+  return grey;
+}
+
+}  // namespace
+
+void FmatrixOptions::Check() const {
+  if (matches.empty()) throw ConfigError("a matches CSV is required", "--matches");
+  RequireOutput(json_out, "--json");
+  CheckSpacing(res1, "--res1");
+  CheckSpacing(res2, "--res2");
+  if (res1.has_value() != res2.has_value()) throw ConfigError("give both --res1 and --res2", "--res1/--res2");
+  if (depressions && !(depressions->x() > 0 && depressions->x() < 90 && depressions->y() > 0 &&
+                       depressions->y() < 90)) {
+    throw ConfigError("depressions must be in (0, 90) degrees", "--depressions");
+  }
+  if (!(threshold_px > 0) || !std::isfinite(threshold_px)) throw ConfigError("threshold must be positive", "--threshold");
+}
+
+json FmatrixOptions::ToJson() const {
+  return {{"matches", matches}, {"res1", Pair(res1)}, {"res2", Pair(res2)}, {"depressions", Pair(depressions)},
+          {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"json", json_out}};
+}
+
+json RunFmatrix(const FmatrixOptions& options, const std::string& command_line) {
+  options.Check();
+  const std::vector<mvg::PointMatch> matches = mvg::ReadMatchesCsv(options.matches);
+  if (matches.size() < 4) {
+    throw InputError("at least 4 matches are needed, got " + std::to_string(matches.size()), options.matches);
+  }
+  mvg::TwoViewOptions two;
+  two.robust = options.robust;
+  two.ransac.threshold_px = options.threshold_px;
+  two.ransac.seed = options.seed;
+  if (options.res1) {
+    two.k1 = mvg::SarIntrinsics(options.res1->x(), options.res1->y());
+    two.k2 = mvg::SarIntrinsics(options.res2->x(), options.res2->y());
+  }
+  if (options.depressions) {
+    two.depression1_deg = options.depressions->x();
+    two.depression2_deg = options.depressions->y();
+  }
+  std::optional<mvg::TwoViewAnalysis> analysis;
+  try {
+    analysis = mvg::AnalyseTwoViews(matches, two);
+  } catch (const InputError& e) {
+    throw InputError(e.message(), options.matches);
+  }
+  if (!analysis) {
+    throw InputError("F is undetermined: the matches are degenerate (collinear or coplanar points, or no "
+                     "consistent subset for RANSAC)",
+                     options.matches);
+  }
+  const mvg::TwoViewAnalysis& a = *analysis;
+  json out = {{"command", "fmatrix"},
+              {"command_line", command_line},
+              {"version", VersionString()},
+              {"options", options.ToJson()},
+              {"inputs", json::array({InputFileRecord(options.matches)})},
+              {"convention", "[x2 y2 1] F [x1 y1 1]' = 0, F = [0 0 a; 0 0 b; c d e], ||(a,b,c,d)|| = 1, c > 0"},
+              {"F", Matrix(a.f)},
+              {"F_calibrated", Matrix(a.f_calibrated)},
+              {"calibrated", options.res1.has_value()},
+              {"num_matches", a.num_matches},
+              {"inliers", a.inliers},
+              {"rms_gs_px", a.rms_gs_px},
+              {"rms_epi1_px", a.rms_epi1_px},
+              {"rms_epi2_px", a.rms_epi2_px},
+              {"ransac_iterations", a.ransac_iterations},
+              {"kvd", {{"s", a.kvd.s}, {"theta_deg", a.kvd.theta_deg}, {"phi_deg", a.kvd.phi_deg},
+                       {"rho", "not recoverable from two views (bas-relief ambiguity); needs a third view"}}}};
+  if (a.sar) {
+    out["heading_change_deg"] = a.sar->heading_change_deg;
+    out["rho_abs_deg_from_model"] = a.sar->rho_abs_deg;
+    out["phi_residual_deg"] = a.sar->phi_residual_deg;
+    out["heading_change_candidates"] = a.sar->candidates;
+  }
+  WriteJsonAtomically(out, options.json_out);
+  return out;
+}
+
+void ResectOptions::Check() const {
+  if (points.empty()) throw ConfigError("a points CSV is required", "--points");
+  RequireOutput(json_out, "--json");
+  if (!scene_centre.allFinite()) throw ConfigError("scene centre must be finite", "--scene-centre");
+  if (slant_range_m && !(*slant_range_m > 0)) throw ConfigError("slant range must be positive", "--range");
+}
+
+json ResectOptions::ToJson() const {
+  return {{"points", points},
+          {"scene_centre", {scene_centre.x(), scene_centre.y(), scene_centre.z()}},
+          {"slant_range_m", slant_range_m ? json(*slant_range_m) : json(nullptr)},
+          {"json", json_out}};
+}
+
+json RunResect(const ResectOptions& options, const std::string& command_line) {
+  options.Check();
+  const std::vector<mvg::ControlPoint> points = mvg::ReadControlPointsCsv(options.points);
+  if (points.size() < 4) {
+    throw InputError("at least 4 control points are needed, got " + std::to_string(points.size()), options.points);
+  }
+  mvg::ResectionOptions ro;
+  ro.scene_centre = options.scene_centre;
+  ro.slant_range_m = options.slant_range_m;
+  std::optional<mvg::ResectionResult> r;
+  try {
+    r = mvg::ResectSarCamera(points, ro);
+  } catch (const InputError& e) {
+    throw InputError(e.message(), options.points);
+  }
+  if (!r) {
+    throw InputError("the camera is undetermined: control points are degenerate (coplanar or collinear)",
+                     options.points);
+  }
+  json out = {{"command", "resect"},
+              {"command_line", command_line},
+              {"version", VersionString()},
+              {"options", options.ToJson()},
+              {"inputs", json::array({InputFileRecord(options.points)})},
+              {"heading_deg", r->pose.heading_deg},
+              {"depression_deg", r->pose.depression_deg},
+              {"look_side", r->pose.look_side == mvg::LookSide::kRight ? "right" : "left"},
+              {"range_spacing_m", r->pose.range_spacing_m},
+              {"azimuth_spacing_m", r->pose.azimuth_spacing_m},
+              {"u0", r->pose.u0},
+              {"v0", r->pose.v0},
+              {"rms_px", r->rms_px},
+              {"linear_rms_px", r->linear_rms_px},
+              {"sigma", {{"heading_deg", r->heading_sigma_deg},
+                         {"depression_deg", r->depression_sigma_deg},
+                         {"range_spacing_m", r->range_spacing_sigma_m},
+                         {"azimuth_spacing_m", r->azimuth_spacing_sigma_m}}},
+              {"camera", Matrix(r->camera)},
+              {"converged", r->converged}};
+  if (r->sensor_position) {
+    out["sensor_enu_m"] = {r->sensor_position->x(), r->sensor_position->y(), r->sensor_position->z()};
+  }
+  WriteJsonAtomically(out, options.json_out);
+  return out;
+}
+
+void RegisterOptions::Check() const {
+  if (fixed.empty()) throw ConfigError("a fixed image is required", "--fixed");
+  if (moving.empty()) throw ConfigError("a moving image is required", "--moving");
+  if (points.empty()) throw ConfigError("a control-point CSV is required", "--points");
+  if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
+  mvg::ParseTransformType(transform);
+  if (!(threshold_px > 0)) throw ConfigError("threshold must be positive", "--threshold");
+}
+
+json RegisterOptions::ToJson() const {
+  return {{"fixed", fixed}, {"moving", moving}, {"points", points}, {"transform", transform},
+          {"threshold_px", threshold_px}, {"robust", robust}, {"out_prefix", out_prefix}};
+}
+
+json RunRegister(const RegisterOptions& options, const std::string& command_line) {
+  options.Check();
+  AtomicOutputs outputs;
+  const fs::path tif = outputs.Add(options.out_prefix + ".tif");
+  const fs::path png = outputs.Add(options.out_prefix + "_composite.png");
+  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const std::vector<mvg::PointMatch> pairs = mvg::ReadMatchesCsv(options.points);
+  mvg::RegistrationOptions ro;
+  ro.type = mvg::ParseTransformType(options.transform);
+  ro.robust = options.robust;
+  ro.threshold_px = options.threshold_px;
+  if (static_cast<int>(pairs.size()) < mvg::MinimumControlPoints(ro.type)) {
+    throw InputError("a " + options.transform + " transform needs at least " +
+                         std::to_string(mvg::MinimumControlPoints(ro.type)) + " point pairs, got " +
+                         std::to_string(pairs.size()),
+                     options.points);
+  }
+  std::optional<mvg::Registration> reg;
+  try {
+    reg = mvg::RegisterControlPoints(pairs, ro);
+  } catch (const InputError& e) {
+    throw InputError(e.message(), options.points);
+  }
+  if (!reg) throw InputError("the transform is undetermined: control points are degenerate", options.points);
+  int fw = 0, fh = 0, mw = 0, mh = 0;
+  std::vector<float> moving_values;
+  const std::vector<uint8_t> fixed_grey = LoadGrey(options.fixed, &fw, &fh, nullptr);
+  const std::vector<uint8_t> moving_grey = LoadGrey(options.moving, &mw, &mh, &moving_values);
+  const cv::Mat moving_f(mh, mw, CV_32F, moving_values.data());
+  const cv::Mat warped = mvg::WarpToFixed(moving_f, *reg, cv::Size(fw, fh));
+  std::vector<float> warped_values(warped.begin<float>(), warped.end<float>());
+  geo::WriteFloatGeoTiff(tif, geo::FloatRaster{fw, fh, {warped_values}, {"registered"},
+                                               {{"GISSAR_TRANSFORM", options.transform},
+                                                {"GISSAR_VERSION", VersionString()}}});
+  const cv::Mat moving_g(mh, mw, CV_8U, const_cast<uint8_t*>(moving_grey.data()));
+  const cv::Mat warped_grey = mvg::WarpToFixed(moving_g, *reg, cv::Size(fw, fh));
+  const cv::Mat composite =
+      mvg::GreenMagentaComposite(cv::Mat(fh, fw, CV_8U, const_cast<uint8_t*>(fixed_grey.data())), warped_grey);
+  cv::Mat rgb;
+  cv::cvtColor(composite, rgb, cv::COLOR_BGR2RGB);
+  geo::WritePng(png, std::vector<uint8_t>(rgb.data, rgb.data + size_t(fw) * fh * 3), fw, fh, 3);
+  json out = {{"command", "register"},
+              {"command_line", command_line},
+              {"version", VersionString()},
+              {"options", options.ToJson()},
+              {"inputs", json::array({InputFileRecord(options.fixed), InputFileRecord(options.moving),
+                                      InputFileRecord(options.points)})},
+              {"transform", options.transform},
+              {"num_pairs", pairs.size()},
+              {"inliers", reg->inliers},
+              {"rms_px", reg->rms_px},
+              {"inverse_rms_px", reg->inverse_rms_px},
+              {"residuals_px", reg->residuals_px}};
+  WriteJsonFile(out, json_path);
+  outputs.Commit();
+  return out;
+}
+
+void EpipolarOptions::Check() const {
+  if (matches.empty()) throw ConfigError("a matches CSV is required", "--matches");
+  if (image1.empty() || image2.empty()) throw ConfigError("both images are required", "--image1/--image2");
+  RequireOutput(out_png, "--out");
+}
+
+void RunEpipolar(const EpipolarOptions& options) {
+  options.Check();
+  AtomicOutputs outputs;
+  const fs::path png = outputs.Add(options.out_png);
+  const std::vector<mvg::PointMatch> matches = mvg::ReadMatchesCsv(options.matches);
+  mvg::TwoViewOptions two;
+  two.ransac.threshold_px = options.threshold_px;
+  two.ransac.seed = options.seed;
+  std::optional<mvg::TwoViewAnalysis> a;
+  try {
+    a = mvg::AnalyseTwoViews(matches, two);
+  } catch (const InputError& e) {
+    throw InputError(e.message(), options.matches);
+  }
+  if (!a) throw InputError("F is undetermined: the matches are degenerate", options.matches);
+  image::EpipolarPlotInput in;
+  in.image1 = LoadGrey(options.image1, &in.width1, &in.height1, nullptr);
+  in.image2 = LoadGrey(options.image2, &in.width2, &in.height2, nullptr);
+  std::vector<bool> inlier(matches.size(), false);
+  for (int i : a->inliers) inlier[i] = true;
+  in.inlier = inlier;
+  for (const mvg::PointMatch& m : matches) {
+    in.matches.push_back({m.p1, m.p2});
+    in.lines_in_2.push_back(mvg::EpipolarLineInImage2(a->f, m.p1));
+    in.lines_in_1.push_back(mvg::EpipolarLineInImage1(a->f, m.p2));
+  }
+  const image::RgbImage picture = image::DrawEpipolarPair(in);
+  geo::WritePng(png, picture.rgb, picture.width, picture.height, 3);
+  outputs.Commit();
+}
+
+}  // namespace gissar::cli

@@ -1,0 +1,74 @@
+// Commands of the affine SAR camera: `gissar fmatrix`, `resect`, `register`
+// and `epipolar`. Each options struct is the single source of truth of its
+// flags and is recorded in the JSON output.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+namespace gissar::cli {
+
+struct FmatrixOptions {
+  std::string matches;                      // CSV with columns x1,y1,x2,y2
+  std::optional<Eigen::Vector2d> res1;      // range, azimuth pixel spacing of image 1 (m)
+  std::optional<Eigen::Vector2d> res2;      // of image 2
+  std::optional<Eigen::Vector2d> depressions;  // of images 1 and 2 (degrees)
+  double threshold_px = 1.5;                // RANSAC inlier threshold (Gold Standard distance)
+  bool robust = true;                       // RANSAC + refit, or one Gold Standard fit
+  uint64_t seed = 1;
+  std::string json_out;
+  void Check() const;
+  nlohmann::json ToJson() const;
+};
+
+// Estimates F and its KvD decomposition (heading change with depressions).
+// Writes `json_out` and returns its content. Throws InputError for bad or
+// degenerate matches (fewer than 4, NaN, collinear/coplanar so that F is
+// undetermined, no RANSAC model), ConfigError for bad options.
+nlohmann::json RunFmatrix(const FmatrixOptions& options, const std::string& command_line);
+
+struct ResectOptions {
+  std::string points;                        // CSV with columns X,Y,Z,x,y (ENU m, pixels)
+  Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  // Xc, ENU metres
+  std::optional<double> slant_range_m;       // measured range to Xc: sensor position
+  std::string json_out;
+  void Check() const;
+  nlohmann::json ToJson() const;
+};
+
+// Affine resection constrained to the SAR camera form: heading, depression,
+// pixel spacings, principal point, RMS, 1-sigma errors.
+nlohmann::json RunResect(const ResectOptions& options, const std::string& command_line);
+
+struct RegisterOptions {
+  std::string fixed;       // raster
+  std::string moving;      // raster
+  std::string points;      // CSV x1,y1 (fixed), x2,y2 (moving)
+  std::string transform = "affine";  // similarity|affine|projective|poly2|poly3
+  double threshold_px = 2.0;
+  bool robust = true;
+  std::string out_prefix;  // PREFIX.tif, PREFIX_composite.png, PREFIX.json
+  void Check() const;
+  nlohmann::json ToJson() const;
+};
+
+// Fits the transform to the control points, warps the moving image onto the
+// fixed grid and writes it with a green (fixed) / magenta (moving) composite.
+nlohmann::json RunRegister(const RegisterOptions& options, const std::string& command_line);
+
+struct EpipolarOptions {
+  std::string matches, image1, image2, out_png;
+  double threshold_px = 1.5;
+  uint64_t seed = 1;
+  void Check() const;
+};
+
+// Draws the image pair with the matches and their epipolar lines.
+void RunEpipolar(const EpipolarOptions& options);
+
+}  // namespace gissar::cli

@@ -1,0 +1,297 @@
+#include "gissar/cli/mvg_commands.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <random>
+#include <sstream>
+
+#include "gissar/cli/cli.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/mvg/affine_camera.h"
+#include "gissar/render/sar_renderer.h"
+#include "gissar/util/error.h"
+#include "gissar/util/testing.h"
+
+namespace gissar::cli {
+namespace {
+namespace fs = std::filesystem;
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+
+// The mvg camera and the simulator's affine mode are the same model.
+TEST(AffineCameraAgreementTest, MvgCameraEqualsSimulatorProjection) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> xy(-2000, 2000), z(-200, 900), angle(0, 360), dep(10, 80), res(0.3, 5);
+  for (int trial = 0; trial < 50; ++trial) {
+    sensor::SarGeometryOptions o;
+    o.heading_deg = angle(rng);
+    o.depression_deg = dep(rng);
+    o.range_spacing_m = res(rng);
+    o.azimuth_spacing_m = res(rng);
+    o.look_side = trial % 2 ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
+    const Vector3d xc(xy(rng), xy(rng), z(rng));
+    const sensor::SarGeometry g(o, xc, 512.5, 300.25, 1024, 600);
+    mvg::SarPose pose;
+    pose.heading_deg = o.heading_deg;
+    pose.depression_deg = o.depression_deg;
+    pose.look_side = trial % 2 ? mvg::LookSide::kLeft : mvg::LookSide::kRight;
+    pose.range_spacing_m = o.range_spacing_m;
+    pose.azimuth_spacing_m = o.azimuth_spacing_m;
+    pose.scene_centre = xc;
+    pose.u0 = 512.5;
+    pose.v0 = 300.25;
+    const mvg::AffineSarCamera camera(pose);
+    for (int i = 0; i < 20; ++i) {
+      const Vector3d p(xy(rng), xy(rng), z(rng));
+      EXPECT_LT((camera.Project(p) - g.Project(p)).norm(), 0.01);
+    }
+    // Exact mode agrees within the far-field tolerance: R >= 100x the scene
+    // size (here 100 m around Xc, R = 20 km, 1 m pixels: < 0.5 px).
+    o.mode = sensor::ProjectionMode::kExact;
+    o.slant_range_m = 20000;
+    o.range_spacing_m = o.azimuth_spacing_m = 1.0;
+    pose.range_spacing_m = pose.azimuth_spacing_m = 1.0;
+    const sensor::SarGeometry exact(o, xc, 512.5, 300.25, 1024, 600);
+    const mvg::AffineSarCamera unit(pose);
+    std::uniform_real_distribution<double> near(-50, 50);
+    const Vector3d p = xc + Vector3d(near(rng), near(rng), near(rng) * 0.5);
+    EXPECT_LT((unit.Project(p) - exact.Project(p)).norm(), 0.5);
+  }
+}
+
+void AddPlate(scene::TriangleMesh& mesh, const Vector3f& c, float s) {
+  mesh.AddQuad(c + Vector3f(-s, -s, 0), c + Vector3f(s, -s, 0), c + Vector3f(s, s, 0), c + Vector3f(-s, s, 0));
+}
+
+// Centroids of the bright blobs of an image (4-connected, above a floor).
+std::vector<Vector2d> DetectPeaks(const render::SarImage& image) {
+  const float floor = 1e-3f * *std::max_element(image.intensity.begin(), image.intensity.end());
+  std::vector<int> label(image.intensity.size(), -1);
+  std::vector<Vector2d> peaks;
+  for (size_t seed = 0; seed < image.intensity.size(); ++seed) {
+    if (label[seed] >= 0 || image.intensity[seed] <= floor) continue;
+    std::vector<size_t> stack{seed};
+    label[seed] = static_cast<int>(peaks.size());
+    double w = 0, wc = 0, wr = 0;
+    while (!stack.empty()) {
+      const size_t i = stack.back();
+      stack.pop_back();
+      const double v = image.intensity[i];
+      w += v;
+      wc += v * double(i % image.width);
+      wr += v * double(i / image.width);
+      const int c = int(i % image.width), r = int(i / image.width);
+      for (auto [dc, dr] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        const int cc = c + dc, rr = r + dr;
+        if (cc < 0 || rr < 0 || cc >= image.width || rr >= image.height) continue;
+        const size_t j = size_t(rr) * image.width + cc;
+        if (label[j] < 0 && image.intensity[j] > floor) {
+          label[j] = label[seed];
+          stack.push_back(j);
+        }
+      }
+    }
+    peaks.emplace_back(wc / w, wr / w);
+  }
+  return peaks;
+}
+
+// End to end: point targets (raised plates) simulated at headings 0 and 30
+// deg (affine mode), found by peak detection, give the heading change with
+// `fmatrix` and the pose of view 1 with `resect`.
+TEST(MvgEndToEndTest, SimulatedTargetsGiveHeadingChangeAndPose) {
+  const fs::path dir = testing::MakeTempDir();
+  std::vector<Vector3d> targets;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> height(0.0, 80.0);
+  for (int i = 0; i < 5; ++i)
+    for (int j = 0; j < 4; ++j) targets.emplace_back(-240.0 + 120.0 * i, -180.0 + 120.0 * j, height(rng));
+  scene::TriangleMesh mesh;
+  for (const Vector3d& t : targets) AddPlate(mesh, t.cast<float>(), 1.0f);
+  const render::EmbreeScene embree(mesh);
+  render::RenderOptions ro;
+  ro.rays_per_cell = 16;
+  ro.max_bounces = 1;
+  ro.show_progress = false;
+  std::vector<sensor::SarGeometry> views;
+  std::vector<std::vector<Vector2d>> detected(2);  // per view, per target
+  for (double heading : {0.0, 30.0}) {
+    sensor::SarGeometryOptions o;
+    o.heading_deg = heading;
+    o.depression_deg = 40.0;
+    o.range_spacing_m = 1.0;
+    o.azimuth_spacing_m = 1.0;
+    views.push_back(sensor::SarGeometry(o, Vector3d::Zero(), 400, 400, 800, 800));
+    const render::SarImage image = render::RenderSar(embree, mesh, material::MaterialTable(), views.back(), ro);
+    const std::vector<Vector2d> peaks = DetectPeaks(image);
+    ASSERT_EQ(peaks.size(), targets.size());
+    std::vector<Vector2d>& labelled = detected[views.size() - 1];
+    for (const Vector3d& t : targets) {
+      const Vector2d predicted = views.back().Project(t);
+      const auto nearest = std::min_element(peaks.begin(), peaks.end(), [&](const Vector2d& a, const Vector2d& b) {
+        return (a - predicted).norm() < (b - predicted).norm();
+      });
+      EXPECT_LT((*nearest - predicted).norm(), 0.5);
+      labelled.push_back(*nearest);
+    }
+  }
+  {
+    std::ofstream csv(dir / "matches.csv");
+    csv.precision(10);
+    csv << "id,x1,y1,x2,y2\n";
+    for (size_t i = 0; i < targets.size(); ++i) {
+      csv << i << "," << detected[0][i].x() << "," << detected[0][i].y() << "," << detected[1][i].x() << ","
+          << detected[1][i].y() << "\n";
+    }
+    std::ofstream pts(dir / "points.csv");
+    pts.precision(10);
+    pts << "X,Y,Z,x,y\n";
+    for (size_t i = 0; i < targets.size(); ++i) {
+      pts << targets[i].x() << "," << targets[i].y() << "," << targets[i].z() << "," << detected[0][i].x() << ","
+          << detected[0][i].y() << "\n";
+    }
+  }
+  FmatrixOptions f;
+  f.matches = (dir / "matches.csv").string();
+  f.res1 = Vector2d(1, 1);
+  f.res2 = Vector2d(1, 1);
+  f.depressions = Vector2d(40, 40);
+  f.json_out = (dir / "f.json").string();
+  const nlohmann::json fj = RunFmatrix(f, "test");
+  EXPECT_NEAR(fj["heading_change_deg"].get<double>(), 30.0, 0.1);
+  EXPECT_EQ(fj["inliers"].size(), targets.size());
+  ResectOptions r;
+  r.points = (dir / "points.csv").string();
+  r.json_out = (dir / "r.json").string();
+  const nlohmann::json rj = RunResect(r, "test");
+  EXPECT_NEAR(rj["heading_deg"].get<double>(), 0.0, 0.05);
+  EXPECT_NEAR(rj["depression_deg"].get<double>(), 40.0, 0.05);
+  EXPECT_NEAR(rj["range_spacing_m"].get<double>(), 1.0, 0.005);
+}
+
+// The shared reference case through the command: F equals F_true.
+TEST(FmatrixCommandTest, ReferenceCase2) {
+  const fs::path dir = testing::MakeTempDir();
+  FmatrixOptions f;
+  f.matches = testing::SharedTestdataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  f.depressions = Vector2d(40, 40);
+  f.res1 = f.res2 = Vector2d(1, 1);
+  f.json_out = (dir / "f.json").string();
+  const nlohmann::json out = RunFmatrix(f, "test");
+  nlohmann::json ref;
+  std::ifstream(testing::SharedTestdataPath("affine/case2_thesis_dpsi30_dep40_noisefree.json")) >> ref;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(out["F"][r][c].get<double>(), ref["F_true"][r][c].get<double>(), 1e-10);
+  EXPECT_NEAR(out["heading_change_deg"].get<double>(), 30.0, 1e-6);
+  EXPECT_NEAR(out["kvd"]["theta_deg"].get<double>(), 23.198952052312735, 1e-7);
+}
+
+int RunGissarCli(std::vector<std::string> args, std::string* err) {
+  args.insert(args.begin(), "gissar");
+  std::vector<const char*> argv;
+  for (const auto& a : args) argv.push_back(a.c_str());
+  std::ostringstream out, e;
+  const int status = RunCli(static_cast<int>(argv.size()), argv.data(), out, e);
+  *err = e.str();
+  return status;
+}
+
+TEST(FmatrixCommandTest, DegenerateInputIsAClearError) {
+  const fs::path dir = testing::MakeTempDir();
+  auto csv = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return (dir / name).string();
+  };
+  struct Case {
+    std::string file, needle;
+  };
+  const std::vector<Case> cases = {
+      {csv("three.csv", "x1,y1,x2,y2\n1,2,3,4\n5,6,7,8\n9,1,2,3\n"), "at least 4 matches"},
+      {csv("collinear.csv", "x1,y1,x2,y2\n0,0,0,0\n1,1,1,1\n2,2,2,2\n3,3,3,3\n4,4,4,4\n"), "degenerate"},
+      {csv("nan.csv", "x1,y1,x2,y2\n1,2,3,4\n5,nan,7,8\n9,1,2,3\n4,4,5,5\n"), "nan.csv"},
+      {csv("columns.csv", "x1,y1,x2\n1,2,3\n"), "columns.csv"},
+  };
+  for (const Case& c : cases) {
+    std::string err;
+    EXPECT_EQ(RunGissarCli({"fmatrix", "--matches", c.file, "--json", (dir / "out.json").string()}, &err), 2) << c.file;
+    EXPECT_EQ(err.rfind("gissar: error: ", 0), 0u) << err;
+    EXPECT_NE(err.find(c.needle), std::string::npos) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    EXPECT_FALSE(fs::exists(dir / "out.json"));
+  }
+}
+
+TEST(RegisterCommandTest, RecoversAKnownAffineWarp) {
+  const fs::path dir = testing::MakeTempDir();
+  // A synthetic image pair: moving = fixed warped by a known affine map.
+  const int w = 120, h = 100;
+  std::vector<float> fixed(size_t(w) * h), moving(size_t(w) * h);
+  auto pattern = [](double x, double y) { return float(1.0 + 0.5 * std::sin(x * 0.21) * std::cos(y * 0.17)); };
+  Eigen::Matrix2d A;
+  A << 0.98, 0.05, -0.04, 1.02;
+  const Vector2d t(3.5, -2.0);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      fixed[size_t(r) * w + c] = pattern(c, r);
+      const Vector2d f = A.inverse() * (Vector2d(c, r) - t);  // moving pixel -> fixed pixel
+      moving[size_t(r) * w + c] = pattern(f.x(), f.y());
+    }
+  geo::WriteFloatGeoTiff(dir / "fixed.tif", {w, h, {fixed}, {}, {}});
+  geo::WriteFloatGeoTiff(dir / "moving.tif", {w, h, {moving}, {}, {}});
+  {
+    std::ofstream csv(dir / "cp.csv");
+    csv << "x1,y1,x2,y2\n";
+    for (const Vector2d p : {Vector2d(10, 10), Vector2d(100, 15), Vector2d(20, 90), Vector2d(95, 85), Vector2d(60, 50),
+                             Vector2d(30, 60)}) {
+      const Vector2d m = A * p + t;
+      csv << p.x() << "," << p.y() << "," << m.x() << "," << m.y() << "\n";
+    }
+  }
+  RegisterOptions o;
+  o.fixed = (dir / "fixed.tif").string();
+  o.moving = (dir / "moving.tif").string();
+  o.points = (dir / "cp.csv").string();
+  o.out_prefix = (dir / "reg").string();
+  const nlohmann::json out = RunRegister(o, "test");
+  EXPECT_LT(out["rms_px"].get<double>(), 1e-6);
+  const auto reg = geo::ReadFloatRaster(dir / "reg.tif");
+  double err = 0;
+  int n = 0;
+  for (int r = 20; r < 80; ++r)
+    for (int c = 20; c < 100; ++c) {
+      err += std::abs(reg.bands[0][size_t(r) * w + c] - fixed[size_t(r) * w + c]);
+      ++n;
+    }
+  EXPECT_LT(err / n, 0.01);
+  EXPECT_TRUE(fs::exists(dir / "reg_composite.png"));
+}
+
+}  // namespace
+}  // namespace gissar::cli
+
+namespace gissar::cli {
+namespace {
+
+TEST(EpipolarCommandTest, DrawsThePair) {
+  const fs::path dir = testing::MakeTempDir();
+  const int w = 1024, h = 1024;
+  std::vector<float> image(size_t(w) * h);
+  for (size_t i = 0; i < image.size(); ++i) image[i] = 1.0f + float(i % 37) * 0.1f;
+  geo::WriteFloatGeoTiff(dir / "a.tif", {w, h, {image}, {}, {}});
+  EpipolarOptions o;
+  o.matches = testing::SharedTestdataPath("affine/case3_dpsi30_dep40_45_res1_0.75_points.csv").string();
+  o.image1 = o.image2 = (dir / "a.tif").string();
+  o.out_png = (dir / "epi.png").string();
+  RunEpipolar(o);
+  int pw = 0, ph = 0;
+  geo::ReadByteRaster(dir / "epi.png", &pw, &ph);
+  EXPECT_EQ(pw, 2 * w + 10);
+  EXPECT_EQ(ph, h);
+}
+
+}  // namespace
+}  // namespace gissar::cli
