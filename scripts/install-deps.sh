@@ -17,6 +17,7 @@ PACKAGES=(
   libfftw3-dev                                 # FFT
   libgif-dev                                   # animated GIF (heading sequences)
   libssl-dev python3
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-gdal  # Python API
 )
 
 missing=()
