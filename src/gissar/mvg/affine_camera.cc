@@ -23,20 +23,6 @@ std::string Num(double v) {
 
 }  // namespace
 
-std::string ToString(LookSide side) { return side == LookSide::kRight ? "right" : "left"; }
-
-Eigen::Vector3d FlightDirection(double heading_deg) {
-  const double psi = heading_deg * kDegToRad;
-  return {std::sin(psi), std::cos(psi), 0.0};
-}
-
-Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSide look_side) {
-  const double psi = heading_deg * kDegToRad;
-  const double dep = depression_deg * kDegToRad;
-  Eigen::Vector3d r_h(std::cos(psi), -std::sin(psi), 0.0);
-  if (look_side == LookSide::kLeft) r_h = -r_h;
-  return std::cos(dep) * r_h - std::sin(dep) * Eigen::Vector3d::UnitZ();
-}
 
 Eigen::Matrix3d SarRotation(double heading_deg, double depression_deg, LookSide look_side) {
   const Eigen::Vector3d l = LookDirection(heading_deg, depression_deg, look_side);

@@ -14,16 +14,19 @@
 //    the scene centre Xc projects to (u0, v0).
 #pragma once
 
+#include "gissar/sensor/sar_geometry.h"
+
 #include <string>
 
 #include <Eigen/Core>
 
 namespace gissar::mvg {
 
-enum class LookSide { kRight, kLeft };
-
-// "right" / "left".
-std::string ToString(LookSide side);
+// The simulator's geometry conventions (one definition for both).
+using LookSide = sensor::LookSide;
+using sensor::FlightDirection;
+using sensor::LookDirection;
+using sensor::ToString;
 
 using AffineMatrix = Eigen::Matrix<double, 3, 4>;  // 3x4 camera, last row [0 0 0 1]
 using AffineRows = Eigen::Matrix<double, 2, 4>;    // its first two rows
@@ -41,10 +44,6 @@ struct SarPose {
   double v0 = 0.0;  // row (pixels) of Xc
 };
 
-// Line of sight l, flight direction h and rotation R = [l; h; n] of a
-// heading/depression/look side (degrees). No validation: any finite values.
-Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSide look_side);
-Eigen::Vector3d FlightDirection(double heading_deg);
 Eigen::Matrix3d SarRotation(double heading_deg, double depression_deg, LookSide look_side);
 
 // C_SAR = [1/range_spacing 0 u0; 0 1/azimuth_spacing v0; 0 0 1] (metres of

@@ -20,6 +20,19 @@ std::string Num(double v) {
 
 }  // namespace
 
+Eigen::Vector3d FlightDirection(double heading_deg) {
+  const double psi = heading_deg * kDegToRad;
+  return {std::sin(psi), std::cos(psi), 0.0};
+}
+
+Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSide look_side) {
+  const double psi = heading_deg * kDegToRad;
+  const double dep = depression_deg * kDegToRad;
+  Eigen::Vector3d r_h(std::cos(psi), -std::sin(psi), 0.0);
+  if (look_side == LookSide::kLeft) r_h = -r_h;
+  return std::cos(dep) * r_h - std::sin(dep) * Eigen::Vector3d::UnitZ();
+}
+
 LookSide ParseLookSide(const std::string& text) {
   if (text == "right") return LookSide::kRight;
   if (text == "left") return LookSide::kLeft;
@@ -62,12 +75,8 @@ SarGeometry::SarGeometry(const SarGeometryOptions& options, const Eigen::Vector3
     : options_(options), xc_(scene_centre), u0_(u0), v0_(v0), width_(width), height_(height) {
   options_.Check();
   if (width <= 0 || height <= 0) throw ConfigError("image size must be positive", "--width/--height");
-  const double psi = options.heading_deg * kDegToRad;
-  const double dep = options.depression_deg * kDegToRad;
-  h_ = Eigen::Vector3d(std::sin(psi), std::cos(psi), 0.0);
-  Eigen::Vector3d r_h(std::cos(psi), -std::sin(psi), 0.0);
-  if (options.look_side == LookSide::kLeft) r_h = -r_h;
-  l_ = std::cos(dep) * r_h - std::sin(dep) * Eigen::Vector3d::UnitZ();
+  h_ = FlightDirection(options.heading_deg);
+  l_ = LookDirection(options.heading_deg, options.depression_deg, options.look_side);
   n_ = l_.cross(h_);
   options_.width = width;
   options_.height = height;

@@ -32,6 +32,14 @@ ProjectionMode ParseProjectionMode(const std::string& text);
 std::string ToString(LookSide side);
 std::string ToString(ProjectionMode mode);
 
+// Flight (azimuth) direction h = [sin psi, cos psi, 0] of a heading in
+// degrees clockwise from north (ENU).
+Eigen::Vector3d FlightDirection(double heading_deg);
+// Line of sight l = cos(d) r_h - sin(d) z to the scene centre for a heading,
+// a depression d (degrees) and a look side (r_h = [cos psi, -sin psi, 0] for
+// right-looking, its opposite for left-looking). No validation.
+Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSide look_side);
+
 struct SarGeometryOptions {
   double heading_deg = 0.0;       // flight direction, clockwise from north
   double depression_deg = 40.0;   // at the scene centre, in (0, 90)
