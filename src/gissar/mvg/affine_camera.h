@@ -44,6 +44,9 @@ struct SarPose {
   double v0 = 0.0;  // row (pixels) of Xc
 };
 
+// Rotation R = [l; h; n] (rows: line of sight, flight direction, slant-range
+// plane normal n = l x h) of a heading/depression (degrees) and look side:
+// the virtual orthographic camera G_perp. No validation: any finite values.
 Eigen::Matrix3d SarRotation(double heading_deg, double depression_deg, LookSide look_side);
 
 // C_SAR = [1/range_spacing 0 u0; 0 1/azimuth_spacing v0; 0 0 1] (metres of
