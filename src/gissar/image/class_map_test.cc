@@ -50,3 +50,35 @@ TEST(ContactSheetTest, TilesFramesInAGrid) {
 
 }  // namespace
 }  // namespace gissar::image
+
+#include "gissar/image/annotated.h"
+
+namespace gissar::image {
+namespace {
+
+TEST(AnnotatedTest, QuicklookKeepsTheImageAndAddsAxes) {
+  std::vector<float> intensity(80 * 60);
+  for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = 0.1f + float(i % 80) / 80.0f;
+  const RgbImage picture = AnnotatedQuicklook(intensity, 80, 60, 2.0, 3.0, "test");
+  EXPECT_EQ(picture.width, 80 + 70 + 90 + 20);
+  EXPECT_EQ(picture.height, 60 + 34 + 50);
+  // The image sits at (70, 34) unchanged (grey values equal in R, G, B).
+  const std::vector<uint8_t> grey = DbQuicklook(intensity, 2.0, 98.0);
+  for (int y : {0, 30, 59})
+    for (int x : {0, 40, 79}) {
+      const uint8_t* p = &picture.rgb[((size_t(34 + y) * picture.width) + 70 + x) * 3];
+      EXPECT_EQ(p[0], grey[size_t(y) * 80 + x]);
+      EXPECT_EQ(p[1], p[0]);
+    }
+}
+
+TEST(AnnotatedTest, KvdDiagramDraws) {
+  const RgbImage d = KvdDiagram(1.0, 23.2, 11.6, 30.0, true);
+  EXPECT_EQ(d.width, 420);
+  size_t coloured = 0;
+  for (size_t i = 0; i + 2 < d.rgb.size(); i += 3) coloured += d.rgb[i] != d.rgb[i + 1] || d.rgb[i + 1] != d.rgb[i + 2];
+  EXPECT_GT(coloured, 500u);  // the red and blue strokes
+}
+
+}  // namespace
+}  // namespace gissar::image

@@ -163,4 +163,40 @@ void WritePly(const fs::path& path, const TriangleMesh& mesh, const std::vector<
   if (!out) throw IoError("failed writing PLY", path.string());
 }
 
+void WriteObj(const fs::path& path, const TriangleMesh& mesh, const std::vector<std::string>& class_names,
+              const std::vector<std::array<uint8_t, 3>>& class_colours) {
+  fs::path mtl_path = path;
+  mtl_path.replace_extension(".mtl");
+  {
+    std::ofstream mtl(mtl_path);
+    if (!mtl) throw IoError("cannot open MTL for writing", mtl_path.string());
+    for (size_t c = 0; c < class_names.size(); ++c) {
+      const auto rgb = c < class_colours.size() ? class_colours[c] : std::array<uint8_t, 3>{200, 200, 200};
+      mtl << "newmtl " << class_names[c] << "\nKd " << rgb[0] / 255.0 << " " << rgb[1] / 255.0 << " "
+          << rgb[2] / 255.0 << "\n";
+    }
+    if (!mtl) throw IoError("failed writing MTL", mtl_path.string());
+  }
+  std::ofstream out(path);
+  if (!out) throw IoError("cannot open OBJ for writing", path.string());
+  out << "# gissar scene, ENU metres (x east, y north, z up)\nmtllib " << mtl_path.filename().string() << "\n";
+  out.precision(9);
+  for (const Eigen::Vector3f& v : mesh.vertices) out << "v " << v.x() << " " << v.y() << " " << v.z() << "\n";
+  // Faces grouped by class.
+  for (size_t c = 0; c < class_names.size(); ++c) {
+    bool any = false;
+    for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+      if (mesh.classes[t] != c) continue;
+      if (!any) {
+        out << "usemtl " << class_names[c] << "\n";
+        any = true;
+      }
+      const Eigen::Vector3i& f = mesh.triangles[t];
+      out << "f " << f[0] + 1 << " " << f[1] + 1 << " " << f[2] + 1 << "\n";
+    }
+  }
+  out.close();
+  if (!out) throw IoError("failed writing OBJ", path.string());
+}
+
 }  // namespace gissar::scene

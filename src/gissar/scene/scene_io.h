@@ -8,6 +8,8 @@
 // magic "GSCNEND1".
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -44,5 +46,12 @@ SceneFile ReadScene(const std::filesystem::path& path);
 // with vertex_indices and a uchar `class` property; class names in comments.
 void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh,
               const std::vector<std::string>& class_names);
+
+// Wavefront OBJ (+ MTL beside it, same stem) with one material per class
+// coloured like the class map, for any 3-D viewer. `class_colours[i]` is the
+// RGB of class i. Writes `path` and `path` with extension ".mtl".
+void WriteObj(const std::filesystem::path& path, const TriangleMesh& mesh,
+              const std::vector<std::string>& class_names,
+              const std::vector<std::array<uint8_t, 3>>& class_colours);
 
 }  // namespace gissar::scene

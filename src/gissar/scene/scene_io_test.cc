@@ -81,5 +81,25 @@ TEST(SceneIoTest, PlyHasClassPerFace) {
   EXPECT_EQ(body_bytes, 6u * 12u + 4u * (1u + 12u + 1u));
 }
 
+TEST(SceneIoTest, ObjHasEveryVertexFaceAndClassMaterial) {
+  const fs::path path = testing::MakeTempDir() / "s.obj";
+  const SceneFile s = Sample();
+  WriteObj(path, s.mesh, s.class_names, {{1, 2, 3}, {0, 0, 255}});
+  std::ifstream in(path);
+  int v = 0, f = 0, use = 0;
+  for (std::string line; std::getline(in, line);) {
+    v += line.rfind("v ", 0) == 0;
+    f += line.rfind("f ", 0) == 0;
+    use += line.rfind("usemtl ", 0) == 0;
+  }
+  EXPECT_EQ(v, 6);
+  EXPECT_EQ(f, 4);
+  EXPECT_EQ(use, 2);  // default and road
+  std::ifstream mtl(fs::path(path).replace_extension(".mtl"));
+  std::stringstream text;
+  text << mtl.rdbuf();
+  EXPECT_NE(text.str().find("newmtl water\nKd 0 0 1"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace gissar::scene

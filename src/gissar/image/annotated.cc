@@ -1,0 +1,118 @@
+#include "gissar/image/annotated.h"
+
+#include <cmath>
+#include <cstdio>
+#include <opencv2/imgproc.hpp>
+
+#include "gissar/util/check.h"
+
+namespace gissar::image {
+namespace {
+
+double NiceStep(double span, int target_ticks) {
+  const double raw = span / std::max(1, target_ticks);
+  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (raw <= m * mag) return m * mag;
+  }
+  return 10 * mag;
+}
+
+std::string Fmt(double v, int decimals = 0) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  return buf;
+}
+
+RgbImage ToRgb(const cv::Mat& m) {
+  RgbImage out{m.cols, m.rows, {}};
+  out.rgb.assign(m.data, m.data + size_t(m.cols) * m.rows * 3);
+  return out;
+}
+
+}  // namespace
+
+RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int height,
+                            double range_spacing_m, double azimuth_spacing_m, const std::string& title) {
+  GISSAR_CHECK(intensity.size() == size_t(width) * height && range_spacing_m > 0 && azimuth_spacing_m > 0);
+  DbStretch stretch;
+  const std::vector<uint8_t> grey = DbQuicklook(intensity, 2.0, 98.0, &stretch);
+  const int left = 70, top = 34, bottom = 50, bar = 90;
+  cv::Mat canvas(height + top + bottom, width + left + bar + 20, CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::Mat g(height, width, CV_8UC1, const_cast<uint8_t*>(grey.data())), rgb;
+  cv::cvtColor(g, rgb, cv::COLOR_GRAY2RGB);
+  rgb.copyTo(canvas(cv::Rect(left, top, width, height)));
+  const cv::Scalar black(0, 0, 0);
+  const auto font = cv::FONT_HERSHEY_SIMPLEX;
+  cv::putText(canvas, title, cv::Point(left, 22), font, 0.55, black, 1, cv::LINE_AA);
+  cv::rectangle(canvas, cv::Rect(left - 1, top - 1, width + 2, height + 2), black, 1);
+  // Range axis (bottom).
+  const double range_span = width * range_spacing_m;
+  const double rstep = NiceStep(range_span, 6);
+  for (double r = 0; r <= range_span + 1e-9; r += rstep) {
+    const int x = left + static_cast<int>(std::lround(r / range_spacing_m));
+    cv::line(canvas, cv::Point(x, top + height + 1), cv::Point(x, top + height + 6), black, 1);
+    cv::putText(canvas, Fmt(r), cv::Point(x - 12, top + height + 20), font, 0.4, black, 1, cv::LINE_AA);
+  }
+  cv::putText(canvas, "slant range [m] ->", cv::Point(left + width / 2 - 60, top + height + 40), font, 0.45,
+              black, 1, cv::LINE_AA);
+  // Azimuth axis (left).
+  const double az_span = height * azimuth_spacing_m;
+  const double astep = NiceStep(az_span, 6);
+  for (double a = 0; a <= az_span + 1e-9; a += astep) {
+    const int y = top + static_cast<int>(std::lround(a / azimuth_spacing_m));
+    cv::line(canvas, cv::Point(left - 6, y), cv::Point(left - 2, y), black, 1);
+    cv::putText(canvas, Fmt(a), cv::Point(2, y + 4), font, 0.4, black, 1, cv::LINE_AA);
+  }
+  cv::putText(canvas, "azimuth [m]", cv::Point(2, top - 8), font, 0.4, black, 1, cv::LINE_AA);
+  // Colour bar in dB.
+  const int bx = left + width + 20, bw = 18;
+  for (int y = 0; y < height; ++y) {
+    const int v = 255 - static_cast<int>(std::lround(254.0 * y / std::max(1, height - 1)));
+    cv::line(canvas, cv::Point(bx, top + y), cv::Point(bx + bw, top + y), cv::Scalar(v, v, v), 1);
+  }
+  cv::rectangle(canvas, cv::Rect(bx, top, bw, height), black, 1);
+  for (int k = 0; k <= 4; ++k) {
+    const double db = stretch.high_db - k * (stretch.high_db - stretch.low_db) / 4;
+    const int y = top + static_cast<int>(std::lround(k * (height - 1) / 4.0));
+    cv::putText(canvas, Fmt(db, 1), cv::Point(bx + bw + 4, y + 4), font, 0.4, black, 1, cv::LINE_AA);
+  }
+  cv::putText(canvas, "dB", cv::Point(bx, top - 8), font, 0.45, black, 1, cv::LINE_AA);
+  return ToRgb(canvas);
+}
+
+RgbImage KvdDiagram(double s, double theta_deg, double phi_deg, double heading_change_deg, bool heading_known) {
+  const int size = 420, cx = size / 2, cy = size / 2 + 20, radius = 140;
+  cv::Mat canvas(size + 40, size, CV_8UC3, cv::Scalar(255, 255, 255));
+  const cv::Scalar black(0, 0, 0), blue(30, 90, 220), red(210, 40, 40), grey(170, 170, 170);
+  const auto font = cv::FONT_HERSHEY_SIMPLEX;
+  cv::circle(canvas, cv::Point(cx, cy), radius, grey, 1, cv::LINE_AA);
+  // Image axes: x = slant range (right), y = azimuth (down).
+  cv::arrowedLine(canvas, cv::Point(cx, cy), cv::Point(cx + radius + 30, cy), grey, 1, cv::LINE_AA, 0, 0.05);
+  cv::arrowedLine(canvas, cv::Point(cx, cy), cv::Point(cx, cy + radius + 30), grey, 1, cv::LINE_AA, 0, 0.05);
+  cv::putText(canvas, "x (range)", cv::Point(cx + radius - 40, cy - 6), font, 0.4, grey, 1, cv::LINE_AA);
+  cv::putText(canvas, "y (azimuth)", cv::Point(cx + 6, cy + radius + 28), font, 0.4, grey, 1, cv::LINE_AA);
+  // The rho axis at phi (in the image plane, y down).
+  const double p = phi_deg * M_PI / 180.0;
+  const cv::Point a(cx - int(radius * std::cos(p)), cy - int(radius * std::sin(p)));
+  const cv::Point b(cx + int(radius * std::cos(p)), cy + int(radius * std::sin(p)));
+  cv::line(canvas, a, b, blue, 2, cv::LINE_AA);
+  cv::putText(canvas, "rho axis, phi = " + Fmt(phi_deg, 2) + " deg", cv::Point(b.x - 60, b.y + 18), font, 0.45,
+              blue, 1, cv::LINE_AA);
+  // Cyclorotation theta as an arc from the x axis.
+  cv::ellipse(canvas, cv::Point(cx, cy), cv::Size(radius / 2, radius / 2), 0, 0, theta_deg, red, 2, cv::LINE_AA);
+  const double t = theta_deg * M_PI / 180.0;
+  cv::arrowedLine(canvas, cv::Point(cx, cy), cv::Point(cx + int(radius / 2 * std::cos(t)), cy + int(radius / 2 * std::sin(t))),
+                  red, 2, cv::LINE_AA, 0, 0.15);
+  cv::putText(canvas, "theta = " + Fmt(theta_deg, 2) + " deg", cv::Point(cx + 10, cy - radius / 2 - 8), font, 0.45,
+              red, 1, cv::LINE_AA);
+  cv::putText(canvas, "Koenderink-van Doorn: s = " + Fmt(s, 4), cv::Point(10, 20), font, 0.5, black, 1, cv::LINE_AA);
+  cv::putText(canvas, "rho: not recoverable from two views", cv::Point(10, 40), font, 0.45, black, 1, cv::LINE_AA);
+  if (heading_known) {
+    cv::putText(canvas, "heading change = " + Fmt(heading_change_deg, 3) + " deg", cv::Point(10, size + 30), font,
+                0.55, black, 1, cv::LINE_AA);
+  }
+  return ToRgb(canvas);
+}
+
+}  // namespace gissar::image
