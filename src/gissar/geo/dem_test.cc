@@ -133,3 +133,23 @@ TEST(DemTest, CentreOutsideDemIsAConfigError) {
 
 }  // namespace
 }  // namespace gissar::geo
+
+namespace gissar::geo {
+namespace {
+
+TEST(DemTest, WindowReadsOnlyThatPart) {
+  const Dem whole = ReadDem(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"));
+  DemReadOptions options;
+  options.window = std::array<int, 4>{100, 50, 64, 32};
+  const Dem window = ReadDem(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"), options);
+  EXPECT_EQ(window.width, 64);
+  EXPECT_EQ(window.height, 32);
+  EXPECT_EQ(window.HeightAt(0, 0), whole.HeightAt(100, 50));
+  EXPECT_EQ(window.HeightAt(63, 31), whole.HeightAt(163, 81));
+  EXPECT_NEAR((window.MapFromPost(0, 0) - whole.MapFromPost(100, 50)).norm(), 0.0, 1e-12);
+  options.window = std::array<int, 4>{450, 0, 64, 32};  // sticks out of the 480-wide DEM
+  EXPECT_THROW(ReadDem(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"), options), ConfigError);
+}
+
+}  // namespace
+}  // namespace gissar::geo
