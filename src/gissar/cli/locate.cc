@@ -1,0 +1,596 @@
+#include "gissar/cli/locate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <set>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "gissar/cli/simulate.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/image/impulse_response.h"
+#include "gissar/mvg/registration.h"
+#include "gissar/nav/matching.h"
+#include "gissar/scene/scene_config.h"
+#include "gissar/util/atomic_output.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+#include "gissar/util/provenance.h"
+
+namespace gissar::cli {
+namespace fs = std::filesystem;
+namespace {
+
+Eigen::Vector3d Vec3(const nlohmann::json& v, const std::string& key, const std::string& source) {
+  if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number()) {
+    throw ConfigError("must be an array of 3 numbers", source + ": " + key);
+  }
+  return {v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
+}
+
+double Num(const nlohmann::json& v, const std::string& key, const std::string& source) {
+  if (!v.is_number() || !std::isfinite(v.get<double>())) throw ConfigError("must be a finite number", source + ": " + key);
+  return v.get<double>();
+}
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const double pos = q * (v.size() - 1);
+  const size_t i = static_cast<size_t>(std::floor(pos));
+  const size_t j = std::min(v.size() - 1, i + 1);
+  return v[i] + (pos - i) * (v[j] - v[i]);
+}
+
+nlohmann::json PoseJson(const nav::NavPose& pose, sensor::LookSide side, const geo::LocalFrame& frame) {
+  const Eigen::Vector3d s = pose.SensorPosition(side);
+  const Eigen::Vector3d g = frame.GeodeticFromEnu(s);
+  return {{"heading_deg", pose.heading_deg},
+          {"depression_deg", pose.depression_deg},
+          {"slant_range_m", pose.slant_range_m},
+          {"centre_enu_m", {pose.centre_enu.x(), pose.centre_enu.y(), pose.centre_enu.z()}},
+          {"sensor_enu_m", {s.x(), s.y(), s.z()}},
+          {"sensor_lon_lat_h", {g.x(), g.y(), g.z()}}};
+}
+
+// One pass of Laplacian smoothing (weight `lambda`) of the vertex heights,
+// leaving building vertices alone: the "slightly different DEM" of the
+// observed scene.
+scene::TriangleMesh SmoothedTerrain(const scene::TriangleMesh& mesh, double lambda) {
+  scene::TriangleMesh out = mesh;
+  if (lambda <= 0.0) return out;
+  const size_t n = mesh.vertices.size();
+  std::vector<double> sum(n, 0.0);
+  std::vector<int> count(n, 0);
+  std::vector<bool> fixed(n, false);
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = mesh.triangles[t];
+    const bool building = mesh.classes.size() == mesh.triangles.size() && mesh.classes[t] == scene::kClassBuilding;
+    for (int k = 0; k < 3; ++k) {
+      if (building) fixed[tri[k]] = true;
+      for (int j = 0; j < 3; ++j) {
+        if (j == k) continue;
+        sum[tri[k]] += mesh.vertices[tri[j]].z();
+        ++count[tri[k]];
+      }
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (fixed[i] || count[i] == 0) continue;
+    out.vertices[i].z() = float((1.0 - lambda) * mesh.vertices[i].z() + lambda * sum[i] / count[i]);
+  }
+  return out;
+}
+
+SimulateOptions TerrainOptions(const std::string& scene, const std::string& dem) {
+  SimulateOptions so;
+  so.scene = scene;
+  so.dem = dem;
+  so.fill_nodata = true;
+  so.quiet = true;
+  return so;
+}
+
+void CheckSceneOrDem(const std::string& scene, const std::string& dem) {
+  if (scene.empty() == dem.empty()) throw ConfigError("give exactly one of --scene and --dem", "--scene");
+}
+
+// Error histogram (position error in resolution cells) as an RGB PNG.
+void WriteHistogram(const fs::path& path, const std::vector<double>& cells, double success_cells,
+                    const std::string& title) {
+  const int w = 640, h = 400, left = 60, bottom = 50, top = 40;
+  const int bins = 24;
+  const double max_cells = 6.0;
+  std::vector<int> counts(bins + 1, 0);
+  for (double c : cells) {
+    const int b = std::isfinite(c) ? std::min(bins, static_cast<int>(c / (max_cells / bins))) : bins;
+    ++counts[b];
+  }
+  const int peak = std::max(1, *std::max_element(counts.begin(), counts.end()));
+  cv::Mat img(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
+  const double bw = double(w - left - 20) / (bins + 1);
+  for (int b = 0; b <= bins; ++b) {
+    const int bh = static_cast<int>(double(counts[b]) / peak * (h - top - bottom));
+    const cv::Scalar colour = b == bins ? cv::Scalar(60, 60, 200) : cv::Scalar(200, 120, 40);
+    cv::rectangle(img, cv::Point(int(left + b * bw) + 1, h - bottom - bh), cv::Point(int(left + (b + 1) * bw) - 1, h - bottom),
+                  colour, cv::FILLED);
+  }
+  const int xs = static_cast<int>(left + success_cells / max_cells * bins * bw);
+  cv::line(img, cv::Point(xs, top), cv::Point(xs, h - bottom), cv::Scalar(0, 0, 0), 1);
+  cv::line(img, cv::Point(left, h - bottom), cv::Point(w - 20, h - bottom), cv::Scalar(0, 0, 0), 1);
+  for (int c = 0; c <= 6; ++c) {
+    cv::putText(img, std::to_string(c), cv::Point(int(left + c * bins / max_cells * bw) - 4, h - bottom + 18),
+                cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
+  }
+  cv::putText(img, ">6", cv::Point(int(left + bins * bw), h - bottom + 18), cv::FONT_HERSHEY_SIMPLEX, 0.45,
+              cv::Scalar(0, 0, 0), 1);
+  cv::putText(img, "position error (resolution cells); line: success bound", cv::Point(left, h - 12),
+              cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
+  cv::putText(img, title, cv::Point(left, 25), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1);
+  cv::putText(img, "max " + std::to_string(peak), cv::Point(5, top + 10), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+              cv::Scalar(0, 0, 0), 1);
+  cv::Mat rgb;
+  cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
+  geo::WritePng(path, std::vector<uint8_t>(rgb.data, rgb.data + size_t(w) * h * 3), w, h, 3);
+}
+
+}  // namespace
+
+PriorPose ParsePriorJson(const nlohmann::json& json, const std::string& source) {
+  if (!json.is_object()) throw ConfigError("prior must be a JSON object", source);
+  static const std::set<std::string> known = {"heading_deg", "slant_range_m", "sensor_enu_m", "depression_deg",
+                                              "centre_enu_m", "centre_lonlat", "sensor_lon_lat_h"};
+  for (const auto& [key, value] : json.items()) {
+    if (!known.count(key)) throw ConfigError("unknown key '" + key + "'", source);
+  }
+  PriorPose p;
+  if (!json.contains("heading_deg")) throw ConfigError("missing key 'heading_deg'", source);
+  if (!json.contains("slant_range_m")) throw ConfigError("missing key 'slant_range_m'", source);
+  p.heading_deg = Num(json["heading_deg"], "heading_deg", source);
+  p.slant_range_m = Num(json["slant_range_m"], "slant_range_m", source);
+  if (!(p.slant_range_m > 0)) throw ConfigError("must be > 0", source + ": slant_range_m");
+  if (json.contains("depression_deg")) p.depression_deg = Num(json["depression_deg"], "depression_deg", source);
+  if (json.contains("centre_enu_m")) p.centre_enu = Vec3(json["centre_enu_m"], "centre_enu_m", source);
+  if (json.contains("centre_lonlat")) {
+    const auto& v = json["centre_lonlat"];
+    if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number())
+      throw ConfigError("must be an array of 2 numbers", source + ": centre_lonlat");
+    p.centre_lonlat = Eigen::Vector2d(v[0].get<double>(), v[1].get<double>());
+  }
+  if (json.contains("sensor_enu_m")) p.sensor_enu = Vec3(json["sensor_enu_m"], "sensor_enu_m", source);
+  if (!p.sensor_enu && !(p.depression_deg && (p.centre_enu || p.centre_lonlat))) {
+    throw ConfigError("give sensor_enu_m, or depression_deg with centre_enu_m or centre_lonlat", source);
+  }
+  return p;
+}
+
+void LocateCommandOptions::Check() const {
+  CheckSceneOrDem(scene, dem);
+  if (image.empty()) throw ConfigError("required", "--image");
+  if (prior.empty()) throw ConfigError("required", "--prior");
+  if (out.empty()) throw ConfigError("required", "--out");
+  nav::ParseMatcher(matcher, "--matcher");
+  if (!look.empty()) sensor::ParseLookSide(look);
+  if (range_spacing_m < 0 || azimuth_spacing_m < 0) throw ConfigError("must be > 0", "--range-res/--azimuth-res");
+  if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
+  if (search_px < 5) throw ConfigError("must be >= 5", "--search");
+  if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
+  CheckOutputsAreNotInputs({out}, {image, scene, dem, prior});
+}
+
+nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string& command_line) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path out = outputs.Add(options.out);
+  std::ifstream prior_file(options.prior);
+  if (!prior_file) throw IoError("cannot read prior", options.prior);
+  nlohmann::json prior_json;
+  try {
+    prior_json = nlohmann::json::parse(prior_file);
+  } catch (const nlohmann::json::exception& e) {
+    throw ConfigError(std::string("invalid JSON: ") + e.what(), options.prior);
+  }
+  const PriorPose prior = ParsePriorJson(prior_json, options.prior);
+
+  const geo::FloatRaster raster = geo::ReadFloatRaster(options.image);
+  auto meta = [&](const std::string& key) -> std::optional<std::string> {
+    const auto it = raster.metadata.find(key);
+    if (it == raster.metadata.end()) return std::nullopt;
+    return it->second;
+  };
+  nav::SensorModel model;
+  model.width = raster.width;
+  model.height = raster.height;
+  model.range_spacing_m = options.range_spacing_m;
+  model.azimuth_spacing_m = options.azimuth_spacing_m;
+  if (model.range_spacing_m == 0.0) {
+    const auto v = meta("GISSAR_RANGE_SPACING_M");
+    if (!v) throw ConfigError("the image has no GISSAR_RANGE_SPACING_M: give --range-res", options.image);
+    model.range_spacing_m = std::stod(*v);
+  }
+  if (model.azimuth_spacing_m == 0.0) {
+    const auto v = meta("GISSAR_AZIMUTH_SPACING_M");
+    if (!v) throw ConfigError("the image has no GISSAR_AZIMUTH_SPACING_M: give --azimuth-res", options.image);
+    model.azimuth_spacing_m = std::stod(*v);
+  }
+  if (!options.look.empty()) model.look_side = sensor::ParseLookSide(options.look);
+  else if (const auto v = meta("GISSAR_LOOK_SIDE")) model.look_side = sensor::ParseLookSide(*v);
+  model.Check();
+  std::vector<float> observed = raster.bands.at(0);
+  for (float& v : observed) if (!std::isfinite(v)) v = 0.0f;
+
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem));
+  const render::EmbreeScene embree(terrain.mesh);
+  nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
+  std::optional<nav::NavPose> start;
+  if (prior.sensor_enu) {
+    start = nav::PoseFromSensor(scene, *prior.sensor_enu, prior.heading_deg, prior.slant_range_m,
+                                prior.depression_deg.value_or(40.0), model.look_side);
+  } else {
+    Eigen::Vector3d c = prior.centre_enu.value_or(Eigen::Vector3d::Zero());
+    if (prior.centre_lonlat) c = terrain.frame.EnuFromGeodetic(prior.centre_lonlat->x(), prior.centre_lonlat->y(), 0.0);
+    const auto ground = nav::SurfaceBelow(embree, terrain.mesh, c.x(), c.y());
+    if (ground) start = nav::NavPose{prior.heading_deg, *prior.depression_deg, prior.slant_range_m, *ground};
+  }
+  if (!start) throw InputError("the prior's line of sight does not reach the scene", options.prior);
+  nav::LocateOptions lo;
+  lo.matcher = nav::ParseMatcher(options.matcher, "--matcher");
+  lo.polish_evaluations = options.polish_evaluations;
+  lo.initial_search_px = options.search_px;
+  lo.step_px = options.step_px;
+  const nav::LocateResult r = nav::Locate(scene, model, observed, *start, lo);
+
+  nlohmann::json result = PoseJson(r.pose, model.look_side, terrain.frame);
+  nlohmann::json report = {
+      {"command", "locate"},
+      {"command_line", command_line},
+      {"version", VersionString()},
+      {"created_utc", UtcTimestamp()},
+      {"pose", result},
+      {"prior", PoseJson(*start, model.look_side, terrain.frame)},
+      {"converged", r.converged},
+      {"iterations", r.iterations},
+      {"renders", r.renders},
+      {"matches", r.matches},
+      {"inliers", r.inliers},
+      {"resection_rms_px", r.rms_px},
+      {"similarity_ncc", r.similarity},
+      {"prior_similarity_ncc", r.prior_similarity},
+      {"error_estimate", {{"heading_sigma_deg", r.heading_sigma_deg},
+                          {"depression_sigma_deg", r.depression_sigma_deg},
+                          {"position_sigma_along_l_h_n_m", {r.position_sigma_lhn_m.x(), r.position_sigma_lhn_m.y(), r.position_sigma_lhn_m.z()}},
+                          {"note", "from the resection covariance (matches assumed independent); a lower bound"}}},
+      {"seconds", total.ElapsedSeconds()},
+      {"locate_seconds", r.seconds},
+      {"sensor_model", {{"range_spacing_m", model.range_spacing_m}, {"azimuth_spacing_m", model.azimuth_spacing_m},
+                         {"width", model.width}, {"height", model.height}, {"look", sensor::ToString(model.look_side)}}},
+      {"matcher", options.matcher},
+      {"inputs", {{"image", InputFileRecord(options.image)},
+                  {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)},
+                  {"prior", InputFileRecord(options.prior)}}}};
+  WriteJsonFile(report, out);
+  outputs.Commit();
+  return report;
+}
+
+void EvaluateOptions::Check() const {
+  CheckSceneOrDem(scene, dem);
+  if (trials < 1) throw ConfigError("must be >= 1", "--trials");
+  if (out_prefix.empty()) throw ConfigError("required", "--out");
+  if (!(spacing_m > 0)) throw ConfigError("must be > 0", "--spacing");
+  if (size_px < 48) throw ConfigError("must be >= 48", "--size");
+  if (!(slant_range_m > 0)) throw ConfigError("must be > 0", "--slant-range");
+  if (!(depression_min_deg > 1 && depression_max_deg < 89 && depression_min_deg <= depression_max_deg))
+    throw ConfigError("need 1 < min <= max < 89", "--depression-min/--depression-max");
+  if (speckle_looks != 0 && speckle_looks < 1) throw ConfigError("must be 0 (off) or >= 1", "--looks");
+  if (!(material_db >= 0)) throw ConfigError("must be >= 0", "--material-db");
+  if (!(dem_smoothing >= 0 && dem_smoothing <= 1)) throw ConfigError("must be in [0, 1]", "--dem-smoothing");
+  if (!(success_cells > 0)) throw ConfigError("must be > 0", "--success-cells");
+  nav::ParseMatcher(matcher, "--matcher");
+  if (search_px != 0 && search_px < 5) throw ConfigError("must be 0 (automatic) or >= 5", "--search");
+  if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
+  if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
+}
+
+nlohmann::json RunEvaluate(const EvaluateOptions& options, const std::string& command_line) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
+  const fs::path png_path = outputs.Add(options.out_prefix + "_hist.png");
+  CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
+                           {options.scene, options.dem});
+
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem));
+  const render::EmbreeScene embree(terrain.mesh);
+  const scene::TriangleMesh observed_mesh = SmoothedTerrain(terrain.mesh, options.dem_smoothing);
+  const render::EmbreeScene observed_embree(observed_mesh);
+  const sensor::LookSide look = sensor::LookSide::kRight;
+  nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
+  nav::SensorModel model;
+  model.range_spacing_m = model.azimuth_spacing_m = options.spacing_m;
+  model.width = model.height = options.size_px;
+  model.look_side = look;
+  nav::LocateOptions lo;
+  lo.matcher = nav::ParseMatcher(options.matcher, "--matcher");
+  lo.polish_evaluations = options.polish_evaluations;
+  lo.initial_search_px = options.search_px > 0
+      ? options.search_px
+      : static_cast<int>(std::ceil((std::sqrt(2.0) * options.prior_horizontal_m +
+                                    options.slant_range_m * std::sin(options.prior_heading_deg * M_PI / 180.0) +
+                                    options.prior_vertical_m / std::tan(options.depression_min_deg * M_PI / 180.0)) /
+                                   options.spacing_m)) + 4;
+  lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
+  lo.step_px = options.step_px;
+
+  // True image centres are drawn where the whole image (and the prior's)
+  // stays on the scene.
+  const Eigen::AlignedBox3d box = terrain.mesh.Bounds();
+  const double extent = 0.5 * options.size_px * options.spacing_m /
+                            std::cos(options.depression_max_deg * M_PI / 180.0) * std::sqrt(2.0) +
+                        options.slant_range_m * std::sin(options.prior_heading_deg * M_PI / 180.0) +
+                        options.prior_horizontal_m + 100.0;
+  const Eigen::Vector2d lo_xy(box.min().x() + extent, box.min().y() + extent);
+  const Eigen::Vector2d hi_xy(box.max().x() - extent, box.max().y() - extent);
+  if (!(lo_xy.x() < hi_xy.x() && lo_xy.y() < hi_xy.y())) {
+    throw ConfigError("the scene is too small for images of this size and the prior errors", "--size/--spacing");
+  }
+
+  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
+  if (csv == nullptr) throw IoError("cannot write", csv_path.string());
+  std::fprintf(csv,
+               "trial,heading_deg,depression_deg,centre_x_m,centre_y_m,sensor_x_m,sensor_y_m,sensor_z_m,"
+               "prior_position_error_m,prior_heading_error_deg,converged,iterations,inliers,rms_px,"
+               "position_error_m,horizontal_error_m,vertical_error_m,position_error_cells,heading_error_deg,"
+               "depression_error_deg,sigma_heading_deg,similarity,prior_similarity,seconds,success");
+  const std::vector<nav::Matcher> matchers = {nav::Matcher::kNcc, nav::Matcher::kChamfer, nav::Matcher::kFeatures};
+  if (options.compare_matchers) {
+    for (nav::Matcher m : matchers) {
+      const std::string n = nav::ToString(m);
+      std::fprintf(csv, ",%s_raw,%s_inliers,%s_good,%s_median_err_px", n.c_str(), n.c_str(), n.c_str(), n.c_str());
+    }
+  }
+  std::fprintf(csv, "\n");
+
+  std::vector<double> pos_err, pos_cells, horiz_err, head_err, dep_err, seconds;
+  int successes = 0, converged = 0;
+  struct MatcherStats { std::vector<double> raw, inliers, good, median; };
+  std::vector<MatcherStats> mstats(matchers.size());
+  for (int trial = 0; trial < options.trials; ++trial) {
+    std::mt19937_64 rng(options.seed * 1000003ULL + trial);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    auto uni = [&](double a, double b) { return a + (b - a) * u01(rng); };
+    // True pose.
+    nav::NavPose truth;
+    bool ok = false;
+    for (int attempt = 0; attempt < 100 && !ok; ++attempt) {
+      truth.heading_deg = uni(0.0, 360.0);
+      truth.depression_deg = uni(options.depression_min_deg, options.depression_max_deg);
+      truth.slant_range_m = options.slant_range_m;
+      const auto g = nav::SurfaceBelow(embree, terrain.mesh, uni(lo_xy.x(), hi_xy.x()), uni(lo_xy.y(), hi_xy.y()));
+      if (g) { truth.centre_enu = *g; ok = true; }
+    }
+    if (!ok) throw InputError("no true pose found on the scene surface", options.scene);
+    // Observed image: smoothed terrain, materials off by +-material_db per class, speckle, noise.
+    material::MaterialTable materials = terrain.materials;
+    for (int c = 0; c < std::max<int>(scene::kClassCount, int(terrain.materials.size())); ++c) {
+      material::Material m = terrain.materials.Get(static_cast<scene::ClassId>(c));
+      const double f = std::pow(10.0, uni(-options.material_db, options.material_db) / 10.0);
+      m.diffuse = std::min(1.0, m.diffuse * f);
+      m.specular = std::min(1.0, m.specular * f);
+      materials.Set(static_cast<scene::ClassId>(c), m);
+    }
+    render::RenderOptions ro;
+    ro.rays_per_cell = options.rays_per_cell;
+    ro.max_bounces = options.bounces;
+    ro.show_progress = false;
+    ro.seed = options.seed + trial;
+    render::SarImage obs = render::RenderSar(observed_embree, observed_mesh, materials, nav::GeometryOf(truth, model), ro);
+    if (options.speckle_looks >= 1) image::ApplyMultiplicativeSpeckle(obs.intensity, options.speckle_looks, options.seed * 7919 + trial);
+    if (std::isfinite(options.nesz_db)) image::AddThermalNoise(obs.intensity, options.nesz_db, options.seed * 104729 + trial);
+    // INS prior after drift.
+    const Eigen::Vector3d sensor_true = truth.SensorPosition(look);
+    const Eigen::Vector3d sensor_prior = sensor_true + Eigen::Vector3d(uni(-1, 1) * options.prior_horizontal_m,
+                                                                       uni(-1, 1) * options.prior_horizontal_m,
+                                                                       uni(-1, 1) * options.prior_vertical_m);
+    const double heading_prior = truth.heading_deg + uni(-1, 1) * options.prior_heading_deg;
+    const auto prior = nav::PoseFromSensor(scene, sensor_prior, heading_prior, truth.slant_range_m, truth.depression_deg, look);
+    if (!prior) throw InputError("prior beam leaves the scene (trial " + std::to_string(trial) + ")", options.scene);
+
+    std::vector<std::array<double, 4>> mrow;
+    if (options.compare_matchers) {
+      const nav::Reference ref = nav::RenderReference(scene, *prior, model);
+      const cv::Mat obs_log = nav::LogIntensity(obs.intensity, model.width, model.height, lo.filter_px);
+      const sensor::SarGeometry true_geometry = nav::GeometryOf(truth, model);
+      nav::MatchOptions mo;
+      mo.patch_px = lo.patch_px;
+      mo.step_px = lo.step_px;
+      mo.search_px = lo.initial_search_px;
+      for (size_t k = 0; k < matchers.size(); ++k) {
+        const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matchers[k], mo, lo.filter_px, lo.ransac_threshold_px);
+        std::vector<double> errs;
+        for (size_t i = 0; i < cm.world.size(); ++i) errs.push_back((cm.observed[i] - true_geometry.Project(cm.world[i])).norm());
+        const double good = double(std::count_if(errs.begin(), errs.end(), [](double e) { return e < 1.0; }));
+        const double med = Percentile(errs, 0.5);
+        mrow.push_back({double(cm.raw), double(cm.world.size()), good, med});
+        mstats[k].raw.push_back(cm.raw);
+        mstats[k].inliers.push_back(double(cm.world.size()));
+        mstats[k].good.push_back(good);
+        if (std::isfinite(med)) mstats[k].median.push_back(med);
+      }
+    }
+    const nav::LocateResult r = nav::Locate(scene, model, obs.intensity, *prior, lo);
+    const Eigen::Vector3d d = r.sensor_enu - sensor_true;
+    const double e3 = d.norm(), eh = d.head<2>().norm();
+    const double e_heading = std::abs(std::remainder(r.pose.heading_deg - truth.heading_deg, 360.0));
+    const double e_dep = r.pose.depression_deg - truth.depression_deg;
+    const double cells = e3 / options.spacing_m;
+    const bool success = r.converged && cells < options.success_cells;
+    successes += success;
+    converged += r.converged;
+    pos_err.push_back(e3);
+    pos_cells.push_back(cells);
+    horiz_err.push_back(eh);
+    head_err.push_back(e_heading);
+    dep_err.push_back(std::abs(e_dep));
+    seconds.push_back(r.seconds);
+    std::fprintf(csv, "%d,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.4f,%d,%d,%d,%.4f,%.3f,%.3f,%.3f,%.4f,%.5f,%.5f,%.5f,%.4f,%.4f,%.3f,%d",
+                 trial, truth.heading_deg, truth.depression_deg, truth.centre_enu.x(), truth.centre_enu.y(),
+                 sensor_true.x(), sensor_true.y(), sensor_true.z(), (prior->SensorPosition(look) - sensor_true).norm(),
+                 std::remainder(heading_prior - truth.heading_deg, 360.0), r.converged ? 1 : 0, r.iterations, r.inliers,
+                 r.rms_px, e3, eh, d.z(), cells, e_heading, e_dep, r.heading_sigma_deg, r.similarity, r.prior_similarity,
+                 r.seconds, success ? 1 : 0);
+    for (const auto& m : mrow) std::fprintf(csv, ",%.0f,%.0f,%.0f,%.4f", m[0], m[1], m[2], m[3]);
+    std::fprintf(csv, "\n");
+    if (!options.quiet) {
+      std::fprintf(stderr, "evaluate: trial %d/%d: position error %.1f m (%.2f cells), heading %.3f deg, %s, %.2f s\n",
+                   trial + 1, options.trials, e3, cells, e_heading, success ? "ok" : "FAIL", r.seconds);
+    }
+  }
+  if (std::fclose(csv) != 0) throw IoError("failed writing", csv_path.string());
+
+  const std::string title = fs::path(options.scene.empty() ? options.dem : options.scene).stem().string() + ": " +
+                            std::to_string(options.trials) + " trials, " + std::to_string(successes) + " successes";
+  WriteHistogram(png_path, pos_cells, options.success_cells, title);
+  nlohmann::json matcher_json = nlohmann::json::object();
+  if (options.compare_matchers) {
+    for (size_t k = 0; k < matchers.size(); ++k) {
+      matcher_json[nav::ToString(matchers[k])] = {
+          {"median_raw_matches", Percentile(mstats[k].raw, 0.5)},
+          {"median_inliers_after_ransac", Percentile(mstats[k].inliers, 0.5)},
+          {"median_inliers_within_1px_of_truth", Percentile(mstats[k].good, 0.5)},
+          {"median_of_trial_median_error_px", Percentile(mstats[k].median, 0.5)},
+          {"trials_with_8_or_more_good", std::count_if(mstats[k].good.begin(), mstats[k].good.end(), [](double g) { return g >= 8; })}};
+    }
+  }
+  nlohmann::json summary = {
+      {"command", "evaluate"},
+      {"command_line", command_line},
+      {"version", VersionString()},
+      {"created_utc", UtcTimestamp()},
+      {"trials", options.trials},
+      {"seed", options.seed},
+      {"success_definition", "converged and 3-D sensor position error < " + std::to_string(options.success_cells) + " resolution cells"},
+      {"resolution_cell_m", options.spacing_m},
+      {"success_rate", double(successes) / options.trials},
+      {"converged_rate", double(converged) / options.trials},
+      {"position_error_m", {{"median", Percentile(pos_err, 0.5)}, {"p95", Percentile(pos_err, 0.95)}}},
+      {"position_error_cells", {{"median", Percentile(pos_cells, 0.5)}, {"p95", Percentile(pos_cells, 0.95)}}},
+      {"horizontal_error_m", {{"median", Percentile(horiz_err, 0.5)}, {"p95", Percentile(horiz_err, 0.95)}}},
+      {"heading_error_deg", {{"median", Percentile(head_err, 0.5)}, {"p95", Percentile(head_err, 0.95)}}},
+      {"depression_error_deg", {{"median", Percentile(dep_err, 0.5)}, {"p95", Percentile(dep_err, 0.95)}}},
+      {"seconds_per_fix", {{"median", Percentile(seconds, 0.5)}, {"p95", Percentile(seconds, 0.95)}}},
+      {"matcher_comparison_first_iteration", matcher_json},
+      {"options", {{"spacing_m", options.spacing_m}, {"size_px", options.size_px}, {"slant_range_m", options.slant_range_m},
+                   {"depression_range_deg", {options.depression_min_deg, options.depression_max_deg}},
+                   {"speckle_looks", options.speckle_looks}, {"nesz_db", options.nesz_db},
+                   {"material_db", options.material_db}, {"dem_smoothing", options.dem_smoothing},
+                   {"prior_horizontal_m", options.prior_horizontal_m}, {"prior_vertical_m", options.prior_vertical_m},
+                   {"prior_heading_deg", options.prior_heading_deg}, {"matcher", options.matcher},
+                   {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", lo.step_px}, {"bounces", options.bounces},
+                   {"rays_per_cell", options.rays_per_cell}}},
+      {"inputs", {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
+      {"seconds", total.ElapsedSeconds()}};
+  WriteJsonFile(summary, json_path);
+  outputs.Commit();
+  return summary;
+}
+
+void MatchPairOptions::Check() const {
+  if (fixed.empty() || moving.empty()) throw ConfigError("required", "--fixed/--moving");
+  if (out.empty()) throw ConfigError("required", "--out");
+  if (warp.size() != 4) throw ConfigError("needs ROT_DEG,SCALE,TX,TY", "--warp");
+  for (double v : warp) if (!std::isfinite(v)) throw ConfigError("must be finite", "--warp");
+  if (!(warp[1] > 0)) throw ConfigError("scale must be > 0", "--warp");
+  nav::MatchOptions m;
+  m.patch_px = patch_px;
+  m.step_px = step_px;
+  m.search_px = search_px;
+  m.Check();
+  if (filter_px < 1) throw ConfigError("must be >= 1", "--filter");
+  CheckOutputsAreNotInputs({out}, {fixed, moving});
+}
+
+nlohmann::json RunMatchPair(const MatchPairOptions& options, const std::string& command_line) {
+  options.Check();
+  AtomicOutputs outputs;
+  const fs::path out = outputs.Add(options.out);
+  auto load = [](const std::string& path, int& w, int& h) {
+    geo::FloatRaster r = geo::ReadFloatRaster(path);
+    w = r.width;
+    h = r.height;
+    std::vector<float> v = r.bands.at(0);
+    for (float& x : v) if (!std::isfinite(x) || x < 0) x = 0.0f;
+    return v;
+  };
+  int w1, h1, w2, h2;
+  const std::vector<float> a = load(options.fixed, w1, h1);
+  std::vector<float> b = load(options.moving, w2, h2);
+  if (w1 != w2 || h1 != h2) throw InputError("the two images differ in size", options.moving);
+  // Known warp T (moving -> warped): rotation and scale about the centre, then a shift.
+  const double th = options.warp[0] * M_PI / 180.0, s = options.warp[1];
+  const Eigen::Vector2d c((w1 - 1) / 2.0, (h1 - 1) / 2.0);
+  Eigen::Matrix2d A;
+  A << s * std::cos(th), -s * std::sin(th), s * std::sin(th), s * std::cos(th);
+  const Eigen::Vector2d t = c - A * c + Eigen::Vector2d(options.warp[2], options.warp[3]);
+  cv::Mat M = (cv::Mat_<double>(2, 3) << A(0, 0), A(0, 1), t.x(), A(1, 0), A(1, 1), t.y());
+  cv::Mat moving(h2, w2, CV_32F, b.data()), warped;
+  cv::warpAffine(moving, warped, M, moving.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  std::vector<float> wv(warped.begin<float>(), warped.end<float>());
+  const cv::Mat fixed_log = nav::LogIntensity(a, w1, h1, options.filter_px);
+  const cv::Mat warped_log = nav::LogIntensity(wv, w1, h1, options.filter_px);
+  nlohmann::json results = nlohmann::json::object();
+  for (nav::Matcher m : {nav::Matcher::kNcc, nav::Matcher::kChamfer, nav::Matcher::kFeatures}) {
+    nav::MatchOptions mo;
+    mo.patch_px = options.patch_px;
+    mo.step_px = options.step_px;
+    mo.search_px = options.search_px;
+    mo.min_contrast_db = 0.0;
+    Stopwatch clock;
+    // Reference = fixed image, observed = warped moving image.
+    const auto corr = nav::Match(m, fixed_log, warped_log, mo);
+    nlohmann::json r = {{"correspondences", corr.size()}};
+    if (corr.size() >= 4) {
+      std::vector<mvg::PointMatch> pairs;
+      for (const auto& k : corr) pairs.push_back({k.observed, k.reference});
+      mvg::RegistrationOptions ro;
+      ro.threshold_px = 1.5;
+      const auto reg = mvg::RegisterControlPoints(pairs, ro);
+      if (reg) {
+        double sum = 0;
+        int n = 0;
+        for (int y = 0; y < h1; ++y)
+          for (int x = 0; x < w1; ++x) {
+            const Eigen::Vector2d p(x, y);
+            sum += (reg->moving_to_fixed.Apply(p) - (A * p + t)).squaredNorm();
+            ++n;
+          }
+        r["inliers"] = reg->inliers.size();
+        r["fit_rms_px"] = reg->rms_px;
+        r["warp_rms_error_px"] = std::sqrt(sum / n);
+      }
+    }
+    r["seconds"] = clock.ElapsedSeconds();
+    results[nav::ToString(m)] = r;
+  }
+  nlohmann::json report = {{"command", "matchpair"},
+                           {"command_line", command_line},
+                           {"version", VersionString()},
+                           {"created_utc", UtcTimestamp()},
+                           {"warp", {{"rotation_deg", options.warp[0]}, {"scale", options.warp[1]},
+                                     {"tx_px", options.warp[2]}, {"ty_px", options.warp[3]}}},
+                           {"image_size", {w1, h1}},
+                           {"matchers", results},
+                           {"inputs", {{"fixed", InputFileRecord(options.fixed)}, {"moving", InputFileRecord(options.moving)}}}};
+  WriteJsonFile(report, out);
+  outputs.Commit();
+  return report;
+}
+
+}  // namespace gissar::cli

@@ -1,0 +1,102 @@
+// `gissar locate`, `gissar evaluate` and `gissar matchpair`: automatic
+// positioning from one SAR image (issue 7), its Monte-Carlo evaluation, and
+// the matcher's warp recovery on real image pairs. The algorithms live in
+// gissar/nav; these functions load the inputs and write the outputs (all
+// through AtomicOutputs, with provenance). Errors: the gissar::Error family.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "gissar/nav/locate.h"
+
+namespace gissar::cli {
+
+// Prior/result pose JSON (keys; any other key is a ConfigError naming the
+// key and the file):
+//   "heading_deg"      flight direction, degrees clockwise from north (required)
+//   "slant_range_m"    measured slant range to the image centre (required)
+//   and either "sensor_enu_m": [x, y, z]   INS sensor position (depression and
+//                                           centre derived on the scene surface)
+//   or "depression_deg" plus "centre_enu_m": [x, y, z] or "centre_lonlat": [lon, lat]
+// A result written by `locate` also holds these keys (sensor_enu_m and the
+// centre), so it can be fed back as a prior.
+struct PriorPose {
+  double heading_deg = 0.0;
+  double slant_range_m = 0.0;
+  std::optional<Eigen::Vector3d> sensor_enu;
+  std::optional<double> depression_deg;
+  std::optional<Eigen::Vector3d> centre_enu;
+  std::optional<Eigen::Vector2d> centre_lonlat;
+};
+PriorPose ParsePriorJson(const nlohmann::json& json, const std::string& source);
+
+struct LocateCommandOptions {
+  std::string image;   // observed image: GeoTIFF (band 1 linear intensity) with GISSAR_* metadata
+  std::string scene;   // .gscene (or a DEM with --dem)
+  std::string dem;
+  std::string prior;   // prior pose JSON
+  std::string out;     // result JSON
+  // Pixel spacings (0: the image's GISSAR_*_SPACING_M metadata).
+  double range_spacing_m = 0.0;
+  double azimuth_spacing_m = 0.0;
+  std::string look = "";  // "" = metadata, else right/left
+  std::string matcher = "ncc";
+  int search_px = 28;  // first-iteration search radius: the prior's uncertainty in pixels
+  int step_px = 12;    // grid step of the matched patches
+  int polish_evaluations = 0;
+  int bounces = 1;
+  double rays_per_cell = 4.0;
+  void Check() const;
+};
+nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string& command_line);
+
+struct EvaluateOptions {
+  std::string scene;
+  std::string dem;
+  int trials = 20;
+  uint64_t seed = 1;
+  std::string out_prefix;  // PREFIX.json, PREFIX_trials.csv, PREFIX_hist.png
+  double spacing_m = 30.0;      // range and azimuth pixel spacing
+  int size_px = 160;            // square image side
+  double slant_range_m = 10000.0;
+  double depression_min_deg = 35.0, depression_max_deg = 45.0;
+  double speckle_looks = 4.0;
+  double nesz_db = -25.0;
+  double material_db = 3.0;     // +- per class diffuse/specular scale of the observed scene
+  double dem_smoothing = 0.5;   // Laplacian weight on terrain vertex heights of the observed scene
+  double prior_horizontal_m = 200.0, prior_vertical_m = 50.0, prior_heading_deg = 3.0;
+  double success_cells = 3.0;
+  std::string matcher = "ncc";
+  bool compare_matchers = true;
+  // First-iteration search radius in pixels; 0 = from the prior errors:
+  // (sqrt(2) horizontal + R sin(heading) + vertical / tan(min depression)) / spacing + 4.
+  int search_px = 0;
+  int step_px = 12;  // grid step of the matched patches (more matches: better depression)
+  int polish_evaluations = 0;
+  int bounces = 1;
+  double rays_per_cell = 4.0;
+  bool quiet = false;
+  void Check() const;
+};
+// Returns the summary JSON (also written to PREFIX.json).
+nlohmann::json RunEvaluate(const EvaluateOptions& options, const std::string& command_line);
+
+struct MatchPairOptions {
+  std::string fixed, moving;  // two co-registered images (GDAL), band 1 linear intensity
+  std::vector<double> warp = {1.5, 1.02, 3.3, -2.7};  // rotation deg, scale, tx px, ty px (about the centre)
+  std::string out;            // JSON
+  int patch_px = 21, step_px = 6, search_px = 12, filter_px = 3;
+  void Check() const;
+};
+// Warps `moving` by the known affine map, matches `fixed` to it with every
+// matcher, fits an affine map (RANSAC) and reports the RMS difference to the
+// known warp over all pixels. Returns the JSON written to `out`.
+nlohmann::json RunMatchPair(const MatchPairOptions& options, const std::string& command_line);
+
+}  // namespace gissar::cli

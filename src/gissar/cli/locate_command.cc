@@ -1,0 +1,90 @@
+// Flags of `gissar locate`, `gissar evaluate` and `gissar matchpair`.
+#include <memory>
+
+#include "gissar/cli/command.h"
+#include "gissar/cli/locate.h"
+
+namespace gissar::cli {
+
+void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
+  {
+    auto o = std::make_shared<LocateCommandOptions>();
+    CLI::App* cmd = root.add_subcommand(
+        "locate", "Pose fix from one SAR image: match to simulated SAR at the INS prior, resect, iterate.");
+    cmd->add_option("--image", o->image, "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)")->required();
+    cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
+    cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
+    cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md)")->required();
+    cmd->add_option("--out", o->out, "Result JSON")->required();
+    cmd->add_option("--range-res", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
+    cmd->add_option("--azimuth-res", o->azimuth_spacing_m, "Azimuth pixel spacing, m (default: image metadata)");
+    cmd->add_option("--look", o->look, "right or left (default: image metadata, else right)");
+    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features")->capture_default_str();
+    cmd->add_option("--search", o->search_px, "First-iteration search radius, px (prior uncertainty)")->capture_default_str();
+    cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
+    cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
+    cmd->add_option("--bounces", o->bounces, "Reflections per ray in the reference renders")->capture_default_str();
+    cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell in the reference renders")->capture_default_str();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      const auto report = RunLocate(*o, context.command_line);
+      context.out << o->out << "\n";
+    });
+  }
+  {
+    auto o = std::make_shared<EvaluateOptions>();
+    auto no_compare = std::make_shared<bool>(false);
+    CLI::App* cmd = root.add_subcommand(
+        "evaluate", "Monte-Carlo evaluation of `locate`: success rate, position/heading errors, time per fix.");
+    cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
+    cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
+    cmd->add_option("--trials", o->trials, "Trials")->capture_default_str();
+    cmd->add_option("--seed", o->seed, "Seed")->capture_default_str();
+    cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.json, PREFIX_trials.csv, PREFIX_hist.png")->required();
+    cmd->add_option("--spacing", o->spacing_m, "Pixel spacing (range = azimuth), m: the resolution cell")->capture_default_str();
+    cmd->add_option("--size", o->size_px, "Image side, pixels")->capture_default_str();
+    cmd->add_option("--slant-range", o->slant_range_m, "Slant range to the image centre, m")->capture_default_str();
+    cmd->add_option("--depression-min", o->depression_min_deg, "Smallest true depression, deg")->capture_default_str();
+    cmd->add_option("--depression-max", o->depression_max_deg, "Largest true depression, deg")->capture_default_str();
+    cmd->add_option("--looks", o->speckle_looks, "Speckle looks of the observed image (0 = none)")->capture_default_str();
+    cmd->add_option("--nesz", o->nesz_db, "Thermal noise of the observed image, dB")->capture_default_str();
+    cmd->add_option("--material-db", o->material_db, "Material mismatch, +- dB per class")->capture_default_str();
+    cmd->add_option("--dem-smoothing", o->dem_smoothing, "Laplacian weight of the observed terrain heights")->capture_default_str();
+    cmd->add_option("--prior-horizontal", o->prior_horizontal_m, "INS drift, +- m per horizontal axis")->capture_default_str();
+    cmd->add_option("--prior-vertical", o->prior_vertical_m, "INS drift, +- m vertical")->capture_default_str();
+    cmd->add_option("--prior-heading", o->prior_heading_deg, "INS heading drift, +- deg")->capture_default_str();
+    cmd->add_option("--success-cells", o->success_cells, "Success: position error below this many cells")->capture_default_str();
+    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features")->capture_default_str();
+    cmd->add_flag("--no-compare", *no_compare, "Skip the per-trial matcher comparison");
+    cmd->add_option("--search", o->search_px, "First-iteration search radius, px (0 = from the prior errors)")->capture_default_str();
+    cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
+    cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
+    cmd->add_option("--bounces", o->bounces, "Reflections per ray")->capture_default_str();
+    cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell")->capture_default_str();
+    cmd->add_flag("--quiet", o->quiet, "No per-trial lines on stderr");
+    registry.Add(cmd, [=](const CommandContext& context) {
+      EvaluateOptions r = *o;
+      r.compare_matchers = !*no_compare;
+      RunEvaluate(r, context.command_line);
+      context.out << r.out_prefix << ".json\n" << r.out_prefix << "_trials.csv\n" << r.out_prefix << "_hist.png\n";
+    });
+  }
+  {
+    auto o = std::make_shared<MatchPairOptions>();
+    CLI::App* cmd = root.add_subcommand(
+        "matchpair", "Recover a known affine warp between two real images with every matcher (RMS error, px).");
+    cmd->add_option("--fixed", o->fixed, "Fixed image")->required();
+    cmd->add_option("--moving", o->moving, "Moving image (same grid, another date)")->required();
+    cmd->add_option("--warp", o->warp, "Known warp ROT_DEG,SCALE,TX,TY applied to the moving image")->delimiter(',')->expected(4)->capture_default_str();
+    cmd->add_option("--patch", o->patch_px, "Patch side, px (odd)")->capture_default_str();
+    cmd->add_option("--step", o->step_px, "Grid step, px")->capture_default_str();
+    cmd->add_option("--search", o->search_px, "Search radius, px")->capture_default_str();
+    cmd->add_option("--filter", o->filter_px, "Speckle box filter, px")->capture_default_str();
+    cmd->add_option("--out", o->out, "Result JSON")->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      RunMatchPair(*o, context.command_line);
+      context.out << o->out << "\n";
+    });
+  }
+}
+
+}  // namespace gissar::cli

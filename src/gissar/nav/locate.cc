@@ -1,0 +1,383 @@
+#include "gissar/nav/locate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "gissar/mvg/registration.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+
+namespace gissar::nav {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+Eigen::Vector3d UpNormal(const sensor::SarGeometry& g) {
+  Eigen::Vector3d n = g.range_plane_normal();
+  return n.z() < 0 ? Eigen::Vector3d(-n) : n;
+}
+
+// Moves `pose` by (d_heading, d_depression) and the image-centre ground
+// point by (a, b) metres along the new l and h; nullopt when the new
+// centre misses the scene or the depression leaves (1, 89) degrees.
+std::optional<NavPose> Moved(const NavScene& scene, const NavPose& pose, const SensorModel& model,
+                             double d_heading, double d_depression, double a, double b) {
+  NavPose p = pose;
+  p.heading_deg += d_heading;
+  p.depression_deg += d_depression;
+  if (!(p.depression_deg > 1.0 && p.depression_deg < 89.0)) return std::nullopt;
+  const sensor::SarGeometry g = GeometryOf(p, model);
+  const Eigen::Vector3d base = pose.centre_enu + a * g.look_direction() + b * g.flight_direction();
+  const auto centre = SurfaceAlongNormal(*scene.embree, *scene.mesh, base, UpNormal(g));
+  if (!centre) return std::nullopt;
+  p.centre_enu = *centre;
+  return p;
+}
+
+double Similarity(const Reference& ref, const cv::Mat& observed_log, int filter_px) {
+  const cv::Mat ref_log = LogIntensity(ref.intensity, ref.geometry.width(), ref.geometry.height(), filter_px);
+  return ImageNcc(ref_log, observed_log);
+}
+
+// Resection with the sensor's known pixel spacings: Gauss-Newton on
+// (heading, depression, u0, v0) of x = u0 + (X - Xc).l / dr,
+// y = v0 + (X - Xc).h / da (the scene centre Xc fixed). Unlike the general
+// mvg::ResectSarCamera, which also fits both spacings, the known range
+// spacing makes the range scale cos(depression) / dr pin the depression.
+struct KnownSpacingResection {
+  double heading_deg = 0, depression_deg = 0, u0 = 0, v0 = 0;
+  Eigen::Vector4d sigma = Eigen::Vector4d::Zero();  // deg, deg, px, px
+  double rms_px = 0;
+};
+
+std::optional<KnownSpacingResection> ResectKnownSpacing(const std::vector<Eigen::Vector3d>& world,
+                                                         const std::vector<Eigen::Vector2d>& pixels,
+                                                         const Eigen::Vector3d& xc, const SensorModel& model,
+                                                         double heading_deg, double depression_deg) {
+  const int n = static_cast<int>(world.size());
+  if (n < 4) return std::nullopt;
+  Eigen::Vector4d p(heading_deg, depression_deg, 0.0, 0.0);
+  auto residuals = [&](const Eigen::Vector4d& q) {
+    const Eigen::Vector3d l = sensor::LookDirection(q[0], q[1], model.look_side);
+    const Eigen::Vector3d h = sensor::FlightDirection(q[0]);
+    Eigen::VectorXd r(2 * n);
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d d = world[i] - xc;
+      r[2 * i] = q[2] + d.dot(l) / model.range_spacing_m - pixels[i].x();
+      r[2 * i + 1] = q[3] + d.dot(h) / model.azimuth_spacing_m - pixels[i].y();
+    }
+    return r;
+  };
+  // Start u0, v0 from the mean residual.
+  const Eigen::VectorXd r0 = residuals(p);
+  double sx = 0, sy = 0;
+  for (int i = 0; i < n; ++i) { sx += r0[2 * i]; sy += r0[2 * i + 1]; }
+  p[2] = -sx / n;
+  p[3] = -sy / n;
+  Eigen::MatrixXd J(2 * n, 4);
+  for (int it = 0; it < 20; ++it) {
+    const Eigen::VectorXd r = residuals(p);
+    const Eigen::Vector4d eps(1e-5, 1e-5, 1e-3, 1e-3);
+    for (int k = 0; k < 4; ++k) {
+      Eigen::Vector4d q = p;
+      q[k] += eps[k];
+      J.col(k) = (residuals(q) - r) / eps[k];
+    }
+    const Eigen::Vector4d step = (J.transpose() * J).ldlt().solve(-J.transpose() * r);
+    if (!step.allFinite()) return std::nullopt;
+    p += step;
+    if (std::abs(step[0]) < 1e-9 && std::abs(step[1]) < 1e-9 && step.tail<2>().norm() < 1e-7) break;
+  }
+  if (!(p[1] > 1.0 && p[1] < 89.0)) return std::nullopt;
+  const Eigen::VectorXd r = residuals(p);
+  KnownSpacingResection out;
+  out.heading_deg = p[0];
+  out.depression_deg = p[1];
+  out.u0 = p[2];
+  out.v0 = p[3];
+  out.rms_px = std::sqrt(r.squaredNorm() / n);
+  if (2 * n > 4) {
+    const double s2 = r.squaredNorm() / (2 * n - 4);
+    const Eigen::Matrix4d cov = s2 * (J.transpose() * J).inverse();
+    out.sigma = cov.diagonal().cwiseMax(0.0).cwiseSqrt();
+  }
+  return out;
+}
+
+}  // namespace
+
+Eigen::Vector3d NavPose::LookDirection(sensor::LookSide side) const {
+  return sensor::LookDirection(heading_deg, depression_deg, side);
+}
+
+Eigen::Vector3d NavPose::SensorPosition(sensor::LookSide side) const {
+  return centre_enu - slant_range_m * LookDirection(side);
+}
+
+void SensorModel::Check() const {
+  if (!(range_spacing_m > 0.0) || !std::isfinite(range_spacing_m)) throw ConfigError("must be > 0", "range_spacing_m");
+  if (!(azimuth_spacing_m > 0.0) || !std::isfinite(azimuth_spacing_m)) throw ConfigError("must be > 0", "azimuth_spacing_m");
+  if (width < 48 || height < 48) throw ConfigError("image must be at least 48 x 48 pixels", "width/height");
+}
+
+void LocateOptions::Check() const {
+  if (filter_px < 1 || filter_px > 15) throw ConfigError("must be in [1, 15]", "filter_px");
+  MatchOptions m;
+  m.patch_px = patch_px;
+  m.step_px = step_px;
+  m.search_px = std::min(initial_search_px, refine_search_px);
+  m.Check();
+  if (initial_search_px < refine_search_px) throw ConfigError("must be >= refine_search_px", "initial_search_px");
+  if (max_iterations < 1) throw ConfigError("must be >= 1", "max_iterations");
+  if (!(ransac_threshold_px > 0.0)) throw ConfigError("must be > 0", "ransac_threshold_px");
+  if (min_matches < 6) throw ConfigError("must be >= 6", "min_matches");
+  if (polish_evaluations < 0) throw ConfigError("must be >= 0", "polish_evaluations");
+}
+
+sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model) {
+  sensor::SarGeometryOptions o;
+  o.heading_deg = pose.heading_deg;
+  o.depression_deg = pose.depression_deg;
+  o.look_side = model.look_side;
+  o.slant_range_m = pose.slant_range_m;
+  o.range_spacing_m = model.range_spacing_m;
+  o.azimuth_spacing_m = model.azimuth_spacing_m;
+  o.mode = sensor::ProjectionMode::kAffine;
+  o.width = model.width;
+  o.height = model.height;
+  return sensor::SarGeometry(o, pose.centre_enu, (model.width - 1) / 2.0, (model.height - 1) / 2.0,
+                             model.width, model.height);
+}
+
+std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& embree,
+                                                  const scene::TriangleMesh& mesh,
+                                                  const Eigen::Vector3d& base,
+                                                  const Eigen::Vector3d& n_up) {
+  const Eigen::AlignedBox3d box = mesh.Bounds();
+  if (!(n_up.z() > 1e-6)) return std::nullopt;
+  const double t0 = (box.max().z() + 100.0 - base.z()) / n_up.z();
+  const Eigen::Vector3d start = base + t0 * n_up;
+  const auto hit = embree.Intersect(start.cast<float>(), (-n_up).cast<float>(), 0.0f,
+                                    std::numeric_limits<float>::infinity());
+  if (!hit) return std::nullopt;
+  return start - double(hit->t) * n_up;
+}
+
+std::optional<Eigen::Vector3d> SurfaceBelow(const render::EmbreeScene& embree,
+                                            const scene::TriangleMesh& mesh, double x, double y) {
+  return SurfaceAlongNormal(embree, mesh, Eigen::Vector3d(x, y, 0.0), Eigen::Vector3d::UnitZ());
+}
+
+Reference RenderReference(const NavScene& scene, const NavPose& pose, const SensorModel& model) {
+  Reference ref{GeometryOf(pose, model), {}, {}, {}};
+  render::RenderOptions ro;
+  ro.rays_per_cell = scene.rays_per_cell;
+  ro.max_bounces = scene.bounces;
+  ro.record_contributions = true;
+  ro.show_progress = false;
+  render::SarImage image = render::RenderSar(*scene.embree, *scene.mesh, *scene.materials, ref.geometry, ro);
+  ref.intensity = std::move(image.intensity);
+  const int w = model.width, h = model.height;
+  cv::Mat sum(h, w, CV_64FC3, cv::Scalar::all(0)), weight(h, w, CV_64F, cv::Scalar(0));
+  for (const render::Contribution& c : image.contributions) {
+    if (c.bounces != 1) continue;
+    const int x = static_cast<int>(std::lround(ref.geometry.ColumnOfRange(c.range_m)));
+    const int y = static_cast<int>(std::lround(ref.geometry.RowOfAlongTrack(c.azimuth_m)));
+    if (x < 0 || y < 0 || x >= w || y >= h) continue;
+    const double wt = double(c.intensity) + 1e-9;
+    cv::Vec3d& s = sum.at<cv::Vec3d>(y, x);
+    for (int k = 0; k < 3; ++k) s[k] += wt * c.hit_enu[k];
+    weight.at<double>(y, x) += wt;
+  }
+  ref.points = cv::Mat(h, w, CV_32FC3, cv::Scalar::all(std::numeric_limits<float>::quiet_NaN()));
+  ref.valid = cv::Mat(h, w, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double wt = weight.at<double>(y, x);
+      if (wt <= 0) continue;
+      const cv::Vec3d s = sum.at<cv::Vec3d>(y, x) / wt;
+      ref.points.at<cv::Vec3f>(y, x) = cv::Vec3f(float(s[0]), float(s[1]), float(s[2]));
+      if ((image.mask[size_t(y) * w + x] & render::kMaskLayover) == 0) ref.valid.at<uint8_t>(y, x) = 255;
+    }
+  return ref;
+}
+
+ControlMatches MatchReference(const Reference& reference, const cv::Mat& observed_log, Matcher matcher,
+                              const MatchOptions& match, int filter_px, double ransac_threshold_px) {
+  ControlMatches out;
+  const cv::Mat ref_log = LogIntensity(reference.intensity, reference.geometry.width(),
+                                       reference.geometry.height(), filter_px);
+  const std::vector<Correspondence> corr = Match(matcher, ref_log, observed_log, match, reference.valid);
+  out.raw = static_cast<int>(corr.size());
+  if (corr.size() < 6) return out;
+  std::vector<mvg::PointMatch> pairs;
+  for (const Correspondence& c : corr) pairs.push_back({c.observed, c.reference});
+  mvg::RegistrationOptions ro;
+  ro.type = mvg::TransformType::kAffine;
+  ro.threshold_px = ransac_threshold_px;
+  ro.seed = 7;
+  const auto reg = mvg::RegisterControlPoints(pairs, ro);
+  if (!reg) return out;
+  for (int i : reg->inliers) {
+    const Correspondence& c = corr[i];
+    const int x = static_cast<int>(std::lround(c.reference.x()));
+    const int y = static_cast<int>(std::lround(c.reference.y()));
+    const cv::Vec3f p = reference.points.at<cv::Vec3f>(y, x);
+    if (!std::isfinite(p[0])) continue;
+    const Eigen::Vector3d world(p[0], p[1], p[2]);
+    // The mean hit projects near, not exactly at, the pixel centre: move the
+    // observed pixel by the same sub-pixel offset.
+    const Eigen::Vector2d offset = reference.geometry.Project(world) - c.reference;
+    out.world.push_back(world);
+    out.observed.push_back(c.observed + offset);
+  }
+  return out;
+}
+
+LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::vector<float>& observed,
+                    const NavPose& prior, const LocateOptions& options) {
+  options.Check();
+  model.Check();
+  if (observed.size() != size_t(model.width) * size_t(model.height)) {
+    throw InputError("observed image is not width x height", "nav::Locate");
+  }
+  Stopwatch clock;
+  LocateResult result;
+  result.pose = prior;
+  const cv::Mat obs_log = LogIntensity(observed, model.width, model.height, options.filter_px);
+  NavPose pose = prior;
+  int search = options.initial_search_px;
+  double last_update_px = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < options.max_iterations; ++it) {
+    const Reference ref = RenderReference(scene, pose, model);
+    ++result.renders;
+    if (it == 0) result.prior_similarity = Similarity(ref, obs_log, options.filter_px);
+    MatchOptions mo;
+    mo.patch_px = options.patch_px;
+    mo.step_px = options.step_px;
+    mo.search_px = search;
+    const ControlMatches cm = MatchReference(ref, obs_log, options.matcher, mo, options.filter_px,
+                                             options.ransac_threshold_px);
+    result.iterations = it + 1;
+    result.matches = cm.raw;
+    result.inliers = static_cast<int>(cm.world.size());
+    if (result.inliers < options.min_matches) break;
+    const auto res = ResectKnownSpacing(cm.world, cm.observed, pose.centre_enu, model, pose.heading_deg,
+                                        pose.depression_deg);
+    if (!res) break;
+    const double a = ((model.width - 1) / 2.0 - res->u0) * model.range_spacing_m;
+    const double b = ((model.height - 1) / 2.0 - res->v0) * model.azimuth_spacing_m;
+    const double d_heading = std::remainder(res->heading_deg - pose.heading_deg, 360.0);
+    const double d_depression = res->depression_deg - pose.depression_deg;
+    const auto next = Moved(scene, pose, model, d_heading, d_depression, a, b);
+    if (!next) break;
+    result.rms_px = res->rms_px;
+    result.heading_sigma_deg = res->sigma[0];
+    result.depression_sigma_deg = res->sigma[1];
+    result.position_sigma_lhn_m = Eigen::Vector3d(res->sigma[2] * model.range_spacing_m,
+                                                  res->sigma[3] * model.azimuth_spacing_m,
+                                                  pose.slant_range_m * res->sigma[1] * kDeg);
+    const double rotation_px = std::abs(d_heading) * kDeg * 0.5 * std::max(model.width, model.height);
+    // A depression change rescales the range axis by ~tan(delta) d_delta.
+    const double tilt_px = std::abs(d_depression) * kDeg * std::tan(pose.depression_deg * kDeg) * 0.5 * model.width;
+    last_update_px = std::max({std::abs(a) / model.range_spacing_m, std::abs(b) / model.azimuth_spacing_m,
+                               rotation_px, tilt_px});
+    pose = *next;
+    search = last_update_px > options.refine_search_px - 1 ? options.initial_search_px : options.refine_search_px;
+    if (last_update_px < 0.1) break;
+  }
+  result.converged = last_update_px < 0.5;
+
+  if (options.polish_evaluations > 0 && result.converged) {
+    // Nelder-Mead on -NCC over (heading, depression, shift along l, along h).
+    auto cost = [&](const Eigen::Vector4d& q) {
+      const auto p = Moved(scene, pose, model, q[0], q[1], q[2], q[3]);
+      if (!p) return 2.0;
+      ++result.renders;
+      return -Similarity(RenderReference(scene, *p, model), obs_log, options.filter_px);
+    };
+    std::vector<Eigen::Vector4d> simplex(5, Eigen::Vector4d::Zero());
+    const Eigen::Vector4d steps(0.05, 0.1, 0.3 * model.range_spacing_m, 0.3 * model.azimuth_spacing_m);
+    for (int k = 0; k < 4; ++k) simplex[k + 1][k] = steps[k];
+    std::vector<double> f(5);
+    for (int k = 0; k < 5; ++k) f[k] = cost(simplex[k]);
+    int evaluations = 5;
+    while (evaluations < options.polish_evaluations) {
+      std::vector<int> order{0, 1, 2, 3, 4};
+      std::sort(order.begin(), order.end(), [&](int i, int j) { return f[i] < f[j]; });
+      std::vector<Eigen::Vector4d> s2;
+      std::vector<double> f2;
+      for (int i : order) { s2.push_back(simplex[i]); f2.push_back(f[i]); }
+      simplex = s2;
+      f = f2;
+      Eigen::Vector4d centroid = Eigen::Vector4d::Zero();
+      for (int k = 0; k < 4; ++k) centroid += simplex[k] / 4.0;
+      const Eigen::Vector4d xr = centroid + (centroid - simplex[4]);
+      const double fr = cost(xr);
+      ++evaluations;
+      if (fr < f[0]) {
+        const Eigen::Vector4d xe = centroid + 2.0 * (centroid - simplex[4]);
+        const double fe = cost(xe);
+        ++evaluations;
+        if (fe < fr) { simplex[4] = xe; f[4] = fe; } else { simplex[4] = xr; f[4] = fr; }
+      } else if (fr < f[3]) {
+        simplex[4] = xr; f[4] = fr;
+      } else {
+        const Eigen::Vector4d xc = centroid + 0.5 * (simplex[4] - centroid);
+        const double fc = cost(xc);
+        ++evaluations;
+        if (fc < f[4]) { simplex[4] = xc; f[4] = fc; }
+        else {
+          for (int k = 1; k < 5; ++k) { simplex[k] = simplex[0] + 0.5 * (simplex[k] - simplex[0]); f[k] = cost(simplex[k]); }
+          evaluations += 4;
+        }
+      }
+    }
+    const int best = static_cast<int>(std::min_element(f.begin(), f.end()) - f.begin());
+    if (const auto p = Moved(scene, pose, model, simplex[best][0], simplex[best][1], simplex[best][2],
+                             simplex[best][3])) {
+      pose = *p;
+    }
+  }
+  result.pose = pose;
+  result.sensor_enu = pose.SensorPosition(model.look_side);
+  result.similarity = Similarity(RenderReference(scene, pose, model), obs_log, options.filter_px);
+  ++result.renders;
+  result.seconds = clock.ElapsedSeconds();
+  return result;
+}
+
+}  // namespace gissar::nav
+
+namespace gissar::nav {
+
+std::optional<NavPose> PoseFromSensor(const NavScene& scene, const Eigen::Vector3d& sensor_enu,
+                                      double heading_deg, double slant_range_m,
+                                      double depression_guess_deg, sensor::LookSide look_side) {
+  NavPose p;
+  p.heading_deg = heading_deg;
+  p.slant_range_m = slant_range_m;
+  p.depression_deg = depression_guess_deg;
+  for (int i = 0; i < 20; ++i) {
+    const Eigen::Vector3d c = sensor_enu + slant_range_m * sensor::LookDirection(heading_deg, p.depression_deg, look_side);
+    const auto ground = SurfaceBelow(*scene.embree, *scene.mesh, c.x(), c.y());
+    if (!ground) return std::nullopt;
+    const double s = (sensor_enu.z() - ground->z()) / slant_range_m;
+    if (!(s > std::sin(1.0 * M_PI / 180) && s < std::sin(89.0 * M_PI / 180))) return std::nullopt;
+    const double next = std::asin(s) * 180.0 / M_PI;
+    p.centre_enu = *ground;
+    const bool done = std::abs(next - p.depression_deg) < 1e-6;
+    p.depression_deg = next;
+    if (done) break;
+  }
+  // Xc: the surface point on the final line of sight at range R (horizontal
+  // position from the line of sight, height from the surface).
+  const Eigen::Vector3d c = sensor_enu + slant_range_m * sensor::LookDirection(heading_deg, p.depression_deg, look_side);
+  const auto ground = SurfaceBelow(*scene.embree, *scene.mesh, c.x(), c.y());
+  if (!ground) return std::nullopt;
+  p.centre_enu = *ground;
+  return p;
+}
+
+}  // namespace gissar::nav

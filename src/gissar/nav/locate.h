@@ -1,0 +1,163 @@
+// Automatic positioning: the pose of an aircraft's SAR from one observed
+// image and a 3-D scene, starting from a drifted INS prior, with no GNSS and
+// no manual control points (issue 7).
+//
+// Pose model (affine SAR geometry, docs/geometry.md): heading psi, depression
+// delta and the ground point Xc (ENU metres, on the scene surface) imaged at
+// the image centre ((W-1)/2, (H-1)/2); the slant range R from the sensor to
+// Xc is measured by the radar's timing and held fixed. The sensor position
+// is P = Xc - R l(psi, delta). Pixel spacings, image size and look side are
+// the sensor's own and known.
+//
+// Algorithm of Locate: render the reference image at the current pose (its
+// single-bounce hits give the 3-D point of every reference pixel), match it
+// to the observed image (matching.h), drop outliers by a RANSAC affine map
+// between the two images, resect the affine SAR camera from the control
+// points (3-D point of the reference pixel, matched observed pixel) with the
+// known pixel spacings (heading, depression, u0, v0 by Gauss-Newton), move the
+// pose to the resected camera (new Xc: the surface point the resected camera
+// images at the image centre), and iterate with a shrinking search until the
+// update is below 0.1 px (converged: the last update below 0.5 px; at most
+// max_iterations renders); then optionally polish heading, depression and Xc
+// by Nelder-Mead on the whole-image NCC of log intensities.
+//
+// Failures: bad options throw ConfigError; images of the wrong size throw
+// InputError; a fix that finds too few matches or no camera returns a result
+// with `converged == false` and the last pose reached (never throws for
+// image content).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "gissar/material/material.h"
+#include "gissar/nav/matching.h"
+#include "gissar/render/embree_scene.h"
+#include "gissar/render/sar_renderer.h"
+#include "gissar/scene/triangle_mesh.h"
+#include "gissar/sensor/sar_geometry.h"
+
+namespace gissar::nav {
+
+struct NavPose {
+  double heading_deg = 0.0;
+  double depression_deg = 40.0;
+  double slant_range_m = 10000.0;                       // sensor to Xc, measured
+  Eigen::Vector3d centre_enu = Eigen::Vector3d::Zero();  // Xc, ENU metres
+  // Line of sight l and sensor position Xc - R l (ENU metres).
+  Eigen::Vector3d LookDirection(sensor::LookSide side) const;
+  Eigen::Vector3d SensorPosition(sensor::LookSide side) const;
+};
+
+// What the sensor knows about its own image.
+struct SensorModel {
+  double range_spacing_m = 30.0;
+  double azimuth_spacing_m = 30.0;
+  int width = 160;
+  int height = 160;
+  sensor::LookSide look_side = sensor::LookSide::kRight;
+  // Throws ConfigError naming the field for out-of-range values.
+  void Check() const;
+};
+
+// The scene to render references from (not owned; must outlive the object).
+struct NavScene {
+  const scene::TriangleMesh* mesh = nullptr;
+  const render::EmbreeScene* embree = nullptr;
+  const material::MaterialTable* materials = nullptr;
+  double rays_per_cell = 4.0;
+  int bounces = 1;
+};
+
+// The affine geometry of `pose` with Xc at the image centre.
+sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model);
+
+// First surface point of the line {base + t n_up}, searched from above along
+// -n_up (n_up: the slant-range-plane normal pointing up). nullopt when the
+// line misses the scene.
+std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& embree,
+                                                  const scene::TriangleMesh& mesh,
+                                                  const Eigen::Vector3d& base,
+                                                  const Eigen::Vector3d& n_up);
+// The scene surface below (x, y) (vertical ray); nullopt outside the scene.
+std::optional<Eigen::Vector3d> SurfaceBelow(const render::EmbreeScene& embree,
+                                            const scene::TriangleMesh& mesh, double x, double y);
+
+struct Reference {
+  sensor::SarGeometry geometry;
+  std::vector<float> intensity;  // linear, row-major
+  cv::Mat points;                // CV_32FC3: mean single-bounce hit per pixel (ENU), NaN if none
+  cv::Mat valid;                 // CV_8U: a 3-D point and no layover
+};
+Reference RenderReference(const NavScene& scene, const NavPose& pose, const SensorModel& model);
+
+struct LocateOptions {
+  Matcher matcher = Matcher::kNcc;
+  int filter_px = 3;               // speckle box filter before the log
+  int patch_px = 31;
+  int step_px = 12;
+  int initial_search_px = 28;      // first iteration; later iterations use refine_search_px
+  int refine_search_px = 5;
+  int max_iterations = 6;
+  double ransac_threshold_px = 1.5;
+  int min_matches = 8;
+  int polish_evaluations = 0;      // Nelder-Mead evaluations (renders); 0 = off
+  // Throws ConfigError naming the field for out-of-range values.
+  void Check() const;
+};
+
+struct LocateResult {
+  NavPose pose;
+  Eigen::Vector3d sensor_enu = Eigen::Vector3d::Zero();
+  bool converged = false;
+  int iterations = 0;
+  int matches = 0;                 // correspondences of the last iteration
+  int inliers = 0;                 // after RANSAC
+  double rms_px = 0.0;             // resection residual of the last iteration
+  double similarity = 0.0;         // whole-image NCC of the log images at the result
+  double prior_similarity = 0.0;   // the same at the prior
+  // One-sigma errors from the resection covariance of the last iteration.
+  double heading_sigma_deg = 0.0;
+  double depression_sigma_deg = 0.0;
+  // Sensor position sigma along l, h and n (metres): u0 and v0 sigmas times
+  // the spacings, and R times the depression sigma.
+  Eigen::Vector3d position_sigma_lhn_m = Eigen::Vector3d::Zero();
+  int renders = 0;
+  double seconds = 0.0;
+};
+
+// `observed`: linear intensity, row-major model.width x model.height.
+LocateResult Locate(const NavScene& scene, const SensorModel& model,
+                    const std::vector<float>& observed, const NavPose& prior,
+                    const LocateOptions& options);
+
+// Correspondences of a matcher between a reference and the observed image
+// after the RANSAC affine filter, as control points (3-D point, observed
+// pixel). Exposed for the matcher comparison of `gissar evaluate`.
+struct ControlMatches {
+  std::vector<Eigen::Vector3d> world;
+  std::vector<Eigen::Vector2d> observed;
+  int raw = 0;  // correspondences before the filter
+};
+ControlMatches MatchReference(const Reference& reference, const cv::Mat& observed_log, Matcher matcher,
+                              const MatchOptions& match, int filter_px, double ransac_threshold_px);
+
+}  // namespace gissar::nav
+
+namespace gissar::nav {
+
+// The pose of a sensor at `sensor_enu` flying `heading_deg` whose beam
+// reaches the scene surface at slant range `slant_range_m`: the depression
+// and Xc = sensor + R l on the surface, by fixed-point iteration from
+// `depression_guess_deg`. nullopt when the beam leaves the scene or the
+// depression leaves (1, 89) degrees.
+std::optional<NavPose> PoseFromSensor(const NavScene& scene, const Eigen::Vector3d& sensor_enu,
+                                      double heading_deg, double slant_range_m,
+                                      double depression_guess_deg, sensor::LookSide look_side);
+
+}  // namespace gissar::nav
