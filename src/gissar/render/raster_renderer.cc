@@ -1,0 +1,680 @@
+#include "gissar/render/raster_renderer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "gissar/util/check.h"
+#include "gissar/util/progress.h"
+
+namespace gissar::render {
+namespace {
+
+// Horizon of an azimuth line that has not met the terrain yet.
+constexpr float kNoHorizon = -1e30f;
+// Image rows rendered by one task. Each task renders every cell that
+// reaches its rows and writes only its rows, so tasks never share a pixel.
+constexpr int kChunkRows = 32;
+// Triangles wider than this (pixels, along range or azimuth) are split into
+// sub-triangles for the intensity splat (each sampled at its three edge
+// midpoints).
+constexpr float kSampleSpacingPx = 1.5f;
+// Partly shadowed triangles are split at least this many times per side, so
+// that their lit share follows the shadow edge.
+constexpr int kPartialSubdivision = 8;
+// Triangles lit at grazing incidence (cos(theta) below this) get their
+// mask evaluated at every pixel centre even when all three corners are
+// lit: a crest of the neighbouring triangle can shadow their middle.
+constexpr float kGrazingCos = 0.3f;
+// Horizon lines per post spacing across the sweep.
+constexpr float kLinesPerPost = 2.0f;
+
+// The DEM grid walked as (s, t): s steps along the horizontal look direction
+// (ground range increasing), t across it with the along-track coordinate
+// increasing. Post (s, t) is posts[base + s * ds + t * dt]; (c, r) =
+// (c0 + s * cs + t * ct, r0 + s * rs + t * rt).
+struct SweepView {
+  int steps = 0, trans = 0;
+  bool along_rows = true;  // azimuth lines run along the grid's rows (s = column)
+  int c0 = 0, r0 = 0, cs = 0, ct = 0, rs = 0, rt = 0;
+  int64_t base = 0, ds = 0, dt = 0;
+  // Whether the mesh diagonal of a cell joins corners (s, t) and
+  // (s - 1, t + 1) (otherwise (s - 1, t) and (s, t + 1)).
+  bool diagonal_bc = true;
+  // Orientation of (P1 - P0) x (P2 - P0) of the two triangle types
+  // relative to the mesh's upward normals: +1 or -1.
+  float sign1 = 1.0f, sign2 = 1.0f;
+};
+
+// Everything a task needs, in float relative to the scene centre.
+// Single-bounce backscatter of a material in float (material::Material::
+// Backscatter): diffuse cos(t) plus the specular cone.
+struct Reflectivity {
+  float diffuse = 1.0f, specular = 0.0f, inv_roughness = 1.0f;
+  explicit Reflectivity(const material::Material& m)
+      : diffuse(float(m.diffuse)), specular(float(m.specular)), inv_roughness(float(1.0 / m.roughness)) {}
+  float Backscatter(float cos_in) const {
+    float value = diffuse * cos_in;
+    if (specular > 0.0f) {
+      const float cos_mirror = 2.0f * cos_in * cos_in - 1.0f;
+      if (cos_mirror > 0.0f) value += specular * std::pow(cos_mirror, inv_roughness);
+    }
+    return value;
+  }
+};
+
+struct Context {
+  const Eigen::Vector3f* posts = nullptr;
+  int grid_width = 0;
+  const scene::ClassId* classes = nullptr;  // per cell (c, r): r * (grid_width - 1) + c
+  std::vector<Reflectivity> materials;  // by class id
+  SweepView view;
+  bool affine = true;
+  Eigen::Vector3f xc, h, l, n, n_up;  // n_up: upward slant-plane normal (affine)
+  float up_sign = 1;  // n_up = up_sign * n
+  float range0 = 0, inv_dr = 0, inv_da = 0, u0 = 0, v0 = 0, da = 0;
+  float power_scale = 0;  // 1 / (dr da tan(d))
+  float line_spacing = 0;  // metres of along-track coordinate between horizon lines
+  float cell_span = 0;     // bound on the along-track extent of a cell, metres
+  int width = 0, height = 0;
+};
+
+// Per-post quantities of one sweep step, for t in [t_lo, t_hi].
+struct Step {
+  int t_lo = 0, t_hi = -1;
+  std::vector<float> x, y, z;  // position relative to Xc
+  std::vector<float> a;        // along-track coordinate (metres)
+  std::vector<float> xl, xn;   // offsets along l and n
+  std::vector<float> e;        // elevation: metres along n (exact: R tan of the angle from l)
+  std::vector<float> col, row; // continuous pixel
+  std::vector<float> margin;   // e minus the horizon before the post (< 0: shadow)
+  bool Has(int t) const { return t >= t_lo && t <= t_hi; }
+  bool empty() const { return t_hi < t_lo; }
+  void Reserve(int n) {
+    for (auto* v : {&x, &y, &z, &a, &xl, &xn, &e, &col, &row, &margin}) v->resize(size_t(n));
+  }
+};
+
+inline float AlongTrack(const Context& ctx, int64_t index) {
+  const Eigen::Vector3f& p = ctx.posts[index];
+  return (p.x() - ctx.xc.x()) * ctx.h.x() + (p.y() - ctx.xc.y()) * ctx.h.y();
+}
+
+// Horizon between two lines at fraction f; a line that has not met the
+// terrain (beyond the DEM's edge) takes the other's value.
+inline float Interpolate(float h0, float h1, float f) {
+  if (h0 == kNoHorizon) return h1;
+  if (h1 == kNoHorizon) return h0;
+  return h0 + f * (h1 - h0);
+}
+
+// floor(x) as an int for |x| < 2^31 (without SSE4.1's roundss).
+inline int FloorInt(float x) {
+  const int i = static_cast<int>(x);
+  return i - (x < static_cast<float>(i));
+}
+
+// Bilinear splat of `value` at (col, row) into rows [row0, row1).
+inline void Splat(float* image, int width, int row0, int row1, float col, float row, float value) {
+  const int c0 = FloorInt(col), r0 = FloorInt(row);
+  const float fc = col - float(c0), fr = row - float(r0);
+  const float wr[2] = {1.0f - fr, fr}, wc[2] = {1.0f - fc, fc};
+  for (int dr = 0; dr < 2; ++dr) {
+    const int r = r0 + dr;
+    if (r < row0 || r >= row1) continue;
+    for (int dc = 0; dc < 2; ++dc) {
+      const int c = c0 + dc;
+      if (c < 0 || c >= width) continue;
+      image[size_t(r) * width + c] += value * (wr[dr] * wc[dc]);
+    }
+  }
+}
+
+class ChunkRenderer {
+ public:
+  ChunkRenderer(const Context& ctx, int row0, int row1, float* intensity, uint8_t* mask)
+      : ctx_(ctx), row0_(row0), row1_(row1), intensity_(intensity), mask_(mask) {
+    // Cells whose splat reaches rows [row0, row1) have a sample row in
+    // (row0 - 1, row1); their posts lie within a cell span of that.
+    a_lo_cells_ = (row0 - 1 - ctx.v0) * ctx.da;
+    a_hi_cells_ = (row1 - ctx.v0) * ctx.da;
+    a_lo_posts_ = a_lo_cells_ - ctx.cell_span;
+    a_hi_posts_ = a_hi_cells_ + ctx.cell_span;
+    line_first_ = static_cast<int64_t>(std::floor(a_lo_posts_ / ctx.line_spacing)) - 1;
+    const int64_t line_last = static_cast<int64_t>(std::ceil(a_hi_posts_ / ctx.line_spacing)) + 1;
+    const int lines = static_cast<int>(line_last - line_first_ + 1);
+    horizon_.assign(size_t(lines), kNoHorizon);
+    horizon_before_.assign(size_t(lines), kNoHorizon);
+    rho_.assign(size_t(lines), std::numeric_limits<float>::quiet_NaN());
+    line_a_.resize(size_t(lines));
+    for (int k = 0; k < lines; ++k) line_a_[k] = static_cast<float>((line_first_ + k) * double(ctx.line_spacing));
+  }
+
+  void Run() {
+    const SweepView& v = ctx_.view;
+    int guess_lo = -1, guess_hi = -1;
+    for (int s = 0; s < v.steps; ++s) {
+      std::swap(prev_, cur_);
+      if (!FindRange(s, guess_lo, guess_hi)) {
+        cur_.t_lo = 0;
+        cur_.t_hi = -1;
+        guess_lo = guess_hi = -1;
+        std::fill(rho_.begin(), rho_.end(), std::numeric_limits<float>::quiet_NaN());
+        continue;
+      }
+      ComputePosts(s);
+      ComputeMargins();
+      horizon_prev_ = horizon_before_;
+      UpdateLines();
+      if (!prev_.empty()) RenderCells(s);
+    }
+  }
+
+ private:
+  // Range of t at step s whose posts have a in [a_lo_posts, a_hi_posts],
+  // widened by one post on each side. False when empty.
+  bool FindRange(int s, int& guess_lo, int& guess_hi) {
+    const SweepView& v = ctx_.view;
+    const int64_t row_base = v.base + int64_t(s) * v.ds;
+    auto a_at = [&](int t) { return AlongTrack(ctx_, row_base + int64_t(t) * v.dt); };
+    const int T = v.trans;
+    if (a_at(T - 1) < a_lo_posts_ || a_at(0) > a_hi_posts_) return false;
+    // First t with a >= a_lo (T when none).
+    int lo = guess_lo;
+    if (lo < 0) {
+      int a = 0, b = T;
+      while (a < b) {
+        const int m = (a + b) / 2;
+        if (a_at(m) < a_lo_posts_) a = m + 1; else b = m;
+      }
+      lo = a;
+    } else {
+      while (lo > 0 && a_at(lo - 1) >= a_lo_posts_) --lo;
+      while (lo < T && a_at(lo) < a_lo_posts_) ++lo;
+    }
+    // Last t with a <= a_hi (-1 when none).
+    int hi = guess_hi;
+    if (hi < 0) {
+      int a = -1, b = T - 1;
+      while (a < b) {
+        const int m = (a + b + 1) / 2;
+        if (a_at(m) > a_hi_posts_) b = m - 1; else a = m;
+      }
+      hi = a;
+    } else {
+      while (hi < T - 1 && a_at(hi + 1) <= a_hi_posts_) ++hi;
+      while (hi >= 0 && a_at(hi) > a_hi_posts_) --hi;
+    }
+    guess_lo = std::max(lo, 0);
+    guess_hi = std::max(hi, 0);
+    cur_.t_lo = std::max(0, lo - 1);
+    cur_.t_hi = std::min(T - 1, hi + 1);
+    return cur_.t_hi > cur_.t_lo;
+  }
+
+  void ComputePosts(int s) {
+    const SweepView& v = ctx_.view;
+    const int n = cur_.t_hi - cur_.t_lo + 1;
+    if (int(cur_.a.size()) < n) cur_.Reserve(n + 64);
+    const Eigen::Vector3f* row = ctx_.posts + v.base + int64_t(s) * v.ds + int64_t(cur_.t_lo) * v.dt;
+    const int64_t dt = v.dt;
+    const float R = ctx_.range0;
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Vector3f& p = row[k * dt];
+      const float x = p.x() - ctx_.xc.x(), y = p.y() - ctx_.xc.y(), z = p.z() - ctx_.xc.z();
+      const float a = x * ctx_.h.x() + y * ctx_.h.y();
+      const float xl = x * ctx_.l.x() + y * ctx_.l.y() + z * ctx_.l.z();
+      const float xn = x * ctx_.n.x() + y * ctx_.n.y() + z * ctx_.n.z();
+      float range_offset, e;
+      // Elevation: offset along the upward slant-plane normal (exact mode:
+      // R times the tangent of the angle above l seen from P(a)).
+      if (ctx_.affine) {
+        range_offset = xl;
+        e = ctx_.up_sign * xn;
+      } else {
+        // |X - P(a)| - R without cancellation: X - P(a) = (R + xl) l + xn n.
+        const float d = R + xl;
+        const float r = std::sqrt(d * d + xn * xn);
+        range_offset = (xl * (2.0f * R + xl) + xn * xn) / (r + R);
+        e = ctx_.up_sign * R * xn / d;
+      }
+      cur_.x[k] = x;
+      cur_.y[k] = y;
+      cur_.z[k] = z;
+      cur_.a[k] = a;
+      cur_.xl[k] = xl;
+      cur_.xn[k] = xn;
+      cur_.e[k] = e;
+      cur_.col[k] = range_offset * ctx_.inv_dr + ctx_.u0;
+      cur_.row[k] = a * ctx_.inv_da + ctx_.v0;
+    }
+  }
+
+  // Margin of every post: its elevation minus the horizon before it on its
+  // azimuth line: the horizon lines around it (terrain before the previous
+  // step's column, interpolated), the previous column where its own line
+  // crosses it (exact), and the mesh edges its line crosses in between
+  // (edges through the post itself excluded: they reach it).
+  void ComputeMargins() {
+    const int n = cur_.t_hi - cur_.t_lo + 1;
+    const float inv_w = 1.0f / ctx_.line_spacing;
+    const float first = static_cast<float>(line_first_);
+    const int last_line = static_cast<int>(horizon_.size()) - 2;
+    const bool strip = !prev_.empty();
+    int j = 0;  // previous-step index with prev.a[j] <= a < prev.a[j + 1]
+    const int np = prev_.t_hi - prev_.t_lo + 1;
+    for (int k = 0; k < n; ++k) {
+      const float A = cur_.a[k];
+      const float fl = A * inv_w - first;
+      int line = FloorInt(fl);
+      line = std::clamp(line, 0, last_line);
+      const float f = std::clamp(fl - float(line), 0.0f, 1.0f);
+      const float h0 = horizon_before_[line], h1 = horizon_before_[line + 1];
+      float horizon = Interpolate(h0, h1, f);
+      if (strip && A >= prev_.a[0] && A < prev_.a[np - 1]) {
+        while (j > 0 && prev_.a[j] > A) --j;
+        while (prev_.a[j + 1] <= A) ++j;
+        const float da = prev_.a[j + 1] - prev_.a[j];
+        const float mu = da > 0.0f ? (A - prev_.a[j]) / da : 0.0f;
+        horizon = std::max(horizon, prev_.e[j] + mu * (prev_.e[j + 1] - prev_.e[j]));
+        const int t = cur_.t_lo + k;
+        horizon = StripCrossings(A, float(prev_.t_lo + j) + mu, float(t), horizon, t);
+      }
+      cur_.margin[k] = cur_.e[k] - horizon;
+    }
+  }
+
+  // Advances every horizon line to this step: the mesh edges it crossed
+  // since the previous step (row edges and diagonals of the cells in
+  // between: ridges between the steps) give horizon_before_, then its
+  // terrain crossing on the step's own column of posts.
+  void UpdateLines() {
+    const int n = cur_.t_hi - cur_.t_lo + 1;
+    const float a_first = cur_.a[0], a_last = cur_.a[n - 1];
+    int k = 0;
+    for (size_t line = 0; line < horizon_.size(); ++line) {
+      const float A = line_a_[line];
+      if (!(A >= a_first && A < a_last)) {
+        rho_[line] = std::numeric_limits<float>::quiet_NaN();
+        horizon_before_[line] = horizon_[line];
+        continue;
+      }
+      while (cur_.a[k + 1] <= A) ++k;
+      const float da = cur_.a[k + 1] - cur_.a[k];
+      const float mu = da > 0.0f ? (A - cur_.a[k]) / da : 0.0f;
+      const float rho = float(cur_.t_lo + k) + mu;
+      float before = horizon_[line];
+      if (!prev_.empty() && !std::isnan(rho_[line])) before = StripCrossings(A, rho_[line], rho, before);
+      horizon_before_[line] = before;
+      horizon_[line] = std::max(before, cur_.e[k] + mu * (cur_.e[k + 1] - cur_.e[k]));
+      rho_[line] = rho;
+    }
+  }
+
+  // Highest elevation where the line of along-track coordinate A crosses a
+  // row edge or a diagonal of the cells between the previous and the
+  // current step (between transverse positions rho1 and rho2), or `best`.
+  // Edges ending at the current step's post `skip_t` are left out.
+  float StripCrossings(float A, float rho1, float rho2, float best, int skip_t = -1) const {
+    const int t_a = FloorInt(std::min(rho1, rho2));
+    const int t_b = FloorInt(std::max(rho1, rho2));
+    for (int t = t_a; t <= t_b; ++t) {
+      if (!prev_.Has(t) || !prev_.Has(t + 1) || !cur_.Has(t) || !cur_.Has(t + 1)) continue;
+      const int p0 = t - prev_.t_lo, c0 = t - cur_.t_lo;
+      // Corners: A=(prev, t) C=(prev, t+1) B=(cur, t) D=(cur, t+1).
+      const float ea = prev_.e[p0], ec = prev_.e[p0 + 1], eb = cur_.e[c0], ed = cur_.e[c0 + 1];
+      if (std::max(std::max(ea, ec), std::max(eb, ed)) <= best) continue;
+      const float aa = prev_.a[p0], ac = prev_.a[p0 + 1], ab = cur_.a[c0], ad = cur_.a[c0 + 1];
+      auto cross = [&](float a1, float e1, float a2, float e2) {
+        if ((A - a1) * (A - a2) > 0.0f || a1 == a2) return;
+        best = std::max(best, e1 + (A - a1) / (a2 - a1) * (e2 - e1));
+      };
+      const bool skip_b = t == skip_t, skip_d = t + 1 == skip_t;
+      if (!skip_b) cross(aa, ea, ab, eb);
+      if (!skip_d) cross(ac, ec, ad, ed);
+      if (ctx_.view.diagonal_bc) {
+        if (!skip_b) cross(ab, eb, ac, ec);
+      } else {
+        if (!skip_d) cross(aa, ea, ad, ed);
+      }
+    }
+    return best;
+  }
+
+  // Margin of a point of the cell (s - 1, s) x (t, t + 1) at along-track
+  // A, elevation e and fraction u of the way from the previous to the
+  // current step: the horizon lines before the previous column
+  // (interpolated), the previous column where its line crosses it and the
+  // mesh edges its line crosses between that column and the point (exact).
+  float PointMargin(float A, float e, float u, int t) const {
+    const float inv_w = 1.0f / ctx_.line_spacing;
+    const float fl = A * inv_w - float(line_first_);
+    const int line = std::clamp(FloorInt(fl), 0, int(horizon_prev_.size()) - 2);
+    const float f = std::clamp(fl - float(line), 0.0f, 1.0f);
+    float horizon = Interpolate(horizon_prev_[line], horizon_prev_[line + 1], f);
+    const int np = prev_.t_hi - prev_.t_lo + 1;
+    if (!(A >= prev_.a[0] && A < prev_.a[np - 1])) return e - horizon;
+    int j = std::clamp(t - prev_.t_lo, 0, np - 2);
+    while (j > 0 && prev_.a[j] > A) --j;
+    while (prev_.a[j + 1] <= A) ++j;
+    const float da = prev_.a[j + 1] - prev_.a[j];
+    const float mu = da > 0.0f ? (A - prev_.a[j]) / da : 0.0f;
+    horizon = std::max(horizon, prev_.e[j] + mu * (prev_.e[j + 1] - prev_.e[j]));
+    const int t_entry = prev_.t_lo + j;
+    for (int tc = std::min(t_entry, t); tc <= std::max(t_entry, t); ++tc) {
+      if (!prev_.Has(tc) || !prev_.Has(tc + 1) || !cur_.Has(tc) || !cur_.Has(tc + 1)) continue;
+      const int p0 = tc - prev_.t_lo, c0 = tc - cur_.t_lo;
+      const float ea = prev_.e[p0], ec = prev_.e[p0 + 1], eb = cur_.e[c0], ed = cur_.e[c0 + 1];
+      const float aa = prev_.a[p0], ac = prev_.a[p0 + 1], ab = cur_.a[c0], ad = cur_.a[c0 + 1];
+      // Crossing of edge (1 -> 2) with u running from u1 to u2; only
+      // crossings before the point (smaller u: the line runs monotonically
+      // from the previous to the current step) count.
+      auto cross = [&](float a1, float e1, float u1, float a2, float e2, float u2) {
+        if ((A - a1) * (A - a2) > 0.0f || a1 == a2) return;
+        const float m = (A - a1) / (a2 - a1);
+        if (u1 + m * (u2 - u1) >= u) return;
+        horizon = std::max(horizon, e1 + m * (e2 - e1));
+      };
+      cross(aa, ea, 0.0f, ab, eb, 1.0f);
+      cross(ac, ec, 0.0f, ad, ed, 1.0f);
+      if (ctx_.view.diagonal_bc) {
+        cross(ab, eb, 1.0f, ac, ec, 0.0f);
+      } else {
+        cross(aa, ea, 0.0f, ad, ed, 1.0f);
+      }
+    }
+    return e - horizon;
+  }
+
+  struct Vertex {
+    const Step* step;
+    int k;
+  };
+
+  void RenderCells(int s) {
+    const int t_lo = std::max(prev_.t_lo, cur_.t_lo);
+    const int t_hi = std::min(prev_.t_hi, cur_.t_hi) - 1;
+    const SweepView& v = ctx_.view;
+    for (int t = t_lo; t <= t_hi; ++t) {
+      const Vertex A{&prev_, t - prev_.t_lo}, C{&prev_, t + 1 - prev_.t_lo};
+      const Vertex B{&cur_, t - cur_.t_lo}, D{&cur_, t + 1 - cur_.t_lo};
+      const float amin = std::min(std::min(A.step->a[A.k], C.step->a[C.k]), std::min(B.step->a[B.k], D.step->a[D.k]));
+      const float amax = std::max(std::max(A.step->a[A.k], C.step->a[C.k]), std::max(B.step->a[B.k], D.step->a[D.k]));
+      if (amax <= a_lo_cells_ || amin >= a_hi_cells_) continue;
+      const Reflectivity* m = &ctx_.materials[0];
+      if (ctx_.classes != nullptr) {
+        // The cell's lowest (c, r) corner.
+        const int c = std::min(v.c0 + (s - 1) * v.cs, v.c0 + s * v.cs) + std::min(t * v.ct, (t + 1) * v.ct);
+        const int r = std::min(v.r0 + (s - 1) * v.rs, v.r0 + s * v.rs) + std::min(t * v.rt, (t + 1) * v.rt);
+        const scene::ClassId id = ctx_.classes[size_t(r) * (ctx_.grid_width - 1) + c];
+        m = &ctx_.materials[id < ctx_.materials.size() ? id : 0];
+      }
+      cell_t_ = t;
+      if (v.diagonal_bc) {
+        Triangle(A, B, C, v.sign1, *m);
+        Triangle(B, D, C, v.sign2, *m);
+      } else {
+        Triangle(A, B, D, v.sign1, *m);
+        Triangle(A, D, C, v.sign2, *m);
+      }
+    }
+  }
+
+  // Bilinear splat of `value` at (col, row).
+  void Deposit(float col, float row, float value) {
+    Splat(intensity_, ctx_.width, row0_, row1_, col, row, value);
+  }
+
+  void Triangle(const Vertex& v0, const Vertex& v1, const Vertex& v2, float sign,
+                const Reflectivity& material) {
+    const Step &s0 = *v0.step, &s1 = *v1.step, &s2 = *v2.step;
+    const int k0 = v0.k, k1 = v1.k, k2 = v2.k;
+    const Eigen::Vector3f p0(s0.x[k0], s0.y[k0], s0.z[k0]);
+    const Eigen::Vector3f e1 = Eigen::Vector3f(s1.x[k1], s1.y[k1], s1.z[k1]) - p0;
+    const Eigen::Vector3f e2 = Eigen::Vector3f(s2.x[k2], s2.y[k2], s2.z[k2]) - p0;
+    Eigen::Vector3f normal = sign * e1.cross(e2);
+    const float twice_area = normal.norm();
+    if (!(twice_area > 0.0f)) return;
+    normal /= twice_area;
+    Eigen::Vector3f dir = ctx_.l, n_up = ctx_.n_up;
+    if (!ctx_.affine) {
+      const float xl = (s0.xl[k0] + s1.xl[k1] + s2.xl[k2]) / 3.0f;
+      const float xn = (s0.xn[k0] + s1.xn[k1] + s2.xn[k2]) / 3.0f;
+      dir = ((ctx_.range0 + xl) * ctx_.l + xn * ctx_.n).normalized();
+      n_up = dir.cross(ctx_.h);
+      if (n_up.z() < 0.0f) n_up = -n_up;
+    }
+    const float cos_in = -normal.dot(dir);
+    const bool turned_away = cos_in <= 1e-9f;
+    const bool flipped = normal.dot(n_up) < 0.0f;
+    const float m0 = s0.margin[k0], m1 = s1.margin[k1], m2 = s2.margin[k2];
+    const bool all_lit = m0 >= 0.0f && m1 >= 0.0f && m2 >= 0.0f;
+    const bool all_dark = m0 < 0.0f && m1 < 0.0f && m2 < 0.0f;
+    const float c0 = s0.col[k0], c1 = s1.col[k1], c2 = s2.col[k2];
+    // Fraction of the way from the previous to the current step.
+    const float u0 = &s0 == &cur_ ? 1.0f : 0.0f, u1 = &s1 == &cur_ ? 1.0f : 0.0f,
+                u2 = &s2 == &cur_ ? 1.0f : 0.0f;
+    const float r0 = s0.row[k0], r1 = s1.row[k1], r2 = s2.row[k2];
+
+    if (!turned_away && !all_dark) {
+      const float power = 0.5f * twice_area * cos_in *
+                          material.Backscatter(cos_in) * ctx_.power_scale;
+      const float extent = std::max({std::abs(c1 - c0), std::abs(c2 - c0), std::abs(c2 - c1),
+                                     std::abs(r1 - r0), std::abs(r2 - r0), std::abs(r2 - r1)});
+      int m = std::clamp(static_cast<int>(std::ceil(extent / kSampleSpacingPx)), 1, 256);
+      if (!all_lit) m = std::max(m, kPartialSubdivision);
+      // The m^2 congruent sub-triangles, each integrated with the
+      // edge-midpoint rule (exact for quadratic functions: the bilinear
+      // splat is sampled to second order): a third of its power at each
+      // edge midpoint, unless that point lies in shadow. In barycentric
+      // (u, v) times m, the upward sub-triangle (i, j) has its midpoints at
+      // (i + 1/2, j), (i, j + 1/2), (i + 1/2, j + 1/2); the downward one at
+      // (i + 1/2, j + 1/2), (i + 1, j + 1/2), (i + 1/2, j + 1).
+      const float inv_m = 1.0f / float(m);
+      const float share = power * inv_m * inv_m / 3.0f;
+      auto sample = [&](float u, float v) {
+        u *= inv_m;
+        v *= inv_m;
+        if (!all_lit && m0 + u * (m1 - m0) + v * (m2 - m0) < 0.0f) return;
+        Deposit(c0 + u * (c1 - c0) + v * (c2 - c0), r0 + u * (r1 - r0) + v * (r2 - r0), share);
+      };
+      for (int i = 0; i < m; ++i) {
+        for (int j = 0; i + j < m; ++j) {
+          const float fi = float(i), fj = float(j);
+          sample(fi + 0.5f, fj);
+          sample(fi, fj + 0.5f);
+          sample(fi + 0.5f, fj + 0.5f);
+          if (i + j <= m - 2) {
+            sample(fi + 0.5f, fj + 0.5f);
+            sample(fi + 1.0f, fj + 0.5f);
+            sample(fi + 0.5f, fj + 1.0f);
+          }
+        }
+      }
+    }
+
+    if (turned_away || !all_lit || flipped || cos_in < kGrazingCos) {
+      // Pixel centres covered by the projected triangle (the tracer's
+      // barycentric test), each coded from the surface at that centre.
+      const double area2 = double(c1 - c0) * (r2 - r0) - double(r1 - r0) * (c2 - c0);
+      if (std::abs(area2) < 1e-12) return;
+      const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({c0, c1, c2}))));
+      const int c_hi = std::min(ctx_.width - 1, static_cast<int>(std::floor(std::max({c0, c1, c2}))));
+      const int r_lo = std::max(row0_, static_cast<int>(std::ceil(std::min({r0, r1, r2}))));
+      const int r_hi = std::min(row1_ - 1, static_cast<int>(std::floor(std::max({r0, r1, r2}))));
+      for (int r = r_lo; r <= r_hi; ++r) {
+        for (int c = c_lo; c <= c_hi; ++c) {
+          const double qc = c - c0, qr = r - r0;
+          const double w1 = (qc * (r2 - r0) - qr * (c2 - c0)) / area2;
+          const double w2 = (double(c1 - c0) * qr - double(r1 - r0) * qc) / area2;
+          const double w0 = 1.0 - w1 - w2;
+          constexpr double kTol = -1e-9;
+          if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
+          uint8_t code;
+          // Lit unless turned away or below the horizon of its own azimuth
+          // line, evaluated at the centre itself.
+          const bool shadow =
+              turned_away ||
+              PointMargin(float(w0 * s0.a[k0] + w1 * s1.a[k1] + w2 * s2.a[k2]),
+                          float(w0 * s0.e[k0] + w1 * s1.e[k1] + w2 * s2.e[k2]),
+                          float(w0 * u0 + w1 * u1 + w2 * u2), cell_t_) < 0.0f;
+          if (shadow) {
+            code = kMaskShadow;
+          } else {
+            code = flipped ? kMaskLayover : kMaskNone;
+          }
+          mask_[size_t(r) * ctx_.width + c] |= code;
+        }
+      }
+    }
+  }
+
+  const Context& ctx_;
+  const int row0_, row1_;
+  float* intensity_;
+  uint8_t* mask_;
+  float a_lo_cells_, a_hi_cells_, a_lo_posts_, a_hi_posts_;
+  int64_t line_first_ = 0;
+  // Per horizon line: the highest elevation met so far (horizon_), the
+  // same before the last step's column (horizon_before_), and that of the
+  // previous step (horizon_prev_, while its cells are rendered).
+  std::vector<float> horizon_, horizon_before_, horizon_prev_, rho_, line_a_;
+  int cell_t_ = 0;
+  Step prev_, cur_;
+};
+
+// Chooses the sweep over the grid: steps along the axis closest to the
+// horizontal look direction, in the direction of increasing ground range.
+SweepView MakeSweepView(const std::vector<Eigen::Vector3f>& posts, int width, int height,
+                        const Eigen::Vector3f& h, const Eigen::Vector3f& ground_look) {
+  const int cm = std::min(width / 2, width - 2), rm = std::min(height / 2, height - 2);
+  const Eigen::Vector3f p = posts[size_t(rm) * width + cm];
+  const Eigen::Vector3f dc = posts[size_t(rm) * width + cm + 1] - p;
+  const Eigen::Vector3f dr = posts[size_t(rm + 1) * width + cm] - p;
+  const float a_c = dc.dot(h), a_r = dr.dot(h), g_c = dc.dot(ground_look), g_r = dr.dot(ground_look);
+  SweepView v;
+  if (std::abs(a_r) >= std::abs(a_c)) {
+    // Azimuth lines run along rows: step over columns.
+    v.along_rows = true;
+    v.steps = width;
+    v.trans = height;
+    v.cs = g_c >= 0 ? 1 : -1;
+    v.rt = a_r >= 0 ? 1 : -1;
+  } else {
+    v.along_rows = false;
+    v.steps = height;
+    v.trans = width;
+    v.rs = g_r >= 0 ? 1 : -1;
+    v.ct = a_c >= 0 ? 1 : -1;
+  }
+  v.c0 = (v.cs < 0 || v.ct < 0) ? width - 1 : 0;
+  v.r0 = (v.rs < 0 || v.rt < 0) ? height - 1 : 0;
+  v.base = int64_t(v.r0) * width + v.c0;
+  v.ds = int64_t(v.rs) * width + v.cs;
+  v.dt = int64_t(v.rt) * width + v.ct;
+  // The mesh diagonal joins (c + 1, r) and (c, r + 1): (dc, dr) products -1.
+  // From corner C = (s - 1, t + 1) to B = (s, t): (dc, dr) = (cs - ct, rs - rt).
+  v.diagonal_bc = (v.cs - v.ct) * (v.rs - v.rt) == -1;
+  // Triangle orientation at a cell in the middle of the grid.
+  auto post = [&](int s, int t) {
+    return posts[size_t(v.base + int64_t(s) * v.ds + int64_t(t) * v.dt)];
+  };
+  const int s = std::max(1, v.steps / 2), t = std::min(v.trans / 2, v.trans - 2);
+  const Eigen::Vector3f A = post(s - 1, t), C = post(s - 1, t + 1), B = post(s, t), D = post(s, t + 1);
+  auto up = [](const Eigen::Vector3f& p0, const Eigen::Vector3f& p1, const Eigen::Vector3f& p2) {
+    return (p1 - p0).cross(p2 - p0).z() >= 0.0f ? 1.0f : -1.0f;
+  };
+  if (v.diagonal_bc) {
+    v.sign1 = up(A, B, C);
+    v.sign2 = up(B, D, C);
+  } else {
+    v.sign1 = up(A, B, D);
+    v.sign2 = up(A, D, C);
+  }
+  return v;
+}
+
+}  // namespace
+
+SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, int height,
+                         const material::MaterialTable& materials,
+                         const sensor::SarGeometry& geometry,
+                         const std::vector<scene::ClassId>& cell_classes) {
+  GISSAR_CHECK(width >= 2 && height >= 2);
+  GISSAR_CHECK(posts.size() == size_t(width) * height);
+  GISSAR_CHECK(cell_classes.empty() || cell_classes.size() == size_t(width - 1) * (height - 1));
+  Stopwatch watch;
+  Context ctx;
+  ctx.posts = posts.data();
+  ctx.grid_width = width;
+  ctx.classes = cell_classes.empty() ? nullptr : cell_classes.data();
+  for (size_t id = 0; id < std::max<size_t>(materials.size(), 1); ++id) {
+    ctx.materials.emplace_back(materials.Get(static_cast<scene::ClassId>(id)));
+  }
+  ctx.affine = geometry.mode() == sensor::ProjectionMode::kAffine;
+  ctx.xc = geometry.scene_centre().cast<float>();
+  ctx.h = geometry.flight_direction().cast<float>();
+  ctx.l = geometry.look_direction().cast<float>();
+  ctx.n = geometry.range_plane_normal().cast<float>();
+  ctx.up_sign = ctx.n.z() >= 0.0f ? 1.0f : -1.0f;
+  ctx.n_up = ctx.up_sign * ctx.n;
+  ctx.range0 = static_cast<float>(geometry.slant_range_m());
+  ctx.inv_dr = static_cast<float>(1.0 / geometry.range_spacing_m());
+  ctx.inv_da = static_cast<float>(1.0 / geometry.azimuth_spacing_m());
+  ctx.da = static_cast<float>(geometry.azimuth_spacing_m());
+  ctx.u0 = static_cast<float>(geometry.u0());
+  ctx.v0 = static_cast<float>(geometry.v0());
+  const double depression = geometry.options().depression_deg * M_PI / 180.0;
+  ctx.power_scale = static_cast<float>(
+      1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m() * std::tan(depression)));
+  ctx.width = geometry.width();
+  ctx.height = geometry.height();
+
+  Eigen::Vector3f ground_look(ctx.l.x(), ctx.l.y(), 0.0f);
+  ground_look.normalize();
+  ctx.view = MakeSweepView(posts, width, height, ctx.h, ground_look);
+
+  // Horizon lines half a post apart across the sweep; the cell span bounds
+  // the along-track extent of any cell. Both from the post spacing measured
+  // at the grid's corners and centre (posts need not be evenly spaced).
+  float min_transverse = std::numeric_limits<float>::infinity(), max_span = 0.0f;
+  for (int r : {0, height / 2, height - 2}) {
+    for (int c : {0, width / 2, width - 2}) {
+      const Eigen::Vector3f& p = posts[size_t(r) * width + c];
+      const float a_c = std::abs((posts[size_t(r) * width + c + 1] - p).dot(ctx.h));
+      const float a_r = std::abs((posts[size_t(r + 1) * width + c] - p).dot(ctx.h));
+      const float transverse = ctx.view.along_rows ? a_r : a_c;
+      min_transverse = std::min(min_transverse, transverse);
+      max_span = std::max(max_span, a_c + a_r);
+    }
+  }
+  GISSAR_CHECK(min_transverse > 0.0f);
+  ctx.line_spacing = min_transverse / kLinesPerPost;
+  ctx.cell_span = 1.25f * max_span + 1e-3f;
+
+  SarImage image;
+  image.width = ctx.width;
+  image.height = ctx.height;
+  image.intensity.assign(size_t(ctx.width) * ctx.height, 0.0f);
+  image.mask.assign(size_t(ctx.width) * ctx.height, kMaskNone);
+  const int chunks = (ctx.height + kChunkRows - 1) / kChunkRows;
+  tbb::parallel_for(tbb::blocked_range<int>(0, chunks, 1), [&](const tbb::blocked_range<int>& range) {
+    for (int k = range.begin(); k != range.end(); ++k) {
+      const int row0 = k * kChunkRows, row1 = std::min(ctx.height, row0 + kChunkRows);
+      ChunkRenderer(ctx, row0, row1, image.intensity.data(), image.mask.data()).Run();
+    }
+  });
+  image.bounce_layers[0] = image.intensity;
+  for (int layer = 1; layer < kBounceLayers; ++layer) {
+    image.bounce_layers[layer].assign(image.intensity.size(), 0.0f);
+  }
+  image.stats.cells = int64_t(width - 1) * (height - 1);
+  image.stats.trace_seconds = watch.ElapsedSeconds();
+  return image;
+}
+
+}  // namespace gissar::render

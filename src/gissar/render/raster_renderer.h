@@ -1,0 +1,61 @@
+// DEM-raster SAR image formation (`simulate --engine raster`): the approach
+// of the DEM-based simulators used for terrain correction. Instead of
+// tracing rays, every triangle of the DEM's grid mesh is projected
+// analytically to (slant range, azimuth) and returns its share of power at
+// once; shadow comes from a sweep along each azimuth (zero-Doppler) line
+// that keeps the highest elevation seen so far, layover from the surfaces
+// whose slant range decreases with ground range. Single bounce only.
+//
+// It renders the same image as RenderSar on a single-bounce scene of the
+// same mesh (docs/geometry.md, "DEM-raster engine"): the tracer's rays
+// sample every lit surface with a density proportional to cos(theta) per
+// unit area, each returning Backscatter(cos theta) / N, so a lit patch of
+// area A returns
+//     A cos(theta) Backscatter(cos theta) / (dr da tan(d))
+// (dr, da the pixel spacings, d the scene-centre depression) in both affine
+// and exact mode; the raster engine deposits exactly that, splatted
+// bilinearly at the patch's projection.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "gissar/material/material.h"
+#include "gissar/render/sar_renderer.h"
+#include "gissar/scene/triangle_mesh.h"
+#include "gissar/sensor/sar_geometry.h"
+
+namespace gissar::render {
+
+// Renders the single-bounce image and the layover/shadow mask of the grid
+// mesh of `posts` (row-major, `width` x `height` ENU positions in metres,
+// triangulated as scene::MeshFromGrid does: two triangles per cell split
+// along the diagonal from post (c+1, r) to (c, r+1), normals up) seen with
+// `geometry`, in affine or exact mode.
+//
+// `cell_classes`: empty (every cell class 0) or one class per cell,
+// (width - 1) x (height - 1) row-major; the class indexes `materials`, whose
+// single-bounce Backscatter is used (the mirror share is ignored: no
+// multi-bounce).
+//
+// Returns the SarImage of RenderSar: `intensity` normalised identically
+// (flat ground at the scene-centre depression d reads rho sin(d)),
+// bounce_layers[0] equal to it and the other layers zero, the mask with the
+// same codes and semantics (value at each pixel centre: kMaskShadow when a
+// surface covering it faces away from the radar or lies below the horizon
+// of its azimuth line, kMaskLayover when a lit surface covering it is imaged
+// flipped). Shadow is exact along horizon lines spaced half a post apart in
+// azimuth and interpolated between them; each triangle is sampled at
+// sub-triangles at most about a pixel wide. stats.cells counts the DEM cells;
+// stats.trace_seconds is the rendering time. The result does not depend on
+// the thread count.
+//
+// CHECKs that the grid has at least 2 x 2 posts, that posts.size() ==
+// width * height and that cell_classes is empty or has one class per cell.
+SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, int height,
+                         const material::MaterialTable& materials,
+                         const sensor::SarGeometry& geometry,
+                         const std::vector<scene::ClassId>& cell_classes = {});
+
+}  // namespace gissar::render
