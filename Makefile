@@ -3,7 +3,14 @@
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 
-.PHONY: all deps configure build test demo bench clean
+# `make test-sanitize`: the whole suite built with ASan + UBSan.
+SANITIZE_DIR ?= build-asan
+# `make fuzz FUZZ_SECONDS=600`: each libFuzzer harness for that long.
+FUZZ_DIR ?= build-fuzz
+FUZZ_SECONDS ?= 60
+FUZZERS ?=
+
+.PHONY: all deps configure build test test-sanitize fuzz demo bench clean
 
 all: build
 
@@ -18,6 +25,20 @@ build: configure
 
 test: build
 	@cd $(BUILD_DIR) && ctest --output-on-failure -j$(JOBS)
+
+# Sanitizer run-time options (docs/robustness.md): leaks of the uninstrumented
+# system libraries are suppressed, every UBSan finding is fatal.
+test-sanitize: export ASAN_OPTIONS = detect_leaks=1:detect_stack_use_after_return=0:check_initialization_order=1:strict_init_order=1
+test-sanitize: export LSAN_OPTIONS = suppressions=$(CURDIR)/scripts/sanitizer/lsan.supp:print_suppressions=0
+test-sanitize: export UBSAN_OPTIONS = print_stacktrace=1:halt_on_error=1
+test-sanitize: deps
+	@cmake -S . -B $(SANITIZE_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGISSAR_SANITIZE=ON \
+	  -DGISSAR_BUILD_BENCH=OFF > /dev/null
+	@cmake --build $(SANITIZE_DIR) -j$(JOBS)
+	@cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) --timeout 1500
+
+fuzz: build
+	@bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS) $(BUILD_DIR) $(FUZZERS)
 
 demo: build
 	@bash scripts/demo.sh $(BUILD_DIR)

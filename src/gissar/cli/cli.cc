@@ -44,6 +44,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddSceneCommands(app, registry);
   AddViewCommands(app, registry);
   AddMvgCommands(app, registry);
+  AddNavCommands(app, registry);
 
   try {
     app.parse(argc, argv);

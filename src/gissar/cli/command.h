@@ -6,11 +6,14 @@
 
 #include <functional>
 #include <ostream>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
+
+#include "gissar/util/error.h"
 
 namespace gissar::cli {
 
@@ -20,6 +23,17 @@ struct CommandContext {
 };
 
 using CommandAction = std::function<void(const CommandContext&)>;
+
+// Throws ConfigError naming `flag` when the command line gave `flag` a
+// value that is not > 0 (pixel spacings, where 0 means "automatic" only when
+// the flag is omitted).
+inline void RequirePositiveIfGiven(const CLI::App& cmd, const std::string& flag, double value) {
+  if (cmd.count(flag) > 0 && !(value > 0.0)) {
+    std::ostringstream text;
+    text << "must be a positive number, got " << value;
+    throw ConfigError(text.str(), flag);
+  }
+}
 
 class CommandRegistry {
  public:
@@ -49,5 +63,8 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry);
 void AddViewCommands(CLI::App& root, CommandRegistry& registry);
 // Declares `gissar fmatrix`, `resect`, `register` and `epipolar`.
 void AddMvgCommands(CLI::App& root, CommandRegistry& registry);
+
+// Declares `gissar locate`, `evaluate` and `matchpair` (locate_command.cc).
+void AddNavCommands(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli

@@ -84,6 +84,7 @@ json FmatrixOptions::ToJson() const {
 
 json RunFmatrix(const FmatrixOptions& options, const std::string& command_line) {
   options.Check();
+  CheckOutputsAreNotInputs({options.json_out}, {options.matches});
   const std::vector<mvg::PointMatch> matches = mvg::ReadMatchesCsv(options.matches);
   if (matches.size() < 4) {
     throw InputError("at least 4 matches are needed, got " + std::to_string(matches.size()), options.matches);
@@ -155,6 +156,7 @@ json ResectOptions::ToJson() const {
 
 json RunResect(const ResectOptions& options, const std::string& command_line) {
   options.Check();
+  CheckOutputsAreNotInputs({options.json_out}, {options.points});
   const std::vector<mvg::ControlPoint> points = mvg::ReadControlPointsCsv(options.points);
   if (points.size() < 4) {
     throw InputError("at least 4 control points are needed, got " + std::to_string(points.size()), options.points);
@@ -215,6 +217,9 @@ json RegisterOptions::ToJson() const {
 
 json RunRegister(const RegisterOptions& options, const std::string& command_line) {
   options.Check();
+  CheckOutputsAreNotInputs({options.out_prefix + ".tif", options.out_prefix + "_composite.png",
+                            options.out_prefix + ".json"},
+                           {options.fixed, options.moving, options.points});
   AtomicOutputs outputs;
   const fs::path tif = outputs.Add(options.out_prefix + ".tif");
   const fs::path png = outputs.Add(options.out_prefix + "_composite.png");
@@ -279,6 +284,7 @@ void EpipolarOptions::Check() const {
 
 void RunEpipolar(const EpipolarOptions& options) {
   options.Check();
+  CheckOutputsAreNotInputs({options.out_png}, {options.matches, options.image1, options.image2});
   AtomicOutputs outputs;
   const fs::path png = outputs.Add(options.out_png);
   const std::vector<mvg::PointMatch> matches = mvg::ReadMatchesCsv(options.matches);

@@ -38,6 +38,12 @@ void SceneBuildOptions::Check() const {
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
   const int sources = !config.empty() + !osm.empty() + !vectors.empty();
   if (sources > 1) throw ConfigError("give one of --config, --osm, --vectors", "--config/--osm/--vectors");
+  if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
+  std::vector<std::string> inputs = {dem, osm, config};
+  inputs.insert(inputs.end(), vectors.begin(), vectors.end());
+  std::vector<fs::path> outs;
+  for (const char* suffix : {".gscene", ".ply", "_classes.png", ".json"}) outs.push_back(out_prefix + suffix);
+  CheckOutputsAreNotInputs(outs, inputs);
 }
 
 json SceneBuildOptions::ToJson() const {
@@ -49,7 +55,8 @@ json SceneBuildOptions::ToJson() const {
           {"config", config},
           {"center_lonlat", center_lonlat ? json{center_lonlat->x(), center_lonlat->y()} : json(nullptr)},
           {"out_prefix", out_prefix},
-          {"quiet", quiet}};
+          {"quiet", quiet},
+          {"max_memory_bytes", max_memory_bytes}};
 }
 
 SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::string& command_line) {
@@ -78,6 +85,10 @@ SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::stri
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
   read_options.window = options.window;
+  // Constrained triangulation (CGAL vertices and faces with info), GEOS
+  // regions and the output mesh, per DEM post; vector constraints add more.
+  read_options.bytes_per_post = 512;
+  read_options.max_bytes = options.max_memory_bytes;
   const geo::Dem dem = geo::ReadDem(options.dem, read_options);
   const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, options.center_lonlat, std::nullopt);
   const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);

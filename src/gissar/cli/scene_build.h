@@ -13,6 +13,8 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "gissar/util/memory_limit.h"
+
 namespace gissar::cli {
 
 struct SceneBuildOptions {
@@ -25,9 +27,13 @@ struct SceneBuildOptions {
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre (default DEM centre)
   std::string out_prefix;  // PREFIX.gscene, PREFIX.ply, PREFIX_classes.png, PREFIX.json
   bool quiet = false;
+  // Memory budget (--max-memory), bytes: the DEM (window) is checked against
+  // it before it is read.
+  int64_t max_memory_bytes = DefaultMemoryLimitBytes();
 
   // Throws ConfigError naming the option: DEM and output required, at most
-  // one of --config / --osm / --vectors.
+  // one of --config / --osm / --vectors, a positive memory budget, and no
+  // output (PREFIX.*) that would overwrite an input.
   void Check() const;
   nlohmann::json ToJson() const;
 };

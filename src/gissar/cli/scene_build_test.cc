@@ -79,8 +79,8 @@ TEST(SceneBuildTest, WaterIsDarkerByTheMaterialRatio) {
   const fs::path dir = testing::MakeTempDir();
   const std::string water = GeoJson(dir / "water.geojson", "Polygon",
                                     {{-150, -150}, {150, -150}, {150, 150}, {-150, 150}, {-150, -150}});
-  std::ofstream(dir / "scene.json") << R"({"layers": [{"path": "water.geojson", "class": "water"}]})";
-  RunSceneBuild(BuildOptions(FlatDem(dir), (dir / "scene.json").string(), dir), "test");
+  std::ofstream(dir / "config.json") << R"({"layers": [{"path": "water.geojson", "class": "water"}]})";
+  RunSceneBuild(BuildOptions(FlatDem(dir), (dir / "config.json").string(), dir), "test");
   const geo::FloatRaster image = Simulate((dir / "scene.gscene").string(), dir, 5.0);
   const double u0 = std::stod(image.metadata.at("GISSAR_U0")), v0 = std::stod(image.metadata.at("GISSAR_V0"));
   auto mean = [&](double x_m, double y_m) {
@@ -107,9 +107,9 @@ TEST(SceneBuildTest, WaterIsDarkerByTheMaterialRatio) {
 TEST(SceneBuildTest, RoadStripAppearsWhereItsGeometryPredicts) {
   const fs::path dir = testing::MakeTempDir();
   GeoJson(dir / "road.geojson", "LineString", {{100, -400}, {100, 400}}, R"({"highway": "primary"})");
-  std::ofstream(dir / "scene.json")
+  std::ofstream(dir / "config.json")
       << R"({"layers": [{"path": "road.geojson", "class": "road", "geometry": "line", "width_m": 20}]})";
-  RunSceneBuild(BuildOptions(FlatDem(dir), (dir / "scene.json").string(), dir), "test");
+  RunSceneBuild(BuildOptions(FlatDem(dir), (dir / "config.json").string(), dir), "test");
   const double spacing = 2.0;
   const geo::FloatRaster image = Simulate((dir / "scene.gscene").string(), dir, spacing);
   const double u0 = std::stod(image.metadata.at("GISSAR_U0")), v0 = std::stod(image.metadata.at("GISSAR_V0"));

@@ -29,8 +29,12 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
                     "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png, PREFIX.json")
       ->required();
   build->add_flag("--quiet", options->quiet, "No progress on stderr");
+  auto max_memory = std::make_shared<std::string>();
+  build->add_option("--max-memory", *max_memory,
+                    "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early");
   registry.Add(build, [=](const CommandContext& context) {
     SceneBuildOptions resolved = *options;
+    if (!max_memory->empty()) resolved.max_memory_bytes = ParseByteSize(*max_memory, "--max-memory");
     if (!window->empty()) resolved.window = ParseWindow(*window, "--window");
     if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");
     const SceneBuildResult result = RunSceneBuild(resolved, context.command_line);

@@ -1,6 +1,7 @@
 #include "gissar/cli/simulate.h"
 
 #include <cmath>
+#include <memory>
 #include <cstdio>
 #include <sstream>
 
@@ -11,6 +12,7 @@
 #include "gissar/image/quicklook.h"
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
+#include "gissar/render/raster_renderer.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
 #include <limits>
@@ -39,6 +41,16 @@ void SimulateOptions::Check() const {
     throw ConfigError("give exactly one terrain: a DEM or a scene", "--dem/--scene");
   }
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
+  if (engine != "trace" && engine != "raster") {
+    throw ConfigError("engine must be 'trace' or 'raster', got '" + engine + "'", "--engine");
+  }
+  if (engine == "raster") {
+    if (!scene.empty()) throw ConfigError("the raster engine renders DEMs only (--dem)", "--engine");
+    if (coherent) throw ConfigError("the raster engine is incoherent only", "--engine/--coherent");
+    if (!contributions.empty()) {
+      throw ConfigError("the raster engine records no contributions", "--engine/--contributions");
+    }
+  }
   if (center_lonlat && center_map) {
     throw ConfigError("give the scene centre once: --center or --center-map", "--center");
   }
@@ -63,16 +75,10 @@ void SimulateOptions::Check() const {
     throw ConfigError("speckle looks must be 0 (off) or >= 1", "--speckle-looks");
   }
   if (std::isinf(nesz_db)) throw ConfigError("NESZ must be a finite number of dB", "--nesz");
-  std::error_code ec;
-  for (const char* suffix : {".tif", ".png", "_mask.tif", ".json"}) {
-    const fs::path out = out_prefix + suffix;
-    for (const std::string& input : {dem, scene}) {
-      if (!input.empty() && fs::exists(input, ec) && fs::exists(out, ec) &&
-          fs::equivalent(out, input, ec)) {
-        throw ConfigError("output would overwrite an input", out.string());
-      }
-    }
-  }
+  if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
+  std::vector<fs::path> outs = {fs::path(contributions)};
+  for (const char* suffix : {".tif", ".png", "_mask.tif", ".json"}) outs.push_back(out_prefix + suffix);
+  CheckOutputsAreNotInputs(outs, {dem, scene});
 }
 
 nlohmann::json SimulateOptions::ToJson() const {
@@ -93,6 +99,7 @@ nlohmann::json SimulateOptions::ToJson() const {
   j["mode"] = sensor::ToString(geometry.mode);
   j["width"] = geometry.width;
   j["height"] = geometry.height;
+  j["engine"] = engine;
   j["rays_per_cell"] = rays_per_cell;
   j["bounces"] = bounces;
   j["coherent"] = coherent;
@@ -106,14 +113,28 @@ nlohmann::json SimulateOptions::ToJson() const {
   j["seed"] = seed;
   j["out_prefix"] = out_prefix;
   j["quiet"] = quiet;
+  j["max_memory_bytes"] = max_memory_bytes;
   return j;
 }
 
 namespace {
 
+// Memory estimates for --max-memory (measured orders of magnitude, kept on
+// the safe side). Per DEM post: heights as read (12 B), map and ENU
+// coordinates (28 B), the mesh (2 triangles: 36 B) and Embree's BVH over
+// it (~150 B).
+constexpr double kBytesPerDemPost = 256.0;
+// Per scene-file byte: the mesh as loaded plus Embree's BVH.
+constexpr double kBytesPerSceneFileByte = 5.0;
+// Per image pixel: the total and 4 per-bounce float planes, the per-block
+// accumulation bands (as much again), mask, quicklook and writing buffers.
+constexpr double kBytesPerImagePixel = 64.0;
+
 Terrain TerrainFromDem(const SimulateOptions& options) {
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
+  read_options.max_bytes = options.max_memory_bytes;
+  read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
   const geo::Dem dem = geo::ReadDem(options.dem, read_options);
   if (dem.filled_nodata_cells > 0 && !options.quiet) {
     std::fprintf(stderr, "simulate: filled %lld no-data cells\n", static_cast<long long>(dem.filled_nodata_cells));
@@ -122,7 +143,13 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
   t.frame = geo::LocalFrame(t.centre.lon_deg, t.centre.lat_deg, 0.0);
   t.centre_enu = t.frame.EnuFromGeodetic(t.centre.lon_deg, t.centre.lat_deg, t.centre.height_m);
-  t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
+  if (options.engine == "raster") {
+    t.mesh.vertices = geo::DemPostsInFrame(dem, t.frame);
+  } else {
+    t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
+  }
+  t.grid_width = dem.width;
+  t.grid_height = dem.height;
   const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame);
   t.post_spacing_m = 0.5 * (spacing.x() + spacing.y());
   t.description = {{"type", "DEM"},
@@ -135,14 +162,25 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
 }
 
 Terrain TerrainFromScene(const SimulateOptions& options) {
+  std::error_code ec;
+  const auto file_bytes = fs::file_size(options.scene, ec);
+  if (!ec) {
+    CheckMemoryBudget(kBytesPerSceneFileByte * double(file_bytes), options.max_memory_bytes,
+                      "scene " + options.scene + " of " + FormatBytes(double(file_bytes)),
+                      "build it from a window of the DEM (scene build --window)");
+  }
   scene::SceneFile file = scene::ReadScene(options.scene);
   Terrain t;
   t.frame = geo::LocalFrame(file.origin_lon_deg, file.origin_lat_deg, 0.0);
   t.centre = {file.centre_lon_deg, file.centre_lat_deg, file.centre_height_m};
   t.centre_enu = file.centre_enu;
   t.materials = material::SceneMaterials(file.materials, options.scene);
-  if (file.provenance.contains("post_spacing_m")) {
-    t.post_spacing_m = file.provenance["post_spacing_m"].get<double>();
+  if (file.provenance.is_object() && file.provenance.contains("post_spacing_m")) {
+    const nlohmann::json& spacing = file.provenance["post_spacing_m"];
+    if (!spacing.is_number() || !(spacing.get<double>() > 0.0) || !std::isfinite(spacing.get<double>())) {
+      throw InputError("scene provenance has an invalid post_spacing_m", options.scene);
+    }
+    t.post_spacing_m = spacing.get<double>();
   }
   t.description = {{"type", "scene"},
                    {"triangles", file.mesh.triangle_count()},
@@ -230,15 +268,29 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
 
   const sensor::SarGeometryOptions geometry_options = ResolvedGeometry(options, terrain);
   step = Stopwatch();
-  const render::EmbreeScene embree(mesh);
-  timings["bvh"] = step.ElapsedSeconds();
-  PlaceSceneCentre(terrain, embree, options);
+  // The raster engine needs no BVH (and renders DEMs only: no scene centre
+  // to place).
+  const bool raster_engine = options.engine == "raster";
+  std::unique_ptr<render::EmbreeScene> embree;
+  if (!raster_engine) {
+    embree = std::make_unique<render::EmbreeScene>(mesh);
+    timings["bvh"] = step.ElapsedSeconds();
+    PlaceSceneCentre(terrain, *embree, options);
+  }
   const Eigen::Vector3d xc = terrain.centre_enu;
   const geo::GeoPoint centre = terrain.centre;
   const sensor::SarGeometry geometry =
       sensor::SarGeometry::Covering(geometry_options, xc, mesh.vertices);
+  CheckMemoryBudget(kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
+                        double(mesh.MemoryBytes()) * 3.0,
+                    options.max_memory_bytes,
+                    "image of " + std::to_string(geometry.width()) + " x " +
+                        std::to_string(geometry.height()) + " pixels",
+                    "use coarser --range-res/--azimuth-res, a smaller --width/--height");
   say("image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
-      " pixels, " + std::to_string(mesh.triangle_count()) + " triangles");
+      " pixels, " +
+      (raster_engine ? std::to_string(int64_t(terrain.grid_width - 1) * (terrain.grid_height - 1)) + " DEM cells"
+              : std::to_string(mesh.triangle_count()) + " triangles"));
 
   render::RenderOptions render_options;
   render_options.rays_per_cell = options.rays_per_cell;
@@ -249,13 +301,15 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   render_options.record_contributions = !options.contributions.empty();
   render_options.show_progress = !options.quiet;
   render::SarImage image =
-      render::RenderSar(embree, mesh, terrain.materials, geometry, render_options);
+      raster_engine ? render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height,
+                                       terrain.materials, geometry)
+             : render::RenderSar(*embree, mesh, terrain.materials, geometry, render_options);
   // Sensor effects: impulse response, speckle, thermal noise (in this order).
   step = Stopwatch();
   ApplySensorEffects(image, options, geometry);
   timings["sensor_effects"] = step.ElapsedSeconds();
-  timings["trace"] = image.stats.trace_seconds;
-  timings["mask"] = image.stats.mask_seconds;
+  timings[raster_engine ? "raster" : "trace"] = image.stats.trace_seconds;
+  if (!raster_engine) timings["mask"] = image.stats.mask_seconds;
 
   step = Stopwatch();
   geo::Metadata metadata;
@@ -321,6 +375,7 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
                          {"rays", image.stats.rays},
                          {"hits", image.stats.hits},
                          {"shadow_rays", image.stats.shadow_rays},
+                         {"dem_cells", image.stats.cells},
                          {"mask_pixels",
                           {{"none", mask_counts[0]},
                            {"layover", mask_counts[1]},

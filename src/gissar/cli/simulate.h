@@ -20,6 +20,7 @@
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
+#include "gissar/util/memory_limit.h"
 
 namespace gissar::cli {
 
@@ -31,6 +32,10 @@ struct SimulateOptions {
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".
   sensor::SarGeometryOptions geometry;
+  // Image formation: "trace" (ray tracing, any terrain, multi-bounce) or
+  // "raster" (DEM-raster: every DEM cell projected analytically, single
+  // bounce, DEMs only; docs/geometry.md).
+  std::string engine = "trace";
   double rays_per_cell = 4.0;
   int bounces = 3;                 // reflections followed per ray
   bool coherent = false;           // complex sum with phase 4 pi r / lambda
@@ -48,9 +53,14 @@ struct SimulateOptions {
   uint64_t seed = 1;
   std::string out_prefix;  // writes PREFIX.tif, PREFIX.png, PREFIX_mask.tif, PREFIX.json
   bool quiet = false;      // no progress on stderr
+  // Memory budget (--max-memory), bytes: the DEM (or scene) and the image
+  // are checked against it before they are allocated, and a job over it
+  // fails with a ConfigError saying how to reduce it.
+  int64_t max_memory_bytes = DefaultMemoryLimitBytes();
 
   // Throws ConfigError naming the option for every value that is out of
-  // range before any file is read (spacings may still be 0 = automatic).
+  // range before any file is read (spacings may still be 0 = automatic),
+  // and when an output (PREFIX.* or --contributions) would overwrite an input.
   void Check() const;
   nlohmann::json ToJson() const;
 };
@@ -72,12 +82,16 @@ struct Terrain {
   geo::GeoPoint centre;
   Eigen::Vector3d centre_enu = Eigen::Vector3d::Zero();
   double post_spacing_m = 30.0;
+  // A DEM's grid of posts (mesh.vertices, row-major); 0 x 0 for scenes.
+  int grid_width = 0;
+  int grid_height = 0;
   material::MaterialTable materials;
   nlohmann::json description;  // for provenance
 };
 
 // Loads options.dem or options.scene; the centre follows --center /
-// --center-map for DEMs. Throws the gissar::Error family.
+// --center-map for DEMs. With engine "raster" a DEM's mesh holds only its
+// posts (no triangles). Throws the gissar::Error family.
 Terrain LoadTerrain(const SimulateOptions& options);
 
 // For scenes: moves the centre to options.center_lonlat on the scene's

@@ -40,6 +40,9 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
                   "Image columns (range); default: cover the scene");
   cmd->add_option("--height", options->geometry.height,
                   "Image rows (azimuth); default: cover the scene");
+  cmd->add_option("--engine", options->engine,
+                  "Image formation: trace (ray tracing) or raster (DEM-raster, single bounce, DEMs only)")
+      ->capture_default_str();
   cmd->add_option("--rays-per-cell", options->rays_per_cell,
                   "Rays per resolution cell on flat ground")
       ->capture_default_str();
@@ -66,9 +69,15 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
                   "Output prefix: PREFIX.tif, PREFIX.png, PREFIX_mask.tif, PREFIX.json")
       ->required();
   cmd->add_flag("--quiet", options->quiet, "No progress on stderr");
+  auto max_memory = std::make_shared<std::string>();
+  cmd->add_option("--max-memory", *max_memory,
+                  "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early");
 
   registry.Add(cmd, [=](const CommandContext& context) {
     SimulateOptions resolved = *options;
+    RequirePositiveIfGiven(*cmd, "--range-res", resolved.geometry.range_spacing_m);
+    RequirePositiveIfGiven(*cmd, "--azimuth-res", resolved.geometry.azimuth_spacing_m);
+    if (!max_memory->empty()) resolved.max_memory_bytes = ParseByteSize(*max_memory, "--max-memory");
     resolved.geometry.mode = sensor::ParseProjectionMode(*mode);
     resolved.geometry.look_side = sensor::ParseLookSide(*look);
     if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");

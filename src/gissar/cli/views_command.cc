@@ -12,8 +12,12 @@ struct CommonFlags {
   std::shared_ptr<std::string> center = std::make_shared<std::string>();
   std::shared_ptr<std::string> mode = std::make_shared<std::string>("affine");
   std::shared_ptr<std::string> look = std::make_shared<std::string>("right");
+  std::shared_ptr<std::string> max_memory = std::make_shared<std::string>();
+
+  CLI::App* app = nullptr;
 
   void Add(CLI::App* cmd, SimulateOptions& o, bool with_heading) {
+    app = cmd;
     cmd->add_option("--dem", o.dem, "DEM raster (or --scene)");
     cmd->add_option("--scene", o.scene, "Scene file from `gissar scene build`");
     cmd->add_flag("--fill-nodata", o.fill_nodata, "Fill DEM no-data cells");
@@ -24,6 +28,7 @@ struct CommonFlags {
     cmd->add_option("--range", o.geometry.slant_range_m, "Slant range to the scene centre, m")->capture_default_str();
     cmd->add_option("--range-res", o.geometry.range_spacing_m, "Slant-range pixel spacing, m");
     cmd->add_option("--azimuth-res", o.geometry.azimuth_spacing_m, "Azimuth pixel spacing, m");
+    cmd->add_option("--max-memory", *max_memory, "Memory budget, e.g. 4G (default: 3/4 of RAM)");
     cmd->add_option("--rays-per-cell", o.rays_per_cell, "Rays per resolution cell")->capture_default_str();
     cmd->add_option("--range-resolution", o.range_resolution_m, "3 dB range resolution, m (0 = none)");
     cmd->add_option("--azimuth-resolution", o.azimuth_resolution_m, "3 dB azimuth resolution, m (0 = none)");
@@ -33,9 +38,12 @@ struct CommonFlags {
     cmd->add_flag("--quiet", o.quiet, "No progress on stderr");
   }
   void Resolve(SimulateOptions& o) const {
+    RequirePositiveIfGiven(*app, "--range-res", o.geometry.range_spacing_m);
+    RequirePositiveIfGiven(*app, "--azimuth-res", o.geometry.azimuth_spacing_m);
     o.geometry.mode = sensor::ParseProjectionMode(*mode);
     o.geometry.look_side = sensor::ParseLookSide(*look);
     if (!center->empty()) o.center_lonlat = ParseNumberPair(*center, "--center");
+    if (!max_memory->empty()) o.max_memory_bytes = ParseByteSize(*max_memory, "--max-memory");
   }
 };
 

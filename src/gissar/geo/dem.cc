@@ -4,11 +4,14 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
+#include <sstream>
 
 #include "gissar/geo/gdal_env.h"
 #include "gissar/util/error.h"
+#include "gissar/util/memory_limit.h"
 
 namespace gissar::geo {
 namespace fs = std::filesystem;
@@ -44,6 +47,38 @@ void FillVoids(std::vector<float>& heights, int width, int height, float nodata,
   }
 }
 
+// Geographic DEMs: refuses posts near or beyond a pole and longitudes
+// outside [-180, 180] (see ReadDem).
+void CheckGeographicExtent(const Dem& dem, const OGRSpatialReference& srs) {
+  const double to_deg = srs.GetAngularUnits(nullptr) * 180.0 / M_PI;
+  double lon_min = 1e300, lon_max = -1e300, lat_max = 0.0;
+  for (const auto& [c, r] : {std::pair{0, 0}, {dem.width - 1, 0}, {0, dem.height - 1},
+                             {dem.width - 1, dem.height - 1}}) {
+    const Eigen::Vector2d m = dem.MapFromPost(c, r) * to_deg;
+    lon_min = std::min(lon_min, m.x());
+    lon_max = std::max(lon_max, m.x());
+    lat_max = std::max(lat_max, std::abs(m.y()));
+  }
+  std::ostringstream text;
+  text.precision(10);
+  if (lat_max > 90.0) {
+    text << "geographic DEM has posts at latitude " << lat_max
+         << ", beyond 90 degrees: its geotransform is wrong";
+  } else if (lat_max > kMaxGeographicLatDeg) {
+    text << "geographic DEM reaches latitude " << lat_max << ", within "
+         << 90.0 - kMaxGeographicLatDeg
+         << " degree of a pole where longitude/latitude grids degenerate; reproject it to a polar "
+            "stereographic CRS (gdalwarp -t_srs EPSG:3413 or EPSG:3031)";
+  } else if (lon_min < -180.0 || lon_max > 180.0) {
+    text << "geographic DEM spans longitudes " << lon_min << " to " << lon_max
+         << ", outside [-180, 180]: it crosses the antimeridian; reproject it to a projected CRS "
+            "such as UTM (gdalwarp -t_srs EPSG:326NN)";
+  } else {
+    return;
+  }
+  throw InputError(text.str(), dem.source);
+}
+
 }  // namespace
 
 Eigen::Vector2d Dem::MapFromPost(double col, double row) const {
@@ -75,8 +110,12 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   EnsureGdal();
   const std::string where = path.string();
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw InputError("DEM file does not exist", where);
-  if (fs::is_directory(path, ec)) throw InputError("DEM path is a directory, not a file", where);
+  // GDAL virtual file systems (/vsimem/, /vsizip/...) are not on disk.
+  const bool virtual_path = where.rfind("/vsi", 0) == 0;
+  if (!virtual_path && !fs::exists(path, ec)) throw InputError("DEM file does not exist", where);
+  if (!virtual_path && fs::is_directory(path, ec)) {
+    throw InputError("DEM path is a directory, not a file", where);
+  }
   DatasetPtr ds(GDALDataset::Open(where.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw InputError("not a raster GDAL can read", where);
   if (options.band < 1 || options.band > ds->GetRasterCount()) {
@@ -105,15 +144,44 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
                          std::to_string(dem.height),
                      where);
   }
-  const int64_t bytes = int64_t{dem.width} * dem.height * int64_t{sizeof(float)};
-  if (bytes > options.max_bytes) {
+  // In double: width * height * bytes_per_post may overflow 64 bits.
+  const double bytes = double(dem.width) * double(dem.height) * double(options.bytes_per_post);
+  if (bytes > double(options.max_bytes)) {
     throw InputError("DEM of " + std::to_string(dem.width) + "x" + std::to_string(dem.height) +
-                         " posts needs " + std::to_string(bytes >> 20) +
-                         " MiB, over the limit; crop it to a window",
+                         " posts needs about " + FormatBytes(bytes) + ", over the memory limit of " +
+                         FormatBytes(double(options.max_bytes)) +
+                         " (--max-memory); use a window of it or resample it to coarser posts",
                      where);
+  }
+  {
+    // GDAL reads a pixel-interleaved block for all bands at once: a tiny
+    // file declaring thousands of bands would need gigabytes for one block.
+    int block_x = 0, block_y = 0;
+    GDALRasterBand* first = ds->GetRasterBand(options.band);
+    first->GetBlockSize(&block_x, &block_y);
+    const char* interleave = ds->GetMetadataItem("INTERLEAVE", "IMAGE_STRUCTURE");
+    const int bands = interleave != nullptr && std::string(interleave) == "PIXEL" ? ds->GetRasterCount() : 1;
+    const double block_bytes = double(block_x) * double(block_y) * bands *
+                               GDALGetDataTypeSizeBytes(first->GetRasterDataType());
+    if (block_bytes > double(options.max_bytes)) {
+      throw InputError("raster of " + std::to_string(ds->GetRasterCount()) + " bands of " +
+                           std::to_string(block_x) + "x" + std::to_string(block_y) +
+                           "-cell blocks needs about " + FormatBytes(block_bytes) +
+                           " to read one block, over the memory limit of " +
+                           FormatBytes(double(options.max_bytes)) +
+                           " (--max-memory); extract the height band (gdal_translate -b N)",
+                       where);
+    }
   }
   if (ds->GetGeoTransform(dem.geotransform.data()) != CE_None) {
     throw InputError("raster has no geotransform (not georeferenced)", where);
+  }
+  {
+    const auto& g = dem.geotransform;
+    const bool finite = std::all_of(g.begin(), g.end(), [](double v) { return std::isfinite(v); });
+    if (!finite || g[1] * g[5] - g[2] * g[4] == 0.0) {
+      throw InputError("raster geotransform is singular or not finite", where);
+    }
   }
   {
     auto& g = dem.geotransform;
@@ -128,6 +196,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   srs->exportToWkt(&wkt);
   dem.crs_wkt = wkt != nullptr ? wkt : "";
   CPLFree(wkt);
+  if (srs->IsGeographic()) CheckGeographicExtent(dem, *srs);
 
   GDALRasterBand* band = ds->GetRasterBand(options.band);
   int has_nodata = 0;
@@ -137,8 +206,24 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
                      dem.height, GDT_Float64, 0, 0, nullptr) != CE_None) {
     throw InputError("cannot read DEM heights: " + LastGdalMessage(), where);
   }
-  int64_t voids = 0;
-  for (double v : raw) voids += IsVoid(v, has_nodata != 0, nodata) ? 1 : 0;
+  int64_t voids = 0, out_of_range = 0;
+  double lowest = kMinHeightM, highest = kMaxHeightM;
+  for (double v : raw) {
+    if (IsVoid(v, has_nodata != 0, nodata)) {
+      ++voids;
+    } else if (v < kMinHeightM || v > kMaxHeightM) {
+      ++out_of_range;
+      lowest = std::min(lowest, v);
+      highest = std::max(highest, v);
+    }
+  }
+  if (out_of_range > 0) {
+    std::ostringstream text;
+    text << "DEM has " << out_of_range << " heights outside [" << kMinHeightM << ", "
+         << kMaxHeightM << "] m (lowest " << lowest << ", highest " << highest
+         << "): an unmarked no-data value (set it with gdal_edit -a_nodata) or heights not in metres";
+    throw InputError(text.str(), where);
+  }
   if (voids == static_cast<int64_t>(raw.size())) {
     throw InputError("DEM has no valid height (all " + std::to_string(voids) +
                          " cells are no-data)",
@@ -233,7 +318,12 @@ std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& f
       y[size_t(r) * dem.width + c] = m.y();
     }
   }
-  crs.ToLonLat(x, y);
+  try {
+    crs.ToLonLat(x, y);
+  } catch (const InputError& e) {
+    throw InputError("DEM posts cannot be transformed to WGS84: " + e.message() + " " + e.where(),
+                     dem.source);
+  }
   std::vector<Eigen::Vector3f> enu(n);
   for (size_t i = 0; i < n; ++i) {
     enu[i] = frame.EnuFromGeodetic(x[i], y[i], dem.heights_m[i]).cast<float>();

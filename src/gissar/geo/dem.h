@@ -25,12 +25,23 @@ struct DemReadOptions {
   double fill_max_search_cells = 200.0;
   // 1-based band index.
   int band = 1;
-  // Refuse rasters whose heights would need more than this many bytes.
+  // Memory budget of the caller's job (--max-memory) and what the job needs
+  // per DEM post (reading it, and the meshes and indices built from it).
+  // A raster with width * height * bytes_per_post > max_bytes is refused
+  // from its header, before anything is allocated.
   int64_t max_bytes = int64_t{8} << 30;
+  int64_t bytes_per_post = 12;
   // Optional window (first column, first row, columns, rows) in raster
   // cells: only that part is read, so large DEMs need not be loaded whole.
   std::optional<std::array<int, 4>> window;
 };
+
+// Heights a DEM may hold, metres: Earth's surface lies within about
+// -11 km (ocean trenches) and +8.9 km.
+inline constexpr double kMinHeightM = -12000.0;
+inline constexpr double kMaxHeightM = 10000.0;
+// Largest |latitude| of a post of a geographic DEM, degrees.
+inline constexpr double kMaxGeographicLatDeg = 89.0;
 
 // A DEM: heights on a grid of posts. Post (col, row) sits at the centre of
 // raster cell (col, row); its map coordinates follow the GDAL geotransform.
@@ -53,12 +64,21 @@ struct Dem {
   std::optional<double> InterpolateHeight(double col, double row) const;
 };
 
-// Reads band `options.band` of a raster as a DEM. Throws InputError naming
-// the file when it is missing, not a raster, has no geotransform or CRS, is
-// smaller than 2x2 posts, or holds no-data cells (value equal to the band's
-// no-data value, NaN or infinite) and `fill_nodata` is false: the message
-// gives their count. With `fill_nodata`, cells that cannot be filled within
-// the search distance are also an InputError.
+// Reads band `options.band` of a raster as a DEM. `path` may be a GDAL
+// virtual file (/vsimem/..., /vsizip/archive.zip/file.hgt). Throws InputError naming
+// the file when it is missing, not a raster, has no geotransform or CRS (or
+// a singular or non-finite one), is smaller than 2x2 posts, would need more
+// memory than options.max_bytes (the message gives the amount; a
+// pixel-interleaved block of all bands counts too), holds
+// heights outside [kMinHeightM, kMaxHeightM] (unmarked no-data values or
+// wrong units), or holds no-data cells (value equal to the band's no-data
+// value, NaN or infinite) and `fill_nodata` is false: the message gives
+// their count. With `fill_nodata`, cells that cannot be filled within the
+// search distance are also an InputError. A geographic (longitude/latitude)
+// DEM is refused when a post lies beyond kMaxGeographicLatDeg of latitude
+// (longitude/latitude grids degenerate at the poles: reproject it to a
+// polar stereographic CRS) or outside longitudes [-180, 180] (it crosses
+// the antimeridian: reproject it to a projected CRS such as UTM).
 Dem ReadDem(const std::filesystem::path& path, const DemReadOptions& options = {});
 
 // WGS84 longitude/latitude (degrees) and DEM height of the scene centre.
@@ -84,6 +104,8 @@ void WriteDemGeoTiff(const std::filesystem::path& path, const std::vector<float>
 
 // ENU positions (metres, `frame`) of every DEM post, row-major like
 // heights_m. Heights are used as ellipsoidal heights (see local_frame.h).
+// Throws InputError naming the DEM when a post cannot be transformed to
+// WGS84 (outside its projection's domain).
 std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& frame);
 
 // Mean post spacing in metres along columns and rows, measured in `frame`

@@ -106,6 +106,71 @@ TEST(DemTest, ProjectedDemIsPlacedThroughProj) {
   EXPECT_NEAR(enu[5].z(), 1000.0, 0.5);
 }
 
+// The message of the InputError ReadDem throws for `path`, or "" if none.
+std::string ReadDemError(const std::filesystem::path& path, const DemReadOptions& options = {}) {
+  try {
+    ReadDem(path, options);
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), path.string());
+    return e.message();
+  }
+  return "";
+}
+
+std::vector<float> Flat(int n) { return std::vector<float>(size_t(n) * n, 500.0f); }
+
+TEST(DemTest, GeographicDemsNearAPoleOrAcrossTheAntimeridianAreRefused) {
+  const auto dir = testing::MakeTempDir();
+  WriteDemGeoTiff(dir / "pole.tif", Flat(8), 8, 8, {10.0, 0.1, 0.0, 89.85, 0.0, -0.1}, "EPSG:4326");
+  EXPECT_NE(ReadDemError(dir / "pole.tif").find("polar stereographic"), std::string::npos);
+  WriteDemGeoTiff(dir / "beyond.tif", Flat(8), 8, 8, {10.0, 0.5, 0.0, 92.0, 0.0, -0.5}, "EPSG:4326");
+  EXPECT_NE(ReadDemError(dir / "beyond.tif").find("beyond 90 degrees"), std::string::npos);
+  WriteDemGeoTiff(dir / "am.tif", Flat(8), 8, 8, {179.7, 0.1, 0.0, 10.0, 0.0, -0.1}, "EPSG:4326");
+  EXPECT_NE(ReadDemError(dir / "am.tif").find("antimeridian"), std::string::npos);
+  // 88 degrees and longitudes up to 180 are fine; so are projected DEMs anywhere.
+  WriteDemGeoTiff(dir / "north.tif", Flat(8), 8, 8, {179.15, 0.1, 0.0, 88.8, 0.0, -0.1}, "EPSG:4326");
+  EXPECT_EQ(ReadDemError(dir / "north.tif"), "");
+  WriteDemGeoTiff(dir / "polar.tif", Flat(8), 8, 8, {0.0, 100.0, 0.0, 0.0, 0.0, -100.0}, "EPSG:3413");
+  EXPECT_EQ(ReadDemError(dir / "polar.tif"), "");
+}
+
+TEST(DemTest, HeightsOutsideEarthsRangeAreUnmarkedNoData) {
+  const auto dir = testing::MakeTempDir();
+  std::vector<float> z = Flat(8);
+  z[3] = -3.4028235e38f;
+  z[9] = 29032.0f;  // Everest in feet
+  WriteDemGeoTiff(dir / "dem.tif", z, 8, 8, {0.0, 30.0, 0.0, 0.0, 0.0, -30.0}, "EPSG:32631");
+  EXPECT_NE(ReadDemError(dir / "dem.tif").find("DEM has 2 heights outside [-12000, 10000] m"),
+            std::string::npos);
+}
+
+TEST(DemTest, MemoryBudgetIsCheckedFromTheHeader) {
+  const auto dir = testing::MakeTempDir();
+  WriteDemGeoTiff(dir / "dem.tif", Flat(64), 64, 64, {0.0, 30.0, 0.0, 0.0, 0.0, -30.0}, "EPSG:32631");
+  DemReadOptions options;
+  options.bytes_per_post = 256;
+  options.max_bytes = 1 << 20;  // 64 x 64 x 256 B = 1 MiB: just fits
+  EXPECT_EQ(ReadDemError(dir / "dem.tif", options), "");
+  options.max_bytes = (1 << 20) - 1;
+  EXPECT_EQ(ReadDemError(dir / "dem.tif", options),
+            "DEM of 64x64 posts needs about 1.0 MiB, over the memory limit of 1024 KiB (--max-memory); "
+            "use a window of it or resample it to coarser posts");
+}
+
+TEST(DemTest, ReadsGdalVirtualFiles) {
+  const auto dir = testing::MakeTempDir();
+  WriteDemGeoTiff(dir / "dem.tif", Flat(8), 8, 8, {0.0, 30.0, 0.0, 0.0, 0.0, -30.0}, "EPSG:32631");
+  std::ifstream in(dir / "dem.tif", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  VSILFILE* f = VSIFileFromMemBuffer("/vsimem/dem_test.tif", reinterpret_cast<GByte*>(bytes.data()),
+                                     bytes.size(), FALSE);
+  ASSERT_NE(f, nullptr);
+  VSIFCloseL(f);
+  EXPECT_EQ(ReadDem("/vsimem/dem_test.tif").width, 8);
+  VSIUnlink("/vsimem/dem_test.tif");
+  EXPECT_NE(ReadDemError("/vsimem/absent.tif").find("not a raster"), std::string::npos);
+}
+
 TEST(DemTest, MissingFileIsAnInputError) {
   try {
     ReadDem("/nonexistent/dem.tif");

@@ -80,6 +80,22 @@ void Collect(const OGRGeometry* geometry, VectorFeature& feature) {
   }
 }
 
+bool AllFinite(const VectorFeature& feature) {
+  for (const PolygonRings& polygon : feature.polygons) {
+    for (const Ring& ring : polygon) {
+      for (const Eigen::Vector2d& p : ring) {
+        if (!p.allFinite()) return false;
+      }
+    }
+  }
+  for (const LinePoints& line : feature.lines) {
+    for (const Eigen::Vector2d& p : line) {
+      if (!p.allFinite()) return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 std::map<std::string, std::string> ParseOsmOtherTags(const std::string& text) {
@@ -167,6 +183,11 @@ std::vector<VectorFeature> ReadVectorLayer(const VectorLayerRequest& request,
     feature.fid = ogr_feature->GetFID();
     Collect(geometry, feature);
     if (feature.polygons.empty() && feature.lines.empty()) continue;
+    if (!AllFinite(feature)) {
+      throw InputError("feature " + std::to_string(feature.fid) +
+                           " has a non-finite coordinate (NaN or infinity)",
+                       where);
+    }
     std::string other_tags;
     for (int i = 0; i < ogr_feature->GetFieldCount(); ++i) {
       if (!ogr_feature->IsFieldSetAndNotNull(i)) continue;

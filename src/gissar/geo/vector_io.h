@@ -42,8 +42,9 @@ std::vector<std::string> ListVectorLayers(const std::string& path);
 // `target_crs_wkt` (x = easting/longitude, y = northing/latitude). Throws
 // InputError naming file and layer when: the file is missing or not vector
 // data, the layer does not exist (the message lists the layers), the
-// attribute filter is invalid, or the layer has no CRS (a file without CRS
-// cannot be placed). Features without geometry, or with point geometry, are
+// attribute filter is invalid, the layer has no CRS (a file without CRS
+// cannot be placed), or a feature has a non-finite coordinate (before or
+// after reprojection). Features without geometry, or with point geometry, are
 // skipped; curves are linearised.
 std::vector<VectorFeature> ReadVectorLayer(const VectorLayerRequest& request,
                                            const std::string& target_crs_wkt);

@@ -229,7 +229,11 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                     ? far_affine
                     : (geometry.SensorPosition(geometry.AlongTrack(point)) - point).norm();
             ++local_rays;
-            if (embree.Occluded(point.cast<float>(), (-dir).cast<float>(), eps,
+            // Leaving the surface at grazing incidence the ray climbs only
+            // cos(theta) per metre: start it where it has cleared the
+            // rounding of the surface itself (no self-shadowing).
+            const float t_near = eps / static_cast<float>(std::max(normal.dot(-dir), 0.01));
+            if (embree.Occluded(point.cast<float>(), (-dir).cast<float>(), t_near,
                                 static_cast<float>(t_far))) {
               code = kMaskShadow;
             } else if (normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0) {

@@ -1,5 +1,6 @@
 #include "gissar/scene/scene_io.h"
 
+#include <cmath>
 #include <cstring>
 #include <fstream>
 
@@ -114,6 +115,16 @@ SceneFile ReadScene(const fs::path& path) {
   } catch (const nlohmann::json::exception& e) {
     throw InputError(std::string("scene header is corrupt: ") + e.what(), path.string());
   }
+  if (!std::isfinite(scene.origin_lon_deg) || !std::isfinite(scene.origin_lat_deg) ||
+      std::abs(scene.origin_lat_deg) > 90.0 || !scene.centre_enu.allFinite() ||
+      !std::isfinite(scene.centre_lon_deg) || !std::isfinite(scene.centre_lat_deg) ||
+      !std::isfinite(scene.centre_height_m)) {
+    throw InputError("scene header is corrupt: frame origin or centre is not a valid position",
+                     path.string());
+  }
+  if (scene.class_names.empty() || scene.class_names.size() > 256) {
+    throw InputError("scene header is corrupt: it needs 1 to 256 class names", path.string());
+  }
   const uint64_t n = in.Get<uint64_t>(), m = in.Get<uint64_t>();
   const uint64_t needed = n * sizeof(Eigen::Vector3f) + m * (sizeof(Eigen::Vector3i) + 1) + sizeof(kEndMagic);
   if (n > (uint64_t{1} << 34) || m > (uint64_t{1} << 34) || needed > in.remaining()) {
@@ -137,6 +148,12 @@ SceneFile ReadScene(const fs::path& path) {
   }
   for (const Eigen::Vector3f& v : scene.mesh.vertices) {
     if (!v.allFinite()) throw InputError("scene file is corrupt (non-finite vertex)", path.string());
+  }
+  for (const ClassId c : scene.mesh.classes) {
+    if (c >= scene.class_names.size()) {
+      throw InputError("scene file is corrupt (class id " + std::to_string(c) + " has no name)",
+                       path.string());
+    }
   }
   return scene;
 }

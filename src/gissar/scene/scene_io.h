@@ -38,8 +38,11 @@ struct SceneFile {
 void WriteScene(const std::filesystem::path& path, const SceneFile& scene);
 
 // Reads a binary scene. Throws InputError naming the file when it is
-// missing, not a gissar scene, of another version, truncated, or holds
-// out-of-range indices.
+// missing, not a gissar scene, of another version, truncated (sizes are
+// checked against the file's length before anything is allocated), or
+// corrupt: a header that is not the expected JSON, a non-finite or invalid
+// frame origin or centre, no class names, out-of-range vertex indices or
+// class ids, non-finite vertices, a bad end marker.
 SceneFile ReadScene(const std::filesystem::path& path);
 
 // Binary little-endian PLY with vertex x,y,z (float, ENU metres) and faces

@@ -15,20 +15,24 @@ namespace gissar {
 namespace fs = std::filesystem;
 namespace {
 
-// Live temporaries, kept in fixed storage so the signal handler can unlink
-// them without allocating.
+// Files to delete on a signal: live temporaries, and the outputs already
+// renamed by a Commit() in progress. Kept in fixed storage so the signal
+// handler can unlink them without allocating. A slot is kFree, kWriting
+// (its path being copied: the handler skips it) or kReady.
 constexpr int kMaxLiveTemporaries = 256;
 constexpr int kMaxPathBytes = 4096;
-std::array<std::atomic<bool>, kMaxLiveTemporaries> g_slot_used{};
+enum SlotState : int { kFree = 0, kWriting = 1, kReady = 2 };
+std::array<std::atomic<int>, kMaxLiveTemporaries> g_slot_state{};
 char g_slot_path[kMaxLiveTemporaries][kMaxPathBytes];
 
 void RegisterTemporary(const fs::path& path) {
   const std::string s = path.string();
   if (s.size() + 1 > static_cast<size_t>(kMaxPathBytes)) return;
   for (int i = 0; i < kMaxLiveTemporaries; ++i) {
-    bool expected = false;
-    if (g_slot_used[i].compare_exchange_strong(expected, true)) {
+    int expected = kFree;
+    if (g_slot_state[i].compare_exchange_strong(expected, kWriting)) {
       std::memcpy(g_slot_path[i], s.c_str(), s.size() + 1);
+      g_slot_state[i].store(kReady);
       return;
     }
   }
@@ -37,8 +41,8 @@ void RegisterTemporary(const fs::path& path) {
 void UnregisterTemporary(const fs::path& path) {
   const std::string s = path.string();
   for (int i = 0; i < kMaxLiveTemporaries; ++i) {
-    if (g_slot_used[i].load() && s == g_slot_path[i]) {
-      g_slot_used[i].store(false);
+    if (g_slot_state[i].load() == kReady && s == g_slot_path[i]) {
+      g_slot_state[i].store(kFree);
       return;
     }
   }
@@ -46,7 +50,7 @@ void UnregisterTemporary(const fs::path& path) {
 
 extern "C" void CleanupOnSignal(int sig) {
   for (int i = 0; i < kMaxLiveTemporaries; ++i) {
-    if (g_slot_used[i].load()) unlink(g_slot_path[i]);
+    if (g_slot_state[i].load() == kReady) unlink(g_slot_path[i]);
   }
   _exit(128 + sig);
 }
@@ -92,15 +96,22 @@ void AtomicOutputs::Commit() {
       throw IoError("output was never written", final_paths_[i].string());
     }
   }
+  // Until every rename is done, a signal also removes the outputs already
+  // renamed: an interrupted run leaves no partial set of outputs.
+  for (const fs::path& final_path : final_paths_) RegisterTemporary(final_path);
   for (size_t i = 0; i < temp_paths_.size(); ++i) {
     std::error_code ec;
     fs::rename(temp_paths_[i], final_paths_[i], ec);
     if (ec) {
+      const std::string reason = ec.message();
       RemoveTemporaries();
-      throw IoError("cannot rename output into place: " + ec.message(), final_paths_[i].string());
+      for (size_t k = 0; k < i; ++k) fs::remove(final_paths_[k], ec);
+      for (const fs::path& final_path : final_paths_) UnregisterTemporary(final_path);
+      throw IoError("cannot rename output into place: " + reason, final_paths_[i].string());
     }
     UnregisterTemporary(temp_paths_[i]);
   }
+  for (const fs::path& final_path : final_paths_) UnregisterTemporary(final_path);
   committed_ = true;
 }
 
@@ -109,6 +120,19 @@ void AtomicOutputs::RemoveTemporaries() noexcept {
     std::error_code ec;
     fs::remove(temp, ec);
     UnregisterTemporary(temp);
+  }
+}
+
+void CheckOutputsAreNotInputs(const std::vector<fs::path>& outputs,
+                              const std::vector<std::string>& inputs) {
+  for (const fs::path& out : outputs) {
+    for (const std::string& input : inputs) {
+      std::error_code ec;
+      if (!out.empty() && !input.empty() && fs::exists(input, ec) && fs::exists(out, ec) &&
+          fs::equivalent(out, input, ec)) {
+        throw ConfigError("output would overwrite the input " + input, out.string());
+      }
+    }
   }
 }
 

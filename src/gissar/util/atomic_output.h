@@ -7,6 +7,7 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
 #include <vector>
 
 namespace gissar {
@@ -25,7 +26,7 @@ class AtomicOutputs {
 
   // Renames every temporary to its final path. Throws IoError if a temporary
   // is missing (it was never written) or a rename fails; the temporaries left
-  // are then removed.
+  // and the outputs already renamed are then removed.
   void Commit();
 
   const std::vector<std::filesystem::path>& final_paths() const { return final_paths_; }
@@ -38,8 +39,17 @@ class AtomicOutputs {
   bool committed_ = false;
 };
 
+// Throws ConfigError("output would overwrite the input X", output) when one
+// of `outputs` names the same existing file as one of `inputs` (compared with
+// std::filesystem::equivalent, so links and different spellings count);
+// empty entries are ignored. Commands call it before reading anything.
+void CheckOutputsAreNotInputs(const std::vector<std::filesystem::path>& outputs,
+                              const std::vector<std::string>& inputs);
+
 // Installs SIGINT/SIGTERM handlers that delete every live temporary output
-// and exit with status 130/143. Idempotent.
+// (and, during a Commit(), the outputs it already renamed, so an interrupted
+// run leaves none of its outputs) and exit with status 128 + signal
+// (130/143). Idempotent.
 void InstallSignalCleanup();
 
 }  // namespace gissar

@@ -69,5 +69,19 @@ TEST(AtomicOutputsTest, MissingDirectoryIsAnIoError) {
   }
 }
 
+TEST(AtomicOutputsTest, AnOutputThatIsAnInputIsAConfigError) {
+  const fs::path dir = testing::MakeTempDir();
+  WriteText(dir / "in.json", "{}");
+  EXPECT_NO_THROW(CheckOutputsAreNotInputs({dir / "out.json", ""}, {(dir / "in.json").string(), ""}));
+  try {
+    CheckOutputsAreNotInputs({dir / "out.tif", dir / "." / "in.json"},
+                             {(dir / "in.json").string()});
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message(), "output would overwrite the input " + (dir / "in.json").string());
+    EXPECT_EQ(e.where(), (dir / "." / "in.json").string());
+  }
+}
+
 }  // namespace
 }  // namespace gissar

@@ -1,0 +1,35 @@
+// The memory budget of a job (--max-memory): its default, parsing of sizes
+// such as "8G", and the check made before large allocations, so that a job
+// too big for the machine fails at once with a message saying how to shrink
+// it instead of being killed (or swapping) half-way.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace gissar {
+
+// Physical memory available to this process, bytes: the smaller of the
+// machine's RAM (sysconf) and the cgroup v2 limit (memory.max) when there is
+// one; 0 when neither can be read.
+int64_t PhysicalMemoryBytes();
+
+// Default --max-memory: 3/4 of PhysicalMemoryBytes() (4 GiB when unknown).
+int64_t DefaultMemoryLimitBytes();
+
+// Parses a byte count: a positive number with an optional binary suffix K,
+// M, G or T (optionally followed by "iB" or "B"), e.g. "512M", "1.5G",
+// "8GiB", "1000000". Throws ConfigError naming `option` for anything else
+// (negative, zero, NaN, unknown suffix, overflow).
+int64_t ParseByteSize(const std::string& text, const std::string& option);
+
+// "512 MiB", "1.5 GiB", "12 KiB", "100 B".
+std::string FormatBytes(double bytes);
+
+// Throws ConfigError(where = "--max-memory") when `needed_bytes` exceeds
+// `limit_bytes`: "<what> needs about N, over the memory limit of M;
+// <how_to_reduce> or raise --max-memory". Does nothing otherwise.
+void CheckMemoryBudget(double needed_bytes, int64_t limit_bytes, const std::string& what,
+                       const std::string& how_to_reduce);
+
+}  // namespace gissar

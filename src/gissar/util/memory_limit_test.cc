@@ -1,0 +1,54 @@
+#include "gissar/util/memory_limit.h"
+
+#include <gtest/gtest.h>
+
+#include "gissar/util/error.h"
+
+namespace gissar {
+namespace {
+
+TEST(MemoryLimitTest, ParsesSizesWithBinarySuffixes) {
+  EXPECT_EQ(ParseByteSize("1000", "--max-memory"), 1000);
+  EXPECT_EQ(ParseByteSize("512M", "--max-memory"), int64_t{512} << 20);
+  EXPECT_EQ(ParseByteSize("8G", "--max-memory"), int64_t{8} << 30);
+  EXPECT_EQ(ParseByteSize("8GiB", "--max-memory"), int64_t{8} << 30);
+  EXPECT_EQ(ParseByteSize("1.5g", "--max-memory"), int64_t{3} << 29);
+  EXPECT_EQ(ParseByteSize("2T", "--max-memory"), int64_t{2} << 40);
+}
+
+TEST(MemoryLimitTest, RejectsBadSizesNamingTheOption) {
+  for (const char* text : {"", "-1G", "0", "nan", "inf", "8X", "8GB2", "G", "1e30T", "0.5"}) {
+    try {
+      ParseByteSize(text, "--max-memory");
+      ADD_FAILURE() << "accepted '" << text << "'";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.where(), "--max-memory") << text;
+    }
+  }
+}
+
+TEST(MemoryLimitTest, DefaultIsAFractionOfPhysicalMemory) {
+  const int64_t physical = PhysicalMemoryBytes();
+  ASSERT_GT(physical, 0);
+  EXPECT_EQ(DefaultMemoryLimitBytes(), physical / 4 * 3);
+}
+
+TEST(MemoryLimitTest, BudgetCheckSaysHowToReduceTheJob) {
+  EXPECT_NO_THROW(CheckMemoryBudget(1000.0, 1000, "image", "use coarser spacing"));
+  try {
+    CheckMemoryBudget(3.0 * (int64_t{1} << 30), int64_t{1} << 30, "image of 10 x 10 pixels",
+                      "use coarser spacing");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message(),
+              "image of 10 x 10 pixels needs about 3.0 GiB, over the memory limit of 1.0 GiB; use "
+              "coarser spacing or raise --max-memory");
+    EXPECT_EQ(e.where(), "--max-memory");
+  }
+  EXPECT_EQ(FormatBytes(100), "100 B");
+  EXPECT_EQ(FormatBytes(1536), "1.5 KiB");
+  EXPECT_EQ(FormatBytes(300.0 * (1 << 20)), "300 MiB");
+}
+
+}  // namespace
+}  // namespace gissar

@@ -1,0 +1,141 @@
+// Interrupted runs (docs/robustness.md): SIGINT or SIGTERM at any point of
+// `gissar simulate` (while tracing, while writing its outputs) ends it with
+// status 128 + signal and leaves no output, partial or temporary, behind.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "gissar/util/testing.h"
+
+namespace {
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+std::vector<std::string> Entries(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  return names;
+}
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct Job {
+  std::string rays_per_cell = "1";
+  std::string spacing_m = "30";
+  bool contributions = true;  // also write a contributions CSV (written first)
+  bool quiet = true;
+};
+
+// Starts `gissar simulate` on the Andorra DEM (480 x 300 posts) with stderr
+// to `err`.
+pid_t StartSimulate(const fs::path& out_dir, const fs::path& err, const Job& job) {
+  const std::string dem = gissar::testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  std::vector<std::string> args = {GISSAR_CLI_BINARY, "simulate", "--dem", dem, "--heading", "20",
+                                   "--depression", "40", "--range-res", job.spacing_m,
+                                   "--azimuth-res", job.spacing_m, "--rays-per-cell",
+                                   job.rays_per_cell, "--bounces", "2", "--out",
+                                   (out_dir / "sim").string()};
+  if (job.contributions) {
+    args.insert(args.end(), {"--contributions", (out_dir / "returns.csv").string()});
+  }
+  if (job.quiet) args.push_back("--quiet");
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 2);
+    const int null_fd = open("/dev/null", O_WRONLY);
+    dup2(null_fd, 1);
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+// Waits until `ready()` or the process ends; true when `ready()` came first.
+template <typename Ready>
+bool WaitFor(pid_t pid, Ready ready, double timeout_s = 300.0) {
+  const auto start = Clock::now();
+  while (std::chrono::duration<double>(Clock::now() - start).count() < timeout_s) {
+    if (ready()) return true;
+    int status = 0;
+    if (waitpid(pid, &status, WNOHANG) == pid) return false;
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+  }
+  return false;
+}
+
+int StopAndWait(pid_t pid, int sig) {
+  kill(pid, sig);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return status;
+}
+
+TEST(InterruptTest, SignalWhileTracingLeavesNothing) {
+  for (int sig : {SIGINT, SIGTERM}) {
+    const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
+    // About 5 million rays: seconds of tracing, with progress lines.
+    const pid_t pid = StartSimulate(out, logs / "stderr", Job{"32", "30", false, false});
+    ASSERT_GT(pid, 0);
+    const bool tracing = WaitFor(pid, [&] {
+      return ReadText(logs / "stderr").find("simulate: tracing: 20%") != std::string::npos;
+    });
+    ASSERT_TRUE(tracing) << "the run ended before tracing was 20 % done: " << ReadText(logs / "stderr");
+    const int status = StopAndWait(pid, sig);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 128 + sig);
+    EXPECT_TRUE(Entries(out).empty()) << "left behind: " << Entries(out).front();
+  }
+}
+
+TEST(InterruptTest, SignalWhileWritingRemovesPartialFiles) {
+  const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
+  // Some 600,000 returns: a CSV of tens of MB, written first, under a
+  // temporary name.
+  const pid_t pid = StartSimulate(out, logs / "stderr", Job{"4", "30", true, true});
+  ASSERT_GT(pid, 0);
+  const bool writing = WaitFor(pid, [&] {
+    for (const auto& e : fs::directory_iterator(out)) {
+      std::error_code ec;
+      if (e.path().filename().string().rfind(".returns.csv.tmp-", 0) == 0 && fs::file_size(e.path(), ec) > 0) {
+        return true;
+      }
+    }
+    return false;
+  });
+  ASSERT_TRUE(writing) << "the run ended before its outputs were being written";
+  const int status = StopAndWait(pid, SIGTERM);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 128 + SIGTERM);
+  EXPECT_TRUE(Entries(out).empty()) << "left behind: " << Entries(out).front();
+}
+
+TEST(InterruptTest, UninterruptedRunCommitsEveryOutput) {
+  const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
+  const pid_t pid = StartSimulate(out, logs / "stderr", Job{"1", "60", true, true});
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << ReadText(logs / "stderr");
+  std::vector<std::string> names = Entries(out);
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"returns.csv", "sim.json", "sim.png", "sim.tif", "sim_mask.tif"}));
+}
+
+}  // namespace
