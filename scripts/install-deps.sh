@@ -6,7 +6,8 @@ set -euo pipefail
 
 PACKAGES=(
   build-essential cmake pkg-config
-  libgdal-dev gdal-bin libproj-dev proj-bin   # geo: raster/vector I/O, CRS
+  libgdal-dev gdal-bin libproj-dev proj-bin proj-data  # geo: raster/vector I/O, CRS, EGM96 grid
+  libhdf5-dev                                  # geo: NISAR RSLC products (HDF5)
   libcgal-dev libgeos-dev                      # scene: triangulation, buffers
   libembree-dev                                # render: ray tracing (Embree 3)
   libeigen3-dev                                # linear algebra

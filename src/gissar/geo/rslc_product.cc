@@ -1,0 +1,454 @@
+#include "gissar/geo/rslc_product.h"
+
+#include <hdf5.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "gissar/util/error.h"
+
+namespace gissar::geo {
+namespace fs = std::filesystem;
+
+namespace {
+
+// RAII owner of an HDF5 identifier.
+class H5Id {
+ public:
+  H5Id() = default;
+  H5Id(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  H5Id(const H5Id&) = delete;
+  H5Id& operator=(const H5Id&) = delete;
+  H5Id(H5Id&& o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = -1; }
+  H5Id& operator=(H5Id&& o) noexcept {
+    if (this != &o) {
+      Reset();
+      id_ = o.id_;
+      close_ = o.close_;
+      o.id_ = -1;
+    }
+    return *this;
+  }
+  ~H5Id() { Reset(); }
+  hid_t get() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+
+ private:
+  void Reset() {
+    if (id_ >= 0 && close_ != nullptr) close_(id_);
+    id_ = -1;
+  }
+  hid_t id_ = -1;
+  herr_t (*close_)(hid_t) = nullptr;
+};
+
+// Silences HDF5's automatic error stack printing for the reader's lifetime.
+class QuietHdf5 {
+ public:
+  QuietHdf5() {
+    H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
+
+ private:
+  H5E_auto2_t func_ = nullptr;
+  void* data_ = nullptr;
+};
+
+class Reader {
+ public:
+  Reader(const fs::path& path) : file_(path.string()) {}
+
+  // True when every component of the absolute `path` exists.
+  bool Exists(hid_t file, const std::string& path) const {
+    size_t pos = 1;
+    while (true) {
+      const size_t next = path.find('/', pos);
+      const std::string prefix = path.substr(0, next);
+      if (H5Lexists(file, prefix.c_str(), H5P_DEFAULT) <= 0) return false;
+      if (next == std::string::npos) return true;
+      pos = next + 1;
+    }
+  }
+
+  H5Id OpenDataset(hid_t file, const std::string& path) const {
+    if (!Exists(file, path)) throw InputError("product has no dataset " + path, file_);
+    H5Id ds(H5Dopen2(file, path.c_str(), H5P_DEFAULT), H5Dclose);
+    if (!ds.valid()) throw InputError("cannot open dataset " + path, file_);
+    return ds;
+  }
+
+  std::vector<hsize_t> Shape(hid_t ds) const {
+    H5Id space(H5Dget_space(ds), H5Sclose);
+    const int rank = H5Sget_simple_extent_ndims(space.get());
+    std::vector<hsize_t> dims(std::max(rank, 0));
+    if (rank > 0) H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+    return dims;
+  }
+
+  std::vector<double> Doubles(hid_t file, const std::string& path, size_t expected_columns = 0) const {
+    H5Id ds = OpenDataset(file, path);
+    const std::vector<hsize_t> dims = Shape(ds.get());
+    size_t n = 1;
+    for (hsize_t d : dims) n *= d;
+    if (expected_columns > 0 && (dims.size() != 2 || dims[1] != expected_columns)) {
+      throw InputError("dataset " + path + " must have " + std::to_string(expected_columns) + " columns", file_);
+    }
+    H5Id type(H5Dget_type(ds.get()), H5Tclose);
+    const H5T_class_t cls = H5Tget_class(type.get());
+    if (cls != H5T_FLOAT && cls != H5T_INTEGER) throw InputError("dataset " + path + " is not numeric", file_);
+    std::vector<double> values(n);
+    if (n > 0 && H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0) {
+      throw InputError("cannot read dataset " + path, file_);
+    }
+    for (double v : values) {
+      if (!std::isfinite(v)) throw InputError("dataset " + path + " holds non-finite values", file_);
+    }
+    return values;
+  }
+
+  double Scalar(hid_t file, const std::string& path) const {
+    const std::vector<double> v = Doubles(file, path);
+    if (v.size() != 1) throw InputError("dataset " + path + " must be a scalar", file_);
+    return v[0];
+  }
+
+  // Strings of a string dataset or attribute (`attribute` non-empty).
+  std::vector<std::string> Strings(hid_t object, const std::string& what, bool is_attribute) const {
+    H5Id type(is_attribute ? H5Aget_type(object) : H5Dget_type(object), H5Tclose);
+    if (H5Tget_class(type.get()) != H5T_STRING) throw InputError(what + " is not a string", file_);
+    H5Id space(is_attribute ? H5Aget_space(object) : H5Dget_space(object), H5Sclose);
+    const hssize_t n = std::max<hssize_t>(1, H5Sget_simple_extent_npoints(space.get()));
+    std::vector<std::string> out;
+    if (H5Tis_variable_str(type.get()) > 0) {
+      H5Id mem(H5Tcopy(H5T_C_S1), H5Tclose);
+      H5Tset_size(mem.get(), H5T_VARIABLE);
+      H5Tset_cset(mem.get(), H5Tget_cset(type.get()));
+      std::vector<char*> ptrs(n, nullptr);
+      const herr_t status = is_attribute ? H5Aread(object, mem.get(), ptrs.data())
+                                         : H5Dread(object, mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data());
+      if (status < 0) throw InputError("cannot read " + what, file_);
+      for (char* p : ptrs) out.emplace_back(p != nullptr ? p : "");
+      H5Dvlen_reclaim(mem.get(), space.get(), H5P_DEFAULT, ptrs.data());
+    } else {
+      const size_t size = H5Tget_size(type.get());
+      std::vector<char> buffer(size * n + 1, '\0');
+      const herr_t status = is_attribute ? H5Aread(object, type.get(), buffer.data())
+                                         : H5Dread(object, type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.data());
+      if (status < 0) throw InputError("cannot read " + what, file_);
+      for (hssize_t i = 0; i < n; ++i) {
+        std::string s(buffer.data() + i * size, size);
+        s = s.substr(0, s.find('\0'));
+        while (!s.empty() && s.back() == ' ') s.pop_back();
+        out.push_back(s);
+      }
+    }
+    return out;
+  }
+
+  std::string String(hid_t file, const std::string& path) const {
+    H5Id ds = OpenDataset(file, path);
+    const std::vector<std::string> v = Strings(ds.get(), "dataset " + path, false);
+    if (v.empty()) throw InputError("dataset " + path + " is empty", file_);
+    return v[0];
+  }
+
+  // The "units" attribute of a dataset ("" when absent).
+  std::string Units(hid_t file, const std::string& path) const {
+    H5Id ds = OpenDataset(file, path);
+    if (H5Aexists(ds.get(), "units") <= 0) return "";
+    H5Id attr(H5Aopen(ds.get(), "units", H5P_DEFAULT), H5Aclose);
+    if (!attr.valid()) return "";
+    const std::vector<std::string> v = Strings(attr.get(), "units of " + path, true);
+    return v.empty() ? "" : v[0];
+  }
+
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+};
+
+// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
+int64_t DaysFromCivil(int64_t y, unsigned m, unsigned d) {
+  y -= m <= 2;
+  const int64_t era = (y >= 0 ? y : y - 399) / 400;
+  const unsigned yoe = static_cast<unsigned>(y - era * 400);
+  const unsigned doy = (153 * (m + (m > 2 ? -3 : 9)) + 2) / 5 + d - 1;
+  const unsigned doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+  return era * 146097 + static_cast<int64_t>(doe) - 719468;
+}
+
+// Seconds since the Unix epoch of the "seconds since YYYY-MM-DD[ T]hh:mm:ss[.f]"
+// units of a time dataset, and the epoch text.
+double EpochSeconds(const std::string& units, const std::string& where, std::string* epoch_text) {
+  const std::string prefix = "seconds since ";
+  if (units.rfind(prefix, 0) != 0) {
+    throw InputError("time units must read 'seconds since <UTC date>', got '" + units + "'", where);
+  }
+  std::string text = units.substr(prefix.size());
+  for (char& c : text) {
+    if (c == 'T') c = ' ';
+  }
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0;
+  double s = 0.0;
+  if (std::sscanf(text.c_str(), "%d-%d-%d %d:%d:%lf", &y, &mo, &d, &h, &mi, &s) != 6 || mo < 1 || mo > 12 ||
+      d < 1 || d > 31 || h < 0 || h > 23 || mi < 0 || mi > 59 || s < 0.0 || s >= 61.0) {
+    throw InputError("cannot parse the epoch of time units '" + units + "'", where);
+  }
+  if (epoch_text != nullptr) *epoch_text = text;
+  return double(DaysFromCivil(y, unsigned(mo), unsigned(d))) * 86400.0 + h * 3600.0 + mi * 60.0 + s;
+}
+
+void CheckUniformIncreasing(const std::vector<double>& v, const std::string& name, const std::string& where) {
+  if (v.size() < 2) throw InputError(name + " needs at least 2 samples", where);
+  const double step = (v.back() - v.front()) / double(v.size() - 1);
+  if (!(step > 0.0)) throw InputError(name + " is not increasing", where);
+  for (size_t i = 1; i < v.size(); ++i) {
+    const double expected = v.front() + step * double(i);
+    if (!(v[i] > v[i - 1]) || std::abs(v[i] - expected) > 1e-6 * std::abs(step) * double(v.size()) +
+                                                             1e-9 * std::abs(expected)) {
+      throw InputError(name + " is not uniformly spaced (sample " + std::to_string(i) + ")", where);
+    }
+  }
+}
+
+std::vector<Eigen::Vector3d> Rows3(const std::vector<double>& v) {
+  std::vector<Eigen::Vector3d> out(v.size() / 3);
+  for (size_t i = 0; i < out.size(); ++i) out[i] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+  return out;
+}
+
+}  // namespace
+
+double RslcProduct::azimuth_spacing_s() const {
+  return rows() > 1 ? (zero_doppler_time_s.back() - zero_doppler_time_s.front()) / (rows() - 1) : 0.0;
+}
+
+double RslcProduct::range_spacing_m() const {
+  return cols() > 1 ? (slant_range_m.back() - slant_range_m.front()) / (cols() - 1) : 0.0;
+}
+
+RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options) {
+  const std::string where = path.string();
+  if (options.frequency != "A" && options.frequency != "B") {
+    throw ConfigError("frequency band must be A or B, got '" + options.frequency + "'", "--frequency");
+  }
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw InputError("product file not found", where);
+  QuietHdf5 quiet;
+  if (H5Fis_hdf5(where.c_str()) <= 0) throw InputError("not an HDF5 file (NISAR RSLC expected)", where);
+  H5Id file(H5Fopen(where.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file.valid()) throw InputError("cannot open HDF5 file", where);
+  const Reader r(path);
+  const hid_t f = file.get();
+
+  // /science/<band>/{SLC|RSLC}: LSAR or SSAR, older or newer product name.
+  std::string band_root, root;
+  for (const char* band : {"LSAR", "SSAR"}) {
+    for (const char* group : {"SLC", "RSLC"}) {
+      const std::string candidate = std::string("/science/") + band + "/" + group;
+      if (root.empty() && r.Exists(f, candidate)) {
+        band_root = std::string("/science/") + band;
+        root = candidate;
+      }
+    }
+  }
+  if (root.empty()) throw InputError("not a NISAR RSLC product: no /science/LSAR/SLC (or RSLC) group", where);
+
+  RslcProduct p;
+  p.path = where;
+  p.frequency = options.frequency;
+  p.polarization = options.polarization;
+  const std::string ident = band_root + "/identification";
+  if (r.Exists(f, ident + "/missionId")) p.mission = r.String(f, ident + "/missionId");
+  if (r.Exists(f, ident + "/productVersion")) p.product_version = r.String(f, ident + "/productVersion");
+  std::string look = r.String(f, ident + "/lookDirection");
+  std::transform(look.begin(), look.end(), look.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (look != "left" && look != "right") {
+    throw InputError("lookDirection must be 'left' or 'right', got '" + look + "'", where);
+  }
+  p.look_left = look == "left";
+
+  // Radar grid.
+  const std::string swaths = root + "/swaths";
+  const std::string freq = swaths + "/frequency" + options.frequency;
+  if (!r.Exists(f, freq)) throw InputError("product has no frequency band " + options.frequency, where);
+  const std::string time_path = swaths + "/zeroDopplerTime";
+  p.zero_doppler_time_s = r.Doubles(f, time_path);
+  const double epoch = EpochSeconds(r.Units(f, time_path), where + ":" + time_path, &p.epoch_utc);
+  CheckUniformIncreasing(p.zero_doppler_time_s, "zeroDopplerTime", where);
+  p.slant_range_m = r.Doubles(f, freq + "/slantRange");
+  CheckUniformIncreasing(p.slant_range_m, "slantRange", where);
+  if (!(p.slant_range_m.front() > 0.0)) throw InputError("slant ranges must be positive", where);
+  p.center_frequency_hz = r.Scalar(f, freq + "/processedCenterFrequency");
+  if (!(p.center_frequency_hz > 1e6 && p.center_frequency_hz < 1e12)) {
+    throw InputError("processedCenterFrequency out of range (1 MHz .. 1 THz)", where);
+  }
+  p.wavelength_m = kSpeedOfLightMps / p.center_frequency_hz;
+  if (r.Exists(f, freq + "/listOfPolarizations")) {
+    H5Id ds = r.OpenDataset(f, freq + "/listOfPolarizations");
+    p.polarizations = r.Strings(ds.get(), "listOfPolarizations", false);
+  }
+
+  // Orbit.
+  const std::string orbit = root + "/metadata/orbit";
+  if (!r.Exists(f, orbit + "/time") || !r.Exists(f, orbit + "/position") || !r.Exists(f, orbit + "/velocity")) {
+    throw InputError("product has no orbit (" + orbit + "/{time,position,velocity})", where);
+  }
+  p.orbit.time_s = r.Doubles(f, orbit + "/time");
+  const double orbit_epoch = EpochSeconds(r.Units(f, orbit + "/time"), where + ":" + orbit + "/time", nullptr);
+  for (double& t : p.orbit.time_s) t += orbit_epoch - epoch;
+  p.orbit.position_m = Rows3(r.Doubles(f, orbit + "/position", 3));
+  p.orbit.velocity_mps = Rows3(r.Doubles(f, orbit + "/velocity", 3));
+  if (r.Exists(f, orbit + "/orbitType")) p.orbit.type = r.String(f, orbit + "/orbitType");
+  const size_t n_sv = p.orbit.time_s.size();
+  if (n_sv < 4) throw InputError("orbit needs at least 4 state vectors, has " + std::to_string(n_sv), where);
+  if (p.orbit.position_m.size() != n_sv || p.orbit.velocity_mps.size() != n_sv) {
+    throw InputError("orbit time, position and velocity differ in length", where);
+  }
+  for (size_t i = 1; i < n_sv; ++i) {
+    if (!(p.orbit.time_s[i] > p.orbit.time_s[i - 1])) throw InputError("orbit times are not increasing", where);
+  }
+  if (p.orbit.time_s.front() > p.zero_doppler_time_s.front() || p.orbit.time_s.back() < p.zero_doppler_time_s.back()) {
+    throw InputError("orbit does not cover the image's azimuth times", where);
+  }
+
+  // Attitude (optional).
+  const std::string att = root + "/metadata/attitude";
+  if (r.Exists(f, att + "/time") && r.Exists(f, att + "/quaternions")) {
+    p.attitude.time_s = r.Doubles(f, att + "/time");
+    const double att_epoch = EpochSeconds(r.Units(f, att + "/time"), where + ":" + att + "/time", nullptr);
+    for (double& t : p.attitude.time_s) t += att_epoch - epoch;
+    const std::vector<double> q = r.Doubles(f, att + "/quaternions", 4);
+    for (size_t i = 0; i + 3 < q.size(); i += 4) p.attitude.quaternion.emplace_back(q[i], q[i + 1], q[i + 2], q[i + 3]);
+    if (r.Exists(f, att + "/eulerAngles")) p.attitude.euler_deg = Rows3(r.Doubles(f, att + "/eulerAngles", 3));
+  }
+
+  // The SLC layer.
+  const std::string layer = freq + "/" + options.polarization;
+  H5Id ds = r.OpenDataset(f, layer);
+  const std::vector<hsize_t> dims = r.Shape(ds.get());
+  if (dims.size() != 2 || dims[0] != hsize_t(p.rows()) || dims[1] != hsize_t(p.cols())) {
+    throw InputError("SLC layer " + layer + " does not match the " + std::to_string(p.rows()) + " x " +
+                         std::to_string(p.cols()) + " radar grid",
+                     where);
+  }
+  if (options.read_amplitude) {
+    H5Id type(H5Dget_type(ds.get()), H5Tclose);
+    if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) {
+      throw InputError("SLC layer " + layer + " is not complex (compound r, i)", where);
+    }
+    H5Id mem(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
+    H5Tinsert(mem.get(), "r", 0, H5T_NATIVE_FLOAT);
+    H5Tinsert(mem.get(), "i", sizeof(float), H5T_NATIVE_FLOAT);
+    std::vector<std::complex<float>> slc(size_t(p.rows()) * p.cols());
+    if (H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, slc.data()) < 0) {
+      throw InputError("cannot read SLC layer " + layer + " (members must be named r and i)", where);
+    }
+    p.amplitude.resize(slc.size());
+    for (size_t k = 0; k < slc.size(); ++k) {
+      const float a = std::abs(slc[k]);
+      p.amplitude[k] = std::isfinite(a) ? a : 0.0f;
+    }
+  }
+  return p;
+}
+
+namespace {
+
+void WriteDoubles(hid_t loc, const std::string& name, const std::vector<double>& v, std::vector<hsize_t> dims,
+                  const std::string& units, const std::string& where) {
+  H5Id space(dims.empty() ? H5Screate(H5S_SCALAR) : H5Screate_simple(int(dims.size()), dims.data(), nullptr),
+             H5Sclose);
+  H5Id ds(H5Dcreate2(loc, name.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+          H5Dclose);
+  if (!ds.valid() || H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0) {
+    throw IoError("cannot write dataset " + name, where);
+  }
+  if (!units.empty()) {
+    H5Id type(H5Tcopy(H5T_C_S1), H5Tclose);
+    H5Tset_size(type.get(), units.size());
+    H5Id aspace(H5Screate(H5S_SCALAR), H5Sclose);
+    H5Id attr(H5Acreate2(ds.get(), "units", type.get(), aspace.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    if (!attr.valid() || H5Awrite(attr.get(), type.get(), units.data()) < 0) {
+      throw IoError("cannot write units of " + name, where);
+    }
+  }
+}
+
+void WriteString(hid_t loc, const std::string& name, const std::string& text, const std::string& where) {
+  H5Id type(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(type.get(), std::max<size_t>(1, text.size()));
+  H5Tset_strpad(type.get(), H5T_STR_NULLPAD);
+  H5Id space(H5Screate(H5S_SCALAR), H5Sclose);
+  H5Id ds(H5Dcreate2(loc, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  std::string padded = text.empty() ? std::string(1, '\0') : text;
+  if (!ds.valid() || H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, padded.data()) < 0) {
+    throw IoError("cannot write dataset " + name, where);
+  }
+}
+
+H5Id Group(hid_t loc, const std::string& name, const std::string& where) {
+  H5Id g(H5Gcreate2(loc, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  if (!g.valid()) throw IoError("cannot create group " + name, where);
+  return g;
+}
+
+}  // namespace
+
+void WriteRslcProduct(const fs::path& path, const RslcProduct& product) {
+  const std::string where = path.string();
+  QuietHdf5 quiet;
+  H5Id file(H5Fcreate(where.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (!file.valid()) throw IoError("cannot create HDF5 file", where);
+  const std::string units = "seconds since " + (product.epoch_utc.empty() ? "2000-01-01 00:00:00" : product.epoch_utc);
+  H5Id science = Group(file.get(), "science", where);
+  H5Id lsar = Group(science.get(), "LSAR", where);
+  H5Id ident = Group(lsar.get(), "identification", where);
+  WriteString(ident.get(), "lookDirection", product.look_left ? "left" : "right", where);
+  WriteString(ident.get(), "productVersion", product.product_version, where);
+  WriteString(ident.get(), "missionId", product.mission, where);
+  H5Id slc = Group(lsar.get(), "SLC", where);
+  H5Id swaths = Group(slc.get(), "swaths", where);
+  WriteDoubles(swaths.get(), "zeroDopplerTime", product.zero_doppler_time_s, {hsize_t(product.rows())}, units, where);
+  H5Id freq = Group(swaths.get(), "frequencyA", where);
+  WriteDoubles(freq.get(), "slantRange", product.slant_range_m, {hsize_t(product.cols())}, "meters", where);
+  WriteDoubles(freq.get(), "processedCenterFrequency", {product.center_frequency_hz}, {}, "Hz", where);
+  H5Id meta = Group(slc.get(), "metadata", where);
+  if (!product.orbit.time_s.empty()) {
+    H5Id orbit = Group(meta.get(), "orbit", where);
+    const hsize_t n = product.orbit.time_s.size();
+    std::vector<double> pos, vel;
+    for (size_t i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        pos.push_back(product.orbit.position_m[i][k]);
+        vel.push_back(product.orbit.velocity_mps[i][k]);
+      }
+    }
+    WriteDoubles(orbit.get(), "time", product.orbit.time_s, {n}, units, where);
+    WriteDoubles(orbit.get(), "position", pos, {n, 3}, "meters", where);
+    WriteDoubles(orbit.get(), "velocity", vel, {n, 3}, "meters per second", where);
+  }
+  // Complex64 layer (compound r, i) with zero phase.
+  const hsize_t dims[2] = {hsize_t(product.rows()), hsize_t(product.cols())};
+  H5Id space(H5Screate_simple(2, dims, nullptr), H5Sclose);
+  H5Id type(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
+  H5Tinsert(type.get(), "r", 0, H5T_NATIVE_FLOAT);
+  H5Tinsert(type.get(), "i", sizeof(float), H5T_NATIVE_FLOAT);
+  const std::string pol = product.polarization.empty() ? "HH" : product.polarization;
+  H5Id ds(H5Dcreate2(freq.get(), pol.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+          H5Dclose);
+  std::vector<std::complex<float>> data(size_t(product.rows()) * product.cols(), {0.0f, 0.0f});
+  for (size_t k = 0; k < data.size() && k < product.amplitude.size(); ++k) data[k] = {product.amplitude[k], 0.0f};
+  if (!ds.valid() || H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0) {
+    throw IoError("cannot write SLC layer", where);
+  }
+  if (H5Fflush(file.get(), H5F_SCOPE_GLOBAL) < 0) throw IoError("cannot flush HDF5 file", where);
+}
+
+}  // namespace gissar::geo

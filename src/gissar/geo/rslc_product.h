@@ -1,0 +1,88 @@
+// NISAR-format RSLC products (HDF5, JPL D-102268 layout, as written by ISCE3
+// and by the UAVSAR-to-NISAR converter): the radar grid (zero-Doppler azimuth
+// time and slant range), the orbit state vectors, the attitude, the carrier
+// and look side, and one SLC layer, read through libhdf5. The geometry
+// maths lives in sensor/range_doppler.h; this is only the reader (and a
+// writer of minimal products for tests and synthetic data).
+//
+// Conventions: all times are seconds since the product's reference epoch
+// (`epoch_utc`, the "seconds since ..." of the zeroDopplerTime units; the
+// orbit and attitude times are converted to it when their own epoch
+// differs). Positions and velocities are ECEF (WGS84) metres and metres per
+// second. Images are row-major: row = azimuth line (time increasing), column
+// = slant-range bin (range increasing).
+#pragma once
+
+#include <complex>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace gissar::geo {
+
+struct RslcOrbit {
+  std::vector<double> time_s;                // strictly increasing
+  std::vector<Eigen::Vector3d> position_m;   // ECEF
+  std::vector<Eigen::Vector3d> velocity_mps; // ECEF
+  std::string type;                          // "POE", "MOE", ... as stored
+};
+
+struct RslcAttitude {
+  std::vector<double> time_s;
+  std::vector<Eigen::Vector4d> quaternion;  // (q0, q1, q2, q3) as stored
+  std::vector<Eigen::Vector3d> euler_deg;   // as stored (may be all zero)
+};
+
+struct RslcProduct {
+  std::string path;
+  std::string mission;              // identification/missionId (may be empty)
+  std::string product_version;      // identification/productVersion
+  std::string epoch_utc;            // reference epoch of every time, "YYYY-MM-DD hh:mm:ss"
+  std::string frequency = "A";      // frequency band read ("A" or "B")
+  std::string polarization = "HH";  // SLC layer read
+  std::vector<std::string> polarizations;  // layers listed for that band
+  // Radar grid: line i at zero_doppler_time_s[i], bin j at slant_range_m[j].
+  std::vector<double> zero_doppler_time_s;  // strictly increasing, uniform
+  std::vector<double> slant_range_m;        // strictly increasing, uniform
+  double center_frequency_hz = 0.0;         // processedCenterFrequency
+  double wavelength_m = 0.0;                // c / center_frequency_hz
+  bool look_left = false;                   // identification/lookDirection
+  RslcOrbit orbit;
+  RslcAttitude attitude;                    // empty when the product has none
+  // SLC amplitude |s| of the layer, rows x cols (read when requested).
+  std::vector<float> amplitude;
+
+  int rows() const { return static_cast<int>(zero_doppler_time_s.size()); }
+  int cols() const { return static_cast<int>(slant_range_m.size()); }
+  double azimuth_spacing_s() const;  // mean line spacing, seconds
+  double range_spacing_m() const;    // mean bin spacing, metres
+};
+
+struct RslcReadOptions {
+  std::string frequency = "A";
+  std::string polarization = "HH";
+  bool read_amplitude = true;
+};
+
+// Speed of light in vacuum, m/s.
+inline constexpr double kSpeedOfLightMps = 299792458.0;
+
+// Reads an RSLC product. Throws InputError naming the file (and the HDF5
+// path) when the file is missing, is not HDF5, is not a NISAR RSLC (no
+// /science/<band>/SLC or /RSLC group), lacks a required dataset (orbit,
+// zeroDopplerTime, slantRange, the requested polarization, the centre
+// frequency, the look direction), when the grids are not strictly
+// increasing and uniform (to 1e-6 relative), when values are not finite, when
+// the orbit has fewer than 4 state vectors or does not cover the grid's
+// time span, or when the SLC layer's shape does not match the grid.
+RslcProduct ReadRslcProduct(const std::filesystem::path& path, const RslcReadOptions& options = {});
+
+// Writes a minimal NISAR-layout RSLC (LSAR, SLC group, frequencyA) holding
+// the grid, orbit (omitted when `product.orbit` is empty), look direction,
+// centre frequency and the amplitude as a complex64 layer with zero phase.
+// For tests and synthetic data. Throws IoError on failure.
+void WriteRslcProduct(const std::filesystem::path& path, const RslcProduct& product);
+
+}  // namespace gissar::geo

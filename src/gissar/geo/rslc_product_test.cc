@@ -1,0 +1,129 @@
+#include "gissar/geo/rslc_product.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <numeric>
+#include <random>
+
+#include "gissar/geo/geoid.h"
+#include "gissar/util/error.h"
+#include "gissar/util/testing.h"
+
+namespace gissar::geo {
+namespace {
+
+using testing::DataPath;
+using testing::MakeTempDir;
+
+// Values checked against h5dump of the bundled chip (data/README.md).
+TEST(RslcProductTest, ReadsWinnipegChip) {
+  const RslcProduct p = ReadRslcProduct(DataPath("uavsar/winnipeg.h5"));
+  EXPECT_EQ(p.rows(), 250);
+  EXPECT_EQ(p.cols(), 250);
+  EXPECT_TRUE(p.look_left);
+  EXPECT_EQ(p.product_version, "0.3");
+  EXPECT_EQ(p.epoch_utc, "2012-07-15 14:36:47");
+  EXPECT_DOUBLE_EQ(p.center_frequency_hz, 1.243e9);
+  EXPECT_NEAR(p.wavelength_m, 299792458.0 / 1.243e9, 1e-12);
+  EXPECT_NEAR(p.range_spacing_m(), 6.24568, 1e-5);       // slantRangeSpacing
+  EXPECT_NEAR(p.azimuth_spacing_s(), 0.0273291, 1e-7);   // zeroDopplerTimeSpacing
+  EXPECT_DOUBLE_EQ(p.zero_doppler_time_s.front(), 172800.0);
+  EXPECT_NEAR(p.slant_range_m.front(), 13150.0574, 1e-4);
+  ASSERT_EQ(p.orbit.time_s.size(), 100u);
+  EXPECT_NEAR(p.orbit.time_s.front(), 172621.185856, 1e-6);
+  EXPECT_NEAR(p.orbit.position_m[0].x(), -528670.39051178, 1e-6);
+  EXPECT_NEAR(p.orbit.velocity_mps[0].z(), 103.79241699, 1e-6);
+  EXPECT_EQ(p.orbit.type, "POE");
+  EXPECT_EQ(p.attitude.time_s.size(), 100u);
+  ASSERT_EQ(p.amplitude.size(), 250u * 250u);
+  const double mean = std::accumulate(p.amplitude.begin(), p.amplitude.end(), 0.0) / p.amplitude.size();
+  EXPECT_NEAR(mean, 0.201874, 1e-5);  // mean |HH| by h5py
+  ASSERT_EQ(p.polarizations.size(), 1u);
+  EXPECT_EQ(p.polarizations[0], "HH");
+}
+
+TEST(RslcProductTest, ReadsSanAndrewsChipWithFourPolarizations) {
+  const RslcProduct p = ReadRslcProduct(DataPath("uavsar/SanAnd_129.h5"));
+  EXPECT_EQ(p.rows(), 150);
+  EXPECT_EQ(p.cols(), 200);
+  EXPECT_EQ(p.epoch_utc, "2018-10-09 22:42:03");
+  EXPECT_EQ(p.polarizations, (std::vector<std::string>{"HH", "HV", "VH", "VV"}));
+  EXPECT_NEAR(p.azimuth_spacing_s(), 0.0211786, 1e-7);
+  EXPECT_THROW(ReadRslcProduct(DataPath("uavsar/SanAnd_129.h5"), {"A", "VV", true}), InputError);  // not stored
+  EXPECT_THROW(ReadRslcProduct(DataPath("uavsar/SanAnd_129.h5"), {"C", "HH", true}), ConfigError);
+}
+
+RslcProduct Synthetic() {
+  RslcProduct p;
+  p.epoch_utc = "2020-01-02 03:04:05";
+  for (int i = 0; i < 4; ++i) p.zero_doppler_time_s.push_back(10.0 + 0.5 * i);
+  for (int j = 0; j < 3; ++j) p.slant_range_m.push_back(1000.0 + 2.0 * j);
+  p.center_frequency_hz = 5.405e9;
+  p.look_left = false;
+  for (int k = 0; k < 5; ++k) {
+    p.orbit.time_s.push_back(8.0 + k);
+    p.orbit.position_m.emplace_back(7e6 + k, 1.0, 2.0);
+    p.orbit.velocity_mps.emplace_back(1.0, 7500.0, 0.0);
+  }
+  for (int k = 0; k < 12; ++k) p.amplitude.push_back(0.5f * k);
+  return p;
+}
+
+TEST(RslcProductTest, WriterRoundTrip) {
+  const auto dir = MakeTempDir();
+  const RslcProduct p = Synthetic();
+  WriteRslcProduct(dir / "p.h5", p);
+  const RslcProduct q = ReadRslcProduct(dir / "p.h5");
+  EXPECT_EQ(q.rows(), 4);
+  EXPECT_EQ(q.cols(), 3);
+  EXPECT_FALSE(q.look_left);
+  EXPECT_EQ(q.epoch_utc, p.epoch_utc);
+  EXPECT_EQ(q.orbit.time_s, p.orbit.time_s);
+  EXPECT_EQ(q.amplitude, p.amplitude);
+  EXPECT_NEAR(q.wavelength_m, 0.0554658, 1e-7);
+}
+
+TEST(RslcProductTest, RejectsBadProducts) {
+  const auto dir = MakeTempDir();
+  EXPECT_THROW(ReadRslcProduct(dir / "missing.h5"), InputError);
+  {
+    std::ofstream out(dir / "random.h5", std::ios::binary);
+    std::mt19937 rng(1);
+    for (int k = 0; k < 4096; ++k) out.put(static_cast<char>(rng()));
+  }
+  EXPECT_THROW(ReadRslcProduct(dir / "random.h5"), InputError);
+  RslcProduct no_orbit = Synthetic();
+  no_orbit.orbit = {};
+  WriteRslcProduct(dir / "no_orbit.h5", no_orbit);
+  try {
+    ReadRslcProduct(dir / "no_orbit.h5");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no orbit"), std::string::npos) << e.what();
+  }
+  RslcProduct short_orbit = Synthetic();
+  short_orbit.orbit.time_s = {11.0, 12.0, 13.0, 14.0};  // starts after the first line
+  short_orbit.orbit.position_m.resize(4);
+  short_orbit.orbit.velocity_mps.resize(4);
+  WriteRslcProduct(dir / "short.h5", short_orbit);
+  EXPECT_THROW(ReadRslcProduct(dir / "short.h5"), InputError);
+  RslcProduct uneven = Synthetic();
+  uneven.slant_range_m[2] = 1003.0;
+  WriteRslcProduct(dir / "uneven.h5", uneven);
+  EXPECT_THROW(ReadRslcProduct(dir / "uneven.h5"), InputError);
+}
+
+// PROJ's own vgridshift (cct +proj=vgridshift +grids=egm96_15.gtx) gives
+// -26.4587 m at (-97.625, 49.5), midway between two posts; at a post the
+// grid value itself (gdallocationinfo: -26.2163 m at (-97.75, 49.5)).
+TEST(Egm96GeoidTest, MatchesProjAtWinnipeg) {
+  const Egm96Geoid geoid;
+  EXPECT_NEAR(geoid.UndulationM(-97.625, 49.5), -26.4587, 1e-3);
+  EXPECT_NEAR(geoid.UndulationM(-97.75, 49.5), -26.2163, 1e-3);
+  EXPECT_NEAR(geoid.UndulationM(180.0, 0.0), geoid.UndulationM(-180.0, 0.0), 1e-9);  // wraps
+  EXPECT_THROW(Egm96Geoid("/nonexistent/egm96_15.gtx"), InputError);
+}
+
+}  // namespace
+}  // namespace gissar::geo
