@@ -44,6 +44,7 @@
 
 #include "gissar/geo/dem.h"
 #include "gissar/geo/raster_io.h"
+#include "gissar/geo/rslc_product.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
 
@@ -240,6 +241,16 @@ bool MakeFixture(const std::string& name, const fs::path& dir) {
     WriteBytes(path, bytes);
   } else if (name == "dem.tif") {
     WriteUtmDem(path, Hill(32, 32), 32, 32);
+  } else if (name == "product_no_orbit.h5") {
+    // A NISAR-layout RSLC (4 lines x 3 bins) without its orbit group.
+    gissar::geo::RslcProduct p;
+    p.epoch_utc = "2020-01-02 03:04:05";
+    p.zero_doppler_time_s = {10.0, 10.5, 11.0, 11.5};
+    p.slant_range_m = {1000.0, 1002.0, 1004.0};
+    p.center_frequency_hz = 1.243e9;
+    p.look_left = true;
+    p.amplitude.assign(12, 1.0f);
+    gissar::geo::WriteRslcProduct(path, p);
   } else if (name == "dem_geo.tif") {
     gissar::geo::WriteDemGeoTiff(path, Hill(32, 32), 32, 32,
                                  {1.5, 1.0 / 1200, 0.0, 42.5, 0.0, -1.0 / 1200}, kWgs84);

@@ -45,6 +45,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddViewCommands(app, registry);
   AddMvgCommands(app, registry);
   AddNavCommands(app, registry);
+  AddProductCommands(app, registry);
 
   try {
     app.parse(argc, argv);

@@ -66,5 +66,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry);
 
 // Declares `gissar locate`, `evaluate` and `matchpair` (locate_command.cc).
 void AddNavCommands(CLI::App& root, CommandRegistry& registry);
+// Declares `gissar validate` (product_command.cc).
+void AddProductCommands(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli

@@ -1,11 +1,14 @@
 #include "gissar/cli/simulate.h"
 
+#include "gissar/cli/product_simulate.h"
+
 #include <cmath>
 #include <memory>
 #include <cstdio>
 #include <sstream>
 
 #include "gissar/geo/dem.h"
+#include "gissar/geo/geoid.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/impulse_response.h"
@@ -41,6 +44,14 @@ void SimulateOptions::Check() const {
     throw ConfigError("give exactly one terrain: a DEM or a scene", "--dem/--scene");
   }
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
+  if (vertical_datum != "ellipsoid" && vertical_datum != "egm96") {
+    throw ConfigError("vertical datum must be 'ellipsoid' or 'egm96', got '" + vertical_datum + "'",
+                      "--vertical-datum");
+  }
+  if (vertical_datum == "egm96" && !scene.empty()) {
+    throw ConfigError("a scene keeps the datum it was built with", "--vertical-datum");
+  }
+  if (!product.empty()) CheckProductOptions(*this);
   if (engine != "trace" && engine != "raster") {
     throw ConfigError("engine must be 'trace' or 'raster', got '" + engine + "'", "--engine");
   }
@@ -78,13 +89,15 @@ void SimulateOptions::Check() const {
   if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
   std::vector<fs::path> outs = {fs::path(contributions)};
   for (const char* suffix : {".tif", ".png", "_mask.tif", ".json"}) outs.push_back(out_prefix + suffix);
-  CheckOutputsAreNotInputs(outs, {dem, scene});
+  CheckOutputsAreNotInputs(outs, {dem, scene, product});
 }
 
 nlohmann::json SimulateOptions::ToJson() const {
   nlohmann::json j;
   j["dem"] = dem;
   j["scene"] = scene;
+  j["product"] = product;
+  j["vertical_datum"] = vertical_datum;
   j["fill_nodata"] = fill_nodata;
   j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
                                      : nlohmann::json(nullptr);
@@ -135,7 +148,8 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   read_options.fill_nodata = options.fill_nodata;
   read_options.max_bytes = options.max_memory_bytes;
   read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
-  const geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
   if (dem.filled_nodata_cells > 0 && !options.quiet) {
     std::fprintf(stderr, "simulate: filled %lld no-data cells\n", static_cast<long long>(dem.filled_nodata_cells));
   }
@@ -243,6 +257,7 @@ void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
 
 SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line) {
   options.Check();
+  if (!options.product.empty()) return RunProductSimulate(options, command_line);
   Stopwatch total;
   nlohmann::json timings;
   auto say = [&](const std::string& line) {
@@ -348,7 +363,9 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
       {InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
   provenance["terrain"] = terrain.description;
   provenance["materials"] = terrain.materials.ToJson();
-  provenance["frame"] = {{"type", "ENU tangent frame, WGS84; DEM heights used as ellipsoidal"},
+  provenance["frame"] = {{"type", options.vertical_datum == "egm96"
+                                      ? "ENU tangent frame, WGS84; DEM heights EGM96 + undulation = ellipsoidal"
+                                      : "ENU tangent frame, WGS84; DEM heights used as ellipsoidal"},
                          {"origin_lon_deg", frame.origin_lon_deg()},
                          {"origin_lat_deg", frame.origin_lat_deg()},
                          {"origin_height_m", frame.origin_height_m()}};

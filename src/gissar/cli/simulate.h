@@ -27,6 +27,13 @@ namespace gissar::cli {
 struct SimulateOptions {
   std::string dem;                               // DEM raster (any GDAL format)
   std::string scene;                             // or a scene built by `gissar scene build`
+  // A real product (NISAR RSLC HDF5): render on its radar grid with its
+  // orbit instead of the idealised geometry (product_simulate.h).
+  std::string product;
+  // Vertical datum of the DEM heights: "ellipsoid" (used as WGS84
+  // ellipsoidal heights, as given) or "egm96" (orthometric, as SRTM: the
+  // EGM96 undulation is added at every post).
+  std::string vertical_datum = "ellipsoid";
   bool fill_nodata = false;                      // fill DEM voids instead of failing
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units

@@ -16,14 +16,17 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
       "simulate", "Simulate a SAR image (azimuth x slant range) of a DEM by ray tracing.");
   cmd->add_option("--dem", options->dem, "DEM raster, any GDAL format and CRS");
   cmd->add_option("--scene", options->scene, "Scene file from `gissar scene build` (instead of --dem)");
+  cmd->add_option("--product", options->product,
+                  "Real product (NISAR RSLC HDF5): render on its radar grid with its orbit (no --heading/--depression)");
+  cmd->add_option("--vertical-datum", options->vertical_datum,
+                  "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
+      ->capture_default_str();
   cmd->add_flag("--fill-nodata", options->fill_nodata,
                 "Fill DEM no-data cells (GDAL FillNodata) instead of failing");
   cmd->add_option("--heading", options->geometry.heading_deg,
-                  "Flight heading, degrees clockwise from north")
-      ->required();
+                  "Flight heading, degrees clockwise from north (required without --product)");
   cmd->add_option("--depression", options->geometry.depression_deg,
-                  "Depression angle at the scene centre, degrees in (0, 90)")
-      ->required();
+                  "Depression angle at the scene centre, degrees in (0, 90) (required without --product)");
   cmd->add_option("--look", *look, "Look side: right or left")->capture_default_str();
   cmd->add_option("--center", *center, "Scene centre LON,LAT in degrees (default: DEM centre)");
   cmd->add_option("--center-map", *center_map, "Scene centre X,Y in the DEM's CRS");
@@ -75,6 +78,12 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
 
   registry.Add(cmd, [=](const CommandContext& context) {
     SimulateOptions resolved = *options;
+    for (const char* flag : {"--heading", "--depression"}) {
+      if (resolved.product.empty() && cmd->count(flag) == 0) throw ConfigError("is required", flag);
+      if (!resolved.product.empty() && cmd->count(flag) > 0) {
+        throw ConfigError("the product fixes the geometry", std::string("--product/") + flag);
+      }
+    }
     RequirePositiveIfGiven(*cmd, "--range-res", resolved.geometry.range_spacing_m);
     RequirePositiveIfGiven(*cmd, "--azimuth-res", resolved.geometry.azimuth_spacing_m);
     if (!max_memory->empty()) resolved.max_memory_bytes = ParseByteSize(*max_memory, "--max-memory");

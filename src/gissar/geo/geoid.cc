@@ -73,3 +73,26 @@ double Egm96Geoid::UndulationM(double lon_deg, double lat_deg) const {
 }
 
 }  // namespace gissar::geo
+
+#include "gissar/geo/dem.h"
+#include "gissar/geo/local_frame.h"
+
+namespace gissar::geo {
+
+void Egm96ToEllipsoidal(Dem& dem, const Egm96Geoid& geoid) {
+  const CrsTransform transform(dem.crs_wkt);
+  for (int r = 0; r < dem.height; ++r) {
+    std::vector<double> x(dem.width), y(dem.width);
+    for (int c = 0; c < dem.width; ++c) {
+      const Eigen::Vector2d m = dem.MapFromPost(c, r);
+      x[c] = m.x();
+      y[c] = m.y();
+    }
+    transform.ToLonLat(x, y);
+    for (int c = 0; c < dem.width; ++c) {
+      dem.heights_m[size_t(r) * dem.width + c] += static_cast<float>(geoid.UndulationM(x[c], y[c]));
+    }
+  }
+}
+
+}  // namespace gissar::geo

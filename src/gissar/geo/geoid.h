@@ -32,3 +32,11 @@ class Egm96Geoid {
 };
 
 }  // namespace gissar::geo
+
+namespace gissar::geo {
+struct Dem;
+// Converts a DEM's heights from orthometric (EGM96, as SRTM) to ellipsoidal:
+// h = H + N(lon, lat) at every post (any CRS: posts are transformed to
+// WGS84 first). Throws InputError as Egm96Geoid and CrsTransform do.
+void Egm96ToEllipsoidal(Dem& dem, const Egm96Geoid& geoid);
+}  // namespace gissar::geo

@@ -1,0 +1,56 @@
+// `gissar validate` flags, bound to ValidateOptions (the --product flags of
+// `gissar simulate` are declared in simulate_command.cc).
+#include <memory>
+#include <sstream>
+
+#include "gissar/cli/command.h"
+#include "gissar/cli/product_simulate.h"
+
+namespace gissar::cli {
+
+void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
+  auto options = std::make_shared<ValidateOptions>();
+  auto looks = std::make_shared<std::string>("1,3,5");
+  CLI::App* cmd = root.add_subcommand(
+      "validate",
+      "Simulate a real SAR product (NISAR RSLC HDF5) and compare with its image and a reference geolocation.");
+  cmd->add_option("--product", options->simulate.product, "NISAR-format RSLC product (HDF5)")->required();
+  cmd->add_option("--dem", options->simulate.dem, "DEM raster covering the product");
+  cmd->add_option("--scene", options->simulate.scene, "Scene file from `gissar scene build` (instead of --dem)");
+  cmd->add_flag("--fill-nodata", options->simulate.fill_nodata, "Fill DEM no-data cells instead of failing");
+  cmd->add_option("--vertical-datum", options->simulate.vertical_datum,
+                  "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
+      ->capture_default_str();
+  cmd->add_option("--reference-geolocation", options->reference_geolocation,
+                  "Directory with a peer's per-pixel x.rdr, y.rdr, z.rdr (lon, lat, height; ISCE topo) and simamp.rdr");
+  cmd->add_option("--looks", *looks, "Multilook sizes k of the k x k correlations, comma-separated")
+      ->capture_default_str();
+  cmd->add_option("--rays-per-cell", options->simulate.rays_per_cell, "Rays per resolution cell on flat ground")
+      ->capture_default_str();
+  cmd->add_option("--bounces", options->simulate.bounces, "Reflections followed per ray")->capture_default_str();
+  cmd->add_option("--out", options->out_prefix,
+                  "Report prefix: REPORT.json, REPORT.md, REPORT_side_by_side.png, REPORT_histogram.png")
+      ->required();
+  cmd->add_flag("--quiet", options->simulate.quiet, "No progress on stderr");
+
+  registry.Add(cmd, [=](const CommandContext& context) {
+    ValidateOptions resolved = *options;
+    resolved.looks.clear();
+    std::istringstream in(*looks);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+      try {
+        size_t used = 0;
+        const int k = std::stoi(item, &used);
+        if (used != item.size()) throw std::invalid_argument(item);
+        resolved.looks.push_back(k);
+      } catch (const std::exception&) {
+        throw ConfigError("multilook sizes must be integers, got '" + *looks + "'", "--looks");
+      }
+    }
+    const ValidateResult result = RunValidate(resolved, context.command_line);
+    for (const auto& path : result.outputs) context.out << path.string() << "\n";
+  });
+}
+
+}  // namespace gissar::cli

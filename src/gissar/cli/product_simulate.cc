@@ -1,0 +1,530 @@
+#include "gissar/cli/product_simulate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "gissar/geo/local_frame.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/geo/reference_geolocation.h"
+#include "gissar/image/impulse_response.h"
+#include "gissar/image/quicklook.h"
+#include "gissar/image/side_by_side.h"
+#include "gissar/render/embree_scene.h"
+#include "gissar/util/atomic_output.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+#include "gissar/util/provenance.h"
+
+namespace gissar::cli {
+namespace fs = std::filesystem;
+
+void CheckProductOptions(const SimulateOptions& o) {
+  if (o.engine != "trace") throw ConfigError("product geometry needs the trace engine", "--product/--engine");
+  if (o.coherent) throw ConfigError("product geometry renders incoherently only", "--product/--coherent");
+  if (!o.contributions.empty()) {
+    throw ConfigError("contributions are not recorded in product geometry", "--product/--contributions");
+  }
+  if (o.center_lonlat || o.center_map) {
+    throw ConfigError("the product fixes the scene centre", "--product/--center");
+  }
+  if (o.geometry.width != 0 || o.geometry.height != 0) {
+    throw ConfigError("the product fixes the image size", "--product/--width/--height");
+  }
+  if (o.geometry.range_spacing_m != 0.0 || o.geometry.azimuth_spacing_m != 0.0) {
+    throw ConfigError("the product fixes the pixel spacing", "--product/--range-res/--azimuth-res");
+  }
+}
+
+ProductSimulation SimulateProduct(const SimulateOptions& options, bool read_amplitude) {
+  auto say = [&](const std::string& line) {
+    if (!options.quiet) std::fprintf(stderr, "simulate: %s\n", line.c_str());
+  };
+  ProductSimulation sim;
+  geo::RslcReadOptions read;
+  read.read_amplitude = read_amplitude;
+  sim.product = geo::ReadRslcProduct(options.product, read);
+  const geo::RslcProduct& p = sim.product;
+  const sensor::Orbit orbit(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
+  sim.grid.t0_s = p.zero_doppler_time_s.front();
+  sim.grid.dt_s = p.azimuth_spacing_s();
+  sim.grid.rows = p.rows();
+  sim.grid.r0_m = p.slant_range_m.front();
+  sim.grid.dr_m = p.range_spacing_m();
+  sim.grid.cols = p.cols();
+  sim.grid.look_side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
+  sim.grid.wavelength_m = p.wavelength_m;
+  CheckMemoryBudget(400.0 * double(p.rows()) * p.cols(), options.max_memory_bytes,
+                    "product grid of " + std::to_string(p.rows()) + " x " + std::to_string(p.cols()) + " pixels",
+                    "crop the product");
+  say("product " + std::to_string(p.rows()) + " lines x " + std::to_string(p.cols()) + " range bins, " +
+      (p.look_left ? "left" : "right") + "-looking, wavelength " + std::to_string(p.wavelength_m) + " m");
+
+  Terrain terrain = LoadTerrain(options);
+  const render::EmbreeScene embree(terrain.mesh);
+  render::RenderOptions ro;
+  ro.rays_per_cell = options.rays_per_cell;
+  ro.max_bounces = options.bounces;
+  ro.seed = options.seed;
+  ro.show_progress = !options.quiet;
+  sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
+  sim.ground_speed_mps = sim.image.tracing_geometry.azimuth_spacing_m / sim.grid.dt_s;
+  say(std::to_string(sim.image.geolocated) + " pixels geolocated, " + std::to_string(sim.image.contributions) +
+      " returns re-projected");
+
+  render::SarImage& image = sim.image.image;
+  image::ApplyImpulseResponse(image.intensity, image.width, image.height,
+                              options.range_resolution_m / sim.grid.dr_m,
+                              options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m,
+                              image::ParseSpectralWindow(options.psf_window, "--psf-window"));
+  if (options.speckle_looks >= 1.0) image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
+  if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
+  sim.terrain = terrain.description;
+  sim.frame = {{"origin_lon_deg", terrain.frame.origin_lon_deg()},
+               {"origin_lat_deg", terrain.frame.origin_lat_deg()},
+               {"vertical_datum", options.vertical_datum}};
+  return sim;
+}
+
+namespace {
+
+nlohmann::json ProductJson(const ProductSimulation& sim) {
+  const geo::RslcProduct& p = sim.product;
+  const sensor::SarGeometryOptions& g = sim.image.tracing_geometry;
+  return {{"file", p.path},
+          {"product_version", p.product_version},
+          {"epoch_utc", p.epoch_utc},
+          {"frequency", p.frequency},
+          {"polarization", p.polarization},
+          {"rows", p.rows()},
+          {"cols", p.cols()},
+          {"first_zero_doppler_time_s", sim.grid.t0_s},
+          {"zero_doppler_time_spacing_s", sim.grid.dt_s},
+          {"first_slant_range_m", sim.grid.r0_m},
+          {"slant_range_spacing_m", sim.grid.dr_m},
+          {"look_side", p.look_left ? "left" : "right"},
+          {"wavelength_m", p.wavelength_m},
+          {"orbit_state_vectors", p.orbit.time_s.size()},
+          {"orbit_type", p.orbit.type},
+          {"orbit_interpolation", "cubic Hermite (positions and velocities)"},
+          {"tracing_geometry",
+           {{"heading_deg", g.heading_deg},
+            {"depression_deg", g.depression_deg},
+            {"slant_range_m", g.slant_range_m},
+            {"azimuth_spacing_m", g.azimuth_spacing_m},
+            {"width", g.width},
+            {"height", g.height}}}};
+}
+
+geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateOptions& options) {
+  geo::Metadata m;
+  m["GISSAR_GEOMETRY"] = "product radar grid: row = zero-Doppler azimuth line, column = slant-range bin";
+  m["GISSAR_PRODUCT"] = fs::absolute(options.product).string();
+  m["GISSAR_EPOCH_UTC"] = sim.product.epoch_utc;
+  char buffer[256];
+  std::snprintf(buffer, sizeof buffer, "%.9f", sim.grid.t0_s);
+  m["GISSAR_FIRST_TIME_S"] = buffer;
+  std::snprintf(buffer, sizeof buffer, "%.12g", sim.grid.dt_s);
+  m["GISSAR_TIME_SPACING_S"] = buffer;
+  std::snprintf(buffer, sizeof buffer, "%.6f", sim.grid.r0_m);
+  m["GISSAR_FIRST_RANGE_M"] = buffer;
+  std::snprintf(buffer, sizeof buffer, "%.9g", sim.grid.dr_m);
+  m["GISSAR_RANGE_SPACING_M"] = buffer;
+  m["GISSAR_LOOK_SIDE"] = sim.product.look_left ? "left" : "right";
+  m["GISSAR_VERTICAL_DATUM"] = options.vertical_datum == "egm96" ? "DEM EGM96 heights + EGM96 undulation"
+                                                                  : "DEM heights used as WGS84 ellipsoidal";
+  m["GISSAR_VERSION"] = VersionString();
+  return m;
+}
+
+nlohmann::json MaskCounts(const std::vector<uint8_t>& mask) {
+  int64_t c[4] = {0, 0, 0, 0};
+  for (uint8_t v : mask) ++c[v & 3];
+  return {{"none", c[0]}, {"layover", c[1]}, {"shadow", c[2]}, {"layover_and_shadow", c[3]}};
+}
+
+}  // namespace
+
+SimulateResult RunProductSimulate(const SimulateOptions& options, const std::string& command_line) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path tif = outputs.Add(options.out_prefix + ".tif");
+  const fs::path png = outputs.Add(options.out_prefix + ".png");
+  const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
+  const fs::path json = outputs.Add(options.out_prefix + ".json");
+
+  ProductSimulation sim = SimulateProduct(options, false);
+  const render::SarImage& image = sim.image.image;
+  geo::Metadata metadata = ProductMetadata(sim, options);
+  geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
+  const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
+  for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+    raster.bands.push_back(image.bounce_layers[layer]);
+    raster.band_names.push_back(layer_names[layer]);
+  }
+  raster.bands.push_back(sim.image.lon_deg);
+  raster.band_names.push_back("lon_deg");
+  raster.bands.push_back(sim.image.lat_deg);
+  raster.band_names.push_back("lat_deg");
+  raster.bands.push_back(sim.image.height_m);
+  raster.band_names.push_back("height_m");
+  raster.metadata["GISSAR_BANDS"] =
+      "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (linear intensity); 6 longitude, 7 latitude "
+      "(WGS84 degrees, float32: ~1 m), 8 ellipsoidal height (m) of each pixel's ground point (NaN: none)";
+  geo::WriteFloatGeoTiff(tif, raster);
+  image::DbStretch stretch;
+  geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);
+  geo::Metadata mask_metadata = metadata;
+  mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
+  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata);
+
+  nlohmann::json provenance;
+  provenance["command"] = "simulate";
+  provenance["command_line"] = command_line;
+  provenance["version"] = VersionString();
+  provenance["created_utc"] = UtcTimestamp();
+  provenance["options"] = options.ToJson();
+  provenance["inputs"] = nlohmann::json::array(
+      {InputFileRecord(options.product), InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
+  provenance["product"] = ProductJson(sim);
+  provenance["terrain"] = sim.terrain;
+  provenance["frame"] = sim.frame;
+  provenance["stats"] = {{"rays", image.stats.rays},
+                         {"hits", image.stats.hits},
+                         {"returns_reprojected", sim.image.contributions},
+                         {"pixels_geolocated", sim.image.geolocated},
+                         {"mask_pixels", MaskCounts(image.mask)}};
+  provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db}, {"percentiles", {2, 98}}};
+  std::vector<std::string> names;
+  for (const fs::path& p : outputs.final_paths()) names.push_back(fs::absolute(p).string());
+  provenance["outputs"] = names;
+  provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};
+  WriteJsonFile(provenance, json);
+  outputs.Commit();
+
+  SimulateResult result;
+  result.outputs = outputs.final_paths();
+  result.stats = image.stats;
+  result.width = image.width;
+  result.height = image.height;
+  result.total_seconds = total.ElapsedSeconds();
+  return result;
+}
+
+void ValidateOptions::Check() const {
+  if (simulate.product.empty()) throw ConfigError("a product is required", "--product");
+  if (out_prefix.empty()) throw ConfigError("a report prefix is required", "--out");
+  if (looks.empty()) throw ConfigError("give at least one multilook size", "--looks");
+  for (int k : looks) {
+    if (k < 1 || k > 64) throw ConfigError("multilook sizes must be in [1, 64], got " + std::to_string(k), "--looks");
+  }
+  SimulateOptions probe = simulate;
+  probe.out_prefix = out_prefix;
+  probe.Check();
+  std::vector<fs::path> outs;
+  for (const char* suffix : {".json", ".md", "_side_by_side.png", "_histogram.png"}) outs.push_back(out_prefix + suffix);
+  std::vector<std::string> ins = {simulate.product, simulate.dem, simulate.scene};
+  if (!reference_geolocation.empty()) {
+    for (const char* f : {"x.rdr", "y.rdr", "z.rdr", "simamp.rdr"}) ins.push_back((fs::path(reference_geolocation) / f).string());
+  }
+  CheckOutputsAreNotInputs(outs, ins);
+}
+
+nlohmann::json ValidateOptions::ToJson() const {
+  nlohmann::json j = simulate.ToJson();
+  j.erase("out_prefix");
+  j["reference_geolocation"] = reference_geolocation;
+  j["looks"] = looks;
+  j["out_prefix"] = out_prefix;
+  return j;
+}
+
+double MultilookPearson(const std::vector<float>& a, const std::vector<float>& b, int width, int height, int k,
+                        bool db_a, bool db_b, const std::vector<uint8_t>& valid, int64_t* blocks) {
+  std::vector<double> x, y;
+  for (int r0 = 0; r0 + k <= height; r0 += k) {
+    for (int c0 = 0; c0 + k <= width; c0 += k) {
+      double sa = 0, sb = 0;
+      bool ok = true;
+      for (int r = r0; r < r0 + k && ok; ++r) {
+        for (int c = c0; c < c0 + k; ++c) {
+          const size_t i = size_t(r) * width + c;
+          if (!valid.empty() && !valid[i]) {
+            ok = false;
+            break;
+          }
+          sa += a[i];
+          sb += b[i];
+        }
+      }
+      if (!ok) continue;
+      sa /= k * k;
+      sb /= k * k;
+      if (!std::isfinite(sa) || !std::isfinite(sb)) continue;
+      if ((db_a && !(sa > 0.0)) || (db_b && !(sb > 0.0))) continue;
+      if (db_a) sa = 10.0 * std::log10(sa);
+      if (db_b) sb = 10.0 * std::log10(sb);
+      x.push_back(sa);
+      y.push_back(sb);
+    }
+  }
+  if (blocks != nullptr) *blocks = int64_t(x.size());
+  if (x.size() < 3) return std::nan("");
+  const double n = double(x.size());
+  double mx = 0, my = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    mx += x[i];
+    my += y[i];
+  }
+  mx /= n;
+  my /= n;
+  double sxy = 0, sxx = 0, syy = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    sxy += (x[i] - mx) * (y[i] - my);
+    sxx += (x[i] - mx) * (x[i] - mx);
+    syy += (y[i] - my) * (y[i] - my);
+  }
+  if (!(sxx > 0.0) || !(syy > 0.0)) return std::nan("");
+  return sxy / std::sqrt(sxx * syy);
+}
+
+namespace {
+
+nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+std::string Fixed(double v, int digits) {
+  if (!std::isfinite(v)) return "n/a";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+}  // namespace
+
+ValidateResult RunValidate(const ValidateOptions& options, const std::string& command_line) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const fs::path md_path = outputs.Add(options.out_prefix + ".md");
+  const fs::path side_path = outputs.Add(options.out_prefix + "_side_by_side.png");
+  const fs::path hist_path = outputs.Add(options.out_prefix + "_histogram.png");
+  std::unique_ptr<geo::ReferenceGeolocation> reference;
+  if (!options.reference_geolocation.empty()) {
+    reference = std::make_unique<geo::ReferenceGeolocation>(geo::ReadReferenceGeolocation(options.reference_geolocation));
+  }
+
+  const ProductSimulation sim = SimulateProduct(options.simulate, true);
+  const int width = sim.grid.cols, height = sim.grid.rows;
+  const size_t n = size_t(width) * height;
+  const render::SarImage& image = sim.image.image;
+  std::vector<float> real(n);
+  for (size_t k = 0; k < n; ++k) real[k] = sim.product.amplitude[k] * sim.product.amplitude[k];
+  std::vector<uint8_t> valid(n);
+  for (size_t k = 0; k < n; ++k) valid[k] = std::isfinite(sim.image.height_m[k]) && real[k] > 0.0f ? 1 : 0;
+
+  nlohmann::json report;
+  report["command"] = "validate";
+  report["command_line"] = command_line;
+  report["version"] = VersionString();
+  report["created_utc"] = UtcTimestamp();
+  report["options"] = options.ToJson();
+  nlohmann::json inputs = nlohmann::json::array({InputFileRecord(options.simulate.product),
+                                                 InputFileRecord(options.simulate.scene.empty() ? options.simulate.dem
+                                                                                                : options.simulate.scene)});
+  report["product"] = ProductJson(sim);
+  report["terrain"] = sim.terrain;
+  report["frame"] = sim.frame;
+  report["mask_pixels"] = MaskCounts(image.mask);
+  report["pixels_geolocated"] = sim.image.geolocated;
+
+  // Correlation with the real amplitude.
+  nlohmann::json corr = nlohmann::json::array();
+  for (int k : options.looks) {
+    int64_t blocks = 0;
+    const double r_db = MultilookPearson(image.intensity, real, width, height, k, true, true, valid, &blocks);
+    std::vector<float> sim_amp(n), real_amp(n);
+    for (size_t i = 0; i < n; ++i) {
+      sim_amp[i] = std::sqrt(std::max(0.0f, image.intensity[i]));
+      real_amp[i] = sim.product.amplitude[i];
+    }
+    const double r_amp = MultilookPearson(sim_amp, real_amp, width, height, k, false, false, valid);
+    nlohmann::json row = {{"looks", k}, {"blocks", blocks}, {"r_db", Number(r_db)}, {"r_amplitude", Number(r_amp)}};
+    if (reference && !reference->simamp.empty() && reference->width == width && reference->height == height) {
+      // simamp is not a positive amplitude (ISCE writes it on its own
+      // scale): its k x k mean is compared with the real dB and amplitude.
+      row["peer_simamp_r_db"] = Number(MultilookPearson(reference->simamp, real, width, height, k, false, true, valid));
+      row["peer_simamp_r_amplitude"] = Number(MultilookPearson(reference->simamp, real_amp, width, height, k, false, false, valid));
+    }
+    corr.push_back(row);
+  }
+  report["correlation"] = corr;
+
+  // Geolocation against the reference: ground distance, and the pixel the
+  // reference's point falls in by geo2rdr on the product orbit.
+  nlohmann::json geoloc = nullptr;
+  std::vector<float> diff_db(n, NAN);
+  if (reference) {
+    if (reference->width != width || reference->height != height) {
+      throw InputError("reference geolocation is " + std::to_string(reference->width) + " x " +
+                           std::to_string(reference->height) + ", product grid " + std::to_string(width) + " x " +
+                           std::to_string(height),
+                       options.reference_geolocation);
+    }
+    inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "x.rdr").string()));
+    inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "y.rdr").string()));
+    inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "z.rdr").string()));
+    const sensor::Orbit orbit(sim.product.orbit.time_s, sim.product.orbit.position_m, sim.product.orbit.velocity_mps);
+    double s_col = 0, s_row = 0, s_col2 = 0, s_row2 = 0, s_ground2 = 0, s_h = 0, s_h2 = 0, max_ground = 0;
+    int64_t count = 0;
+    for (int i = 0; i < height; ++i) {
+      for (int j = 0; j < width; ++j) {
+        const size_t k = size_t(i) * width + j;
+        if (!std::isfinite(sim.image.height_m[k])) continue;
+        const Eigen::Vector3d ref = geo::LocalFrame::EcefFromGeodetic(reference->lon_deg[k], reference->lat_deg[k],
+                                                                      reference->height_m[k]);
+        const auto rc = sensor::Geo2Rdr(orbit, ref, sim.grid.TimeOfRow(i));
+        if (!rc) continue;
+        const double dcol = sim.grid.ColOfRange(rc->range_m) - j, drow = sim.grid.RowOfTime(rc->time_s) - i;
+        const Eigen::Vector3d ours = geo::LocalFrame::EcefFromGeodetic(sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
+                                                                       sim.image.height_m[k]);
+        const geo::LocalFrame local(reference->lon_deg[k], reference->lat_deg[k], reference->height_m[k]);
+        const Eigen::Vector3d d = local.EnuFromGeodetic(sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
+                                                        sim.image.height_m[k]);
+        (void)ours;
+        const double ground = std::hypot(d.x(), d.y());
+        s_col += dcol;
+        s_row += drow;
+        s_col2 += dcol * dcol;
+        s_row2 += drow * drow;
+        s_ground2 += ground * ground;
+        s_h += d.z();
+        s_h2 += d.z() * d.z();
+        max_ground = std::max(max_ground, ground);
+        ++count;
+      }
+    }
+    if (count == 0) throw InputError("no pixel geolocated by both gissar and the reference", options.reference_geolocation);
+    const double c = double(count);
+    geoloc = {{"pixels", count},
+              {"range_px_rms", std::sqrt(s_col2 / c)},
+              {"azimuth_px_rms", std::sqrt(s_row2 / c)},
+              {"range_px_mean", s_col / c},
+              {"azimuth_px_mean", s_row / c},
+              {"range_m_rms", std::sqrt(s_col2 / c) * sim.grid.dr_m},
+              {"azimuth_m_rms", std::sqrt(s_row2 / c) * sim.image.tracing_geometry.azimuth_spacing_m},
+              {"ground_m_rms", std::sqrt(s_ground2 / c)},
+              {"ground_m_max", max_ground},
+              {"height_m_mean", s_h / c},
+              {"height_m_rms", std::sqrt(s_h2 / c)},
+              {"method",
+               "range/azimuth: reference point -> geo2rdr on the product orbit -> pixel offset; ground: horizontal "
+               "distance between gissar's and the reference's ground points of each pixel"}};
+  }
+  report["geolocation"] = geoloc;
+  report["inputs"] = inputs;
+
+  // Pictures: real | simulated (dB, each with its own 2-98 % stretch) and
+  // the histogram of the dB difference (simulated - real, each image's
+  // median removed) after the largest multilook.
+  const int kmax = *std::max_element(options.looks.begin(), options.looks.end());
+  std::vector<uint8_t> real_grey = image::DbQuicklook(real, 2.0, 98.0);
+  std::vector<uint8_t> sim_grey = image::DbQuicklook(image.intensity, 2.0, 98.0);
+  std::vector<uint8_t> mask_grey(n);
+  for (size_t k = 0; k < n; ++k) {
+    const uint8_t m = image.mask[k] & 3;
+    mask_grey[k] = m == 0 ? 255 : m == 1 ? 170 : m == 2 ? 0 : 85;
+  }
+  int strip_width = 0;
+  const std::vector<uint8_t> strip = image::SideBySide({real_grey, sim_grey, mask_grey}, width, height, 6, &strip_width);
+  geo::WritePng(side_path, strip, strip_width, height, 1);
+  std::vector<float> differences;
+  {
+    std::vector<double> a, b;
+    for (int r0 = 0; r0 + kmax <= height; r0 += kmax) {
+      for (int c0 = 0; c0 + kmax <= width; c0 += kmax) {
+        double sa = 0, sb = 0;
+        bool ok = true;
+        for (int r = r0; r < r0 + kmax; ++r) {
+          for (int c2 = c0; c2 < c0 + kmax; ++c2) {
+            const size_t i = size_t(r) * width + c2;
+            ok = ok && valid[i];
+            sa += image.intensity[i];
+            sb += real[i];
+          }
+        }
+        if (ok && sa > 0 && sb > 0) {
+          a.push_back(10 * std::log10(sa));
+          b.push_back(10 * std::log10(sb));
+        }
+      }
+    }
+    auto median = [](std::vector<double> v) {
+      if (v.empty()) return 0.0;
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      return v[v.size() / 2];
+    };
+    const double ma = median(a), mb = median(b);
+    for (size_t i = 0; i < a.size(); ++i) differences.push_back(static_cast<float>((a[i] - ma) - (b[i] - mb)));
+  }
+  std::vector<int64_t> counts;
+  const std::vector<uint8_t> hist = image::HistogramPlot(differences, -15.0, 15.0, 60, 480, 200, &counts);
+  geo::WritePng(hist_path, hist, 480, 200, 1);
+  report["difference_histogram"] = {{"looks", kmax},
+                                    {"quantity", "simulated dB - real dB, each minus its median"},
+                                    {"low_db", -15.0},
+                                    {"high_db", 15.0},
+                                    {"counts", counts}};
+  std::vector<std::string> names;
+  for (const fs::path& p : outputs.final_paths()) names.push_back(fs::absolute(p).string());
+  report["outputs"] = names;
+  report["side_by_side"] = "left: real |HH|^2 dB; middle: simulated dB; right: mask (white none, light grey layover, black shadow, dark grey both)";
+  report["timings_s"] = {{"total", total.ElapsedSeconds()}};
+
+  std::ostringstream md;
+  md << "# Validation of " << fs::path(options.simulate.product).filename().string() << "\n\n";
+  md << "Terrain: " << (options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)
+     << " (vertical datum: " << options.simulate.vertical_datum << "); grid " << height << " lines x " << width
+     << " range bins.\n\n## Correlation with the real amplitude\n\n";
+  md << "| looks | blocks | r (dB) | r (amplitude) | peer simamp r (amplitude) |\n|---|---|---|---|---|\n";
+  for (const auto& row : corr) {
+    md << "| " << row["looks"].get<int>() << "x" << row["looks"].get<int>() << " | " << row["blocks"].get<int64_t>()
+       << " | " << (row["r_db"].is_null() ? "n/a" : Fixed(row["r_db"].get<double>(), 3)) << " | "
+       << (row["r_amplitude"].is_null() ? "n/a" : Fixed(row["r_amplitude"].get<double>(), 3)) << " | "
+       << (row.contains("peer_simamp_r_amplitude") && !row["peer_simamp_r_amplitude"].is_null()
+               ? Fixed(row["peer_simamp_r_amplitude"].get<double>(), 3)
+               : "n/a")
+       << " |\n";
+  }
+  if (!geoloc.is_null()) {
+    md << "\n## Geolocation against " << options.reference_geolocation << "\n\n";
+    md << "| quantity | RMS | mean |\n|---|---|---|\n";
+    md << "| range (px) | " << Fixed(geoloc["range_px_rms"], 4) << " | " << Fixed(geoloc["range_px_mean"], 4) << " |\n";
+    md << "| azimuth (px) | " << Fixed(geoloc["azimuth_px_rms"], 4) << " | " << Fixed(geoloc["azimuth_px_mean"], 4)
+       << " |\n";
+    md << "| ground (m) | " << Fixed(geoloc["ground_m_rms"], 3) << " | max " << Fixed(geoloc["ground_m_max"], 3)
+       << " |\n";
+    md << "| height (m) | " << Fixed(geoloc["height_m_rms"], 3) << " | " << Fixed(geoloc["height_m_mean"], 3) << " |\n";
+  }
+  md << "\nMask pixels: " << report["mask_pixels"].dump() << "\n\nPictures: "
+     << fs::path(options.out_prefix + "_side_by_side.png").filename().string() << " ("
+     << report["side_by_side"].get<std::string>() << "), "
+     << fs::path(options.out_prefix + "_histogram.png").filename().string() << ".\n";
+  {
+    std::ofstream out(md_path);
+    out << md.str();
+    if (!out) throw IoError("cannot write report", md_path.string());
+  }
+  WriteJsonFile(report, json_path);
+  outputs.Commit();
+  ValidateResult result;
+  result.outputs = outputs.final_paths();
+  result.report = report;
+  return result;
+}
+
+}  // namespace gissar::cli

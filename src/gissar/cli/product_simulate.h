@@ -1,0 +1,77 @@
+// Simulation in the geometry of a real SAR product (`gissar simulate
+// --product`) and its validation against the real image and a peer's
+// geolocation (`gissar validate`). See docs/geometry.md ("Real sensor
+// geometry") and render/product_renderer.h for the design.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "gissar/cli/simulate.h"
+#include "gissar/geo/rslc_product.h"
+#include "gissar/render/product_renderer.h"
+
+namespace gissar::cli {
+
+// The rules SimulateOptions::Check applies when `product` is set: the
+// trace engine, incoherent, no idealised-geometry options (--center,
+// --center-map, --width, --height, --range-res, --azimuth-res) and no
+// --contributions. Throws ConfigError naming the option.
+void CheckProductOptions(const SimulateOptions& options);
+
+// A product simulated in memory: the product (with its real amplitude when
+// read), the terrain description and the rendered image and geolocation.
+struct ProductSimulation {
+  geo::RslcProduct product;
+  sensor::RadarGrid grid;
+  render::ProductImage image;
+  nlohmann::json terrain;       // Terrain::description
+  nlohmann::json frame;         // local frame origin
+  double ground_speed_mps = 0;  // azimuth pixel spacing / line time
+};
+
+// Loads options.product and the terrain, renders the product grid and
+// applies the sensor effects. Throws the gissar::Error family.
+ProductSimulation SimulateProduct(const SimulateOptions& options, bool read_amplitude);
+
+// `gissar simulate --product`: writes PREFIX.tif (bands total, single,
+// double, triple, four_or_more, lon_deg, lat_deg, height_m on exactly the
+// product's grid), PREFIX_mask.tif, PREFIX.png and PREFIX.json.
+SimulateResult RunProductSimulate(const SimulateOptions& options, const std::string& command_line);
+
+struct ValidateOptions {
+  SimulateOptions simulate;                // product, dem/scene, datum, rays, bounces, quiet
+  std::string reference_geolocation;       // directory with x.rdr, y.rdr, z.rdr (optional)
+  std::vector<int> looks = {1, 3, 5};      // k of the k x k multilooks
+  std::string out_prefix;                  // REPORT.json, .md, _side_by_side.png, _histogram.png
+
+  // Throws ConfigError naming the option (product and terrain required,
+  // looks in [1, 64], outputs not overwriting inputs).
+  void Check() const;
+  nlohmann::json ToJson() const;
+};
+
+struct ValidateResult {
+  std::vector<std::filesystem::path> outputs;
+  nlohmann::json report;
+};
+
+// Pearson correlation of two equally sized images after k x k block
+// averaging (non-overlapping blocks, partial edge blocks dropped), over the
+// blocks where both block means are finite and `valid` (when non-empty)
+// holds for every pixel; with `db_a` / `db_b` that image's block means are
+// compared in dB (10 log10; blocks with a non-positive mean are skipped).
+// Returns NaN with fewer than 3 blocks or a constant image. `blocks`
+// receives the number of blocks used.
+double MultilookPearson(const std::vector<float>& a, const std::vector<float>& b, int width, int height, int k,
+                        bool db_a, bool db_b, const std::vector<uint8_t>& valid = {}, int64_t* blocks = nullptr);
+
+// `gissar validate`: simulates the product, compares with the real
+// amplitude (and the reference geolocation and peer simulation when
+// given) and writes the report files.
+ValidateResult RunValidate(const ValidateOptions& options, const std::string& command_line);
+
+}  // namespace gissar::cli

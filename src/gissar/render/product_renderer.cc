@@ -1,0 +1,196 @@
+#include "gissar/render/product_renderer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "gissar/util/error.h"
+
+namespace gissar::render {
+
+using Eigen::Vector3d;
+
+sensor::HeightFunction SceneHeightFunction(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                                           const geo::LocalFrame& frame) {
+  const Eigen::AlignedBox3d box = mesh.Bounds();
+  // Geodetic heights exceed ENU z (Earth curvature): start well above.
+  const double top = box.max().z() + 1000.0, bottom = box.min().z() - 100.0;
+  return [&embree, frame, top, bottom](double lon, double lat) -> std::optional<double> {
+    const Vector3d a = frame.EnuFromGeodetic(lon, lat, top);
+    const Vector3d b = frame.EnuFromGeodetic(lon, lat, bottom);
+    const Vector3d dir = (b - a).normalized();
+    const auto hit = embree.Intersect(a.cast<float>(), dir.cast<float>(), 0.0f, static_cast<float>((b - a).norm()));
+    if (!hit) return std::nullopt;
+    return top - double(hit->t);  // along the ellipsoid normal, metres
+  };
+}
+
+namespace {
+
+void SplatBilinear(std::vector<float>& plane, int width, int height, double col, double row, float value) {
+  const double c0f = std::floor(col), r0f = std::floor(row);
+  const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
+  const float fc = static_cast<float>(col - c0f), fr = static_cast<float>(row - r0f);
+  const float w[2][2] = {{(1 - fr) * (1 - fc), (1 - fr) * fc}, {fr * (1 - fc), fr * fc}};
+  for (int dr = 0; dr < 2; ++dr) {
+    const int r = r0 + dr;
+    if (r < 0 || r >= height) continue;
+    for (int dc = 0; dc < 2; ++dc) {
+      const int c = c0 + dc;
+      if (c < 0 || c >= width) continue;
+      plane[size_t(r) * width + c] += value * w[dr][dc];
+    }
+  }
+}
+
+Vector3d EcefOfEnu(const geo::LocalFrame& frame, const Vector3d& enu) {
+  const Vector3d llh = frame.GeodeticFromEnu(enu);
+  return geo::LocalFrame::EcefFromGeodetic(llh.x(), llh.y(), llh.z());
+}
+
+Vector3d EnuOfEcef(const geo::LocalFrame& frame, const Vector3d& ecef) {
+  const Vector3d llh = geo::LocalFrame::GeodeticFromEcef(ecef);
+  return frame.EnuFromGeodetic(llh.x(), llh.y(), llh.z());
+}
+
+}  // namespace
+
+ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                           const material::MaterialTable& materials, const geo::LocalFrame& frame,
+                           const sensor::Orbit& orbit, const sensor::RadarGrid& grid,
+                           const RenderOptions& options) {
+  options.Check();
+  if (options.coherent) throw ConfigError("product geometry renders incoherently only", "--coherent");
+  const int width = grid.cols, height = grid.rows;
+  ProductImage out;
+  const size_t n = size_t(width) * height;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  out.lon_deg.assign(n, nan);
+  out.lat_deg.assign(n, nan);
+  out.height_m.assign(n, nan);
+  out.lon_deg_exact.assign(n, std::numeric_limits<double>::quiet_NaN());
+  out.lat_deg_exact.assign(n, std::numeric_limits<double>::quiet_NaN());
+
+  // 1. Geolocation of every pixel (rdr2geo on the scene surface).
+  const sensor::HeightFunction surface = SceneHeightFunction(embree, mesh, frame);
+  const Eigen::AlignedBox3d box = mesh.Bounds();
+  const double mean_height = frame.GeodeticFromEnu(box.center()).z();
+  tbb::parallel_for(tbb::blocked_range<int>(0, height, 4), [&](const tbb::blocked_range<int>& rows) {
+    for (int i = rows.begin(); i != rows.end(); ++i) {
+      sensor::Rdr2GeoOptions o;
+      o.initial_height_m = mean_height;
+      for (int j = 0; j < width; ++j) {
+        const auto llh = sensor::Rdr2Geo(orbit, grid.TimeOfRow(i), grid.RangeOfCol(j), grid.look_side, surface, o);
+        if (!llh) continue;
+        const size_t k = size_t(i) * width + j;
+        out.lon_deg_exact[k] = llh->x();
+        out.lat_deg_exact[k] = llh->y();
+        out.lon_deg[k] = static_cast<float>(llh->x());
+        out.lat_deg[k] = static_cast<float>(llh->y());
+        out.height_m[k] = static_cast<float>(llh->z());
+        o.initial_height_m = llh->z();  // next pixel starts from here
+      }
+    }
+  });
+  for (size_t k = 0; k < n; ++k) out.geolocated += std::isfinite(out.height_m[k]) ? 1 : 0;
+  if (out.geolocated == 0) throw InputError("no pixel of the product reaches the terrain (product outside the DEM?)", "--product");
+
+  // 2. The straight tracing geometry, tangent to the orbit at the scene
+  // centre: the geolocated pixel nearest to the grid centre.
+  size_t centre_k = 0;
+  double best = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < height; ++i) {
+    for (int j = 0; j < width; ++j) {
+      const size_t k = size_t(i) * width + j;
+      const double d = std::hypot(i - 0.5 * (height - 1), j - 0.5 * (width - 1));
+      if (std::isfinite(out.height_m[k]) && d < best) {
+        best = d;
+        centre_k = k;
+      }
+    }
+  }
+  const int ci = int(centre_k / width), cj = int(centre_k % width);
+  const double t_c = grid.TimeOfRow(ci);
+  const Vector3d xc = frame.EnuFromGeodetic(out.lon_deg_exact[centre_k], out.lat_deg_exact[centre_k],
+                                            out.height_m[centre_k]);
+  const sensor::OrbitState state = orbit.Interpolate(t_c);
+  const Vector3d sensor_enu = EnuOfEcef(frame, state.position_m);
+  const Vector3d v_enu = EnuOfEcef(frame, state.position_m + state.velocity_mps) - sensor_enu;
+  const Vector3d look = (xc - sensor_enu).normalized();
+  const double range_c = (xc - sensor_enu).norm();
+  const Vector3d xc_ecef = EcefOfEnu(frame, xc);
+  // Speed of the zero-Doppler footprint along the ground at the scene.
+  const double ground_speed = state.velocity_mps.norm() * xc_ecef.norm() / state.position_m.norm();
+  const int margin = 8;
+  sensor::SarGeometryOptions g;
+  g.heading_deg = std::atan2(v_enu.x(), v_enu.y()) * 180.0 / M_PI;
+  g.depression_deg = std::asin(std::clamp(-look.z(), -1.0, 1.0)) * 180.0 / M_PI;
+  g.look_side = grid.look_side;
+  g.slant_range_m = range_c;
+  g.range_spacing_m = grid.dr_m;
+  g.azimuth_spacing_m = ground_speed * grid.dt_s;
+  g.mode = sensor::ProjectionMode::kExact;
+  g.width = width + 2 * margin;
+  g.height = height + 2 * margin;
+  out.tracing_geometry = g;
+  const sensor::SarGeometry geometry(g, xc, cj + margin, ci + margin, g.width, g.height);
+
+  // 3. Trace with the unchanged tracer, recording every return.
+  RenderOptions trace_options = options;
+  trace_options.record_contributions = true;
+  SarImage traced = RenderSar(embree, mesh, materials, geometry, trace_options);
+
+  // 4. Re-project every return with the real geometry: the hit's true
+  // zero-Doppler time and range, plus the path and azimuth offsets the
+  // tracer gave the return relative to that hit (multi-bounce).
+  SarImage& image = out.image;
+  image.width = width;
+  image.height = height;
+  image.intensity.assign(n, 0.0f);
+  for (auto& layer : image.bounce_layers) layer.assign(n, 0.0f);
+  const std::vector<Contribution>& cs = traced.contributions;
+  struct Landing {
+    double col = 0, row = 0;
+    bool ok = false;
+  };
+  std::vector<Landing> landing(cs.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, cs.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t k = r.begin(); k != r.end(); ++k) {
+      const Contribution& c = cs[k];
+      const Vector3d hit = c.hit_enu.cast<double>();
+      const double along = geometry.AlongTrack(hit);
+      const auto rc = sensor::Geo2Rdr(orbit, EcefOfEnu(frame, hit), t_c + along / ground_speed);
+      if (!rc) continue;
+      const double range = c.range_m + (rc->range_m - geometry.SlantRange(hit));
+      const double time = rc->time_s + (c.azimuth_m - along) / ground_speed;
+      landing[k] = {grid.ColOfRange(range), grid.RowOfTime(time), true};
+    }
+  });
+  for (size_t k = 0; k < cs.size(); ++k) {  // in order: deterministic sums
+    if (!landing[k].ok) continue;
+    const Contribution& c = cs[k];
+    SplatBilinear(image.intensity, width, height, landing[k].col, landing[k].row, c.intensity);
+    const int layer = std::min<int>(c.bounces, kBounceLayers) - 1;
+    SplatBilinear(image.bounce_layers[layer], width, height, landing[k].col, landing[k].row, c.intensity);
+    ++out.contributions;
+  }
+
+  // 5. Mask through each pixel's ground point.
+  image.mask.assign(n, kMaskNone);
+  for (size_t k = 0; k < n; ++k) {
+    if (!std::isfinite(out.height_m[k])) continue;
+    const Vector3d p = frame.EnuFromGeodetic(out.lon_deg_exact[k], out.lat_deg_exact[k], out.height_m[k]);
+    const Eigen::Vector2d q = geometry.Project(p);
+    const int c = static_cast<int>(std::lround(q.x())), r = static_cast<int>(std::lround(q.y()));
+    if (c >= 0 && c < geometry.width() && r >= 0 && r < geometry.height()) {
+      image.mask[k] = traced.mask[size_t(r) * geometry.width() + c];
+    }
+  }
+  image.stats = traced.stats;
+  return out;
+}
+
+}  // namespace gissar::render
