@@ -18,6 +18,7 @@
 #include "gissar/image/annotated.h"
 #include "gissar/image/class_map.h"
 #include "gissar/image/composite.h"
+#include "gissar/image/contact_sheet.h"
 #include "gissar/image/epipolar_plot.h"
 #include "gissar/image/gif_writer.h"
 #include "gissar/image/mesh_view.h"
@@ -898,6 +899,22 @@ PYBIND11_MODULE(gissar, m) {
       }, py::arg("s"), py::arg("theta_deg"), py::arg("phi_deg"), py::arg("heading_change_deg") = py::none(),
       "The KvD reading of F: rho axis at phi, cyclorotation theta (degrees), scale s, heading change (degrees) "
       "when known. (H, W, 3) uint8.");
+  m.def("side_by_side", [](const std::vector<py::array_t<uint8_t, py::array::c_style | py::array::forcecast>>& panels,
+                           const std::vector<std::string>& titles) {
+        if (panels.empty() || panels.size() != titles.size()) {
+          throw InputError("give as many titles as panels (at least one)", "gissar.side_by_side");
+        }
+        std::vector<image::RgbImage> rgb;
+        for (const auto& p : panels) {
+          if (p.ndim() != 3 || p.shape(2) != 3 || p.shape(0) < 1 || p.shape(1) < 1) {
+            throw InputError("panels must be (H, W, 3) uint8 arrays", "gissar.side_by_side");
+          }
+          rgb.push_back({static_cast<int>(p.shape(1)), static_cast<int>(p.shape(0)),
+                         std::vector<uint8_t>(p.data(), p.data() + p.size())});
+        }
+        return RgbArray(image::SideBySide(rgb, titles));
+      }, py::arg("panels"), py::arg("titles"),
+      "RGB panels (H, W, 3) uint8 side by side, top-aligned on white, each under its title: (H', W', 3) uint8.");
   m.def("write_png", &WritePngArray, py::arg("path"), py::arg("image"),
         "Write an (H, W) grey or (H, W, 3|4) RGB(A) uint8 array as PNG (all-or-nothing: temporary name + rename).");
   m.def("write_gif", &WriteGifFrames, py::arg("path"), py::arg("frames"), py::arg("delay_cs") = 50,

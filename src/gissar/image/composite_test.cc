@@ -4,7 +4,6 @@
 
 #include <cmath>
 
-#include "gissar/image/annotated.h"
 #include "gissar/image/quicklook.h"
 
 namespace gissar::image {
@@ -30,25 +29,6 @@ TEST(CompositeTest, IdenticalImagesUpToAGainAreGrey) {
   for (size_t i = 0; i < a.size(); ++i) {
     ASSERT_NEAR(c.rgb[3 * i], c.rgb[3 * i + 1], 1) << i;
     ASSERT_EQ(c.rgb[3 * i], c.rgb[3 * i + 2]);
-  }
-}
-
-TEST(AnnotatedQuicklookTest, HoldsTheQuicklookInsideAxesAndColourBar) {
-  const int w = 120, h = 80;
-  std::vector<float> intensity(size_t(w) * h);
-  for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = 1.0f + float(i % 13);
-  const RgbImage a = AnnotatedQuicklook(intensity, w, h, 30.0, 15.0, "test");
-  // Margins of annotated.cc: 70 px left (azimuth axis), 34 top (title),
-  // 50 bottom (range axis), 90 + 20 right (colour bar).
-  ASSERT_EQ(a.width, w + 70 + 90 + 20);
-  ASSERT_EQ(a.height, h + 34 + 50);
-  const std::vector<uint8_t> grey = DbQuicklook(intensity, 2.0, 98.0);
-  for (int y = 0; y < h; y += 7) {
-    for (int x = 0; x < w; x += 5) {
-      const uint8_t* p = &a.rgb[(size_t(y + 34) * a.width + x + 70) * 3];
-      ASSERT_EQ(p[0], grey[size_t(y) * w + x]);
-      ASSERT_EQ(p[1], p[0]);
-    }
   }
 }
 

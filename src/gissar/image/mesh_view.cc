@@ -94,6 +94,20 @@ RgbImage RenderMeshView(const scene::TriangleMesh& mesh, const std::vector<std::
   }
   std::vector<float> inv_depth(size_t(w) * h, 0.0f);  // 1 / z, larger = nearer; 0 = empty
 
+  // Smooth (Gouraud) shading of the ground: area-weighted vertex normals of
+  // the non-building triangles (upward), shade per vertex interpolated over
+  // each triangle; buildings keep flat shading (sharp walls and roofs).
+  std::vector<Eigen::Vector3d> vertex_normal(mesh.vertices.size(), Eigen::Vector3d::Zero());
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (mesh.classes[t] == scene::kClassBuilding) continue;
+    const auto& tri = mesh.triangles[t];
+    Eigen::Vector3d n = (world(mesh.vertices[tri[1]]) - world(mesh.vertices[tri[0]]))
+                            .cross(world(mesh.vertices[tri[2]]) - world(mesh.vertices[tri[0]]));
+    if (n.z() < 0) n = -n;
+    for (int i = 0; i < 3; ++i) vertex_normal[tri[i]] += n;  // |n| = twice the area
+  }
+  auto shade_of = [&](const Eigen::Vector3d& n) { return 0.35 + 0.65 * std::max(0.0, n.dot(sun)); };
+
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
     const auto& tri = mesh.triangles[t];
     Eigen::Vector3d p[3];
@@ -115,12 +129,14 @@ RgbImage RenderMeshView(const scene::TriangleMesh& mesh, const std::vector<std::
     if (n.norm() == 0) continue;
     n.normalize();
     if (n.dot(eye - p[0]) < 0) n = -n;  // shade the side the camera sees
-    const double shade = 0.35 + 0.65 * std::max(0.0, n.dot(sun));
     const size_t cls = mesh.classes[t];
+    double shade[3];
+    for (int i = 0; i < 3; ++i) {
+      const Eigen::Vector3d& vn = vertex_normal[tri[i]];
+      shade[i] = cls == scene::kClassBuilding || vn.squaredNorm() == 0 ? shade_of(n) : shade_of(vn.normalized());
+    }
     const std::array<uint8_t, 3> base =
         cls < class_colours.size() ? class_colours[cls] : std::array<uint8_t, 3>{200, 200, 200};
-    const cv::Vec3b colour(cv::saturate_cast<uint8_t>(base[0] * shade), cv::saturate_cast<uint8_t>(base[1] * shade),
-                           cv::saturate_cast<uint8_t>(base[2] * shade));
     const int x0 = std::max(0, int(std::floor(std::min({sx[0], sx[1], sx[2]}))));
     const int x1 = std::min(w - 1, int(std::ceil(std::max({sx[0], sx[1], sx[2]}))));
     const int y0 = std::max(0, int(std::floor(std::min({sy[0], sy[1], sy[2]}))));
@@ -139,7 +155,10 @@ RgbImage RenderMeshView(const scene::TriangleMesh& mesh, const std::vector<std::
         float& stored = inv_depth[size_t(y) * w + x];
         if (d <= stored) continue;
         stored = d;
-        canvas.at<cv::Vec3b>(y, x) = colour;
+        const double sh = b0 * shade[0] + b1 * shade[1] + b2 * shade[2];
+        canvas.at<cv::Vec3b>(y, x) = cv::Vec3b(cv::saturate_cast<uint8_t>(base[0] * sh),
+                                               cv::saturate_cast<uint8_t>(base[1] * sh),
+                                               cv::saturate_cast<uint8_t>(base[2] * sh));
       }
     }
   }

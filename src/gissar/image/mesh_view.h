@@ -26,7 +26,9 @@ struct MeshViewOptions {
   double vertical_exaggeration = 1.5;  // heights scaled about the mean height, > 0
   double field_of_view_deg = 30.0;     // perspective strength (camera distance), (1, 120)
   // Sun direction (compass azimuth, elevation, degrees): diffuse shading
-  // 0.35 + 0.65 max(0, n . sun) with n facing the camera.
+  // 0.35 + 0.65 max(0, n . sun); ground smooth-shaded with area-weighted
+  // vertex normals (upward), buildings flat-shaded with the face normal
+  // facing the camera.
   double sun_azimuth_deg = 315.0;
   double sun_elevation_deg = 45.0;
   int width = 960;
