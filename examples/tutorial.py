@@ -13,6 +13,7 @@ Every step prints what it found; the script exits non-zero when a picture is mis
 (heading change off by more than 0.5 deg, pose fix not better than the INS prior).
 """
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -72,7 +73,7 @@ def run(out):
     counts = {name: int((scene.classes == i).sum()) for i, name in enumerate(scene.class_names)}
     say(f"scene: {len(scene.triangles)} triangles, per class {counts}")
     # The same pictures as arrays, e.g. a 3-D view from the south-east, seen like the radar of pass 1.
-    save("andorra_3d_from_east.png", scene.view_3d(view_azimuth_deg=100, view_elevation_deg=40))
+    save("andorra_3d_from_east.png", scene.view_3d(view_azimuth_deg=100, view_elevation_deg=40, width=720, height=480))
 
     # 2. SAR images at two headings (4-look speckle), with their geometry.
     sims = []
@@ -108,6 +109,9 @@ def run(out):
     predicted = np.linalg.solve(np.column_stack([p1, np.ones(3)]), p2).T  # (2, 3): pixel 1 -> pixel 2
     m = gissar.match_images(sims[0]["image"], sims[1]["image"], warp=predicted, search_px=16, step_px=10)
     x1, x2 = m["x_reference"], m["x_observed"]
+    # Saved for the command line (`gissar fmatrix --matches`, `gissar register --points`).
+    np.savetxt(os.path.join(out, "matches.csv"), np.column_stack([x1, x2]), delimiter=",", fmt="%.4f",
+               header="x1,y1,x2,y2", comments="")
     say(f"matches: {len(x1)}")
 
     # 4. F (RANSAC + Gold Standard) and its Koenderink-van Doorn reading: the heading change.
@@ -135,6 +139,8 @@ def run(out):
     truth = np.array(g2.sensor_position())
     prior = {"heading_deg": HEADINGS_DEG[1] + INS_HEADING_ERROR_DEG, "slant_range_m": SLANT_RANGE_M,
              "sensor_enu_m": list(truth + INS_POSITION_ERROR_M)}
+    with open(os.path.join(out, "prior.json"), "w") as f_prior:  # for `gissar locate --prior`
+        json.dump(prior, f_prior)
     fix = gissar.locate(scene, sims[1]["image"], prior, range_spacing_m=SPACING_M, azimuth_spacing_m=SPACING_M)
     pose = fix["pose"]
     prior_error = np.linalg.norm(np.array(fix["prior"]["sensor_enu_m"]) - truth)
