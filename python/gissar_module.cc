@@ -10,8 +10,24 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/cli/locate.h"
 #include "gissar/cli/scene_build.h"
 #include "gissar/cli/simulate.h"
+#include "gissar/cli/views.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/image/annotated.h"
+#include "gissar/image/class_map.h"
+#include "gissar/image/composite.h"
+#include "gissar/image/contact_sheet.h"
+#include "gissar/image/epipolar_plot.h"
+#include "gissar/image/gif_writer.h"
+#include "gissar/image/mesh_view.h"
+#include "gissar/image/quicklook.h"
+#include "gissar/mvg/affine_fundamental.h"
+#include "gissar/mvg/kvd.h"
+#include "gissar/nav/locate.h"
+#include "gissar/nav/matching.h"
+#include "gissar/render/raster_renderer.h"
 #include "gissar/mvg/affine_camera.h"
 #include "gissar/mvg/registration.h"
 #include "gissar/mvg/resection.h"
@@ -19,8 +35,11 @@
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/scene_io.h"
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/provenance.h"
+
+#include <opencv2/imgproc.hpp>
 
 namespace py = pybind11;
 using namespace gissar;
@@ -73,6 +92,8 @@ cli::SimulateOptions SimulateOptionsFrom(const py::kwargs& kwargs) {
     else if (key == "speckle_looks") o.speckle_looks = value.cast<double>();
     else if (key == "nesz_db") o.nesz_db = value.cast<double>();
     else if (key == "seed") o.seed = value.cast<uint64_t>();
+    else if (key == "engine") o.engine = value.cast<std::string>();
+    else if (key == "max_memory_bytes") o.max_memory_bytes = value.cast<int64_t>();
     else throw ConfigError("unknown option '" + key + "'", "gissar.simulate");
   }
   o.out_prefix = "(python)";
@@ -80,39 +101,80 @@ cli::SimulateOptions SimulateOptionsFrom(const py::kwargs& kwargs) {
   return o;
 }
 
+// A float image (H, W) from a NumPy array (any real dtype, C order after
+// conversion); `what` names the argument in errors.
+struct FloatImage {
+  std::vector<float> values;
+  int width = 0, height = 0;
+};
+FloatImage ToFloatImage(const py::array_t<float, py::array::c_style | py::array::forcecast>& a,
+                        const std::string& what) {
+  if (a.ndim() != 2 || a.shape(0) < 1 || a.shape(1) < 1) {
+    throw InputError("must be a non-empty 2-D array (rows = azimuth, columns = range)", what);
+  }
+  FloatImage out;
+  out.height = static_cast<int>(a.shape(0));
+  out.width = static_cast<int>(a.shape(1));
+  out.values.assign(a.data(), a.data() + a.size());
+  return out;
+}
+
+py::array_t<uint8_t> RgbArray(const image::RgbImage& img) {
+  py::array_t<uint8_t> out({img.height, img.width, 3});
+  std::copy(img.rgb.begin(), img.rgb.end(), out.mutable_data());
+  return out;
+}
+
 py::dict Simulate(const py::kwargs& kwargs) {
   const cli::SimulateOptions options = SimulateOptionsFrom(kwargs);
   render::SarImage image;
-  std::map<std::string, std::string> metadata;
+  std::optional<sensor::SarGeometry> geometry;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   {
     py::gil_scoped_release release;
     options.Check();
     cli::Terrain terrain = cli::LoadTerrain(options);
-    const render::EmbreeScene embree(terrain.mesh);
-    cli::PlaceSceneCentre(terrain, embree, options);
-    const sensor::SarGeometry geometry = sensor::SarGeometry::Covering(
-        cli::ResolvedGeometry(options, terrain), terrain.centre_enu, terrain.mesh.vertices);
-    render::RenderOptions ro;
-    ro.rays_per_cell = options.rays_per_cell;
-    ro.max_bounces = options.bounces;
-    ro.coherent = options.coherent;
-    ro.wavelength_m = options.wavelength_m;
-    ro.seed = options.seed;
-    ro.show_progress = false;
-    image = render::RenderSar(embree, terrain.mesh, terrain.materials, geometry, ro);
-    cli::ApplySensorEffects(image, options, geometry);
-    metadata = geometry.ToMetadata();
+    if (options.engine == "raster") {
+      geometry = sensor::SarGeometry::Covering(cli::ResolvedGeometry(options, terrain), terrain.centre_enu,
+                                               terrain.mesh.vertices);
+      image = render::RenderSarRaster(terrain.mesh.vertices, terrain.grid_width, terrain.grid_height,
+                                      terrain.materials, *geometry);
+    } else {
+      const render::EmbreeScene embree(terrain.mesh);
+      cli::PlaceSceneCentre(terrain, embree, options);
+      geometry = sensor::SarGeometry::Covering(cli::ResolvedGeometry(options, terrain), terrain.centre_enu,
+                                               terrain.mesh.vertices);
+      render::RenderOptions ro;
+      ro.rays_per_cell = options.rays_per_cell;
+      ro.max_bounces = options.bounces;
+      ro.coherent = options.coherent;
+      ro.wavelength_m = options.wavelength_m;
+      ro.seed = options.seed;
+      ro.show_progress = false;
+      image = render::RenderSar(embree, terrain.mesh, terrain.materials, *geometry, ro);
+    }
+    cli::ApplySensorEffects(image, options, *geometry);
+    centre = terrain.centre_enu;
   }
   py::array_t<float> bands({render::kBounceLayers, image.height, image.width});
   for (int b = 0; b < render::kBounceLayers; ++b) {
     std::copy(image.bounce_layers[b].begin(), image.bounce_layers[b].end(),
               bands.mutable_data() + size_t(b) * image.width * image.height);
   }
+  py::array_t<bool> layover({image.height, image.width}), shadow({image.height, image.width});
+  for (size_t i = 0; i < image.mask.size(); ++i) {
+    layover.mutable_data()[i] = (image.mask[i] & 1) != 0;
+    shadow.mutable_data()[i] = (image.mask[i] & 2) != 0;
+  }
   py::dict out;
   out["image"] = Image(image.intensity, image.height, image.width);
   out["bounces"] = bands;
   out["mask"] = Image(image.mask, image.height, image.width);
-  out["geometry"] = metadata;
+  out["layover"] = layover;
+  out["shadow"] = shadow;
+  out["geometry"] = py::cast(*geometry);
+  out["metadata"] = geometry->ToMetadata();
+  out["centre_enu_m"] = std::array<double, 3>{centre.x(), centre.y(), centre.z()};
   out["options"] = JsonToPython(options.ToJson());
   return out;
 }
@@ -146,6 +208,249 @@ py::array_t<double> Mat(const Eigen::MatrixXd& m) {
   for (int r = 0; r < m.rows(); ++r)
     for (int c = 0; c < m.cols(); ++c) out.mutable_at(r, c) = m(r, c);
   return out;
+}
+
+// ---------------------------------------------------------------- scenes
+
+// A scene built by `gissar scene build` (a .gscene file) held in memory.
+struct PyScene {
+  std::string path;
+  scene::SceneFile file;
+  py::object summary = py::none();  // the build summary when built here
+};
+
+PyScene LoadPyScene(const std::string& path) {
+  PyScene s;
+  s.path = path;
+  {
+    py::gil_scoped_release release;
+    s.file = scene::ReadScene(path);
+  }
+  return s;
+}
+
+PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
+                     const std::string& osm, const std::string& config, bool fill_nodata,
+                     std::optional<std::array<int, 4>> window, bool export_obj) {
+  cli::SceneBuildOptions o;
+  o.dem = dem;
+  o.out_prefix = out_prefix;
+  o.vectors = vectors;
+  o.osm = osm;
+  o.config = config;
+  o.fill_nodata = fill_nodata;
+  o.window = window;
+  o.export_obj = export_obj;
+  o.quiet = true;
+  cli::SceneBuildResult r;
+  {
+    py::gil_scoped_release release;
+    r = cli::RunSceneBuild(o, "python: gissar.Scene.build");
+  }
+  PyScene s = LoadPyScene(out_prefix + ".gscene");
+  s.summary = JsonToPython(r.summary);
+  return s;
+}
+
+image::MeshViewOptions MeshViewOptionsFrom(const py::kwargs& kwargs) {
+  image::MeshViewOptions o;
+  for (const auto& [key_handle, value] : kwargs) {
+    const std::string key = key_handle.cast<std::string>();
+    if (key == "view_azimuth_deg") o.view_azimuth_deg = value.cast<double>();
+    else if (key == "view_elevation_deg") o.view_elevation_deg = value.cast<double>();
+    else if (key == "vertical_exaggeration") o.vertical_exaggeration = value.cast<double>();
+    else if (key == "field_of_view_deg") o.field_of_view_deg = value.cast<double>();
+    else if (key == "sun_azimuth_deg") o.sun_azimuth_deg = value.cast<double>();
+    else if (key == "sun_elevation_deg") o.sun_elevation_deg = value.cast<double>();
+    else if (key == "width") o.width = value.cast<int>();
+    else if (key == "height") o.height = value.cast<int>();
+    else throw ConfigError("unknown option '" + key + "'", "gissar.Scene.view_3d");
+  }
+  return o;
+}
+
+// ---------------------------------------------------------------- pictures
+
+void WritePngArray(const std::string& path, const py::array_t<uint8_t, py::array::c_style | py::array::forcecast>& a) {
+  int channels = 1;
+  if (a.ndim() == 3 && (a.shape(2) == 3 || a.shape(2) == 4)) channels = static_cast<int>(a.shape(2));
+  else if (a.ndim() != 2) throw InputError("expected (H, W) grey or (H, W, 3|4) RGB(A) uint8", path);
+  if (a.shape(0) < 1 || a.shape(1) < 1) throw InputError("empty image", path);
+  const std::vector<uint8_t> data(a.data(), a.data() + a.size());
+  const int width = static_cast<int>(a.shape(1)), height = static_cast<int>(a.shape(0));
+  py::gil_scoped_release release;
+  AtomicOutputs outputs;
+  geo::WritePng(outputs.Add(path), data, width, height, channels);
+  outputs.Commit();
+}
+
+void WriteGifFrames(const std::string& path, const std::vector<py::array_t<uint8_t, py::array::c_style | py::array::forcecast>>& frames,
+                    int delay_cs) {
+  if (frames.empty()) throw InputError("no frames", path);
+  if (delay_cs < 1) throw ConfigError("must be >= 1", "delay_cs");
+  const py::ssize_t h = frames[0].ndim() == 2 ? frames[0].shape(0) : 0, w = frames[0].ndim() == 2 ? frames[0].shape(1) : 0;
+  std::vector<std::vector<uint8_t>> grey;
+  for (const auto& f : frames) {
+    if (f.ndim() != 2 || f.shape(0) != h || f.shape(1) != w || h < 1 || w < 1) {
+      throw InputError("frames must be 2-D uint8 arrays of one size", path);
+    }
+    grey.emplace_back(f.data(), f.data() + f.size());
+  }
+  py::gil_scoped_release release;
+  AtomicOutputs outputs;
+  image::WriteAnimatedGif(outputs.Add(path), grey, static_cast<int>(w), static_cast<int>(h), delay_cs);
+  outputs.Commit();
+}
+
+// ---------------------------------------------------------------- navigation
+
+Eigen::Vector3d Vec3(const py::handle& h, const std::string& key) {
+  const auto v = h.cast<std::vector<double>>();
+  if (v.size() != 3) throw ConfigError("expected three numbers", key);
+  return {v[0], v[1], v[2]};
+}
+
+py::dict PoseDict(const nav::NavPose& pose, sensor::LookSide side) {
+  const Eigen::Vector3d s = pose.SensorPosition(side);
+  return py::dict(py::arg("heading_deg") = pose.heading_deg, py::arg("depression_deg") = pose.depression_deg,
+                  py::arg("slant_range_m") = pose.slant_range_m,
+                  py::arg("centre_enu_m") = std::array<double, 3>{pose.centre_enu.x(), pose.centre_enu.y(), pose.centre_enu.z()},
+                  py::arg("sensor_enu_m") = std::array<double, 3>{s.x(), s.y(), s.z()});
+}
+
+py::dict Locate(const PyScene& scene, const py::array_t<float, py::array::c_style | py::array::forcecast>& observed_image,
+                const py::dict& prior_dict, double range_spacing_m, double azimuth_spacing_m,
+                const std::string& look_side, const std::string& matcher, int search_px, int step_px,
+                int polish_evaluations, int bounces, double rays_per_cell, bool references) {
+  const FloatImage observed = ToFloatImage(observed_image, "gissar.locate: image");
+  const nlohmann::json prior_json = nlohmann::json::parse(py::module_::import("json").attr("dumps")(prior_dict).cast<std::string>());
+  const cli::PriorPose prior = cli::ParsePriorJson(prior_json, "gissar.locate: prior");
+  nav::SensorModel model;
+  model.width = observed.width;
+  model.height = observed.height;
+  model.range_spacing_m = range_spacing_m;
+  model.azimuth_spacing_m = azimuth_spacing_m;
+  model.look_side = sensor::ParseLookSide(look_side);
+  model.Check();
+  nav::LocateOptions lo;
+  lo.matcher = nav::ParseMatcher(matcher, "matcher");
+  lo.initial_search_px = search_px;
+  lo.step_px = step_px;
+  lo.polish_evaluations = polish_evaluations;
+  lo.Check();
+  if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "bounces");
+  if (!(rays_per_cell > 0)) throw ConfigError("must be > 0", "rays_per_cell");
+  std::vector<float> values = observed.values;
+  for (float& v : values) if (!std::isfinite(v)) v = 0.0f;
+  nav::LocateResult r;
+  nav::NavPose start;
+  std::vector<float> at_prior, at_fix;
+  {
+    py::gil_scoped_release release;
+    const render::EmbreeScene embree(scene.file.mesh);
+    const material::MaterialTable materials = material::SceneMaterials(scene.file.materials, scene.path);
+    nav::NavScene ns{&scene.file.mesh, &embree, &materials, rays_per_cell, bounces};
+    std::optional<nav::NavPose> s;
+    if (prior.sensor_enu) {
+      s = nav::PoseFromSensor(ns, *prior.sensor_enu, prior.heading_deg, prior.slant_range_m,
+                              prior.depression_deg.value_or(40.0), model.look_side);
+    } else {
+      Eigen::Vector3d c = prior.centre_enu.value_or(Eigen::Vector3d::Zero());
+      if (prior.centre_lonlat) {
+        const geo::LocalFrame frame(scene.file.origin_lon_deg, scene.file.origin_lat_deg, 0.0);
+        c = frame.EnuFromGeodetic(prior.centre_lonlat->x(), prior.centre_lonlat->y(), 0.0);
+      }
+      const auto ground = nav::SurfaceBelow(embree, scene.file.mesh, c.x(), c.y());
+      if (ground) s = nav::NavPose{prior.heading_deg, *prior.depression_deg, prior.slant_range_m, *ground};
+    }
+    if (!s) throw InputError("the prior's line of sight does not reach the scene", "gissar.locate: prior");
+    start = *s;
+    r = nav::Locate(ns, model, values, start, lo);
+    if (references) {
+      at_prior = nav::RenderReference(ns, start, model).intensity;
+      at_fix = nav::RenderReference(ns, r.pose, model).intensity;
+    }
+  }
+  py::dict out;
+  out["pose"] = PoseDict(r.pose, model.look_side);
+  out["prior"] = PoseDict(start, model.look_side);
+  out["converged"] = r.converged;
+  out["iterations"] = r.iterations;
+  out["renders"] = r.renders;
+  out["matches"] = r.matches;
+  out["inliers"] = r.inliers;
+  out["rms_px"] = r.rms_px;
+  out["similarity_ncc"] = r.similarity;
+  out["prior_similarity_ncc"] = r.prior_similarity;
+  out["heading_sigma_deg"] = r.heading_sigma_deg;
+  out["depression_sigma_deg"] = r.depression_sigma_deg;
+  out["position_sigma_lhn_m"] = std::array<double, 3>{r.position_sigma_lhn_m.x(), r.position_sigma_lhn_m.y(),
+                                                      r.position_sigma_lhn_m.z()};
+  out["seconds"] = r.seconds;
+  if (references) {
+    out["reference_at_prior"] = Image(at_prior, model.height, model.width);
+    out["reference_at_fix"] = Image(at_fix, model.height, model.width);
+  }
+  return out;
+}
+
+py::dict MatchImages(const py::array_t<float, py::array::c_style | py::array::forcecast>& reference_image,
+                     const py::array_t<float, py::array::c_style | py::array::forcecast>& observed_image,
+                     const std::string& matcher, int patch_px, int step_px, int search_px, int filter_px,
+                     double min_score, std::optional<py::array_t<double, py::array::c_style | py::array::forcecast>> warp) {
+  const FloatImage ref = ToFloatImage(reference_image, "gissar.match_images: reference");
+  const FloatImage obs = ToFloatImage(observed_image, "gissar.match_images: observed");
+  nav::MatchOptions mo;
+  mo.patch_px = patch_px;
+  mo.step_px = step_px;
+  mo.search_px = search_px;
+  mo.min_score = min_score;
+  mo.Check();
+  if (filter_px < 1) throw ConfigError("must be >= 1", "filter_px");
+  const nav::Matcher which = nav::ParseMatcher(matcher, "matcher");
+  cv::Mat a = cv::Mat::eye(2, 3, CV_64F);  // reference pixel -> observed pixel
+  if (warp) {
+    if (warp->ndim() != 2 || warp->shape(0) != 2 || warp->shape(1) != 3) {
+      throw InputError("warp must be a (2, 3) affine map: reference pixel -> observed pixel", "gissar.match_images");
+    }
+    for (int r = 0; r < 2; ++r)
+      for (int c = 0; c < 3; ++c) a.at<double>(r, c) = warp->at(r, c);
+    if (!cv::checkRange(a) || std::abs(cv::determinant(a(cv::Rect(0, 0, 2, 2)))) < 1e-9) {
+      throw InputError("warp is not an invertible finite affine map", "gissar.match_images");
+    }
+  } else if (ref.width != obs.width || ref.height != obs.height) {
+    throw InputError("images differ in size: give the warp that maps the reference onto the observed image",
+                     "gissar.match_images");
+  }
+  std::vector<nav::Correspondence> found;
+  {
+    py::gil_scoped_release release;
+    const cv::Mat obs_mat(obs.height, obs.width, CV_32F, const_cast<float*>(obs.values.data()));
+    cv::Mat resampled;  // the observed image on the reference grid
+    cv::warpAffine(obs_mat, resampled, a, cv::Size(ref.width, ref.height), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                   cv::BORDER_CONSTANT, cv::Scalar(0));
+    const std::vector<float> resampled_values(resampled.begin<float>(), resampled.end<float>());
+    const cv::Mat ref_log = nav::LogIntensity(ref.values, ref.width, ref.height, filter_px);
+    const cv::Mat obs_log = nav::LogIntensity(resampled_values, ref.width, ref.height, filter_px);
+    // Only patches whose warped observed neighbourhood lies inside the observed image.
+    cv::Mat inside(ref.height, ref.width, CV_8U);
+    const cv::Mat ones(obs.height, obs.width, CV_8U, cv::Scalar(255));
+    cv::warpAffine(ones, inside, a, cv::Size(ref.width, ref.height), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
+                   cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::erode(inside, inside, cv::Mat(), cv::Point(-1, -1), (patch_px + 1) / 2 + search_px);
+    found = nav::Match(which, ref_log, obs_log, mo, inside);
+  }
+  py::array_t<double> x_ref({py::ssize_t(found.size()), py::ssize_t(2)}), x_obs({py::ssize_t(found.size()), py::ssize_t(2)});
+  py::array_t<double> score(py::ssize_t(found.size()));
+  for (size_t i = 0; i < found.size(); ++i) {
+    const Eigen::Vector2d& p = found[i].observed;
+    x_ref.mutable_at(i, 0) = found[i].reference.x();
+    x_ref.mutable_at(i, 1) = found[i].reference.y();
+    x_obs.mutable_at(i, 0) = a.at<double>(0, 0) * p.x() + a.at<double>(0, 1) * p.y() + a.at<double>(0, 2);
+    x_obs.mutable_at(i, 1) = a.at<double>(1, 0) * p.x() + a.at<double>(1, 1) * p.y() + a.at<double>(1, 2);
+    score.mutable_at(i) = found[i].score;
+  }
+  return py::dict(py::arg("x_reference") = x_ref, py::arg("x_observed") = x_obs, py::arg("score") = score);
 }
 
 }  // namespace
@@ -201,7 +506,34 @@ PYBIND11_MODULE(gissar, m) {
       .def_property_readonly("flight_direction", [](const sensor::SarGeometry& g) {
         return std::array<double, 3>{g.flight_direction().x(), g.flight_direction().y(), g.flight_direction().z()};
       })
-      .def("metadata", &sensor::SarGeometry::ToMetadata);
+      .def_property_readonly("heading_deg", [](const sensor::SarGeometry& g) { return g.options().heading_deg; },
+                             "Flight heading, degrees clockwise from north.")
+      .def_property_readonly("depression_deg", [](const sensor::SarGeometry& g) { return g.options().depression_deg; },
+                             "Depression of the line of sight below the horizontal, degrees.")
+      .def_property_readonly("range_spacing_m", &sensor::SarGeometry::range_spacing_m, "Slant-range pixel spacing, m.")
+      .def_property_readonly("azimuth_spacing_m", &sensor::SarGeometry::azimuth_spacing_m, "Azimuth pixel spacing, m.")
+      .def_property_readonly("slant_range_m", &sensor::SarGeometry::slant_range_m, "Slant range to the scene centre, m.")
+      .def_property_readonly("look_side", [](const sensor::SarGeometry& g) { return sensor::ToString(g.options().look_side); })
+      .def_property_readonly("mode", [](const sensor::SarGeometry& g) {
+        return g.mode() == sensor::ProjectionMode::kAffine ? "affine" : "exact";
+      })
+      .def_property_readonly("scene_centre_enu_m", [](const sensor::SarGeometry& g) {
+        return std::array<double, 3>{g.scene_centre().x(), g.scene_centre().y(), g.scene_centre().z()};
+      }, "Scene centre Xc (ENU m), imaged at pixel (u0, v0).")
+      .def_property_readonly("u0", &sensor::SarGeometry::u0, "Column of the scene centre (pixels).")
+      .def_property_readonly("v0", &sensor::SarGeometry::v0, "Row of the scene centre (pixels).")
+      .def_property_readonly("width", &sensor::SarGeometry::width, "Image width (columns = slant range), pixels.")
+      .def_property_readonly("height", &sensor::SarGeometry::height, "Image height (rows = azimuth), pixels.")
+      .def("sensor_position", [](const sensor::SarGeometry& g, double along_track_m) {
+        const Eigen::Vector3d p = g.SensorPosition(along_track_m);
+        return std::array<double, 3>{p.x(), p.y(), p.z()};
+      }, py::arg("along_track_m") = 0.0, "Sensor position (ENU m) at an along-track distance (m) from the centre.")
+      .def("metadata", &sensor::SarGeometry::ToMetadata, "The GISSAR_* metadata of the GeoTIFFs.")
+      .def("__repr__", [](const sensor::SarGeometry& g) {
+        return "<gissar.SarGeometry heading " + std::to_string(g.options().heading_deg) + " deg, depression " +
+               std::to_string(g.options().depression_deg) + " deg, " + std::to_string(g.width()) + " x " +
+               std::to_string(g.height()) + " px>";
+      });
 
   m.def("simulate", &Simulate,
         "Simulate a SAR image. Keywords = SimulateOptions fields: dem or scene, heading_deg, depression_deg, "
@@ -323,4 +655,269 @@ PYBIND11_MODULE(gissar, m) {
                         py::arg("residuals_px") = r->residuals_px);
       }, py::arg("fixed_px"), py::arg("moving_px"), py::arg("transform") = "affine", py::arg("threshold_px") = 2.0,
       "Fit a similarity/affine/projective/poly2/poly3 transform moving -> fixed to (N, 2) point pairs.");
+
+  // ------------------------------------------------------------ Scene
+  py::class_<PyScene>(m, "Scene",
+                      "A GIS scene: classified triangle mesh in a local ENU frame (metres), as built by "
+                      "`gissar scene build` (docs/scene.md).")
+      .def(py::init(&LoadPyScene), py::arg("path"), "Load a .gscene file.")
+      .def_static("build", &BuildPyScene, py::arg("dem"), py::arg("out_prefix"),
+                  py::arg("vectors") = std::vector<std::string>{}, py::arg("osm") = "", py::arg("config") = "",
+                  py::arg("fill_nodata") = false, py::arg("window") = py::none(), py::arg("export_obj") = false,
+                  "`gissar scene build`: DEM (+ vector layers / OSM / config) -> PREFIX.gscene, .ply, "
+                  "_classes.png (class map), _3d.png (3-D view), .json (and .obj/.mtl with export_obj). "
+                  "window = (col, row, cols, rows) of the DEM. Returns the loaded Scene (its .summary holds "
+                  "the build summary).")
+      .def_readonly("path", &PyScene::path)
+      .def_readonly("summary", &PyScene::summary)
+      .def_property_readonly("vertices_enu_m", [](const PyScene& s) {
+        py::array_t<float> v({py::ssize_t(s.file.mesh.vertices.size()), py::ssize_t(3)});
+        std::memcpy(v.mutable_data(), s.file.mesh.vertices.data(), s.file.mesh.vertices.size() * 12);
+        return v;
+      }, "(N, 3) float32 vertices, ENU metres.")
+      .def_property_readonly("triangles", [](const PyScene& s) {
+        py::array_t<int32_t> t({py::ssize_t(s.file.mesh.triangles.size()), py::ssize_t(3)});
+        std::memcpy(t.mutable_data(), s.file.mesh.triangles.data(), s.file.mesh.triangles.size() * 12);
+        return t;
+      }, "(M, 3) int32 vertex indices.")
+      .def_property_readonly("classes", [](const PyScene& s) {
+        py::array_t<uint8_t> c(py::ssize_t(s.file.mesh.classes.size()));
+        std::memcpy(c.mutable_data(), s.file.mesh.classes.data(), s.file.mesh.classes.size());
+        return c;
+      }, "(M,) uint8 class id per triangle (index into class_names).")
+      .def_property_readonly("class_names", [](const PyScene& s) { return s.file.class_names; })
+      .def_property_readonly("origin_lonlat_deg", [](const PyScene& s) {
+        return std::array<double, 2>{s.file.origin_lon_deg, s.file.origin_lat_deg};
+      }, "ENU frame origin (WGS84 lon, lat, degrees; height 0).")
+      .def_property_readonly("centre_enu_m", [](const PyScene& s) {
+        return std::array<double, 3>{s.file.centre_enu.x(), s.file.centre_enu.y(), s.file.centre_enu.z()};
+      }, "Default scene centre (ENU m).")
+      .def("simulate", [](const PyScene& s, const py::kwargs& kwargs) {
+        py::kwargs all;
+        for (const auto& item : kwargs) all[item.first] = item.second;
+        if (all.contains("scene") || all.contains("dem")) throw ConfigError("the scene is given", "Scene.simulate");
+        all["scene"] = s.path;
+        return Simulate(all);
+      }, "gissar.simulate(scene=self.path, ...): same keywords and result.")
+      .def("class_map", [](const PyScene& s, int max_side_px) {
+        if (max_side_px < 16) throw ConfigError("must be >= 16", "max_side_px");
+        image::RgbImage img;
+        {
+          py::gil_scoped_release release;
+          img = image::RenderClassMap(s.file.mesh, s.file.class_names, max_side_px);
+        }
+        return RgbArray(img);
+      }, py::arg("max_side_px") = 1200,
+      "Top view (east right, north up) in class colours, hill-shaded, with a legend: (H, W, 3) uint8.")
+      .def("view_3d", [](const PyScene& s, const py::kwargs& kwargs) {
+        const image::MeshViewOptions o = MeshViewOptionsFrom(kwargs);
+        image::RgbImage img;
+        {
+          py::gil_scoped_release release;
+          img = image::RenderMeshView(s.file.mesh, image::ClassColourList(), o);
+        }
+        return RgbArray(img);
+      }, "Perspective 3-D view of the mesh in class colours (z-buffer, Lambertian sun): (H, W, 3) uint8. "
+         "Keywords: view_azimuth_deg (camera direction from the centre, compass, default 200), "
+         "view_elevation_deg (35), vertical_exaggeration (1.5), field_of_view_deg (30), sun_azimuth_deg (315), "
+         "sun_elevation_deg (45), width (960), height (640).")
+      .def("export_obj", [](const PyScene& s, const std::string& path) {
+        py::gil_scoped_release release;
+        if (std::filesystem::path(path).extension() != ".obj") throw ConfigError("must end in .obj", path);
+        const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
+        AtomicOutputs outputs;
+        const auto obj_tmp = outputs.Add(path);
+        const auto mtl_tmp = outputs.Add(mtl);
+        scene::WriteObj(obj_tmp, mtl_tmp, mtl.filename().string(), s.file.mesh, s.file.class_names,
+                        image::ClassColourList());
+        outputs.Commit();
+      }, py::arg("path"), "Wavefront OBJ + MTL beside it (class colours), ENU metres, for any 3-D viewer.")
+      .def("__repr__", [](const PyScene& s) {
+        return "<gissar.Scene '" + s.path + "', " + std::to_string(s.file.mesh.triangle_count()) + " triangles>";
+      });
+
+  // ------------------------------------------------------------ mvg
+  m.def("kvd", [](const py::array_t<double, py::array::c_style | py::array::forcecast>& f) {
+        if (f.ndim() != 2 || f.shape(0) != 3 || f.shape(1) != 3) throw InputError("F must be 3 x 3", "gissar.kvd");
+        Eigen::Matrix3d m3;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) m3(r, c) = f.at(r, c);
+        const mvg::KvdParameters k = mvg::KvdFromFundamental(m3);
+        return py::dict(py::arg("s") = k.s, py::arg("theta_deg") = k.theta_deg, py::arg("phi_deg") = k.phi_deg,
+                        py::arg("rho_recoverable") = k.rho_recoverable);
+      }, py::arg("F"),
+      "Koenderink-van Doorn decomposition of an affine F = [0 0 a; 0 0 b; c d e] (pass the calibrated F for "
+      "metric values): scale s, cyclorotation theta_deg (-180, 180], rho-axis direction phi_deg (-90, 90]; "
+      "rho is not recoverable from two views.");
+
+  m.def("register_images", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& fixed,
+                              const py::array_t<float, py::array::c_style | py::array::forcecast>& moving,
+                              const py::array_t<double, py::array::c_style>& fixed_px,
+                              const py::array_t<double, py::array::c_style>& moving_px, const std::string& transform,
+                              double threshold_px) {
+        const FloatImage f = ToFloatImage(fixed, "gissar.register_images: fixed");
+        FloatImage mv = ToFloatImage(moving, "gissar.register_images: moving");
+        mvg::RegistrationOptions o;
+        o.type = mvg::ParseTransformType(transform);
+        o.threshold_px = threshold_px;
+        const auto pairs = Matches(fixed_px, moving_px);
+        std::optional<mvg::Registration> r;
+        std::vector<float> warped;
+        {
+          py::gil_scoped_release release;
+          r = mvg::RegisterControlPoints(pairs, o);
+          if (r) {
+            const cv::Mat mm(mv.height, mv.width, CV_32F, mv.values.data());
+            const cv::Mat w = mvg::WarpToFixed(mm, *r, cv::Size(f.width, f.height));
+            warped.assign(w.begin<float>(), w.end<float>());
+          }
+        }
+        if (!r) throw InputError("the transform is undetermined: control points are degenerate", "gissar.register_images");
+        return py::dict(py::arg("warped") = Image(warped, f.height, f.width), py::arg("inliers") = r->inliers,
+                        py::arg("rms_px") = r->rms_px, py::arg("residuals_px") = r->residuals_px);
+      }, py::arg("fixed"), py::arg("moving"), py::arg("fixed_px"), py::arg("moving_px"),
+      py::arg("transform") = "affine", py::arg("threshold_px") = 2.0,
+      "Fit moving -> fixed (similarity/affine/projective/poly2/poly3) to (N, 2) pixel pairs (robust, threshold "
+      "in pixels) and resample the moving image onto the fixed grid: {'warped': (H, W) float32, 'inliers', "
+      "'rms_px', 'residuals_px'}.");
+
+  // ------------------------------------------------------------ navigation
+  m.def("match_images", &MatchImages, py::arg("reference"), py::arg("observed"), py::arg("matcher") = "ncc",
+        py::arg("patch_px") = 31, py::arg("step_px") = 16, py::arg("search_px") = 16, py::arg("filter_px") = 3,
+        py::arg("min_score") = 0.25, py::arg("warp") = py::none(),
+        "Correspondences between two SAR images (linear intensities) with the nav matchers ('ncc', 'chamfer', "
+        "'features') on log intensities after a filter_px box filter (speckle). `warp`: (2, 3) affine map "
+        "predicting the observed pixel of a reference pixel (e.g. from the INS geometries); the observed image "
+        "is resampled onto the reference grid with it, matched with a +-search_px search, and the matches are "
+        "mapped back. Returns {'x_reference': (N, 2), 'x_observed': (N, 2) pixels (x = column = range, "
+        "y = row = azimuth), 'score': (N,)}.");
+
+  m.def("locate", &Locate, py::arg("scene"), py::arg("image"), py::arg("prior"), py::arg("range_spacing_m"),
+        py::arg("azimuth_spacing_m"), py::arg("look_side") = "right", py::arg("matcher") = "ncc",
+        py::arg("search_px") = 28, py::arg("step_px") = 12, py::arg("polish_evaluations") = 0,
+        py::arg("bounces") = 1, py::arg("rays_per_cell") = 4.0, py::arg("references") = true,
+        "`gissar locate` (docs/navigation.md): pose fix of one observed SAR image (H, W) linear intensity with "
+        "the given pixel spacings (m) against the Scene, from an INS prior dict {'heading_deg', "
+        "'slant_range_m', and 'sensor_enu_m' [x, y, z] or 'depression_deg' + 'centre_enu_m'/'centre_lonlat'}. "
+        "Returns {'pose': {heading_deg, depression_deg, slant_range_m, centre_enu_m, sensor_enu_m}, 'prior', "
+        "'converged', 'iterations', 'matches', 'inliers', 'rms_px', 'similarity_ncc', 'prior_similarity_ncc', "
+        "sigmas, 'seconds'} and with references=True the simulated images at the prior and at the fix.");
+
+  m.def("sequence", [](const std::string& out_prefix, double heading_from_deg, double heading_to_deg, int frames,
+                       int frame_delay_cs, const py::kwargs& kwargs) {
+        cli::SequenceOptions o;
+        o.base = SimulateOptionsFrom(kwargs);
+        o.base.out_prefix = out_prefix;
+        o.heading_from_deg = heading_from_deg;
+        o.heading_to_deg = heading_to_deg;
+        o.frames = frames;
+        o.frame_delay_cs = frame_delay_cs;
+        cli::SequenceResult r;
+        {
+          py::gil_scoped_release release;
+          o.Check();
+          r = cli::RunSequence(o, "python: gissar.sequence");
+        }
+        std::vector<std::string> paths;
+        for (const auto& p : r.outputs) paths.push_back(p.string());
+        return paths;
+      }, py::arg("out_prefix"), py::arg("heading_from_deg"), py::arg("heading_to_deg"), py::arg("frames") = 7,
+      py::arg("frame_delay_cs") = 50,
+      "`gissar sequence`: frames at evenly spaced headings (degrees) around the scene centre, one dB stretch: "
+      "PREFIX_fNN.tif/.png, PREFIX_contact.png, PREFIX.gif (animated), PREFIX.json. Other keywords as "
+      "gissar.simulate. Returns the written paths.");
+
+  // ------------------------------------------------------------ pictures
+  m.def("quicklook", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& intensity,
+                        double low_percentile, double high_percentile) {
+        const FloatImage im = ToFloatImage(intensity, "gissar.quicklook");
+        if (!(low_percentile >= 0 && low_percentile < high_percentile && high_percentile <= 100)) {
+          throw ConfigError("need 0 <= low < high <= 100", "low_percentile/high_percentile");
+        }
+        image::DbStretch stretch;
+        const auto grey = image::DbQuicklook(im.values, low_percentile, high_percentile, &stretch);
+        return py::make_tuple(Image(grey, im.height, im.width), py::make_tuple(stretch.low_db, stretch.high_db));
+      }, py::arg("intensity"), py::arg("low_percentile") = 2.0, py::arg("high_percentile") = 98.0,
+      "dB quicklook of a linear intensity image: (grey (H, W) uint8, (low_db, high_db)); 10 log10 I mapped from "
+      "its low to high percentile onto grey 1..255, no return (I <= 0) = 0.");
+  m.def("annotated_quicklook", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& intensity,
+                                  double range_spacing_m, double azimuth_spacing_m, const std::string& title) {
+        const FloatImage im = ToFloatImage(intensity, "gissar.annotated_quicklook");
+        if (!(range_spacing_m > 0 && azimuth_spacing_m > 0)) {
+          throw ConfigError("pixel spacings must be positive", "range_spacing_m/azimuth_spacing_m");
+        }
+        return RgbArray(image::AnnotatedQuicklook(im.values, im.width, im.height, range_spacing_m, azimuth_spacing_m, title));
+      }, py::arg("intensity"), py::arg("range_spacing_m"), py::arg("azimuth_spacing_m"), py::arg("title") = "",
+      "dB quicklook with axes in metres (slant range, azimuth), a dB colour bar and a title: (H', W', 3) uint8.");
+  m.def("composite", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& green,
+                        const py::array_t<float, py::array::c_style | py::array::forcecast>& magenta) {
+        const FloatImage a = ToFloatImage(green, "gissar.composite: green");
+        const FloatImage b = ToFloatImage(magenta, "gissar.composite: magenta");
+        if (a.width != b.width || a.height != b.height) throw InputError("images differ in size", "gissar.composite");
+        return RgbArray(image::IntensityComposite(a.values, b.values, a.width, a.height));
+      }, py::arg("green"), py::arg("magenta"),
+      "Green/magenta composite of two co-registered linear intensity images, each dB-stretched on its own: grey "
+      "where they agree. (H, W, 3) uint8.");
+  m.def("epipolar_plot", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& image1,
+                            const py::array_t<float, py::array::c_style | py::array::forcecast>& image2,
+                            const py::array_t<double, py::array::c_style>& x1, const py::array_t<double, py::array::c_style>& x2,
+                            const py::array_t<double, py::array::c_style | py::array::forcecast>& f,
+                            std::optional<std::vector<int>> inliers) {
+        const FloatImage a = ToFloatImage(image1, "gissar.epipolar_plot: image1");
+        const FloatImage b = ToFloatImage(image2, "gissar.epipolar_plot: image2");
+        const auto matches = Matches(x1, x2);
+        if (f.ndim() != 2 || f.shape(0) != 3 || f.shape(1) != 3) throw InputError("F must be 3 x 3", "gissar.epipolar_plot");
+        Eigen::Matrix3d m3;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) m3(r, c) = f.at(r, c);
+        image::EpipolarPlotInput in;
+        in.image1 = image::DbQuicklook(a.values, 1.0, 99.0);
+        in.image2 = image::DbQuicklook(b.values, 1.0, 99.0);
+        in.width1 = a.width;
+        in.height1 = a.height;
+        in.width2 = b.width;
+        in.height2 = b.height;
+        in.inlier.assign(matches.size(), !inliers.has_value());
+        if (inliers) {
+          for (int i : *inliers) {
+            if (i < 0 || size_t(i) >= matches.size()) throw InputError("inlier index out of range", "gissar.epipolar_plot");
+            in.inlier[i] = true;
+          }
+        }
+        for (const mvg::PointMatch& mt : matches) {
+          in.matches.push_back({mt.p1, mt.p2});
+          in.lines_in_2.push_back(mvg::EpipolarLineInImage2(m3, mt.p1));
+          in.lines_in_1.push_back(mvg::EpipolarLineInImage1(m3, mt.p2));
+        }
+        return RgbArray(image::DrawEpipolarPair(in));
+      }, py::arg("image1"), py::arg("image2"), py::arg("x1"), py::arg("x2"), py::arg("F"), py::arg("inliers") = py::none(),
+      "Image 1 | image 2 (dB quicklooks) with the matches x1 <-> x2 (N, 2 pixels): inliers green with their "
+      "epipolar lines under F ([x2 y2 1] F [x1 y1 1]' = 0) in yellow, outliers red. (H, W, 3) uint8.");
+  m.def("kvd_diagram", [](double s, double theta_deg, double phi_deg, std::optional<double> heading_change_deg) {
+        return RgbArray(image::KvdDiagram(s, theta_deg, phi_deg, heading_change_deg.value_or(0.0),
+                                          heading_change_deg.has_value()));
+      }, py::arg("s"), py::arg("theta_deg"), py::arg("phi_deg"), py::arg("heading_change_deg") = py::none(),
+      "The KvD reading of F: rho axis at phi, cyclorotation theta (degrees), scale s, heading change (degrees) "
+      "when known. (H, W, 3) uint8.");
+  m.def("side_by_side", [](const std::vector<py::array_t<uint8_t, py::array::c_style | py::array::forcecast>>& panels,
+                           const std::vector<std::string>& titles) {
+        if (panels.empty() || panels.size() != titles.size()) {
+          throw InputError("give as many titles as panels (at least one)", "gissar.side_by_side");
+        }
+        std::vector<image::RgbImage> rgb;
+        for (const auto& p : panels) {
+          if (p.ndim() != 3 || p.shape(2) != 3 || p.shape(0) < 1 || p.shape(1) < 1) {
+            throw InputError("panels must be (H, W, 3) uint8 arrays", "gissar.side_by_side");
+          }
+          rgb.push_back({static_cast<int>(p.shape(1)), static_cast<int>(p.shape(0)),
+                         std::vector<uint8_t>(p.data(), p.data() + p.size())});
+        }
+        return RgbArray(image::SideBySide(rgb, titles));
+      }, py::arg("panels"), py::arg("titles"),
+      "RGB panels (H, W, 3) uint8 side by side, top-aligned on white, each under its title: (H', W', 3) uint8.");
+  m.def("write_png", &WritePngArray, py::arg("path"), py::arg("image"),
+        "Write an (H, W) grey or (H, W, 3|4) RGB(A) uint8 array as PNG (all-or-nothing: temporary name + rename).");
+  m.def("write_gif", &WriteGifFrames, py::arg("path"), py::arg("frames"), py::arg("delay_cs") = 50,
+        "Write grey uint8 frames (a list of (H, W) arrays of one size) as a looping animated GIF, delay_cs "
+        "hundredths of a second per frame.");
 }

@@ -135,7 +135,8 @@ TEST(InterruptTest, UninterruptedRunCommitsEveryOutput) {
   EXPECT_EQ(WEXITSTATUS(status), 0) << ReadText(logs / "stderr");
   std::vector<std::string> names = Entries(out);
   std::sort(names.begin(), names.end());
-  EXPECT_EQ(names, (std::vector<std::string>{"returns.csv", "sim.json", "sim.png", "sim.tif", "sim_mask.tif"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"returns.csv", "sim.json", "sim.png", "sim.tif", "sim_mask.tif",
+                                            "sim_quicklook.png"}));
 }
 
 }  // namespace

@@ -84,3 +84,186 @@ def test_scene_round_trip(tmp_path):
     assert scene["vertices_enu_m"].shape[1] == 3
     assert scene["class_names"][1] == "water"
     assert int((scene["classes"] == 1).sum()) == summary["stats"]["classes"]["water"]["triangles"]
+
+
+WINDOW = (150, 70, 120, 100)  # a ~8 x 9 km corner of Andorra: builds in about a second
+
+
+@pytest.fixture(scope="module")
+def small_scene(tmp_path_factory):
+    out = tmp_path_factory.mktemp("scene")
+    return gissar.Scene.build(DEM, str(out / "s"), vectors=[os.path.join(ROOT, "data", "andorra", "andorra_osm.gpkg")],
+                              window=WINDOW, export_obj=True)
+
+
+def test_scene_class_arrays_pictures_and_obj(small_scene, tmp_path):
+    s = small_scene
+    assert s.summary["stats"]["triangles"] == len(s.triangles) == len(s.classes)
+    assert s.vertices_enu_m.shape == (s.summary["stats"]["vertices"], 3)
+    assert int(s.triangles.max()) < len(s.vertices_enu_m)
+    assert s.class_names[:3] == ["default", "water", "forest"]
+    # The build wrote the class map, the 3-D view and OBJ + MTL next to the scene.
+    prefix = s.path[:-len(".gscene")]
+    for suffix in ("_classes.png", "_3d.png", ".obj", ".mtl", ".ply", ".json"):
+        assert os.path.getsize(prefix + suffix) > 0, suffix
+    cmap = s.class_map(max_side_px=300)
+    assert cmap.dtype == np.uint8 and cmap.ndim == 3 and max(cmap.shape[:2]) == 300
+    view = s.view_3d(width=200, height=120, view_elevation_deg=60)
+    assert view.shape == (120, 200, 3)
+    with pytest.raises(gissar.ConfigError, match="unknown option 'elevation'"):
+        s.view_3d(elevation=3)
+    s.export_obj(str(tmp_path / "m.obj"))
+    lines = open(tmp_path / "m.obj").read().splitlines()
+    assert lines[1] == "mtllib m.mtl"
+    assert sum(line.startswith("f ") for line in lines) == len(s.triangles)
+    assert "newmtl water" in open(tmp_path / "m.mtl").read()
+    # A loaded scene is the same scene.
+    again = gissar.Scene(s.path)
+    assert np.array_equal(again.triangles, s.triangles) and np.array_equal(again.classes, s.classes)
+
+
+def test_scene_simulate_returns_geometry_and_masks(small_scene):
+    sim = small_scene.simulate(heading_deg=20, depression_deg=35, range_spacing_m=60, azimuth_spacing_m=60)
+    g = sim["geometry"]
+    assert isinstance(g, gissar.SarGeometry)
+    assert (g.height, g.width) == sim["image"].shape
+    assert g.heading_deg == 20 and g.depression_deg == 35 and g.range_spacing_m == 60
+    assert sim["metadata"]["GISSAR_HEADING_DEG"] == "20"
+    assert np.array_equal(sim["layover"], (sim["mask"] & 1) == 1)
+    assert np.array_equal(sim["shadow"], (sim["mask"] & 2) == 2)
+    # The scene centre projects to (u0, v0) and the sensor is R away along the line of sight.
+    c = np.array(g.scene_centre_enu_m)
+    np.testing.assert_allclose(g.project(c[None, :])[0], [g.u0, g.v0], atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(np.array(g.sensor_position()) - c), g.slant_range_m, rtol=1e-12)
+    same = gissar.simulate(scene=small_scene.path, heading_deg=20, depression_deg=35, range_spacing_m=60,
+                           azimuth_spacing_m=60)
+    assert np.array_equal(same["image"], sim["image"])
+    with pytest.raises(gissar.ConfigError):
+        small_scene.simulate(dem=DEM, heading_deg=0, depression_deg=40)
+
+
+def test_kvd_of_the_reference_f():
+    ref = json.load(open(os.path.join(TESTDATA, "case2_thesis_dpsi30_dep40_noisefree.json")))
+    k = gissar.kvd(np.array(ref["F_true"]))
+    assert abs(k["theta_deg"] - 23.198952052312735) < 1e-7
+    assert k["rho_recoverable"] is False
+    # By hand from F = [0 0 a; 0 0 b; c d e]: s = |(c, d)| / |(a, b)|, phi = atan2(b, a).
+    f = np.array([[0, 0, 3.0], [0, 0, 4.0], [6.0, 8.0, 1.0]])
+    k = gissar.kvd(f)
+    assert abs(k["s"] - 2.0) < 1e-12
+    assert abs(k["phi_deg"] - np.degrees(np.arctan2(4, 3))) < 1e-12
+    with pytest.raises(gissar.InputError):
+        gissar.kvd(np.eye(2))
+
+
+def test_match_images_finds_a_known_shift_through_a_warp():
+    rng = np.random.default_rng(4)
+    base = rng.gamma(1.0, 1.0, size=(200, 220)).astype(np.float32)
+    # Smooth texture that NCC can lock onto: box-blurred noise.
+    k = np.ones(7) / 7
+    base = np.apply_along_axis(lambda r: np.convolve(r, k, "same"), 1, base)
+    base = np.apply_along_axis(lambda c: np.convolve(c, k, "same"), 0, base).astype(np.float32) ** 4
+    observed = np.roll(base, (-5, 7), axis=(0, 1))  # observed(x, y) = base(x - 7, y + 5)
+    m = gissar.match_images(base, observed, patch_px=21, step_px=20, search_px=10, filter_px=1)
+    assert len(m["score"]) > 20
+    d = m["x_observed"] - m["x_reference"]
+    assert np.median(np.abs(d - [7, -5]), axis=0).max() < 0.05
+    # The same through an exact prediction (a translation by (6, -4)): the matcher only sees the rest.
+    warp = np.array([[1.0, 0, 6.0], [0, 1.0, -4.0]])
+    m = gissar.match_images(base, observed, warp=warp, patch_px=21, step_px=20, search_px=4, filter_px=1)
+    d = m["x_observed"] - m["x_reference"]
+    assert len(d) > 20 and np.median(np.abs(d - [7, -5]), axis=0).max() < 0.05
+    with pytest.raises(gissar.InputError, match="differ in size"):
+        gissar.match_images(base, observed[:100])
+    with pytest.raises(gissar.ConfigError):
+        gissar.match_images(base, observed, matcher="sift")
+
+
+def test_register_images_recovers_a_shift():
+    yy, xx = np.mgrid[0:80, 0:90]
+    fixed = (2 + np.sin(xx / 5.0) * np.cos(yy / 7.0)).astype(np.float32)
+    moving = (2 + np.sin((xx + 3) / 5.0) * np.cos((yy - 2) / 7.0)).astype(np.float32)  # moving(x, y) = fixed(x+3, y-2)
+    pts_fixed = np.array([[10, 10], [70, 12], [20, 60], [75, 65], [40, 40]], float)
+    pts_moving = pts_fixed - [3, -2]
+    r = gissar.register_images(fixed, moving, pts_fixed, pts_moving, transform="affine")
+    assert r["rms_px"] < 1e-9
+    inner = (slice(10, 70), slice(10, 80))
+    assert np.abs(r["warped"][inner] - fixed[inner]).max() < 1e-3
+
+
+def test_pictures_as_arrays_and_files(tmp_path):
+    from osgeo import gdal
+    intensity = np.outer(np.linspace(1, 100, 50), np.ones(70)).astype(np.float32)
+    grey, (low_db, high_db) = gissar.quicklook(intensity, 0, 100)
+    assert grey.shape == (50, 70) and grey[0, 0] == 1 and grey[-1, 0] == 255
+    assert abs(low_db - 0.0) < 1e-4 and abs(high_db - 20.0) < 1e-4
+    ann = gissar.annotated_quicklook(intensity, 30.0, 15.0, "ramp")
+    assert ann.shape == (50 + 44 + 50, 70 + 70 + 90 + 20, 3)
+    assert np.array_equal(ann[44:94, 70:140, 0], gissar.quicklook(intensity)[0])
+    comp = gissar.composite(intensity, 3.0 * intensity)  # a gain only: grey everywhere
+    assert np.abs(comp[..., 0].astype(int) - comp[..., 1]).max() <= 1 and np.array_equal(comp[..., 0], comp[..., 2])
+    kvd = gissar.kvd_diagram(1.0, 23.2, 11.6, 30.0)
+    assert kvd.shape == (460, 420, 3)
+    sheet = gissar.side_by_side([comp, kvd], ["a", "b"])
+    assert sheet.shape[1] == 8 + 70 + 8 + 420 + 8
+    x1 = np.array([[10.0, 10], [60, 12], [15, 40], [55, 45], [30, 25]])
+    f = np.array([[0, 0, 0.6], [0, 0, 0.8], [-0.6, -0.8, 0.0]])  # x2 = x1: every point on its line
+    epi = gissar.epipolar_plot(intensity, intensity, x1, x1, f, inliers=[0, 1, 2])
+    assert epi.shape == (50, 2 * 70 + 10, 3)
+    gissar.write_png(str(tmp_path / "a.png"), ann)
+    ds = gdal.Open(str(tmp_path / "a.png"))
+    assert (ds.RasterXSize, ds.RasterYSize, ds.RasterCount) == (ann.shape[1], ann.shape[0], 3)
+    assert np.array_equal(ds.GetRasterBand(2).ReadAsArray(), ann[..., 1])
+    gissar.write_gif(str(tmp_path / "a.gif"), [grey, 255 - grey], delay_cs=20)
+    assert open(tmp_path / "a.gif", "rb").read(6) == b"GIF89a"
+    with pytest.raises(gissar.InputError):
+        gissar.write_png(str(tmp_path / "b.png"), np.zeros((4, 4, 2), np.uint8))
+    with pytest.raises(gissar.InputError):
+        gissar.write_gif(str(tmp_path / "b.gif"), [grey, grey[:10]])
+    with pytest.raises(gissar.IoError):
+        gissar.write_png("/nonexistent/dir/a.png", grey)
+    assert not os.path.exists(tmp_path / "b.png")
+
+
+def test_locate_fixes_a_drifted_prior(small_scene):
+    sim = small_scene.simulate(heading_deg=30, depression_deg=40, slant_range_m=10000, range_spacing_m=30,
+                               azimuth_spacing_m=30, width=160, height=160, speckle_looks=4, seed=3)
+    truth = np.array(sim["geometry"].sensor_position())
+    prior = {"heading_deg": 31.5, "slant_range_m": 10000.0, "sensor_enu_m": list(truth + [120.0, -90.0, 30.0])}
+    fix = gissar.locate(small_scene, sim["image"], prior, range_spacing_m=30, azimuth_spacing_m=30)
+    assert fix["converged"]
+    assert abs(fix["pose"]["heading_deg"] - 30.0) < 0.2
+    error = np.linalg.norm(np.array(fix["pose"]["sensor_enu_m"]) - truth)
+    assert error < 3 * 30.0, error  # within 3 resolution cells (docs/navigation.md's success criterion)
+    assert fix["reference_at_fix"].shape == sim["image"].shape
+    with pytest.raises(gissar.ConfigError, match="headng_deg"):
+        gissar.locate(small_scene, sim["image"], {"headng_deg": 3}, range_spacing_m=30, azimuth_spacing_m=30)
+
+
+def test_simulation_releases_the_gil():
+    # While a simulation runs in another thread, this thread keeps running: the longest pause between two
+    # of its loop iterations stays far below the simulation's duration (it would be the whole duration if
+    # the GIL were held).
+    import threading
+    import time
+    done = threading.Event()
+    took = {}
+
+    def work():
+        t = time.perf_counter()
+        gissar.simulate(dem=DEM, heading_deg=10, depression_deg=40, range_spacing_m=60, azimuth_spacing_m=60,
+                        rays_per_cell=8)
+        took["s"] = time.perf_counter() - t
+        done.set()
+
+    thread = threading.Thread(target=work)
+    last = time.perf_counter()
+    longest = 0.0
+    thread.start()
+    while not done.is_set():
+        now = time.perf_counter()
+        longest = max(longest, now - last)
+        last = now
+    thread.join()
+    assert took["s"] > 0.2, took  # long enough for the measurement to mean something
+    assert longest < 0.5 * took["s"], (longest, took["s"])

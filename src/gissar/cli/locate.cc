@@ -12,6 +12,8 @@
 
 #include "gissar/cli/simulate.h"
 #include "gissar/geo/raster_io.h"
+#include "gissar/image/composite.h"
+#include "gissar/image/contact_sheet.h"
 #include "gissar/image/impulse_response.h"
 #include "gissar/mvg/registration.h"
 #include "gissar/nav/matching.h"
@@ -179,7 +181,7 @@ void LocateCommandOptions::Check() const {
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
   if (search_px < 5) throw ConfigError("must be >= 5", "--search");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
-  CheckOutputsAreNotInputs({out}, {image, scene, dem, prior});
+  CheckOutputsAreNotInputs({out, composite_png}, {image, scene, dem, prior});
 }
 
 nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string& command_line) {
@@ -187,6 +189,7 @@ nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string&
   Stopwatch total;
   AtomicOutputs outputs;
   const fs::path out = outputs.Add(options.out);
+  const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
   std::ifstream prior_file(options.prior);
   if (!prior_file) throw IoError("cannot read prior", options.prior);
   nlohmann::json prior_json;
@@ -273,6 +276,16 @@ nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string&
       {"inputs", {{"image", InputFileRecord(options.image)},
                   {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)},
                   {"prior", InputFileRecord(options.prior)}}}};
+  if (!composite.empty()) {
+    const nav::Reference at_prior = nav::RenderReference(scene, *start, model);
+    const nav::Reference at_fix = nav::RenderReference(scene, r.pose, model);
+    const image::RgbImage picture = image::SideBySide(
+        {image::IntensityComposite(observed, at_prior.intensity, model.width, model.height),
+         image::IntensityComposite(observed, at_fix.intensity, model.width, model.height)},
+        {"at the prior", "at the fix"});  // observed green, simulated magenta
+    geo::WritePng(composite, picture.rgb, picture.width, picture.height, 3);
+    report["pictures"] = {options.composite_png};
+  }
   WriteJsonFile(report, out);
   outputs.Commit();
   return report;

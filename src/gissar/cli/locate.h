@@ -42,6 +42,9 @@ struct LocateCommandOptions {
   std::string dem;
   std::string prior;   // prior pose JSON
   std::string out;     // result JSON
+  // Optional picture: the observed image (green) over the simulation
+  // (magenta) at the prior (left) and at the fix (right).
+  std::string composite_png;
   // Pixel spacings (0: the image's GISSAR_*_SPACING_M metadata).
   double range_spacing_m = 0.0;
   double azimuth_spacing_m = 0.0;

@@ -16,6 +16,8 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
     cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md)")->required();
     cmd->add_option("--out", o->out, "Result JSON")->required();
+    cmd->add_option("--composite", o->composite_png,
+                    "PNG: observed (green) over simulated (magenta) at the prior and at the fix");
     cmd->add_option("--range-res", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
     cmd->add_option("--azimuth-res", o->azimuth_spacing_m, "Azimuth pixel spacing, m (default: image metadata)");
     cmd->add_option("--look", o->look, "right or left (default: image metadata, else right)");

@@ -23,6 +23,10 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_flag("--no-ransac", *all, "One Gold Standard fit to all matches");
     cmd->add_option("--seed", o->seed, "RANSAC seed")->capture_default_str();
     cmd->add_option("--json", o->json_out, "Output JSON")->required();
+    cmd->add_option("--plot", o->plot_prefix, "Pictures: PREFIX_kvd.png (KvD diagram) and, with the images, "
+                                              "PREFIX_epipolar.png (matches and epipolar lines)");
+    cmd->add_option("--image1", o->image1, "Image 1 (any GDAL raster) for --plot");
+    cmd->add_option("--image2", o->image2, "Image 2 for --plot");
     registry.Add(cmd, [=](const CommandContext& context) {
       FmatrixOptions r = *o;
       r.robust = !*all;
@@ -31,6 +35,9 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
       if (!depressions->empty()) r.depressions = ParseNumberPair(*depressions, "--depressions");
       const auto out = RunFmatrix(r, context.command_line);
       context.out << r.json_out << "\n";
+      if (out.contains("pictures")) {
+        for (const auto& p : out["pictures"]) context.out << p.get<std::string>() << "\n";
+      }
     });
   }
   {
@@ -82,6 +89,18 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--out", o->out_png, "Output PNG")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
       RunEpipolar(*o);
+      context.out << o->out_png << "\n";
+    });
+  }
+  {
+    auto o = std::make_shared<CompositeOptions>();
+    CLI::App* cmd = root.add_subcommand(
+        "composite", "Green/magenta composite of two co-registered images (grey where they agree).");
+    cmd->add_option("--green", o->green, "First image (e.g. the real one), band 1 linear intensity")->required();
+    cmd->add_option("--magenta", o->magenta, "Second image (e.g. the simulation), same size")->required();
+    cmd->add_option("--out", o->out_png, "Output PNG")->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      RunComposite(*o);
       context.out << o->out_png << "\n";
     });
   }

@@ -5,6 +5,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gissar/geo/raster_io.h"
+#include "gissar/image/annotated.h"
+#include "gissar/image/composite.h"
 #include "gissar/image/epipolar_plot.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/mvg/affine_camera.h"
@@ -62,6 +64,24 @@ std::vector<uint8_t> LoadGrey(const std::string& path, int* width, int* height, 
   return grey;
 }
 
+// The image pair with the matches and their epipolar lines under `f`.
+image::RgbImage EpipolarPicture(const std::vector<mvg::PointMatch>& matches, const Eigen::Matrix3d& f,
+                                const std::vector<int>& inliers, const std::string& image1,
+                                const std::string& image2) {
+  image::EpipolarPlotInput in;
+  in.image1 = LoadGrey(image1, &in.width1, &in.height1, nullptr);
+  in.image2 = LoadGrey(image2, &in.width2, &in.height2, nullptr);
+  std::vector<bool> inlier(matches.size(), false);
+  for (int i : inliers) inlier[i] = true;
+  in.inlier = inlier;
+  for (const mvg::PointMatch& m : matches) {
+    in.matches.push_back({m.p1, m.p2});
+    in.lines_in_2.push_back(mvg::EpipolarLineInImage2(f, m.p1));
+    in.lines_in_1.push_back(mvg::EpipolarLineInImage1(f, m.p2));
+  }
+  return image::DrawEpipolarPair(in);
+}
+
 }  // namespace
 
 void FmatrixOptions::Check() const {
@@ -75,16 +95,26 @@ void FmatrixOptions::Check() const {
     throw ConfigError("depressions must be in (0, 90) degrees", "--depressions");
   }
   if (!(threshold_px > 0) || !std::isfinite(threshold_px)) throw ConfigError("threshold must be positive", "--threshold");
+  if (image1.empty() != image2.empty()) throw ConfigError("give both images or none", "--image1/--image2");
+  if (!image1.empty() && plot_prefix.empty()) throw ConfigError("images are drawn only with --plot", "--image1/--image2");
 }
 
 json FmatrixOptions::ToJson() const {
   return {{"matches", matches}, {"res1", Pair(res1)}, {"res2", Pair(res2)}, {"depressions", Pair(depressions)},
-          {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"json", json_out}};
+          {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"json", json_out},
+          {"plot", plot_prefix}, {"image1", image1}, {"image2", image2}};
 }
 
 json RunFmatrix(const FmatrixOptions& options, const std::string& command_line) {
   options.Check();
-  CheckOutputsAreNotInputs({options.json_out}, {options.matches});
+  const std::string kvd_png = options.plot_prefix.empty() ? "" : options.plot_prefix + "_kvd.png";
+  const std::string epipolar_png = options.image1.empty() ? "" : options.plot_prefix + "_epipolar.png";
+  CheckOutputsAreNotInputs({options.json_out, kvd_png, epipolar_png},
+                           {options.matches, options.image1, options.image2});
+  AtomicOutputs outputs;
+  const fs::path json_path = outputs.Add(options.json_out);
+  const fs::path kvd_path = kvd_png.empty() ? fs::path() : outputs.Add(kvd_png);
+  const fs::path epipolar_path = epipolar_png.empty() ? fs::path() : outputs.Add(epipolar_png);
   const std::vector<mvg::PointMatch> matches = mvg::ReadMatchesCsv(options.matches);
   if (matches.size() < 4) {
     throw InputError("at least 4 matches are needed, got " + std::to_string(matches.size()), options.matches);
@@ -136,7 +166,21 @@ json RunFmatrix(const FmatrixOptions& options, const std::string& command_line) 
     out["phi_residual_deg"] = a.sar->phi_residual_deg;
     out["heading_change_candidates"] = a.sar->candidates;
   }
-  WriteJsonAtomically(out, options.json_out);
+  if (!kvd_path.empty()) {
+    const image::RgbImage kvd = image::KvdDiagram(a.kvd.s, a.kvd.theta_deg, a.kvd.phi_deg,
+                                                  a.sar ? a.sar->heading_change_deg : 0.0, a.sar.has_value());
+    geo::WritePng(kvd_path, kvd.rgb, kvd.width, kvd.height, 3);
+    out["pictures"] = {kvd_png};
+  }
+  if (!epipolar_path.empty()) {
+    const image::RgbImage pair = EpipolarPicture(matches, a.f, a.inliers, options.image1, options.image2);
+    geo::WritePng(epipolar_path, pair.rgb, pair.width, pair.height, 3);
+    out["pictures"].push_back(epipolar_png);
+    out["inputs"].push_back(InputFileRecord(options.image1));
+    out["inputs"].push_back(InputFileRecord(options.image2));
+  }
+  WriteJsonFile(out, json_path);
+  outputs.Commit();
   return out;
 }
 
@@ -298,19 +342,31 @@ void RunEpipolar(const EpipolarOptions& options) {
     throw InputError(e.message(), options.matches);
   }
   if (!a) throw InputError("F is undetermined: the matches are degenerate", options.matches);
-  image::EpipolarPlotInput in;
-  in.image1 = LoadGrey(options.image1, &in.width1, &in.height1, nullptr);
-  in.image2 = LoadGrey(options.image2, &in.width2, &in.height2, nullptr);
-  std::vector<bool> inlier(matches.size(), false);
-  for (int i : a->inliers) inlier[i] = true;
-  in.inlier = inlier;
-  for (const mvg::PointMatch& m : matches) {
-    in.matches.push_back({m.p1, m.p2});
-    in.lines_in_2.push_back(mvg::EpipolarLineInImage2(a->f, m.p1));
-    in.lines_in_1.push_back(mvg::EpipolarLineInImage1(a->f, m.p2));
-  }
-  const image::RgbImage picture = image::DrawEpipolarPair(in);
+  const image::RgbImage picture = EpipolarPicture(matches, a->f, a->inliers, options.image1, options.image2);
   geo::WritePng(png, picture.rgb, picture.width, picture.height, 3);
+  outputs.Commit();
+}
+
+void CompositeOptions::Check() const {
+  if (green.empty()) throw ConfigError("a first (green) image is required", "--green");
+  if (magenta.empty()) throw ConfigError("a second (magenta) image is required", "--magenta");
+  RequireOutput(out_png, "--out");
+}
+
+void RunComposite(const CompositeOptions& options) {
+  options.Check();
+  CheckOutputsAreNotInputs({options.out_png}, {options.green, options.magenta});
+  AtomicOutputs outputs;
+  const fs::path png = outputs.Add(options.out_png);
+  const geo::FloatRaster a = geo::ReadFloatRaster(options.green);
+  const geo::FloatRaster b = geo::ReadFloatRaster(options.magenta);
+  if (a.width != b.width || a.height != b.height) {
+    throw InputError("images differ in size: " + std::to_string(a.width) + " x " + std::to_string(a.height) +
+                         " and " + std::to_string(b.width) + " x " + std::to_string(b.height),
+                     options.magenta);
+  }
+  const image::RgbImage c = image::IntensityComposite(a.bands.at(0), b.bands.at(0), a.width, a.height);
+  geo::WritePng(png, c.rgb, c.width, c.height, 3);
   outputs.Commit();
 }
 

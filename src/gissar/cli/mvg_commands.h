@@ -22,12 +22,18 @@ struct FmatrixOptions {
   bool robust = true;                       // RANSAC + refit, or one Gold Standard fit
   uint64_t seed = 1;
   std::string json_out;
+  // Pictures (--plot PREFIX): PREFIX_kvd.png (the KvD diagram: rho axis phi,
+  // cyclorotation theta, scale s, heading change) and, when both images are
+  // given (--image1/--image2, any GDAL rasters), PREFIX_epipolar.png (the pair
+  // with the matches, inliers green with their epipolar lines, outliers red).
+  std::string plot_prefix;
+  std::string image1, image2;
   void Check() const;
   nlohmann::json ToJson() const;
 };
 
 // Estimates F and its KvD decomposition (heading change with depressions).
-// Writes `json_out` and returns its content. Throws InputError for bad or
+// Writes `json_out` (and the pictures of `plot_prefix`) and returns the JSON. Throws InputError for bad or
 // degenerate matches (fewer than 4, NaN, collinear/coplanar so that F is
 // undetermined, no RANSAC model), ConfigError for bad options.
 nlohmann::json RunFmatrix(const FmatrixOptions& options, const std::string& command_line);
@@ -70,5 +76,16 @@ struct EpipolarOptions {
 
 // Draws the image pair with the matches and their epipolar lines.
 void RunEpipolar(const EpipolarOptions& options);
+
+struct CompositeOptions {
+  std::string green, magenta;  // co-registered rasters of one size, band 1 linear intensity
+  std::string out_png;
+  void Check() const;
+};
+
+// Green/magenta composite of two co-registered images (e.g. a real image and
+// its simulation, or a registered pair), each dB-stretched on its own: grey
+// where they agree. Throws InputError when the sizes differ.
+void RunComposite(const CompositeOptions& options);
 
 }  // namespace gissar::cli

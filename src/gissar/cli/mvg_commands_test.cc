@@ -188,6 +188,35 @@ TEST(FmatrixCommandTest, ReferenceCase2) {
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(out["F"][r][c].get<double>(), ref["F_true"][r][c].get<double>(), 1e-10);
   EXPECT_NEAR(out["heading_change_deg"].get<double>(), 30.0, 1e-6);
   EXPECT_NEAR(out["kvd"]["theta_deg"].get<double>(), 23.198952052312735, 1e-7);
+  EXPECT_FALSE(fs::exists(dir / "f_kvd.png"));  // pictures only with --plot
+}
+
+// --plot: the KvD diagram, and with the images the epipolar picture.
+TEST(FmatrixCommandTest, PlotsTheKvdDiagramAndTheEpipolarPair) {
+  const fs::path dir = testing::MakeTempDir();
+  const int w = 1024, h = 1024;
+  std::vector<float> image(size_t(w) * h);
+  for (size_t i = 0; i < image.size(); ++i) image[i] = 1.0f + float(i % 37) * 0.1f;
+  geo::WriteFloatGeoTiff(dir / "a.tif", {w, h, {image}, {}, {}});
+  FmatrixOptions f;
+  f.matches = testing::SharedTestdataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  f.depressions = Vector2d(40, 40);
+  f.res1 = f.res2 = Vector2d(1, 1);
+  f.json_out = (dir / "f.json").string();
+  f.plot_prefix = (dir / "f").string();
+  f.image1 = f.image2 = (dir / "a.tif").string();
+  const nlohmann::json out = RunFmatrix(f, "test");
+  ASSERT_EQ(out["pictures"].size(), 2u);
+  int pw = 0, ph = 0;
+  geo::ReadByteRaster(dir / "f_kvd.png", &pw, &ph);
+  EXPECT_EQ(pw, 420);  // image/annotated.cc: 420 x 460 canvas
+  EXPECT_EQ(ph, 460);
+  geo::ReadByteRaster(dir / "f_epipolar.png", &pw, &ph);
+  EXPECT_EQ(pw, 2 * w + 10);
+  EXPECT_EQ(ph, h);
+  // An image without --plot is a configuration error.
+  f.plot_prefix.clear();
+  EXPECT_THROW(RunFmatrix(f, "test"), ConfigError);
 }
 
 int RunGissarCli(std::vector<std::string> args, std::string* err) {

@@ -8,6 +8,7 @@
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/class_map.h"
+#include "gissar/image/mesh_view.h"
 #include "gissar/material/material.h"
 #include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_config.h"
@@ -42,7 +43,9 @@ void SceneBuildOptions::Check() const {
   std::vector<std::string> inputs = {dem, osm, config};
   inputs.insert(inputs.end(), vectors.begin(), vectors.end());
   std::vector<fs::path> outs;
-  for (const char* suffix : {".gscene", ".ply", "_classes.png", ".json"}) outs.push_back(out_prefix + suffix);
+  for (const char* suffix : {".gscene", ".ply", "_classes.png", "_3d.png", ".json", ".obj", ".mtl"}) {
+    outs.push_back(out_prefix + suffix);
+  }
   CheckOutputsAreNotInputs(outs, inputs);
 }
 
@@ -55,6 +58,7 @@ json SceneBuildOptions::ToJson() const {
           {"config", config},
           {"center_lonlat", center_lonlat ? json{center_lonlat->x(), center_lonlat->y()} : json(nullptr)},
           {"out_prefix", out_prefix},
+          {"export_obj", export_obj},
           {"quiet", quiet},
           {"max_memory_bytes", max_memory_bytes}};
 }
@@ -66,7 +70,10 @@ SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::stri
   const fs::path scene_path = outputs.Add(options.out_prefix + ".gscene");
   const fs::path ply_path = outputs.Add(options.out_prefix + ".ply");
   const fs::path png_path = outputs.Add(options.out_prefix + "_classes.png");
+  const fs::path view_path = outputs.Add(options.out_prefix + "_3d.png");
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const fs::path obj_path = options.export_obj ? outputs.Add(options.out_prefix + ".obj") : fs::path();
+  const fs::path mtl_path = options.export_obj ? outputs.Add(options.out_prefix + ".mtl") : fs::path();
 
   // Config first: a bad config fails before any heavy work.
   std::vector<std::string> warnings;
@@ -144,6 +151,12 @@ SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::stri
   scene::WritePly(ply_path, file.mesh, file.class_names);
   const image::RgbImage class_map = image::RenderClassMap(file.mesh, file.class_names);
   geo::WritePng(png_path, class_map.rgb, class_map.width, class_map.height, 3);
+  const image::RgbImage view = image::RenderMeshView(file.mesh, image::ClassColourList());
+  geo::WritePng(view_path, view.rgb, view.width, view.height, 3);
+  if (options.export_obj) {
+    scene::WriteObj(obj_path, mtl_path, fs::path(options.out_prefix + ".mtl").filename().string(), file.mesh,
+                    file.class_names, image::ClassColourList());
+  }
 
   const Eigen::AlignedBox3d box = file.mesh.Bounds();
   json summary = {{"command", "scene build"},

@@ -25,7 +25,10 @@ struct SceneBuildOptions {
   std::string osm;                               // OSM file, built-in preset
   std::string config;                            // JSON scene config
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre (default DEM centre)
-  std::string out_prefix;  // PREFIX.gscene, PREFIX.ply, PREFIX_classes.png, PREFIX.json
+  std::string out_prefix;  // PREFIX.gscene, PREFIX.ply, PREFIX_classes.png, PREFIX_3d.png, PREFIX.json
+  // Also PREFIX.obj + PREFIX.mtl (Wavefront, one material per class in the
+  // class-map colours) for any 3-D viewer.
+  bool export_obj = false;
   bool quiet = false;
   // Memory budget (--max-memory), bytes: the DEM (window) is checked against
   // it before it is read.

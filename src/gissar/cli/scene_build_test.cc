@@ -142,10 +142,35 @@ TEST(SceneBuildTest, AndorraSceneBuildsAndSimulates) {
   o.dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   o.vectors = {testing::DataPath("andorra/andorra_osm.gpkg").string()};
   o.out_prefix = (dir / "andorra").string();
+  o.export_obj = true;
   o.quiet = true;
   const SceneBuildResult result = RunSceneBuild(o, "test");
-  ASSERT_EQ(result.outputs.size(), 4u);
+  ASSERT_EQ(result.outputs.size(), 7u);  // .gscene .ply _classes.png _3d.png .json .obj .mtl
   for (const auto& p : result.outputs) EXPECT_GT(fs::file_size(p), 100u) << p;
+  {
+    // The OBJ names its MTL by the final name (not AtomicOutputs' temporary
+    // one) and holds every triangle once.
+    std::ifstream obj(o.out_prefix + ".obj");
+    std::string line;
+    int64_t faces = 0, vertices = 0;
+    bool mtllib = false;
+    while (std::getline(obj, line)) {
+      mtllib = mtllib || line == "mtllib andorra.mtl";
+      faces += line.rfind("f ", 0) == 0;
+      vertices += line.rfind("v ", 0) == 0;
+    }
+    EXPECT_TRUE(mtllib);
+    EXPECT_EQ(faces, result.summary["stats"]["triangles"].get<int64_t>());
+    EXPECT_EQ(vertices, result.summary["stats"]["vertices"].get<int64_t>());
+    std::ifstream mtl(o.out_prefix + ".mtl");
+    std::stringstream text;
+    text << mtl.rdbuf();
+    EXPECT_NE(text.str().find("newmtl water\nKd"), std::string::npos);
+    int w = 0, h = 0;
+    geo::ReadByteRaster(o.out_prefix + "_3d.png", &w, &h);
+    EXPECT_EQ(w, 960);
+    EXPECT_EQ(h, 640);
+  }
   const auto& classes = result.summary["stats"]["classes"];
   EXPECT_GT(classes["water"]["triangles"].get<int64_t>(), 100);
   EXPECT_GT(classes["road"]["triangles"].get<int64_t>(), 1000);

@@ -26,8 +26,9 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
   build->add_option("--config", options->config, "Scene config JSON (layers, classes, widths, materials)");
   build->add_option("--center", *center, "Scene centre LON,LAT (default: DEM centre)");
   build->add_option("--out", options->out_prefix,
-                    "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png, PREFIX.json")
+                    "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png (class map), PREFIX_3d.png (3-D view), PREFIX.json")
       ->required();
+  build->add_flag("--obj", options->export_obj, "Also write PREFIX.obj + PREFIX.mtl (class colours) for 3-D viewers");
   build->add_flag("--quiet", options->quiet, "No progress on stderr");
   auto max_memory = std::make_shared<std::string>();
   build->add_option("--max-memory", *max_memory,

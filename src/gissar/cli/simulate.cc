@@ -11,6 +11,7 @@
 #include "gissar/geo/geoid.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
+#include "gissar/image/annotated.h"
 #include "gissar/image/impulse_response.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/material/material.h"
@@ -88,7 +89,7 @@ void SimulateOptions::Check() const {
   if (std::isinf(nesz_db)) throw ConfigError("NESZ must be a finite number of dB", "--nesz");
   if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
   std::vector<fs::path> outs = {fs::path(contributions)};
-  for (const char* suffix : {".tif", ".png", "_mask.tif", ".json"}) outs.push_back(out_prefix + suffix);
+  for (const char* suffix : {".tif", ".png", "_quicklook.png", "_mask.tif", ".json"}) outs.push_back(out_prefix + suffix);
   CheckOutputsAreNotInputs(outs, {dem, scene, product});
 }
 
@@ -268,6 +269,7 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   AtomicOutputs outputs;
   const fs::path tif = outputs.Add(options.out_prefix + ".tif");
   const fs::path png = outputs.Add(options.out_prefix + ".png");
+  const fs::path annotated_png = outputs.Add(options.out_prefix + "_quicklook.png");
   const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
   const fs::path json = outputs.Add(options.out_prefix + ".json");
   const fs::path contributions_csv =
@@ -347,6 +349,15 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   image::DbStretch stretch;
   geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width,
                 image.height, 1);
+  {
+    char title[160];
+    std::snprintf(title, sizeof(title), "heading %.1f deg, depression %.1f deg, %.3g x %.3g m pixels",
+                  geometry_options.heading_deg, geometry_options.depression_deg, geometry.range_spacing_m(),
+                  geometry.azimuth_spacing_m());
+    const image::RgbImage annotated = image::AnnotatedQuicklook(
+        image.intensity, image.width, image.height, geometry.range_spacing_m(), geometry.azimuth_spacing_m(), title);
+    geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
+  }
   geo::Metadata mask_metadata = metadata;
   mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
   geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata);

@@ -58,7 +58,7 @@ struct SimulateOptions {
   double speckle_looks = 0.0;
   double nesz_db = std::numeric_limits<double>::quiet_NaN();
   uint64_t seed = 1;
-  std::string out_prefix;  // writes PREFIX.tif, PREFIX.png, PREFIX_mask.tif, PREFIX.json
+  std::string out_prefix;  // writes PREFIX.tif, PREFIX.png, PREFIX_quicklook.png, PREFIX_mask.tif, PREFIX.json
   bool quiet = false;      // no progress on stderr
   // Memory budget (--max-memory), bytes: the DEM (or scene) and the image
   // are checked against it before they are allocated, and a job over it

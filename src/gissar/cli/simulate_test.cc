@@ -29,8 +29,14 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   const fs::path dir = testing::MakeTempDir();
   const SimulateOptions options = AndorraOptions(dir, 30.0);
   const SimulateResult result = RunSimulate(options, "gissar simulate (test)");
-  ASSERT_EQ(result.outputs.size(), 4u);
+  ASSERT_EQ(result.outputs.size(), 5u);
   for (const auto& p : result.outputs) EXPECT_TRUE(fs::exists(p)) << p;
+  // The annotated quicklook: the image plus axes (70 + 50 px), title (44 px)
+  // and the dB colour bar (110 px).
+  int qw = 0, qh = 0;
+  geo::ReadByteRaster(options.out_prefix + "_quicklook.png", &qw, &qh);
+  EXPECT_EQ(qw, result.width + 180);
+  EXPECT_EQ(qh, result.height + 94);
 
   const geo::FloatRaster image = geo::ReadFloatRaster(options.out_prefix + ".tif");
   EXPECT_EQ(image.width, result.width);

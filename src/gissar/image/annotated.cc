@@ -1,5 +1,6 @@
 #include "gissar/image/annotated.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
@@ -37,14 +38,18 @@ RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int 
   GISSAR_CHECK(intensity.size() == size_t(width) * height && range_spacing_m > 0 && azimuth_spacing_m > 0);
   DbStretch stretch;
   const std::vector<uint8_t> grey = DbQuicklook(intensity, 2.0, 98.0, &stretch);
-  const int left = 70, top = 34, bottom = 50, bar = 90;
+  const int left = 70, top = 44, bottom = 50, bar = 90;
   cv::Mat canvas(height + top + bottom, width + left + bar + 20, CV_8UC3, cv::Scalar(255, 255, 255));
   cv::Mat g(height, width, CV_8UC1, const_cast<uint8_t*>(grey.data())), rgb;
   cv::cvtColor(g, rgb, cv::COLOR_GRAY2RGB);
   rgb.copyTo(canvas(cv::Rect(left, top, width, height)));
   const cv::Scalar black(0, 0, 0);
   const auto font = cv::FONT_HERSHEY_SIMPLEX;
-  cv::putText(canvas, title, cv::Point(left, 22), font, 0.55, black, 1, cv::LINE_AA);
+  // Title on its own line, shrunk to fit the picture's width.
+  double title_scale = 0.55;
+  const int title_room = canvas.cols - 8;
+  while (title_scale > 0.3 && cv::getTextSize(title, font, title_scale, 1, nullptr).width > title_room) title_scale -= 0.05;
+  cv::putText(canvas, title, cv::Point(4, 18), font, title_scale, black, 1, cv::LINE_AA);
   cv::rectangle(canvas, cv::Rect(left - 1, top - 1, width + 2, height + 2), black, 1);
   // Range axis (bottom).
   const double range_span = width * range_spacing_m;
@@ -97,8 +102,11 @@ RgbImage KvdDiagram(double s, double theta_deg, double phi_deg, double heading_c
   const cv::Point a(cx - int(radius * std::cos(p)), cy - int(radius * std::sin(p)));
   const cv::Point b(cx + int(radius * std::cos(p)), cy + int(radius * std::sin(p)));
   cv::line(canvas, a, b, blue, 2, cv::LINE_AA);
-  cv::putText(canvas, "rho axis, phi = " + Fmt(phi_deg, 2) + " deg", cv::Point(b.x - 60, b.y + 18), font, 0.45,
-              blue, 1, cv::LINE_AA);
+  const std::string rho_label = "rho axis, phi = " + Fmt(phi_deg, 2) + " deg";
+  const int label_width = cv::getTextSize(rho_label, font, 0.45, 1, nullptr).width;
+  const int label_x = std::clamp(b.x - 60, 4, size - label_width - 4);
+  const int label_y = std::clamp(b.y + 18, 60, size + 10);
+  cv::putText(canvas, rho_label, cv::Point(label_x, label_y), font, 0.45, blue, 1, cv::LINE_AA);
   // Cyclorotation theta as an arc from the x axis.
   cv::ellipse(canvas, cv::Point(cx, cy), cv::Size(radius / 2, radius / 2), 0, 0, theta_deg, red, 2, cv::LINE_AA);
   const double t = theta_deg * M_PI / 180.0;

@@ -61,12 +61,12 @@ TEST(AnnotatedTest, QuicklookKeepsTheImageAndAddsAxes) {
   for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = 0.1f + float(i % 80) / 80.0f;
   const RgbImage picture = AnnotatedQuicklook(intensity, 80, 60, 2.0, 3.0, "test");
   EXPECT_EQ(picture.width, 80 + 70 + 90 + 20);
-  EXPECT_EQ(picture.height, 60 + 34 + 50);
-  // The image sits at (70, 34) unchanged (grey values equal in R, G, B).
+  EXPECT_EQ(picture.height, 60 + 44 + 50);
+  // The image sits at (70, 44) unchanged (grey values equal in R, G, B).
   const std::vector<uint8_t> grey = DbQuicklook(intensity, 2.0, 98.0);
   for (int y : {0, 30, 59})
     for (int x : {0, 40, 79}) {
-      const uint8_t* p = &picture.rgb[((size_t(34 + y) * picture.width) + 70 + x) * 3];
+      const uint8_t* p = &picture.rgb[((size_t(44 + y) * picture.width) + 70 + x) * 3];
       EXPECT_EQ(p[0], grey[size_t(y) * 80 + x]);
       EXPECT_EQ(p[1], p[0]);
     }

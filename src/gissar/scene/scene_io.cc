@@ -184,6 +184,12 @@ void WriteObj(const fs::path& path, const TriangleMesh& mesh, const std::vector<
               const std::vector<std::array<uint8_t, 3>>& class_colours) {
   fs::path mtl_path = path;
   mtl_path.replace_extension(".mtl");
+  WriteObj(path, mtl_path, mtl_path.filename().string(), mesh, class_names, class_colours);
+}
+
+void WriteObj(const fs::path& path, const fs::path& mtl_path, const std::string& mtllib_name,
+              const TriangleMesh& mesh, const std::vector<std::string>& class_names,
+              const std::vector<std::array<uint8_t, 3>>& class_colours) {
   {
     std::ofstream mtl(mtl_path);
     if (!mtl) throw IoError("cannot open MTL for writing", mtl_path.string());
@@ -196,7 +202,7 @@ void WriteObj(const fs::path& path, const TriangleMesh& mesh, const std::vector<
   }
   std::ofstream out(path);
   if (!out) throw IoError("cannot open OBJ for writing", path.string());
-  out << "# gissar scene, ENU metres (x east, y north, z up)\nmtllib " << mtl_path.filename().string() << "\n";
+  out << "# gissar scene, ENU metres (x east, y north, z up)\nmtllib " << mtllib_name << "\n";
   out.precision(9);
   for (const Eigen::Vector3f& v : mesh.vertices) out << "v " << v.x() << " " << v.y() << " " << v.z() << "\n";
   // Faces grouped by class.

@@ -57,4 +57,12 @@ void WriteObj(const std::filesystem::path& path, const TriangleMesh& mesh,
               const std::vector<std::string>& class_names,
               const std::vector<std::array<uint8_t, 3>>& class_colours);
 
+// The same with the MTL written to `mtl_path` and referenced from the OBJ as
+// `mtllib_name` (for writers that go through temporary names, e.g.
+// AtomicOutputs: the OBJ must name the MTL's final file name).
+void WriteObj(const std::filesystem::path& path, const std::filesystem::path& mtl_path,
+              const std::string& mtllib_name, const TriangleMesh& mesh,
+              const std::vector<std::string>& class_names,
+              const std::vector<std::array<uint8_t, 3>>& class_colours);
+
 }  // namespace gissar::scene
