@@ -133,28 +133,10 @@ py::dict Simulate(const py::kwargs& kwargs) {
   {
     py::gil_scoped_release release;
     options.Check();
-    cli::Terrain terrain = cli::LoadTerrain(options);
-    if (options.engine == "raster") {
-      geometry = sensor::SarGeometry::Covering(cli::ResolvedGeometry(options, terrain), terrain.centre_enu,
-                                               terrain.mesh.vertices);
-      image = render::RenderSarRaster(terrain.mesh.vertices, terrain.grid_width, terrain.grid_height,
-                                      terrain.materials, *geometry);
-    } else {
-      const render::EmbreeScene embree(terrain.mesh);
-      cli::PlaceSceneCentre(terrain, embree, options);
-      geometry = sensor::SarGeometry::Covering(cli::ResolvedGeometry(options, terrain), terrain.centre_enu,
-                                               terrain.mesh.vertices);
-      render::RenderOptions ro;
-      ro.rays_per_cell = options.rays_per_cell;
-      ro.max_bounces = options.bounces;
-      ro.coherent = options.coherent;
-      ro.wavelength_m = options.wavelength_m;
-      ro.seed = options.seed;
-      ro.show_progress = false;
-      image = render::RenderSar(embree, terrain.mesh, terrain.materials, *geometry, ro);
-    }
-    cli::ApplySensorEffects(image, options, *geometry);
-    centre = terrain.centre_enu;
+    cli::SimulatedImage simulated = cli::SimulateImage(options);
+    image = std::move(simulated.image);
+    geometry = simulated.geometry;
+    centre = simulated.terrain.centre_enu;
   }
   py::array_t<float> bands({render::kBounceLayers, image.height, image.width});
   for (int b = 0; b < render::kBounceLayers; ++b) {

@@ -65,11 +65,7 @@ ProductSimulation SimulateProduct(const SimulateOptions& options, bool read_ampl
 
   Terrain terrain = LoadTerrain(options);
   const render::EmbreeScene embree(terrain.mesh);
-  render::RenderOptions ro;
-  ro.rays_per_cell = options.rays_per_cell;
-  ro.max_bounces = options.bounces;
-  ro.seed = options.seed;
-  ro.show_progress = !options.quiet;
+  const render::RenderOptions ro = RenderOptionsOf(options);
   sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
   sim.ground_speed_mps = sim.image.tracing_geometry.azimuth_spacing_m / sim.grid.dt_s;
   say(std::to_string(sim.image.geolocated) + " pixels geolocated, " + std::to_string(sim.image.contributions) +

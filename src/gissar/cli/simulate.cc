@@ -70,12 +70,7 @@ void SimulateOptions::Check() const {
   if (probe.range_spacing_m == 0.0) probe.range_spacing_m = 1.0;
   if (probe.azimuth_spacing_m == 0.0) probe.azimuth_spacing_m = 1.0;
   probe.Check();
-  render::RenderOptions render_options;
-  render_options.rays_per_cell = rays_per_cell;
-  render_options.max_bounces = bounces;
-  render_options.coherent = coherent;
-  render_options.wavelength_m = wavelength_m;
-  render_options.Check();
+  RenderOptionsOf(*this).Check();
   if (!(range_resolution_m >= 0.0) || !std::isfinite(range_resolution_m)) {
     throw ConfigError("range resolution must be >= 0 metres", "--range-resolution");
   }
@@ -256,6 +251,66 @@ void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
   if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
 }
 
+render::RenderOptions RenderOptionsOf(const SimulateOptions& options) {
+  render::RenderOptions r;
+  r.rays_per_cell = options.rays_per_cell;
+  r.max_bounces = options.bounces;
+  r.coherent = options.coherent;
+  r.wavelength_m = options.wavelength_m;
+  r.seed = options.seed;
+  r.record_contributions = !options.contributions.empty();
+  r.show_progress = !options.quiet;
+  return r;
+}
+
+SimulatedImage SimulateImage(const SimulateOptions& options,
+                             const std::function<void(const std::string&)>& say) {
+  SimulatedImage out;
+  Stopwatch step;
+  // The terrain: a DEM (bare terrain, unit Lambertian class 0) or a GIS
+  // scene (classes and their materials, frame and centre stored with it).
+  out.terrain = LoadTerrain(options);
+  out.timings_s["terrain"] = step.ElapsedSeconds();
+  Terrain& terrain = out.terrain;
+  const scene::TriangleMesh& mesh = terrain.mesh;
+  out.geometry_options = ResolvedGeometry(options, terrain);
+  step = Stopwatch();
+  // The raster engine needs no BVH (and renders DEMs only: no scene centre
+  // to place).
+  const bool raster_engine = options.engine == "raster";
+  std::unique_ptr<render::EmbreeScene> embree;
+  if (!raster_engine) {
+    embree = std::make_unique<render::EmbreeScene>(mesh);
+    out.timings_s["bvh"] = step.ElapsedSeconds();
+    PlaceSceneCentre(terrain, *embree, options);
+  }
+  out.geometry = sensor::SarGeometry::Covering(out.geometry_options, terrain.centre_enu, mesh.vertices);
+  const sensor::SarGeometry& geometry = *out.geometry;
+  CheckMemoryBudget(kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
+                        double(mesh.MemoryBytes()) * 3.0,
+                    options.max_memory_bytes,
+                    "image of " + std::to_string(geometry.width()) + " x " +
+                        std::to_string(geometry.height()) + " pixels",
+                    "use coarser --range-res/--azimuth-res, a smaller --width/--height");
+  if (say) {
+    say("image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
+        " pixels, " +
+        (raster_engine ? std::to_string(int64_t(terrain.grid_width - 1) * (terrain.grid_height - 1)) + " DEM cells"
+                       : std::to_string(mesh.triangle_count()) + " triangles"));
+  }
+  out.image = raster_engine ? render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height,
+                                                      terrain.materials, geometry)
+                            : render::RenderSar(*embree, mesh, terrain.materials, geometry,
+                                                RenderOptionsOf(options));
+  // Sensor effects: impulse response, speckle, thermal noise (in this order).
+  step = Stopwatch();
+  ApplySensorEffects(out.image, options, geometry);
+  out.timings_s["sensor_effects"] = step.ElapsedSeconds();
+  out.timings_s[raster_engine ? "raster" : "trace"] = out.image.stats.trace_seconds;
+  if (!raster_engine) out.timings_s["mask"] = out.image.stats.mask_seconds;
+  return out;
+}
+
 SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line) {
   options.Check();
   if (!options.product.empty()) return RunProductSimulate(options, command_line);
@@ -275,58 +330,17 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   const fs::path contributions_csv =
       options.contributions.empty() ? fs::path() : outputs.Add(options.contributions);
 
+  SimulatedImage simulated = SimulateImage(options, say);
+  timings = simulated.timings_s;
   Stopwatch step;
-  // The terrain: a DEM (bare terrain, unit Lambertian class 0) or a GIS
-  // scene (classes and their materials, frame and centre stored with it).
-  Terrain terrain = LoadTerrain(options);
-  timings["terrain"] = step.ElapsedSeconds();
+  const Terrain& terrain = simulated.terrain;
   const scene::TriangleMesh& mesh = terrain.mesh;
   const geo::LocalFrame& frame = terrain.frame;
-
-  const sensor::SarGeometryOptions geometry_options = ResolvedGeometry(options, terrain);
-  step = Stopwatch();
-  // The raster engine needs no BVH (and renders DEMs only: no scene centre
-  // to place).
-  const bool raster_engine = options.engine == "raster";
-  std::unique_ptr<render::EmbreeScene> embree;
-  if (!raster_engine) {
-    embree = std::make_unique<render::EmbreeScene>(mesh);
-    timings["bvh"] = step.ElapsedSeconds();
-    PlaceSceneCentre(terrain, *embree, options);
-  }
+  const sensor::SarGeometryOptions& geometry_options = simulated.geometry_options;
+  const sensor::SarGeometry& geometry = *simulated.geometry;
+  render::SarImage& image = simulated.image;
   const Eigen::Vector3d xc = terrain.centre_enu;
   const geo::GeoPoint centre = terrain.centre;
-  const sensor::SarGeometry geometry =
-      sensor::SarGeometry::Covering(geometry_options, xc, mesh.vertices);
-  CheckMemoryBudget(kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
-                        double(mesh.MemoryBytes()) * 3.0,
-                    options.max_memory_bytes,
-                    "image of " + std::to_string(geometry.width()) + " x " +
-                        std::to_string(geometry.height()) + " pixels",
-                    "use coarser --range-res/--azimuth-res, a smaller --width/--height");
-  say("image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
-      " pixels, " +
-      (raster_engine ? std::to_string(int64_t(terrain.grid_width - 1) * (terrain.grid_height - 1)) + " DEM cells"
-              : std::to_string(mesh.triangle_count()) + " triangles"));
-
-  render::RenderOptions render_options;
-  render_options.rays_per_cell = options.rays_per_cell;
-  render_options.max_bounces = options.bounces;
-  render_options.coherent = options.coherent;
-  render_options.wavelength_m = options.wavelength_m;
-  render_options.seed = options.seed;
-  render_options.record_contributions = !options.contributions.empty();
-  render_options.show_progress = !options.quiet;
-  render::SarImage image =
-      raster_engine ? render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height,
-                                       terrain.materials, geometry)
-             : render::RenderSar(*embree, mesh, terrain.materials, geometry, render_options);
-  // Sensor effects: impulse response, speckle, thermal noise (in this order).
-  step = Stopwatch();
-  ApplySensorEffects(image, options, geometry);
-  timings["sensor_effects"] = step.ElapsedSeconds();
-  timings[raster_engine ? "raster" : "trace"] = image.stats.trace_seconds;
-  if (!raster_engine) timings["mask"] = image.stats.mask_seconds;
 
   step = Stopwatch();
   geo::Metadata metadata;

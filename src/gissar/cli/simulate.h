@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <limits>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -113,6 +114,31 @@ sensor::SarGeometryOptions ResolvedGeometry(const SimulateOptions& options, cons
 // Impulse response, speckle and thermal noise of the options, in that order.
 void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
                         const sensor::SarGeometry& geometry);
+
+// The tracer's options of a simulation: rays per cell, bounces, coherence,
+// wavelength, seed, contributions (when options.contributions is set) and
+// progress (unless quiet). The one place SimulateOptions map to the tracer.
+render::RenderOptions RenderOptionsOf(const SimulateOptions& options);
+
+// A simulated image before anything is written: the terrain it was rendered
+// from, the geometry (automatic spacings resolved, covering the terrain),
+// the image after sensor effects, and the stage timings in seconds.
+struct SimulatedImage {
+  Terrain terrain;
+  sensor::SarGeometryOptions geometry_options;
+  std::optional<sensor::SarGeometry> geometry;  // always set on return
+  render::SarImage image;
+  nlohmann::json timings_s = nlohmann::json::object();
+};
+
+// Loads the terrain, places the scene centre, resolves and checks the
+// geometry against the memory budget, renders with options.engine and
+// applies the sensor effects: everything RunSimulate does short of writing
+// (the Python binding calls it too, so both give the same bits). `say`
+// receives progress lines (may be empty). Throws the gissar::Error family;
+// options must have passed Check(). Not for options.product.
+SimulatedImage SimulateImage(const SimulateOptions& options,
+                             const std::function<void(const std::string&)>& say = {});
 
 // Runs the whole job. Every output is written under a temporary name and
 // renamed only when all of them succeeded. Throws the gissar::Error family

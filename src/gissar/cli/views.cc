@@ -82,8 +82,7 @@ SequenceResult RunSequence(const SequenceOptions& options, const std::string& co
     height = std::max(height, covering.height());
     frame_options.push_back(g);
   }
-  render::RenderOptions render_options;
-  render_options.rays_per_cell = options.base.rays_per_cell;
+  render::RenderOptions render_options = RenderOptionsOf(options.base);
   render_options.show_progress = false;
   std::vector<std::vector<uint8_t>> grey_frames;
   std::vector<std::string> captions;
@@ -178,9 +177,7 @@ std::vector<fs::path> RunOrtho(const OrthoOptions& options, const std::string& c
   const render::OrthoImage los = render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kLineOfSight, colour);
   const render::OrthoImage gperp =
       render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kSlantRangeNormal, colour);
-  render::RenderOptions render_options;
-  render_options.rays_per_cell = options.base.rays_per_cell;
-  render_options.show_progress = !options.base.quiet;
+  const render::RenderOptions render_options = RenderOptionsOf(options.base);
   render::SarImage sar = render::RenderSar(embree, terrain.mesh, terrain.materials, geometry, render_options);
   ApplySensorEffects(sar, options.base, geometry);
   const image::RgbImage sar_rgb = image::GreyToRgb(image::DbQuicklook(sar.intensity, 2.0, 98.0), sar.width, sar.height);
