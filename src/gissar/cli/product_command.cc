@@ -18,6 +18,9 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--dem", options->simulate.dem, "DEM raster covering the product");
   cmd->add_option("--scene", options->simulate.scene, "Scene file from `gissar scene build` (instead of --dem)");
   cmd->add_flag("--fill-nodata", options->simulate.fill_nodata, "Fill DEM no-data cells instead of failing");
+  cmd->add_option("--dem-oversample", options->simulate.dem_oversample,
+                  "Refine the DEM this many times (cubic convolution) before meshing; for posts coarser than the pixels")
+      ->capture_default_str();
   cmd->add_option("--vertical-datum", options->simulate.vertical_datum,
                   "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
       ->capture_default_str();

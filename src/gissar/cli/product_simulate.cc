@@ -349,11 +349,19 @@ ValidateResult RunValidate(const ValidateOptions& options, const std::string& co
       real_amp[i] = sim.product.amplitude[i];
     }
     const double r_amp = MultilookPearson(sim_amp, real_amp, width, height, k, false, false, valid);
-    nlohmann::json row = {{"looks", k}, {"blocks", blocks}, {"r_db", Number(r_db)}, {"r_amplitude", Number(r_amp)}};
+    const double r_int = MultilookPearson(image.intensity, real, width, height, k, false, false, valid);
+    nlohmann::json row = {{"looks", k},
+                          {"blocks", blocks},
+                          {"r_db", Number(r_db)},
+                          {"r_intensity", Number(r_int)},
+                          {"r_amplitude", Number(r_amp)}};
     if (reference && !reference->simamp.empty() && reference->width == width && reference->height == height) {
       // simamp is not a positive amplitude (ISCE writes it on its own
-      // scale): its k x k mean is compared with the real dB and amplitude.
+      // scale): its k x k mean is compared with the real multilooked
+      // intensity (linear and dB) and mean amplitude.
       row["peer_simamp_r_db"] = Number(MultilookPearson(reference->simamp, real, width, height, k, false, true, valid));
+      row["peer_simamp_r_intensity"] =
+          Number(MultilookPearson(reference->simamp, real, width, height, k, false, false, valid));
       row["peer_simamp_r_amplitude"] = Number(MultilookPearson(reference->simamp, real_amp, width, height, k, false, false, valid));
     }
     corr.push_back(row);
@@ -486,15 +494,18 @@ ValidateResult RunValidate(const ValidateOptions& options, const std::string& co
   md << "Terrain: " << (options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)
      << " (vertical datum: " << options.simulate.vertical_datum << "); grid " << height << " lines x " << width
      << " range bins.\n\n## Correlation with the real amplitude\n\n";
-  md << "| looks | blocks | r (dB) | r (amplitude) | peer simamp r (amplitude) |\n|---|---|---|---|---|\n";
+  md << "Multilook: k x k non-overlapping blocks; intensity (|SLC|^2, power) averaged for r (intensity) and "
+        "r (dB) (10 log10 of the block mean), amplitude averaged for r (amplitude). Peer: simamp block means.\n\n";
+  md << "| looks | blocks | r (dB) | r (intensity) | r (amplitude) | peer r (dB) | peer r (intensity) | peer r "
+        "(amplitude) |\n|---|---|---|---|---|---|---|---|\n";
+  auto cell = [](const nlohmann::json& row, const char* key) {
+    return row.contains(key) && !row[key].is_null() ? Fixed(row[key].get<double>(), 3) : std::string("n/a");
+  };
   for (const auto& row : corr) {
     md << "| " << row["looks"].get<int>() << "x" << row["looks"].get<int>() << " | " << row["blocks"].get<int64_t>()
-       << " | " << (row["r_db"].is_null() ? "n/a" : Fixed(row["r_db"].get<double>(), 3)) << " | "
-       << (row["r_amplitude"].is_null() ? "n/a" : Fixed(row["r_amplitude"].get<double>(), 3)) << " | "
-       << (row.contains("peer_simamp_r_amplitude") && !row["peer_simamp_r_amplitude"].is_null()
-               ? Fixed(row["peer_simamp_r_amplitude"].get<double>(), 3)
-               : "n/a")
-       << " |\n";
+       << " | " << cell(row, "r_db") << " | " << cell(row, "r_intensity") << " | " << cell(row, "r_amplitude") << " | "
+       << cell(row, "peer_simamp_r_db") << " | " << cell(row, "peer_simamp_r_intensity") << " | "
+       << cell(row, "peer_simamp_r_amplitude") << " |\n";
   }
   if (!geoloc.is_null()) {
     md << "\n## Geolocation against " << options.reference_geolocation << "\n\n";

@@ -37,9 +37,10 @@ TEST(MultilookPearsonTest, HandComputedCases) {
 // on the product pixels (geo2rdr on the product orbit) to far below the
 // 0.5 px target and gissar's ground points on the same DEM (heights as
 // ellipsoidal, as ISCE used them) are within 1 m RMS. Correlation figures
-// reached on this flat farmland chip (docs/geometry.md): the amplitude
-// correlation at 5 x 5 looks matches the peer's simamp, which is itself
-// checked against the independently measured r = 0.031 per pixel.
+// reached on this flat farmland chip (docs/geometry.md): the peer's simamp
+// gives the issue's figures, r = 0.031 per pixel on amplitude and 0.091 at
+// 5 x 5 looks on multilooked intensity (measured independently with a
+// script on the raw files); gissar reaches 0.043 and 0.086 there.
 TEST(ValidateTest, WinnipegGeolocationAndCorrelation) {
   const auto dir = MakeTempDir();
   ValidateOptions o;
@@ -58,14 +59,18 @@ TEST(ValidateTest, WinnipegGeolocationAndCorrelation) {
   const nlohmann::json& c = r.report["correlation"];
   ASSERT_EQ(c.size(), 3u);
   EXPECT_NEAR(c[0]["peer_simamp_r_amplitude"].get<double>(), 0.031, 0.002);
-  EXPECT_GT(c[2]["r_amplitude"].get<double>(), 0.035);
+  EXPECT_NEAR(c[2]["peer_simamp_r_intensity"].get<double>(), 0.091, 0.002);
+  EXPECT_GT(c[2]["r_amplitude"].get<double>(), 0.040);
+  EXPECT_GT(c[2]["r_intensity"].get<double>(), 0.080);
   EXPECT_EQ(r.report["mask_pixels"]["none"].get<int64_t>(), 250 * 250);  // flat: no layover, no shadow
   for (const auto& p : r.outputs) EXPECT_TRUE(std::filesystem::exists(p)) << p;
 }
 
 // San Andreas chip (hilly): gissar simulate --product writes the image on
-// exactly the product grid with lon/lat/height layers; validate reaches
-// r(dB) > 0.1 at 3 x 3 and 5 x 5 looks (figures in docs/geometry.md).
+// exactly the product grid with lon/lat/height layers; validate with the
+// DEM refined 4 times (posts of ~7 m, finer than the ~9 m ground pixels)
+// reaches r(dB) 0.140 at 3 x 3 and 0.126 at 5 x 5 looks (0.132 and 0.118
+// with the 1" posts as given: docs/geometry.md).
 TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
   const auto dir = MakeTempDir();
   SimulateOptions s;
@@ -89,10 +94,12 @@ TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
   ValidateOptions o;
   o.simulate = s;
   o.simulate.out_prefix.clear();
+  o.simulate.dem_oversample = 4;
   o.out_prefix = (dir / "report").string();
   const ValidateResult r = RunValidate(o, "test");
-  EXPECT_GT(r.report["correlation"][1]["r_db"].get<double>(), 0.10);
-  EXPECT_GT(r.report["correlation"][2]["r_db"].get<double>(), 0.10);
+  EXPECT_EQ(r.report["terrain"]["width"].get<int>(), (108 - 1) * 4 + 1);
+  EXPECT_GT(r.report["correlation"][1]["r_db"].get<double>(), 0.135);
+  EXPECT_GT(r.report["correlation"][2]["r_db"].get<double>(), 0.120);
 }
 
 TEST(ValidateTest, RejectsBadOptions) {
@@ -104,6 +111,9 @@ TEST(ValidateTest, RejectsBadOptions) {
   o.looks = {0};
   EXPECT_THROW(o.Check(), ConfigError);
   o.looks = {3};
+  o.simulate.dem_oversample = 0;
+  EXPECT_THROW(o.Check(), ConfigError);
+  o.simulate.dem_oversample = 2;
   o.simulate.coherent = true;
   EXPECT_THROW(o.Check(), ConfigError);
 }

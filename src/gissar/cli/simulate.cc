@@ -49,6 +49,14 @@ void SimulateOptions::Check() const {
     throw ConfigError("vertical datum must be 'ellipsoid' or 'egm96', got '" + vertical_datum + "'",
                       "--vertical-datum");
   }
+  if (dem_oversample < 1 || dem_oversample > geo::kMaxDemOversample) {
+    throw ConfigError("DEM oversampling must be in [1, " + std::to_string(geo::kMaxDemOversample) + "], got " +
+                          std::to_string(dem_oversample),
+                      "--dem-oversample");
+  }
+  if (dem_oversample != 1 && !scene.empty()) {
+    throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
+  }
   if (vertical_datum == "egm96" && !scene.empty()) {
     throw ConfigError("a scene keeps the datum it was built with", "--vertical-datum");
   }
@@ -94,6 +102,7 @@ nlohmann::json SimulateOptions::ToJson() const {
   j["scene"] = scene;
   j["product"] = product;
   j["vertical_datum"] = vertical_datum;
+  j["dem_oversample"] = dem_oversample;
   j["fill_nodata"] = fill_nodata;
   j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
                                      : nlohmann::json(nullptr);
@@ -145,6 +154,9 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   read_options.max_bytes = options.max_memory_bytes;
   read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
   geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  const int source_width = dem.width, source_height = dem.height;
+  dem = geo::RefineDem(dem, options.dem_oversample,
+                       static_cast<int64_t>(double(options.max_memory_bytes) / kBytesPerDemPost));
   if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
   if (dem.filled_nodata_cells > 0 && !options.quiet) {
     std::fprintf(stderr, "simulate: filled %lld no-data cells\n", static_cast<long long>(dem.filled_nodata_cells));
@@ -161,11 +173,15 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   t.grid_width = dem.width;
   t.grid_height = dem.height;
   const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame);
-  t.post_spacing_m = 0.5 * (spacing.x() + spacing.y());
+  // The default pixel spacing stays the source DEM's post spacing.
+  t.post_spacing_m = 0.5 * (spacing.x() + spacing.y()) * options.dem_oversample;
   t.description = {{"type", "DEM"},
                    {"width", dem.width},
                    {"height", dem.height},
                    {"filled_nodata_cells", dem.filled_nodata_cells},
+                   {"source_width", source_width},
+                   {"source_height", source_height},
+                   {"oversample", options.dem_oversample},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
   return t;

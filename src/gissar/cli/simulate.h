@@ -36,6 +36,11 @@ struct SimulateOptions {
   // EGM96 undulation is added at every post).
   std::string vertical_datum = "ellipsoid";
   bool fill_nodata = false;                      // fill DEM voids instead of failing
+  // Refine the DEM by this factor before meshing (geo::RefineDem: cubic
+  // convolution, original posts kept): 1 = posts as given. Use it when the
+  // posts are coarser than the radar pixels, so that the mesh's planar
+  // facets do not imprint streaks (docs/geometry.md).
+  int dem_oversample = 1;
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".

@@ -18,6 +18,9 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--scene", options->scene, "Scene file from `gissar scene build` (instead of --dem)");
   cmd->add_option("--product", options->product,
                   "Real product (NISAR RSLC HDF5): render on its radar grid with its orbit (no --heading/--depression)");
+  cmd->add_option("--dem-oversample", options->dem_oversample,
+                  "Refine the DEM this many times (cubic convolution) before meshing; for posts coarser than the pixels")
+      ->capture_default_str();
   cmd->add_option("--vertical-datum", options->vertical_datum,
                   "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
       ->capture_default_str();

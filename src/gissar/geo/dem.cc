@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "gissar/geo/gdal_env.h"
+#include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/memory_limit.h"
 
@@ -345,6 +346,73 @@ Eigen::Vector2d DemPostSpacingMetres(const Dem& dem, const LocalFrame& frame) {
   const Eigen::Vector3d pc = frame.EnuFromGeodetic(x[1], y[1], 0.0);
   const Eigen::Vector3d pr = frame.EnuFromGeodetic(x[2], y[2], 0.0);
   return {(pc - p0).norm(), (pr - p0).norm()};
+}
+
+namespace {
+
+// Refines one line of n samples (stride `stride` in `in`) by `factor`:
+// (n - 1) * factor + 1 samples, cubic convolution (Catmull-Rom, Keys
+// a = -1/2) with Keys' quadratic boundary rule beyond both ends (linear for
+// n == 2).
+void RefineLine(const float* in, size_t in_stride, int n, int factor, float* out, size_t out_stride) {
+  auto sample = [&](int i) -> double {
+    if (i >= 0 && i < n) return in[size_t(i) * in_stride];
+    if (n < 3) {  // linear extrapolation
+      return i < 0 ? 2.0 * in[0] - in[in_stride] : 2.0 * in[size_t(n - 1) * in_stride] - in[size_t(n - 2) * in_stride];
+    }
+    if (i < 0) return 3.0 * in[0] - 3.0 * in[in_stride] + in[2 * in_stride];
+    return 3.0 * in[size_t(n - 1) * in_stride] - 3.0 * in[size_t(n - 2) * in_stride] + in[size_t(n - 3) * in_stride];
+  };
+  for (int i = 0; i + 1 < n; ++i) {
+    const double p0 = sample(i - 1), p1 = sample(i), p2 = sample(i + 1), p3 = sample(i + 2);
+    for (int s = 0; s < factor; ++s) {
+      const double t = double(s) / factor;
+      const double v = p1 + 0.5 * t * (p2 - p0) + t * t * (p0 - 2.5 * p1 + 2.0 * p2 - 0.5 * p3) +
+                       t * t * t * (-0.5 * p0 + 1.5 * p1 - 1.5 * p2 + 0.5 * p3);
+      out[(size_t(i) * factor + s) * out_stride] = static_cast<float>(v);
+    }
+  }
+  out[size_t(n - 1) * factor * out_stride] = in[size_t(n - 1) * in_stride];
+}
+
+}  // namespace
+
+Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
+  if (factor < 1 || factor > kMaxDemOversample) {
+    throw ConfigError("DEM oversampling must be in [1, " + std::to_string(kMaxDemOversample) + "], got " +
+                          std::to_string(factor),
+                      "--dem-oversample");
+  }
+  GISSAR_CHECK(dem.width >= 2 && dem.height >= 2);
+  if (factor == 1) return dem;
+  const int w = (dem.width - 1) * factor + 1, h = (dem.height - 1) * factor + 1;
+  if (double(w) * double(h) > double(max_posts)) {
+    throw InputError("DEM of " + std::to_string(dem.width) + "x" + std::to_string(dem.height) + " posts refined " +
+                         std::to_string(factor) + " times has " + std::to_string(w) + "x" + std::to_string(h) +
+                         " posts, over the memory limit (--max-memory); lower --dem-oversample or crop the DEM",
+                     dem.source);
+  }
+  // Along rows first (width grows), then along columns.
+  std::vector<float> rows(size_t(w) * dem.height);
+  for (int r = 0; r < dem.height; ++r) {
+    RefineLine(dem.heights_m.data() + size_t(r) * dem.width, 1, dem.width, factor, rows.data() + size_t(r) * w, 1);
+  }
+  Dem out = dem;
+  out.width = w;
+  out.height = h;
+  out.heights_m.assign(size_t(w) * h, 0.0f);
+  for (int c = 0; c < w; ++c) RefineLine(rows.data() + c, size_t(w), dem.height, factor, out.heights_m.data() + c, size_t(w));
+  // Same post centres: post (i * factor, j * factor) at the old post (i, j).
+  auto& g = out.geotransform;
+  const auto& g0 = dem.geotransform;
+  const double shrink = 1.0 - 1.0 / factor;
+  g[0] = g0[0] + 0.5 * (g0[1] + g0[2]) * shrink;
+  g[3] = g0[3] + 0.5 * (g0[4] + g0[5]) * shrink;
+  g[1] = g0[1] / factor;
+  g[2] = g0[2] / factor;
+  g[4] = g0[4] / factor;
+  g[5] = g0[5] / factor;
+  return out;
 }
 
 }  // namespace gissar::geo

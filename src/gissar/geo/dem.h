@@ -81,6 +81,21 @@ struct Dem {
 // the antimeridian: reproject it to a projected CRS such as UTM).
 Dem ReadDem(const std::filesystem::path& path, const DemReadOptions& options = {});
 
+// A DEM refined by `factor` (>= 1): (width - 1) * factor + 1 by
+// (height - 1) * factor + 1 posts spanning the same post centres, post (i * factor,
+// j * factor) at the original post (i, j) with its height unchanged, the
+// posts between interpolated by separable cubic convolution (Keys 1981,
+// a = -1/2, GDAL's "cubic"; Keys' boundary rule 3 f0 - 3 f1 + f2 beyond the
+// edges). It reproduces quadratic surfaces exactly and has a continuous
+// slope, so the facets of a meshed coarse DEM (one plane per half cell,
+// i.e. streaks of constant brightness several radar pixels long when the
+// posts are coarser than the pixels) become smoothly varying normals.
+// factor 1 returns the DEM unchanged. Throws ConfigError (--dem-oversample)
+// when factor is outside [1, kMaxDemOversample] and InputError naming the
+// DEM when the refined grid would exceed max_posts.
+inline constexpr int kMaxDemOversample = 16;
+Dem RefineDem(const Dem& dem, int factor, int64_t max_posts);
+
 // WGS84 longitude/latitude (degrees) and DEM height of the scene centre.
 struct GeoPoint {
   double lon_deg = 0.0;

@@ -216,5 +216,36 @@ TEST(DemTest, WindowReadsOnlyThatPart) {
   EXPECT_THROW(ReadDem(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"), options), ConfigError);
 }
 
+TEST(DemTest, RefinementKeepsThePostsAndReproducesQuadraticSurfaces) {
+  // Cubic convolution with Keys' boundary rule is exact for quadratics,
+  // including the cross term and beyond the edges; a sheared geotransform
+  // checks that the refined posts stay on the original grid lines.
+  auto quadratic = [](double x, double y) { return 100.0 + 2.0 * x + 3.0 * y + 0.5 * x * x - 0.25 * x * y + 0.1 * y * y; };
+  Dem dem;
+  dem.source = "quadratic";
+  dem.width = 7;
+  dem.height = 5;
+  dem.geotransform = {1000.0, 30.0, 4.0, 2000.0, -3.0, -25.0};
+  for (int r = 0; r < dem.height; ++r) {
+    for (int c = 0; c < dem.width; ++c) dem.heights_m.push_back(static_cast<float>(quadratic(c, r)));
+  }
+  const Dem fine = RefineDem(dem, 4, 1000000);
+  ASSERT_EQ(fine.width, 25);
+  ASSERT_EQ(fine.height, 17);
+  for (int r = 0; r < fine.height; ++r) {
+    for (int c = 0; c < fine.width; ++c) {
+      EXPECT_NEAR(fine.HeightAt(c, r), quadratic(c / 4.0, r / 4.0), 2e-4) << c << "," << r;
+      EXPECT_NEAR((fine.MapFromPost(c, r) - dem.MapFromPost(c / 4.0, r / 4.0)).norm(), 0.0, 1e-9);
+    }
+  }
+  for (int r = 0; r < dem.height; ++r) {
+    for (int c = 0; c < dem.width; ++c) EXPECT_EQ(fine.HeightAt(4 * c, 4 * r), dem.HeightAt(c, r));
+  }
+  EXPECT_EQ(RefineDem(dem, 1, 1000000).heights_m, dem.heights_m);
+  EXPECT_THROW(RefineDem(dem, 0, 1000000), ConfigError);
+  EXPECT_THROW(RefineDem(dem, kMaxDemOversample + 1, 1000000), ConfigError);
+  EXPECT_THROW(RefineDem(dem, 4, 424), InputError);  // 25 x 17 = 425 posts
+}
+
 }  // namespace
 }  // namespace gissar::geo
