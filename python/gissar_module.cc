@@ -17,6 +17,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/annotated.h"
 #include "gissar/image/class_map.h"
+#include "gissar/cli/product_simulate.h"
 #include "gissar/image/composite.h"
 #include "gissar/image/contact_sheet.h"
 #include "gissar/image/epipolar_plot.h"
@@ -93,6 +94,8 @@ cli::SimulateOptions SimulateOptionsFrom(const py::kwargs& kwargs) {
     else if (key == "nesz_db") o.nesz_db = value.cast<double>();
     else if (key == "seed") o.seed = value.cast<uint64_t>();
     else if (key == "engine") o.engine = value.cast<std::string>();
+    else if (key == "dem_oversample") o.dem_oversample = value.cast<int>();
+    else if (key == "vertical_datum") o.vertical_datum = value.cast<std::string>();
     else if (key == "max_memory_bytes") o.max_memory_bytes = value.cast<int64_t>();
     else throw ConfigError("unknown option '" + key + "'", "gissar.simulate");
   }
@@ -157,6 +160,40 @@ py::dict Simulate(const py::kwargs& kwargs) {
   out["geometry"] = py::cast(*geometry);
   out["metadata"] = geometry->ToMetadata();
   out["centre_enu_m"] = std::array<double, 3>{centre.x(), centre.y(), centre.z()};
+  out["options"] = JsonToPython(options.ToJson());
+  return out;
+}
+
+py::dict SimulateProduct(const std::string& product, const py::kwargs& kwargs) {
+  cli::SimulateOptions options = SimulateOptionsFrom(kwargs);
+  options.product = product;
+  cli::ProductSimulation sim;
+  {
+    py::gil_scoped_release release;
+    options.Check();
+    sim = cli::SimulateProduct(options, /*read_amplitude=*/true);
+  }
+  const render::SarImage& image = sim.image.image;
+  const int h = image.height, w = image.width;
+  py::array_t<float> bands({render::kBounceLayers, h, w});
+  for (int b = 0; b < render::kBounceLayers; ++b) {
+    std::copy(image.bounce_layers[b].begin(), image.bounce_layers[b].end(),
+              bands.mutable_data() + size_t(b) * w * h);
+  }
+  py::dict out;
+  out["image"] = Image(image.intensity, h, w);
+  out["bounces"] = bands;
+  out["mask"] = Image(image.mask, h, w);
+  out["lon_deg"] = Image(sim.image.lon_deg, h, w);
+  out["lat_deg"] = Image(sim.image.lat_deg, h, w);
+  out["height_m"] = Image(sim.image.height_m, h, w);
+  if (static_cast<int64_t>(sim.product.amplitude.size()) == int64_t(h) * w) {
+    out["real_amplitude"] = Image(sim.product.amplitude, h, w);
+  }
+  out["zero_doppler_time_s"] = sim.product.zero_doppler_time_s;
+  out["slant_range_m"] = sim.product.slant_range_m;
+  out["wavelength_m"] = sim.product.wavelength_m;
+  out["look_side"] = sim.product.look_left ? "left" : "right";
   out["options"] = JsonToPython(options.ToJson());
   return out;
 }
@@ -524,6 +561,15 @@ PYBIND11_MODULE(gissar, m) {
         "nesz_db, seed, fill_nodata, center_lonlat, center_map. Returns {'image': (H, W) float32 linear "
         "intensity, 'bounces': (4, H, W) single/double/triple/>=4, 'mask': (H, W) uint8 (1 layover, 2 shadow), "
         "'geometry': metadata, 'options': the options}. Identical to `gissar simulate`'s GeoTIFF.");
+
+  m.def("simulate_product", &SimulateProduct, py::arg("product"),
+        "Simulate a real product's radar grid (NISAR RSLC HDF5, e.g. the UAVSAR chips): keywords as for "
+        "simulate (dem or scene, fill_nodata, dem_oversample, vertical_datum 'ellipsoid'|'egm96', rays_per_cell, "
+        "bounces, seed, ...; no heading/depression/spacings: the product fixes them). Returns {'image': (rows, "
+        "cols) float32 linear intensity on the product grid (rows = zero-Doppler lines, cols = slant-range bins), "
+        "'bounces': (4, rows, cols), 'mask': uint8, 'lon_deg'/'lat_deg'/'height_m': per-pixel ground point "
+        "(WGS84 degrees, ellipsoidal m; NaN where none), 'real_amplitude': |SLC|, 'zero_doppler_time_s', "
+        "'slant_range_m', 'wavelength_m', 'look_side', 'options'}. Same as `gissar simulate --product`.");
 
   m.def("load_scene", [](const std::string& path) {
         const scene::SceneFile s = scene::ReadScene(path);
