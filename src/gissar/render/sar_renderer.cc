@@ -161,6 +161,10 @@ double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
 }
 
+// Below this cosine of the local incidence angle, a visibility ray of the
+// mask that finds its own triangle is continued past it.
+constexpr double kSelfHitCos = 0.05;
+
 // Small offset along a ray that clears float rounding of scene coordinates.
 float RayEpsilon(const Eigen::AlignedBox3d& box) {
   const double extent = std::max(box.max().cwiseAbs().maxCoeff(), box.min().cwiseAbs().maxCoeff());
@@ -221,7 +225,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
           const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
           const Vector3d dir = geometry.RayDirectionTo(point);
           uint8_t code = kMaskNone;
-          if (normal.dot(-dir) <= 1e-9) {
+          if (normal.dot(-dir) <= kMaskEdgeOnCos) {
             code = kMaskShadow;  // turned away from the radar
           } else {
             const double t_far =
@@ -232,9 +236,22 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
             // Leaving the surface at grazing incidence the ray climbs only
             // cos(theta) per metre: start it where it has cleared the
             // rounding of the surface itself (no self-shadowing).
-            const float t_near = eps / static_cast<float>(std::max(normal.dot(-dir), 0.01));
-            if (embree.Occluded(point.cast<float>(), (-dir).cast<float>(), t_near,
-                                static_cast<float>(t_far))) {
+            const double cos_in = normal.dot(-dir);
+            const float t_near = eps / static_cast<float>(std::max(cos_in, 0.01));
+            bool occluded = embree.Occluded(point.cast<float>(), (-dir).cast<float>(), t_near,
+                                            static_cast<float>(t_far));
+            if (occluded && cos_in < kSelfHitCos) {
+              // Seen almost edge-on the surface may still hit itself
+              // beyond t_near by rounding: skip its own triangle once.
+              const auto hit = embree.Intersect(point.cast<float>(), (-dir).cast<float>(), t_near,
+                                                static_cast<float>(t_far));
+              if (hit && hit->triangle == t) {
+                ++local_rays;
+                occluded = embree.Occluded(point.cast<float>(), (-dir).cast<float>(), hit->t + t_near,
+                                           static_cast<float>(t_far));
+              }
+            }
+            if (occluded) {
               code = kMaskShadow;
             } else if (normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0) {
               code = kMaskLayover;

@@ -20,6 +20,11 @@ namespace gissar::render {
 inline constexpr uint8_t kMaskNone = 0;
 inline constexpr uint8_t kMaskLayover = 1;
 inline constexpr uint8_t kMaskShadow = 2;  // kMaskLayover | kMaskShadow = 3: both
+// The masks of both engines count a surface seen at cos(local incidence)
+// at or below this (within 0.06 deg of edge-on) as turned away: shadow.
+// Exactly grazing surfaces return no power, and whether they are lit is
+// decided by rounding otherwise.
+inline constexpr double kMaskEdgeOnCos = 1e-3;
 
 struct RenderOptions {
   // Rays per resolution cell on flat ground at the scene-centre depression:
