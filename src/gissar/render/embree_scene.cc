@@ -2,6 +2,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <cstddef>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -38,14 +39,35 @@ struct EmbreeScene::Impl {
   }
 };
 
-EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
+// RayPacket16 is Embree's RTCRayHit16, field by field.
+static_assert(sizeof(RayPacket16) == sizeof(RTCRayHit16));
+static_assert(alignof(RayPacket16) == alignof(RTCRayHit16));
+static_assert(offsetof(RTCRayHit16, ray.tfar) == offsetof(RayPacket16, tfar));
+static_assert(offsetof(RTCRayHit16, ray.flags) == offsetof(RayPacket16, flags));
+static_assert(offsetof(RTCRayHit16, hit.Ng_x) == offsetof(RayPacket16, ng_x));
+static_assert(offsetof(RTCRayHit16, hit.primID) == offsetof(RayPacket16, triangle));
+static_assert(offsetof(RTCRayHit16, hit.geomID) == offsetof(RayPacket16, geometry));
+static_assert(offsetof(RTCRayHit16, hit.instID) == offsetof(RayPacket16, instance));
+static_assert(RTC_MAX_INSTANCE_LEVEL_COUNT == 1);
+static_assert(RayPacket16::kNoHit == RTC_INVALID_GEOMETRY_ID);
+
+EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
+    : impl_(std::make_unique<Impl>()) {
   if (mesh.triangles.empty()) throw InputError("scene has no triangles", "mesh");
   Stopwatch watch;
+  if (quality == BvhQuality::kAuto) {
+    quality = mesh.triangles.size() > kLargeSceneTriangles ? BvhQuality::kLow : BvhQuality::kMedium;
+  }
+  quality_ = quality;
   impl_->device = rtcNewDevice(nullptr);
   if (impl_->device == nullptr) throw Error("cannot create Embree device", "ray tracer");
   rtcSetDeviceErrorFunction(impl_->device, OnEmbreeError, nullptr);
   impl_->scene = rtcNewScene(impl_->device);
-  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_MEDIUM);
+  const RTCBuildQuality rtc_quality = quality == BvhQuality::kLow    ? RTC_BUILD_QUALITY_LOW
+                                      : quality == BvhQuality::kHigh ? RTC_BUILD_QUALITY_HIGH
+                                                                     : RTC_BUILD_QUALITY_MEDIUM;
+  rtcSetSceneBuildQuality(impl_->scene, rtc_quality);
+  if (quality == BvhQuality::kLow) rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_COMPACT);
   RTCGeometry geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
   auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
       geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
@@ -93,6 +115,25 @@ std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,
   rtcIntersect1(impl_->scene, &context, &query);
   if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   return RayHit{query.ray.tfar, query.hit.primID};
+}
+
+void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  for (int k = 0; k < 16; ++k) {
+    packet.time[k] = 0.0f;
+    packet.mask[k] = std::numeric_limits<unsigned>::max();
+    packet.id[k] = static_cast<uint32_t>(k);
+    packet.flags[k] = 0;
+    packet.geometry[k] = RTC_INVALID_GEOMETRY_ID;
+    packet.instance[k] = RTC_INVALID_GEOMETRY_ID;
+    packet.triangle[k] = RayPacket16::kNoHit;
+  }
+  rtcIntersect16(valid, impl_->scene, &context, reinterpret_cast<RTCRayHit16*>(&packet));
+  for (int k = 0; k < 16; ++k) {
+    if (packet.geometry[k] == RTC_INVALID_GEOMETRY_ID) packet.triangle[k] = RayPacket16::kNoHit;
+  }
 }
 
 bool EmbreeScene::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,

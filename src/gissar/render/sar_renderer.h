@@ -115,6 +115,17 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                    const material::MaterialTable& materials, const sensor::SarGeometry& geometry,
                    const RenderOptions& options);
 
+// The limit RenderSar's primary rays are measured against (`make bench`):
+// intersects exactly the primary rays RenderSar traces for `geometry` and
+// `rays_per_cell` over `mesh` (same ray grid, same float origins and
+// directions, same blocks of azimuth rows in parallel), 16 at a time with
+// rtcIntersect16 and the coherent flag, and does nothing else with them (no
+// shading, splatting, later bounces or mask). Returns the rays intersected;
+// *hits (optional) the rays that hit the scene.
+int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                                 const sensor::SarGeometry& geometry, double rays_per_cell,
+                                 int64_t* hits = nullptr);
+
 // Only the layover/shadow mask (see RenderSar).
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
