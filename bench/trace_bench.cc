@@ -83,7 +83,8 @@ void BM_RawEmbreeStream(benchmark::State& state) {
   state.counters["bvh_build_s"] = s.bvh_seconds;
   state.counters["bvh_added_MiB"] = s.bvh_added_bytes / 1048576.0;
   state.counters["triangles"] = double(s.terrain.mesh.triangle_count());
-  state.SetLabel(s.embree->quality() == render::BvhQuality::kLow ? "low" : "medium");
+  const render::BvhQuality q = s.embree->quality();
+  state.SetLabel(q == render::BvhQuality::kLow ? "low" : q == render::BvhQuality::kHigh ? "high" : "medium");
 }
 
 void BM_TracerPrimary(benchmark::State& state) {

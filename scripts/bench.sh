@@ -119,6 +119,10 @@ done
 uptime > "$R/load_end.txt"
 END=$(date +%s)
 echo $((END - START)) > "$R/bench_seconds.txt"
-python3 "$ROOT/scripts/bench_report.py" "$R" "$ROOT" > "$OUT.tmp"
+# The raw results stay in BUILD_DIR/bench-results (the report can be
+# rewritten from them: python3 scripts/bench_report.py DIR . > BENCHMARKS.md).
+rm -rf "$B/bench-results"
+cp -r "$R" "$B/bench-results"
+python3 "$ROOT/scripts/bench_report.py" "$B/bench-results" "$ROOT" > "$OUT.tmp"
 mv "$OUT.tmp" "$OUT"
 say "wrote $OUT in $((END - START)) s"

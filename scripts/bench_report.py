@@ -6,6 +6,7 @@ Usage: bench_report.py RESULTS_DIR REPO_ROOT
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 from datetime import datetime, timezone
@@ -37,7 +38,8 @@ def benchmarks(name):
 commands = {}
 for line in read("commands.txt").splitlines():
     key, cmd = line.split("\t", 1)
-    commands[key] = cmd.replace(R + "/", "results/")
+    cmd = re.sub(r"\S*/gissar-bench\.[^/]+/", "", cmd)  # the scratch directory
+    commands[key] = cmd.replace(os.path.abspath(ROOT) + "/", "")
 
 
 def cmd(key):
@@ -254,21 +256,31 @@ w("cell that give %.2f M primary rays. One bounce: POV-Ray `max_trace_level 1`, 
 w("three levels: `max_trace_level 3` with `reflection 0.3`, gissar `--bounces 3`. Whole process,")
 w("wall time, both including parsing or loading and building their acceleration structure.")
 w("")
-w("| reflection levels | POV-Ray s | gissar s | gissar trace s | POV-Ray / gissar |")
-w("|---|---|---|---|---|")
+w("Rendering alone: POV-Ray's own \"Trace Time\" (camera, shadow and reflected rays) against")
+w("gissar's trace and mask phases (primary and later bounces, and the visibility rays of the")
+w("layover/shadow mask), from the same runs.")
+w("")
+w("| reflection levels | POV-Ray wall s | gissar wall s | whole process: POV-Ray / gissar | POV-Ray trace s | gissar trace + mask s | rendering: POV-Ray / gissar |")
+w("|---|---|---|---|---|---|---|")
 pov_ratios = []
+render_ratios = []
 for levels in (1, 3):
     pov, _ = wall_rss("pov_%d" % levels)
     ours, _ = wall_rss("ours_pov_%d" % levels)
     j = load("ours_pov_%d.json" % levels)
+    pov_trace = float(re.search(r"Trace Time:.*?\(([0-9.]+) seconds\)", read("pov_%d.err" % levels), re.S).group(1))
+    ours_render = j["timings_s"]["trace"] + j["timings_s"]["mask"]
     pov_ratios.append(pov / ours)
-    w("| %d | %.2f | %.2f | %.2f | %.1f× |" % (levels, pov, ours, j["timings_s"]["trace"], pov / ours))
+    render_ratios.append(pov_trace / ours_render)
+    w("| %d | %.2f | %.2f | %.1f× | %.2f | %.2f | %.1f× |" % (
+        levels, pov, ours, pov / ours, pov_trace, ours_render, pov_trace / ours_render))
 w("")
 w("Commands: " + ", ".join(cmd(k) for k in ("pov_probe", "pov_1", "ours_pov_1", "pov_3", "ours_pov_3")) +
   " (scene files `pov_1.pov`, `pov_3.pov` written by scripts/bench.sh).")
 w("")
-w("Target: ≥ 5× faster than POV-Ray. Reached here: %s (%s)." % (
-    ", ".join("%.1f×" % r for r in pov_ratios), verdict(min(pov_ratios) >= 5.0)))
+w("Target: ≥ 5× faster than POV-Ray. Reached here: whole process %s (%s); rendering %s (%s)." % (
+    ", ".join("%.1f×" % r for r in pov_ratios), verdict(min(pov_ratios) >= 5.0),
+    ", ".join("%.1f×" % r for r in render_ratios), verdict(min(render_ratios) >= 5.0)))
 w("")
 
 # ---------------------------------------------------------------- profiles

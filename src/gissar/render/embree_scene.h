@@ -36,12 +36,17 @@ enum class BvhQuality { kAuto, kLow, kMedium, kHigh };
 
 class EmbreeScene {
  public:
-  // Builds the BVH of `mesh` (copied into Embree buffers). Throws Error when
-  // Embree fails (e.g. out of memory) or the mesh is empty. kAuto: a SAH
-  // build (medium quality) up to kLargeSceneTriangles, above that the much
-  // faster Morton build (low quality) with compact leaves: on a large DEM
-  // the rays per triangle are few (about two at 4 rays per cell), so build
-  // time and memory dominate the trace time a better tree would save.
+  // Builds the BVH of `mesh` (copied into Embree buffers; a mesh whose
+  // triangles 2q, 2q + 1 pair into quads, as scene::MeshFromGrid's do, goes
+  // in as Embree quads: half the primitives, and hits still name the mesh's
+  // triangles). Throws Error when
+  // Embree fails (e.g. out of memory) or the mesh is empty. kAuto (measured,
+  // docs/performance.md): the binned SAH build (medium quality) for grids
+  // of any size and for triangle meshes up to kLargeSceneTriangles; above
+  // that the Morton build (low quality) with compact leaves, a third less
+  // memory for triangles. On DEM grids (quads) the Morton build is slower
+  // than the SAH build and saves no memory, and high quality (spatial
+  // splits) doubles the build time without tracing any faster.
   static constexpr size_t kLargeSceneTriangles = size_t{4} << 20;
   explicit EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality = BvhQuality::kAuto);
   ~EmbreeScene();
