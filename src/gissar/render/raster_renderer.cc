@@ -543,7 +543,7 @@ class ChunkRenderer {
           const bool shadow =
               edge_on ||
               PointMargin(float(w0 * s0.a[k0] + w1 * s1.a[k1] + w2 * s2.a[k2]), e,
-                          float(w0 * u0 + w1 * u1 + w2 * u2), cell_t_, r) < -(1e-4f + 1e-6f * std::abs(e));
+                          float(w0 * u0 + w1 * u1 + w2 * u2), cell_t_, r) < -(1e-4f + 2.5e-7f * std::abs(e));
           if (shadow) {
             code = kMaskShadow;
           } else {

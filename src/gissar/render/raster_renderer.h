@@ -7,7 +7,7 @@
 // whose slant range decreases with ground range. Single bounce only.
 //
 // It renders the same image as RenderSar on a single-bounce scene of the
-// same mesh (docs/geometry.md, "DEM-raster engine"): the tracer's rays
+// same mesh (docs/performance.md, "DEM-raster engine"): the tracer's rays
 // sample every lit surface with a density proportional to cos(theta) per
 // unit area, each returning Backscatter(cos theta) / N, so a lit patch of
 // area A returns
