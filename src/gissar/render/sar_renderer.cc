@@ -349,6 +349,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       RayPacket16 packet;
       int valid[16];
       Vector3d lane_origin[16], lane_dir[16];
+      Vector3f lane_normal[16];
+      scene::ClassId lane_class[16];
       double lane_travelled[16];
       for (int i = i0; i < i1; ++i) {
         const double a = grid.a0 + i * grid.da;
@@ -390,6 +392,26 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
           }
           if (!any) continue;
           embree.Intersect16(valid, packet, /*coherent=*/true);
+          // The hit triangles' normals and classes for all lanes first,
+          // prefetched in two waves (triangles, then their vertices): the
+          // mesh is large and the lanes' triangles lie in different DEM
+          // rows, so their cache misses overlap instead of queueing.
+          for (int k = 0; k < 16; ++k) {
+            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+            __builtin_prefetch(&mesh.triangles[packet.triangle[k]]);
+            __builtin_prefetch(&mesh.classes[packet.triangle[k]]);
+          }
+          for (int k = 0; k < 16; ++k) {
+            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+            for (int corner = 0; corner < 3; ++corner) {
+              __builtin_prefetch(&mesh.vertices[mesh.triangles[packet.triangle[k]][corner]]);
+            }
+          }
+          for (int k = 0; k < 16; ++k) {
+            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+            lane_normal[k] = mesh.Normal(packet.triangle[k]);
+            lane_class[k] = mesh.classes[packet.triangle[k]];
+          }
           for (int k = 0; k < 16; ++k) {
           if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
           const int j = j0 + k;
@@ -405,10 +427,12 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             if (bounce == 1) ++local_hits;
             const Vector3d p = origin + double(hit->t) * dir;
             travelled += hit->t;
-            const Vector3d normal = mesh.Normal(hit->triangle).cast<double>();
+            const Vector3d normal =
+                (bounce == 1 ? lane_normal[k] : mesh.Normal(hit->triangle)).cast<double>();
             const double cos_in = -normal.dot(dir);
             if (cos_in <= 0.0) break;  // back face: blocked
-            const material::Material& m = materials.Get(mesh.classes[hit->triangle]);
+            const material::Material& m =
+                materials.Get(bounce == 1 ? lane_class[k] : mesh.classes[hit->triangle]);
             if (bounce == 1 && !affine) power *= travelled / range0;  // beam widening with range
             // Return to the radar from p.
             const double a_p = geometry.AlongTrack(p);
@@ -486,6 +510,9 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   for (const auto& overflow : block_overflow) {
     for (const Band::Overflow& o : overflow) SplatImage(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
   }
+  // Tracing phase: rays, shading, splatting and merging (not the assembly
+  // of the output planes below).
+  image.stats.trace_seconds = trace_watch.ElapsedSeconds();
   if (options.coherent) {
     image.intensity.resize(size_t(width) * height);
     for (size_t k = 0; k < image.intensity.size(); ++k) {
@@ -506,7 +533,6 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   }
   image.stats.rays = int64_t{grid.n_az} * grid.n_el;
   image.stats.hits = hits.load();
-  image.stats.trace_seconds = trace_watch.ElapsedSeconds();
 
   Stopwatch mask_watch;
   image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays);

@@ -68,7 +68,7 @@ struct RenderStats {
   int64_t hits = 0;           // rays that hit the scene
   int64_t shadow_rays = 0;    // visibility rays of the mask
   int64_t cells = 0;          // DEM cells projected (raster engine)
-  double trace_seconds = 0.0;
+  double trace_seconds = 0.0;  // tracer: rays, shading, splatting, merging; raster: all
   double mask_seconds = 0.0;
 };
 
