@@ -36,6 +36,13 @@ mkdir -p "$R"
 say() { echo "bench: $*" >&2; }
 START=$(date +%s)
 uptime > "$R/load_start.txt"
+# The code measured: commit, and "-dirty" when tracked sources differ from
+# it (the report and the profile notes excepted).
+commit=$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)
+if [ -n "$(git -C "$ROOT" status --porcelain --untracked-files=no -- . ':!BENCHMARKS.md' ':!bench/PROFILES.md' 2>/dev/null)" ]; then
+  commit="$commit-dirty"
+fi
+echo "$commit" > "$R/commit.txt"
 
 # Every command is logged verbatim (commands.txt) and run from $WORK.
 cd "$WORK"
