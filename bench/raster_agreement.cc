@@ -91,6 +91,9 @@ int main(int argc, char** argv) {
                         {"mask_differing_away_from_edges", mask.away_from_edges},
                         {"trace_seconds_with_bvh", trace_seconds},
                         {"raster_seconds", raster_seconds}};
+    nlohmann::json unexplained = nlohmann::json::array();
+    for (const auto& p : mask.unexplained) unexplained.push_back({p.col, p.row, p.a, p.b});
+    j["mask_unexplained_col_row_raster_trace"] = unexplained;
     std::printf("%s\n", j.dump().c_str());
     if (!out.empty()) {
       image::DbStretch stretch;

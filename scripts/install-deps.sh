@@ -17,6 +17,7 @@ PACKAGES=(
   libopencv-dev                                # image processing, features
   libfftw3-dev                                 # FFT
   libgif-dev                                   # animated GIF (heading sequences)
+  povray                                       # benchmarks: POV-Ray side by side (make bench)
   libssl-dev python3
   pybind11-dev python3-dev python3-numpy python3-pytest python3-gdal  # Python API
 )

@@ -51,7 +51,7 @@ DatasetPtr OpenForReading(const fs::path& path) {
 void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   const int nbands = static_cast<int>(raster.bands.size());
   if (nbands == 0) throw IoError("no band to write", path.string());
-  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "PREDICTOR=1", nullptr};
+  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "PREDICTOR=1", "NUM_THREADS=ALL_CPUS", nullptr};
   DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), raster.width, raster.height, nbands,
                                         GDT_Float32, const_cast<char**>(options)));
   if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
@@ -72,7 +72,7 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
 
 void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width,
                       int height, const Metadata& metadata) {
-  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", nullptr};
+  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
   DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, 1, GDT_Byte,
                                         const_cast<char**>(options)));
   if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());

@@ -17,11 +17,38 @@ struct RayHit {
   uint32_t triangle = 0;   // index into the mesh's triangles
 };
 
+// 16 rays and their hits in structure-of-arrays layout (the layout of
+// Embree's RTCRayHit16, checked at compile time), for Intersect16. The
+// caller fills org, dir (unit), tnear and tfar of the valid lanes; on return
+// a lane that hit has triangle[k] != kNoHit and tfar[k] its distance.
+struct alignas(64) RayPacket16 {
+  static constexpr uint32_t kNoHit = 0xFFFFFFFFu;
+  float org_x[16], org_y[16], org_z[16], tnear[16];
+  float dir_x[16], dir_y[16], dir_z[16], time[16];
+  float tfar[16];
+  uint32_t mask[16], id[16], flags[16];
+  float ng_x[16], ng_y[16], ng_z[16], u[16], v[16];
+  uint32_t triangle[16], geometry[16], instance[16];
+};
+
+// BVH build quality: kAuto picks by scene size (EmbreeScene constructor).
+enum class BvhQuality { kAuto, kLow, kMedium, kHigh };
+
 class EmbreeScene {
  public:
-  // Builds the BVH of `mesh` (copied into Embree buffers). Throws Error when
-  // Embree fails (e.g. out of memory) or the mesh is empty.
-  explicit EmbreeScene(const scene::TriangleMesh& mesh);
+  // Builds the BVH of `mesh` (copied into Embree buffers; a mesh whose
+  // triangles 2q, 2q + 1 pair into quads, as scene::MeshFromGrid's do, goes
+  // in as Embree quads: half the primitives, and hits still name the mesh's
+  // triangles). Throws Error when
+  // Embree fails (e.g. out of memory) or the mesh is empty. kAuto (measured,
+  // docs/performance.md): the binned SAH build (medium quality) for grids
+  // of any size and for triangle meshes up to kLargeSceneTriangles; above
+  // that the Morton build (low quality) with compact leaves, a third less
+  // memory for triangles. On DEM grids (quads) the Morton build is slower
+  // than the SAH build and saves no memory, and high quality (spatial
+  // splits) doubles the build time without tracing any faster.
+  static constexpr size_t kLargeSceneTriangles = size_t{4} << 20;
+  explicit EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality = BvhQuality::kAuto);
   ~EmbreeScene();
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
@@ -36,6 +63,14 @@ class EmbreeScene {
   bool Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_near,
                 float t_far) const;
 
+  // First hits of the lanes k of `packet` with valid[k] == -1 (others are
+  // left alone), one rtcIntersect16 call; `coherent` tells Embree the rays
+  // are coherent (neighbouring origins, near-parallel directions).
+  // Thread-safe.
+  void Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const;
+
+  // The quality the BVH was built with (never kAuto).
+  BvhQuality quality() const { return quality_; }
   // Seconds spent building the BVH.
   double build_seconds() const { return build_seconds_; }
 
@@ -43,6 +78,7 @@ class EmbreeScene {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   double build_seconds_ = 0.0;
+  BvhQuality quality_ = BvhQuality::kMedium;
 };
 
 }  // namespace gissar::render

@@ -56,7 +56,12 @@ MaskAgreement CompareMasks(const std::vector<uint8_t>& a, const std::vector<uint
         if ((a[i] & bit) && !(b[i] & bit) && !near(b, c, r, bit)) explained = false;
         if ((b[i] & bit) && !(a[i] & bit) && !near(a, c, r, bit)) explained = false;
       }
-      if (!explained) ++result.away_from_edges;
+      if (!explained) {
+        ++result.away_from_edges;
+        if (result.unexplained.size() < MaskAgreement::kMaxListed) {
+          result.unexplained.push_back({c, r, a[i], b[i]});
+        }
+      }
     }
   }
   return result;

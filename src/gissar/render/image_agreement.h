@@ -27,6 +27,14 @@ struct MaskAgreement {
   // one pixel (3 x 3 neighbourhood). 0 means the masks are identical within
   // one pixel of their edges.
   int64_t away_from_edges = 0;
+  // The first (row-major) of those pixels, at most kMaxListed: column, row,
+  // code in a, code in b.
+  static constexpr int kMaxListed = 64;
+  struct Pixel {
+    int col, row;
+    uint8_t a, b;
+  };
+  std::vector<Pixel> unexplained;
 };
 
 // Compares two masks of kMask* codes, row-major width x height. CHECKs the

@@ -26,11 +26,8 @@ constexpr float kSampleSpacingPx = 1.5f;
 // Partly shadowed triangles are split at least this many times per side, so
 // that their lit share follows the shadow edge.
 constexpr int kPartialSubdivision = 8;
-// Triangles lit at grazing incidence (cos(theta) below this) get their
-// mask evaluated at every pixel centre even when all three corners are
-// lit: a crest of the neighbouring triangle can shadow their middle.
-constexpr float kGrazingCos = 0.3f;
-// Horizon lines per post spacing across the sweep.
+// Horizon lines per post spacing across the sweep (at least; they are
+// also aligned with the image rows, see Context::lines_per_row).
 constexpr float kLinesPerPost = 2.0f;
 
 // The DEM grid walked as (s, t): s steps along the horizontal look direction
@@ -78,7 +75,13 @@ struct Context {
   float up_sign = 1;  // n_up = up_sign * n
   float range0 = 0, inv_dr = 0, inv_da = 0, u0 = 0, v0 = 0, da = 0;
   float power_scale = 0;  // 1 / (dr da tan(d))
-  float line_spacing = 0;  // metres of along-track coordinate between horizon lines
+  // Horizon line J lies at along-track coordinate line_offset + J *
+  // line_spacing (metres); line_offset = -v0 * da puts line J = r *
+  // lines_per_row on the centres of image row r, so that the mask, which is
+  // evaluated at pixel centres, reads exact horizons (no interpolation).
+  float line_spacing = 0;
+  double line_offset = 0;
+  int lines_per_row = 1;
   float cell_span = 0;     // bound on the along-track extent of a cell, metres
   int width = 0, height = 0;
 };
@@ -144,14 +147,17 @@ class ChunkRenderer {
     a_hi_cells_ = (row1 - ctx.v0) * ctx.da;
     a_lo_posts_ = a_lo_cells_ - ctx.cell_span;
     a_hi_posts_ = a_hi_cells_ + ctx.cell_span;
-    line_first_ = static_cast<int64_t>(std::floor(a_lo_posts_ / ctx.line_spacing)) - 1;
-    const int64_t line_last = static_cast<int64_t>(std::ceil(a_hi_posts_ / ctx.line_spacing)) + 1;
+    line_first_ = static_cast<int64_t>(std::floor((a_lo_posts_ - ctx.line_offset) / ctx.line_spacing)) - 1;
+    const int64_t line_last =
+        static_cast<int64_t>(std::ceil((a_hi_posts_ - ctx.line_offset) / ctx.line_spacing)) + 1;
     const int lines = static_cast<int>(line_last - line_first_ + 1);
     horizon_.assign(size_t(lines), kNoHorizon);
     horizon_before_.assign(size_t(lines), kNoHorizon);
     rho_.assign(size_t(lines), std::numeric_limits<float>::quiet_NaN());
     line_a_.resize(size_t(lines));
-    for (int k = 0; k < lines; ++k) line_a_[k] = static_cast<float>((line_first_ + k) * double(ctx.line_spacing));
+    for (int k = 0; k < lines; ++k) {
+      line_a_[k] = static_cast<float>(ctx.line_offset + (line_first_ + k) * double(ctx.line_spacing));
+    }
   }
 
   void Run() {
@@ -263,13 +269,14 @@ class ChunkRenderer {
     const int n = cur_.t_hi - cur_.t_lo + 1;
     const float inv_w = 1.0f / ctx_.line_spacing;
     const float first = static_cast<float>(line_first_);
+    const float offset = static_cast<float>(ctx_.line_offset);
     const int last_line = static_cast<int>(horizon_.size()) - 2;
     const bool strip = !prev_.empty();
     int j = 0;  // previous-step index with prev.a[j] <= a < prev.a[j + 1]
     const int np = prev_.t_hi - prev_.t_lo + 1;
     for (int k = 0; k < n; ++k) {
       const float A = cur_.a[k];
-      const float fl = A * inv_w - first;
+      const float fl = (A - offset) * inv_w - first;
       int line = FloorInt(fl);
       line = std::clamp(line, 0, last_line);
       const float f = std::clamp(fl - float(line), 0.0f, 1.0f);
@@ -350,12 +357,20 @@ class ChunkRenderer {
   // current step: the horizon lines before the previous column
   // (interpolated), the previous column where its line crosses it and the
   // mesh edges its line crosses between that column and the point (exact).
-  float PointMargin(float A, float e, float u, int t) const {
-    const float inv_w = 1.0f / ctx_.line_spacing;
-    const float fl = A * inv_w - float(line_first_);
-    const int line = std::clamp(FloorInt(fl), 0, int(horizon_prev_.size()) - 2);
-    const float f = std::clamp(fl - float(line), 0.0f, 1.0f);
-    float horizon = Interpolate(horizon_prev_[line], horizon_prev_[line + 1], f);
+  // A point at the centre of image row `row` (>= 0) reads the horizon line
+  // of that row itself, without interpolation.
+  float PointMargin(float A, float e, float u, int t, int row = -1) const {
+    float horizon;
+    const int64_t row_line = int64_t(row) * ctx_.lines_per_row - line_first_;
+    if (row >= 0 && row_line >= 0 && row_line < int64_t(horizon_prev_.size())) {
+      horizon = horizon_prev_[size_t(row_line)];
+    } else {
+      const float inv_w = 1.0f / ctx_.line_spacing;
+      const float fl = (A - static_cast<float>(ctx_.line_offset)) * inv_w - float(line_first_);
+      const int line = std::clamp(FloorInt(fl), 0, int(horizon_prev_.size()) - 2);
+      const float f = std::clamp(fl - float(line), 0.0f, 1.0f);
+      horizon = Interpolate(horizon_prev_[line], horizon_prev_[line + 1], f);
+    }
     const int np = prev_.t_hi - prev_.t_lo + 1;
     if (!(A >= prev_.a[0] && A < prev_.a[np - 1])) return e - horizon;
     int j = std::clamp(t - prev_.t_lo, 0, np - 2);
@@ -450,6 +465,7 @@ class ChunkRenderer {
     }
     const float cos_in = -normal.dot(dir);
     const bool turned_away = cos_in <= 1e-9f;
+    const bool edge_on = cos_in <= static_cast<float>(kMaskEdgeOnCos);  // mask: shadow
     const bool flipped = normal.dot(n_up) < 0.0f;
     const float m0 = s0.margin[k0], m1 = s1.margin[k1], m2 = s2.margin[k2];
     const bool all_lit = m0 >= 0.0f && m1 >= 0.0f && m2 >= 0.0f;
@@ -497,9 +513,12 @@ class ChunkRenderer {
       }
     }
 
-    if (turned_away || !all_lit || flipped || cos_in < kGrazingCos) {
+    {
       // Pixel centres covered by the projected triangle (the tracer's
-      // barycentric test), each coded from the surface at that centre.
+      // barycentric test), each coded from the surface at that centre. Even
+      // a triangle whose three corners are lit is evaluated at every centre:
+      // the horizon is not convex along the triangle (a peak or the end of a
+      // ridge edge in front can shadow its middle).
       const double area2 = double(c1 - c0) * (r2 - r0) - double(r1 - r0) * (c2 - c0);
       if (std::abs(area2) < 1e-12) return;
       const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({c0, c1, c2}))));
@@ -516,12 +535,15 @@ class ChunkRenderer {
           if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
           uint8_t code;
           // Lit unless turned away or below the horizon of its own azimuth
-          // line, evaluated at the centre itself.
+          // line, evaluated at the centre itself. A horizon within a few
+          // float roundings of the point is its own surface (an edge through
+          // the centre), as the tracer's visibility ray ignores hits within
+          // its t_near.
+          const float e = float(w0 * s0.e[k0] + w1 * s1.e[k1] + w2 * s2.e[k2]);
           const bool shadow =
-              turned_away ||
-              PointMargin(float(w0 * s0.a[k0] + w1 * s1.a[k1] + w2 * s2.a[k2]),
-                          float(w0 * s0.e[k0] + w1 * s1.e[k1] + w2 * s2.e[k2]),
-                          float(w0 * u0 + w1 * u1 + w2 * u2), cell_t_) < 0.0f;
+              edge_on ||
+              PointMargin(float(w0 * s0.a[k0] + w1 * s1.a[k1] + w2 * s2.a[k2]), e,
+                          float(w0 * u0 + w1 * u1 + w2 * u2), cell_t_, r) < -(1e-4f + 2.5e-7f * std::abs(e));
           if (shadow) {
             code = kMaskShadow;
           } else {
@@ -653,7 +675,11 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
     }
   }
   GISSAR_CHECK(min_transverse > 0.0f);
-  ctx.line_spacing = min_transverse / kLinesPerPost;
+  // Lines at least kLinesPerPost per post and an integer number per image
+  // row, one through every row's centres.
+  ctx.lines_per_row = std::max(1, static_cast<int>(std::ceil(ctx.da * kLinesPerPost / min_transverse)));
+  ctx.line_spacing = static_cast<float>(geometry.azimuth_spacing_m() / ctx.lines_per_row);
+  ctx.line_offset = -geometry.v0() * geometry.azimuth_spacing_m();
   ctx.cell_span = 1.25f * max_span + 1e-3f;
 
   SarImage image;

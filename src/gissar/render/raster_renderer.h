@@ -7,7 +7,7 @@
 // whose slant range decreases with ground range. Single bounce only.
 //
 // It renders the same image as RenderSar on a single-bounce scene of the
-// same mesh (docs/geometry.md, "DEM-raster engine"): the tracer's rays
+// same mesh (docs/performance.md, "DEM-raster engine"): the tracer's rays
 // sample every lit surface with a density proportional to cos(theta) per
 // unit area, each returning Backscatter(cos theta) / N, so a lit patch of
 // area A returns
@@ -45,8 +45,10 @@ namespace gissar::render {
 // same codes and semantics (value at each pixel centre: kMaskShadow when a
 // surface covering it faces away from the radar or lies below the horizon
 // of its azimuth line, kMaskLayover when a lit surface covering it is imaged
-// flipped). Shadow is exact along horizon lines spaced half a post apart in
-// azimuth and interpolated between them; each triangle is sampled at
+// flipped). Shadow is exact along horizon lines at most half a post apart
+// in azimuth, one through the centres of every image row (so the mask,
+// evaluated at pixel centres, is exact), and interpolated between them for
+// the intensity; each triangle is sampled at
 // sub-triangles at most about a pixel wide. stats.cells counts the DEM cells;
 // stats.trace_seconds is the rendering time. The result does not depend on
 // the thread count.

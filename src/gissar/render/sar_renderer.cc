@@ -1,12 +1,15 @@
 #include "gissar/render/sar_renderer.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <mutex>
+#include <optional>
 
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
@@ -86,20 +89,21 @@ double EntryDistance(const Vector3d& origin, const Vector3d& dir, const Eigen::A
 }
 
 // Accumulation band of image rows [row0, row0 + rows), `planes` planes of
-// width x rows each; returns landing outside the band (multi-bounce returns
-// may move in azimuth) are kept in `overflow` and added afterwards.
+// width x rows each (a buffer of the thread rendering the band); returns
+// landing outside the band (multi-bounce returns may move in azimuth) are
+// kept in `overflow` and added afterwards.
 struct Band {
   int row0 = 0;
   int rows = 0;
   int planes = 0;
-  std::vector<float> values;
+  float* values = nullptr;
   struct Overflow {
     int plane;
     double col, row;
     float value;
     bool amplitude;
   };
-  std::vector<Overflow> overflow;
+  std::vector<Overflow>* overflow = nullptr;
 };
 
 // Bilinear splat of `value` at continuous (col, row) into `plane`. Complex
@@ -110,7 +114,7 @@ void Splat(Band& band, int width, int plane, double col, double row, float value
   const double c0f = std::floor(col), r0f = std::floor(row);
   const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
   if (r0 < band.row0 || r0 + 1 >= band.row0 + band.rows) {
-    band.overflow.push_back({plane, col, row, value, amplitude});
+    band.overflow->push_back({plane, col, row, value, amplitude});
     return;
   }
   const float fc = static_cast<float>(col - c0f), fr = static_cast<float>(row - r0f);
@@ -119,7 +123,7 @@ void Splat(Band& band, int width, int plane, double col, double row, float value
     for (auto& line : w)
       for (float& x : line) x = std::sqrt(x);
   }
-  float* base = band.values.data() + size_t(plane) * band.rows * width;
+  float* base = band.values + size_t(plane) * band.rows * width;
   for (int dr = 0; dr < 2; ++dr) {
     const int r = r0 + dr - band.row0;
     for (int dc = 0; dc < 2; ++dc) {
@@ -160,6 +164,10 @@ double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   z ^= z >> 31;
   return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
 }
+
+// Below this cosine of the local incidence angle, a visibility ray of the
+// mask that finds its own triangle is continued past it.
+constexpr double kSelfHitCos = 0.05;
 
 // Small offset along a ray that clears float rounding of scene coordinates.
 float RayEpsilon(const Eigen::AlignedBox3d& box) {
@@ -221,7 +229,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
           const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
           const Vector3d dir = geometry.RayDirectionTo(point);
           uint8_t code = kMaskNone;
-          if (normal.dot(-dir) <= 1e-9) {
+          if (normal.dot(-dir) <= kMaskEdgeOnCos) {
             code = kMaskShadow;  // turned away from the radar
           } else {
             const double t_far =
@@ -232,9 +240,22 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
             // Leaving the surface at grazing incidence the ray climbs only
             // cos(theta) per metre: start it where it has cleared the
             // rounding of the surface itself (no self-shadowing).
-            const float t_near = eps / static_cast<float>(std::max(normal.dot(-dir), 0.01));
-            if (embree.Occluded(point.cast<float>(), (-dir).cast<float>(), t_near,
-                                static_cast<float>(t_far))) {
+            const double cos_in = normal.dot(-dir);
+            const float t_near = eps / static_cast<float>(std::max(cos_in, 0.01));
+            bool occluded = embree.Occluded(point.cast<float>(), (-dir).cast<float>(), t_near,
+                                            static_cast<float>(t_far));
+            if (occluded && cos_in < kSelfHitCos) {
+              // Seen almost edge-on the surface may still hit itself
+              // beyond t_near by rounding: skip its own triangle once.
+              const auto hit = embree.Intersect(point.cast<float>(), (-dir).cast<float>(), t_near,
+                                                static_cast<float>(t_far));
+              if (hit && hit->triangle == t) {
+                ++local_rays;
+                occluded = embree.Occluded(point.cast<float>(), (-dir).cast<float>(), hit->t + t_near,
+                                           static_cast<float>(t_far));
+              }
+            }
+            if (occluded) {
               code = kMaskShadow;
             } else if (normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0) {
               code = kMaskLayover;
@@ -275,72 +296,143 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   const double far_affine = range0 + box.diagonal().norm();
   const double wavenumber2 = 4.0 * M_PI / options.wavelength_m;  // phase per metre of slant range
 
-  // Per-triangle unit normals and materials, looked up once.
-  std::vector<Vector3d> normals(mesh.triangle_count());
-  std::vector<const material::Material*> material_of(mesh.triangle_count());
-  for (size_t t = 0; t < normals.size(); ++t) {
-    normals[t] = mesh.Normal(t).cast<double>();
-    material_of[t] = &materials.Get(mesh.classes[t]);
-  }
-
   // Planes: total intensity (coherent: real and imaginary amplitude), then
-  // one per bounce count.
+  // one per bounce count that can occur (the others stay zero).
   const int total_planes = options.coherent ? 2 : 1;
-  const int planes = total_planes + kBounceLayers;
+  const int used_layers = std::min(options.max_bounces, kBounceLayers);
+  const int planes = total_planes + used_layers;
 
-  // Blocks of azimuth ray rows, each accumulating into its own band of image
-  // rows (plus an overflow list); bands and overflows are summed in block
-  // order, so the result does not depend on the thread count or scheduling.
+  // Tiles: blocks of 16 image rows' worth of azimuth ray rows, in parallel.
+  // Each accumulates into a band of image rows in its thread's buffer (plus
+  // an overflow list), added into the image when the block is done. A band
+  // shares rows only with its two neighbours (blocks are 16 rows tall, bands
+  // reach one row further), so every pixel sums at most two bands, and
+  // IEEE addition of two terms is commutative: the image does not depend on
+  // which finishes first. Overflows are added afterwards in block order. The
+  // result does not depend on the thread count or scheduling.
   const int k_az = std::max(1, static_cast<int>(std::lround(grid.n_az / std::max(1, height))));
   const int rows_per_block = 16 * k_az;
   const int n_blocks = (grid.n_az + rows_per_block - 1) / rows_per_block;
-  std::vector<Band> bands(n_blocks);
+  auto band_row0 = [&](int b) {
+    return static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + b * rows_per_block * grid.da)));
+  };
+  auto band_rows = [&](int b) {
+    const int i1 = std::min(grid.n_az, (b + 1) * rows_per_block);
+    return static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + (i1 - 1) * grid.da))) + 2 - band_row0(b);
+  };
+  for (int b = 0; b + 2 < n_blocks; ++b) GISSAR_CHECK(band_row0(b) + band_rows(b) <= band_row0(b + 2));
+  std::vector<std::vector<float>> full(planes, std::vector<float>(size_t(width) * height, 0.0f));
+  std::vector<std::vector<Band::Overflow>> block_overflow(n_blocks);
   std::vector<std::vector<Contribution>> block_contributions(options.record_contributions ? n_blocks : 0);
+  tbb::enumerable_thread_specific<std::vector<float>> band_buffers;
+  std::array<std::mutex, 64> row_locks;  // by image row modulo 64
   std::atomic<int64_t> hits{0};
   Progress progress("simulate: tracing", n_blocks, options.show_progress);
   Stopwatch trace_watch;
 
   tbb::parallel_for(tbb::blocked_range<int>(0, n_blocks, 1), [&](const tbb::blocked_range<int>& blocks) {
+    std::vector<float>& buffer = band_buffers.local();
     for (int b = blocks.begin(); b != blocks.end(); ++b) {
       const int i0 = b * rows_per_block, i1 = std::min(grid.n_az, i0 + rows_per_block);
-      Band& band = bands[b];
+      Band band;
       band.planes = planes;
-      band.row0 = static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + i0 * grid.da)));
-      band.rows = static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + (i1 - 1) * grid.da))) + 2 - band.row0;
-      band.values.assign(size_t(planes) * band.rows * width, 0.0f);
+      band.row0 = band_row0(b);
+      band.rows = band_rows(b);
+      buffer.assign(size_t(planes) * band.rows * width, 0.0f);
+      band.values = buffer.data();
+      band.overflow = &block_overflow[b];
       int64_t local_hits = 0;
+      // Primary rays go out 16 at a time along an azimuth row (neighbouring
+      // origins, parallel or fanned directions: a coherent packet); each
+      // lane's later bounces are then followed one ray at a time, lanes in
+      // order, so returns are splatted in the same order as ray by ray.
+      RayPacket16 packet;
+      int valid[16];
+      Vector3d lane_origin[16], lane_dir[16];
+      Vector3f lane_normal[16];
+      scene::ClassId lane_class[16];
+      double lane_travelled[16];
       for (int i = i0; i < i1; ++i) {
         const double a = grid.a0 + i * grid.da;
         const Vector3d sensor = geometry.SensorPosition(a);
-        for (int j = 0; j < grid.n_el; ++j) {
-          const double e = grid.e0 + j * grid.de;
-          Vector3d origin, dir;
-          double travelled;  // path length from the sensor to `origin`
-          if (affine) {
-            dir = l;
-            origin = xc + a * h + e * n - grid.back_off_m * l;
-            travelled = range0 - grid.back_off_m;
-          } else {
-            dir = std::cos(e) * l + std::sin(e) * n;
-            const double entry = EntryDistance(sensor, dir, box);
-            if (!std::isfinite(entry)) continue;
-            travelled = std::max(0.0, entry - 1.0);
-            origin = sensor + travelled * dir;
+        for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
+          bool any = false;
+          for (int k = 0; k < 16; ++k) {
+            const int j = j0 + k;
+            valid[k] = 0;
+            if (j >= grid.n_el) continue;
+            const double e = grid.e0 + j * grid.de;
+            Vector3d origin, dir;
+            double travelled;  // path length from the sensor to `origin`
+            if (affine) {
+              dir = l;
+              origin = xc + a * h + e * n - grid.back_off_m * l;
+              travelled = range0 - grid.back_off_m;
+            } else {
+              dir = std::cos(e) * l + std::sin(e) * n;
+              const double entry = EntryDistance(sensor, dir, box);
+              if (!std::isfinite(entry)) continue;
+              travelled = std::max(0.0, entry - 1.0);
+              origin = sensor + travelled * dir;
+            }
+            lane_origin[k] = origin;
+            lane_dir[k] = dir;
+            lane_travelled[k] = travelled;
+            const Vector3f o = origin.cast<float>(), d = dir.cast<float>();
+            packet.org_x[k] = o.x();
+            packet.org_y[k] = o.y();
+            packet.org_z[k] = o.z();
+            packet.dir_x[k] = d.x();
+            packet.dir_y[k] = d.y();
+            packet.dir_z[k] = d.z();
+            packet.tnear[k] = 0.0f;
+            packet.tfar[k] = std::numeric_limits<float>::infinity();
+            valid[k] = -1;
+            any = true;
           }
+          if (!any) continue;
+          embree.Intersect16(valid, packet, /*coherent=*/true);
+          // The hit triangles' normals and classes for all lanes first,
+          // prefetched in two waves (triangles, then their vertices): the
+          // mesh is large and the lanes' triangles lie in different DEM
+          // rows, so their cache misses overlap instead of queueing.
+          for (int k = 0; k < 16; ++k) {
+            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+            __builtin_prefetch(&mesh.triangles[packet.triangle[k]]);
+            __builtin_prefetch(&mesh.classes[packet.triangle[k]]);
+          }
+          for (int k = 0; k < 16; ++k) {
+            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+            for (int corner = 0; corner < 3; ++corner) {
+              __builtin_prefetch(&mesh.vertices[mesh.triangles[packet.triangle[k]][corner]]);
+            }
+          }
+          for (int k = 0; k < 16; ++k) {
+            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+            lane_normal[k] = mesh.Normal(packet.triangle[k]);
+            lane_class[k] = mesh.classes[packet.triangle[k]];
+          }
+          for (int k = 0; k < 16; ++k) {
+          if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+          const int j = j0 + k;
+          Vector3d origin = lane_origin[k], dir = lane_dir[k];
+          double travelled = lane_travelled[k];
           double power = grid.ray_weight;
           const uint64_t ray_id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
           for (int bounce = 1; bounce <= options.max_bounces; ++bounce) {
-            const auto hit = embree.Intersect(origin.cast<float>(), dir.cast<float>(),
-                                              bounce == 1 ? 0.0f : eps,
-                                              std::numeric_limits<float>::infinity());
+            const auto hit = bounce == 1 ? std::optional<RayHit>(RayHit{packet.tfar[k], packet.triangle[k]})
+                                         : embree.Intersect(origin.cast<float>(), dir.cast<float>(), eps,
+                                                            std::numeric_limits<float>::infinity());
             if (!hit) break;
             if (bounce == 1) ++local_hits;
             const Vector3d p = origin + double(hit->t) * dir;
             travelled += hit->t;
-            const Vector3d& normal = normals[hit->triangle];
+            const Vector3d normal =
+                (bounce == 1 ? lane_normal[k] : mesh.Normal(hit->triangle)).cast<double>();
             const double cos_in = -normal.dot(dir);
             if (cos_in <= 0.0) break;  // back face: blocked
-            const material::Material& m = *material_of[hit->triangle];
+            const material::Material& m =
+                materials.Get(bounce == 1 ? lane_class[k] : mesh.classes[hit->triangle]);
             if (bounce == 1 && !affine) power *= travelled / range0;  // beam widening with range
             // Return to the radar from p.
             const double a_p = geometry.AlongTrack(p);
@@ -395,6 +487,18 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             origin = p;
             dir = mirror.normalized();
           }
+          }
+        }
+      }
+      // Into the image, one row at a time under its lock.
+      for (int r = 0; r < band.rows; ++r) {
+        const int row = band.row0 + r;
+        if (row < 0 || row >= height) continue;
+        std::lock_guard<std::mutex> lock(row_locks[size_t(row) % row_locks.size()]);
+        for (int plane = 0; plane < planes; ++plane) {
+          float* dst = full[plane].data() + size_t(row) * width;
+          const float* src = band.values + (size_t(plane) * band.rows + r) * width;
+          for (int c = 0; c < width; ++c) dst[c] += src[c];
         }
       }
       hits.fetch_add(local_hits, std::memory_order_relaxed);
@@ -403,19 +507,12 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   });
   progress.Done();
 
-  std::vector<std::vector<float>> full(planes, std::vector<float>(size_t(width) * height, 0.0f));
-  for (const Band& band : bands) {
-    for (int plane = 0; plane < planes; ++plane) {
-      for (int r = 0; r < band.rows; ++r) {
-        const int row = band.row0 + r;
-        if (row < 0 || row >= height) continue;
-        float* dst = full[plane].data() + size_t(row) * width;
-        const float* src = band.values.data() + (size_t(plane) * band.rows + r) * width;
-        for (int c = 0; c < width; ++c) dst[c] += src[c];
-      }
-    }
-    for (const Band::Overflow& o : band.overflow) SplatImage(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
+  for (const auto& overflow : block_overflow) {
+    for (const Band::Overflow& o : overflow) SplatImage(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
   }
+  // Tracing phase: rays, shading, splatting and merging (not the assembly
+  // of the output planes below).
+  image.stats.trace_seconds = trace_watch.ElapsedSeconds();
   if (options.coherent) {
     image.intensity.resize(size_t(width) * height);
     for (size_t k = 0; k < image.intensity.size(); ++k) {
@@ -424,18 +521,90 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   } else {
     image.intensity = std::move(full[0]);
   }
-  for (int layer = 0; layer < kBounceLayers; ++layer) image.bounce_layers[layer] = std::move(full[total_planes + layer]);
+  for (int layer = 0; layer < kBounceLayers; ++layer) {
+    if (layer < used_layers) {
+      image.bounce_layers[layer] = std::move(full[total_planes + layer]);
+    } else {
+      image.bounce_layers[layer].assign(size_t(width) * height, 0.0f);
+    }
+  }
   for (auto& list : block_contributions) {
     image.contributions.insert(image.contributions.end(), list.begin(), list.end());
   }
   image.stats.rays = int64_t{grid.n_az} * grid.n_el;
   image.stats.hits = hits.load();
-  image.stats.trace_seconds = trace_watch.ElapsedSeconds();
 
   Stopwatch mask_watch;
   image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays);
   image.stats.mask_seconds = mask_watch.ElapsedSeconds();
   return image;
+}
+
+int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                                 const sensor::SarGeometry& geometry, double rays_per_cell,
+                                 int64_t* hits) {
+  const Eigen::AlignedBox3d box = mesh.Bounds();
+  const RayGrid grid = MakeRayGrid(geometry, box, rays_per_cell);
+  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
+  const Vector3d& l = geometry.look_direction();
+  const Vector3d& n = geometry.range_plane_normal();
+  const Vector3d& h = geometry.flight_direction();
+  const Vector3d& xc = geometry.scene_centre();
+  const int height = geometry.height();
+  const int k_az = std::max(1, static_cast<int>(std::lround(grid.n_az / std::max(1, height))));
+  const int rows_per_block = 16 * k_az;
+  const int n_blocks = (grid.n_az + rows_per_block - 1) / rows_per_block;
+  std::atomic<int64_t> rays{0}, hit_count{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, n_blocks, 1), [&](const tbb::blocked_range<int>& blocks) {
+    RayPacket16 packet;
+    int valid[16];
+    int64_t local_rays = 0, local_hits = 0;
+    for (int b = blocks.begin(); b != blocks.end(); ++b) {
+      const int i0 = b * rows_per_block, i1 = std::min(grid.n_az, i0 + rows_per_block);
+      for (int i = i0; i < i1; ++i) {
+        const double a = grid.a0 + i * grid.da;
+        const Vector3d sensor = geometry.SensorPosition(a);
+        for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
+          bool any = false;
+          for (int k = 0; k < 16; ++k) {
+            const int j = j0 + k;
+            valid[k] = 0;
+            if (j >= grid.n_el) continue;
+            const double e = grid.e0 + j * grid.de;
+            Vector3d origin, dir;
+            if (affine) {
+              dir = l;
+              origin = xc + a * h + e * n - grid.back_off_m * l;
+            } else {
+              dir = std::cos(e) * l + std::sin(e) * n;
+              const double entry = EntryDistance(sensor, dir, box);
+              if (!std::isfinite(entry)) continue;
+              origin = sensor + std::max(0.0, entry - 1.0) * dir;
+            }
+            const Vector3f o = origin.cast<float>(), d = dir.cast<float>();
+            packet.org_x[k] = o.x();
+            packet.org_y[k] = o.y();
+            packet.org_z[k] = o.z();
+            packet.dir_x[k] = d.x();
+            packet.dir_y[k] = d.y();
+            packet.dir_z[k] = d.z();
+            packet.tnear[k] = 0.0f;
+            packet.tfar[k] = std::numeric_limits<float>::infinity();
+            valid[k] = -1;
+            any = true;
+            ++local_rays;
+          }
+          if (!any) continue;
+          embree.Intersect16(valid, packet, /*coherent=*/true);
+          for (int k = 0; k < 16; ++k) local_hits += valid[k] != 0 && packet.triangle[k] != RayPacket16::kNoHit;
+        }
+      }
+    }
+    rays.fetch_add(local_rays, std::memory_order_relaxed);
+    hit_count.fetch_add(local_hits, std::memory_order_relaxed);
+  });
+  if (hits != nullptr) *hits = hit_count.load();
+  return rays.load();
 }
 
 }  // namespace gissar::render

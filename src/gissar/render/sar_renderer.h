@@ -20,6 +20,11 @@ namespace gissar::render {
 inline constexpr uint8_t kMaskNone = 0;
 inline constexpr uint8_t kMaskLayover = 1;
 inline constexpr uint8_t kMaskShadow = 2;  // kMaskLayover | kMaskShadow = 3: both
+// The masks of both engines count a surface seen at cos(local incidence)
+// at or below this (within 0.06 deg of edge-on) as turned away: shadow.
+// Exactly grazing surfaces return no power, and whether they are lit is
+// decided by rounding otherwise.
+inline constexpr double kMaskEdgeOnCos = 1e-3;
 
 struct RenderOptions {
   // Rays per resolution cell on flat ground at the scene-centre depression:
@@ -63,7 +68,7 @@ struct RenderStats {
   int64_t hits = 0;           // rays that hit the scene
   int64_t shadow_rays = 0;    // visibility rays of the mask
   int64_t cells = 0;          // DEM cells projected (raster engine)
-  double trace_seconds = 0.0;
+  double trace_seconds = 0.0;  // tracer: rays, shading, splatting, merging; raster: all
   double mask_seconds = 0.0;
 };
 
@@ -109,6 +114,17 @@ struct SarImage {
 SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                    const material::MaterialTable& materials, const sensor::SarGeometry& geometry,
                    const RenderOptions& options);
+
+// The limit RenderSar's primary rays are measured against (`make bench`):
+// intersects exactly the primary rays RenderSar traces for `geometry` and
+// `rays_per_cell` over `mesh` (same ray grid, same float origins and
+// directions, same blocks of azimuth rows in parallel), 16 at a time with
+// rtcIntersect16 and the coherent flag, and does nothing else with them (no
+// shading, splatting, later bounces or mask). Returns the rays intersected;
+// *hits (optional) the rays that hit the scene.
+int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                                 const sensor::SarGeometry& geometry, double rays_per_cell,
+                                 int64_t* hits = nullptr);
 
 // Only the layover/shadow mask (see RenderSar).
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,

@@ -1,0 +1,294 @@
+#!/usr/bin/env python3
+"""Writes BENCHMARKS.md (stdout) from the results directory of scripts/bench.sh.
+
+Usage: bench_report.py RESULTS_DIR REPO_ROOT
+"""
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+from datetime import datetime, timezone
+
+R, ROOT = sys.argv[1], sys.argv[2]
+GIB = 1024.0 ** 3
+MIB = 1024.0 ** 2
+
+
+def read(name):
+    with open(os.path.join(R, name)) as f:
+        return f.read()
+
+
+def load(name):
+    return json.loads(read(name))
+
+
+def wall_rss(name):
+    """(wall seconds, peak RSS bytes) of a command run by bench.sh."""
+    wall, kb = read(name + ".time").split()[-2:]
+    return float(wall), float(kb) * 1024.0
+
+
+def benchmarks(name):
+    return {b["name"]: b for b in load(name)["benchmarks"]}
+
+
+commands = {}
+for line in read("commands.txt").splitlines():
+    key, cmd = line.split("\t", 1)
+    cmd = re.sub(r"/[^\s=]*/gissar-bench\.[^/]+/", "", cmd)  # the scratch directory
+    commands[key] = cmd.replace(os.path.abspath(ROOT) + "/", "")
+
+
+def cmd(key):
+    return "`" + commands[key] + "`"
+
+
+def cpu_model():
+    with open("/proc/cpuinfo") as f:
+        for line in f:
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.processor()
+
+
+def mem_total():
+    with open("/proc/meminfo") as f:
+        for line in f:
+            if line.startswith("MemTotal"):
+                return float(line.split()[1]) * 1024.0
+    return 0.0
+
+
+def git_commit():
+    try:
+        return subprocess.check_output(["git", "-C", ROOT, "describe", "--always", "--dirty"],
+                                       text=True).strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def verdict(ok):
+    return "**reached**" if ok else "**missed**"
+
+
+out = []
+w = out.append
+w("# gissar benchmarks")
+w("")
+w("Written by `make bench` (scripts/bench.sh, scripts/bench_report.py); do not edit by hand.")
+w("")
+w("| | |")
+w("|---|---|")
+w("| date (UTC) | %s |" % datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M"))
+w("| commit measured | %s |" % (read("commit.txt").strip() if os.path.exists(os.path.join(R, "commit.txt"))
+                                else git_commit()))
+w("| CPU | %s |" % cpu_model())
+w("| cores | %d (`nproc`) |" % os.cpu_count())
+w("| memory | %.1f GiB |" % (mem_total() / GIB))
+w("| OS | %s |" % platform.platform())
+w("| load average at start / end | %s / %s |" % (read("load_start.txt").split("load average:")[1].strip(),
+                                               read("load_end.txt").split("load average:")[1].strip()))
+w("| whole suite | %s s |" % read("bench_seconds.txt").strip())
+w("")
+w("The machine may be shared (a load average above the core count means other jobs were running):")
+w("absolute times are then pessimistic, and every comparison below is a ratio of two figures")
+w("measured in the same run, back to back. All terrain is synthetic fractal terrain")
+w("(`bench/fractal_dem`: 10 m posts, 800 m relief, seed 1); the geometry is heading 30 deg,")
+w("depression 40 deg, slant range 20 km, pixels of the post spacing, unless said otherwise.")
+w("")
+
+# ---------------------------------------------------------------- simulate
+w("## End-to-end `gissar simulate`, 4 rays per cell")
+w("")
+w("Wall time and peak RSS of the whole process (`/usr/bin/time`), from reading the DEM to the")
+w("committed GeoTIFFs, PNG and JSON. Rays/s: primary rays per second of wall time, and per second")
+w("of the tracing phase alone. Phases from the JSON sidecar (`timings_s`).")
+w("")
+w("| posts | triangles | bounces | image | primary rays | wall s | rays/s (wall) | rays/s (trace) | peak RSS | terrain s | BVH s | trace s | mask s | write s |")
+w("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+sims = {}
+for n in (1024, 2048, 4096):
+    for b in (1, 3):
+        key = "sim_%d_b%d" % (n, b)
+        j = load(key + ".json")
+        wall, rss = wall_rss(key)
+        t = j["timings_s"]
+        rays = j["stats"]["rays"]
+        sims[(n, b)] = (wall, rss, j)
+        w("| %d² | %.1f M | %d | %d × %d | %.1f M | %.1f | %.2f M | %.2f M | %.2f GiB | %.1f | %.1f | %.1f | %.1f | %.1f |" % (
+            n, j["stats"]["triangles"] / 1e6, b, j["geometry"]["width"], j["geometry"]["height"],
+            rays / 1e6, wall, rays / wall / 1e6, rays / t["trace"] / 1e6, rss / GIB,
+            t["terrain"], t.get("bvh", 0.0), t["trace"], t.get("mask", 0.0), t["write"]))
+w("")
+w("Commands (run in a scratch directory holding the DEMs):")
+w("")
+w("- DEMs: " + ", ".join(cmd("dem_%d" % n) for n in (1024, 2048, 4096)))
+for n in (1024, 2048, 4096):
+    for b in (1, 3):
+        w("- %d², %d bounce(s): %s" % (n, b, cmd("sim_%d_b%d" % (n, b))))
+w("")
+wall, rss, _ = sims[(4096, 3)]
+w("Target: 4096², 4 rays per cell, 3 bounces: whole `simulate` ≤ 15 s wall and ≤ 4 GiB peak.")
+w("Reached here: **%.1f s** wall (%s), **%.2f GiB** peak (%s)." % (
+    wall, verdict(wall <= 15.0), rss / GIB, verdict(rss <= 4 * GIB)))
+w("")
+
+# ---------------------------------------------------------------- limit
+w("## The limit: tracer primary rays against raw Embree")
+w("")
+w("`BM_RawEmbreeStream` intersects exactly the tracer's primary rays (same ray grid, same float")
+w("origins and directions, same parallel blocks) 16 at a time with `rtcIntersect16` and the coherent")
+w("flag, and does nothing else. `BM_TracerPrimary` is `RenderSar` with one bounce, timed over its")
+w("tracing phase (ray generation, intersection, shading, splatting, merging the bands). Same")
+w("process, same BVH (automatic quality), run back to back, 2 iterations each.")
+w("")
+w("| posts | rays | raw Embree rays/s | tracer rays/s | tracer / raw |")
+w("|---|---|---|---|---|")
+ratios = {}
+for n in (1024, 2048, 4096):
+    bm = benchmarks("trace_%d.json" % n)
+    raw = bm["BM_RawEmbreeStream/iterations:2/real_time"]
+    ours = bm["BM_TracerPrimary/iterations:2/manual_time"]
+    ratio = ours["rays_per_s"] / raw["rays_per_s"]
+    ratios[n] = ratio
+    w("| %d² | %.1f M | %.2f M | %.2f M | %.0f %% |" % (n, raw["rays"] / 1e6, raw["rays_per_s"] / 1e6,
+                                                   ours["rays_per_s"] / 1e6, 100 * ratio))
+w("")
+w("Commands: " + ", ".join(cmd("trace_%d" % n) + " with `GISSAR_BENCH_DEM=fractal_%d.tif`" % n
+                            for n in (1024, 2048, 4096)) + ".")
+w("")
+w("Target: tracer ≥ 60 %% of raw Embree. Reached here: %s (%s)." % (
+    ", ".join("%d²: %.0f %%" % (n, 100 * r) for n, r in ratios.items()),
+    verdict(min(ratios.values()) >= 0.6)))
+w("")
+
+# ---------------------------------------------------------------- scene build
+w("## Scene build: BVH and constrained Delaunay triangulation")
+w("")
+w("BVH (`BM_BvhBuild` in the same runs): build time and the resident memory it adds (Embree's")
+w("copy of the mesh included). DEM meshes go into Embree as quads (16.8 M for 4096² posts).")
+w("`simulate` picks medium quality for grids of any size (`EmbreeScene`, `BvhQuality::kAuto`;")
+w("low quality with compact leaves only for non-grid meshes above 4 Mi triangles).")
+w("")
+w("| posts | triangles | quality | build s | triangles/s | memory |")
+w("|---|---|---|---|---|---|")
+for n in (1024, 2048, 4096):
+    bm = benchmarks("trace_%d.json" % n)
+    for arg in (1, 2):
+        b = bm.get("BM_BvhBuild/%d/iterations:1/real_time" % arg)
+        if b is None:
+            continue
+        seconds = b["real_time"] / 1e3
+        w("| %d² | %.1f M | %s | %.2f | %.1f M | %.0f MiB |" % (
+            n, b["triangles"] / 1e6, b["label"], seconds, b["triangles"] / seconds / 1e6, b["added_MiB"]))
+    raw = bm["BM_RawEmbreeStream/iterations:2/real_time"]
+    w("| %d² | %.1f M | %s (automatic: the BVH of the throughput runs) | %.2f | %.1f M | %.0f MiB |" % (
+        n, raw["triangles"] / 1e6, raw["label"], raw["bvh_build_s"], raw["triangles"] / raw["bvh_build_s"] / 1e6,
+        raw["bvh_added_MiB"]))
+w("")
+w("CDT (`scene_build_bench`: DEM window plus 5,000 random water/forest/urban polygons, read,")
+w("triangulated with CGAL, classes assigned; one iteration each; peak RSS of the process so far):")
+w("")
+w("| posts | polygons | triangles | seconds | posts/s | peak RSS |")
+w("|---|---|---|---|---|---|")
+for b in load("scene_build.json")["benchmarks"]:
+    seconds = b["real_time"]  # unit: s
+    w("| %d² | %d | %.1f M | %.1f | %.2f M | %.2f GiB |" % (
+        int(round(b["posts"] ** 0.5)), b["polygons"], b["triangles"] / 1e6, seconds,
+        b["posts_per_s"] / 1e6, b["peak_rss_MiB"] / 1024.0))
+w("")
+w("Command: " + cmd("scene_build") + ".")
+w("")
+
+# ---------------------------------------------------------------- raster
+w("## DEM-raster engine (`--engine raster`) and memory bandwidth, 4096²")
+w("")
+bm = benchmarks("raster_4096.json")
+raster = [b for name, b in bm.items() if name.startswith("BM_RasterCells")][0]
+stream = [b for name, b in bm.items() if name.startswith("BM_StreamTriad")][0]
+ms = raster["real_time"]
+cells_per_s = raster["cells_per_s"]
+w("| figure | value |")
+w("|---|---|")
+w("| DEM cells | %.1f M |" % (raster["cells"] / 1e6))
+w("| image | %.1f M pixels |" % (raster["image_pixels"] / 1e6))
+w("| render time after loading (mean of %d) | %.0f ms |" % (raster["iterations"], ms))
+w("| cells/s | %.1f M |" % (cells_per_s / 1e6))
+w("| STREAM triad, same process | %.1f GB/s |" % (stream["bytes_per_s"] / 1e9))
+w("| bytes of post data per second at that rate (12 B/post) | %.2f GB/s |" % (cells_per_s * 12 / 1e9))
+w("")
+w("Command: `GISSAR_BENCH_DEM=fractal_4096.tif " + commands["raster_4096"] + "`.")
+w("")
+w("Target: ≥ 500 M cells/s on 2 threads (4096² in ≤ 35 ms). Reached here: %.1f M cells/s, %.0f ms (%s)." % (
+    cells_per_s / 1e6, ms, verdict(cells_per_s >= 500e6)))
+w("")
+
+# ---------------------------------------------------------------- agreement
+w("## Raster engine against the ray tracer on Andorra")
+w("")
+w("SRTM3 Andorra (data/andorra, voids filled), depression 40 deg, pixels of the post spacing,")
+w("tracer at 16 rays per cell, single bounce. Pearson r of the dB images where both are non-zero;")
+w("mask pixels that differ, and those not explained by an edge within one pixel (must be 0).")
+w("")
+w("| heading | image | r (dB) | flagged mask pixels | differing | unexplained | raster s | tracer s (with BVH) |")
+w("|---|---|---|---|---|---|---|---|")
+for h in (0, 30, 135, 250):
+    j = json.loads(read("agree_%d.out" % h))
+    w("| %d | %d × %d | %.4f | %d | %d | %d | %.3f | %.2f |" % (
+        h, j["image"][0], j["image"][1], j["db_pearson"], j["mask_flagged_pixels"],
+        j["mask_differing_pixels"], j["mask_differing_away_from_edges"], j["raster_seconds"],
+        j["trace_seconds_with_bvh"]))
+w("")
+w("Commands: " + ", ".join(cmd("agree_%d" % h) for h in (0, 30, 135, 250)) + ".")
+w("")
+
+# ---------------------------------------------------------------- POV-Ray
+w("## Side by side with POV-Ray (the engine RaySAR is built on)")
+w("")
+probe = load("ours_pov_1.json")
+w("The same 1000 × 1000-post heightfield (16-bit PGM for POV-Ray, the identical quantised heights")
+w("as a GeoTIFF for gissar), 10 km × 10 km × 800 m, seen along the same look direction (depression")
+w("40 deg): POV-Ray with an orthographic camera and a parallel light along it (its shadows are the")
+w("radar shadow), 1000 × 1000 rays, no anti-aliasing, 2 worker threads; gissar with the rays per")
+w("cell that give %.2f M primary rays. One bounce: POV-Ray `max_trace_level 1`, diffuse only;" % (
+    probe["stats"]["rays"] / 1e6))
+w("three levels: `max_trace_level 3` with `reflection 0.3`, gissar `--bounces 3`. Whole process,")
+w("wall time, both including parsing or loading and building their acceleration structure.")
+w("")
+w("Rendering alone: POV-Ray's own \"Trace Time\" (camera, shadow and reflected rays) against")
+w("gissar's trace and mask phases (primary and later bounces, and the visibility rays of the")
+w("layover/shadow mask), from the same runs.")
+w("")
+w("| reflection levels | POV-Ray wall s | gissar wall s | whole process: POV-Ray / gissar | POV-Ray trace s | gissar trace + mask s | rendering: POV-Ray / gissar |")
+w("|---|---|---|---|---|---|---|")
+pov_ratios = []
+render_ratios = []
+for levels in (1, 3):
+    pov, _ = wall_rss("pov_%d" % levels)
+    ours, _ = wall_rss("ours_pov_%d" % levels)
+    j = load("ours_pov_%d.json" % levels)
+    pov_trace = float(re.search(r"Trace Time:.*?\(([0-9.]+) seconds\)", read("pov_%d.err" % levels), re.S).group(1))
+    ours_render = j["timings_s"]["trace"] + j["timings_s"]["mask"]
+    pov_ratios.append(pov / ours)
+    render_ratios.append(pov_trace / ours_render)
+    w("| %d | %.2f | %.2f | %.1f× | %.2f | %.2f | %.1f× |" % (
+        levels, pov, ours, pov / ours, pov_trace, ours_render, pov_trace / ours_render))
+w("")
+w("Commands: " + ", ".join(cmd(k) for k in ("pov_probe", "pov_1", "ours_pov_1", "pov_3", "ours_pov_3")) +
+  " (scene files `pov_1.pov`, `pov_3.pov` written by scripts/bench.sh).")
+w("")
+w("Target: ≥ 5× faster than POV-Ray. Reached here: whole process %s (%s); rendering %s (%s)." % (
+    ", ".join("%.1f×" % r for r in pov_ratios), verdict(min(pov_ratios) >= 5.0),
+    ", ".join("%.1f×" % r for r in render_ratios), verdict(min(render_ratios) >= 5.0)))
+w("")
+
+# ---------------------------------------------------------------- profiles
+notes = os.path.join(ROOT, "bench", "PROFILES.md")
+if os.path.exists(notes):
+    with open(notes) as f:
+        w(f.read().rstrip())
+    w("")
+print("\n".join(out))
