@@ -336,7 +336,8 @@ bool MakeFixture(const std::string& name, const fs::path& dir) {
     gissar::scene::WriteScene(dir / ".whole.gscene", scene);
     std::string bytes = ReadBytes(dir / ".whole.gscene");
     fs::remove(dir / ".whole.gscene");
-    const uint64_t json_bytes = *reinterpret_cast<const uint64_t*>(bytes.data() + 12);
+    uint64_t json_bytes = 0;  // memcpy: the field is not 8-byte aligned in the buffer
+    std::memcpy(&json_bytes, bytes.data() + 12, sizeof(json_bytes));
     const size_t counts = 20 + json_bytes;  // vertex count, then triangle count
     if (name == "scene_truncated.gscene") bytes.resize(bytes.size() * 2 / 3);
     if (name == "scene_v2.gscene") bytes[8] = 2;
