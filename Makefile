@@ -10,7 +10,7 @@ FUZZ_DIR ?= build-fuzz
 FUZZ_SECONDS ?= 60
 FUZZERS ?=
 
-.PHONY: all deps configure build test test-sanitize fuzz demo bench clean
+.PHONY: all deps configure build test test-sanitize test-sanitize-ci fuzz demo bench clean
 
 all: build
 
@@ -36,6 +36,19 @@ test-sanitize: deps
 	  -DGISSAR_BUILD_BENCH=OFF > /dev/null
 	@cmake --build $(SANITIZE_DIR) -j$(JOBS)
 	@cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) --timeout 1500
+
+# CI's subset under ASan + UBSan (time budget): the unit tests of the library
+# modules below the CLI (util, geo, scene, material, sensor, render, mvg).
+SANITIZE_CI_TESTS = util_test geo_test scene_test material_test sensor_test render_test mvg_test
+test-sanitize-ci: export ASAN_OPTIONS = detect_leaks=1:detect_stack_use_after_return=0:check_initialization_order=1:strict_init_order=1
+test-sanitize-ci: export LSAN_OPTIONS = suppressions=$(CURDIR)/scripts/sanitizer/lsan.supp:print_suppressions=0
+test-sanitize-ci: export UBSAN_OPTIONS = print_stacktrace=1:halt_on_error=1
+test-sanitize-ci: deps
+	@cmake -S . -B $(SANITIZE_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGISSAR_SANITIZE=ON \
+	  -DGISSAR_BUILD_BENCH=OFF > /dev/null
+	@cmake --build $(SANITIZE_DIR) -j$(JOBS) $(addprefix --target ,$(SANITIZE_CI_TESTS))
+	@cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) --timeout 1500 \
+	  -L '^($(subst $(eval) ,|,$(strip $(SANITIZE_CI_TESTS))))$$'
 
 fuzz: build
 	@bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS) $(BUILD_DIR) $(FUZZERS)

@@ -590,20 +590,7 @@ PYBIND11_MODULE(gissar, m) {
 
   m.def("build_scene", [](const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
                           const std::string& osm, const std::string& config, bool fill_nodata) {
-        cli::SceneBuildOptions o;
-        o.dem = dem;
-        o.out_prefix = out_prefix;
-        o.vectors = vectors;
-        o.osm = osm;
-        o.config = config;
-        o.fill_nodata = fill_nodata;
-        o.quiet = true;
-        cli::SceneBuildResult r;
-        {
-          py::gil_scoped_release release;
-          r = cli::RunSceneBuild(o, "python");
-        }
-        return JsonToPython(r.summary);
+        return BuildPyScene(dem, out_prefix, vectors, osm, config, fill_nodata, std::nullopt, false).summary;
       }, py::arg("dem"), py::arg("out_prefix"), py::arg("vectors") = std::vector<std::string>{},
       py::arg("osm") = "", py::arg("config") = "", py::arg("fill_nodata") = false,
       "`gissar scene build`: writes PREFIX.gscene/.ply/_classes.png/.json, returns the summary.");

@@ -195,20 +195,8 @@ SimulateResult RunProductSimulate(const SimulateOptions& options, const std::str
                          {"pixels_geolocated", sim.image.geolocated},
                          {"mask_pixels", MaskCounts(image.mask)}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db}, {"percentiles", {2, 98}}};
-  std::vector<std::string> names;
-  for (const fs::path& p : outputs.final_paths()) names.push_back(fs::absolute(p).string());
-  provenance["outputs"] = names;
   provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};
-  WriteJsonFile(provenance, json);
-  outputs.Commit();
-
-  SimulateResult result;
-  result.outputs = outputs.final_paths();
-  result.stats = image.stats;
-  result.width = image.width;
-  result.height = image.height;
-  result.total_seconds = total.ElapsedSeconds();
-  return result;
+  return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
 }
 
 void ValidateOptions::Check() const {

@@ -441,21 +441,25 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
                            {"layover_and_shadow", mask_counts[3]}}}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db},
                              {"percentiles", {2, 98}}};
-  std::vector<std::string> final_names;
-  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
-  provenance["outputs"] = final_names;
   timings["write"] = step.ElapsedSeconds();
   timings["total"] = total.ElapsedSeconds();
   provenance["timings_s"] = timings;
+  return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
+}
+
+SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenance, const fs::path& json,
+                                const render::SarImage& image, double total_seconds) {
+  std::vector<std::string> final_names;
+  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
+  provenance["outputs"] = final_names;
   WriteJsonFile(provenance, json);
   outputs.Commit();
-
   SimulateResult result;
   result.outputs = outputs.final_paths();
   result.stats = image.stats;
   result.width = image.width;
   result.height = image.height;
-  result.total_seconds = total.ElapsedSeconds();
+  result.total_seconds = total_seconds;
   return result;
 }
 

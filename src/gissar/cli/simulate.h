@@ -21,6 +21,7 @@
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/memory_limit.h"
 
 namespace gissar::cli {
@@ -150,6 +151,14 @@ SimulatedImage SimulateImage(const SimulateOptions& options,
 // (InputError, ConfigError, IoError) with context on failure, leaving no
 // output behind. `command_line` is recorded in the provenance JSON.
 SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line);
+
+// Finishes a simulation's outputs: records their absolute final paths in
+// provenance["outputs"], writes `provenance` to `json` (one of the reserved
+// outputs), commits them all (renames) and returns the result for `image`.
+// Throws IoError when writing or renaming fails (nothing is left behind).
+SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenance,
+                                const std::filesystem::path& json, const render::SarImage& image,
+                                double total_seconds);
 
 // Parses "A,B" into two finite numbers; throws ConfigError naming `option`.
 Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option);
