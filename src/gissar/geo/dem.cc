@@ -29,22 +29,27 @@ bool IsVoid(double value, bool has_nodata, double nodata) {
 
 // Fills void cells with GDAL's FillNodata on an in-memory copy.
 void FillVoids(std::vector<float>& heights, int width, int height, float nodata,
-               double max_search_cells) {
+               double max_search_cells, const std::string& where) {
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-  DatasetPtr ds(mem->Create("", width, height, 1, GDT_Float32, nullptr));
+  DatasetPtr ds(mem ? mem->Create("", width, height, 1, GDT_Float32, nullptr) : nullptr);
+  if (!ds) {
+    throw IoError("cannot stage the " + std::to_string(width) + " x " + std::to_string(height) +
+                      " DEM for no-data filling: " + LastGdalMessage(),
+                  where);
+  }
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetNoDataValue(nodata);
   if (band->RasterIO(GF_Write, 0, 0, width, height, heights.data(), width, height,
                      GDT_Float32, 0, 0, nullptr) != CE_None) {
-    throw IoError("cannot stage DEM for no-data filling: " + LastGdalMessage(), "");
+    throw IoError("cannot stage DEM for no-data filling: " + LastGdalMessage(), where);
   }
   if (GDALFillNodata(band, nullptr, max_search_cells, 0, 0, nullptr, nullptr, nullptr) !=
       CE_None) {
-    throw InputError("GDAL FillNodata failed: " + LastGdalMessage(), "");
+    throw InputError("GDAL FillNodata failed: " + LastGdalMessage(), where);
   }
   if (band->RasterIO(GF_Read, 0, 0, width, height, heights.data(), width, height, GDT_Float32,
                      0, 0, nullptr) != CE_None) {
-    throw IoError("cannot read filled DEM: " + LastGdalMessage(), "");
+    throw IoError("cannot read filled DEM: " + LastGdalMessage(), where);
   }
 }
 
@@ -241,7 +246,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     dem.heights_m[i] = IsVoid(raw[i], has_nodata != 0, nodata) ? kVoid : static_cast<float>(raw[i]);
   }
   if (voids > 0) {
-    FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells);
+    FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells, where);
     int64_t left = 0;
     for (float v : dem.heights_m) left += (v == kVoid || !std::isfinite(v)) ? 1 : 0;
     if (left > 0) {

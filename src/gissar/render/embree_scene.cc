@@ -1,5 +1,7 @@
 #include "gissar/render/embree_scene.h"
 
+#include "gissar/util/check.h"
+
 #include <embree3/rtcore.h>
 
 #include <cstddef>
@@ -163,6 +165,8 @@ std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,
 }
 
 void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const {
+  GISSAR_CHECK((reinterpret_cast<uintptr_t>(valid) & 63u) == 0 &&
+               (reinterpret_cast<uintptr_t>(&packet) & 63u) == 0);
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;

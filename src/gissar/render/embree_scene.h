@@ -66,7 +66,8 @@ class EmbreeScene {
   // First hits of the lanes k of `packet` with valid[k] == -1 (others are
   // left alone), one rtcIntersect16 call; `coherent` tells Embree the rays
   // are coherent (neighbouring origins, near-parallel directions).
-  // Thread-safe.
+  // Embree requires `valid` and `packet` to be 64-byte aligned
+  // (alignas(64)); a misaligned argument fails a CHECK. Thread-safe.
   void Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const;
 
   // The quality the BVH was built with (never kAuto).

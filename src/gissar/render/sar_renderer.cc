@@ -347,7 +347,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       // lane's later bounces are then followed one ray at a time, lanes in
       // order, so returns are splatted in the same order as ray by ray.
       RayPacket16 packet;
-      int valid[16];
+      alignas(64) int valid[16];  // Embree: the valid mask of rtcIntersect16 is 64-byte aligned
       Vector3d lane_origin[16], lane_dir[16];
       Vector3f lane_normal[16];
       scene::ClassId lane_class[16];
@@ -557,7 +557,7 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
   std::atomic<int64_t> rays{0}, hit_count{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, n_blocks, 1), [&](const tbb::blocked_range<int>& blocks) {
     RayPacket16 packet;
-    int valid[16];
+    alignas(64) int valid[16];  // Embree: the valid mask of rtcIntersect16 is 64-byte aligned
     int64_t local_rays = 0, local_hits = 0;
     for (int b = blocks.begin(); b != blocks.end(); ++b) {
       const int i0 = b * rows_per_block, i1 = std::min(grid.n_az, i0 + rows_per_block);
