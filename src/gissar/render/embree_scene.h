@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 
@@ -29,6 +30,19 @@ struct alignas(64) RayPacket16 {
   uint32_t mask[16], id[16], flags[16];
   float ng_x[16], ng_y[16], ng_z[16], u[16], v[16];
   uint32_t triangle[16], geometry[16], instance[16];
+
+  // Sets lane k to the ray from `origin` along the unit `direction` (ENU
+  // metres), over [0, infinity).
+  void SetRay(int k, const Eigen::Vector3f& origin, const Eigen::Vector3f& direction) {
+    org_x[k] = origin.x();
+    org_y[k] = origin.y();
+    org_z[k] = origin.z();
+    dir_x[k] = direction.x();
+    dir_y[k] = direction.y();
+    dir_z[k] = direction.z();
+    tnear[k] = 0.0f;
+    tfar[k] = std::numeric_limits<float>::infinity();
+  }
 };
 
 // BVH build quality: kAuto picks by scene size (EmbreeScene constructor).

@@ -378,15 +378,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             lane_origin[k] = origin;
             lane_dir[k] = dir;
             lane_travelled[k] = travelled;
-            const Vector3f o = origin.cast<float>(), d = dir.cast<float>();
-            packet.org_x[k] = o.x();
-            packet.org_y[k] = o.y();
-            packet.org_z[k] = o.z();
-            packet.dir_x[k] = d.x();
-            packet.dir_y[k] = d.y();
-            packet.dir_z[k] = d.z();
-            packet.tnear[k] = 0.0f;
-            packet.tfar[k] = std::numeric_limits<float>::infinity();
+            packet.SetRay(k, origin.cast<float>(), dir.cast<float>());
             valid[k] = -1;
             any = true;
           }
@@ -581,15 +573,7 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
               if (!std::isfinite(entry)) continue;
               origin = sensor + std::max(0.0, entry - 1.0) * dir;
             }
-            const Vector3f o = origin.cast<float>(), d = dir.cast<float>();
-            packet.org_x[k] = o.x();
-            packet.org_y[k] = o.y();
-            packet.org_z[k] = o.z();
-            packet.dir_x[k] = d.x();
-            packet.dir_y[k] = d.y();
-            packet.dir_z[k] = d.z();
-            packet.tnear[k] = 0.0f;
-            packet.tfar[k] = std::numeric_limits<float>::infinity();
+            packet.SetRay(k, origin.cast<float>(), dir.cast<float>());
             valid[k] = -1;
             any = true;
             ++local_rays;
