@@ -88,6 +88,29 @@ double EntryDistance(const Vector3d& origin, const Vector3d& dir, const Eigen::A
   return t0 <= t1 ? t0 : std::numeric_limits<double>::infinity();
 }
 
+// Primary ray at along-track a and across-plane coordinate e of `grid`
+// (RayGrid), from the sensor position `sensor` at a: its origin (ENU
+// metres), unit direction, and path length from the sensor to the origin.
+// Affine rays start on the origin plane behind the scene; exact rays where
+// they enter `box`. False when an exact ray misses `box`.
+bool PrimaryRay(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::AlignedBox3d& box, double a,
+                double e, const Vector3d& sensor, Vector3d* origin, Vector3d* dir, double* travelled) {
+  const Vector3d& l = g.look_direction();
+  const Vector3d& n = g.range_plane_normal();
+  if (g.mode() == sensor::ProjectionMode::kAffine) {
+    *dir = l;
+    *origin = g.scene_centre() + a * g.flight_direction() + e * n - grid.back_off_m * l;
+    *travelled = g.slant_range_m() - grid.back_off_m;
+    return true;
+  }
+  *dir = std::cos(e) * l + std::sin(e) * n;
+  const double entry = EntryDistance(sensor, *dir, box);
+  if (!std::isfinite(entry)) return false;
+  *travelled = std::max(0.0, entry - 1.0);
+  *origin = sensor + *travelled * *dir;
+  return true;
+}
+
 // Accumulation band of image rows [row0, row0 + rows), `planes` planes of
 // width x rows each (a buffer of the thread rendering the band); returns
 // landing outside the band (multi-bounce returns may move in azimuth) are
@@ -289,7 +312,6 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
   const Vector3d& l = geometry.look_direction();
   const Vector3d& n = geometry.range_plane_normal();
-  const Vector3d& h = geometry.flight_direction();
   const Vector3d& xc = geometry.scene_centre();
   const double range0 = geometry.slant_range_m();
   const float eps = RayEpsilon(box);
@@ -364,17 +386,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             const double e = grid.e0 + j * grid.de;
             Vector3d origin, dir;
             double travelled;  // path length from the sensor to `origin`
-            if (affine) {
-              dir = l;
-              origin = xc + a * h + e * n - grid.back_off_m * l;
-              travelled = range0 - grid.back_off_m;
-            } else {
-              dir = std::cos(e) * l + std::sin(e) * n;
-              const double entry = EntryDistance(sensor, dir, box);
-              if (!std::isfinite(entry)) continue;
-              travelled = std::max(0.0, entry - 1.0);
-              origin = sensor + travelled * dir;
-            }
+            if (!PrimaryRay(geometry, grid, box, a, e, sensor, &origin, &dir, &travelled)) continue;
             lane_origin[k] = origin;
             lane_dir[k] = dir;
             lane_travelled[k] = travelled;
@@ -537,11 +549,6 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
                                  int64_t* hits) {
   const Eigen::AlignedBox3d box = mesh.Bounds();
   const RayGrid grid = MakeRayGrid(geometry, box, rays_per_cell);
-  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
-  const Vector3d& l = geometry.look_direction();
-  const Vector3d& n = geometry.range_plane_normal();
-  const Vector3d& h = geometry.flight_direction();
-  const Vector3d& xc = geometry.scene_centre();
   const int height = geometry.height();
   const int k_az = std::max(1, static_cast<int>(std::lround(grid.n_az / std::max(1, height))));
   const int rows_per_block = 16 * k_az;
@@ -564,15 +571,8 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
             if (j >= grid.n_el) continue;
             const double e = grid.e0 + j * grid.de;
             Vector3d origin, dir;
-            if (affine) {
-              dir = l;
-              origin = xc + a * h + e * n - grid.back_off_m * l;
-            } else {
-              dir = std::cos(e) * l + std::sin(e) * n;
-              const double entry = EntryDistance(sensor, dir, box);
-              if (!std::isfinite(entry)) continue;
-              origin = sensor + std::max(0.0, entry - 1.0) * dir;
-            }
+            double travelled;
+            if (!PrimaryRay(geometry, grid, box, a, e, sensor, &origin, &dir, &travelled)) continue;
             packet.SetRay(k, origin.cast<float>(), dir.cast<float>());
             valid[k] = -1;
             any = true;
