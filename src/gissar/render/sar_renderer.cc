@@ -1,5 +1,7 @@
 #include "gissar/render/sar_renderer.h"
 
+#include "gissar/render/splat.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -157,27 +159,6 @@ void Splat(Band& band, int width, int plane, double col, double row, float value
   }
 }
 
-// Adds a splat directly into full-size planes (for overflow returns).
-void SplatImage(std::vector<float>& plane, int width, int height, double col, double row, float value,
-                bool amplitude) {
-  const double c0f = std::floor(col), r0f = std::floor(row);
-  const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
-  const float fc = static_cast<float>(col - c0f), fr = static_cast<float>(row - r0f);
-  float w[2][2] = {{(1 - fr) * (1 - fc), (1 - fr) * fc}, {fr * (1 - fc), fr * fc}};
-  if (amplitude) {
-    for (auto& line : w)
-      for (float& x : line) x = std::sqrt(x);
-  }
-  for (int dr = 0; dr < 2; ++dr) {
-    const int r = r0 + dr;
-    if (r < 0 || r >= height) continue;
-    for (int dc = 0; dc < 2; ++dc) {
-      const int c = c0 + dc;
-      if (c < 0 || c >= width) continue;
-      plane[size_t(r) * width + c] += value * w[dr][dc];
-    }
-  }
-}
 
 // SplitMix64: a per-scatterer random phase from (seed, ray, bounce).
 double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
@@ -512,7 +493,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   progress.Done();
 
   for (const auto& overflow : block_overflow) {
-    for (const Band::Overflow& o : overflow) SplatImage(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
+    for (const Band::Overflow& o : overflow) SplatBilinear(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
   }
   // Tracing phase: rays, shading, splatting and merging (not the assembly
   // of the output planes below).
