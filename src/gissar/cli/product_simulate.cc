@@ -136,11 +136,6 @@ geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateOption
   return m;
 }
 
-nlohmann::json MaskCounts(const std::vector<uint8_t>& mask) {
-  int64_t c[4] = {0, 0, 0, 0};
-  for (uint8_t v : mask) ++c[v & 3];
-  return {{"none", c[0]}, {"layover", c[1]}, {"shadow", c[2]}, {"layover_and_shadow", c[3]}};
-}
 
 }  // namespace
 
@@ -178,12 +173,7 @@ SimulateResult RunProductSimulate(const SimulateOptions& options, const std::str
   mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
   geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata);
 
-  nlohmann::json provenance;
-  provenance["command"] = "simulate";
-  provenance["command_line"] = command_line;
-  provenance["version"] = VersionString();
-  provenance["created_utc"] = UtcTimestamp();
-  provenance["options"] = options.ToJson();
+  nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array(
       {InputFileRecord(options.product), InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
   provenance["product"] = ProductJson(sim);
@@ -193,7 +183,7 @@ SimulateResult RunProductSimulate(const SimulateOptions& options, const std::str
                          {"hits", image.stats.hits},
                          {"returns_reprojected", sim.image.contributions},
                          {"pixels_geolocated", sim.image.geolocated},
-                         {"mask_pixels", MaskCounts(image.mask)}};
+                         {"mask_pixels", MaskPixelCounts(image.mask)}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db}, {"percentiles", {2, 98}}};
   provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};
   return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
@@ -311,19 +301,14 @@ ValidateResult RunValidate(const ValidateOptions& options, const std::string& co
   std::vector<uint8_t> valid(n);
   for (size_t k = 0; k < n; ++k) valid[k] = std::isfinite(sim.image.height_m[k]) && real[k] > 0.0f ? 1 : 0;
 
-  nlohmann::json report;
-  report["command"] = "validate";
-  report["command_line"] = command_line;
-  report["version"] = VersionString();
-  report["created_utc"] = UtcTimestamp();
-  report["options"] = options.ToJson();
+  nlohmann::json report = ProvenanceHeader("validate", command_line, options.ToJson());
   nlohmann::json inputs = nlohmann::json::array({InputFileRecord(options.simulate.product),
                                                  InputFileRecord(options.simulate.scene.empty() ? options.simulate.dem
                                                                                                 : options.simulate.scene)});
   report["product"] = ProductJson(sim);
   report["terrain"] = sim.terrain;
   report["frame"] = sim.frame;
-  report["mask_pixels"] = MaskCounts(image.mask);
+  report["mask_pixels"] = MaskPixelCounts(image.mask);
   report["pixels_geolocated"] = sim.image.geolocated;
 
   // Correlation with the real amplitude.

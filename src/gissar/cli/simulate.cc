@@ -391,15 +391,8 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   geo::Metadata mask_metadata = metadata;
   mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
   geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata);
-  int64_t mask_counts[4] = {0, 0, 0, 0};
-  for (uint8_t m : image.mask) ++mask_counts[m & 3];
 
-  nlohmann::json provenance;
-  provenance["command"] = "simulate";
-  provenance["command_line"] = command_line;
-  provenance["version"] = VersionString();
-  provenance["created_utc"] = UtcTimestamp();
-  provenance["options"] = options.ToJson();
+  nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array(
       {InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
   provenance["terrain"] = terrain.description;
@@ -435,16 +428,19 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
                          {"shadow_rays", image.stats.shadow_rays},
                          {"dem_cells", image.stats.cells},
                          {"mask_pixels",
-                          {{"none", mask_counts[0]},
-                           {"layover", mask_counts[1]},
-                           {"shadow", mask_counts[2]},
-                           {"layover_and_shadow", mask_counts[3]}}}};
+                          MaskPixelCounts(image.mask)}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db},
                              {"percentiles", {2, 98}}};
   timings["write"] = step.ElapsedSeconds();
   timings["total"] = total.ElapsedSeconds();
   provenance["timings_s"] = timings;
   return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
+}
+
+nlohmann::json MaskPixelCounts(const std::vector<uint8_t>& mask) {
+  int64_t c[4] = {0, 0, 0, 0};
+  for (uint8_t v : mask) ++c[v & 3];
+  return {{"none", c[0]}, {"layover", c[1]}, {"shadow", c[2]}, {"layover_and_shadow", c[3]}};
 }
 
 SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenance, const fs::path& json,

@@ -152,6 +152,10 @@ SimulatedImage SimulateImage(const SimulateOptions& options,
 // output behind. `command_line` is recorded in the provenance JSON.
 SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line);
 
+// Pixel counts of a layover/shadow mask by code, for provenance:
+// {"none", "layover", "shadow", "layover_and_shadow"}.
+nlohmann::json MaskPixelCounts(const std::vector<uint8_t>& mask);
+
 // Finishes a simulation's outputs: records their absolute final paths in
 // provenance["outputs"], writes `provenance` to `json` (one of the reserved
 // outputs), commits them all (renames) and returns the result for `image`.

@@ -69,4 +69,13 @@ std::string UtcTimestamp() {
   return buffer;
 }
 
+nlohmann::json ProvenanceHeader(const std::string& command, const std::string& command_line,
+                                const nlohmann::json& options) {
+  return {{"command", command},
+          {"command_line", command_line},
+          {"version", VersionString()},
+          {"created_utc", UtcTimestamp()},
+          {"options", options}};
+}
+
 }  // namespace gissar

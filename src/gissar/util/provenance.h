@@ -27,4 +27,9 @@ void WriteJsonFile(const nlohmann::json& value, const std::filesystem::path& pat
 // Current UTC time as ISO 8601 ("2026-11-23T10:00:00Z").
 std::string UtcTimestamp();
 
+// The fields every provenance record starts with: {"command", "command_line",
+// "version", "created_utc" (now), "options"}. Callers add inputs and results.
+nlohmann::json ProvenanceHeader(const std::string& command, const std::string& command_line,
+                                const nlohmann::json& options);
+
 }  // namespace gissar
