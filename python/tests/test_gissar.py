@@ -10,7 +10,7 @@ import gissar
 
 ROOT = os.environ.get("GISSAR_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
 DEM = os.path.join(ROOT, "data", "andorra", "andorra_srtm3_dem_filled.tif")
-TESTDATA = os.path.join(ROOT, "..", "shared", "testdata", "affine")
+TESTDATA = os.path.join(ROOT, "tests", "data", "affine")
 
 
 def test_version():

@@ -177,13 +177,13 @@ TEST(MvgEndToEndTest, SimulatedTargetsGiveHeadingChangeAndPose) {
 TEST(FmatrixCommandTest, ReferenceCase2) {
   const fs::path dir = testing::MakeTempDir();
   FmatrixOptions f;
-  f.matches = testing::SharedTestdataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
   f.depressions = Vector2d(40, 40);
   f.res1 = f.res2 = Vector2d(1, 1);
   f.json_out = (dir / "f.json").string();
   const nlohmann::json out = RunFmatrix(f, "test");
   nlohmann::json ref;
-  std::ifstream(testing::SharedTestdataPath("affine/case2_thesis_dpsi30_dep40_noisefree.json")) >> ref;
+  std::ifstream(testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree.json")) >> ref;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(out["F"][r][c].get<double>(), ref["F_true"][r][c].get<double>(), 1e-10);
   EXPECT_NEAR(out["heading_change_deg"].get<double>(), 30.0, 1e-6);
@@ -199,7 +199,7 @@ TEST(FmatrixCommandTest, PlotsTheKvdDiagramAndTheEpipolarPair) {
   for (size_t i = 0; i < image.size(); ++i) image[i] = 1.0f + float(i % 37) * 0.1f;
   geo::WriteFloatGeoTiff(dir / "a.tif", {w, h, {image}, {}, {}});
   FmatrixOptions f;
-  f.matches = testing::SharedTestdataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
   f.depressions = Vector2d(40, 40);
   f.res1 = f.res2 = Vector2d(1, 1);
   f.json_out = (dir / "f.json").string();
@@ -312,7 +312,7 @@ TEST(EpipolarCommandTest, DrawsThePair) {
   for (size_t i = 0; i < image.size(); ++i) image[i] = 1.0f + float(i % 37) * 0.1f;
   geo::WriteFloatGeoTiff(dir / "a.tif", {w, h, {image}, {}, {}});
   EpipolarOptions o;
-  o.matches = testing::SharedTestdataPath("affine/case3_dpsi30_dep40_45_res1_0.75_points.csv").string();
+  o.matches = testing::TestDataPath("affine/case3_dpsi30_dep40_45_res1_0.75_points.csv").string();
   o.image1 = o.image2 = (dir / "a.tif").string();
   o.out_png = (dir / "epi.png").string();
   RunEpipolar(o);

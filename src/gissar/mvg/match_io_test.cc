@@ -37,7 +37,7 @@ void ExpectInputError(Fn fn, const std::string& where_suffix, const std::string&
 
 TEST(MatchIoTest, ReadsTheReferenceCsv) {
   const auto rc = testing::LoadReferenceCase(testing::kCase3);
-  const auto matches = ReadMatchesCsv(gissar::testing::SharedTestdataPath(
+  const auto matches = ReadMatchesCsv(gissar::testing::TestDataPath(
       "affine/" + std::string(testing::kCase3) + "_points.csv"));
   const auto expected = rc.Matches();
   ASSERT_EQ(matches.size(), expected.size());

@@ -73,11 +73,11 @@ struct ReferenceCase {
 inline ReferenceCase LoadReferenceCase(const std::string& name) {
   ReferenceCase rc;
   {
-    std::ifstream in(gissar::testing::SharedTestdataPath("affine/" + name + ".json"));
+    std::ifstream in(gissar::testing::TestDataPath("affine/" + name + ".json"));
     GISSAR_CHECK_MSG(in.good(), "cannot open reference case " << name);
     in >> rc.json;
   }
-  std::ifstream in(gissar::testing::SharedTestdataPath("affine/" + name + "_points.csv"));
+  std::ifstream in(gissar::testing::TestDataPath("affine/" + name + "_points.csv"));
   GISSAR_CHECK_MSG(in.good(), "cannot open reference points " << name);
   std::string line;
   std::getline(in, line);

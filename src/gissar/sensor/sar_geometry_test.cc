@@ -52,8 +52,8 @@ SarGeometryOptions Options(double heading, double depression, double res_r, doub
 // The affine mode is the camera P_SAR = C_SAR P_par G_perp of the shared
 // reference cases: every noise-free reference pixel is reproduced.
 void ExpectReferenceCaseProjects(const std::string& name) {
-  const auto json_path = testing::SharedTestdataPath("affine/" + name + ".json");
-  const auto csv_path = testing::SharedTestdataPath("affine/" + name + "_points.csv");
+  const auto json_path = testing::TestDataPath("affine/" + name + ".json");
+  const auto csv_path = testing::TestDataPath("affine/" + name + "_points.csv");
   ASSERT_TRUE(std::filesystem::exists(json_path)) << json_path;
   nlohmann::json ref;
   std::ifstream(json_path) >> ref;

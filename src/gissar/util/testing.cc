@@ -34,9 +34,8 @@ fs::path DataPath(std::string_view relative) {
   return EnvOr("GISSAR_DATA_DIR", fs::path(GISSAR_SOURCE_DIR) / "data") / relative;
 }
 
-fs::path SharedTestdataPath(std::string_view relative) {
-  return EnvOr("GISSAR_SHARED_TESTDATA", fs::path(GISSAR_SOURCE_DIR) / ".." / "shared" / "testdata") /
-         relative;
+fs::path TestDataPath(std::string_view relative) {
+  return EnvOr("GISSAR_TEST_DATA_DIR", fs::path(GISSAR_SOURCE_DIR) / "tests" / "data") / relative;
 }
 
 fs::path MakeTempDir() {

@@ -12,9 +12,10 @@ namespace gissar::testing {
 // source tree, or $GISSAR_DATA_DIR when set.
 std::filesystem::path DataPath(std::string_view relative);
 
-// Path under ../shared/testdata beside the source tree (reference results
-// computed by independent code), or $GISSAR_SHARED_TESTDATA when set.
-std::filesystem::path SharedTestdataPath(std::string_view relative);
+// Path of a file under the repository's tests/data/ folder (reference
+// results computed by independent code, see tests/data/README.md), or under
+// $GISSAR_TEST_DATA_DIR when set.
+std::filesystem::path TestDataPath(std::string_view relative);
 
 // A fresh, empty directory unique to the calling test; removed at exit.
 std::filesystem::path MakeTempDir();
