@@ -410,6 +410,14 @@ Outcome Run(const std::vector<std::string>& args, const fs::path& capture_dir, d
   if (WIFSIGNALED(raw)) o.signal = WTERMSIG(raw);
   o.out = ReadBytes(out_path);
   o.err = ReadBytes(err_path);
+  if (o.status == 121 || o.status == 122) {
+    // The child never reached the binary: say why instead of a bare status.
+    o.err += std::string("bad_inputs driver: could not ") +
+             (o.status == 121 ? "drop to uid/gid 65534" : "execute " + args[0]) +
+             (unprivileged ? " as uid 65534 (every directory above the build tree must be "
+                             "world-searchable, e.g. chmod 0755 on a mktemp directory)\n"
+                           : "\n");
+  }
   return o;
 }
 
