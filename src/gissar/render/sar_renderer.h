@@ -13,6 +13,7 @@
 #include "gissar/render/embree_scene.h"
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
+#include "gissar/util/reporter.h"
 
 namespace gissar::render {
 
@@ -41,8 +42,9 @@ struct RenderOptions {
   bool coherent = false;
   double wavelength_m = 0.031;  // X band
   uint64_t seed = 1;
-  // Progress lines on stderr.
-  bool show_progress = true;
+  // Where tracing progress goes, and who may cancel it (nullptr: nowhere,
+  // never). Not owned; must outlive the render.
+  Reporter* reporter = nullptr;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;

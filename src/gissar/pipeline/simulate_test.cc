@@ -1,4 +1,4 @@
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 
 #include <gtest/gtest.h>
 
@@ -8,12 +8,12 @@
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 
-SimulateOptions AndorraOptions(const fs::path& out_dir, double heading) {
-  SimulateOptions o;
+SimulateRequest AndorraOptions(const fs::path& out_dir, double heading) {
+  SimulateRequest o;
   o.dem = testing::DataPath("andorra/andorra_srtm3_dem_raw.tif").string();
   o.fill_nodata = true;
   o.geometry.heading_deg = heading;
@@ -21,13 +21,12 @@ SimulateOptions AndorraOptions(const fs::path& out_dir, double heading) {
   o.geometry.range_spacing_m = 150.0;
   o.geometry.azimuth_spacing_m = 150.0;
   o.out_prefix = (out_dir / ("andorra_" + std::to_string(int(heading)))).string();
-  o.quiet = true;
   return o;
 }
 
 TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   const fs::path dir = testing::MakeTempDir();
-  const SimulateOptions options = AndorraOptions(dir, 30.0);
+  const SimulateRequest options = AndorraOptions(dir, 30.0);
   const SimulateResult result = RunSimulate(options, "gissar simulate (test)");
   ASSERT_EQ(result.outputs.size(), 5u);
   for (const auto& p : result.outputs) EXPECT_TRUE(fs::exists(p)) << p;
@@ -93,7 +92,7 @@ TEST(SimulateTest, SameInputsGiveIdenticalImages) {
 
 TEST(SimulateTest, FailureLeavesNoOutput) {
   const fs::path dir = testing::MakeTempDir();
-  SimulateOptions options = AndorraOptions(dir, 0.0);
+  SimulateRequest options = AndorraOptions(dir, 0.0);
   options.fill_nodata = false;  // the raw DEM has voids
   EXPECT_THROW(RunSimulate(options, ""), InputError);
   EXPECT_TRUE(fs::is_empty(dir));
@@ -102,7 +101,7 @@ TEST(SimulateTest, FailureLeavesNoOutput) {
 TEST(SimulateTest, OutputMayNotOverwriteTheDem) {
   const fs::path dir = testing::MakeTempDir();
   fs::copy_file(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"), dir / "dem.tif");
-  SimulateOptions options = AndorraOptions(dir, 0.0);
+  SimulateRequest options = AndorraOptions(dir, 0.0);
   options.dem = (dir / "dem.tif").string();
   options.out_prefix = (dir / "dem").string();
   EXPECT_THROW(options.Check(), ConfigError);
@@ -116,4 +115,4 @@ TEST(SimulateTest, ParsesNumberPairs) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline
