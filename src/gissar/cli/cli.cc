@@ -96,6 +96,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   std::vector<std::string> deprecation_warnings;
   std::vector<std::string> args = ReplaceDeprecatedFlags(argc, argv, deprecation_warnings);
   try {
+    CheckCommandWords(app, args);
     ExpandOptionsFile(app, args);
   } catch (const Error& e) {
     err << "gissar: error: " << OneLine(e.what()) << "\n";

@@ -261,6 +261,15 @@ TEST(CommonFlagsTest, MisspeltFlagOrCommandGetsASuggestion) {
   o = RunGissar({"simulat", "--dem", "x.tif"});
   EXPECT_EQ(o.status, 2);
   EXPECT_NE(o.err.find("did you mean simulate?"), std::string::npos) << o.err;
+  // An unknown command is an error even with --help (which alone succeeds).
+  o = RunGissar({"evalute", "--help"});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err, "gissar: error: unknown command 'evalute'; did you mean evaluate? (`gissar --help` lists the "
+                   "commands) (command line)\n");
+  o = RunGissar({"scene", "biuld"});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("did you mean build?"), std::string::npos) << o.err;
+  EXPECT_EQ(RunGissar({"scene", "build", "--help"}).status, 0);
 }
 
 // --quiet: nothing on stderr for a clean run; by default information lines

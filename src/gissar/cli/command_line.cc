@@ -152,6 +152,23 @@ void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
   args.insert(args.begin() + long(insert_at), expanded.begin(), expanded.end());
 }
 
+void CheckCommandWords(CLI::App& app, const std::vector<std::string>& args) {
+  auto [command, next] = LeafCommand(app, args);
+  if (command->get_subcommands({}).empty() || next >= args.size() || args[next].empty() ||
+      args[next][0] == '-') {
+    return;
+  }
+  std::string best;
+  size_t best_distance = 3;  // at most 2 edits
+  for (const CLI::App* sub : command->get_subcommands({})) {
+    const size_t d = EditDistance(args[next], sub->get_name());
+    if (d < best_distance) best_distance = d, best = sub->get_name();
+  }
+  throw ConfigError("unknown command '" + args[next] + "'" + (best.empty() ? "" : "; did you mean " + best + "?") +
+                        " (`gissar --help` lists the commands)",
+                    "command line");
+}
+
 std::string DidYouMean(CLI::App& app, const std::vector<std::string>& args) {
   auto [command, first] = LeafCommand(app, args);
   std::vector<std::string> names;

@@ -26,6 +26,11 @@ void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args);
 // center_lonlat --center, look_side --look.
 std::string FlagOfKey(const std::string& key);
 
+// Throws ConfigError "unknown command 'X'; did you mean Y?" when a command
+// word of `args` names no command (even with --help, which would otherwise
+// print the general help and succeed).
+void CheckCommandWords(CLI::App& app, const std::vector<std::string>& args);
+
 // "; did you mean X?" for the first unexpected word of `args` close to a
 // flag or command name (at most 2 edits); "" when nothing is close.
 std::string DidYouMean(CLI::App& app, const std::vector<std::string>& args);
