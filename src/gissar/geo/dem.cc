@@ -246,6 +246,8 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     dem.heights_m[i] = IsVoid(raw[i], has_nodata != 0, nodata) ? kVoid : static_cast<float>(raw[i]);
   }
   if (voids > 0) {
+    dem.nodata_mask.resize(raw.size());
+    for (size_t i = 0; i < raw.size(); ++i) dem.nodata_mask[i] = IsVoid(raw[i], has_nodata != 0, nodata) ? 1 : 0;
     FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells, where);
     int64_t left = 0;
     for (float v : dem.heights_m) left += (v == kVoid || !std::isfinite(v)) ? 1 : 0;
@@ -407,6 +409,18 @@ Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
   out.height = h;
   out.heights_m.assign(size_t(w) * h, 0.0f);
   for (int c = 0; c < w; ++c) RefineLine(rows.data() + c, size_t(w), dem.height, factor, out.heights_m.data() + c, size_t(w));
+  if (!dem.nodata_mask.empty()) {
+    out.nodata_mask.assign(size_t(w) * h, 0);
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        const int c0 = c / factor, r0 = r / factor;
+        const int c1 = std::min(c0 + (c % factor ? 1 : 0), dem.width - 1);
+        const int r1 = std::min(r0 + (r % factor ? 1 : 0), dem.height - 1);
+        out.nodata_mask[size_t(r) * w + c] =
+            dem.IsNodata(c0, r0) || dem.IsNodata(c1, r0) || dem.IsNodata(c0, r1) || dem.IsNodata(c1, r1);
+      }
+    }
+  }
   // Same post centres: post (i * factor, j * factor) at the old post (i, j).
   auto& g = out.geotransform;
   const auto& g0 = dem.geotransform;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <random>
 #include <set>
 
 #include "gissar/geo/dem.h"
@@ -314,6 +315,197 @@ TEST(GisSceneTest, BuildingsAreExtrudedWithVerticalWalls) {
     }
   }
   ExpectBoundariesAreMeshEdges(scene);
+}
+
+// DEM of 101 x 101 posts, 10 m spacing, centred on the origin, with
+// height(x, y) at post (x, y) (local TM metres).
+template <typename F>
+std::string DemOf(const fs::path& path, F height) {
+  std::vector<float> h(101 * 101);
+  for (int r = 0; r < 101; ++r) {
+    for (int c = 0; c < 101; ++c) h[size_t(r) * 101 + c] = static_cast<float>(height(-500.0 + 10 * c, 500.0 - 10 * r));
+  }
+  geo::WriteDemGeoTiff(path, h, 101, 101, {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, kLocalTm);
+  return path.string();
+}
+
+Eigen::Vector3f CentreOf(const TriangleMesh& mesh, size_t t) {
+  return (mesh.vertices[mesh.triangles[t][0]] + mesh.vertices[mesh.triangles[t][1]] +
+          mesh.vertices[mesh.triangles[t][2]]) / 3.0f;
+}
+
+double AreaOf(const TriangleMesh& mesh, size_t t) {
+  const Eigen::Vector3f a = mesh.vertices[mesh.triangles[t][0]];
+  return 0.5 * (mesh.vertices[mesh.triangles[t][1]] - a).cross(mesh.vertices[mesh.triangles[t][2]] - a).norm();
+}
+
+// Strictly inside a simple polygon (closed ring), by crossings.
+bool Inside(const std::vector<Vector2d>& ring, const Vector2d& p) {
+  bool in = false;
+  for (size_t i = 0, j = ring.size() - 2; i + 1 < ring.size(); j = i++) {
+    const Vector2d& a = ring[i];
+    const Vector2d& b = ring[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) &&
+        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
+      in = !in;
+    }
+  }
+  return in;
+}
+
+// Property: random triangles and rectangles whose corners are DEM posts (so
+// their edges pass through posts, the case where a nearly collinear rounded
+// vertex used to flip walls), on rough sloped terrain: every wall's normal
+// points away from its footprint: a point 5 cm along the normal from the
+// wall's centre is outside the footprint, 5 cm against it inside.
+TEST(GisSceneTest, WallsOfRandomPostSnappedFootprintsFaceOutwards) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = DemOf(dir / "rough.tif", [](double x, double y) {
+    return 300.0 + 0.15 * x - 0.1 * y + 3.0 * std::sin(x / 37.0) * std::cos(y / 23.0);
+  });
+  std::mt19937 rng(16);
+  auto post = [&](int lo, int hi) { return 10.0 * std::uniform_int_distribution<int>(lo, hi)(rng); };
+  std::vector<Feature> features;
+  std::vector<std::vector<Vector2d>> rings;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j) {
+      const double x0 = -480 + 160.0 * i, y0 = -480 + 160.0 * j;  // one 150 m tile each
+      std::vector<Vector2d> ring;
+      if ((i + j) % 2 == 0) {
+        Vector2d a, b, c;
+        do {
+          a = {x0 + post(0, 15), y0 + post(0, 15)};
+          b = {x0 + post(0, 15), y0 + post(0, 15)};
+          c = {x0 + post(0, 15), y0 + post(0, 15)};
+        } while (std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x()) < 400.0);
+        ring = {a, b, c, a};  // either orientation: the ring decides
+      } else {
+        const double w = post(2, 14), h = post(2, 14);
+        ring = Rect(x0, y0, x0 + w, y0 + h);
+        if (j % 2 == 0) std::reverse(ring.begin(), ring.end());  // clockwise shell
+      }
+      rings.push_back(ring);
+      features.push_back({"Polygon", {ring}, R"({"height": "60"})"});
+    }
+  }
+  SceneConfig config;
+  config.layers = {Spec(WriteGeoJson(dir / "b.geojson", features), kClassBuilding, LayerKind::kBuilding)};
+  const GisScene scene = Build(dem, config);
+  EXPECT_EQ(scene.stats.buildings, 36);
+  EXPECT_EQ(scene.stats.buried_wall_triangles, 0);
+  const TriangleMesh& mesh = scene.mesh;
+  int walls = 0, inverted = 0;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (mesh.classes[t] != kClassBuilding) continue;
+    const Eigen::Vector3f n = mesh.Normal(t);
+    if (std::abs(n.z()) > 0.01f) {
+      EXPECT_GT(n.z(), 0.9999f) << "roofs are flat and face up: " << mesh.vertices[mesh.triangles[t][0]].transpose() << " / "
+                                << mesh.vertices[mesh.triangles[t][1]].transpose() << " / " << mesh.vertices[mesh.triangles[t][2]].transpose();
+      continue;
+    }
+    ++walls;
+    const Vector2d c = CentreOf(mesh, t).head<2>().cast<double>();
+    const Vector2d d = n.head<2>().cast<double>().normalized() * 0.05;
+    bool out_inside = false, in_inside = false;
+    for (const auto& ring : rings) {
+      out_inside |= Inside(ring, c + d);
+      in_inside |= Inside(ring, c - d);
+    }
+    if (out_inside || !in_inside) ++inverted;
+  }
+  EXPECT_GT(walls, 36 * 6);
+  EXPECT_EQ(inverted, 0) << "of " << walls << " wall triangles";
+}
+
+// Roof on a slope: ground 100 + 0.1 x; a 40 x 30 m footprint from x = 0 to
+// 40 with height 12 has its lowest contact at x = 0 (100 m): roof at 112 m;
+// its walls are 12 m high at x = 0 and 8 m at x = 40. With height 2 the roof
+// (102 m) is below the ground beyond x = 20 (pit sides, facing in).
+TEST(GisSceneTest, RoofsSitAtTheLowestGroundContactPlusHeight) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = DemOf(dir / "slope.tif", [](double x, double) { return 100.0 + 0.1 * x; });
+  const std::string buildings = WriteGeoJson(
+      dir / "b.geojson", {{"Polygon", {Rect(0, 0, 40, 30)}, R"({"height": "12"})"},
+                          {"Polygon", {Rect(0, 200, 40, 230)}, R"({"height": "2"})"}});
+  SceneConfig config;
+  config.layers = {Spec(buildings, kClassBuilding, LayerKind::kBuilding)};
+  const GisScene scene = Build(dem, config);
+  const TriangleMesh& mesh = scene.mesh;
+  // Earth curvature lowers ENU z by x^2 / 2R: < 5 mm within 250 m.
+  double wall_area_tall = 0.0, roof_area = 0.0;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (mesh.classes[t] != kClassBuilding) continue;
+    const Eigen::Vector3f c = CentreOf(mesh, t), n = mesh.Normal(t);
+    if (c.y() > 100) continue;
+    if (n.z() > 0.99f) {
+      roof_area += AreaOf(mesh, t);
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(mesh.vertices[mesh.triangles[t][k]].z(), 112.0f, 0.01f);
+    } else {
+      wall_area_tall += AreaOf(mesh, t);
+    }
+  }
+  EXPECT_NEAR(roof_area, 1200.0, 1.0);
+  // Walls: x = 0: 30 x 12; x = 40: 30 x 8; y = 0 and y = 30: trapezoids
+  // 40 x (12 + 8) / 2 each.
+  EXPECT_NEAR(wall_area_tall, 360.0 + 240.0 + 2 * 400.0, 1.0);
+  // Second building: walls facing out where the roof is above the ground
+  // (x = 0: 30 x 2 m; y = 200 and 230 from x = 0 to 20: triangles 20 x 2 / 2),
+  // facing in where it is below (x = 40: 30 x 2; the other halves of y = 200
+  // and 230).
+  EXPECT_GT(scene.stats.buried_wall_triangles, 0);
+  const std::vector<Vector2d> low = Rect(0, 200, 40, 230);
+  double facing_out = 0.0, facing_in = 0.0;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const Eigen::Vector3f c = CentreOf(mesh, t), n = mesh.Normal(t);
+    if (mesh.classes[t] != kClassBuilding || c.y() < 100 || std::abs(n.z()) > 0.01f) continue;
+    const Vector2d d = n.head<2>().cast<double>().normalized() * 0.05;
+    const Vector2d p = c.head<2>().cast<double>();
+    (Inside(low, p + d) ? facing_in : facing_out) += AreaOf(mesh, t);
+    if (std::abs(c.x() - 40.0f) < 0.1f) EXPECT_LT(n.x(), -0.99f) << "pit side faces into the footprint";
+  }
+  EXPECT_NEAR(facing_out, 60.0 + 2 * 20.0, 0.2);
+  EXPECT_NEAR(facing_in, 60.0 + 2 * 20.0, 0.2);
+}
+
+// Touching footprints: equal heights merge (no wall inside the block);
+// different heights keep only the step above the lower roof, facing the
+// lower building.
+TEST(GisSceneTest, SharedWallsAreRemovedAndStepsKept) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = FlatDem(dir);
+  for (const char* right_height : {"12", "20"}) {
+    const std::string buildings = WriteGeoJson(
+        dir / (std::string("b") + right_height + ".geojson"),
+        {{"Polygon", {Rect(-20, -15, 0, 15)}, R"({"height": "12"})"},
+         {"Polygon", {Rect(0, -15, 20, 15)}, std::string(R"({"height": ")") + right_height + "\"}"}});
+    SceneConfig config;
+    config.layers = {Spec(buildings, kClassBuilding, LayerKind::kBuilding)};
+    const GisScene scene = Build(dem, config);
+    const TriangleMesh& mesh = scene.mesh;
+    double inner = 0.0, outer = 0.0;
+    for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+      const Eigen::Vector3f c = CentreOf(mesh, t), n = mesh.Normal(t);
+      if (mesh.classes[t] != kClassBuilding || std::abs(n.z()) > 0.01f) continue;
+      if (std::abs(c.x()) < 0.01f) {
+        inner += AreaOf(mesh, t);
+        EXPECT_LT(n.x(), -0.99f) << "the step faces the lower (left) building";
+        EXPECT_GT(c.z(), 112.0f - 0.01f) << "the step starts at the lower roof";
+      } else {
+        outer += AreaOf(mesh, t);
+      }
+    }
+    if (std::string(right_height) == "12") {
+      EXPECT_EQ(scene.stats.merged_buildings, 1);
+      EXPECT_NEAR(inner, 0.0, 1e-6);
+      EXPECT_NEAR(outer, 2 * (40 + 30) * 12.0, 0.5);
+    } else {
+      EXPECT_EQ(scene.stats.merged_buildings, 0);
+      EXPECT_EQ(scene.stats.step_walls > 0, true);
+      EXPECT_NEAR(inner, 30 * 8.0, 0.1);
+      // Left: 3 sides of 12 m; right: 3 sides of 20 m.
+      EXPECT_NEAR(outer, (30 + 2 * 20) * 12.0 + (30 + 2 * 20) * 20.0, 0.5);
+    }
+  }
 }
 
 TEST(GisSceneTest, BuildingHeightAndLineWidthRules) {
