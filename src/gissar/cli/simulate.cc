@@ -17,6 +17,7 @@
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/raster_renderer.h"
+#include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
 #include <limits>
@@ -54,6 +55,8 @@ void SimulateOptions::Check() const {
                           std::to_string(dem_oversample),
                       "--dem-oversample");
   }
+  if (sea != "auto" && sea != "off") throw ConfigError("expected auto or off, got '" + sea + "'", "--sea");
+  if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
   if (dem_oversample != 1 && !scene.empty()) {
     throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
   }
@@ -103,6 +106,8 @@ nlohmann::json SimulateOptions::ToJson() const {
   j["product"] = product;
   j["vertical_datum"] = vertical_datum;
   j["dem_oversample"] = dem_oversample;
+  j["sea"] = sea;
+  j["sea_level_m"] = sea_level_m;
   j["fill_nodata"] = fill_nodata;
   j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
                                      : nlohmann::json(nullptr);
@@ -157,6 +162,10 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   const int source_width = dem.width, source_height = dem.height;
   dem = geo::RefineDem(dem, options.dem_oversample,
                        static_cast<int64_t>(double(options.max_memory_bytes) / kBytesPerDemPost));
+  // Sea from the heights as given (orthometric for SRTM-like DEMs), before
+  // any datum change.
+  std::vector<uint8_t> sea_posts;
+  if (options.sea == "auto" && options.engine != "raster") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
   if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
   if (dem.filled_nodata_cells > 0 && !options.quiet) {
     std::fprintf(stderr, "simulate: filled %lld no-data cells\n", static_cast<long long>(dem.filled_nodata_cells));
@@ -170,6 +179,10 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   } else {
     t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
   }
+  int64_t sea_triangles = 0;
+  if (!sea_posts.empty()) sea_triangles = scene::MarkSeaTriangles(t.mesh, sea_posts);
+  // The bare DEM keeps its unit Lambertian material; the sea gets its own.
+  if (sea_triangles > 0) t.materials.Set(scene::kClassSea, material::DefaultMaterial(scene::kClassSea));
   t.grid_width = dem.width;
   t.grid_height = dem.height;
   const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame);
@@ -182,6 +195,7 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
                    {"source_width", source_width},
                    {"source_height", source_height},
                    {"oversample", options.dem_oversample},
+                   {"sea_triangles", sea_triangles},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
   return t;

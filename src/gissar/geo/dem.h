@@ -23,6 +23,12 @@ struct DemReadOptions {
   bool fill_nodata = false;
   // Largest distance, in DEM cells, searched for valid values when filling.
   double fill_max_search_cells = 200.0;
+  // No-data connected to the raster's border (e.g. the collar of a
+  // reprojected DEM) is left out of the scene by the caller rather than
+  // filled: it needs no --fill-nodata and is not filled; its posts are marked
+  // in nodata_mask and get the lowest valid height as a placeholder.
+  // Interior no-data still follows `fill_nodata`.
+  bool border_nodata_outside = false;
   // 1-based band index.
   int band = 1;
   // Memory budget of the caller's job (--max-memory) and what the job needs

@@ -397,8 +397,12 @@ namespace {
 // triangles between the constraint and the posts whose rounded normals point
 // anywhere and whose centroids lie on the boundary (neither inside nor
 // outside). Moves boundaries by less than `tol`.
+// Ends for which on_border(cell coordinates) holds snap within
+// border_fraction of a cell (in cell units along each axis).
 std::vector<std::array<Vector2d, 2>> SnapToPosts(const std::vector<std::array<Vector2d, 2>>& segments,
-                                                 const Eigen::Matrix2d& A, int width, int height, double tol) {
+                                                 const Eigen::Matrix2d& A, int width, int height, double tol,
+                                                 const std::function<bool(const Vector2d&)>& on_border,
+                                                 double border_fraction) {
   const Eigen::Matrix2d inv = A.inverse();
   auto post = [&](int c, int r) { return Vector2d(A * Vector2d(c, r)); };
   auto snap_end = [&](const Vector2d& p) {
@@ -406,7 +410,11 @@ std::vector<std::array<Vector2d, 2>> SnapToPosts(const std::vector<std::array<Ve
     const int c = static_cast<int>(std::lround(cell.x())), r = static_cast<int>(std::lround(cell.y()));
     if (c < 0 || r < 0 || c >= width || r >= height) return p;
     const Vector2d q = post(c, r);
-    return (q - p).norm() < tol ? q : p;
+    if ((q - p).norm() < tol) return q;
+    if (std::abs(cell.x() - c) < border_fraction && std::abs(cell.y() - r) < border_fraction && on_border(cell)) {
+      return q;
+    }
+    return p;
   };
   std::vector<std::array<Vector2d, 2>> out;
   out.reserve(segments.size());
@@ -543,6 +551,68 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
                                              A * Vector2d(0, dem.height - 1), A * Vector2d(0, 0)};
   GeomPtr extent = MakePolygon(geos, {extent_ring});
   if (GEOSisValid_r(geos.ctx(), extent.get()) != 1) extent = Own(geos, GEOSMakeValid_r(geos.ctx(), extent.get()));
+
+  // Valid area: DEM no-data connected to the border (a reprojection collar,
+  // voids on the edge) is outside the scene unless it joins the sea (the
+  // --sea auto rule); a cell is in the scene when its four posts are.
+  const std::vector<uint8_t> dem_sea =
+      config.sea_auto ? SeaPostMask(dem, config.sea_level_m) : std::vector<uint8_t>();
+  std::vector<uint8_t> outside;
+  if (!dem.nodata_mask.empty()) {
+    const int w = dem.width, h = dem.height;
+    outside.assign(size_t(w) * h, 0);
+    std::vector<size_t> stack;
+    auto push = [&](int c, int r) {
+      const size_t i = size_t(r) * w + c;
+      if (outside[i] || !dem.nodata_mask[i] || (!dem_sea.empty() && dem_sea[i])) return;
+      outside[i] = 1;
+      stack.push_back(i);
+    };
+    for (int c = 0; c < w; ++c) {
+      push(c, 0);
+      push(c, h - 1);
+    }
+    for (int r = 0; r < h; ++r) {
+      push(0, r);
+      push(w - 1, r);
+    }
+    while (!stack.empty()) {
+      const size_t i = stack.back();
+      stack.pop_back();
+      ++stats.outside_posts;
+      const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
+      if (c > 0) push(c - 1, r);
+      if (c + 1 < w) push(c + 1, r);
+      if (r > 0) push(c, r - 1);
+      if (r + 1 < h) push(c, r + 1);
+    }
+    if (stats.outside_posts == 0) outside.clear();
+  }
+  auto cell_valid = [&](int c, int r) {
+    if (outside.empty()) return true;
+    const size_t i = size_t(r) * dem.width + c;
+    return !outside[i] && !outside[i + 1] && !outside[i + dem.width] && !outside[i + dem.width + 1];
+  };
+  if (!outside.empty()) {
+    // Union of row runs of valid cells.
+    std::vector<GeomPtr> runs;
+    for (int r = 0; r + 1 < dem.height; ++r) {
+      for (int c = 0; c + 1 < dem.width;) {
+        if (!cell_valid(c, r)) {
+          ++c;
+          continue;
+        }
+        int e = c;
+        while (e + 1 < dem.width && cell_valid(e, r)) ++e;
+        runs.push_back(MakePolygon(geos, {{A * Vector2d(c, r), A * Vector2d(e, r), A * Vector2d(e, r + 1),
+                                           A * Vector2d(c, r + 1), A * Vector2d(c, r)}}));
+        c = e;
+      }
+    }
+    extent = UnionAll(geos, runs);
+    if (IsEmpty(geos, extent.get())) throw InputError("the DEM has no valid cell", dem.source);
+    say(std::to_string(stats.outside_posts) + " no-data posts on the DEM border left out of the scene");
+  }
   const PreparedPtr extent_prepared(GEOSPrepare_r(geos.ctx(), extent.get()), PreparedDeleter{geos.ctx()});
 
   // Vector layers -> clipped polygons per class (and individual buildings).
@@ -684,7 +754,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   }
   std::vector<uint8_t> sea_posts;
   if (config.sea_auto && coast_lines.empty() && islands.empty() && parts[kClassSea].empty()) {
-    sea_posts = SeaPostMask(dem, config.sea_level_m);
+    sea_posts = dem_sea;
     stats.sea_from_dem = std::find(sea_posts.begin(), sea_posts.end(), 1) != sea_posts.end();
     if (!stats.sea_from_dem) sea_posts.clear();
   }
@@ -754,9 +824,27 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   for (Building& b : buildings) {
     b.prepared = PreparedPtr(GEOSPrepare_r(geos.ctx(), b.footprint.get()), PreparedDeleter{geos.ctx()});
   }
+  if (!outside.empty()) AppendBoundarySegments(geos, extent.get(), scene.boundary_segments);
   {
     const double cell_m = std::min(A.col(0).norm(), A.col(1).norm());
-    scene.boundary_segments = SnapToPosts(scene.boundary_segments, A, dem.width, dem.height, 1e-3 * cell_m);
+    // Ends on the scene's border (the DEM edge or the edge of its valid
+    // area: lattice lines next to a cell outside) also merge into a post
+    // along the border within 5 % of a cell, so that no sliver forms there.
+    auto on_border = [&](const Vector2d& cell) {
+      const double tol = 1e-3;
+      const bool on_col = std::abs(cell.x() - std::round(cell.x())) < tol;
+      const bool on_row = std::abs(cell.y() - std::round(cell.y())) < tol;
+      if (!on_col && !on_row) return false;
+      const int c = static_cast<int>(std::round(cell.x())), r = static_cast<int>(std::round(cell.y()));
+      if ((on_col && (c <= 0 || c >= dem.width - 1)) || (on_row && (r <= 0 || r >= dem.height - 1))) return true;
+      if (outside.empty()) return false;
+      const int fc = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
+      const int fr = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
+      if (on_col) return !cell_valid(std::max(0, c - 1), fr) || !cell_valid(std::min(dem.width - 2, c), fr);
+      return !cell_valid(fc, std::max(0, r - 1)) || !cell_valid(fc, std::min(dem.height - 2, r));
+    };
+    scene.boundary_segments =
+        SnapToPosts(scene.boundary_segments, A, dem.width, dem.height, 1e-3 * cell_m, on_border, 0.05);
   }
   stats.constraint_segments = static_cast<int64_t>(scene.boundary_segments.size());
 
@@ -785,6 +873,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   struct Region {
     ClassId cls = kClassDefault;
     int building = -1;
+    bool outside = false;  // beyond the valid area: not in the scene
   };
   std::vector<Region> regions;
   for (auto seed = cdt.finite_faces_begin(); seed != cdt.finite_faces_end(); ++seed) {
@@ -795,8 +884,14 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     const auto& p2 = seed->vertex(2)->point();
     const Vector2d centroid((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0);
     Region region;
+    if (!outside.empty()) {
+      const Vector2d cell = cell_from_planar * centroid;
+      region.outside = !cell_valid(std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2),
+                                   std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2));
+    }
     GeomPtr point = MakePoint(geos, centroid);
     for (int c : order) {
+      if (region.outside) break;
       if (c != kClassDefault && prepared[c] &&
           GEOSPreparedContains_r(geos.ctx(), prepared[c].get(), point.get()) == 1) {
         region.cls = static_cast<ClassId>(c);
@@ -835,7 +930,12 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     const Vector2d m(v->point().x(), v->point().y());
     double h;
     if (v->info().post > 0) {
-      h = dem.heights_m[size_t(v->info().post - 1)];
+      const size_t post = size_t(v->info().post - 1);
+      h = dem.heights_m[post];
+      // A void that joined the sea lies at sea level.
+      if (!dem_sea.empty() && dem_sea[post] && !dem.nodata_mask.empty() && dem.nodata_mask[post]) {
+        h = config.sea_level_m;
+      }
     } else {
       ++stats.inserted_vertices;
       Vector2d cell = cell_from_planar * m;
@@ -893,6 +993,18 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     return it->second;
   };
 
+  // Feet of walls on the ground: copies of the ground vertices, so that the
+  // terrain's smooth shading normals (per vertex) do not reach the walls.
+  std::unordered_map<int, int> foot_index;
+  auto wall_foot = [&](int ground) {
+    auto [it, inserted] = foot_index.emplace(ground, 0);
+    if (inserted) {
+      it->second = static_cast<int>(planar.size());
+      planar.push_back(planar[ground]);
+      heights.push_back(heights[ground]);
+    }
+    return it->second;
+  };
   std::vector<Eigen::Vector3i> triangles;
   std::vector<ClassId> classes;
   // A wall triangle, ordered so that the horizontal part of its normal
@@ -940,6 +1052,10 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   };
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
     const Region& region = regions[f->info()];
+    if (region.outside) {
+      ++stats.dropped_faces;
+      continue;
+    }
     int g[3];
     for (int i = 0; i < 3; ++i) g[i] = ground_index[f->vertex(i)];
     const double area =
@@ -972,7 +1088,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
                             : group[regions[n->info()].building];
       if (other == own) continue;
       if (other < 0) {
-        add_edge_walls(a, b, a, b, roof_vertex(own, a), roof_vertex(own, b));
+        add_edge_walls(a, b, wall_foot(a), wall_foot(b), roof_vertex(own, a), roof_vertex(own, b));
       } else if (roof_height[other] < roof_height[own]) {
         // A step between touching blocks: only the part above the lower
         // roof, on the higher block's side (the lower block emits nothing).

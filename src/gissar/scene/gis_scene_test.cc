@@ -508,6 +508,186 @@ TEST(GisSceneTest, SharedWallsAreRemovedAndStepsKept) {
   }
 }
 
+GisScene BuildWith(const std::string& dem_path, const SceneConfig& config, const geo::DemReadOptions& options) {
+  const geo::Dem dem = geo::ReadDem(dem_path, options);
+  const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, std::nullopt, std::nullopt);
+  return BuildGisScene(dem, geo::LocalFrame(centre.lon_deg, centre.lat_deg), config, false);
+}
+
+double PlanArea(const TriangleMesh& mesh, ClassId cls) {
+  double area = 0.0;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (mesh.classes[t] != cls) continue;
+    const Eigen::Vector3d a = mesh.vertices[mesh.triangles[t][0]].cast<double>();
+    area += 0.5 * std::abs((mesh.vertices[mesh.triangles[t][1]].cast<double>() - a)
+                               .cross(mesh.vertices[mesh.triangles[t][2]].cast<double>() - a).z());
+  }
+  return area;
+}
+
+// A DEM reprojected from a source rotated by 30 degrees: a tilted plane
+// (z = 100 + 0.2 x) inside the rotated 700 m square, no-data outside (the
+// collar in the corners). The collar is left out (no --fill-nodata needed),
+// a road crossing it is clipped to the valid area, and every terrain
+// triangle is the plane: facing up with the plane's normal, none steep.
+TEST(GisSceneTest, ReprojectionCollarIsOutsideTheScene) {
+  const fs::path dir = testing::MakeTempDir();
+  const double kNodata = -9999.0;
+  const double angle = 30.0 * M_PI / 180.0;
+  auto valid = [&](double x, double y) {
+    const double u = std::cos(angle) * x + std::sin(angle) * y, v = -std::sin(angle) * x + std::cos(angle) * y;
+    return std::abs(u) <= 350.0 && std::abs(v) <= 350.0;
+  };
+  const std::string dem = (dir / "collar.tif").string();
+  {
+    std::vector<float> h(101 * 101);
+    for (int r = 0; r < 101; ++r)
+      for (int c = 0; c < 101; ++c) {
+        const double x = -500.0 + 10 * c, y = 500.0 - 10 * r;
+        h[size_t(r) * 101 + c] = valid(x, y) ? static_cast<float>(100.0 + 0.2 * x) : static_cast<float>(kNodata);
+      }
+    geo::WriteDemGeoTiff(dem, h, 101, 101, {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, kLocalTm, kNodata);
+  }
+  const std::string roads = WriteGeoJson(dir / "roads.geojson",
+                                         {{"LineString", {{{-600, 13}, {600, 13}}}, R"({"highway": "primary"})"}});
+  SceneConfig config;
+  config.line_widths_m = DefaultLineWidths();
+  config.layers = {Spec(roads, kClassRoad, LayerKind::kLine)};
+  geo::DemReadOptions options;
+  options.border_nodata_outside = true;
+  const GisScene scene = BuildWith(dem, config, options);
+  EXPECT_GT(scene.stats.outside_posts, 0);
+  EXPECT_GT(scene.stats.dropped_faces, 0);
+  const TriangleMesh& mesh = scene.mesh;
+  const Eigen::Vector3f plane = Eigen::Vector3f(-0.2f, 0.0f, 1.0f).normalized();
+  int bad_normal = 0, outside_vertices = 0;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (AreaOf(mesh, t) < 1e-3) continue;
+    if (mesh.Normal(t).dot(plane) < std::cos(0.2 * M_PI / 180.0)) ++bad_normal;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3f v = mesh.vertices[mesh.triangles[t][k]];
+      if (!valid(v.x() * 0.999, v.y() * 0.999)) ++outside_vertices;  // 0.1 % inward: on the border is fine
+    }
+  }
+  EXPECT_EQ(bad_normal, 0) << "every triangle is the tilted plane: none faces down or stands steep";
+  EXPECT_EQ(outside_vertices, 0);
+  // The road (12 m wide) runs along y = 13 across the valid area only: its
+  // length there is at most the square's chord (700 / cos 30 = 808 m).
+  const double road = PlanArea(mesh, kClassRoad);
+  EXPECT_GT(road, 12.0 * 600.0);
+  EXPECT_LT(road, 12.0 * 808.3);
+  ExpectBoundariesAreMeshEdges(scene);
+}
+
+// --sea auto without coastline: a DEM whose west half is a 0 m sea (x < 0)
+// and whose east half rises from 10 m: the sea is the 49 x 100 cells whose
+// four posts are at 0 m (x from -500 to -10), 490 000 m^2. A void in the sea
+// next to sea posts is sea; voids on the border of a landlocked DEM are not.
+TEST(GisSceneTest, DemWithoutCoastlineGetsTheFallbackSea) {
+  const fs::path dir = testing::MakeTempDir();
+  const double kNodata = -32768.0;
+  std::vector<float> h(101 * 101);
+  for (int r = 0; r < 101; ++r)
+    for (int c = 0; c < 101; ++c) {
+      const double x = -500.0 + 10 * c;
+      h[size_t(r) * 101 + c] = x < 0 ? 0.0f : static_cast<float>(10.0 + 0.1 * x);
+    }
+  h[size_t(50) * 101 + 20] = static_cast<float>(kNodata);  // a void in the sea
+  const std::string coast = (dir / "coast.tif").string();
+  geo::WriteDemGeoTiff(coast, h, 101, 101, {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, kLocalTm, kNodata);
+  geo::DemReadOptions options;
+  options.fill_nodata = true;
+  options.border_nodata_outside = true;
+  const GisScene scene = BuildWith(coast, SceneConfig(), options);
+  EXPECT_TRUE(scene.stats.sea_from_dem);
+  EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 490000.0, 50.0);
+  EXPECT_NEAR(scene.stats.mesh_area_m2[kClassSea], 490000.0, 1.0);
+  // --sea off: no sea.
+  SceneConfig off;
+  off.sea_auto = false;
+  EXPECT_EQ(PlanArea(BuildWith(coast, off, options).mesh, kClassSea), 0.0);
+  // A sea level of -1 m: nothing is at or below it.
+  SceneConfig low;
+  low.sea_level_m = -1.0;
+  EXPECT_EQ(PlanArea(BuildWith(coast, low, options).mesh, kClassSea), 0.0);
+
+  // Landlocked (Andorra-like): 1000 m and up, voids on the border: no sea,
+  // the border voids are left out, the interior void is filled.
+  for (int r = 0; r < 101; ++r)
+    for (int c = 0; c < 101; ++c) h[size_t(r) * 101 + c] = static_cast<float>(1000.0 + c);
+  for (int c : {10, 11, 12, 60}) h[c] = static_cast<float>(kNodata);   // row 0
+  h[size_t(40) * 101 + 100] = static_cast<float>(kNodata);              // last column
+  h[size_t(50) * 101 + 50] = static_cast<float>(kNodata);               // interior
+  const std::string land = (dir / "land.tif").string();
+  geo::WriteDemGeoTiff(land, h, 101, 101, {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, kLocalTm, kNodata);
+  const GisScene landlocked = BuildWith(land, SceneConfig(), options);
+  EXPECT_FALSE(landlocked.stats.sea_from_dem);
+  EXPECT_EQ(PlanArea(landlocked.mesh, kClassSea), 0.0);
+  EXPECT_EQ(landlocked.stats.outside_posts, 5);
+  // The 100 x 100 cells minus those touching a border void: cells 9..12 of
+  // row 0 (posts 10..12), 59..60 (post 60), rows 39..40 of the last column
+  // (post row 40): 8 cells of 100 m^2.
+  EXPECT_NEAR(landlocked.stats.mesh_area_m2[kClassDefault], (10000.0 - 8.0) * 100.0, 1.0);
+}
+
+// Coastlines (land on the left) closed against the extent. A straight coast
+// heading east-north-east through the centre crosses the extent twice: the
+// sea is south of it, half the 1000 x 1000 m^2 extent. Reversed, the sea is
+// north (also half; checked on the side of a point). A bay (the coast runs
+// north along x = -300, east along y = 200, south along x = 300) crossing
+// the south border twice: the sea is inside the U, 600 x 700 m^2. A coast
+// that ends inside the extent is extended straight along its last
+// direction.
+TEST(GisSceneTest, CoastlinesClosedAgainstTheExtentGiveTheSeaSide) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = FlatDem(dir);
+  auto sea_scene = [&](const std::vector<std::vector<Vector2d>>& lines, const std::string& name) {
+    std::vector<Feature> features;
+    for (const auto& l : lines) features.push_back({"LineString", {l}, R"({"natural": "coastline"})"});
+    SceneConfig config;
+    config.layers = {Spec(WriteGeoJson(dir / name, features), kClassSea, LayerKind::kCoastline)};
+    return Build(dem, config);
+  };
+  auto sea_at = [](const GisScene& scene, const Vector2d& p) {
+    for (size_t t = 0; t < scene.mesh.triangle_count(); ++t) {
+      const auto& tri = scene.mesh.triangles[t];
+      const Vector2d a = scene.planar[tri[0]], b = scene.planar[tri[1]], c = scene.planar[tri[2]];
+      const double d = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+      const double s = ((p - a).x() * (c - a).y() - (p - a).y() * (c - a).x()) / d;
+      const double u = ((b - a).x() * (p - a).y() - (b - a).y() * (p - a).x()) / d;
+      if (s >= 0 && u >= 0 && s + u <= 1) return scene.mesh.classes[t] == kClassSea;
+    }
+    return false;
+  };
+  {
+    const GisScene scene = sea_scene({{{-600, -100}, {0, 0}}, {{0, 0}, {600, 100}}}, "straight.geojson");
+    EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 500000.0, 500.0);
+    EXPECT_TRUE(sea_at(scene, {0, -300}));
+    EXPECT_FALSE(sea_at(scene, {0, 300}));
+    ExpectAreasMatch(scene);
+  }
+  {
+    const GisScene scene = sea_scene({{{600, 100}, {-600, -100}}}, "reversed.geojson");
+    EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 500000.0, 500.0);
+    EXPECT_TRUE(sea_at(scene, {0, 300}));
+    EXPECT_FALSE(sea_at(scene, {0, -300}));
+  }
+  {
+    const GisScene scene = sea_scene({{{-300, -600}, {-300, 200}, {300, 200}, {300, -600}}}, "bay.geojson");
+    EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 600.0 * 700.0, 500.0);
+    EXPECT_TRUE(sea_at(scene, {0, 0}));
+    EXPECT_FALSE(sea_at(scene, {-400, 0}));
+    EXPECT_FALSE(sea_at(scene, {0, 400}));
+  }
+  {
+    // Ends at the origin, inside: extended along (6, 1) to the east border.
+    const GisScene scene = sea_scene({{{-600, -100}, {-300, -50}, {0, 0}}}, "dangling.geojson");
+    EXPECT_EQ(scene.stats.coastline_extended_ends, 1);
+    EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 500000.0, 500.0);
+    EXPECT_TRUE(sea_at(scene, {300, -300}));
+  }
+}
+
 TEST(GisSceneTest, BuildingHeightAndLineWidthRules) {
   EXPECT_EQ(BuildingHeight({{"height", "12.5 m"}}, 10, 3), 12.5);
   EXPECT_EQ(BuildingHeight({{"height", "tall"}, {"building:levels", "5"}}, 10, 3), 15.0);
