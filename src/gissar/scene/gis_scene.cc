@@ -279,14 +279,13 @@ GeomPtr CoastlineSea(const Geos& geos, const GEOSGeometry* extent, const std::ve
       if (bucket.empty() || bucket.back() != static_cast<int>(i)) bucket.push_back(static_cast<int>(i));
     }
   }
-  // Node the clipped chains with the extent boundary and polygonize.
+  // Node the chains with the extent boundary and polygonize.
   std::vector<GEOSGeometry*> pieces;
   pieces.push_back(GEOSBoundary_r(geos.ctx(), extent));
+  // Whole chains (they cross the boundary: noding splits both there; the
+  // parts outside are dangles that polygonizing drops).
   for (const auto& chain : chains) {
-    GeomPtr line = MakeLine(geos, chain);
-    if (!line) continue;
-    GEOSGeometry* clipped = GEOSIntersection_r(geos.ctx(), line.get(), extent);
-    if (clipped != nullptr) pieces.push_back(clipped);
+    if (GeomPtr line = MakeLine(geos, chain)) pieces.push_back(line.release());
   }
   GeomPtr all = Own(geos, GEOSGeom_createCollection_r(geos.ctx(), GEOS_GEOMETRYCOLLECTION, pieces.data(), pieces.size()));
   GeomPtr noded = Own(geos, GEOSUnaryUnion_r(geos.ctx(), all.get()));
@@ -319,9 +318,15 @@ GeomPtr CoastlineSea(const Geos& geos, const GEOSGeometry* extent, const std::ve
         const Vector2d p = ring[k], q = ring[k + 1], m = 0.5 * (p + q);
         const double len = (q - p).norm();
         if (len <= 0) continue;
-        auto it = grid.find(key(m));
-        if (it == grid.end()) continue;
-        for (int i : it->second) {
+        const auto centre = key(m);
+        std::vector<int> candidates;
+        for (int64_t di = -1; di <= 1; ++di) {
+          for (int64_t dj = -1; dj <= 1; ++dj) {
+            auto it = grid.find({centre.first + di, centre.second + dj});
+            if (it != grid.end()) candidates.insert(candidates.end(), it->second.begin(), it->second.end());
+          }
+        }
+        for (int i : candidates) {
           const Vector2d st = segments[i].t - segments[i].s;
           const double st_len = st.norm();
           const Vector2d rel = m - segments[i].s;
@@ -876,9 +881,33 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     bool outside = false;  // beyond the valid area: not in the scene
   };
   std::vector<Region> regions;
+  // Faces whose three vertices are DEM posts of one lattice row or column:
+  // along the hull the posts of a border row are collinear only up to the
+  // rounding of A * (col, row), and the exact predicates fill the gap with
+  // needle faces spanning many posts (in 3-D, curtains hanging between
+  // distant posts). They are not part of the scene and do not connect
+  // regions.
+  auto lattice_degenerate = [&](Cdt::Face_handle f) {
+    int64_t post[3];
+    for (int k = 0; k < 3; ++k) {
+      post[k] = f->vertex(k)->info().post - 1;
+      if (post[k] < 0) return false;
+    }
+    const int64_t w = dem.width;
+    return (post[0] / w == post[1] / w && post[1] / w == post[2] / w) ||
+           (post[0] % w == post[1] % w && post[1] % w == post[2] % w);
+  };
   for (auto seed = cdt.finite_faces_begin(); seed != cdt.finite_faces_end(); ++seed) {
     if (seed->info() >= 0) continue;
     const int id = static_cast<int>(regions.size());
+    if (lattice_degenerate(seed)) {
+      Region needle;
+      needle.outside = true;
+      regions.push_back(needle);
+      seed->info() = id;
+      ++stats.needle_faces;
+      continue;
+    }
     const auto& p0 = seed->vertex(0)->point();
     const auto& p1 = seed->vertex(1)->point();
     const auto& p2 = seed->vertex(2)->point();
@@ -915,7 +944,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       queue.pop_front();
       for (int i = 0; i < 3; ++i) {
         const Cdt::Face_handle n = f->neighbor(i);
-        if (cdt.is_infinite(n) || n->info() >= 0 || f->is_constrained(i)) continue;
+        if (cdt.is_infinite(n) || n->info() >= 0 || f->is_constrained(i) || lattice_degenerate(n)) continue;
         n->info() = id;
         queue.push_back(n);
       }

@@ -32,7 +32,8 @@ struct GisSceneStats {
   int64_t coastline_extended_ends = 0;  // chain ends inside the extent, extended to its edge
   bool sea_from_dem = false;
   int64_t outside_posts = 0;          // border-connected no-data posts left out of the scene
-  int64_t dropped_faces = 0;          // triangles outside the valid area          // the --sea auto fallback (no coastline) was applied
+  int64_t dropped_faces = 0;          // triangles outside the valid area (and needles)
+  int64_t needle_faces = 0;           // degenerate faces along the hull's lattice rows/columns, dropped          // the --sea auto fallback (no coastline) was applied
   int64_t merged_buildings = 0;       // footprints merged into a touching one of equal height
   int64_t step_walls = 0;             // edges between touching blocks of different roof heights
   int64_t buried_wall_triangles = 0;  // wall sections where the ground is above the roof (pit sides)
