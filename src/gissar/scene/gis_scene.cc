@@ -445,6 +445,27 @@ std::vector<std::array<Vector2d, 2>> SnapToPosts(const std::vector<std::array<Ve
         }
       }
     }
+    // Crossings with the lattice's column and row lines: every vertex of a
+    // constraint then lies on a cell edge or inside one cell, so its edges
+    // follow the DEM (bilinear heights) instead of chords across many cells
+    // that leave steep slivers beside them. A crossing within `tol` of a
+    // post is the post.
+    for (int axis = 0; axis < 2; ++axis) {
+      const double u0 = ca[axis], u1 = cb[axis];
+      if (std::abs(u1 - u0) < 1e-12) continue;
+      for (int k = static_cast<int>(std::floor(std::min(u0, u1))) + 1; k < std::max(u0, u1); ++k) {
+        const double f = (k - u0) / (u1 - u0);
+        Vector2d cell = ca + f * (cb - ca);
+        cell[axis] = k;
+        const double other = std::round(cell[1 - axis]);
+        Vector2d q = A * cell;
+        const Vector2d snapped = A * (axis == 0 ? Vector2d(k, other) : Vector2d(other, k));
+        if ((snapped - q).norm() < tol) q = snapped;
+        const double t = (q - a).dot(dir);
+        if (t <= tol || t >= length - tol) continue;
+        splits.emplace_back(t, q);
+      }
+    }
     std::sort(splits.begin(), splits.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
     Vector2d prev = a;
     for (const auto& [t, q] : splits) {
@@ -889,13 +910,30 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   // regions.
   auto lattice_degenerate = [&](Cdt::Face_handle f) {
     int64_t post[3];
+    bool all_posts = true;
+    Vector2d cell[3];
     for (int k = 0; k < 3; ++k) {
       post[k] = f->vertex(k)->info().post - 1;
-      if (post[k] < 0) return false;
+      all_posts &= post[k] >= 0;
+      cell[k] = cell_from_planar * Vector2d(f->vertex(k)->point().x(), f->vertex(k)->point().y());
     }
-    const int64_t w = dem.width;
-    return (post[0] / w == post[1] / w && post[1] / w == post[2] / w) ||
-           (post[0] % w == post[1] % w && post[1] % w == post[2] % w);
+    if (all_posts) {
+      const int64_t w = dem.width;
+      if ((post[0] / w == post[1] / w && post[1] / w == post[2] / w) ||
+          (post[0] % w == post[1] % w && post[1] % w == post[2] % w)) {
+        return true;
+      }
+    }
+    // All three on one border line of the DEM (with vertices inserted there).
+    for (int axis = 0; axis < 2; ++axis) {
+      for (const double line : {0.0, (axis == 0 ? dem.width : dem.height) - 1.0}) {
+        if (std::abs(cell[0][axis] - line) < 1e-6 && std::abs(cell[1][axis] - line) < 1e-6 &&
+            std::abs(cell[2][axis] - line) < 1e-6) {
+          return true;
+        }
+      }
+    }
+    return false;
   };
   for (auto seed = cdt.finite_faces_begin(); seed != cdt.finite_faces_end(); ++seed) {
     if (seed->info() >= 0) continue;
@@ -1090,6 +1128,13 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     const double area =
         0.5 * std::abs((planar[g[1]] - planar[g[0]]).x() * (planar[g[2]] - planar[g[0]]).y() -
                        (planar[g[1]] - planar[g[0]]).y() * (planar[g[2]] - planar[g[0]]).x());
+    // Rounding slivers: no visible surface, arbitrary normals (a building's
+    // sliver still has its walls).
+    double longest = 0.0;
+    for (int k = 0; k < 3; ++k) longest = std::max(longest, (planar[g[k]] - planar[g[(k + 1) % 3]]).norm());
+    const bool sliver = 2.0 * area < 1e-5 * longest;  // narrower than 10 micrometres
+    if (sliver) ++stats.sliver_faces;
+    if (sliver && region.building < 0) continue;
     if (region.building < 0) {
       ClassId cls = region.cls;
       if (cls == kClassDefault && !sea_posts.empty() &&
@@ -1105,8 +1150,10 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     }
     stats.mesh_area_m2[region.cls] += area;
     const int own = group[region.building];
-    triangles.emplace_back(roof_vertex(own, g[0]), roof_vertex(own, g[1]), roof_vertex(own, g[2]));
-    classes.push_back(kClassBuilding);
+    if (!sliver) {
+      triangles.emplace_back(roof_vertex(own, g[0]), roof_vertex(own, g[1]), roof_vertex(own, g[2]));
+      classes.push_back(kClassBuilding);
+    }
     for (int i = 0; i < 3; ++i) {
       // CGAL faces are counter-clockwise in M (ENU-aligned): edge i runs
       // ccw(i) -> cw(i) with this face on its left.
