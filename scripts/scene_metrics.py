@@ -7,7 +7,8 @@ written by `gissar scene build` and prints, as JSON:
     into the roof they carry: a point 5 cm along the normal from the
     triangle's centre lies under a roof whose height equals the wall's top
     (a correct wall has open ground or a lower roof there; the side of a
-    pit, where the ground is above the roof, has its own roof at its foot);
+    pit, where the ground is above the roof, and a step down to a lower
+    roof have a roof at their foot: counted apart);
   - downward terrain triangles (normal z < 0) and near-vertical terrain area
     (slope > 80 degrees), terrain = every class but building;
   - with --dem: the reference sea = DEM cells whose four posts are at or
@@ -126,13 +127,16 @@ def main():
         top, foot = p[:, 2].max(), p[:, 2].min()
         hits = index.find(c[0] + d[0], c[1] + d[1])
         zs = [v[tris[roofs[k]]][:, 2].mean() for k in hits]
-        if any(abs(z - top) < 0.05 for z in zs):
+        # The roof there is the wall's own when it sits at the wall's top
+        # (closer to the top than to the foot, within 5 cm).
+        if any(abs(z - top) < 0.05 and abs(z - top) < abs(z - foot) for z in zs):
             inverted += 1
-        elif any(abs(z - foot) < 0.05 for z in zs) and not index.find(c[0] - d[0], c[1] - d[1]):
+        elif any(abs(z - foot) < 0.05 and abs(z - foot) <= abs(z - top) for z in zs):
             pits += 1
     out["wall_triangles"] = int(len(walls))
     out["inverted_wall_triangles"] = inverted
     out["inverted_wall_fraction"] = inverted / max(1, len(walls))
+    out["pit_or_step_wall_triangles"] = pits
     out["class_plan_area_km2"] = {names[c]: float(np.abs(cross[cls == c, 2]).sum() / 2e6) for c in range(len(names))}
 
     if args.dem:

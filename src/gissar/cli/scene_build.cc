@@ -144,6 +144,11 @@ SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::stri
            {"coastline_features", built.stats.coastline_features},
            {"coastline_extended_ends", built.stats.coastline_extended_ends},
            {"sea_from_dem", built.stats.sea_from_dem},
+           {"outside_posts", built.stats.outside_posts},
+           {"dropped_faces", built.stats.dropped_faces},
+           {"needle_faces", built.stats.needle_faces},
+           {"sliver_faces", built.stats.sliver_faces},
+           {"steep_slivers", built.stats.steep_slivers},
            {"shading_normals", !options.flat_shading},
            {"build_seconds", built.stats.seconds}};
 

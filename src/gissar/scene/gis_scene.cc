@@ -1189,6 +1189,35 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   for (size_t i = 0; i < planar.size(); ++i) {
     mesh.vertices[i] = frame.EnuFromGeodetic(x[i], y[i], heights[i]).cast<float>();
   }
+  // Terrain slivers narrower than 10 cm in plan that stand steeper than 80
+  // degrees or face down once placed (three nearly collinear vertices on a
+  // curved bilinear cell or on Earth's curvature): dropped, a gap no radar
+  // pixel resolves, so that only buildings are near-vertical.
+  {
+    const float cos80 = static_cast<float>(std::cos(80.0 * M_PI / 180.0));
+    size_t kept = 0;
+    for (size_t t = 0; t < triangles.size(); ++t) {
+      const Eigen::Vector3i& tri = triangles[t];
+      if (classes[t] != kClassBuilding) {
+        const Eigen::Vector3d a = mesh.vertices[tri[0]].cast<double>();
+        const Eigen::Vector3d n =
+            (mesh.vertices[tri[1]].cast<double>() - a).cross(mesh.vertices[tri[2]].cast<double>() - a);
+        double longest = 0.0;
+        for (int k = 0; k < 3; ++k) longest = std::max(longest, (planar[tri[k]] - planar[tri[(k + 1) % 3]]).norm());
+        const Vector2d e1 = planar[tri[1]] - planar[tri[0]], e2 = planar[tri[2]] - planar[tri[0]];
+        const double width = std::abs(e1.x() * e2.y() - e1.y() * e2.x()) / std::max(longest, 1e-12);
+        if (n.z() <= cos80 * n.norm() && width < 0.1) {
+          ++stats.steep_slivers;
+          continue;
+        }
+      }
+      triangles[kept] = triangles[t];
+      classes[kept] = classes[t];
+      ++kept;
+    }
+    triangles.resize(kept);
+    classes.resize(kept);
+  }
   mesh.triangles = std::move(triangles);
   mesh.classes = std::move(classes);
   scene.planar = std::move(planar);

@@ -34,6 +34,7 @@ struct GisSceneStats {
   int64_t outside_posts = 0;          // border-connected no-data posts left out of the scene
   int64_t dropped_faces = 0;          // triangles outside the valid area (and needles)
   int64_t sliver_faces = 0;           // faces narrower than 10 um in plan (rounding), not output
+  int64_t steep_slivers = 0;          // terrain slivers < 10 cm wide, steeper than 80 deg: dropped
   int64_t needle_faces = 0;           // degenerate faces along the hull's lattice rows/columns, dropped          // the --sea auto fallback (no coastline) was applied
   int64_t merged_buildings = 0;       // footprints merged into a touching one of equal height
   int64_t step_walls = 0;             // edges between touching blocks of different roof heights
