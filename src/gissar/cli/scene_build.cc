@@ -143,6 +143,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::stri
            {"buried_wall_triangles", built.stats.buried_wall_triangles},
            {"coastline_features", built.stats.coastline_features},
            {"coastline_extended_ends", built.stats.coastline_extended_ends},
+           {"sea_faces_on_land", built.stats.sea_faces_on_land},
            {"sea_from_dem", built.stats.sea_from_dem},
            {"outside_posts", built.stats.outside_posts},
            {"dropped_faces", built.stats.dropped_faces},

@@ -268,8 +268,11 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     }
   }
   if (voids - border_voids > 0 && !options.fill_nodata) {
-    throw InputError("DEM has " + std::to_string(voids - border_voids) +
-                         " no-data cells; use --fill-nodata to interpolate them",
+    throw InputError("DEM has " + std::to_string(voids - border_voids) + " no-data cells" +
+                         (border_voids > 0 ? " inside (" + std::to_string(border_voids) +
+                                                 " more on its border are left out of the scene)"
+                                           : std::string()) +
+                         "; use --fill-nodata to interpolate them",
                      where);
   }
   constexpr float kVoid = -3.0e38f;

@@ -784,6 +784,29 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     stats.sea_from_dem = std::find(sea_posts.begin(), sea_posts.end(), 1) != sea_posts.end();
     if (!stats.sea_from_dem) sea_posts.clear();
   }
+  // Where a coastline had to be extended beyond the data, the extension is
+  // a guess: sea there is kept only within 2 posts of DEM posts at most 1 m
+  // above the sea level (a cell whose four posts are all farther is land).
+  std::vector<uint8_t> near_low;
+  if (stats.coastline_extended_ends > 0) {
+    const int w = dem.width, h = dem.height;
+    near_low.assign(size_t(w) * h, 0);
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        if (dem.heights_m[size_t(r) * w + c] > config.sea_level_m + 1.0) continue;
+        for (int rr = std::max(0, r - 2); rr <= std::min(h - 1, r + 2); ++rr) {
+          for (int cc = std::max(0, c - 2); cc <= std::min(w - 1, c + 2); ++cc) near_low[size_t(rr) * w + cc] = 1;
+        }
+      }
+    }
+  }
+  auto cell_is_land = [&](const Vector2d& centroid) {
+    const Vector2d cell = cell_from_planar * centroid;
+    const int c = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
+    const int r = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
+    const size_t i = size_t(r) * dem.width + c;
+    return !near_low[i] && !near_low[i + 1] && !near_low[i + dem.width] && !near_low[i + dem.width + 1];
+  };
   auto cell_is_sea = [&](const Vector2d& centroid) {
     const Vector2d cell = cell_from_planar * centroid;
     const int c = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
@@ -1142,6 +1165,12 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
         cls = kClassSea;
         stats.region_area_m2[kClassDefault] -= area;
         stats.region_area_m2[kClassSea] += area;
+      } else if (cls == kClassSea && !near_low.empty() &&
+                 cell_is_land((planar[g[0]] + planar[g[1]] + planar[g[2]]) / 3.0)) {
+        cls = kClassDefault;
+        ++stats.sea_faces_on_land;
+        stats.region_area_m2[kClassSea] -= area;
+        stats.region_area_m2[kClassDefault] += area;
       }
       stats.mesh_area_m2[cls] += area;
       triangles.emplace_back(g[0], g[1], g[2]);

@@ -30,6 +30,7 @@ struct GisSceneStats {
   int64_t buildings = 0;
   int64_t coastline_features = 0;     // coastline ways and island polygons read
   int64_t coastline_extended_ends = 0;  // chain ends inside the extent, extended to its edge
+  int64_t sea_faces_on_land = 0;      // faces beyond an extension that the DEM says are land
   bool sea_from_dem = false;
   int64_t outside_posts = 0;          // border-connected no-data posts left out of the scene
   int64_t dropped_faces = 0;          // triangles outside the valid area (and needles)

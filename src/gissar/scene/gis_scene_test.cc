@@ -651,13 +651,15 @@ TEST(GisSceneTest, DemWithoutCoastlineGetsTheFallbackSea) {
 // direction.
 TEST(GisSceneTest, CoastlinesClosedAgainstTheExtentGiveTheSeaSide) {
   const fs::path dir = testing::MakeTempDir();
-  const std::string dem = FlatDem(dir);
+  // A 0 m sea south of the line y = x / 6 and 10 m land north of it: the
+  // DEM agrees with the coastlines below (the straight and dangling ones).
+  std::string dem_path = DemOf(dir / "coast.tif", [](double x, double y) { return y < x / 6.0 ? 0.0 : 10.0; });
   auto sea_scene = [&](const std::vector<std::vector<Vector2d>>& lines, const std::string& name) {
     std::vector<Feature> features;
     for (const auto& l : lines) features.push_back({"LineString", {l}, R"({"natural": "coastline"})"});
     SceneConfig config;
     config.layers = {Spec(WriteGeoJson(dir / name, features), kClassSea, LayerKind::kCoastline)};
-    return Build(dem, config);
+    return Build(dem_path, config);
   };
   auto sea_at = [](const GisScene& scene, const Vector2d& p) {
     for (size_t t = 0; t < scene.mesh.triangle_count(); ++t) {
@@ -695,11 +697,52 @@ TEST(GisSceneTest, CoastlinesClosedAgainstTheExtentGiveTheSeaSide) {
   }
   {
     // Ends at the origin, inside: extended along (6, 1) to the east border.
+    // The DEM (0 m south of the line, 10 m north) agrees with the guess.
     const GisScene scene = sea_scene({{{-600, -100}, {-300, -50}, {0, 0}}}, "dangling.geojson");
     EXPECT_EQ(scene.stats.coastline_extended_ends, 1);
     EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 500000.0, 500.0);
     EXPECT_TRUE(sea_at(scene, {300, -300}));
   }
+  {
+    // The same coast on a DEM that is 10 m high east of x = 200 (the real
+    // coast turned south there): beyond 2 posts from the low ground, the
+    // extension's sea is land. Sea: the 0 m ground south of the line up to
+    // x = 200, plus the cells within 2 posts (20 m) east of it.
+    dem_path = DemOf(dir / "turn.tif", [](double x, double y) { return x < 200 && y < x / 6.0 ? 0.0 : 10.0; });
+    const GisScene scene = sea_scene({{{-600, -100}, {-300, -50}, {0, 0}}}, "dangling2.geojson");
+    EXPECT_TRUE(sea_at(scene, {100, -300}));
+    EXPECT_FALSE(sea_at(scene, {400, -300}));
+    EXPECT_GT(scene.stats.sea_faces_on_land, 0);
+  }
+}
+
+// The rule simulate --dem applies: posts at or below the sea level
+// connected to the border, voids only next to sea posts. 6 x 4 posts,
+// columns 0-2 at 0 m, 3-5 at 5 m: sea cells are columns 0-1 of the 3 cell
+// rows, 12 grid triangles. A void inside the sea (2, 2) is sea; voids on
+// the land border (4, 0) and (5, 3) are not.
+TEST(GisSceneTest, SeaPostMaskAndGridTriangles) {
+  geo::Dem dem;
+  dem.width = 6;
+  dem.height = 4;
+  dem.heights_m.assign(24, 5.0f);
+  dem.nodata_mask.assign(24, 0);
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 3; ++c) dem.heights_m[size_t(r) * 6 + c] = 0.0f;
+  for (int i : {2 * 6 + 2, 0 * 6 + 4, 3 * 6 + 5}) {
+    dem.nodata_mask[i] = 1;
+    dem.heights_m[i] = 3.0f;  // filled by interpolation: above the sea level
+  }
+  const std::vector<uint8_t> sea = SeaPostMask(dem, 0.0);
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 6; ++c) EXPECT_EQ(sea[size_t(r) * 6 + c], c < 3 ? 1 : 0) << c << "," << r;
+  TriangleMesh mesh = MeshFromHeights(dem.heights_m, 6, 4, 10.0);
+  EXPECT_EQ(MarkSeaTriangles(mesh, sea), 12);
+  EXPECT_EQ(std::count(mesh.classes.begin(), mesh.classes.end(), kClassSea), 12);
+  // Landlocked at 1000 m with border voids: no sea at all.
+  dem.heights_m.assign(24, 1000.0f);
+  const std::vector<uint8_t> none = SeaPostMask(dem, 0.0);
+  EXPECT_EQ(std::count(none.begin(), none.end(), 1), 0);
 }
 
 TEST(GisSceneTest, BuildingHeightAndLineWidthRules) {
