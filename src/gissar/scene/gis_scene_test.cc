@@ -513,7 +513,7 @@ TEST(GisSceneTest, SharedWallsAreRemovedAndStepsKept) {
 GisScene BuildWith(const std::string& dem_path, const SceneConfig& config, const geo::DemReadOptions& options) {
   const geo::Dem dem = geo::ReadDem(dem_path, options);
   const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, std::nullopt, std::nullopt);
-  return BuildGisScene(dem, geo::LocalFrame(centre.lon_deg, centre.lat_deg), config, false);
+  return BuildGisScene(dem, geo::LocalFrame(centre.lon_deg, centre.lat_deg), config);
 }
 
 double PlanArea(const TriangleMesh& mesh, ClassId cls) {
