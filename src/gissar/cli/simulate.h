@@ -53,7 +53,18 @@ struct SimulateOptions {
   double rays_per_cell = 4.0;
   int bounces = 3;                 // reflections followed per ray
   bool coherent = false;           // complex sum with phase 4 pi r / lambda
-  double wavelength_m = 0.031;     // X band
+  double wavelength_m = 0.031;     // X band; selects the materials' sigma0 laws
+  std::string polarization = "VV";  // HH, HV, VH or VV: the materials' laws
+  // Output radiometry (docs/radiometry.md): "sigma0", "beta0" or "gamma0",
+  // linear (m2/m2) or, with `db`, decibels.
+  std::string radiometry = "sigma0";
+  bool db = false;
+  // A materials file (JSON: class name -> law parameters) applied over the
+  // defaults; with --dem it sets the single class `default`.
+  std::string materials;
+  // Canonical reflectors (CSV, docs/radiometry.md): trihedrals, dihedrals,
+  // plates with their physical-optics RCS.
+  std::string reflectors;
   std::string contributions;       // optional CSV of every return (RaySAR-style)
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
   // spectral window ("none", "hamming", "taylor").
@@ -61,11 +72,13 @@ struct SimulateOptions {
   double azimuth_resolution_m = 0.0;
   std::string psf_window = "none";
   // Multiplicative L-look gamma speckle (0 = off) and thermal noise floor
-  // (NESZ, dB in image units; NaN = off), both seeded.
+  // (NESZ, dB sigma0; NaN = off), both seeded.
   double speckle_looks = 0.0;
   double nesz_db = std::numeric_limits<double>::quiet_NaN();
   uint64_t seed = 1;
-  std::string out_prefix;  // writes PREFIX.tif, PREFIX.png, PREFIX_quicklook.png, PREFIX_mask.tif, PREFIX.json
+  // writes PREFIX.tif, PREFIX.png, PREFIX_quicklook.png, PREFIX_mask.tif,
+  // PREFIX.json and, in coherent mode, PREFIX_slc.tif (CFloat32)
+  std::string out_prefix;
   bool quiet = false;      // no progress on stderr
   // Memory budget (--max-memory), bytes: the DEM (or scene) and the image
   // are checked against it before they are allocated, and a job over it
@@ -103,6 +116,12 @@ struct Terrain {
   nlohmann::json description;  // for provenance
 };
 
+// The reflectors of options.reflectors placed on the terrain surface in
+// `embree` (apex = surface height at lon, lat + apex_height_m), ENU.
+// Throws InputError naming the file and row for a reflector off the terrain.
+std::vector<render::SceneReflector> PlaceReflectors(const SimulateOptions& options, const Terrain& terrain,
+                                                    const render::EmbreeScene& embree);
+
 // Loads options.dem or options.scene; the centre follows --center /
 // --center-map for DEMs. With engine "raster" a DEM's mesh holds only its
 // posts (no triangles). Throws the gissar::Error family.
@@ -117,7 +136,11 @@ void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree,
 // terrain's post spacing.
 sensor::SarGeometryOptions ResolvedGeometry(const SimulateOptions& options, const Terrain& terrain);
 
-// Impulse response, speckle and thermal noise of the options, in that order.
+// Ellipsoid incidence (degrees) of every image column (SarGeometry::IncidenceDeg).
+std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry);
+
+// Impulse response, speckle and thermal noise of the options, in that
+// order, then the output radiometry (image::ApplySensorEffects).
 void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
                         const sensor::SarGeometry& geometry);
 
