@@ -93,6 +93,11 @@ cli::SimulateOptions SimulateOptionsFrom(const py::kwargs& kwargs) {
     else if (key == "speckle_looks") o.speckle_looks = value.cast<double>();
     else if (key == "nesz_db") o.nesz_db = value.cast<double>();
     else if (key == "seed") o.seed = value.cast<uint64_t>();
+    else if (key == "polarization") o.polarization = value.cast<std::string>();
+    else if (key == "radiometry") o.radiometry = value.cast<std::string>();
+    else if (key == "db") o.db = value.cast<bool>();
+    else if (key == "materials") o.materials = value.cast<std::string>();
+    else if (key == "reflectors") o.reflectors = value.cast<std::string>();
     else if (key == "engine") o.engine = value.cast<std::string>();
     else if (key == "dem_oversample") o.dem_oversample = value.cast<int>();
     else if (key == "vertical_datum") o.vertical_datum = value.cast<std::string>();
@@ -558,8 +563,9 @@ PYBIND11_MODULE(gissar, m) {
         "Simulate a SAR image. Keywords = SimulateOptions fields: dem or scene, heading_deg, depression_deg, "
         "slant_range_m, range_spacing_m, azimuth_spacing_m (m), mode, look_side, width, height, rays_per_cell, "
         "bounces, coherent, wavelength_m, range_resolution_m, azimuth_resolution_m, psf_window, speckle_looks, "
-        "nesz_db, seed, fill_nodata, center_lonlat, center_map. Returns {'image': (H, W) float32 linear "
-        "intensity, 'bounces': (4, H, W) single/double/triple/>=4, 'mask': (H, W) uint8 (1 layover, 2 shadow), "
+        "nesz_db (dB sigma0), seed, polarization, radiometry ('sigma0'|'beta0'|'gamma0'), db, materials, "
+        "reflectors, fill_nodata, center_lonlat, center_map. Returns {'image': (H, W) float32 in the requested "
+        "radiometry (docs/radiometry.md), 'bounces': (4, H, W) single/double/triple/>=4, 'mask': (H, W) uint8 (1 layover, 2 shadow), "
         "'geometry': metadata, 'options': the options}. Identical to `gissar simulate`'s GeoTIFF.");
 
   m.def("simulate_product", &SimulateProduct, py::arg("product"),

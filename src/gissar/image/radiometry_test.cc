@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <optional>
 
 #include "gissar/material/reflector.h"
@@ -92,6 +93,8 @@ TEST(RadiometryTest, FlatPlaneSigma0IsIndependentOfRaysAndPixels) {
         const Rendered r = RenderFlat(depression, spacing, rays, Radiometry::kSigma0, -10.0);
         const auto [mean_db, spread_db] = CentreStats(r);
         EXPECT_NEAR(mean_db, -10.0, 0.1) << depression << " deg, " << rays << " rays, " << spacing << " m";
+        std::printf("flat sigma0: depression %.0f, %.0f rays, %.0f m: mean %.3f dB, spread %.3f dB\n", depression,
+                    rays, spacing, mean_db, spread_db);
         EXPECT_LT(spread_db, 0.1) << depression << " deg, " << rays << " rays, " << spacing << " m";
       }
     }
@@ -224,6 +227,8 @@ TEST(ReflectorTest, TrihedralRcsFollowsPhysicalOptics) {
                                       coherent, 5.0);
       const double expected = 4.0 * M_PI / (3.0 * lambda * lambda);
       db[k] = 10.0 * std::log10(IntegratedRcs(image, *s.geometry, 40));
+      std::printf("trihedral a = 1 m, lambda %.4f m%s: %.2f dB m2 (closed form %.2f)\n", lambda,
+                  coherent ? " coherent" : "", db[k], 10.0 * std::log10(expected));
       EXPECT_NEAR(db[k], 10.0 * std::log10(expected), 1.5) << lambda << (coherent ? " coherent" : "");
       ++k;
     }
@@ -244,6 +249,8 @@ TEST(ReflectorTest, QuarterWavelengthPairCancelsInCoherentMode) {
     return IntegratedRcs(image, g, 40);
   };
   const double in_phase = pair_rcs(kC / 2.0), cancelled = pair_rcs(kC / 4.0);
+  std::printf("trihedral pair: lambda/2 %.2f dB m2, lambda/4 %.2f dB m2, ratio %.1f dB\n",
+              10.0 * std::log10(in_phase), 10.0 * std::log10(cancelled), 10.0 * std::log10(in_phase / cancelled));
   EXPECT_GT(10.0 * std::log10(in_phase / cancelled), 20.0);
   // In phase: twice the amplitude, four times one trihedral's RCS (0.5 m is
   // 1/20 of the resolution: within 0.5 dB).
@@ -313,6 +320,9 @@ TEST(CoherentTest, SpeckleIsFullyDevelopedAndFollowsThePsf) {
     }
     const double mean = s1 / n, var = s2 / n - mean * mean;
     EXPECT_NEAR(mean * mean / var, 1.0, 0.1) << resolution_px;
+    std::printf("coherent, resolution %.0f px: mean %.3f dB (incoherent %.3f), ENL %.3f, lag-1 corr %.3f\n",
+                resolution_px, CentreStats(r[1]).first, CentreStats(r[0]).first, mean * mean / var,
+                (s12 / n - mean * mean) / var);
     if (resolution_px > 0) {
       const double bw = 0.8859 / resolution_px;
       auto h = [&](double x) { return std::abs(x) < 1e-12 ? 1.0 : std::sin(M_PI * bw * x) / (M_PI * bw * x); };
@@ -371,6 +381,8 @@ TEST(SpeckleTest, CorrelatedOverTheResolutionCell) {
   const double mean = s1 / n, var = s2 / n - mean * mean;
   EXPECT_NEAR(10.0 * std::log10(mean), -10.0, 0.2);
   EXPECT_NEAR(mean * mean / var, 1.0, 0.1);
+  std::printf("correlated speckle, 1 look, 2 px resolution: mean %.3f dB, ENL %.3f, lag-1 corr %.3f\n",
+              10.0 * std::log10(mean), mean * mean / var, (s12 / n - mean * mean) / var);
   const double bw = 0.8859 / res;
   auto h = [&](double x) { return std::abs(x) < 1e-12 ? 1.0 : std::sin(M_PI * bw * x) / (M_PI * bw * x); };
   double num = 0, den = 0;

@@ -349,6 +349,18 @@ nlohmann::json MaterialTable::ToJson() const {
 Material DefaultMaterial(scene::ClassId id) {
   Material m;
   m.model = ScatteringModel::kOh;
+  // The sea (its own class, separate from inland water, where the scene
+  // module defines it): two-scale Bragg on salt water.
+  if (id < scene::ClassNames().size() && scene::ClassNames()[id] == "sea") {
+    m.name = "sea";
+    m.diffuse = 0.03, m.specular = 0.9, m.roughness = 0.05, m.mirror = 0.9;
+    m.model = ScatteringModel::kBragg;
+    m.wind_speed_m_s = 3.0;
+    m.salinity_psu = 35.0;
+    m.source = "two-scale Bragg on the Elfouhaily et al. 1997 spectrum, wind 3 m/s; Debye sea water "
+               "(Klein & Swift 1977, 35 psu)";
+    return m;
+  }
   switch (id) {
     case scene::kClassWater:
       m.name = "water";

@@ -173,39 +173,6 @@ void SplatFootprint(Band& band, int width, int plane, double col, double row, do
   }
 }
 
-// Coherent version: the real and imaginary amplitudes into planes 0 and 1
-// with the square roots of the area shares (the expected intensity of
-// random phasors equals the intensity splat). Wide footprints fall back to
-// the bilinear amplitude splat at the centre.
-void SplatFootprintAmplitude(Band& band, int width, double col, double row, double wc, double wr, float re,
-                             float im) {
-  double cs[kMaxShares], rs[kMaxShares];
-  int c0 = 0, r0 = 0;
-  const int nc = FootprintShares(col, wc, &c0, cs), nr = FootprintShares(row, wr, &r0, rs);
-  int lo = 0, hi = nr - 1;
-  while (lo < nr && rs[lo] == 0.0) ++lo;
-  while (hi >= 0 && rs[hi] == 0.0) --hi;
-  if (lo > hi) return;
-  if (nc > 16 || r0 + lo < band.row0 || r0 + hi >= band.row0 + band.rows) {
-    Splat(band, width, 0, col, row, re, true);
-    Splat(band, width, 1, col, row, im, true);
-    return;
-  }
-  float* plane_re = band.values;
-  float* plane_im = band.values + size_t(band.rows) * width;
-  for (int j = lo; j <= hi; ++j) {
-    if (rs[j] == 0.0) continue;
-    for (int i = 0; i < nc; ++i) {
-      const int c = c0 + i;
-      if (c < 0 || c >= width || cs[i] == 0.0) continue;
-      const double w = std::sqrt(rs[j] * cs[i]);
-      const size_t k = size_t(r0 + j - band.row0) * width + c;
-      plane_re[k] += static_cast<float>(re * w);
-      plane_im[k] += static_cast<float>(im * w);
-    }
-  }
-}
-
 // SplitMix64: a per-scatterer random phase from (seed, ray, bounce).
 double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (ray * 17 + bounce + 1);
@@ -213,6 +180,40 @@ double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
   z ^= z >> 31;
   return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
+}
+
+// Coherent rough-surface return: amplitude `amplitude` spread over the
+// footprint (see SplatFootprint) into the real and imaginary planes 0 and 1,
+// each pixel receiving sqrt(share) of it with its own seeded micro-phase
+// (the parts of a footprint are independent scatterers), so that the
+// expected intensity of every pixel is the incoherent share, before and
+// after any linear filtering. Pixels outside the band go to the overflow.
+void SplatFootprintPhasors(Band& band, int width, double col, double row, double wc, double wr, double amplitude,
+                           double phase, uint64_t seed, uint64_t ray_id, uint64_t key) {
+  double cs[kMaxShares], rs[kMaxShares];
+  int c0 = 0, r0 = 0;
+  const int nc = FootprintShares(col, wc, &c0, cs), nr = FootprintShares(row, wr, &r0, rs);
+  float* plane_re = band.values;
+  float* plane_im = band.values + size_t(band.rows) * width;
+  for (int j = 0; j < nr; ++j) {
+    if (rs[j] == 0.0) continue;
+    const int r = r0 + j;
+    for (int i = 0; i < nc; ++i) {
+      const int c = c0 + i;
+      if (c < 0 || c >= width || cs[i] == 0.0) continue;
+      const double micro = RandomPhase(seed ^ (0x632be59bd9b4e019ULL * uint64_t(int64_t(r) * width + c + 1)), ray_id, key);
+      const double a = amplitude * std::sqrt(rs[j] * cs[i]);
+      const float re = static_cast<float>(a * std::cos(phase + micro)), im = static_cast<float>(a * std::sin(phase + micro));
+      if (r < band.row0 || r >= band.row0 + band.rows) {
+        band.overflow->push_back({0, double(c), double(r), re, true});
+        band.overflow->push_back({1, double(c), double(r), im, true});
+        continue;
+      }
+      const size_t k = size_t(r - band.row0) * width + c;
+      plane_re[k] += re;
+      plane_im[k] += im;
+    }
+  }
 }
 
 // Below this cosine of the local incidence angle, a visibility ray of the
@@ -495,13 +496,11 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             if (options.coherent) {
               // Rough-surface (first-bounce) returns: random micro-phase;
               // mirror paths: deterministic path phase.
-              const double phase =
-                  wavenumber2 * range + (bounce == 1 ? RandomPhase(options.seed, ray_id, phase_key) : 0.0);
+              const double phase = wavenumber2 * range;
               const double amplitude = std::sqrt(value);
-              if (box_cols >= 0.0) {
-                SplatFootprintAmplitude(band, width, col, row, box_cols, box_rows,
-                                        static_cast<float>(amplitude * std::cos(phase)),
-                                        static_cast<float>(amplitude * std::sin(phase)));
+              if (bounce == 1) {
+                SplatFootprintPhasors(band, width, col, row, std::max(0.0, box_cols), box_rows, amplitude, phase,
+                                      options.seed, ray_id, uint64_t(phase_key));
               } else {
                 Splat(band, width, 0, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
                 Splat(band, width, 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);

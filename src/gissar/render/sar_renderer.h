@@ -142,12 +142,13 @@ struct SarImage {
 // whatever the incidence, slope and pixel/ray ratio; later bounces are
 // splatted bilinearly at their (column, row).
 //
-// Coherent mode: each return adds a phasor of amplitude sqrt(value) (split
-// over pixels with the square roots of the splat shares, so that the mean
-// intensity equals the incoherent image whatever the ray count): the
-// single-bounce (rough-surface) return with phase 4 pi r / lambda plus a
-// seeded random micro-phase per ray, mirror paths (later bounces) with the
-// deterministic phase 4 pi r / lambda of their path (r: half the path).
+// Coherent mode: each return adds phasors of total power `value`: the
+// single-bounce (rough-surface) return sqrt(share x value) in each pixel of
+// its footprint with phase 4 pi r / lambda plus a seeded random micro-phase
+// per ray and pixel (so the mean intensity equals the incoherent image
+// whatever the ray count, also after the complex PSF); mirror paths (later
+// bounces) with the deterministic phase 4 pi r / lambda of their path (r:
+// half the path), split with the square roots of the bilinear weights.
 //
 // Multi-bounce (up to max_bounces): at later hits, if the way back to the
 // radar is free, the ray returns RCS 4 A f, with f = diffuse * cos(angle
