@@ -513,6 +513,7 @@ SimulateResult RunSimulate(const SimulateOptions& options, const std::string& co
   provenance["stats"] = {{"triangles", mesh.triangle_count()},
                          {"rays", image.stats.rays},
                          {"hits", image.stats.hits},
+                         {"sub_rays", image.stats.sub_rays},
                          {"shadow_rays", image.stats.shadow_rays},
                          {"dem_cells", image.stats.cells},
                          {"mask_pixels",

@@ -401,7 +401,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   std::vector<std::vector<Contribution>> block_contributions(options.record_contributions ? n_blocks : 0);
   tbb::enumerable_thread_specific<std::vector<float>> band_buffers;
   std::array<std::mutex, 64> row_locks;  // by image row modulo 64
-  std::atomic<int64_t> hits{0};
+  std::atomic<int64_t> hits{0}, sub_rays{0};
   Progress progress("simulate: tracing", n_blocks, options.show_progress);
   Stopwatch trace_watch;
 
@@ -416,7 +416,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       buffer.assign(size_t(planes) * band.rows * width, 0.0f);
       band.values = buffer.data();
       band.overflow = &block_overflow[b];
-      int64_t local_hits = 0;
+      int64_t local_hits = 0, local_sub_rays = 0;
       // Primary rays go out 16 at a time along an azimuth row (neighbouring
       // origins, parallel or fanned directions: a coherent packet); each
       // lane's later bounces are then followed one ray at a time, lanes in
@@ -567,6 +567,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 // relief, not the plane of one triangle, decides where the
                 // power lands. The ray itself continues (multi-bounce).
                 const int subs = std::min(kMaxSubRays, static_cast<int>(std::ceil(box_cols / split_footprint_px)));
+                local_sub_rays += subs;
                 for (int q = 0; q < subs; ++q) {
                   const double e_q = e + grid.de * ((q + 0.5) / subs - 0.5);
                   Vector3d o_q, d_q;
@@ -632,6 +633,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
         }
       }
       hits.fetch_add(local_hits, std::memory_order_relaxed);
+      sub_rays.fetch_add(local_sub_rays, std::memory_order_relaxed);
       progress.Advance(1);
     }
   });
@@ -671,6 +673,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   }
   image.stats.rays = int64_t{grid.n_az} * grid.n_el;
   image.stats.hits = hits.load();
+  image.stats.sub_rays = sub_rays.load();
 
   Stopwatch mask_watch;
   image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m);

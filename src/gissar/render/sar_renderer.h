@@ -92,6 +92,7 @@ inline constexpr int kBounceLayers = 4;  // single, double, triple, >= 4
 struct RenderStats {
   int64_t rays = 0;           // primary rays traced
   int64_t hits = 0;           // rays that hit the scene
+  int64_t sub_rays = 0;       // extra first-bounce rays of footprint splitting (near-grazing hits)
   int64_t shadow_rays = 0;    // visibility rays of the mask
   int64_t cells = 0;          // DEM cells projected (raster engine)
   double trace_seconds = 0.0;  // tracer: rays, shading, splatting, merging; raster: all
