@@ -10,7 +10,7 @@ FUZZ_DIR ?= build-fuzz
 FUZZ_SECONDS ?= 60
 FUZZERS ?=
 
-.PHONY: all deps configure build test test-sanitize test-sanitize-ci fuzz demo bench clean
+.PHONY: all deps configure build install docs-numbers test test-sanitize test-sanitize-ci fuzz demo bench clean
 
 all: build
 
@@ -22,6 +22,20 @@ configure: deps
 
 build: configure
 	@cmake --build $(BUILD_DIR) -j$(JOBS)
+
+# `make install PREFIX=$HOME/.local`: the gissar binary into PREFIX/bin, the
+# Python module into PREFIX/lib/python3/dist-packages.
+PREFIX ?= /usr/local
+install: build
+	@cmake --install $(BUILD_DIR) --prefix $(PREFIX)
+
+# Rewrites the figures docs/tutorial.md quotes from a fresh run of the
+# tutorial (scripts/docs_numbers.py; the docs_tutorial test compares them).
+docs-numbers: build
+	@mkdir -p out/tutorial
+	@PYTHONPATH=$(BUILD_DIR)/python /usr/bin/python3 examples/tutorial.py --out out/tutorial | tee out/tutorial/printed.txt
+	@/usr/bin/python3 scripts/docs_numbers.py --results out/tutorial/results.json \
+	  --output out/tutorial/printed.txt --update docs/tutorial.md
 
 test: build
 	@cd $(BUILD_DIR) && ctest --output-on-failure -j$(JOBS)
@@ -53,7 +67,11 @@ test-sanitize-ci: deps
 fuzz: build
 	@bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS) $(BUILD_DIR) $(FUZZERS)
 
-demo: build
+# The demo prints one line per product; the build's own output goes to
+# $(BUILD_DIR)/build.log (its tail is shown if the build fails).
+demo: configure
+	@echo "demo: building (log: $(BUILD_DIR)/build.log)"
+	@cmake --build $(BUILD_DIR) -j$(JOBS) > $(BUILD_DIR)/build.log 2>&1 || (tail -40 $(BUILD_DIR)/build.log; exit 1)
 	@bash scripts/demo.sh $(BUILD_DIR)
 
 bench: build

@@ -7,14 +7,14 @@
 // PREFIX_trace_mask.png, PREFIX_raster_mask.png).
 //
 //   raster_agreement --dem DEM.tif --heading 30 --depression 40
-//       [--fill-nodata] [--range 20000] [--range-res M --azimuth-res M]
+//       [--fill-nodata] [--slant-range 20000] [--range-spacing M --azimuth-spacing M]
 //       [--mode affine|exact] [--look right|left] [--rays-per-cell 16] [--out PREFIX]
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/render/embree_scene.h"
@@ -26,16 +26,16 @@
 int main(int argc, char** argv) {
   using namespace gissar;
   CLI::App app("Ray tracer vs DEM-raster engine agreement");
-  cli::SimulateOptions options;
+  pipeline::SimulateRequest options;
   std::string mode = "affine", look = "right", out;
   options.out_prefix = "unused";
   app.add_option("--dem", options.dem)->required();
   app.add_flag("--fill-nodata", options.fill_nodata);
   app.add_option("--heading", options.geometry.heading_deg)->required();
   app.add_option("--depression", options.geometry.depression_deg)->required();
-  app.add_option("--range", options.geometry.slant_range_m);
-  app.add_option("--range-res", options.geometry.range_spacing_m);
-  app.add_option("--azimuth-res", options.geometry.azimuth_spacing_m);
+  app.add_option("--slant-range", options.geometry.slant_range_m);
+  app.add_option("--range-spacing", options.geometry.range_spacing_m);
+  app.add_option("--azimuth-spacing", options.geometry.azimuth_spacing_m);
   app.add_option("--mode", mode);
   app.add_option("--look", look);
   app.add_option("--rays-per-cell", options.rays_per_cell);
@@ -44,17 +44,15 @@ int main(int argc, char** argv) {
   try {
     options.geometry.mode = sensor::ParseProjectionMode(mode);
     options.geometry.look_side = sensor::ParseLookSide(look);
-    options.quiet = true;
-    cli::Terrain terrain = cli::LoadTerrain(options);
+    pipeline::Terrain terrain = pipeline::LoadTerrain(options);
     const auto& grid = terrain.description;
     const int width = grid["width"].get<int>(), height = grid["height"].get<int>();
     const sensor::SarGeometry geometry = sensor::SarGeometry::Covering(
-        cli::ResolvedGeometry(options, terrain), terrain.centre_enu, terrain.mesh.vertices);
+        pipeline::ResolvedGeometry(options, terrain), terrain.centre_enu, terrain.mesh.vertices);
 
     render::RenderOptions render_options;
     render_options.rays_per_cell = options.rays_per_cell;
     render_options.max_bounces = 1;
-    render_options.show_progress = false;
     Stopwatch trace_watch;
     const render::EmbreeScene embree(terrain.mesh);
     const render::SarImage traced =

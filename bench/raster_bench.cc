@@ -10,14 +10,14 @@
 #include <memory>
 #include <vector>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/render/raster_renderer.h"
 
 namespace {
 using namespace gissar;
 
 struct Scene {
-  cli::Terrain terrain;
+  pipeline::Terrain terrain;
   int width = 0, height = 0;
   std::unique_ptr<sensor::SarGeometry> geometry;
 };
@@ -25,19 +25,18 @@ struct Scene {
 const Scene& LoadedScene() {
   static const Scene scene = [] {
     Scene s;
-    cli::SimulateOptions o;
+    pipeline::SimulateRequest o;
     const char* dem = std::getenv("GISSAR_BENCH_DEM");
     o.dem = dem != nullptr ? dem : "fractal_4096.tif";
     o.out_prefix = "unused";
-    o.quiet = true;
     o.geometry.heading_deg = 30.0;
     o.geometry.depression_deg = 40.0;
     o.geometry.slant_range_m = 20000.0;
-    s.terrain = cli::LoadTerrain(o);
+    s.terrain = pipeline::LoadTerrain(o);
     s.width = s.terrain.description["width"].get<int>();
     s.height = s.terrain.description["height"].get<int>();
     s.geometry = std::make_unique<sensor::SarGeometry>(sensor::SarGeometry::Covering(
-        cli::ResolvedGeometry(o, s.terrain), s.terrain.centre_enu, s.terrain.mesh.vertices));
+        pipeline::ResolvedGeometry(o, s.terrain), s.terrain.centre_enu, s.terrain.mesh.vertices));
     return s;
   }();
   return scene;

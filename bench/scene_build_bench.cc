@@ -96,7 +96,7 @@ void BM_SceneBuild(benchmark::State& state) {
     const geo::Dem dem = geo::ReadDem(dem_path);
     const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, std::nullopt, std::nullopt);
     const scene::GisScene built =
-        scene::BuildGisScene(dem, geo::LocalFrame(centre.lon_deg, centre.lat_deg), config, false);
+        scene::BuildGisScene(dem, geo::LocalFrame(centre.lon_deg, centre.lat_deg), config);
     triangles = built.mesh.triangle_count();
     benchmark::DoNotOptimize(triangles);
   }

@@ -1,6 +1,6 @@
 // Ray tracer throughput against its limit on a DEM given by
 // $GISSAR_BENCH_DEM (scripts/bench.sh passes each fractal DEM), in the
-// geometry of `gissar simulate --heading 30 --depression 40 --range 20000`
+// geometry of `gissar simulate --heading 30 --depression 40 --slant-range 20000`
 // with $GISSAR_BENCH_RAYS_PER_CELL (default 4) rays per cell:
 //   BM_RawEmbreeStream: the primary rays of the tracer, intersected 16 at a
 //     time (rtcIntersect16, coherent flag) and nothing else: the limit;
@@ -21,7 +21,7 @@
 #include <memory>
 #include <string>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
 
@@ -29,7 +29,7 @@ namespace {
 using namespace gissar;
 
 struct Scene {
-  cli::Terrain terrain;
+  pipeline::Terrain terrain;
   std::unique_ptr<render::EmbreeScene> embree;
   std::unique_ptr<sensor::SarGeometry> geometry;
   double rays_per_cell = 4.0;
@@ -42,16 +42,15 @@ double ResidentBytes();
 const Scene& LoadedScene() {
   static const Scene scene = [] {
     Scene s;
-    cli::SimulateOptions o;
+    pipeline::SimulateRequest o;
     const char* dem = std::getenv("GISSAR_BENCH_DEM");
     o.dem = dem != nullptr ? dem : "fractal_1024.tif";
     o.out_prefix = "unused";
-    o.quiet = true;
     o.geometry.heading_deg = 30.0;
     o.geometry.depression_deg = 40.0;
     o.geometry.slant_range_m = 20000.0;
     if (const char* r = std::getenv("GISSAR_BENCH_RAYS_PER_CELL")) s.rays_per_cell = std::stod(r);
-    s.terrain = cli::LoadTerrain(o);
+    s.terrain = pipeline::LoadTerrain(o);
     render::BvhQuality quality = render::BvhQuality::kAuto;
     if (const char* q = std::getenv("GISSAR_BENCH_BVH")) {
       quality = std::string(q) == "low" ? render::BvhQuality::kLow
@@ -62,7 +61,7 @@ const Scene& LoadedScene() {
     s.bvh_added_bytes = ResidentBytes() - before;
     s.bvh_seconds = s.embree->build_seconds();
     s.geometry = std::make_unique<sensor::SarGeometry>(sensor::SarGeometry::Covering(
-        cli::ResolvedGeometry(o, s.terrain), s.terrain.centre_enu, s.terrain.mesh.vertices));
+        pipeline::ResolvedGeometry(o, s.terrain), s.terrain.centre_enu, s.terrain.mesh.vertices));
     return s;
   }();
   return scene;
@@ -92,7 +91,6 @@ void BM_TracerPrimary(benchmark::State& state) {
   render::RenderOptions o;
   o.rays_per_cell = s.rays_per_cell;
   o.max_bounces = 1;
-  o.show_progress = false;
   int64_t rays = 0, hits = 0;
   for (auto _ : state) {
     const render::SarImage image = render::RenderSar(*s.embree, s.terrain.mesh, s.terrain.materials, *s.geometry, o);

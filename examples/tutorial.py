@@ -156,6 +156,19 @@ def run(out):
          gissar.composite(sims[1]["image"], fix["reference_at_fix"])],
         [f"INS prior: {prior_error:.0f} m off", f"pose fix: {fix_error:.0f} m off"]))
 
+    # The figures docs/tutorial.md quotes (`make docs-numbers` writes them into it; the docs test
+    # compares them): results.json beside the pictures.
+    results = {
+        "triangles": len(scene.triangles), "matches": len(x1), "f_inliers": len(f["inliers"]),
+        "f_rms_px": f["rms_gs_px"], "kvd_s": kvd["s"], "kvd_theta_deg": kvd["theta_deg"],
+        "kvd_phi_deg": kvd["phi_deg"], "heading_change_deg": dpsi, "registration_rms_px": reg["rms_px"],
+        "registration_inliers": len(reg["inliers"]), "fix_iterations": fix["iterations"],
+        "fix_inliers": fix["inliers"], "fix_heading_deg": pose["heading_deg"],
+        "fix_depression_deg": pose["depression_deg"], "prior_error_m": prior_error, "fix_error_m": fix_error,
+    }
+    with open(os.path.join(out, "results.json"), "w") as f_results:
+        json.dump({k: float(v) for k, v in results.items()}, f_results, indent=1)
+
     # Checks: every picture written, the results where they must be.
     missing = [p for p in pictures if not (os.path.isfile(p) and os.path.getsize(p) > 0)]
     failures = []

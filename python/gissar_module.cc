@@ -4,20 +4,25 @@
 // an unknown keyword is a gissar.ConfigError naming it. Library errors become
 // gissar.InputError / ConfigError / IoError (subclasses of gissar.Error)
 // with the same message. Heavy work runs without the GIL.
+#include <atomic>
+#include <cmath>
+#include <memory>
+
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <nlohmann/json.hpp>
 
-#include "gissar/cli/locate.h"
-#include "gissar/cli/scene_build.h"
-#include "gissar/cli/simulate.h"
-#include "gissar/cli/views.h"
+#include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/scene_build.h"
+#include "gissar/pipeline/simulate.h"
+#include "gissar/pipeline/views.h"
+#include "gissar/geo/memory_raster.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/annotated.h"
 #include "gissar/image/class_map.h"
-#include "gissar/cli/product_simulate.h"
+#include "gissar/pipeline/product_simulate.h"
 #include "gissar/image/composite.h"
 #include "gissar/image/contact_sheet.h"
 #include "gissar/image/epipolar_plot.h"
@@ -36,6 +41,7 @@
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/scene_io.h"
+#include "gissar/util/reporter.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/provenance.h"
@@ -58,54 +64,35 @@ py::array_t<T> Image(const std::vector<T>& values, int height, int width) {
   return out;
 }
 
-Eigen::Vector2d Pair(const py::handle& h, const std::string& key) {
-  const auto v = h.cast<std::vector<double>>();
-  if (v.size() != 2) throw ConfigError("expected two numbers", key);
-  return {v[0], v[1]};
+// Keyword arguments as JSON values (str, bool, int, float, None, and
+// sequences of those), for the pipeline's ApplyJson.
+nlohmann::json JsonOf(const py::handle& value, const std::string& key) {
+  if (value.is_none()) return nullptr;
+  if (py::isinstance<py::bool_>(value)) return value.cast<bool>();
+  if (py::isinstance<py::int_>(value)) return value.cast<int64_t>();
+  if (py::isinstance<py::float_>(value)) return value.cast<double>();
+  if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+  if (py::hasattr(value, "__fspath__")) return py::str(value.attr("__fspath__")()).cast<std::string>();
+  if (py::isinstance<py::sequence>(value)) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const py::handle item : value.cast<py::sequence>()) list.push_back(JsonOf(item, key));
+    return list;
+  }
+  if (py::hasattr(value, "item")) return JsonOf(value.attr("item")(), key);  // NumPy scalars
+  throw ConfigError("keyword '" + key + "' has an unsupported type", "gissar");
 }
 
-// Sets SimulateOptions fields from keyword arguments named like the fields.
-cli::SimulateOptions SimulateOptionsFrom(const py::kwargs& kwargs) {
-  cli::SimulateOptions o;
+// A SimulateRequest from keyword arguments named like its fields (the keys
+// of SimulateRequest::ToJson; docs/conventions.md).
+pipeline::SimulateRequest SimulateOptionsFrom(const py::kwargs& kwargs) {
+  nlohmann::json values = nlohmann::json::object();
   for (const auto& [key_handle, value] : kwargs) {
     const std::string key = key_handle.cast<std::string>();
-    if (key == "dem") o.dem = value.cast<std::string>();
-    else if (key == "scene") o.scene = value.cast<std::string>();
-    else if (key == "fill_nodata") o.fill_nodata = value.cast<bool>();
-    else if (key == "center_lonlat") o.center_lonlat = Pair(value, key);
-    else if (key == "center_map") o.center_map = Pair(value, key);
-    else if (key == "heading_deg") o.geometry.heading_deg = value.cast<double>();
-    else if (key == "depression_deg") o.geometry.depression_deg = value.cast<double>();
-    else if (key == "look_side") o.geometry.look_side = sensor::ParseLookSide(value.cast<std::string>());
-    else if (key == "slant_range_m") o.geometry.slant_range_m = value.cast<double>();
-    else if (key == "range_spacing_m") o.geometry.range_spacing_m = value.cast<double>();
-    else if (key == "azimuth_spacing_m") o.geometry.azimuth_spacing_m = value.cast<double>();
-    else if (key == "mode") o.geometry.mode = sensor::ParseProjectionMode(value.cast<std::string>());
-    else if (key == "width") o.geometry.width = value.cast<int>();
-    else if (key == "height") o.geometry.height = value.cast<int>();
-    else if (key == "rays_per_cell") o.rays_per_cell = value.cast<double>();
-    else if (key == "bounces") o.bounces = value.cast<int>();
-    else if (key == "coherent") o.coherent = value.cast<bool>();
-    else if (key == "wavelength_m") o.wavelength_m = value.cast<double>();
-    else if (key == "range_resolution_m") o.range_resolution_m = value.cast<double>();
-    else if (key == "azimuth_resolution_m") o.azimuth_resolution_m = value.cast<double>();
-    else if (key == "psf_window") o.psf_window = value.cast<std::string>();
-    else if (key == "speckle_looks") o.speckle_looks = value.cast<double>();
-    else if (key == "nesz_db") o.nesz_db = value.cast<double>();
-    else if (key == "seed") o.seed = value.cast<uint64_t>();
-    else if (key == "polarization") o.polarization = value.cast<std::string>();
-    else if (key == "radiometry") o.radiometry = value.cast<std::string>();
-    else if (key == "db") o.db = value.cast<bool>();
-    else if (key == "materials") o.materials = value.cast<std::string>();
-    else if (key == "reflectors") o.reflectors = value.cast<std::string>();
-    else if (key == "engine") o.engine = value.cast<std::string>();
-    else if (key == "dem_oversample") o.dem_oversample = value.cast<int>();
-    else if (key == "vertical_datum") o.vertical_datum = value.cast<std::string>();
-    else if (key == "max_memory_bytes") o.max_memory_bytes = value.cast<int64_t>();
-    else throw ConfigError("unknown option '" + key + "'", "gissar.simulate");
+    values[key] = JsonOf(value, key);
   }
-  o.out_prefix = "(python)";
-  o.quiet = true;
+  pipeline::SimulateRequest o;
+  o.ApplyJson(values, "gissar.simulate keyword");
+  if (o.out_prefix.empty()) o.out_prefix = "(python)";
   return o;
 }
 
@@ -133,15 +120,117 @@ py::array_t<uint8_t> RgbArray(const image::RgbImage& img) {
   return out;
 }
 
-py::dict Simulate(const py::kwargs& kwargs) {
-  const cli::SimulateOptions options = SimulateOptionsFrom(kwargs);
+// The Python door's Reporter (util/reporter.h): warnings become Python
+// warnings of category gissar.GissarWarning, information lines go to the
+// "gissar" logger, stage progress to the optional `progress(stage, done,
+// total)` callable; a callback returning False stops the run, which then
+// raises gissar.Cancelled. Built and destroyed with the GIL held; its
+// methods take the GIL themselves (StageProgress runs on worker threads).
+class PyReporter : public Reporter {
+ public:
+  explicit PyReporter(py::object progress) : progress_(std::move(progress)) {}
+  void StageProgress(const std::string& stage, int64_t done, int64_t total) override {
+    if (progress_.is_none() || cancelled_.load()) return;
+    py::gil_scoped_acquire gil;
+    try {
+      const py::object answer = progress_(stage, done, total);
+      if (!answer.is_none() && !answer.cast<bool>()) cancelled_ = true;
+    } catch (py::error_already_set& e) {
+      cancelled_ = true;  // the callback failed: stop, and say why
+      e.discard_as_unraisable("gissar progress callback");
+    }
+  }
+  void Info(const std::string& line) override {
+    py::gil_scoped_acquire gil;
+    py::module_::import("logging").attr("getLogger")("gissar").attr("info")(line);
+  }
+  void Warn(const std::string& line) override {
+    py::gil_scoped_acquire gil;
+    if (PyErr_WarnEx(WarningType(), line.c_str(), 1) != 0) {
+      // Warnings turned into errors (-W error): stop the run with it.
+      cancelled_ = true;
+      PyErr_Clear();
+    }
+  }
+  bool CancelRequested() const override { return cancelled_.load(); }
+
+  static PyObject*& WarningType() {
+    static PyObject* type = PyExc_UserWarning;
+    return type;
+  }
+
+ private:
+  py::object progress_;
+  std::atomic<bool> cancelled_{false};
+};
+
+// Removes the `progress` keyword (not a request field) from `kwargs`.
+py::object TakeProgress(py::kwargs& kwargs) {
+  if (!kwargs.contains("progress")) return py::none();
+  py::object progress = kwargs["progress"];
+  PyDict_DelItemString(kwargs.ptr(), "progress");
+  if (!progress.is_none() && !PyCallable_Check(progress.ptr())) {
+    throw ConfigError("progress must be a callable(stage, done, total) or None", "gissar keyword 'progress'");
+  }
+  return progress;
+}
+
+// Pops keyword `key` from `kwargs` (None when absent).
+py::object TakeKeyword(py::kwargs& kwargs, const char* key) {
+  if (!kwargs.contains(key)) return py::none();
+  py::object value = kwargs[key];
+  PyDict_DelItemString(kwargs.ptr(), key);
+  return value;
+}
+
+// A DEM given as an array: dem=(H, W) array with transform= (GDAL's six
+// coefficients, or an affine.Affine) and crs= (EPSG code, "EPSG:n", WKT or
+// an object with to_wkt()), optional nodata=. Returns the in-memory raster
+// the request reads (nullptr when dem is a path); the transform/crs/nodata
+// keywords are removed from kwargs either way.
+std::unique_ptr<geo::MemoryRaster> TakeArrayDem(py::kwargs& kwargs) {
+  const py::object transform = TakeKeyword(kwargs, "transform");
+  const py::object crs = TakeKeyword(kwargs, "crs");
+  const py::object nodata = TakeKeyword(kwargs, "nodata");
+  if (!kwargs.contains("dem") || !py::isinstance<py::array>(kwargs["dem"])) {
+    if (!transform.is_none() || !crs.is_none()) {
+      throw ConfigError("transform and crs go with a DEM given as an array", "gissar keyword 'dem'");
+    }
+    return nullptr;
+  }
+  if (transform.is_none() || crs.is_none()) {
+    throw ConfigError("a DEM given as an array needs transform= and crs=", "gissar keyword 'dem'");
+  }
+  const auto heights = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(kwargs["dem"]);
+  if (!heights || heights.ndim() != 2) throw ConfigError("must be a 2-D array of heights", "gissar keyword 'dem'");
+  std::vector<double> gt;
+  if (py::hasattr(transform, "to_gdal")) gt = transform.attr("to_gdal")().cast<std::vector<double>>();
+  else gt = transform.cast<std::vector<double>>();
+  if (gt.size() != 6) throw ConfigError("needs GDAL's six coefficients", "gissar keyword 'transform'");
+  std::string crs_text;
+  if (py::hasattr(crs, "to_wkt")) crs_text = crs.attr("to_wkt")().cast<std::string>();
+  else crs_text = py::str(crs).cast<std::string>();
+  const double nodata_value = nodata.is_none() ? std::nan("") : nodata.cast<double>();
+  const int height = static_cast<int>(heights.shape(0)), width = static_cast<int>(heights.shape(1));
+  std::vector<float> values(heights.data(), heights.data() + heights.size());
+  auto raster = std::make_unique<geo::MemoryRaster>(values, width, height,
+                                                    std::array<double, 6>{gt[0], gt[1], gt[2], gt[3], gt[4], gt[5]},
+                                                    crs_text, nodata_value, "gissar keyword 'dem'");
+  kwargs["dem"] = raster->path();
+  return raster;
+}
+
+py::dict Simulate(py::kwargs kwargs) {
+  PyReporter reporter(TakeProgress(kwargs));
+  const std::unique_ptr<geo::MemoryRaster> array_dem = TakeArrayDem(kwargs);
+  const pipeline::SimulateRequest options = SimulateOptionsFrom(kwargs);
   render::SarImage image;
   std::optional<sensor::SarGeometry> geometry;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   {
     py::gil_scoped_release release;
     options.Check();
-    cli::SimulatedImage simulated = cli::SimulateImage(options);
+    pipeline::SimulatedImage simulated = pipeline::SimulateImage(options, reporter);
     image = std::move(simulated.image);
     geometry = simulated.geometry;
     centre = simulated.terrain.centre_enu;
@@ -169,14 +258,15 @@ py::dict Simulate(const py::kwargs& kwargs) {
   return out;
 }
 
-py::dict SimulateProduct(const std::string& product, const py::kwargs& kwargs) {
-  cli::SimulateOptions options = SimulateOptionsFrom(kwargs);
+py::dict SimulateProduct(const std::string& product, py::kwargs kwargs) {
+  PyReporter reporter(TakeProgress(kwargs));
+  pipeline::SimulateRequest options = SimulateOptionsFrom(kwargs);
   options.product = product;
-  cli::ProductSimulation sim;
+  pipeline::ProductSimulation sim;
   {
     py::gil_scoped_release release;
     options.Check();
-    sim = cli::SimulateProduct(options, /*read_amplitude=*/true);
+    sim = pipeline::SimulateProduct(options, /*read_amplitude=*/true, reporter);
   }
   const render::SarImage& image = sim.image.image;
   const int h = image.height, w = image.width;
@@ -256,7 +346,7 @@ PyScene LoadPyScene(const std::string& path) {
 PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
                      const std::string& osm, const std::string& config, bool fill_nodata,
                      std::optional<std::array<int, 4>> window, bool export_obj) {
-  cli::SceneBuildOptions o;
+  pipeline::SceneBuildRequest o;
   o.dem = dem;
   o.out_prefix = out_prefix;
   o.vectors = vectors;
@@ -265,11 +355,11 @@ PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, cons
   o.fill_nodata = fill_nodata;
   o.window = window;
   o.export_obj = export_obj;
-  o.quiet = true;
-  cli::SceneBuildResult r;
+  pipeline::SceneBuildResult r;
+  PyReporter reporter{py::none()};
   {
     py::gil_scoped_release release;
-    r = cli::RunSceneBuild(o, "python: gissar.Scene.build");
+    r = pipeline::RunSceneBuild(o, "python: gissar.Scene.build", reporter);
   }
   PyScene s = LoadPyScene(out_prefix + ".gscene");
   s.summary = JsonToPython(r.summary);
@@ -348,7 +438,7 @@ py::dict Locate(const PyScene& scene, const py::array_t<float, py::array::c_styl
                 int polish_evaluations, int bounces, double rays_per_cell, bool references) {
   const FloatImage observed = ToFloatImage(observed_image, "gissar.locate: image");
   const nlohmann::json prior_json = nlohmann::json::parse(py::module_::import("json").attr("dumps")(prior_dict).cast<std::string>());
-  const cli::PriorPose prior = cli::ParsePriorJson(prior_json, "gissar.locate: prior");
+  const pipeline::PriorPose prior = pipeline::ParsePriorJson(prior_json, "gissar.locate: prior");
   nav::SensorModel model;
   model.width = observed.width;
   model.height = observed.height;
@@ -485,6 +575,9 @@ PYBIND11_MODULE(gissar, m) {
   static py::exception<InputError> input_error(m, "InputError", error.ptr());
   static py::exception<ConfigError> config_error(m, "ConfigError", error.ptr());
   static py::exception<IoError> io_error(m, "IoError", error.ptr());
+  static py::exception<CancelledError> cancelled(m, "Cancelled", error.ptr());
+  PyReporter::WarningType() = PyErr_NewException("gissar.GissarWarning", PyExc_UserWarning, nullptr);
+  m.attr("GissarWarning") = py::handle(PyReporter::WarningType());
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
@@ -494,6 +587,8 @@ PYBIND11_MODULE(gissar, m) {
       config_error(e.what());
     } catch (const IoError& e) {
       io_error(e.what());
+    } catch (const CancelledError& e) {
+      cancelled(e.what());
     } catch (const Error& e) {
       error(e.what());
     }
@@ -560,12 +655,14 @@ PYBIND11_MODULE(gissar, m) {
       });
 
   m.def("simulate", &Simulate,
-        "Simulate a SAR image. Keywords = SimulateOptions fields: dem or scene, heading_deg, depression_deg, "
+        "Simulate a SAR image. Keywords = SimulateRequest fields: dem or scene, heading_deg, depression_deg, "
         "slant_range_m, range_spacing_m, azimuth_spacing_m (m), mode, look_side, width, height, rays_per_cell, "
         "bounces, coherent, wavelength_m, range_resolution_m, azimuth_resolution_m, psf_window, speckle_looks, "
-        "nesz_db (dB sigma0), seed, polarization, radiometry ('sigma0'|'beta0'|'gamma0'), db, materials, "
-        "reflectors, fill_nodata, center_lonlat, center_map. Returns {'image': (H, W) float32 in the requested "
-        "radiometry (docs/radiometry.md), 'bounces': (4, H, W) single/double/triple/>=4, 'mask': (H, W) uint8 (1 layover, 2 shadow), "
+        "nesz_db, seed, fill_nodata, center_lonlat, center_map (the keys of the sidecar's options; "
+        "docs/conventions.md); dem may be a (H, W) NumPy array of heights with transform= (GDAL's six "
+        "coefficients or affine.Affine) and crs= (EPSG code, WKT or pyproj CRS); progress=callable(stage, done, total) gets the tracing progress (return False "
+        "to stop: gissar.Cancelled); information lines go to the 'gissar' logger. Returns {'image': (H, W) float32 linear "
+        "intensity, 'bounces': (4, H, W) single/double/triple/>=4, 'mask': (H, W) uint8 (1 layover, 2 shadow), "
         "'geometry': metadata, 'options': the options}. Identical to `gissar simulate`'s GeoTIFF.");
 
   m.def("simulate_product", &SimulateProduct, py::arg("product"),
@@ -826,18 +923,18 @@ PYBIND11_MODULE(gissar, m) {
 
   m.def("sequence", [](const std::string& out_prefix, double heading_from_deg, double heading_to_deg, int frames,
                        int frame_delay_cs, const py::kwargs& kwargs) {
-        cli::SequenceOptions o;
+        pipeline::SequenceRequest o;
         o.base = SimulateOptionsFrom(kwargs);
         o.base.out_prefix = out_prefix;
         o.heading_from_deg = heading_from_deg;
         o.heading_to_deg = heading_to_deg;
         o.frames = frames;
         o.frame_delay_cs = frame_delay_cs;
-        cli::SequenceResult r;
+        pipeline::SequenceResult r;
         {
           py::gil_scoped_release release;
           o.Check();
-          r = cli::RunSequence(o, "python: gissar.sequence");
+          r = pipeline::RunSequence(o, "python: gissar.sequence");
         }
         std::vector<std::string> paths;
         for (const auto& p : r.outputs) paths.push_back(p.string());

@@ -57,7 +57,7 @@ say "fractal DEMs"
 for n in 1024 2048 4096; do run "dem_$n" "$B/bench/fractal_dem" "fractal_$n.tif" "$n"; done
 run dem_1000 "$B/bench/fractal_dem" fractal_1000.tif 1000 10 800 1 fractal_1000.pgm
 
-SIM=(simulate --heading 30 --depression 40 --range 20000 --rays-per-cell 4 --quiet)
+SIM=(simulate --heading 30 --depression 40 --slant-range 20000 --rays-per-cell 4 --quiet)
 for n in 1024 2048 4096; do
   for b in 1 3; do
     say "simulate ${n}^2, $b bounce(s)"
@@ -94,7 +94,7 @@ say "POV-Ray side by side, 1000 x 1000 heightfield"
 # gissar: heading 0 (flying north, looking east), depression 40 deg, pixels
 # of the DEM's 10 m; rays per cell chosen so that the primary rays are
 # 1000 x 1000 (measured with a first run at 1 ray per cell).
-run pov_probe "$GISSAR" simulate --dem fractal_1000.tif --heading 0 --depression 40 --range 20000 \
+run pov_probe "$GISSAR" simulate --dem fractal_1000.tif --heading 0 --depression 40 --slant-range 20000 \
   --rays-per-cell 1 --bounces 1 --quiet --out probe
 RPC=$(python3 -c "import json; j=json.load(open('probe.json')); print('%.4f' % (1e6 / j['stats']['rays']))")
 # POV-Ray: the same heights (16-bit PGM, identical quantisation) as a
@@ -119,7 +119,7 @@ EOF
   say "POV-Ray, $levels level(s)"
   run "pov_$levels" povray "+Ipov_$levels.pov" "+Opov_$levels.png" +W1000 +H1000 -A +Q9 +WT2 -D +FN
   run "ours_pov_$levels" "$GISSAR" simulate --dem fractal_1000.tif --heading 0 --depression 40 \
-    --range 20000 --rays-per-cell "$RPC" --bounces "$levels" --quiet --out "ours_pov_$levels"
+    --slant-range 20000 --rays-per-cell "$RPC" --bounces "$levels" --quiet --out "ours_pov_$levels"
   cp "ours_pov_$levels.json" "$R/"
 done
 

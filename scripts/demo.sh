@@ -5,7 +5,8 @@
 #  2. GIS scene: the Andorra DEM + OpenStreetMap layers (water, forest, urban,
 #     roads, waterways) -> classified constrained Delaunay mesh -> SAR image;
 #  3. urban scene: Monaco DEM + OpenStreetMap buildings and roads.
-# Prints the output paths.
+# Prints one line per product (its main file, how many files, seconds) and a
+# closing summary; the commands run with --quiet (warnings still show).
 set -euo pipefail
 BUILD_DIR=${1:-build}
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -13,22 +14,33 @@ GISSAR="$ROOT/$BUILD_DIR/bin/gissar"
 OUT="$ROOT/out/demo"
 mkdir -p "$OUT"
 DATA="$ROOT/data"
+START=$SECONDS
+PRODUCTS=0
+
+# product NAME MAIN_SUFFIX -- gissar arguments...: runs, then prints one line.
+product() {
+  local name=$1 main=$2
+  shift 3
+  local t0=$SECONDS files
+  files=$("$GISSAR" "$@" --quiet | wc -l)
+  PRODUCTS=$((PRODUCTS + 1))
+  printf '%-22s %-46s %2d files %4d s\n' "$name" "out/demo/$name$main" "$files" $((SECONDS - t0))
+}
+
 for heading in 0 30; do
-  echo "== Andorra DEM, heading ${heading} deg, depression 40 deg" >&2
-  "$GISSAR" simulate --dem "$DATA/andorra/andorra_srtm3_dem_raw.tif" --fill-nodata \
-    --heading "$heading" --depression 40 --range 20000 --range-res 30 --azimuth-res 30 \
+  product "andorra_h${heading}" .png -- simulate --dem "$DATA/andorra/andorra_srtm3_dem_raw.tif" --fill-nodata \
+    --heading "$heading" --depression 40 --slant-range 20000 --range-spacing 30 --azimuth-spacing 30 \
     --out "$OUT/andorra_h${heading}"
 done
-echo "== Andorra GIS scene from the bundled GeoPackage" >&2
-"$GISSAR" scene build --dem "$DATA/andorra/andorra_srtm3_dem_raw.tif" --fill-nodata \
+product andorra_scene _classes.png -- scene build --dem "$DATA/andorra/andorra_srtm3_dem_raw.tif" --fill-nodata \
   --vectors "$DATA/andorra/andorra_osm.gpkg" --out "$OUT/andorra_scene"
-"$GISSAR" scene info "$OUT/andorra_scene.gscene"
-"$GISSAR" simulate --scene "$OUT/andorra_scene.gscene" --heading 0 --depression 40 \
-  --range 20000 --range-res 30 --azimuth-res 30 --out "$OUT/andorra_scene_h0"
-echo "== Monaco GIS scene from OpenStreetMap (buildings, roads)" >&2
-"$GISSAR" scene build --dem "$DATA/monaco/monaco_srtm3_dem.tif" --fill-nodata \
+"$GISSAR" scene info "$OUT/andorra_scene.gscene" > "$OUT/andorra_scene_info.txt"
+product andorra_scene_h0 .png -- simulate --scene "$OUT/andorra_scene.gscene" --heading 0 --depression 40 \
+  --slant-range 20000 --range-spacing 30 --azimuth-spacing 30 --out "$OUT/andorra_scene_h0"
+product monaco_scene _classes.png -- scene build --dem "$DATA/monaco/monaco_srtm3_dem.tif" --fill-nodata \
   --osm "$DATA/monaco/monaco.osm.gz" --out "$OUT/monaco_scene"
-"$GISSAR" simulate --scene "$OUT/monaco_scene.gscene" --heading 0 --depression 35 \
-  --range 8000 --range-res 5 --azimuth-res 5 --out "$OUT/monaco_scene_h0"
-echo "demo outputs are in $OUT (.png quicklooks and class maps; .tif float32 intensity;" \
-     "_mask.tif layover/shadow; .gscene/.ply scenes; .json provenance)" >&2
+product monaco_scene_h0 .png -- simulate --scene "$OUT/monaco_scene.gscene" --heading 0 --depression 35 \
+  --slant-range 8000 --range-spacing 5 --azimuth-spacing 5 --out "$OUT/monaco_scene_h0"
+echo "demo: $PRODUCTS products in out/demo/ in $((SECONDS - START)) s (.png quicklooks and class maps;" \
+     ".tif float32 intensity; _mask.tif layover/shadow; .gscene/.ply scenes; .json provenance;" \
+     "andorra_scene_info.txt: the scene's classes)"

@@ -8,11 +8,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "gissar/cli/scene_build.h"
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/scene_build.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -57,8 +57,8 @@ void ExpectSameFiles(const fs::path& a_prefix, const fs::path& b_prefix,
   EXPECT_EQ(StableJson(a_prefix.string() + ".json"), StableJson(b_prefix.string() + ".json")) << label;
 }
 
-SimulateOptions DemJob(const fs::path& out_prefix) {
-  SimulateOptions o;
+SimulateRequest DemJob(const fs::path& out_prefix) {
+  SimulateRequest o;
   o.dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   o.geometry.heading_deg = 30.0;
   o.geometry.depression_deg = 40.0;
@@ -74,7 +74,6 @@ SimulateOptions DemJob(const fs::path& out_prefix) {
   o.seed = 7;
   o.out_prefix = out_prefix.string();
   o.contributions = out_prefix.string() + "_contributions.csv";
-  o.quiet = true;
   return o;
 }
 
@@ -91,7 +90,7 @@ TEST(DeterminismTest, SimulateIsBitIdenticalAcrossThreadCounts) {
 TEST(DeterminismTest, CoherentExactModeIsBitIdenticalAcrossRuns) {
   const fs::path dir = testing::MakeTempDir();
   for (const char* name : {"a", "b"}) {
-    SimulateOptions o = DemJob(dir / name);
+    SimulateRequest o = DemJob(dir / name);
     o.coherent = true;
     o.speckle_looks = 0.0;  // coherent mode forms its own speckle
     o.geometry.mode = sensor::ProjectionMode::kExact;
@@ -104,18 +103,17 @@ TEST(DeterminismTest, CoherentExactModeIsBitIdenticalAcrossRuns) {
 TEST(DeterminismTest, SceneBuildAndSceneSimulationAreBitIdentical) {
   const fs::path dir = testing::MakeTempDir();
   for (const char* name : {"a", "b"}) {
-    SceneBuildOptions o;
+    SceneBuildRequest o;
     o.dem = testing::DataPath("monaco/monaco_srtm3_dem.tif").string();
     o.osm = testing::DataPath("monaco/monaco.osm.gz").string();
     o.fill_nodata = true;
     o.out_prefix = (dir / name).string();
-    o.quiet = true;
     WithThreads(name[0] == 'a' ? 1 : 2, [&] { RunSceneBuild(o, "test"); });
   }
   ExpectSameFiles(dir / "a", dir / "b", {".gscene", ".ply", "_classes.png"}, "scene build");
 
   for (int threads : {1, 2}) {
-    SimulateOptions o;
+    SimulateRequest o;
     o.scene = (dir / "a.gscene").string();
     o.geometry.heading_deg = 0.0;
     o.geometry.depression_deg = 35.0;
@@ -123,11 +121,10 @@ TEST(DeterminismTest, SceneBuildAndSceneSimulationAreBitIdentical) {
     o.geometry.azimuth_spacing_m = 10.0;
     o.bounces = 4;
     o.out_prefix = (dir / ("sim" + std::to_string(threads))).string();
-    o.quiet = true;
     WithThreads(threads, [&] { RunSimulate(o, "test"); });
   }
   ExpectSameFiles(dir / "sim1", dir / "sim2", {".tif", "_mask.tif", ".png"}, "scene simulation");
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

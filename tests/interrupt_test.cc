@@ -44,8 +44,8 @@ struct Job {
 pid_t StartSimulate(const fs::path& out_dir, const fs::path& err, const Job& job) {
   const std::string dem = gissar::testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   std::vector<std::string> args = {GISSAR_CLI_BINARY, "simulate", "--dem", dem, "--heading", "20",
-                                   "--depression", "40", "--range-res", job.spacing_m,
-                                   "--azimuth-res", job.spacing_m, "--rays-per-cell",
+                                   "--depression", "40", "--range-spacing", job.spacing_m,
+                                   "--azimuth-spacing", job.spacing_m, "--rays-per-cell",
                                    job.rays_per_cell, "--bounces", "2", "--out",
                                    (out_dir / "sim").string()};
   if (job.contributions) {

@@ -55,7 +55,7 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
     assert result["mask"].dtype == np.uint8
     prefix = str(tmp_path / "sim")
     subprocess.run([os.environ["GISSAR_CLI"], "simulate", "--dem", DEM, "--heading", "30", "--depression", "40",
-                    "--range-res", "250", "--azimuth-res", "250", "--speckle-looks", "4", "--seed", "9",
+                    "--range-spacing", "250", "--azimuth-spacing", "250", "--speckle-looks", "4", "--seed", "9",
                     "--out", prefix, "--quiet"], check=True, stdout=subprocess.DEVNULL)
     tif = gdal.Open(prefix + ".tif")  # keep the dataset alive while reading its bands
     assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), image)
@@ -65,7 +65,7 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
 
 
 def test_errors_become_python_exceptions():
-    with pytest.raises(gissar.ConfigError, match="unknown option 'headin_deg'"):
+    with pytest.raises(gissar.ConfigError, match="unknown key 'headin_deg'"):
         gissar.simulate(dem=DEM, headin_deg=0, depression_deg=40)
     with pytest.raises(gissar.InputError, match="DEM file does not exist"):
         gissar.simulate(dem="/nonexistent.tif", heading_deg=0, depression_deg=40)
@@ -298,3 +298,35 @@ def test_simulate_product_matches_the_cli_and_the_reference_geolocation(tmp_path
     north_m = (result["lat_deg"][ok] - lat_ref[ok]) * 110540.0
     # float32 degrees carry ~0.5 m of rounding at these longitudes; the double-precision check is in C++.
     assert np.sqrt(np.mean(east_m ** 2 + north_m ** 2)) < 1.0
+
+
+def test_simulate_takes_a_dem_array_with_transform_and_crs(tmp_path):
+    """The same DEM as an array (transform, CRS) and as a file give the same image."""
+    from osgeo import gdal
+    ds = gdal.Open(DEM)
+    heights = ds.GetRasterBand(1).ReadAsArray()
+    common = dict(heading_deg=30.0, depression_deg=40.0, range_spacing_m=250.0, azimuth_spacing_m=250.0)
+    from_file = gissar.simulate(dem=DEM, **common)
+    from_array = gissar.simulate(dem=heights, transform=ds.GetGeoTransform(), crs=ds.GetProjection(), **common)
+    assert np.array_equal(from_file["image"], from_array["image"])
+    with pytest.raises(gissar.ConfigError, match="needs transform= and crs="):
+        gissar.simulate(dem=heights, **common)
+    with pytest.raises(gissar.ConfigError, match="not a CRS"):
+        gissar.simulate(dem=heights, transform=ds.GetGeoTransform(), crs="EPSG:999999", **common)
+
+
+def test_progress_callback_sees_the_stages_and_can_cancel():
+    common = dict(dem=DEM, heading_deg=0.0, depression_deg=40.0, range_spacing_m=120.0, azimuth_spacing_m=120.0)
+    seen = []
+    gissar.simulate(progress=lambda stage, done, total: seen.append((stage, done, total)), **common)
+    assert seen and seen[-1][1] == seen[-1][2]          # the last call: the stage complete
+    assert all(0 < d <= t for _, d, t in seen)
+    with pytest.raises(gissar.Cancelled):
+        gissar.simulate(progress=lambda stage, done, total: False, **common)
+
+
+def test_library_warnings_are_python_warnings(tmp_path):
+    """A scene build whose layer has features outside the DEM warns through `warnings`."""
+    with pytest.warns(gissar.GissarWarning, match="outside the DEM"):
+        gissar.Scene.build(dem=DEM, vectors=[os.path.join(ROOT, "data", "andorra", "andorra_osm.gpkg")],
+                           window=(150, 70, 60, 60), out_prefix=str(tmp_path / "w"))

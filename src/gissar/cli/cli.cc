@@ -1,11 +1,22 @@
 #include "gissar/cli/cli.h"
 
+#include <unistd.h>
+
 #include <exception>
+#include <limits>
+#include <memory>
+#include <optional>
 #include <string>
+#include <vector>
+
+#include <tbb/global_control.h>
 
 #include "gissar/cli/command.h"
+#include "gissar/cli/command_line.h"
+#include "gissar/cli/terminal_reporter.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
+#include "gissar/util/memory_limit.h"
 #include "gissar/util/provenance.h"
 
 namespace gissar::cli {
@@ -30,7 +41,40 @@ std::string OneLine(std::string text) {
   return text;
 }
 
+// Flags every command takes (docs/conventions.md, "Common flags").
+struct CommonFlags {
+  bool quiet = false;
+  std::string log_level = "info";
+  int threads = 0;  // 0 = all cores
+  bool force = false;
+  std::string options_file;  // expanded before parsing (ExpandOptionsFile)
+};
+
+// Adds the common flags to every command that runs something (the leaves
+// of the command tree: `scene build`, not `scene`).
+void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
+  for (CLI::App* sub : app.get_subcommands({})) {
+    if (!sub->get_subcommands({}).empty()) {
+      AddCommonFlags(*sub, flags);
+      continue;
+    }
+    sub->add_flag("--quiet", flags.quiet, "Only warnings and errors on stderr (same as --log-level warning)");
+    sub->add_option("--log-level", flags.log_level, "error, warning or info (default info)");
+    sub->add_option("--threads", flags.threads, "Worker threads (default: all cores)")
+        ->check(CLI::NonNegativeNumber);
+    sub->add_flag("--force", flags.force, "Run even when the job exceeds the memory budget (--max-memory)");
+    sub->add_option("--options", flags.options_file,
+                    "JSON file of options: keys are the snake_case field names (docs/conventions.md); "
+                    "flags on the command line win");
+  }
+}
+
 }  // namespace
+
+int64_t MemoryBudgetBytes(const std::string& max_memory_flag, bool force, int64_t fallback_bytes) {
+  const int64_t budget = max_memory_flag.empty() ? fallback_bytes : ParseByteSize(max_memory_flag, "--max-memory");
+  return force ? std::numeric_limits<int64_t>::max() : budget;
+}
 
 int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   InstallSignalCleanup();
@@ -46,18 +90,39 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddMvgCommands(app, registry);
   AddNavCommands(app, registry);
   AddProductCommands(app, registry);
+  CommonFlags common;
+  AddCommonFlags(app, common);
 
+  std::vector<std::string> deprecation_warnings;
+  std::vector<std::string> args = ReplaceDeprecatedFlags(argc, argv, deprecation_warnings);
   try {
-    app.parse(argc, argv);
+    CheckCommandWords(app, args);
+    ExpandOptionsFile(app, args);
+  } catch (const Error& e) {
+    err << "gissar: error: " << OneLine(e.what()) << "\n";
+    return kExitError;
+  }
+  std::vector<const char*> arg_pointers;
+  for (const std::string& a : args) arg_pointers.push_back(a.c_str());
+  std::unique_ptr<TerminalReporter> reporter;
+  std::optional<tbb::global_control> thread_limit;
+  try {
+    app.parse(static_cast<int>(arg_pointers.size()), arg_pointers.data());
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) {
       return app.exit(e, out, err);
     }
-    err << "gissar: error: " << OneLine(e.what()) << " (command line)\n";
+    err << "gissar: error: " << OneLine(e.what()) << DidYouMean(app, args) << " (command line)\n";
     return kExitError;
   }
   try {
-    registry.RunParsed(CommandContext{JoinCommandLine(argc, argv), out});
+    const LogLevel level = common.quiet ? LogLevel::kWarning : ParseLogLevel(common.log_level);
+    reporter = std::make_unique<TerminalReporter>(stderr, level, isatty(STDERR_FILENO) == 1);
+    for (const std::string& w : deprecation_warnings) reporter->Warn(w);
+    if (common.threads > 0) {
+      thread_limit.emplace(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(common.threads));
+    }
+    registry.RunParsed(CommandContext{JoinCommandLine(argc, argv), out, *reporter, common.force});
   } catch (const Error& e) {
     err << "gissar: error: " << OneLine(e.what()) << "\n";
     return kExitError;

@@ -3,15 +3,21 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
+#include "gissar/geo/raster_io.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/util/testing.h"
 
 namespace gissar::cli {
 namespace {
 namespace fs = std::filesystem;
+using pipeline::SimulateRequest;
 
 struct Outcome {
   int status = -1;
@@ -46,7 +52,7 @@ size_t CountEntries(const fs::path& dir) {
 std::vector<std::string> SimulateArgs(const std::string& dem, const fs::path& out,
                                       const std::string& depression = "40") {
   return {"simulate", "--dem", dem, "--heading", "0", "--depression", depression,
-          "--range-res", "400", "--azimuth-res", "400", "--out", (out / "sim").string(),
+          "--range-spacing", "400", "--azimuth-spacing", "400", "--out", (out / "sim").string(),
           "--quiet"};
 }
 
@@ -95,7 +101,7 @@ TEST(CliTest, OtherBadOptions) {
   ExpectCleanFailure(RunGissar(args), dir, "(--heading)");
   args = SimulateArgs(dem, dir);
   args[8] = "-3";  // range spacing
-  ExpectCleanFailure(RunGissar(args), dir, "(--range-res)");
+  ExpectCleanFailure(RunGissar(args), dir, "(--range-spacing)");
   args = SimulateArgs(dem, dir);
   args.insert(args.end(), {"--mode", "fisheye"});
   ExpectCleanFailure(RunGissar(args), dir, "(--mode)");
@@ -132,5 +138,170 @@ TEST(CliTest, BinaryExitsWithStatusTwo) {
   EXPECT_EQ(CountEntries(dir), 1u);  // only the captured stderr
 }
 
+TEST(FmatrixCommandTest, DegenerateInputIsAClearError) {
+  const fs::path dir = testing::MakeTempDir();
+  auto csv = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return (dir / name).string();
+  };
+  struct Case {
+    std::string file, needle;
+  };
+  const std::vector<Case> cases = {
+      {csv("three.csv", "x1,y1,x2,y2\n1,2,3,4\n5,6,7,8\n9,1,2,3\n"), "at least 4 matches"},
+      {csv("collinear.csv", "x1,y1,x2,y2\n0,0,0,0\n1,1,1,1\n2,2,2,2\n3,3,3,3\n4,4,4,4\n"), "degenerate"},
+      {csv("nan.csv", "x1,y1,x2,y2\n1,2,3,4\n5,nan,7,8\n9,1,2,3\n4,4,5,5\n"), "nan.csv"},
+      {csv("columns.csv", "x1,y1,x2\n1,2,3\n"), "columns.csv"},
+  };
+  for (const Case& c : cases) {
+    const Outcome o = RunGissar({"fmatrix", "--matches", c.file, "--json", (dir / "out.json").string()});
+    const std::string& err = o.err;
+    EXPECT_EQ(o.status, 2) << c.file;
+    EXPECT_EQ(err.rfind("gissar: error: ", 0), 0u) << err;
+    EXPECT_NE(err.find(c.needle), std::string::npos) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    EXPECT_FALSE(fs::exists(dir / "out.json"));
+  }
+}
+
+
+// The real executable with a shell command line; stdout and stderr captured.
+Outcome RunBinary(const std::string& arguments, const fs::path& dir) {
+  const std::string command = std::string(GISSAR_CLI_BINARY) + " " + arguments + " >" +
+                              (dir / "stdout.txt").string() + " 2>" + (dir / "stderr.txt").string();
+  const int raw = std::system(command.c_str());
+  Outcome o;
+  o.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  auto read = [](const fs::path& path) {
+    std::ifstream in(path);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  o.out = read(dir / "stdout.txt");
+  o.err = read(dir / "stderr.txt");
+  fs::remove(dir / "stdout.txt");
+  fs::remove(dir / "stderr.txt");
+  return o;
+}
+
+std::vector<float> FirstBand(const fs::path& tif) { return geo::ReadFloatRaster(tif).bands.at(0); }
+
+const std::string kSmallSimulate =
+    "simulate --dem " + testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string() +
+    " --heading 0 --depression 40 --range-spacing 400 --azimuth-spacing 400";
+
+// --options FILE.json: keys are the request's snake_case names; the same
+// job as with flags gives the same image; flags on the command line win.
+TEST(CommonFlagsTest, OptionsFileEqualsFlags) {
+  const fs::path dir = testing::MakeTempDir();
+  ASSERT_EQ(RunBinary(kSmallSimulate + " --quiet --out " + (dir / "flags").string(), dir).status, 0);
+  std::ofstream(dir / "job.json") << "{\"dem\": \"" << testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string()
+                                  << "\", \"heading_deg\": 30, \"depression_deg\": 40, \"range_spacing_m\": 400, "
+                                     "\"azimuth_spacing_m\": 400, \"center_lonlat\": null, \"coherent\": false}";
+  const Outcome o = RunBinary("simulate --options " + (dir / "job.json").string() + " --heading 0 --quiet --out " +
+                                  (dir / "file").string(),
+                              dir);
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_EQ(FirstBand(dir / "flags.tif"), FirstBand(dir / "file.tif"));
+  // The sidecar records the request under the same names.
+  std::ifstream sidecar(dir / "file.json");
+  const nlohmann::json provenance = nlohmann::json::parse(sidecar);
+  EXPECT_EQ(provenance["options"]["heading_deg"].get<double>(), 0.0);
+  EXPECT_EQ(provenance["options"]["range_spacing_m"].get<double>(), 400.0);
+}
+
+// A sidecar's options, fed back as an options file, redo the same job:
+// every request field has its flag.
+TEST(CommonFlagsTest, SidecarOptionsAreAnOptionsFile) {
+  const fs::path dir = testing::MakeTempDir();
+  ASSERT_EQ(RunBinary(kSmallSimulate + " --look left --mode exact --speckle-looks 3 --seed 7 --quiet --out " +
+                          (dir / "first").string(), dir).status, 0);
+  std::ifstream sidecar(dir / "first.json");
+  const nlohmann::json options = nlohmann::json::parse(sidecar)["options"];
+  const nlohmann::json defaults = SimulateRequest().ToJson();
+  for (const auto& [key, value] : defaults.items()) {
+    EXPECT_TRUE(options.contains(key)) << key;
+  }
+  std::ofstream(dir / "again.json") << options.dump();
+  const Outcome o = RunBinary("simulate --options " + (dir / "again.json").string() + " --quiet --out " +
+                                  (dir / "second").string(), dir);
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_EQ(FirstBand(dir / "first.tif"), FirstBand(dir / "second.tif"));
+}
+
+TEST(CommonFlagsTest, UnknownOptionsKeyNamesKeyAndFile) {
+  const fs::path dir = testing::MakeTempDir();
+  std::ofstream(dir / "bad.json") << "{\"heading_deg\": 0, \"headin_deg\": 3}";
+  const Outcome o = RunBinary("simulate --options " + (dir / "bad.json").string() + " --out " + (dir / "x").string(), dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err, "gissar: error: unknown key 'headin_deg' (" + (dir / "bad.json").string() + ")\n");
+  EXPECT_EQ(CountEntries(dir), 1u);  // only bad.json
+}
+
+TEST(CommonFlagsTest, DeprecatedSpellingWorksWithAWarning) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  ASSERT_EQ(RunBinary(kSmallSimulate + " --quiet --out " + (dir / "new").string(), dir).status, 0);
+  const Outcome o = RunBinary("simulate --dem " + dem + " --heading 0 --depression 40 --range-res 400 "
+                              "--azimuth-res=400 --quiet --out " + (dir / "old").string(), dir);
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_NE(o.err.find("gissar: warning: --range-res is deprecated and will be removed; use --range-spacing"),
+            std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("use --azimuth-spacing"), std::string::npos) << o.err;
+  EXPECT_EQ(FirstBand(dir / "new.tif"), FirstBand(dir / "old.tif"));
+}
+
+TEST(CommonFlagsTest, MisspeltFlagOrCommandGetsASuggestion) {
+  const fs::path dir = testing::MakeTempDir();
+  Outcome o = RunGissar({"simulate", "--dem", "x.tif", "--heading", "0", "--depresion", "40", "--out", "y"});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("did you mean --depression?"), std::string::npos) << o.err;
+  EXPECT_EQ(CountLines(o.err), 1u);
+  o = RunGissar({"simulat", "--dem", "x.tif"});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("did you mean simulate?"), std::string::npos) << o.err;
+  // An unknown command is an error even with --help (which alone succeeds).
+  o = RunGissar({"evalute", "--help"});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err, "gissar: error: unknown command 'evalute'; did you mean evaluate? (`gissar --help` lists the "
+                   "commands) (command line)\n");
+  o = RunGissar({"scene", "biuld"});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("did you mean build?"), std::string::npos) << o.err;
+  EXPECT_EQ(RunGissar({"scene", "build", "--help"}).status, 0);
+}
+
+// --quiet: nothing on stderr for a clean run; by default information lines
+// and, off a terminal, no progress bar (no carriage returns); --threads
+// does not change the image; --log-level is checked.
+TEST(CommonFlagsTest, QuietLogLevelAndThreads) {
+  const fs::path dir = testing::MakeTempDir();
+  Outcome o = RunBinary(kSmallSimulate + " --quiet --out " + (dir / "q").string(), dir);
+  ASSERT_EQ(o.status, 0);
+  EXPECT_EQ(o.err, "");
+  EXPECT_EQ(CountLines(o.out), 5u);  // the five files written
+  o = RunBinary(kSmallSimulate + " --threads 1 --out " + (dir / "t1").string(), dir);
+  ASSERT_EQ(o.status, 0);
+  EXPECT_NE(o.err.find("simulate: image "), std::string::npos) << o.err;
+  EXPECT_EQ(o.err.find('\r'), std::string::npos);
+  EXPECT_EQ(FirstBand(dir / "q.tif"), FirstBand(dir / "t1.tif"));
+  o = RunBinary(kSmallSimulate + " --log-level loud --out " + (dir / "x").string(), dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("(--log-level)"), std::string::npos) << o.err;
+  o = RunBinary(kSmallSimulate + " --log-level error --out " + (dir / "e").string(), dir);
+  EXPECT_EQ(o.status, 0);
+  EXPECT_EQ(o.err, "");
+}
+
+// --force lifts the memory budget: a job refused under a tiny --max-memory runs.
+TEST(CommonFlagsTest, ForceLiftsTheMemoryBudget) {
+  const fs::path dir = testing::MakeTempDir();
+  Outcome o = RunBinary(kSmallSimulate + " --max-memory 1M --quiet --out " + (dir / "a").string(), dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("--max-memory"), std::string::npos) << o.err;
+  o = RunBinary(kSmallSimulate + " --max-memory 1M --force --quiet --out " + (dir / "b").string(), dir);
+  EXPECT_EQ(o.status, 0) << o.err;
+}
 }  // namespace
 }  // namespace gissar::cli

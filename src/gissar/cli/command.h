@@ -4,6 +4,7 @@
 // run when that subcommand was given.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <ostream>
 #include <sstream>
@@ -14,12 +15,15 @@
 #include <CLI/CLI.hpp>
 
 #include "gissar/util/error.h"
+#include "gissar/util/reporter.h"
 
 namespace gissar::cli {
 
 struct CommandContext {
   std::string command_line;  // the whole command line, for provenance
   std::ostream& out;         // results (paths, tables)
+  Reporter& reporter;        // progress, information, warnings (terminal_reporter.h)
+  bool force = false;        // --force: run jobs over the memory budget
 };
 
 using CommandAction = std::function<void(const CommandContext&)>;
@@ -34,6 +38,10 @@ inline void RequirePositiveIfGiven(const CLI::App& cmd, const std::string& flag,
     throw ConfigError(text.str(), flag);
   }
 }
+
+// The memory budget of a job: --max-memory when given (throws ConfigError
+// naming it when malformed), else the default; --force lifts it.
+int64_t MemoryBudgetBytes(const std::string& max_memory_flag, bool force, int64_t fallback_bytes);
 
 class CommandRegistry {
  public:

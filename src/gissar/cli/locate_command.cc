@@ -2,13 +2,14 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
-#include "gissar/cli/locate.h"
+#include "gissar/pipeline/locate.h"
 
 namespace gissar::cli {
+using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
 void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
   {
-    auto o = std::make_shared<LocateCommandOptions>();
+    auto o = std::make_shared<LocateRequest>();
     CLI::App* cmd = root.add_subcommand(
         "locate", "Pose fix from one SAR image: match to simulated SAR at the INS prior, resect, iterate.");
     cmd->add_option("--image", o->image, "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)")->required();
@@ -18,8 +19,8 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--out", o->out, "Result JSON")->required();
     cmd->add_option("--composite", o->composite_png,
                     "PNG: observed (green) over simulated (magenta) at the prior and at the fix");
-    cmd->add_option("--range-res", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
-    cmd->add_option("--azimuth-res", o->azimuth_spacing_m, "Azimuth pixel spacing, m (default: image metadata)");
+    cmd->add_option("--range-spacing", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
+    cmd->add_option("--azimuth-spacing", o->azimuth_spacing_m, "Azimuth pixel spacing, m (default: image metadata)");
     cmd->add_option("--look", o->look, "right or left (default: image metadata, else right)");
     cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features")->capture_default_str();
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (prior uncertainty)")->capture_default_str();
@@ -28,12 +29,12 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--bounces", o->bounces, "Reflections per ray in the reference renders")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell in the reference renders")->capture_default_str();
     registry.Add(cmd, [=](const CommandContext& context) {
-      const auto report = RunLocate(*o, context.command_line);
+      const auto report = RunLocate(*o, context.command_line, context.reporter);
       context.out << o->out << "\n";
     });
   }
   {
-    auto o = std::make_shared<EvaluateOptions>();
+    auto o = std::make_shared<EvaluateRequest>();
     auto no_compare = std::make_shared<bool>(false);
     CLI::App* cmd = root.add_subcommand(
         "evaluate", "Monte-Carlo evaluation of `locate`: success rate, position/heading errors, time per fix.");
@@ -62,16 +63,15 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell")->capture_default_str();
-    cmd->add_flag("--quiet", o->quiet, "No per-trial lines on stderr");
     registry.Add(cmd, [=](const CommandContext& context) {
-      EvaluateOptions r = *o;
+      EvaluateRequest r = *o;
       r.compare_matchers = !*no_compare;
-      RunEvaluate(r, context.command_line);
+      RunEvaluate(r, context.command_line, context.reporter);
       context.out << r.out_prefix << ".json\n" << r.out_prefix << "_trials.csv\n" << r.out_prefix << "_hist.png\n";
     });
   }
   {
-    auto o = std::make_shared<MatchPairOptions>();
+    auto o = std::make_shared<MatchPairRequest>();
     CLI::App* cmd = root.add_subcommand(
         "matchpair", "Recover a known affine warp between two real images with every matcher (RMS error, px).");
     cmd->add_option("--fixed", o->fixed, "Fixed image")->required();
@@ -83,7 +83,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--filter", o->filter_px, "Speckle box filter, px")->capture_default_str();
     cmd->add_option("--out", o->out, "Result JSON")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      RunMatchPair(*o, context.command_line);
+      RunMatchPair(*o, context.command_line, context.reporter);
       context.out << o->out << "\n";
     });
   }

@@ -2,14 +2,15 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
-#include "gissar/cli/mvg_commands.h"
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/mvg_commands.h"
+#include "gissar/pipeline/simulate.h"
 
 namespace gissar::cli {
+using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
 void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
   {
-    auto o = std::make_shared<FmatrixOptions>();
+    auto o = std::make_shared<FmatrixRequest>();
     auto res1 = std::make_shared<std::string>(), res2 = std::make_shared<std::string>();
     auto depressions = std::make_shared<std::string>();
     auto all = std::make_shared<bool>(false);
@@ -28,12 +29,12 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--image1", o->image1, "Image 1 (any GDAL raster) for --plot");
     cmd->add_option("--image2", o->image2, "Image 2 for --plot");
     registry.Add(cmd, [=](const CommandContext& context) {
-      FmatrixOptions r = *o;
+      FmatrixRequest r = *o;
       r.robust = !*all;
       if (!res1->empty()) r.res1 = ParseNumberPair(*res1, "--res1");
       if (!res2->empty()) r.res2 = ParseNumberPair(*res2, "--res2");
       if (!depressions->empty()) r.depressions = ParseNumberPair(*depressions, "--depressions");
-      const auto out = RunFmatrix(r, context.command_line);
+      const auto out = RunFmatrix(r, context.command_line, context.reporter);
       context.out << r.json_out << "\n";
       if (out.contains("pictures")) {
         for (const auto& p : out["pictures"]) context.out << p.get<std::string>() << "\n";
@@ -41,25 +42,25 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     });
   }
   {
-    auto o = std::make_shared<ResectOptions>();
+    auto o = std::make_shared<ResectRequest>();
     auto centre = std::make_shared<std::vector<double>>();
     auto range = std::make_shared<double>(0.0);
     CLI::App* cmd = root.add_subcommand(
         "resect", "Affine SAR camera (heading, depression, spacings) from >= 4 known 3-D points.");
     cmd->add_option("--points", o->points, "CSV with a header and columns X,Y,Z,x,y (ENU m, pixels)")->required();
     cmd->add_option("--scene-centre", *centre, "Scene centre Xc X,Y,Z (ENU m; default 0,0,0)")->delimiter(',')->expected(3);
-    cmd->add_option("--range", *range, "Measured slant range to Xc, metres: also gives the sensor position");
+    cmd->add_option("--slant-range", *range, "Measured slant range to Xc, metres: also gives the sensor position");
     cmd->add_option("--json", o->json_out, "Output JSON")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      ResectOptions r = *o;
+      ResectRequest r = *o;
       if (!centre->empty()) r.scene_centre = Eigen::Vector3d((*centre)[0], (*centre)[1], (*centre)[2]);
       if (*range != 0.0) r.slant_range_m = *range;
-      RunResect(r, context.command_line);
+      RunResect(r, context.command_line, context.reporter);
       context.out << r.json_out << "\n";
     });
   }
   {
-    auto o = std::make_shared<RegisterOptions>();
+    auto o = std::make_shared<RegisterRequest>();
     auto all = std::make_shared<bool>(false);
     CLI::App* cmd = root.add_subcommand(
         "register", "Register a moving image to a fixed one from control points (cpselect/fitgeotrans).");
@@ -73,14 +74,14 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.tif, PREFIX_composite.png, PREFIX.json")
         ->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      RegisterOptions r = *o;
+      RegisterRequest r = *o;
       r.robust = !*all;
-      RunRegister(r, context.command_line);
+      RunRegister(r, context.command_line, context.reporter);
       context.out << r.out_prefix << ".tif\n" << r.out_prefix << "_composite.png\n" << r.out_prefix << ".json\n";
     });
   }
   {
-    auto o = std::make_shared<EpipolarOptions>();
+    auto o = std::make_shared<EpipolarRequest>();
     CLI::App* cmd = root.add_subcommand("epipolar", "Draw matches and epipolar lines over an image pair.");
     cmd->add_option("--matches", o->matches, "CSV x1,y1,x2,y2")->required();
     cmd->add_option("--image1", o->image1, "Image 1")->required();
@@ -93,7 +94,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     });
   }
   {
-    auto o = std::make_shared<CompositeOptions>();
+    auto o = std::make_shared<CompositeRequest>();
     CLI::App* cmd = root.add_subcommand(
         "composite", "Green/magenta composite of two co-registered images (grey where they agree).");
     cmd->add_option("--green", o->green, "First image (e.g. the real one), band 1 linear intensity")->required();

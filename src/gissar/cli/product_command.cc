@@ -1,15 +1,16 @@
-// `gissar validate` flags, bound to ValidateOptions (the --product flags of
+// `gissar validate` flags, bound to ValidateRequest (the --product flags of
 // `gissar simulate` are declared in simulate_command.cc).
 #include <memory>
 #include <sstream>
 
 #include "gissar/cli/command.h"
-#include "gissar/cli/product_simulate.h"
+#include "gissar/pipeline/product_simulate.h"
 
 namespace gissar::cli {
+using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
 void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
-  auto options = std::make_shared<ValidateOptions>();
+  auto options = std::make_shared<ValidateRequest>();
   auto looks = std::make_shared<std::string>("1,3,5");
   CLI::App* cmd = root.add_subcommand(
       "validate",
@@ -34,10 +35,9 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--out", options->out_prefix,
                   "Report prefix: REPORT.json, REPORT.md, REPORT_side_by_side.png, REPORT_histogram.png")
       ->required();
-  cmd->add_flag("--quiet", options->simulate.quiet, "No progress on stderr");
 
   registry.Add(cmd, [=](const CommandContext& context) {
-    ValidateOptions resolved = *options;
+    ValidateRequest resolved = *options;
     resolved.looks.clear();
     std::istringstream in(*looks);
     std::string item;
@@ -51,7 +51,7 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
         throw ConfigError("multilook sizes must be integers, got '" + *looks + "'", "--looks");
       }
     }
-    const ValidateResult result = RunValidate(resolved, context.command_line);
+    const ValidateResult result = RunValidate(resolved, context.command_line, context.reporter);
     for (const auto& path : result.outputs) context.out << path.string() << "\n";
   });
 }

@@ -1,17 +1,18 @@
-// `gissar scene build` and `gissar scene info` flags, bound to SceneBuildOptions.
+// `gissar scene build` and `gissar scene info` flags, bound to SceneBuildRequest.
 #include <memory>
 
 #include "gissar/cli/command.h"
-#include "gissar/cli/scene_build.h"
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/scene_build.h"
+#include "gissar/pipeline/simulate.h"
 
 namespace gissar::cli {
+using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
 void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
   CLI::App* scene = root.add_subcommand("scene", "Build GIS scenes and inspect scene files.");
   scene->require_subcommand(1);
 
-  auto options = std::make_shared<SceneBuildOptions>();
+  auto options = std::make_shared<SceneBuildRequest>();
   auto window = std::make_shared<std::string>();
   auto center = std::make_shared<std::string>();
   CLI::App* build = scene->add_subcommand(
@@ -29,16 +30,15 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
                     "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png (class map), PREFIX_3d.png (3-D view), PREFIX.json")
       ->required();
   build->add_flag("--obj", options->export_obj, "Also write PREFIX.obj + PREFIX.mtl (class colours) for 3-D viewers");
-  build->add_flag("--quiet", options->quiet, "No progress on stderr");
   auto max_memory = std::make_shared<std::string>();
   build->add_option("--max-memory", *max_memory,
                     "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early");
   registry.Add(build, [=](const CommandContext& context) {
-    SceneBuildOptions resolved = *options;
-    if (!max_memory->empty()) resolved.max_memory_bytes = ParseByteSize(*max_memory, "--max-memory");
+    SceneBuildRequest resolved = *options;
+    resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
     if (!window->empty()) resolved.window = ParseWindow(*window, "--window");
     if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");
-    const SceneBuildResult result = RunSceneBuild(resolved, context.command_line);
+    const SceneBuildResult result = RunSceneBuild(resolved, context.command_line, context.reporter);
     for (const auto& path : result.outputs) context.out << path.string() << "\n";
   });
 

@@ -1,13 +1,14 @@
-// `gissar simulate` flags, bound to SimulateOptions.
+// `gissar simulate` flags, bound to SimulateRequest.
 #include <memory>
 
 #include "gissar/cli/command.h"
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 
 namespace gissar::cli {
+using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
 void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
-  auto options = std::make_shared<SimulateOptions>();
+  auto options = std::make_shared<SimulateRequest>();
   auto center = std::make_shared<std::string>();
   auto center_map = std::make_shared<std::string>();
   auto mode = std::make_shared<std::string>("affine");
@@ -33,12 +34,12 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--look", *look, "Look side: right or left")->capture_default_str();
   cmd->add_option("--center", *center, "Scene centre LON,LAT in degrees (default: DEM centre)");
   cmd->add_option("--center-map", *center_map, "Scene centre X,Y in the DEM's CRS");
-  cmd->add_option("--range", options->geometry.slant_range_m,
+  cmd->add_option("--slant-range", options->geometry.slant_range_m,
                   "Slant range from the sensor to the scene centre, metres")
       ->capture_default_str();
-  cmd->add_option("--range-res", options->geometry.range_spacing_m,
+  cmd->add_option("--range-spacing", options->geometry.range_spacing_m,
                   "Slant-range pixel spacing, metres (default: DEM post spacing)");
-  cmd->add_option("--azimuth-res", options->geometry.azimuth_spacing_m,
+  cmd->add_option("--azimuth-spacing", options->geometry.azimuth_spacing_m,
                   "Azimuth pixel spacing, metres (default: DEM post spacing)");
   cmd->add_option("--mode", *mode, "Projection: affine (parallel rays) or exact (flight line)")
       ->capture_default_str();
@@ -85,27 +86,26 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--out", options->out_prefix,
                   "Output prefix: PREFIX.tif, PREFIX.png, PREFIX_quicklook.png (dB colour bar, axes in m), PREFIX_mask.tif, PREFIX.json")
       ->required();
-  cmd->add_flag("--quiet", options->quiet, "No progress on stderr");
   auto max_memory = std::make_shared<std::string>();
   cmd->add_option("--max-memory", *max_memory,
                   "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early");
 
   registry.Add(cmd, [=](const CommandContext& context) {
-    SimulateOptions resolved = *options;
+    SimulateRequest resolved = *options;
     for (const char* flag : {"--heading", "--depression"}) {
       if (resolved.product.empty() && cmd->count(flag) == 0) throw ConfigError("is required", flag);
       if (!resolved.product.empty() && cmd->count(flag) > 0) {
         throw ConfigError("the product fixes the geometry", std::string("--product/") + flag);
       }
     }
-    RequirePositiveIfGiven(*cmd, "--range-res", resolved.geometry.range_spacing_m);
-    RequirePositiveIfGiven(*cmd, "--azimuth-res", resolved.geometry.azimuth_spacing_m);
-    if (!max_memory->empty()) resolved.max_memory_bytes = ParseByteSize(*max_memory, "--max-memory");
+    RequirePositiveIfGiven(*cmd, "--range-spacing", resolved.geometry.range_spacing_m);
+    RequirePositiveIfGiven(*cmd, "--azimuth-spacing", resolved.geometry.azimuth_spacing_m);
+    resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
     resolved.geometry.mode = sensor::ParseProjectionMode(*mode);
     resolved.geometry.look_side = sensor::ParseLookSide(*look);
     if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");
     if (!center_map->empty()) resolved.center_map = ParseNumberPair(*center_map, "--center-map");
-    const SimulateResult result = RunSimulate(resolved, context.command_line);
+    const SimulateResult result = RunSimulate(resolved, context.command_line, context.reporter);
     for (const auto& path : result.outputs) context.out << path.string() << "\n";
   });
 }

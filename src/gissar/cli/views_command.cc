@@ -2,9 +2,10 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
-#include "gissar/cli/views.h"
+#include "gissar/pipeline/views.h"
 
 namespace gissar::cli {
+using namespace gissar::pipeline;  // the requests and Run functions this command binds
 namespace {
 
 // Terrain and geometry flags shared with `simulate` (bound to `o`).
@@ -16,7 +17,7 @@ struct CommonFlags {
 
   CLI::App* app = nullptr;
 
-  void Add(CLI::App* cmd, SimulateOptions& o, bool with_heading) {
+  void Add(CLI::App* cmd, SimulateRequest& o, bool with_heading) {
     app = cmd;
     cmd->add_option("--dem", o.dem, "DEM raster (or --scene)");
     cmd->add_option("--scene", o.scene, "Scene file from `gissar scene build`");
@@ -25,9 +26,9 @@ struct CommonFlags {
     cmd->add_option("--depression", o.geometry.depression_deg, "Depression at the scene centre, degrees")->required();
     cmd->add_option("--look", *look, "right or left")->capture_default_str();
     cmd->add_option("--center", *center, "Scene centre LON,LAT");
-    cmd->add_option("--range", o.geometry.slant_range_m, "Slant range to the scene centre, m")->capture_default_str();
-    cmd->add_option("--range-res", o.geometry.range_spacing_m, "Slant-range pixel spacing, m");
-    cmd->add_option("--azimuth-res", o.geometry.azimuth_spacing_m, "Azimuth pixel spacing, m");
+    cmd->add_option("--slant-range", o.geometry.slant_range_m, "Slant range to the scene centre, m")->capture_default_str();
+    cmd->add_option("--range-spacing", o.geometry.range_spacing_m, "Slant-range pixel spacing, m");
+    cmd->add_option("--azimuth-spacing", o.geometry.azimuth_spacing_m, "Azimuth pixel spacing, m");
     cmd->add_option("--max-memory", *max_memory, "Memory budget, e.g. 4G (default: 3/4 of RAM)");
     cmd->add_option("--rays-per-cell", o.rays_per_cell, "Rays per resolution cell")->capture_default_str();
     cmd->add_option("--range-resolution", o.range_resolution_m, "3 dB range resolution, m (0 = none)");
@@ -35,22 +36,21 @@ struct CommonFlags {
     cmd->add_option("--psf-window", o.psf_window, "none, hamming or taylor")->capture_default_str();
     cmd->add_option("--speckle-looks", o.speckle_looks, "L-look speckle (0 = off)")->capture_default_str();
     cmd->add_option("--seed", o.seed, "Seed of speckle and noise")->capture_default_str();
-    cmd->add_flag("--quiet", o.quiet, "No progress on stderr");
   }
-  void Resolve(SimulateOptions& o) const {
-    RequirePositiveIfGiven(*app, "--range-res", o.geometry.range_spacing_m);
-    RequirePositiveIfGiven(*app, "--azimuth-res", o.geometry.azimuth_spacing_m);
+  void Resolve(SimulateRequest& o, bool force) const {
+    RequirePositiveIfGiven(*app, "--range-spacing", o.geometry.range_spacing_m);
+    RequirePositiveIfGiven(*app, "--azimuth-spacing", o.geometry.azimuth_spacing_m);
     o.geometry.mode = sensor::ParseProjectionMode(*mode);
     o.geometry.look_side = sensor::ParseLookSide(*look);
     if (!center->empty()) o.center_lonlat = ParseNumberPair(*center, "--center");
-    if (!max_memory->empty()) o.max_memory_bytes = ParseByteSize(*max_memory, "--max-memory");
+    o.max_memory_bytes = MemoryBudgetBytes(*max_memory, force, o.max_memory_bytes);
   }
 };
 
 }  // namespace
 
 void AddViewCommands(CLI::App& root, CommandRegistry& registry) {
-  auto sequence = std::make_shared<SequenceOptions>();
+  auto sequence = std::make_shared<SequenceRequest>();
   auto sequence_flags = std::make_shared<CommonFlags>();
   CLI::App* seq = root.add_subcommand(
       "sequence", "Render a heading sequence (same depression and altitude) from one scene build.");
@@ -64,13 +64,13 @@ void AddViewCommands(CLI::App& root, CommandRegistry& registry) {
                   "Output prefix: PREFIX_fNN.tif/.png, PREFIX_contact.png, PREFIX.gif, PREFIX.json")
       ->required();
   registry.Add(seq, [=](const CommandContext& context) {
-    SequenceOptions resolved = *sequence;
-    sequence_flags->Resolve(resolved.base);
-    const SequenceResult result = RunSequence(resolved, context.command_line);
+    SequenceRequest resolved = *sequence;
+    sequence_flags->Resolve(resolved.base, context.force);
+    const SequenceResult result = RunSequence(resolved, context.command_line, context.reporter);
     for (const auto& path : result.outputs) context.out << path.string() << "\n";
   });
 
-  auto ortho = std::make_shared<OrthoOptions>();
+  auto ortho = std::make_shared<OrthoRequest>();
   auto ortho_flags = std::make_shared<CommonFlags>();
   CLI::App* ort = root.add_subcommand(
       "ortho", "Orthographic views: along the line of sight, and the virtual camera G_perp, beside the SAR image.");
@@ -80,9 +80,9 @@ void AddViewCommands(CLI::App& root, CommandRegistry& registry) {
                   "Output prefix: PREFIX_los.png, PREFIX_sar.png, PREFIX_gperp.png, PREFIX_trio.png, PREFIX.json")
       ->required();
   registry.Add(ort, [=](const CommandContext& context) {
-    OrthoOptions resolved = *ortho;
-    ortho_flags->Resolve(resolved.base);
-    for (const auto& path : RunOrtho(resolved, context.command_line)) context.out << path.string() << "\n";
+    OrthoRequest resolved = *ortho;
+    ortho_flags->Resolve(resolved.base, context.force);
+    for (const auto& path : RunOrtho(resolved, context.command_line, context.reporter)) context.out << path.string() << "\n";
   });
 }
 

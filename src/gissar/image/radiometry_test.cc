@@ -52,7 +52,6 @@ Rendered RenderFlat(double depression, double spacing_m, double rays, Radiometry
   const render::EmbreeScene embree(mesh);
   render::RenderOptions ro;
   ro.rays_per_cell = rays;
-  ro.show_progress = false;
   out.image = render::RenderSar(embree, mesh, ConstantSigma0(sigma0_db), *out.geometry, ro);
   SensorEffects effects;
   effects.radiometry = radiometry;
@@ -180,7 +179,6 @@ render::SarImage RenderPoints(const PointScene& s, const std::vector<render::Sce
                               double wavelength, bool coherent, double resolution_m) {
   const render::EmbreeScene embree(s.mesh);
   render::RenderOptions ro;
-  ro.show_progress = false;
   ro.coherent = coherent;
   ro.wavelength_m = wavelength;
   ro.reflectors = reflectors;
@@ -292,7 +290,6 @@ TEST(CoherentTest, SpeckleIsFullyDevelopedAndFollowsThePsf) {
       const render::EmbreeScene embree(mesh);
       render::RenderOptions ro;
       ro.rays_per_cell = 16.0;
-      ro.show_progress = false;
       ro.coherent = mode == 1;
       ro.seed = 7;
       r[mode].image = render::RenderSar(embree, mesh, ConstantSigma0(-10.0), *r[mode].geometry, ro);
@@ -352,7 +349,6 @@ TEST(SpeckleTest, CorrelatedOverTheResolutionCell) {
   const auto g = sensor::SarGeometry::Covering(o, Eigen::Vector3d::Zero(), mesh.vertices);
   const render::EmbreeScene embree(mesh);
   render::RenderOptions ro;
-  ro.show_progress = false;
   render::SarImage image = render::RenderSar(embree, mesh, ConstantSigma0(-10.0), g, ro);
   SensorEffects e;
   const double res = 2.0;

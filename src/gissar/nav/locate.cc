@@ -175,7 +175,6 @@ Reference RenderReference(const NavScene& scene, const NavPose& pose, const Sens
   ro.rays_per_cell = scene.rays_per_cell;
   ro.max_bounces = scene.bounces;
   ro.record_contributions = true;
-  ro.show_progress = false;
   render::SarImage image = render::RenderSar(*scene.embree, *scene.mesh, *scene.materials, ref.geometry, ro);
   ref.intensity = std::move(image.intensity);
   const int w = model.width, h = model.height;

@@ -75,7 +75,6 @@ Measure TiltedPlane(double incidence_deg, double tilt_deg, double ratio, double 
   RenderOptions ro;
   ro.rays_per_cell = rays;
   ro.max_bounces = 1;
-  ro.show_progress = false;
   const SarImage image = RenderSar(embree, mesh, material::MaterialTable(), g, ro);
   // Interior: the image of the plane's central 80 % (range is monotonic in x
   // on a lit plane, azimuth is y).

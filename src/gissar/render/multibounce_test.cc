@@ -46,7 +46,6 @@ SarImage Render(const scene::TriangleMesh& mesh, const sensor::SarGeometry& g, i
   RenderOptions o;
   o.rays_per_cell = rays;
   o.max_bounces = bounces;
-  o.show_progress = false;
   o.record_contributions = contributions;
   return RenderSar(embree, mesh, Materials(), g, o);
 }
@@ -130,7 +129,6 @@ TEST(MultiBounceTest, SpecularPlaneIsDarkUnlessFacingTheRadar) {
     const auto g = Geometry(0.0, depression, 0.5, mesh);
     const EmbreeScene embree(mesh);
     RenderOptions o;
-    o.show_progress = false;
     const SarImage image = RenderSar(embree, mesh, table, g, o);
     return std::accumulate(image.intensity.begin(), image.intensity.end(), 0.0);
   };
@@ -199,7 +197,6 @@ TEST(MultiBounceTest, CoherentSingleLookIntensityIsExponential) {
   const EmbreeScene embree(mesh);
   RenderOptions o;
   o.rays_per_cell = 16.0;
-  o.show_progress = false;
   o.coherent = true;
   o.seed = 11;
   material::MaterialTable lambert;

@@ -67,7 +67,6 @@ SarImage Trace(const Grid& grid, const sensor::SarGeometry& g, double rays_per_c
   RenderOptions o;
   o.rays_per_cell = rays_per_cell;
   o.max_bounces = 1;
-  o.show_progress = false;
   return RenderSar(embree, mesh, UnitLambert(), g, o);
 }
 

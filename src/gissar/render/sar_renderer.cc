@@ -16,6 +16,7 @@
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
+#include "gissar/util/reporter.h"
 
 namespace gissar::render {
 namespace {
@@ -402,7 +403,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   tbb::enumerable_thread_specific<std::vector<float>> band_buffers;
   std::array<std::mutex, 64> row_locks;  // by image row modulo 64
   std::atomic<int64_t> hits{0}, sub_rays{0};
-  Progress progress("simulate: tracing", n_blocks, options.show_progress);
+  Reporter& reporter = options.reporter != nullptr ? *options.reporter : NullReporter();
+  Progress progress("simulate: tracing", n_blocks, reporter);
   Stopwatch trace_watch;
 
   tbb::parallel_for(tbb::blocked_range<int>(0, n_blocks, 1), [&](const tbb::blocked_range<int>& blocks) {
@@ -635,6 +637,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       hits.fetch_add(local_hits, std::memory_order_relaxed);
       sub_rays.fetch_add(local_sub_rays, std::memory_order_relaxed);
       progress.Advance(1);
+      ThrowIfCancelled(reporter, "simulate: tracing");
     }
   });
   progress.Done();

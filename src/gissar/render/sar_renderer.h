@@ -14,6 +14,7 @@
 #include "gissar/render/embree_scene.h"
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
+#include "gissar/util/reporter.h"
 
 namespace gissar::render {
 
@@ -67,8 +68,9 @@ struct RenderOptions {
   // Canonical reflectors: their returns (RCS towards the sensor, zero when
   // the way back is occluded) go to SarImage::points.
   std::vector<SceneReflector> reflectors;
-  // Progress lines on stderr.
-  bool show_progress = true;
+  // Where tracing progress goes, and who may cancel it (nullptr: nowhere,
+  // never). Not owned; must outlive the render.
+  Reporter* reporter = nullptr;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;

@@ -25,7 +25,6 @@ sensor::SarGeometryOptions Options(double heading, double depression, double spa
 RenderOptions Quiet(double rays_per_cell = 4.0) {
   RenderOptions r;
   r.rays_per_cell = rays_per_cell;
-  r.show_progress = false;
   return r;
 }
 

@@ -21,6 +21,7 @@
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
+#include "gissar/util/reporter.h"
 
 namespace gissar::scene {
 namespace {
@@ -229,11 +230,9 @@ double LineWidth(const std::map<std::string, std::string>& tags,
 }
 
 GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
-                       const SceneConfig& config, bool progress) {
+                       const SceneConfig& config, Reporter& reporter) {
   Stopwatch watch;
-  auto say = [&](const std::string& line) {
-    if (progress) std::fprintf(stderr, "scene: %s\n", line.c_str());
-  };
+  auto say = [&](const std::string& line) { reporter.Info("scene: " + line); };
   GisScene scene;
   GisSceneStats& stats = scene.stats;
   const Geos geos;

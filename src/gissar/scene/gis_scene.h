@@ -20,6 +20,7 @@
 #include "gissar/geo/local_frame.h"
 #include "gissar/scene/scene_config.h"
 #include "gissar/scene/triangle_mesh.h"
+#include "gissar/util/reporter.h"
 
 namespace gissar::scene {
 
@@ -50,12 +51,12 @@ struct GisScene {
   GisSceneStats stats;
 };
 
-// Builds the scene. `progress` prints stage lines on stderr. Throws
+// Builds the scene; stage lines go to `reporter` as Info. Throws
 // InputError for unreadable vector sources or layers (naming file and layer)
 // and ConfigError for invalid widths/heights; an empty layer, features
 // outside the DEM and repaired geometries are warnings.
 GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
-                       const SceneConfig& config, bool progress);
+                       const SceneConfig& config, Reporter& reporter = NullReporter());
 
 // Building height from OSM-style tags: `height` (metres, "12", "12 m",
 // "12.5m"), else `building:levels` times `level_height_m`, else

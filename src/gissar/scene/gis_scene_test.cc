@@ -165,7 +165,7 @@ void ExpectAreasMatch(const GisScene& scene) {
 GisScene Build(const std::string& dem_path, const SceneConfig& config) {
   const geo::Dem dem = geo::ReadDem(dem_path);
   const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, std::nullopt, std::nullopt);
-  return BuildGisScene(dem, geo::LocalFrame(centre.lon_deg, centre.lat_deg), config, false);
+  return BuildGisScene(dem, geo::LocalFrame(centre.lon_deg, centre.lat_deg), config);
 }
 
 TEST(GisSceneTest, PolygonsBecomeConstrainedClassRegions) {

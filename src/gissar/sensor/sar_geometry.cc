@@ -57,15 +57,15 @@ void SarGeometryOptions::Check() const {
                       "--depression");
   }
   if (!std::isfinite(slant_range_m) || slant_range_m <= 0.0) {
-    throw ConfigError("slant range must be positive, got " + Num(slant_range_m), "--range");
+    throw ConfigError("slant range must be positive, got " + Num(slant_range_m), "--slant-range");
   }
   if (!std::isfinite(range_spacing_m) || range_spacing_m <= 0.0) {
     throw ConfigError("range pixel spacing must be positive, got " + Num(range_spacing_m),
-                      "--range-res");
+                      "--range-spacing");
   }
   if (!std::isfinite(azimuth_spacing_m) || azimuth_spacing_m <= 0.0) {
     throw ConfigError("azimuth pixel spacing must be positive, got " + Num(azimuth_spacing_m),
-                      "--azimuth-res");
+                      "--azimuth-spacing");
   }
   if (width < 0 || height < 0) throw ConfigError("image size must not be negative", "--width/--height");
 }
@@ -110,7 +110,7 @@ SarGeometry SarGeometry::Covering(const SarGeometryOptions& options,
   if (width_d * height_d > static_cast<double>(max_pixels) || width_d > 1e9 || height_d > 1e9) {
     throw ConfigError("image of " + Num(width_d) + " x " + Num(height_d) +
                           " pixels is too large; use coarser pixel spacing or a smaller scene",
-                      "--range-res/--azimuth-res");
+                      "--range-spacing/--azimuth-spacing");
   }
   return SarGeometry(options, scene_centre, width > 0 ? (width - 1) / 2.0 : u0,
                      height > 0 ? (height - 1) / 2.0 : v0,

@@ -81,7 +81,7 @@ void CheckMemoryBudget(double needed_bytes, int64_t limit_bytes, const std::stri
   if (needed_bytes <= static_cast<double>(limit_bytes)) return;
   throw ConfigError(what + " needs about " + FormatBytes(needed_bytes) +
                         ", over the memory limit of " + FormatBytes(static_cast<double>(limit_bytes)) +
-                        "; " + how_to_reduce + " or raise --max-memory",
+                        "; " + how_to_reduce + ", raise --max-memory, or run it anyway with --force",
                     "--max-memory");
 }
 

@@ -28,7 +28,7 @@ std::string FormatBytes(double bytes);
 
 // Throws ConfigError(where = "--max-memory") when `needed_bytes` exceeds
 // `limit_bytes`: "<what> needs about N, over the memory limit of M;
-// <how_to_reduce> or raise --max-memory". Does nothing otherwise.
+// <how_to_reduce>, raise --max-memory, or run it anyway with --force". Does nothing otherwise.
 void CheckMemoryBudget(double needed_bytes, int64_t limit_bytes, const std::string& what,
                        const std::string& how_to_reduce);
 

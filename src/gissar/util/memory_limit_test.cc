@@ -42,7 +42,7 @@ TEST(MemoryLimitTest, BudgetCheckSaysHowToReduceTheJob) {
   } catch (const ConfigError& e) {
     EXPECT_EQ(e.message(),
               "image of 10 x 10 pixels needs about 3.0 GiB, over the memory limit of 1.0 GiB; use "
-              "coarser spacing or raise --max-memory");
+              "coarser spacing, raise --max-memory, or run it anyway with --force");
     EXPECT_EQ(e.where(), "--max-memory");
   }
   EXPECT_EQ(FormatBytes(100), "100 B");

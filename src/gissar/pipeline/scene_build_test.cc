@@ -1,4 +1,4 @@
-#include "gissar/cli/scene_build.h"
+#include "gissar/pipeline/scene_build.h"
 
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/geo/dem.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/material/material.h"
@@ -14,7 +14,7 @@
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 
@@ -51,24 +51,22 @@ std::string GeoJson(const fs::path& path, const std::string& type, std::vector<E
   return path.string();
 }
 
-SceneBuildOptions BuildOptions(const std::string& dem, const std::string& config, const fs::path& out) {
-  SceneBuildOptions o;
+SceneBuildRequest BuildOptions(const std::string& dem, const std::string& config, const fs::path& out) {
+  SceneBuildRequest o;
   o.dem = dem;
   o.config = config;
   o.out_prefix = (out / "scene").string();
-  o.quiet = true;
   return o;
 }
 
 geo::FloatRaster Simulate(const std::string& scene, const fs::path& out, double spacing) {
-  SimulateOptions o;
+  SimulateRequest o;
   o.scene = scene;
   o.geometry.heading_deg = 0.0;
   o.geometry.depression_deg = 40.0;
   o.geometry.range_spacing_m = spacing;
   o.geometry.azimuth_spacing_m = spacing;
   o.out_prefix = (out / "sim").string();
-  o.quiet = true;
   RunSimulate(o, "test");
   return geo::ReadFloatRaster(out / "sim.tif");
 }
@@ -143,12 +141,11 @@ TEST(SceneBuildTest, RoadStripAppearsWhereItsGeometryPredicts) {
 
 TEST(SceneBuildTest, AndorraSceneBuildsAndSimulates) {
   const fs::path dir = testing::MakeTempDir();
-  SceneBuildOptions o;
+  SceneBuildRequest o;
   o.dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   o.vectors = {testing::DataPath("andorra/andorra_osm.gpkg").string()};
   o.out_prefix = (dir / "andorra").string();
   o.export_obj = true;
-  o.quiet = true;
   const SceneBuildResult result = RunSceneBuild(o, "test");
   ASSERT_EQ(result.outputs.size(), 7u);  // .gscene .ply _classes.png _3d.png .json .obj .mtl
   for (const auto& p : result.outputs) EXPECT_GT(fs::file_size(p), 100u) << p;
@@ -225,4 +222,4 @@ TEST(SceneBuildTest, BadVectorInputGivesClearErrorsOrCountedWarnings) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

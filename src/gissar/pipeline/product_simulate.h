@@ -10,17 +10,18 @@
 
 #include <nlohmann/json.hpp>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/util/reporter.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/geo/rslc_product.h"
 #include "gissar/render/product_renderer.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 
-// The rules SimulateOptions::Check applies when `product` is set: the
+// The rules SimulateRequest::Check applies when `product` is set: the
 // trace engine, incoherent, no idealised-geometry options (--center,
-// --center-map, --width, --height, --range-res, --azimuth-res) and no
+// --center-map, --width, --height, --range-spacing, --azimuth-spacing) and no
 // --contributions. Throws ConfigError naming the option.
-void CheckProductOptions(const SimulateOptions& options);
+void CheckProductOptions(const SimulateRequest& options);
 
 // A product simulated in memory: the product (with its real amplitude when
 // read), the terrain description and the rendered image and geolocation.
@@ -35,15 +36,16 @@ struct ProductSimulation {
 
 // Loads options.product and the terrain, renders the product grid and
 // applies the sensor effects. Throws the gissar::Error family.
-ProductSimulation SimulateProduct(const SimulateOptions& options, bool read_amplitude);
+ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude,
+                                  Reporter& reporter = NullReporter());
 
 // `gissar simulate --product`: writes PREFIX.tif (bands total, single,
 // double, triple, four_or_more, lon_deg, lat_deg, height_m on exactly the
 // product's grid), PREFIX_mask.tif, PREFIX.png and PREFIX.json.
-SimulateResult RunProductSimulate(const SimulateOptions& options, const std::string& command_line);
+SimulateResult RunProductSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-struct ValidateOptions {
-  SimulateOptions simulate;                // product, dem/scene, datum, rays, bounces, quiet
+struct ValidateRequest {
+  SimulateRequest simulate;                // product, dem/scene, datum, rays, bounces, quiet
   std::string reference_geolocation;       // directory with x.rdr, y.rdr, z.rdr (optional)
   std::vector<int> looks = {1, 3, 5};      // k of the k x k multilooks
   std::string out_prefix;                  // REPORT.json, .md, _side_by_side.png, _histogram.png
@@ -72,6 +74,6 @@ double MultilookPearson(const std::vector<float>& a, const std::vector<float>& b
 // `gissar validate`: simulates the product, compares with the real
 // amplitude (and the reference geolocation and peer simulation when
 // given) and writes the report files.
-ValidateResult RunValidate(const ValidateOptions& options, const std::string& command_line);
+ValidateResult RunValidate(const ValidateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

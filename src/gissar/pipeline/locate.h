@@ -13,9 +13,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/util/reporter.h"
 #include "gissar/nav/locate.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 
 // Prior/result pose JSON (keys; any other key is a ConfigError naming the
 // key and the file):
@@ -36,7 +37,7 @@ struct PriorPose {
 };
 PriorPose ParsePriorJson(const nlohmann::json& json, const std::string& source);
 
-struct LocateCommandOptions {
+struct LocateRequest {
   std::string image;   // observed image: GeoTIFF (band 1 linear intensity) with GISSAR_* metadata
   std::string scene;   // .gscene (or a DEM with --dem)
   std::string dem;
@@ -57,9 +58,9 @@ struct LocateCommandOptions {
   double rays_per_cell = 4.0;
   void Check() const;
 };
-nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string& command_line);
+nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-struct EvaluateOptions {
+struct EvaluateRequest {
   std::string scene;
   std::string dem;
   int trials = 20;
@@ -84,13 +85,12 @@ struct EvaluateOptions {
   int polish_evaluations = 0;
   int bounces = 1;
   double rays_per_cell = 4.0;
-  bool quiet = false;
   void Check() const;
 };
 // Returns the summary JSON (also written to PREFIX.json).
-nlohmann::json RunEvaluate(const EvaluateOptions& options, const std::string& command_line);
+nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-struct MatchPairOptions {
+struct MatchPairRequest {
   std::string fixed, moving;  // two co-registered images (GDAL), band 1 linear intensity
   std::vector<double> warp = {1.5, 1.02, 3.3, -2.7};  // rotation deg, scale, tx px, ty px (about the centre)
   std::string out;            // JSON
@@ -100,6 +100,6 @@ struct MatchPairOptions {
 // Warps `moving` by the known affine map, matches `fixed` to it with every
 // matcher, fits an affine map (RANSAC) and reports the RMS difference to the
 // known warp over all pixels. Returns the JSON written to `out`.
-nlohmann::json RunMatchPair(const MatchPairOptions& options, const std::string& command_line);
+nlohmann::json RunMatchPair(const MatchPairRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

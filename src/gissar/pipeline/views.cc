@@ -1,4 +1,4 @@
-#include "gissar/cli/views.h"
+#include "gissar/pipeline/views.h"
 
 #include <cmath>
 #include <cstdio>
@@ -17,7 +17,7 @@
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -31,7 +31,7 @@ std::string FrameSuffix(int i) {
 
 }  // namespace
 
-void SequenceOptions::Check() const {
+void SequenceRequest::Check() const {
   base.Check();
   if (!std::isfinite(heading_from_deg)) throw ConfigError("heading must be finite", "--heading-from");
   if (!std::isfinite(heading_to_deg)) throw ConfigError("heading must be finite", "--heading-to");
@@ -39,7 +39,7 @@ void SequenceOptions::Check() const {
   if (frame_delay_cs < 1 || frame_delay_cs > 6000) throw ConfigError("frame delay must be in [1, 6000] cs", "--frame-delay");
 }
 
-json SequenceOptions::ToJson() const {
+json SequenceRequest::ToJson() const {
   json j = base.ToJson();
   j.erase("heading_deg");
   j["heading_from_deg"] = heading_from_deg;
@@ -49,7 +49,7 @@ json SequenceOptions::ToJson() const {
   return j;
 }
 
-SequenceResult RunSequence(const SequenceOptions& options, const std::string& command_line) {
+SequenceResult RunSequence(const SequenceRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
   const std::string& prefix = options.base.out_prefix;
@@ -82,8 +82,7 @@ SequenceResult RunSequence(const SequenceOptions& options, const std::string& co
     height = std::max(height, covering.height());
     frame_options.push_back(g);
   }
-  render::RenderOptions render_options = RenderOptionsOf(options.base);
-  render_options.show_progress = false;
+  render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
   std::vector<std::vector<uint8_t>> grey_frames;
   std::vector<std::string> captions;
   image::DbStretch stretch;
@@ -97,9 +96,12 @@ SequenceResult RunSequence(const SequenceOptions& options, const std::string& co
     render::SarImage image = render::RenderSar(embree, terrain.mesh, terrain.materials, geometry, render_options);
     ApplySensorEffects(image, options.base, geometry);
     result.frame_seconds.push_back(frame_watch.ElapsedSeconds());
-    if (!options.base.quiet) {
-      std::fprintf(stderr, "sequence: frame %d/%d heading %.2f deg in %.2f s\n", i + 1, options.frames,
-                   g.heading_deg, result.frame_seconds.back());
+    {
+      char line[128];
+      std::snprintf(line, sizeof(line), "sequence: frame %d/%d heading %.2f deg in %.2f s", i + 1, options.frames,
+                    g.heading_deg, result.frame_seconds.back());
+      reporter.Info(line);
+      ThrowIfCancelled(reporter, "sequence");
     }
     geo::Metadata metadata;
     for (const auto& [k, v] : geometry.ToMetadata()) metadata[k] = v;
@@ -141,14 +143,14 @@ SequenceResult RunSequence(const SequenceOptions& options, const std::string& co
   return result;
 }
 
-void OrthoOptions::Check() const {
+void OrthoRequest::Check() const {
   base.Check();
   if (base.geometry.mode != sensor::ProjectionMode::kAffine) {
     throw ConfigError("ortho views use the affine model: --mode affine", "--mode");
   }
 }
 
-std::vector<fs::path> RunOrtho(const OrthoOptions& options, const std::string& command_line) {
+std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   const std::string& prefix = options.base.out_prefix;
   AtomicOutputs outputs;
@@ -177,7 +179,7 @@ std::vector<fs::path> RunOrtho(const OrthoOptions& options, const std::string& c
   const render::OrthoImage los = render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kLineOfSight, colour);
   const render::OrthoImage gperp =
       render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kSlantRangeNormal, colour);
-  const render::RenderOptions render_options = RenderOptionsOf(options.base);
+  const render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
   render::SarImage sar = render::RenderSar(embree, terrain.mesh, terrain.materials, geometry, render_options);
   ApplySensorEffects(sar, options.base, geometry);
   const image::RgbImage sar_rgb = image::GreyToRgb(image::DbQuicklook(sar.intensity, 2.0, 98.0), sar.width, sar.height);
@@ -203,4 +205,4 @@ std::vector<fs::path> RunOrtho(const OrthoOptions& options, const std::string& c
   return outputs.final_paths();
 }
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

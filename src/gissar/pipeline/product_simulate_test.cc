@@ -1,4 +1,4 @@
-#include "gissar/cli/product_simulate.h"
+#include "gissar/pipeline/product_simulate.h"
 
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 
 using testing::DataPath;
@@ -43,10 +43,9 @@ TEST(MultilookPearsonTest, HandComputedCases) {
 // script on the raw files); gissar reaches 0.043 and 0.086 there.
 TEST(ValidateTest, WinnipegGeolocationAndCorrelation) {
   const auto dir = MakeTempDir();
-  ValidateOptions o;
+  ValidateRequest o;
   o.simulate.product = DataPath("uavsar/winnipeg.h5").string();
   o.simulate.dem = DataPath("uavsar/winnipeg_dem.tif").string();
-  o.simulate.quiet = true;
   o.reference_geolocation = DataPath("uavsar/topo_winnipeg").string();
   o.out_prefix = (dir / "winnipeg").string();
   const ValidateResult r = RunValidate(o, "test");
@@ -73,10 +72,9 @@ TEST(ValidateTest, WinnipegGeolocationAndCorrelation) {
 // with the 1" posts as given: docs/geometry.md).
 TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
   const auto dir = MakeTempDir();
-  SimulateOptions s;
+  SimulateRequest s;
   s.product = DataPath("uavsar/SanAnd_129.h5").string();
   s.dem = DataPath("uavsar/SanAnd_dem.tif").string();
-  s.quiet = true;
   s.out_prefix = (dir / "sim").string();
   const SimulateResult sr = RunSimulate(s, "test");
   EXPECT_EQ(sr.width, 200);
@@ -91,7 +89,7 @@ TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
     EXPECT_GT(raster.bands[6][k], 34.1401);
     EXPECT_LT(raster.bands[6][k], 34.2102);
   }
-  ValidateOptions o;
+  ValidateRequest o;
   o.simulate = s;
   o.simulate.out_prefix.clear();
   o.simulate.dem_oversample = 4;
@@ -103,7 +101,7 @@ TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
 }
 
 TEST(ValidateTest, RejectsBadOptions) {
-  ValidateOptions o;
+  ValidateRequest o;
   o.out_prefix = "/tmp/x";
   o.simulate.dem = "d.tif";
   EXPECT_THROW(o.Check(), ConfigError);  // no product
@@ -119,4 +117,4 @@ TEST(ValidateTest, RejectsBadOptions) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

@@ -1,4 +1,4 @@
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 
 #include <gtest/gtest.h>
 
@@ -9,12 +9,12 @@
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 
-SimulateOptions AndorraOptions(const fs::path& out_dir, double heading) {
-  SimulateOptions o;
+SimulateRequest AndorraOptions(const fs::path& out_dir, double heading) {
+  SimulateRequest o;
   o.dem = testing::DataPath("andorra/andorra_srtm3_dem_raw.tif").string();
   o.fill_nodata = true;
   o.geometry.heading_deg = heading;
@@ -22,13 +22,12 @@ SimulateOptions AndorraOptions(const fs::path& out_dir, double heading) {
   o.geometry.range_spacing_m = 150.0;
   o.geometry.azimuth_spacing_m = 150.0;
   o.out_prefix = (out_dir / ("andorra_" + std::to_string(int(heading)))).string();
-  o.quiet = true;
   return o;
 }
 
 TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   const fs::path dir = testing::MakeTempDir();
-  const SimulateOptions options = AndorraOptions(dir, 30.0);
+  const SimulateRequest options = AndorraOptions(dir, 30.0);
   const SimulateResult result = RunSimulate(options, "gissar simulate (test)");
   ASSERT_EQ(result.outputs.size(), 5u);
   for (const auto& p : result.outputs) EXPECT_TRUE(fs::exists(p)) << p;
@@ -94,7 +93,7 @@ TEST(SimulateTest, SameInputsGiveIdenticalImages) {
 
 TEST(SimulateTest, FailureLeavesNoOutput) {
   const fs::path dir = testing::MakeTempDir();
-  SimulateOptions options = AndorraOptions(dir, 0.0);
+  SimulateRequest options = AndorraOptions(dir, 0.0);
   options.fill_nodata = false;  // the raw DEM has voids
   EXPECT_THROW(RunSimulate(options, ""), InputError);
   EXPECT_TRUE(fs::is_empty(dir));
@@ -103,7 +102,7 @@ TEST(SimulateTest, FailureLeavesNoOutput) {
 TEST(SimulateTest, OutputMayNotOverwriteTheDem) {
   const fs::path dir = testing::MakeTempDir();
   fs::copy_file(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"), dir / "dem.tif");
-  SimulateOptions options = AndorraOptions(dir, 0.0);
+  SimulateRequest options = AndorraOptions(dir, 0.0);
   options.dem = (dir / "dem.tif").string();
   options.out_prefix = (dir / "dem").string();
   EXPECT_THROW(options.Check(), ConfigError);
@@ -114,7 +113,7 @@ TEST(SimulateTest, OutputMayNotOverwriteTheDem) {
 // brightest return; bad combinations and rows are errors naming the input.
 TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
   const fs::path dir = testing::MakeTempDir();
-  SimulateOptions base = AndorraOptions(dir, 30.0);
+  SimulateRequest base = AndorraOptions(dir, 30.0);
   base.radiometry = "gamma0";
   RunSimulate(base, "");
   nlohmann::json provenance;
@@ -131,7 +130,7 @@ TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
   const fs::path csv = dir / "reflectors.csv";
   std::ofstream(csv) << "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n"
                      << "trihedral," << std::setprecision(12) << lon << "," << lat << ",0.5,3,300,40\n";
-  SimulateOptions coherent = AndorraOptions(dir, 30.0);
+  SimulateRequest coherent = AndorraOptions(dir, 30.0);
   coherent.out_prefix = (dir / "coherent").string();
   coherent.coherent = true;
   coherent.reflectors = csv.string();
@@ -148,7 +147,7 @@ TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
   // sigma0 = beta0 sin(50 deg) = 12.02: 10.80 dB.
   EXPECT_NEAR(peak, 10.80, 0.05);
 
-  SimulateOptions bad = coherent;
+  SimulateRequest bad = coherent;
   bad.speckle_looks = 4.0;
   EXPECT_THROW(bad.Check(), ConfigError);
   std::ofstream(csv) << "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n"
@@ -162,7 +161,7 @@ TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
   }
   const fs::path materials = dir / "materials.json";
   std::ofstream(materials) << R"({"water": {"wind_speed_m_s": 5}})";
-  SimulateOptions dem_materials = AndorraOptions(dir, 30.0);
+  SimulateRequest dem_materials = AndorraOptions(dir, 30.0);
   dem_materials.out_prefix = (dir / "m").string();
   dem_materials.materials = materials.string();
   EXPECT_THROW(RunSimulate(dem_materials, ""), ConfigError);
@@ -176,4 +175,4 @@ TEST(SimulateTest, ParsesNumberPairs) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

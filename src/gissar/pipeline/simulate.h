@@ -1,4 +1,4 @@
-// `gissar simulate`: DEM in, SAR image out. SimulateOptions is the single
+// `gissar simulate`: DEM in, SAR image out. SimulateRequest is the single
 // source of truth for the command's flags, its JSON provenance and (later)
 // config files and Python.
 #pragma once
@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "gissar/util/reporter.h"
 #include "gissar/geo/dem.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/material/material.h"
@@ -23,10 +24,11 @@
 #include "gissar/sensor/sar_geometry.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/memory_limit.h"
+#include "gissar/util/progress.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 
-struct SimulateOptions {
+struct SimulateRequest {
   std::string dem;                               // DEM raster (any GDAL format)
   std::string scene;                             // or a scene built by `gissar scene build`
   // A real product (NISAR RSLC HDF5): render on its radar grid with its
@@ -79,7 +81,6 @@ struct SimulateOptions {
   // writes PREFIX.tif, PREFIX.png, PREFIX_quicklook.png, PREFIX_mask.tif,
   // PREFIX.json and, in coherent mode, PREFIX_slc.tif (CFloat32)
   std::string out_prefix;
-  bool quiet = false;      // no progress on stderr
   // Memory budget (--max-memory), bytes: the DEM (or scene) and the image
   // are checked against it before they are allocated, and a job over it
   // fails with a ConfigError saying how to reduce it.
@@ -89,7 +90,14 @@ struct SimulateOptions {
   // range before any file is read (spacings may still be 0 = automatic),
   // and when an output (PREFIX.* or --contributions) would overwrite an input.
   void Check() const;
+  // The request as {snake_case name: value}: the provenance record, the
+  // keys of --options files and the Python keywords (docs/conventions.md).
   nlohmann::json ToJson() const;
+  // Sets the fields named by `values` (the keys ToJson writes; null keeps
+  // the default). Throws ConfigError naming the key and `source` for an
+  // unknown key or a value of the wrong type. ApplyJson(ToJson()) is the
+  // identity.
+  void ApplyJson(const nlohmann::json& values, const std::string& source);
 };
 
 struct SimulateResult {
@@ -119,35 +127,35 @@ struct Terrain {
 // The reflectors of options.reflectors placed on the terrain surface in
 // `embree` (apex = surface height at lon, lat + apex_height_m), ENU.
 // Throws InputError naming the file and row for a reflector off the terrain.
-std::vector<render::SceneReflector> PlaceReflectors(const SimulateOptions& options, const Terrain& terrain,
+std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
                                                     const render::EmbreeScene& embree);
 
 // Loads options.dem or options.scene; the centre follows --center /
 // --center-map for DEMs. With engine "raster" a DEM's mesh holds only its
 // posts (no triangles). Throws the gissar::Error family.
-Terrain LoadTerrain(const SimulateOptions& options);
+Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter = NullReporter());
 
 // For scenes: moves the centre to options.center_lonlat on the scene's
 // surface (found by a vertical ray). Throws ConfigError when it is outside.
 void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree,
-                      const SimulateOptions& options);
+                      const SimulateRequest& options);
 
 // The geometry options with automatic (0) pixel spacings resolved to the
 // terrain's post spacing.
-sensor::SarGeometryOptions ResolvedGeometry(const SimulateOptions& options, const Terrain& terrain);
+sensor::SarGeometryOptions ResolvedGeometry(const SimulateRequest& options, const Terrain& terrain);
 
 // Ellipsoid incidence (degrees) of every image column (SarGeometry::IncidenceDeg).
 std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry);
 
 // Impulse response, speckle and thermal noise of the options, in that
 // order, then the output radiometry (image::ApplySensorEffects).
-void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
+void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry);
 
 // The tracer's options of a simulation: rays per cell, bounces, coherence,
 // wavelength, seed, contributions (when options.contributions is set) and
-// progress (unless quiet). The one place SimulateOptions map to the tracer.
-render::RenderOptions RenderOptionsOf(const SimulateOptions& options);
+// progress (unless quiet). The one place SimulateRequest map to the tracer.
+render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* reporter = nullptr);
 
 // A simulated image before anything is written: the terrain it was rendered
 // from, the geometry (automatic spacings resolved, covering the terrain),
@@ -163,17 +171,36 @@ struct SimulatedImage {
 // Loads the terrain, places the scene centre, resolves and checks the
 // geometry against the memory budget, renders with options.engine and
 // applies the sensor effects: everything RunSimulate does short of writing
-// (the Python binding calls it too, so both give the same bits). `say`
-// receives progress lines (may be empty). Throws the gissar::Error family;
+// (the Python binding calls it too, so both give the same bits). Progress,
+// information lines and cancellation go through `reporter`. Throws the gissar::Error family;
 // options must have passed Check(). Not for options.product.
-SimulatedImage SimulateImage(const SimulateOptions& options,
-                             const std::function<void(const std::string&)>& say = {});
+SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter = NullReporter());
 
-// Runs the whole job. Every output is written under a temporary name and
+// The files a simulation writes, reserved (AtomicOutputs::Add) before any
+// work so that a missing or read-only directory fails first.
+struct SimulationOutputs {
+  AtomicOutputs files;
+  std::filesystem::path tif, png, annotated_png, mask_tif, json, contributions_csv, slc_tif;
+};
+// Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _slc.tif in
+// coherent mode and the contributions CSV when asked. Throws IoError for a missing or read-only
+// directory.
+void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& outputs);
+
+// The writing step: the GeoTIFF (total + per-bounce bands, geometry
+// metadata), quicklooks, mask, contributions and the provenance sidecar of
+// `simulated`, committed together (nothing is left on failure). `total`
+// started with the job (for the recorded timings).
+SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& simulated,
+                               const std::string& command_line, SimulationOutputs& reserved,
+                               const Stopwatch& total);
+
+// Runs the whole job: ReserveSimulationOutputs, SimulateImage,
+// WriteSimulation. Every output is written under a temporary name and
 // renamed only when all of them succeeded. Throws the gissar::Error family
 // (InputError, ConfigError, IoError) with context on failure, leaving no
 // output behind. `command_line` is recorded in the provenance JSON.
-SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line);
+SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 // Pixel counts of a layover/shadow mask by code, for provenance:
 // {"none", "layover", "shadow", "layover_and_shadow"}.
@@ -190,4 +217,4 @@ SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenan
 // Parses "A,B" into two finite numbers; throws ConfigError naming `option`.
 Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option);
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

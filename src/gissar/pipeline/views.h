@@ -8,14 +8,15 @@
 
 #include <nlohmann/json.hpp>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/util/reporter.h"
+#include "gissar/pipeline/simulate.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 
-struct SequenceOptions {
+struct SequenceRequest {
   // Terrain, depression, range, spacings, sensor effects; its heading is
   // replaced by each frame's and its out_prefix names the sequence.
-  SimulateOptions base;
+  SimulateRequest base;
   double heading_from_deg = 0.0;
   double heading_to_deg = 30.0;
   int frames = 7;           // >= 2, headings evenly spaced, both ends included
@@ -37,10 +38,10 @@ struct SequenceResult {
 // scene, into frames of a common size centred on the scene centre. Writes
 // PREFIX_fNN.tif (float32) and PREFIX_fNN.png per frame (one dB stretch:
 // the first frame's), PREFIX_contact.png, PREFIX.gif and PREFIX.json.
-SequenceResult RunSequence(const SequenceOptions& options, const std::string& command_line);
+SequenceResult RunSequence(const SequenceRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-struct OrthoOptions {
-  SimulateOptions base;     // terrain, heading, depression, spacings
+struct OrthoRequest {
+  SimulateRequest base;     // terrain, heading, depression, spacings
   std::string orthophoto;   // optional RGB raster draped instead of class colours
 
   void Check() const;
@@ -51,6 +52,6 @@ struct OrthoOptions {
 // quicklook), PREFIX_gperp.png (the virtual camera G_perp normal to the
 // slant-range plane, on the SAR image's pixel grid), PREFIX_trio.png (side
 // by side) and PREFIX.json. Throws the gissar::Error family.
-std::vector<std::filesystem::path> RunOrtho(const OrthoOptions& options, const std::string& command_line);
+std::vector<std::filesystem::path> RunOrtho(const OrthoRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

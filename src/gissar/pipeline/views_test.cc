@@ -1,4 +1,4 @@
-#include "gissar/cli/views.h"
+#include "gissar/pipeline/views.h"
 
 #include <gif_lib.h>
 #include <gtest/gtest.h>
@@ -7,24 +7,23 @@
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 
-SimulateOptions Andorra(const fs::path& dir) {
-  SimulateOptions o;
+SimulateRequest Andorra(const fs::path& dir) {
+  SimulateRequest o;
   o.dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   o.geometry.depression_deg = 40.0;
   o.geometry.range_spacing_m = 200.0;
   o.geometry.azimuth_spacing_m = 200.0;
   o.out_prefix = (dir / "seq").string();
-  o.quiet = true;
   return o;
 }
 
 TEST(SequenceTest, RendersEveryHeadingFromOneSceneBuild) {
   const fs::path dir = testing::MakeTempDir();
-  SequenceOptions o;
+  SequenceRequest o;
   o.base = Andorra(dir);
   o.heading_from_deg = 0;
   o.heading_to_deg = 30;
@@ -52,7 +51,7 @@ TEST(SequenceTest, RendersEveryHeadingFromOneSceneBuild) {
 }
 
 TEST(SequenceTest, RejectsTooFewFrames) {
-  SequenceOptions o;
+  SequenceRequest o;
   o.base = Andorra(testing::MakeTempDir());
   o.frames = 1;
   EXPECT_THROW(o.Check(), ConfigError);
@@ -60,7 +59,7 @@ TEST(SequenceTest, RejectsTooFewFrames) {
 
 TEST(OrthoTest, WritesTheTrio) {
   const fs::path dir = testing::MakeTempDir();
-  OrthoOptions o;
+  OrthoRequest o;
   o.base = Andorra(dir);
   o.base.out_prefix = (dir / "ortho").string();
   o.base.geometry.heading_deg = 30;
@@ -75,4 +74,4 @@ TEST(OrthoTest, WritesTheTrio) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

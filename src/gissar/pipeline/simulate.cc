@@ -1,6 +1,6 @@
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 
-#include "gissar/cli/product_simulate.h"
+#include "gissar/pipeline/product_simulate.h"
 
 #include <cmath>
 #include <memory>
@@ -26,7 +26,7 @@
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace fs = std::filesystem;
 
 Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option) {
@@ -41,7 +41,7 @@ Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& opti
   return {a, b};
 }
 
-void SimulateOptions::Check() const {
+void SimulateRequest::Check() const {
   if (dem.empty() == scene.empty()) {
     throw ConfigError("give exactly one terrain: a DEM or a scene", "--dem/--scene");
   }
@@ -110,7 +110,7 @@ void SimulateOptions::Check() const {
   CheckOutputsAreNotInputs(outs, {dem, scene, product, materials, reflectors});
 }
 
-nlohmann::json SimulateOptions::ToJson() const {
+nlohmann::json SimulateRequest::ToJson() const {
   nlohmann::json j;
   j["dem"] = dem;
   j["scene"] = scene;
@@ -149,9 +149,84 @@ nlohmann::json SimulateOptions::ToJson() const {
   j["nesz_db"] = std::isnan(nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(nesz_db);
   j["seed"] = seed;
   j["out_prefix"] = out_prefix;
-  j["quiet"] = quiet;
   j["max_memory_bytes"] = max_memory_bytes;
   return j;
+}
+
+namespace {
+
+// Reads `value` into `field`; ConfigError naming `key` and `source` when the
+// JSON type does not fit.
+template <class T>
+void Assign(T& field, const nlohmann::json& value, const std::string& key, const std::string& source) {
+  try {
+    field = value.get<T>();
+  } catch (const nlohmann::json::exception&) {
+    throw ConfigError("key '" + key + "' has a value of the wrong type: " + value.dump(), source);
+  }
+}
+
+std::optional<Eigen::Vector2d> PairOrNull(const nlohmann::json& value, const std::string& key,
+                                          const std::string& source) {
+  if (value.is_null()) return std::nullopt;
+  std::vector<double> v;
+  Assign(v, value, key, source);
+  if (v.size() != 2) throw ConfigError("key '" + key + "' needs two numbers", source);
+  return Eigen::Vector2d(v[0], v[1]);
+}
+
+}  // namespace
+
+void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
+  for (const auto& [key, value] : values.items()) {
+    auto set = [&](auto& field) { Assign(field, value, key, source); };
+    if (key == "dem") set(dem);
+    else if (key == "scene") set(scene);
+    else if (key == "product") set(product);
+    else if (key == "vertical_datum") set(vertical_datum);
+    else if (key == "dem_oversample") set(dem_oversample);
+    else if (key == "fill_nodata") set(fill_nodata);
+    else if (key == "center_lonlat") center_lonlat = PairOrNull(value, key, source);
+    else if (key == "center_map") center_map = PairOrNull(value, key, source);
+    else if (key == "heading_deg") set(geometry.heading_deg);
+    else if (key == "depression_deg") set(geometry.depression_deg);
+    else if (key == "look_side") {
+      std::string text;
+      set(text);
+      geometry.look_side = sensor::ParseLookSide(text);
+    } else if (key == "slant_range_m") set(geometry.slant_range_m);
+    else if (key == "range_spacing_m") set(geometry.range_spacing_m);
+    else if (key == "azimuth_spacing_m") set(geometry.azimuth_spacing_m);
+    else if (key == "mode") {
+      std::string text;
+      set(text);
+      geometry.mode = sensor::ParseProjectionMode(text);
+    } else if (key == "width") set(geometry.width);
+    else if (key == "height") set(geometry.height);
+    else if (key == "engine") set(engine);
+    else if (key == "rays_per_cell") set(rays_per_cell);
+    else if (key == "bounces") set(bounces);
+    else if (key == "coherent") set(coherent);
+    else if (key == "wavelength_m") set(wavelength_m);
+    else if (key == "polarization") set(polarization);
+    else if (key == "radiometry") set(radiometry);
+    else if (key == "db") set(db);
+    else if (key == "materials") set(materials);
+    else if (key == "reflectors") set(reflectors);
+    else if (key == "contributions") set(contributions);
+    else if (key == "range_resolution_m") set(range_resolution_m);
+    else if (key == "azimuth_resolution_m") set(azimuth_resolution_m);
+    else if (key == "psf_window") set(psf_window);
+    else if (key == "speckle_looks") set(speckle_looks);
+    else if (key == "nesz_db") {
+      if (value.is_null()) nesz_db = std::numeric_limits<double>::quiet_NaN();
+      else set(nesz_db);
+    } else if (key == "seed") set(seed);
+    else if (key == "out_prefix") set(out_prefix);
+    else if (key == "max_memory_bytes") set(max_memory_bytes);
+    else throw ConfigError("unknown key '" + key + "'", source);
+  }
 }
 
 namespace {
@@ -167,7 +242,7 @@ constexpr double kBytesPerSceneFileByte = 5.0;
 // accumulation bands (as much again), mask, quicklook and writing buffers.
 constexpr double kBytesPerImagePixel = 64.0;
 
-Terrain TerrainFromDem(const SimulateOptions& options) {
+Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
   read_options.max_bytes = options.max_memory_bytes;
@@ -177,8 +252,8 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   dem = geo::RefineDem(dem, options.dem_oversample,
                        static_cast<int64_t>(double(options.max_memory_bytes) / kBytesPerDemPost));
   if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
-  if (dem.filled_nodata_cells > 0 && !options.quiet) {
-    std::fprintf(stderr, "simulate: filled %lld no-data cells\n", static_cast<long long>(dem.filled_nodata_cells));
+  if (dem.filled_nodata_cells > 0) {
+    reporter.Info("simulate: filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
   }
   Terrain t;
   t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
@@ -206,7 +281,7 @@ Terrain TerrainFromDem(const SimulateOptions& options) {
   return t;
 }
 
-Terrain TerrainFromScene(const SimulateOptions& options) {
+Terrain TerrainFromScene(const SimulateRequest& options) {
   std::error_code ec;
   const auto file_bytes = fs::file_size(options.scene, ec);
   if (!ec) {
@@ -250,8 +325,8 @@ void WriteContributions(const fs::path& path, const std::vector<render::Contribu
 
 }  // namespace
 
-Terrain LoadTerrain(const SimulateOptions& options) {
-  Terrain t = options.scene.empty() ? TerrainFromDem(options) : TerrainFromScene(options);
+Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter) {
+  Terrain t = options.scene.empty() ? TerrainFromDem(options, reporter) : TerrainFromScene(options);
   if (!options.materials.empty()) {
     const nlohmann::json file = material::ReadMaterialsFile(options.materials);
     for (const auto& [name, fields] : file.items()) {
@@ -270,7 +345,7 @@ Terrain LoadTerrain(const SimulateOptions& options) {
   return t;
 }
 
-void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const SimulateOptions& options) {
+void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const SimulateRequest& options) {
   if (options.scene.empty() || !(options.center_lonlat || options.center_map)) return;
   if (options.center_map) throw ConfigError("a scene's centre is given as --center LON,LAT", "--center-map");
   const Eigen::Vector3d top = terrain.frame.EnuFromGeodetic(
@@ -283,7 +358,7 @@ void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const
                     terrain.frame.GeodeticFromEnu(terrain.centre_enu).z()};
 }
 
-std::vector<render::SceneReflector> PlaceReflectors(const SimulateOptions& options, const Terrain& terrain,
+std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
                                                     const render::EmbreeScene& embree) {
   std::vector<render::SceneReflector> out;
   if (options.reflectors.empty()) return out;
@@ -307,7 +382,7 @@ std::vector<render::SceneReflector> PlaceReflectors(const SimulateOptions& optio
   return out;
 }
 
-sensor::SarGeometryOptions ResolvedGeometry(const SimulateOptions& options, const Terrain& terrain) {
+sensor::SarGeometryOptions ResolvedGeometry(const SimulateRequest& options, const Terrain& terrain) {
   sensor::SarGeometryOptions g = options.geometry;
   if (g.range_spacing_m == 0.0) g.range_spacing_m = terrain.post_spacing_m;
   if (g.azimuth_spacing_m == 0.0) g.azimuth_spacing_m = terrain.post_spacing_m;
@@ -320,7 +395,7 @@ std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry) {
   return incidence;
 }
 
-void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
+void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry) {
   image::SensorEffects effects;
   effects.range_resolution_px = options.range_resolution_m / geometry.range_spacing_m();
@@ -335,7 +410,7 @@ void ApplySensorEffects(render::SarImage& image, const SimulateOptions& options,
   image::ApplySensorEffects(image, effects, ColumnIncidenceDeg(geometry));
 }
 
-render::RenderOptions RenderOptionsOf(const SimulateOptions& options) {
+render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* reporter) {
   render::RenderOptions r;
   r.rays_per_cell = options.rays_per_cell;
   r.max_bounces = options.bounces;
@@ -344,17 +419,16 @@ render::RenderOptions RenderOptionsOf(const SimulateOptions& options) {
   r.polarization = material::ParsePolarization(options.polarization, "--polarization");
   r.seed = options.seed;
   r.record_contributions = !options.contributions.empty();
-  r.show_progress = !options.quiet;
+  r.reporter = reporter;
   return r;
 }
 
-SimulatedImage SimulateImage(const SimulateOptions& options,
-                             const std::function<void(const std::string&)>& say) {
+SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter) {
   SimulatedImage out;
   Stopwatch step;
   // The terrain: a DEM (bare terrain, unit Lambertian class 0) or a GIS
   // scene (classes and their materials, frame and centre stored with it).
-  out.terrain = LoadTerrain(options);
+  out.terrain = LoadTerrain(options, reporter);
   out.timings_s["terrain"] = step.ElapsedSeconds();
   Terrain& terrain = out.terrain;
   const scene::TriangleMesh& mesh = terrain.mesh;
@@ -376,9 +450,9 @@ SimulatedImage SimulateImage(const SimulateOptions& options,
                     options.max_memory_bytes,
                     "image of " + std::to_string(geometry.width()) + " x " +
                         std::to_string(geometry.height()) + " pixels",
-                    "use coarser --range-res/--azimuth-res, a smaller --width/--height");
-  if (say) {
-    say("image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
+                    "use coarser --range-spacing/--azimuth-spacing, a smaller --width/--height");
+  {
+    reporter.Info("simulate: image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
         " pixels, " +
         (raster_engine ? std::to_string(int64_t(terrain.grid_width - 1) * (terrain.grid_height - 1)) + " DEM cells"
                        : std::to_string(mesh.triangle_count()) + " triangles"));
@@ -388,7 +462,7 @@ SimulatedImage SimulateImage(const SimulateOptions& options,
                                                       material::ParsePolarization(options.polarization,
                                                                                   "--polarization"))
                             : [&] {
-                                render::RenderOptions ro = RenderOptionsOf(options);
+                                render::RenderOptions ro = RenderOptionsOf(options, &reporter);
                                 ro.reflectors = PlaceReflectors(options, terrain, *embree);
                                 return render::RenderSar(*embree, mesh, terrain.materials, geometry, ro);
                               }();
@@ -401,28 +475,39 @@ SimulatedImage SimulateImage(const SimulateOptions& options,
   return out;
 }
 
-SimulateResult RunSimulate(const SimulateOptions& options, const std::string& command_line) {
+void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& o) {
+  o.tif = o.files.Add(options.out_prefix + ".tif");
+  o.png = o.files.Add(options.out_prefix + ".png");
+  o.annotated_png = o.files.Add(options.out_prefix + "_quicklook.png");
+  o.mask_tif = o.files.Add(options.out_prefix + "_mask.tif");
+  o.json = o.files.Add(options.out_prefix + ".json");
+  if (options.coherent) o.slc_tif = o.files.Add(options.out_prefix + "_slc.tif");
+  if (!options.contributions.empty()) o.contributions_csv = o.files.Add(options.contributions);
+}
+
+SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
-  if (!options.product.empty()) return RunProductSimulate(options, command_line);
+  if (!options.product.empty()) return RunProductSimulate(options, command_line, reporter);
   Stopwatch total;
-  nlohmann::json timings;
-  auto say = [&](const std::string& line) {
-    if (!options.quiet) std::fprintf(stderr, "simulate: %s\n", line.c_str());
-  };
-
   // Reserve every output first: a missing or read-only directory fails now.
-  AtomicOutputs outputs;
-  const fs::path tif = outputs.Add(options.out_prefix + ".tif");
-  const fs::path png = outputs.Add(options.out_prefix + ".png");
-  const fs::path annotated_png = outputs.Add(options.out_prefix + "_quicklook.png");
-  const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
-  const fs::path json = outputs.Add(options.out_prefix + ".json");
-  const fs::path slc_tif = options.coherent ? outputs.Add(options.out_prefix + "_slc.tif") : fs::path();
-  const fs::path contributions_csv =
-      options.contributions.empty() ? fs::path() : outputs.Add(options.contributions);
+  SimulationOutputs outputs;
+  ReserveSimulationOutputs(options, outputs);
+  SimulatedImage simulated = SimulateImage(options, reporter);
+  return WriteSimulation(options, simulated, command_line, outputs, total);
+}
 
-  SimulatedImage simulated = SimulateImage(options, say);
-  timings = simulated.timings_s;
+SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& simulated,
+                               const std::string& command_line, SimulationOutputs& reserved,
+                               const Stopwatch& total) {
+  AtomicOutputs& outputs = reserved.files;
+  const fs::path& tif = reserved.tif;
+  const fs::path& png = reserved.png;
+  const fs::path& annotated_png = reserved.annotated_png;
+  const fs::path& mask_tif = reserved.mask_tif;
+  const fs::path& json = reserved.json;
+  const fs::path& contributions_csv = reserved.contributions_csv;
+  const fs::path& slc_tif = reserved.slc_tif;
+  nlohmann::json timings = simulated.timings_s;
   Stopwatch step;
   const Terrain& terrain = simulated.terrain;
   const scene::TriangleMesh& mesh = terrain.mesh;
@@ -571,4 +656,4 @@ SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenan
   return result;
 }
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

@@ -1,4 +1,4 @@
-#include "gissar/cli/locate.h"
+#include "gissar/pipeline/locate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +10,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/composite.h"
 #include "gissar/image/contact_sheet.h"
@@ -23,7 +23,7 @@
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace fs = std::filesystem;
 namespace {
 
@@ -88,12 +88,11 @@ scene::TriangleMesh SmoothedTerrain(const scene::TriangleMesh& mesh, double lamb
   return out;
 }
 
-SimulateOptions TerrainOptions(const std::string& scene, const std::string& dem) {
-  SimulateOptions so;
+SimulateRequest TerrainOptions(const std::string& scene, const std::string& dem) {
+  SimulateRequest so;
   so.scene = scene;
   so.dem = dem;
   so.fill_nodata = true;
-  so.quiet = true;
   return so;
 }
 
@@ -170,21 +169,21 @@ PriorPose ParsePriorJson(const nlohmann::json& json, const std::string& source) 
   return p;
 }
 
-void LocateCommandOptions::Check() const {
+void LocateRequest::Check() const {
   CheckSceneOrDem(scene, dem);
   if (image.empty()) throw ConfigError("required", "--image");
   if (prior.empty()) throw ConfigError("required", "--prior");
   if (out.empty()) throw ConfigError("required", "--out");
   nav::ParseMatcher(matcher, "--matcher");
   if (!look.empty()) sensor::ParseLookSide(look);
-  if (range_spacing_m < 0 || azimuth_spacing_m < 0) throw ConfigError("must be > 0", "--range-res/--azimuth-res");
+  if (range_spacing_m < 0 || azimuth_spacing_m < 0) throw ConfigError("must be > 0", "--range-spacing/--azimuth-spacing");
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
   if (search_px < 5) throw ConfigError("must be >= 5", "--search");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
   CheckOutputsAreNotInputs({out, composite_png}, {image, scene, dem, prior});
 }
 
-nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string& command_line) {
+nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
   AtomicOutputs outputs;
@@ -213,12 +212,12 @@ nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string&
   model.azimuth_spacing_m = options.azimuth_spacing_m;
   if (model.range_spacing_m == 0.0) {
     const auto v = meta("GISSAR_RANGE_SPACING_M");
-    if (!v) throw ConfigError("the image has no GISSAR_RANGE_SPACING_M: give --range-res", options.image);
+    if (!v) throw ConfigError("the image has no GISSAR_RANGE_SPACING_M: give --range-spacing", options.image);
     model.range_spacing_m = std::stod(*v);
   }
   if (model.azimuth_spacing_m == 0.0) {
     const auto v = meta("GISSAR_AZIMUTH_SPACING_M");
-    if (!v) throw ConfigError("the image has no GISSAR_AZIMUTH_SPACING_M: give --azimuth-res", options.image);
+    if (!v) throw ConfigError("the image has no GISSAR_AZIMUTH_SPACING_M: give --azimuth-spacing", options.image);
     model.azimuth_spacing_m = std::stod(*v);
   }
   if (!options.look.empty()) model.look_side = sensor::ParseLookSide(options.look);
@@ -291,7 +290,7 @@ nlohmann::json RunLocate(const LocateCommandOptions& options, const std::string&
   return report;
 }
 
-void EvaluateOptions::Check() const {
+void EvaluateRequest::Check() const {
   CheckSceneOrDem(scene, dem);
   if (trials < 1) throw ConfigError("must be >= 1", "--trials");
   if (out_prefix.empty()) throw ConfigError("required", "--out");
@@ -310,7 +309,7 @@ void EvaluateOptions::Check() const {
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
 }
 
-nlohmann::json RunEvaluate(const EvaluateOptions& options, const std::string& command_line) {
+nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
   AtomicOutputs outputs;
@@ -400,7 +399,6 @@ nlohmann::json RunEvaluate(const EvaluateOptions& options, const std::string& co
     render::RenderOptions ro;
     ro.rays_per_cell = options.rays_per_cell;
     ro.max_bounces = options.bounces;
-    ro.show_progress = false;
     ro.seed = options.seed + trial;
     render::SarImage obs = render::RenderSar(observed_embree, observed_mesh, materials, nav::GeometryOf(truth, model), ro);
     if (options.speckle_looks >= 1) image::ApplyMultiplicativeSpeckle(obs.intensity, options.speckle_looks, options.seed * 7919 + trial);
@@ -459,9 +457,12 @@ nlohmann::json RunEvaluate(const EvaluateOptions& options, const std::string& co
                  r.seconds, success ? 1 : 0);
     for (const auto& m : mrow) std::fprintf(csv, ",%.0f,%.0f,%.0f,%.4f", m[0], m[1], m[2], m[3]);
     std::fprintf(csv, "\n");
-    if (!options.quiet) {
-      std::fprintf(stderr, "evaluate: trial %d/%d: position error %.1f m (%.2f cells), heading %.3f deg, %s, %.2f s\n",
-                   trial + 1, options.trials, e3, cells, e_heading, success ? "ok" : "FAIL", r.seconds);
+    {
+      char line[192];
+      std::snprintf(line, sizeof(line), "evaluate: trial %d/%d: position error %.1f m (%.2f cells), heading %.3f deg, %s, %.2f s",
+                    trial + 1, options.trials, e3, cells, e_heading, success ? "ok" : "FAIL", r.seconds);
+      reporter.Info(line);
+      ThrowIfCancelled(reporter, "evaluate");
     }
   }
   if (std::fclose(csv) != 0) throw IoError("failed writing", csv_path.string());
@@ -513,7 +514,7 @@ nlohmann::json RunEvaluate(const EvaluateOptions& options, const std::string& co
   return summary;
 }
 
-void MatchPairOptions::Check() const {
+void MatchPairRequest::Check() const {
   if (fixed.empty() || moving.empty()) throw ConfigError("required", "--fixed/--moving");
   if (out.empty()) throw ConfigError("required", "--out");
   if (warp.size() != 4) throw ConfigError("needs ROT_DEG,SCALE,TX,TY", "--warp");
@@ -528,7 +529,7 @@ void MatchPairOptions::Check() const {
   CheckOutputsAreNotInputs({out}, {fixed, moving});
 }
 
-nlohmann::json RunMatchPair(const MatchPairOptions& options, const std::string& command_line) {
+nlohmann::json RunMatchPair(const MatchPairRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   AtomicOutputs outputs;
   const fs::path out = outputs.Add(options.out);
@@ -604,4 +605,4 @@ nlohmann::json RunMatchPair(const MatchPairOptions& options, const std::string& 
   return report;
 }
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

@@ -1,4 +1,4 @@
-#include "gissar/cli/mvg_commands.h"
+#include "gissar/pipeline/mvg_commands.h"
 
 #include <gtest/gtest.h>
 
@@ -8,14 +8,13 @@
 #include <random>
 #include <sstream>
 
-#include "gissar/cli/cli.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/mvg/affine_camera.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 using Eigen::Vector2d;
@@ -116,7 +115,6 @@ TEST(MvgEndToEndTest, SimulatedTargetsGiveHeadingChangeAndPose) {
   render::RenderOptions ro;
   ro.rays_per_cell = 16;
   ro.max_bounces = 1;
-  ro.show_progress = false;
   std::vector<sensor::SarGeometry> views;
   std::vector<std::vector<Vector2d>> detected(2);  // per view, per target
   for (double heading : {0.0, 30.0}) {
@@ -155,7 +153,7 @@ TEST(MvgEndToEndTest, SimulatedTargetsGiveHeadingChangeAndPose) {
           << detected[0][i].y() << "\n";
     }
   }
-  FmatrixOptions f;
+  FmatrixRequest f;
   f.matches = (dir / "matches.csv").string();
   f.res1 = Vector2d(1, 1);
   f.res2 = Vector2d(1, 1);
@@ -164,7 +162,7 @@ TEST(MvgEndToEndTest, SimulatedTargetsGiveHeadingChangeAndPose) {
   const nlohmann::json fj = RunFmatrix(f, "test");
   EXPECT_NEAR(fj["heading_change_deg"].get<double>(), 30.0, 0.1);
   EXPECT_EQ(fj["inliers"].size(), targets.size());
-  ResectOptions r;
+  ResectRequest r;
   r.points = (dir / "points.csv").string();
   r.json_out = (dir / "r.json").string();
   const nlohmann::json rj = RunResect(r, "test");
@@ -176,7 +174,7 @@ TEST(MvgEndToEndTest, SimulatedTargetsGiveHeadingChangeAndPose) {
 // The shared reference case through the command: F equals F_true.
 TEST(FmatrixCommandTest, ReferenceCase2) {
   const fs::path dir = testing::MakeTempDir();
-  FmatrixOptions f;
+  FmatrixRequest f;
   f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
   f.depressions = Vector2d(40, 40);
   f.res1 = f.res2 = Vector2d(1, 1);
@@ -198,7 +196,7 @@ TEST(FmatrixCommandTest, PlotsTheKvdDiagramAndTheEpipolarPair) {
   std::vector<float> image(size_t(w) * h);
   for (size_t i = 0; i < image.size(); ++i) image[i] = 1.0f + float(i % 37) * 0.1f;
   geo::WriteFloatGeoTiff(dir / "a.tif", {w, h, {image}, {}, {}});
-  FmatrixOptions f;
+  FmatrixRequest f;
   f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
   f.depressions = Vector2d(40, 40);
   f.res1 = f.res2 = Vector2d(1, 1);
@@ -217,41 +215,6 @@ TEST(FmatrixCommandTest, PlotsTheKvdDiagramAndTheEpipolarPair) {
   // An image without --plot is a configuration error.
   f.plot_prefix.clear();
   EXPECT_THROW(RunFmatrix(f, "test"), ConfigError);
-}
-
-int RunGissarCli(std::vector<std::string> args, std::string* err) {
-  args.insert(args.begin(), "gissar");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  std::ostringstream out, e;
-  const int status = RunCli(static_cast<int>(argv.size()), argv.data(), out, e);
-  *err = e.str();
-  return status;
-}
-
-TEST(FmatrixCommandTest, DegenerateInputIsAClearError) {
-  const fs::path dir = testing::MakeTempDir();
-  auto csv = [&](const std::string& name, const std::string& text) {
-    std::ofstream(dir / name) << text;
-    return (dir / name).string();
-  };
-  struct Case {
-    std::string file, needle;
-  };
-  const std::vector<Case> cases = {
-      {csv("three.csv", "x1,y1,x2,y2\n1,2,3,4\n5,6,7,8\n9,1,2,3\n"), "at least 4 matches"},
-      {csv("collinear.csv", "x1,y1,x2,y2\n0,0,0,0\n1,1,1,1\n2,2,2,2\n3,3,3,3\n4,4,4,4\n"), "degenerate"},
-      {csv("nan.csv", "x1,y1,x2,y2\n1,2,3,4\n5,nan,7,8\n9,1,2,3\n4,4,5,5\n"), "nan.csv"},
-      {csv("columns.csv", "x1,y1,x2\n1,2,3\n"), "columns.csv"},
-  };
-  for (const Case& c : cases) {
-    std::string err;
-    EXPECT_EQ(RunGissarCli({"fmatrix", "--matches", c.file, "--json", (dir / "out.json").string()}, &err), 2) << c.file;
-    EXPECT_EQ(err.rfind("gissar: error: ", 0), 0u) << err;
-    EXPECT_NE(err.find(c.needle), std::string::npos) << err;
-    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
-    EXPECT_FALSE(fs::exists(dir / "out.json"));
-  }
 }
 
 TEST(RegisterCommandTest, RecoversAKnownAffineWarp) {
@@ -280,7 +243,7 @@ TEST(RegisterCommandTest, RecoversAKnownAffineWarp) {
       csv << p.x() << "," << p.y() << "," << m.x() << "," << m.y() << "\n";
     }
   }
-  RegisterOptions o;
+  RegisterRequest o;
   o.fixed = (dir / "fixed.tif").string();
   o.moving = (dir / "moving.tif").string();
   o.points = (dir / "cp.csv").string();
@@ -300,9 +263,9 @@ TEST(RegisterCommandTest, RecoversAKnownAffineWarp) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 
 TEST(EpipolarCommandTest, DrawsThePair) {
@@ -311,7 +274,7 @@ TEST(EpipolarCommandTest, DrawsThePair) {
   std::vector<float> image(size_t(w) * h);
   for (size_t i = 0; i < image.size(); ++i) image[i] = 1.0f + float(i % 37) * 0.1f;
   geo::WriteFloatGeoTiff(dir / "a.tif", {w, h, {image}, {}, {}});
-  EpipolarOptions o;
+  EpipolarRequest o;
   o.matches = testing::TestDataPath("affine/case3_dpsi30_dep40_45_res1_0.75_points.csv").string();
   o.image1 = o.image2 = (dir / "a.tif").string();
   o.out_png = (dir / "epi.png").string();
@@ -323,4 +286,4 @@ TEST(EpipolarCommandTest, DrawsThePair) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

@@ -1,4 +1,4 @@
-#include "gissar/cli/product_simulate.h"
+#include "gissar/pipeline/product_simulate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -19,10 +19,10 @@
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace fs = std::filesystem;
 
-void CheckProductOptions(const SimulateOptions& o) {
+void CheckProductOptions(const SimulateRequest& o) {
   if (o.engine != "trace") throw ConfigError("product geometry needs the trace engine", "--product/--engine");
   if (o.coherent) throw ConfigError("product geometry renders incoherently only", "--product/--coherent");
   if (!o.contributions.empty()) {
@@ -35,14 +35,12 @@ void CheckProductOptions(const SimulateOptions& o) {
     throw ConfigError("the product fixes the image size", "--product/--width/--height");
   }
   if (o.geometry.range_spacing_m != 0.0 || o.geometry.azimuth_spacing_m != 0.0) {
-    throw ConfigError("the product fixes the pixel spacing", "--product/--range-res/--azimuth-res");
+    throw ConfigError("the product fixes the pixel spacing", "--product/--range-spacing/--azimuth-spacing");
   }
 }
 
-ProductSimulation SimulateProduct(const SimulateOptions& options, bool read_amplitude) {
-  auto say = [&](const std::string& line) {
-    if (!options.quiet) std::fprintf(stderr, "simulate: %s\n", line.c_str());
-  };
+ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
+  auto say = [&](const std::string& line) { reporter.Info("simulate: " + line); };
   ProductSimulation sim;
   geo::RslcReadOptions read;
   read.read_amplitude = read_amplitude;
@@ -65,7 +63,7 @@ ProductSimulation SimulateProduct(const SimulateOptions& options, bool read_ampl
 
   Terrain terrain = LoadTerrain(options);
   const render::EmbreeScene embree(terrain.mesh);
-  render::RenderOptions ro = RenderOptionsOf(options);
+  render::RenderOptions ro = RenderOptionsOf(options, &reporter);
   ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
   sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
   sim.ground_speed_mps = sim.image.tracing_geometry.azimuth_spacing_m / sim.grid.dt_s;
@@ -116,7 +114,7 @@ nlohmann::json ProductJson(const ProductSimulation& sim) {
             {"height", g.height}}}};
 }
 
-geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateOptions& options) {
+geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateRequest& options) {
   geo::Metadata m;
   m["GISSAR_GEOMETRY"] = "product radar grid: row = zero-Doppler azimuth line, column = slant-range bin";
   m["GISSAR_PRODUCT"] = fs::absolute(options.product).string();
@@ -140,7 +138,7 @@ geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateOption
 
 }  // namespace
 
-SimulateResult RunProductSimulate(const SimulateOptions& options, const std::string& command_line) {
+SimulateResult RunProductSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
   AtomicOutputs outputs;
@@ -149,7 +147,7 @@ SimulateResult RunProductSimulate(const SimulateOptions& options, const std::str
   const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
   const fs::path json = outputs.Add(options.out_prefix + ".json");
 
-  ProductSimulation sim = SimulateProduct(options, false);
+  ProductSimulation sim = SimulateProduct(options, false, reporter);
   const render::SarImage& image = sim.image.image;
   geo::Metadata metadata = ProductMetadata(sim, options);
   geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
@@ -190,14 +188,14 @@ SimulateResult RunProductSimulate(const SimulateOptions& options, const std::str
   return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
 }
 
-void ValidateOptions::Check() const {
+void ValidateRequest::Check() const {
   if (simulate.product.empty()) throw ConfigError("a product is required", "--product");
   if (out_prefix.empty()) throw ConfigError("a report prefix is required", "--out");
   if (looks.empty()) throw ConfigError("give at least one multilook size", "--looks");
   for (int k : looks) {
     if (k < 1 || k > 64) throw ConfigError("multilook sizes must be in [1, 64], got " + std::to_string(k), "--looks");
   }
-  SimulateOptions probe = simulate;
+  SimulateRequest probe = simulate;
   probe.out_prefix = out_prefix;
   probe.Check();
   std::vector<fs::path> outs;
@@ -209,7 +207,7 @@ void ValidateOptions::Check() const {
   CheckOutputsAreNotInputs(outs, ins);
 }
 
-nlohmann::json ValidateOptions::ToJson() const {
+nlohmann::json ValidateRequest::ToJson() const {
   nlohmann::json j = simulate.ToJson();
   j.erase("out_prefix");
   j["reference_geolocation"] = reference_geolocation;
@@ -280,7 +278,7 @@ std::string Fixed(double v, int digits) {
 
 }  // namespace
 
-ValidateResult RunValidate(const ValidateOptions& options, const std::string& command_line) {
+ValidateResult RunValidate(const ValidateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
   AtomicOutputs outputs;
@@ -293,7 +291,7 @@ ValidateResult RunValidate(const ValidateOptions& options, const std::string& co
     reference = std::make_unique<geo::ReferenceGeolocation>(geo::ReadReferenceGeolocation(options.reference_geolocation));
   }
 
-  const ProductSimulation sim = SimulateProduct(options.simulate, true);
+  const ProductSimulation sim = SimulateProduct(options.simulate, true, reporter);
   const int width = sim.grid.cols, height = sim.grid.rows;
   const size_t n = size_t(width) * height;
   const render::SarImage& image = sim.image.image;
@@ -508,4 +506,4 @@ ValidateResult RunValidate(const ValidateOptions& options, const std::string& co
   return result;
 }
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

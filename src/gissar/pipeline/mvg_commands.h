@@ -11,9 +11,11 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
-namespace gissar::cli {
+#include "gissar/util/reporter.h"
 
-struct FmatrixOptions {
+namespace gissar::pipeline {
+
+struct FmatrixRequest {
   std::string matches;                      // CSV with columns x1,y1,x2,y2
   std::optional<Eigen::Vector2d> res1;      // range, azimuth pixel spacing of image 1 (m)
   std::optional<Eigen::Vector2d> res2;      // of image 2
@@ -36,9 +38,9 @@ struct FmatrixOptions {
 // Writes `json_out` (and the pictures of `plot_prefix`) and returns the JSON. Throws InputError for bad or
 // degenerate matches (fewer than 4, NaN, collinear/coplanar so that F is
 // undetermined, no RANSAC model), ConfigError for bad options.
-nlohmann::json RunFmatrix(const FmatrixOptions& options, const std::string& command_line);
+nlohmann::json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-struct ResectOptions {
+struct ResectRequest {
   std::string points;                        // CSV with columns X,Y,Z,x,y (ENU m, pixels)
   Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  // Xc, ENU metres
   std::optional<double> slant_range_m;       // measured range to Xc: sensor position
@@ -49,9 +51,9 @@ struct ResectOptions {
 
 // Affine resection constrained to the SAR camera form: heading, depression,
 // pixel spacings, principal point, RMS, 1-sigma errors.
-nlohmann::json RunResect(const ResectOptions& options, const std::string& command_line);
+nlohmann::json RunResect(const ResectRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-struct RegisterOptions {
+struct RegisterRequest {
   std::string fixed;       // raster
   std::string moving;      // raster
   std::string points;      // CSV x1,y1 (fixed), x2,y2 (moving)
@@ -65,9 +67,9 @@ struct RegisterOptions {
 
 // Fits the transform to the control points, warps the moving image onto the
 // fixed grid and writes it with a green (fixed) / magenta (moving) composite.
-nlohmann::json RunRegister(const RegisterOptions& options, const std::string& command_line);
+nlohmann::json RunRegister(const RegisterRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-struct EpipolarOptions {
+struct EpipolarRequest {
   std::string matches, image1, image2, out_png;
   double threshold_px = 1.5;
   uint64_t seed = 1;
@@ -75,9 +77,9 @@ struct EpipolarOptions {
 };
 
 // Draws the image pair with the matches and their epipolar lines.
-void RunEpipolar(const EpipolarOptions& options);
+void RunEpipolar(const EpipolarRequest& options);
 
-struct CompositeOptions {
+struct CompositeRequest {
   std::string green, magenta;  // co-registered rasters of one size, band 1 linear intensity
   std::string out_png;
   void Check() const;
@@ -86,6 +88,6 @@ struct CompositeOptions {
 // Green/magenta composite of two co-registered images (e.g. a real image and
 // its simulation, or a registered pair), each dB-stretched on its own: grey
 // where they agree. Throws InputError when the sizes differ.
-void RunComposite(const CompositeOptions& options);
+void RunComposite(const CompositeRequest& options);
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

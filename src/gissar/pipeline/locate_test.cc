@@ -2,7 +2,7 @@
 // Carlo trials on the bundled Andorra SRTM DEM (bare terrain, 30 m cells,
 // 128 x 128 images; ~1 s per fix),
 // and the real Sentinel-1 warp recovery.
-#include "gissar/cli/locate.h"
+#include "gissar/pipeline/locate.h"
 
 #include <cmath>
 #include <cstdio>
@@ -10,23 +10,22 @@
 
 #include <gtest/gtest.h>
 
-#include "gissar/cli/simulate.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace {
 
 TEST(Evaluate, SmallMonteCarloOnAndorraDem) {
   const auto dir = gissar::testing::MakeTempDir();
-  EvaluateOptions o;
+  EvaluateRequest o;
   o.dem = gissar::testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   o.trials = 5;
   o.seed = 3;
   o.spacing_m = 30.0;
   o.size_px = 128;
   o.compare_matchers = false;
-  o.quiet = true;
   o.out_prefix = (dir / "eval").string();
   const nlohmann::json s = RunEvaluate(o, "test");
   // Measured (seed 3): 5/5 successes, median 0.89 cells (p95 1.30),
@@ -42,7 +41,7 @@ TEST(Evaluate, SmallMonteCarloOnAndorraDem) {
 // prior 200 m and 2.5 deg off.
 TEST(Locate, FixesASimulatedImageFromADriftedPrior) {
   const auto dir = gissar::testing::MakeTempDir();
-  SimulateOptions so;
+  SimulateRequest so;
   so.dem = gissar::testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   so.fill_nodata = true;
   // No --center: the ENU frame of a DEM is centred on the DEM centre, as in `locate --dem`.
@@ -53,7 +52,6 @@ TEST(Locate, FixesASimulatedImageFromADriftedPrior) {
   so.geometry.width = so.geometry.height = 128;
   so.bounces = 1;
   so.speckle_looks = 4.0;
-  so.quiet = true;
   so.out_prefix = (dir / "obs").string();
   RunSimulate(so, "test");
   std::ifstream sidecar(dir / "obs.json");
@@ -63,7 +61,7 @@ TEST(Locate, FixesASimulatedImageFromADriftedPrior) {
                                 {"slant_range_m", 10000.0},
                                 {"sensor_enu_m", {truth[0] - 170.0, truth[1] + 160.0, truth[2] - 40.0}}};
   std::ofstream(dir / "prior.json") << prior.dump();
-  LocateCommandOptions lo;
+  LocateRequest lo;
   lo.image = (dir / "obs.tif").string();
   lo.dem = so.dem;
   lo.prior = (dir / "prior.json").string();
@@ -80,7 +78,7 @@ TEST(Locate, FixesASimulatedImageFromADriftedPrior) {
 
 TEST(MatchPair, RecoversKnownWarpOnSentinel1Dates) {
   const auto dir = gissar::testing::MakeTempDir();
-  MatchPairOptions o;
+  MatchPairRequest o;
   o.fixed = gissar::testing::DataPath("opera_10SGD/burst292320_IW2_2021-11-19_VV.tif").string();
   o.moving = gissar::testing::DataPath("opera_10SGD/burst292320_IW2_2021-11-25_VV.tif").string();
   o.out = (dir / "pair.json").string();
@@ -110,4 +108,4 @@ TEST(Prior, UnknownKeyIsAConfigErrorNamingIt) {
 }
 
 }  // namespace
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

@@ -1,4 +1,4 @@
-#include "gissar/cli/mvg_commands.h"
+#include "gissar/pipeline/mvg_commands.h"
 
 #include <cmath>
 #include <opencv2/core.hpp>
@@ -19,7 +19,7 @@
 #include "gissar/util/error.h"
 #include "gissar/util/provenance.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -84,7 +84,7 @@ image::RgbImage EpipolarPicture(const std::vector<mvg::PointMatch>& matches, con
 
 }  // namespace
 
-void FmatrixOptions::Check() const {
+void FmatrixRequest::Check() const {
   if (matches.empty()) throw ConfigError("a matches CSV is required", "--matches");
   RequireOutput(json_out, "--json");
   CheckSpacing(res1, "--res1");
@@ -99,13 +99,13 @@ void FmatrixOptions::Check() const {
   if (!image1.empty() && plot_prefix.empty()) throw ConfigError("images are drawn only with --plot", "--image1/--image2");
 }
 
-json FmatrixOptions::ToJson() const {
+json FmatrixRequest::ToJson() const {
   return {{"matches", matches}, {"res1", Pair(res1)}, {"res2", Pair(res2)}, {"depressions", Pair(depressions)},
           {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"json", json_out},
           {"plot", plot_prefix}, {"image1", image1}, {"image2", image2}};
 }
 
-json RunFmatrix(const FmatrixOptions& options, const std::string& command_line) {
+json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   const std::string kvd_png = options.plot_prefix.empty() ? "" : options.plot_prefix + "_kvd.png";
   const std::string epipolar_png = options.image1.empty() ? "" : options.plot_prefix + "_epipolar.png";
@@ -184,21 +184,21 @@ json RunFmatrix(const FmatrixOptions& options, const std::string& command_line) 
   return out;
 }
 
-void ResectOptions::Check() const {
+void ResectRequest::Check() const {
   if (points.empty()) throw ConfigError("a points CSV is required", "--points");
   RequireOutput(json_out, "--json");
   if (!scene_centre.allFinite()) throw ConfigError("scene centre must be finite", "--scene-centre");
-  if (slant_range_m && !(*slant_range_m > 0)) throw ConfigError("slant range must be positive", "--range");
+  if (slant_range_m && !(*slant_range_m > 0)) throw ConfigError("slant range must be positive", "--slant-range");
 }
 
-json ResectOptions::ToJson() const {
+json ResectRequest::ToJson() const {
   return {{"points", points},
           {"scene_centre", {scene_centre.x(), scene_centre.y(), scene_centre.z()}},
           {"slant_range_m", slant_range_m ? json(*slant_range_m) : json(nullptr)},
           {"json", json_out}};
 }
 
-json RunResect(const ResectOptions& options, const std::string& command_line) {
+json RunResect(const ResectRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   CheckOutputsAreNotInputs({options.json_out}, {options.points});
   const std::vector<mvg::ControlPoint> points = mvg::ReadControlPointsCsv(options.points);
@@ -245,7 +245,7 @@ json RunResect(const ResectOptions& options, const std::string& command_line) {
   return out;
 }
 
-void RegisterOptions::Check() const {
+void RegisterRequest::Check() const {
   if (fixed.empty()) throw ConfigError("a fixed image is required", "--fixed");
   if (moving.empty()) throw ConfigError("a moving image is required", "--moving");
   if (points.empty()) throw ConfigError("a control-point CSV is required", "--points");
@@ -254,12 +254,12 @@ void RegisterOptions::Check() const {
   if (!(threshold_px > 0)) throw ConfigError("threshold must be positive", "--threshold");
 }
 
-json RegisterOptions::ToJson() const {
+json RegisterRequest::ToJson() const {
   return {{"fixed", fixed}, {"moving", moving}, {"points", points}, {"transform", transform},
           {"threshold_px", threshold_px}, {"robust", robust}, {"out_prefix", out_prefix}};
 }
 
-json RunRegister(const RegisterOptions& options, const std::string& command_line) {
+json RunRegister(const RegisterRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   CheckOutputsAreNotInputs({options.out_prefix + ".tif", options.out_prefix + "_composite.png",
                             options.out_prefix + ".json"},
@@ -320,13 +320,13 @@ json RunRegister(const RegisterOptions& options, const std::string& command_line
   return out;
 }
 
-void EpipolarOptions::Check() const {
+void EpipolarRequest::Check() const {
   if (matches.empty()) throw ConfigError("a matches CSV is required", "--matches");
   if (image1.empty() || image2.empty()) throw ConfigError("both images are required", "--image1/--image2");
   RequireOutput(out_png, "--out");
 }
 
-void RunEpipolar(const EpipolarOptions& options) {
+void RunEpipolar(const EpipolarRequest& options) {
   options.Check();
   CheckOutputsAreNotInputs({options.out_png}, {options.matches, options.image1, options.image2});
   AtomicOutputs outputs;
@@ -347,13 +347,13 @@ void RunEpipolar(const EpipolarOptions& options) {
   outputs.Commit();
 }
 
-void CompositeOptions::Check() const {
+void CompositeRequest::Check() const {
   if (green.empty()) throw ConfigError("a first (green) image is required", "--green");
   if (magenta.empty()) throw ConfigError("a second (magenta) image is required", "--magenta");
   RequireOutput(out_png, "--out");
 }
 
-void RunComposite(const CompositeOptions& options) {
+void RunComposite(const CompositeRequest& options) {
   options.Check();
   CheckOutputsAreNotInputs({options.out_png}, {options.green, options.magenta});
   AtomicOutputs outputs;
@@ -370,4 +370,4 @@ void RunComposite(const CompositeOptions& options) {
   outputs.Commit();
 }
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

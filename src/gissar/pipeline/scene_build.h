@@ -13,11 +13,12 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "gissar/util/reporter.h"
 #include "gissar/util/memory_limit.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 
-struct SceneBuildOptions {
+struct SceneBuildRequest {
   std::string dem;                               // DEM raster
   bool fill_nodata = false;
   std::optional<std::array<int, 4>> window;      // col, row, cols, rows of the DEM
@@ -29,7 +30,6 @@ struct SceneBuildOptions {
   // Also PREFIX.obj + PREFIX.mtl (Wavefront, one material per class in the
   // class-map colours) for any 3-D viewer.
   bool export_obj = false;
-  bool quiet = false;
   // Memory budget (--max-memory), bytes: the DEM (window) is checked against
   // it before it is read.
   int64_t max_memory_bytes = DefaultMemoryLimitBytes();
@@ -50,7 +50,7 @@ struct SceneBuildResult {
 // geometries, empty layers, features outside the DEM) are printed as
 // "gissar: warning: ..." lines on stderr and recorded in the JSON. Throws the
 // gissar::Error family on failure.
-SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::string& command_line);
+SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 // Prints counts per class, extent, triangle count and memory of a scene
 // file. Throws InputError for unreadable or invalid files.
@@ -59,4 +59,4 @@ void PrintSceneInfo(const std::string& scene_path, std::ostream& out);
 // Parses "C,R,W,H" (integers); throws ConfigError naming `option`.
 std::array<int, 4> ParseWindow(const std::string& text, const std::string& option);
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

@@ -1,4 +1,4 @@
-#include "gissar/cli/scene_build.h"
+#include "gissar/pipeline/scene_build.h"
 
 #include <cstdio>
 #include <iomanip>
@@ -18,7 +18,7 @@
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
-namespace gissar::cli {
+namespace gissar::pipeline {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -34,7 +34,7 @@ std::array<int, 4> ParseWindow(const std::string& text, const std::string& optio
   return w;
 }
 
-void SceneBuildOptions::Check() const {
+void SceneBuildRequest::Check() const {
   if (dem.empty()) throw ConfigError("a DEM is required", "--dem");
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
   const int sources = !config.empty() + !osm.empty() + !vectors.empty();
@@ -49,7 +49,7 @@ void SceneBuildOptions::Check() const {
   CheckOutputsAreNotInputs(outs, inputs);
 }
 
-json SceneBuildOptions::ToJson() const {
+json SceneBuildRequest::ToJson() const {
   return {{"dem", dem},
           {"fill_nodata", fill_nodata},
           {"window", window ? json(*window) : json(nullptr)},
@@ -59,11 +59,10 @@ json SceneBuildOptions::ToJson() const {
           {"center_lonlat", center_lonlat ? json{center_lonlat->x(), center_lonlat->y()} : json(nullptr)},
           {"out_prefix", out_prefix},
           {"export_obj", export_obj},
-          {"quiet", quiet},
           {"max_memory_bytes", max_memory_bytes}};
 }
 
-SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::string& command_line) {
+SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
   AtomicOutputs outputs;
@@ -99,9 +98,9 @@ SceneBuildResult RunSceneBuild(const SceneBuildOptions& options, const std::stri
   const geo::Dem dem = geo::ReadDem(options.dem, read_options);
   const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, options.center_lonlat, std::nullopt);
   const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
-  scene::GisScene built = scene::BuildGisScene(dem, frame, config, !options.quiet);
+  scene::GisScene built = scene::BuildGisScene(dem, frame, config, reporter);
   warnings.insert(warnings.end(), built.warnings.begin(), built.warnings.end());
-  for (const std::string& w : warnings) std::fprintf(stderr, "gissar: warning: %s\n", w.c_str());
+  for (const std::string& w : warnings) reporter.Warn(w);
 
   const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, frame);
   json stats;
@@ -215,4 +214,4 @@ void PrintSceneInfo(const std::string& scene_path, std::ostream& out) {
   }
 }
 
-}  // namespace gissar::cli
+}  // namespace gissar::pipeline

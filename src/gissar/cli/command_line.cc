@@ -1,0 +1,195 @@
+#include "gissar/cli/command_line.h"
+
+#include <algorithm>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "gissar/util/error.h"
+
+namespace gissar::cli {
+namespace {
+
+// Old flag spellings that keep working for one release (docs/conventions.md).
+struct DeprecatedFlag {
+  const char* old_name;
+  const char* new_name;
+};
+
+constexpr DeprecatedFlag kDeprecatedFlags[] = {
+    {"--range-res", "--range-spacing"},
+    {"--azimuth-res", "--azimuth-spacing"},
+    {"--range", "--slant-range"},
+};
+
+// The command a command line names ("simulate", "scene build") and the
+// index of its first argument after the command words.
+std::pair<CLI::App*, size_t> LeafCommand(CLI::App& app, const std::vector<std::string>& args) {
+  CLI::App* current = &app;
+  size_t i = 1;
+  while (i < args.size() && !args[i].empty() && args[i][0] != '-') {
+    CLI::App* next = nullptr;
+    for (CLI::App* sub : current->get_subcommands({})) {
+      if (sub->get_name() == args[i]) next = sub;
+    }
+    if (next == nullptr) break;
+    current = next;
+    ++i;
+  }
+  return {current, i};
+}
+
+bool HasFlag(const std::vector<std::string>& args, const std::string& flag) {
+  for (const std::string& a : args) {
+    if (a == flag || a.rfind(flag + "=", 0) == 0) return true;
+  }
+  return false;
+}
+
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+}  // namespace
+
+std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* argv,
+                                                std::vector<std::string>& warnings) {
+  std::vector<std::string> args(argv, argv + argc);
+  for (size_t i = 1; i < args.size(); ++i) {
+    if (args[i] == "--") break;
+    for (const DeprecatedFlag& d : kDeprecatedFlags) {
+      const std::string old_name = d.old_name;
+      if (args[i] == old_name || args[i].rfind(old_name + "=", 0) == 0) {
+        args[i] = d.new_name + args[i].substr(old_name.size());
+        warnings.push_back(old_name + " is deprecated and will be removed; use " + d.new_name);
+      }
+    }
+  }
+  return args;
+}
+
+std::string FlagOfKey(const std::string& key) {
+  // Flags whose name is not the field's (docs/conventions.md).
+  if (key == "out_prefix") return "--out";
+  if (key == "center_lonlat") return "--center";
+  if (key == "look_side") return "--look";
+  std::string name = key;
+  for (const char* unit : {"_deg", "_m", "_db", "_bytes", "_px", "_s"}) {
+    const std::string suffix = unit;
+    if (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      name.resize(name.size() - suffix.size());
+      break;
+    }
+  }
+  for (char& c : name) {
+    if (c == '_') c = '-';
+  }
+  return "--" + name;
+}
+
+void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
+  std::string file;
+  for (size_t i = 1; i < args.size(); ++i) {
+    if (args[i] == "--options" && i + 1 < args.size()) {
+      file = args[i + 1];
+      args.erase(args.begin() + long(i), args.begin() + long(i) + 2);
+      break;
+    }
+    if (args[i].rfind("--options=", 0) == 0) {
+      file = args[i].substr(10);
+      args.erase(args.begin() + long(i));
+      break;
+    }
+  }
+  if (file.empty()) return;
+  std::ifstream in(file);
+  if (!in) throw ConfigError("cannot read the options file", file);
+  nlohmann::json values;
+  try {
+    values = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw ConfigError(std::string("options file is not valid JSON: ") + e.what(), file);
+  }
+  if (!values.is_object()) throw ConfigError("options file must hold a JSON object", file);
+  auto [command, insert_at] = LeafCommand(app, args);
+  std::vector<std::string> expanded;
+  for (const auto& [key, value] : values.items()) {
+    const std::string flag = FlagOfKey(key);
+    const CLI::Option* option = command->get_option_no_throw(flag);
+    if (option == nullptr || key == "options") throw ConfigError("unknown key '" + key + "'", file);
+    if (HasFlag(args, flag) || value.is_null()) continue;
+    if (value.is_boolean()) {
+      if (value.get<bool>()) expanded.push_back(flag);
+      continue;
+    }
+    std::string text;
+    if (value.is_string()) {
+      text = value.get<std::string>();
+    } else if (value.is_array()) {
+      for (const auto& item : value) {
+        if (!text.empty()) text += ",";
+        text += item.is_string() ? item.get<std::string>() : item.dump();
+      }
+    } else if (value.is_number()) {
+      text = value.dump();
+    } else {
+      throw ConfigError("key '" + key + "' must be a string, number, boolean or list", file);
+    }
+    expanded.push_back(flag);
+    expanded.push_back(text);
+  }
+  args.insert(args.begin() + long(insert_at), expanded.begin(), expanded.end());
+}
+
+void CheckCommandWords(CLI::App& app, const std::vector<std::string>& args) {
+  auto [command, next] = LeafCommand(app, args);
+  if (command->get_subcommands({}).empty() || next >= args.size() || args[next].empty() ||
+      args[next][0] == '-') {
+    return;
+  }
+  std::string best;
+  size_t best_distance = 3;  // at most 2 edits
+  for (const CLI::App* sub : command->get_subcommands({})) {
+    const size_t d = EditDistance(args[next], sub->get_name());
+    if (d < best_distance) best_distance = d, best = sub->get_name();
+  }
+  throw ConfigError("unknown command '" + args[next] + "'" + (best.empty() ? "" : "; did you mean " + best + "?") +
+                        " (`gissar --help` lists the commands)",
+                    "command line");
+}
+
+std::string DidYouMean(CLI::App& app, const std::vector<std::string>& args) {
+  auto [command, first] = LeafCommand(app, args);
+  std::vector<std::string> names;
+  for (const CLI::Option* option : command->get_options()) {
+    for (const std::string& long_name : option->get_lnames()) names.push_back("--" + long_name);
+  }
+  for (const CLI::App* sub : command->get_subcommands({})) names.push_back(sub->get_name());
+  for (size_t i = first; i < args.size(); ++i) {
+    std::string word = args[i].substr(0, args[i].find('='));
+    if (word.empty() || (word[0] == '-' && command->get_option_no_throw(word) != nullptr)) continue;
+    if (i > first && word[0] != '-') continue;  // a value
+    std::string best;
+    size_t best_distance = 3;  // at most 2 edits
+    for (const std::string& name : names) {
+      const size_t d = EditDistance(word, name);
+      if (d < best_distance) best_distance = d, best = name;
+    }
+    if (!best.empty()) return "; did you mean " + best + "?";
+    return "";
+  }
+  return "";
+}
+
+}  // namespace gissar::cli

@@ -1,0 +1,38 @@
+// Rewriting a command line before CLI11 parses it: deprecated flag
+// spellings (docs/conventions.md), --options FILE.json expanded into flags,
+// and a "did you mean" suggestion for a misspelt flag or command.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+namespace gissar::cli {
+
+// argv with deprecated spellings replaced (also in "--old=value" form); one
+// warning per replaced flag naming the new one is appended to `warnings`.
+std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* argv,
+                                                std::vector<std::string>& warnings);
+
+// --options FILE.json: its keys (request field names) become flags placed
+// before the command line's own, which win. Unknown key = ConfigError naming
+// the key and the file. Booleans: true gives the flag, false omits it;
+// null keeps the default; lists become "A,B".
+void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args);
+
+// The flag of a request field: kebab case of the snake_case name without
+// its unit suffix (heading_deg -> --heading); out_prefix is --out,
+// center_lonlat --center, look_side --look.
+std::string FlagOfKey(const std::string& key);
+
+// Throws ConfigError "unknown command 'X'; did you mean Y?" when a command
+// word of `args` names no command (even with --help, which would otherwise
+// print the general help and succeed).
+void CheckCommandWords(CLI::App& app, const std::vector<std::string>& args);
+
+// "; did you mean X?" for the first unexpected word of `args` close to a
+// flag or command name (at most 2 edits); "" when nothing is close.
+std::string DidYouMean(CLI::App& app, const std::vector<std::string>& args);
+
+}  // namespace gissar::cli
