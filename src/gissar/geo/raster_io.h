@@ -14,6 +14,33 @@ namespace gissar::geo {
 
 using Metadata = std::map<std::string, std::string>;
 
+// A ground control point in GDAL's convention: (pixel, line) of the raster's
+// corner-based grid (the centre of column c is pixel c + 0.5), WGS84
+// longitude/latitude in degrees and height above the ellipsoid in metres.
+struct GroundControlPoint {
+  double pixel = 0.0;
+  double line = 0.0;
+  double lon_deg = 0.0;
+  double lat_deg = 0.0;
+  double height_m = 0.0;
+};
+
+// Georeferencing of a raster without a geotransform (radar geometry): GCPs
+// in WGS84 (EPSG:4326) and GDAL "RPC" metadata-domain items (LINE_OFF, ...,
+// SAMP_DEN_COEFF) and GDAL "GEOLOCATION" items (X_BAND, Y_BAND, SRS, ...;
+// without X_DATASET the arrays are bands of the raster itself). Any may be
+// empty.
+struct Georeference {
+  std::vector<GroundControlPoint> gcps;
+  Metadata rpc;
+  Metadata geolocation;
+  bool empty() const { return gcps.empty() && rpc.empty() && geolocation.empty(); }
+};
+
+// GEOLOCATION items for WGS84 longitude/latitude bands (1-based) of the
+// raster itself, one value per pixel.
+Metadata LonLatGeolocation(int lon_band, int lat_band);
+
 // A float32 band stack: `bands[b]` holds width*height values, row-major.
 struct FloatRaster {
   int width = 0;
@@ -21,15 +48,22 @@ struct FloatRaster {
   std::vector<std::vector<float>> bands;
   std::vector<std::string> band_names;  // one per band (may be empty)
   Metadata metadata;                    // dataset metadata items
+  Georeference georeference;            // GCPs/RPCs (radar geometry), may be empty
 };
 
 // Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Radar-geometry images
-// carry no geotransform: their geometry is in `metadata`.
+// carry no geotransform: their geometry is in `metadata`, and their
+// georeferencing (when given) as WGS84 GCPs and RPC metadata.
 void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& raster);
 
 // Writes a single-band uint8 GeoTIFF (masks, class maps) with metadata.
 void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8_t>& data,
-                      int width, int height, const Metadata& metadata);
+                      int width, int height, const Metadata& metadata,
+                      const Georeference& georeference = {});
+
+// Reads the GCPs (as stored, in their own CRS) and the RPC domain of a raster.
+// Throws InputError when missing or unreadable.
+Georeference ReadGeoreference(const std::filesystem::path& path);
 
 // Writes an 8-bit PNG with 1 (grey), 3 (RGB) or 4 (RGBA) channels,
 // interleaved row-major.
