@@ -11,7 +11,7 @@
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/warp.h"
-#include "gissar/util/stopwatch.h"
+#include "gissar/util/progress.h"
 #include "gissar/util/testing.h"
 
 namespace gissar::pipeline {
