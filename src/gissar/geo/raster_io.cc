@@ -112,6 +112,9 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
     if (b < static_cast<int>(raster.band_names.size())) {
       band->SetDescription(raster.band_names[b].c_str());
     }
+    if (b < static_cast<int>(raster.band_units.size())) {
+      band->SetUnitType(raster.band_units[b].c_str());
+    }
     if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
                        const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
                        GDT_Float32, 0, 0, nullptr) != CE_None) {
@@ -122,13 +125,30 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
 }
 
 void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width,
-                      int height, const Metadata& metadata, const Georeference& georeference) {
+                      int height, const Metadata& metadata, const Georeference& georeference,
+                      const ByteCategories& categories) {
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
   DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, 1, GDT_Byte,
                                         const_cast<char**>(options)));
   if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
   SetMetadata(ds.get(), metadata);
   SetGeoreference(ds.get(), georeference, path);
+  if (!categories.names.empty()) {
+    std::vector<const char*> names;
+    for (const auto& n : categories.names) names.push_back(n.c_str());
+    names.push_back(nullptr);
+    ds->GetRasterBand(1)->SetCategoryNames(const_cast<char**>(names.data()));
+  }
+  if (!categories.colours.empty()) {
+    GDALColorTable table(GPI_RGB);
+    for (size_t i = 0; i < categories.colours.size(); ++i) {
+      const auto& c = categories.colours[i];
+      const GDALColorEntry entry{c[0], c[1], c[2], c[3]};
+      table.SetColorEntry(static_cast<int>(i), &entry);
+    }
+    ds->GetRasterBand(1)->SetColorTable(&table);
+    ds->GetRasterBand(1)->SetColorInterpretation(GCI_PaletteIndex);
+  }
   if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
                                      const_cast<uint8_t*>(data.data()), width, height, GDT_Byte,
                                      0, 0, nullptr) != CE_None) {

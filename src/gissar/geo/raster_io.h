@@ -4,6 +4,7 @@
 // the path on failure.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -49,6 +50,7 @@ struct FloatRaster {
   std::vector<std::string> band_names;  // one per band (may be empty)
   Metadata metadata;                    // dataset metadata items
   Georeference georeference;            // GCPs/RPCs (radar geometry), may be empty
+  std::vector<std::string> band_units;  // GDAL unit type per band (may be empty)
 };
 
 // Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Radar-geometry images
@@ -57,9 +59,15 @@ struct FloatRaster {
 void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& raster);
 
 // Writes a single-band uint8 GeoTIFF (masks, class maps) with metadata.
+// Categories of a class raster: names (value = index) and RGBA colours.
+struct ByteCategories {
+  std::vector<std::string> names;
+  std::vector<std::array<uint8_t, 4>> colours;  // same length as names, or empty
+};
+
 void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8_t>& data,
                       int width, int height, const Metadata& metadata,
-                      const Georeference& georeference = {});
+                      const Georeference& georeference = {}, const ByteCategories& categories = {});
 
 // Reads the GCPs (as stored, in their own CRS) and the RPC domain of a raster.
 // Throws InputError when missing or unreadable.

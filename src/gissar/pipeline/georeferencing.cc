@@ -94,9 +94,15 @@ double TerrainSurface::operator()(double x, double y) const {
 geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
                                          sensor::GeoreferenceReport* report) {
   const TerrainSurface surface(terrain);
-  return sensor::SlantRangeGeoreference(
-      geometry, terrain.frame, [&](double x, double y) { return surface(x, y); }, surface.z_min_m(),
-      surface.z_max_m(), 12, report);
+  // 12 x 12 nodes; where part of the image sees no terrain (a rotated image
+  // around a DEM), a denser lattice until at least 100 GCPs hit it.
+  geo::Georeference g;
+  for (int grid = 12;; grid += 4) {
+    g = sensor::SlantRangeGeoreference(
+        geometry, terrain.frame, [&](double x, double y) { return surface(x, y); }, surface.z_min_m(),
+        surface.z_max_m(), grid, report);
+    if (g.gcps.size() >= 100 || grid >= 40) return g;
+  }
 }
 
 }  // namespace gissar::pipeline

@@ -36,7 +36,8 @@ class TerrainSurface {
   double z_min_ = 0, z_max_ = 0;
 };
 
-// GCPs (12 x 12) and RPCs of a simulated image on its terrain; the fit's
+// GCPs (12 x 12, or a denser lattice up to 40 x 40 until at least 100 of
+// them see the terrain) and RPCs of a simulated image on its terrain; the fit's
 // residuals go to `report`. Throws ConfigError when the image does not see
 // the terrain.
 geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,

@@ -455,6 +455,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     raster.band_names.push_back(layer_names[layer]);
   }
   raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
+  raster.band_units.assign(raster.bands.size(), "linear intensity");
   // WGS84 GCPs on the terrain and RPCs fitted to the geometry (docs/georeferencing.md).
   nlohmann::json georeference_record;
   try {
@@ -482,7 +483,9 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   }
   geo::Metadata mask_metadata = metadata;
   mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
-  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata, raster.georeference);
+  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata, raster.georeference,
+                        geo::ByteCategories{{"none", "layover", "shadow", "layover and shadow"},
+                                            {{0, 0, 0, 0}, {255, 64, 0, 255}, {0, 64, 255, 255}, {255, 0, 255, 255}}});
 
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array(
