@@ -134,10 +134,13 @@ void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, in
   SetMetadata(ds.get(), metadata);
   SetGeoreference(ds.get(), georeference, path);
   if (!categories.names.empty()) {
-    std::vector<const char*> names;
-    for (const auto& n : categories.names) names.push_back(n.c_str());
-    names.push_back(nullptr);
-    ds->GetRasterBand(1)->SetCategoryNames(const_cast<char**>(names.data()));
+    // GeoTIFF keeps category names only in a PAM .aux.xml sidecar, which
+    // would not follow an atomic rename: they go to band metadata
+    // (CATEGORY_<value>=name, in the TIFF's GDAL_METADATA tag) instead.
+    for (size_t i = 0; i < categories.names.size(); ++i) {
+      ds->GetRasterBand(1)->SetMetadataItem(("CATEGORY_" + std::to_string(i)).c_str(),
+                                            categories.names[i].c_str());
+    }
   }
   if (!categories.colours.empty()) {
     GDALColorTable table(GPI_RGB);

@@ -59,7 +59,8 @@ struct FloatRaster {
 void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& raster);
 
 // Writes a single-band uint8 GeoTIFF (masks, class maps) with metadata.
-// Categories of a class raster: names (value = index) and RGBA colours.
+// Categories of a class raster: names (value = index; written as band
+// metadata CATEGORY_<value>) and RGBA colours (a TIFF colour table).
 struct ByteCategories {
   std::vector<std::string> names;
   std::vector<std::array<uint8_t, 4>> colours;  // same length as names, or empty
