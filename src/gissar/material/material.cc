@@ -64,6 +64,8 @@ Material DefaultMaterial(scene::ClassId id) {
       return {"road", 0.12, 0.6, 0.1, 0.5};
     case scene::kClassBuilding:
       return {"building", 0.4, 0.6, 0.15, 0.7};
+    case scene::kClassSea:  // water's until the sea gets its own model
+      return {"sea", 0.03, 0.9, 0.05, 0.9};
     default:
       return {"default", 0.5, 0.1, 0.6, 0.0};
   }

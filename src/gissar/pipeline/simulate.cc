@@ -19,6 +19,7 @@
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/raster_renderer.h"
+#include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
 #include <limits>
@@ -56,6 +57,8 @@ void SimulateRequest::Check() const {
                           std::to_string(dem_oversample),
                       "--dem-oversample");
   }
+  if (sea != "auto" && sea != "off") throw ConfigError("expected auto or off, got '" + sea + "'", "--sea");
+  if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
   if (dem_oversample != 1 && !scene.empty()) {
     throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
   }
@@ -105,6 +108,8 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["product"] = product;
   j["vertical_datum"] = vertical_datum;
   j["dem_oversample"] = dem_oversample;
+  j["sea"] = sea;
+  j["sea_level_m"] = sea_level_m;
   j["fill_nodata"] = fill_nodata;
   j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
                                      : nlohmann::json(nullptr);
@@ -169,6 +174,8 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "product") set(product);
     else if (key == "vertical_datum") set(vertical_datum);
     else if (key == "dem_oversample") set(dem_oversample);
+    else if (key == "sea") set(sea);
+    else if (key == "sea_level_m") set(sea_level_m);
     else if (key == "fill_nodata") set(fill_nodata);
     else if (key == "center_lonlat") center_lonlat = PairOrNull(value, key, source);
     else if (key == "center_map") center_map = PairOrNull(value, key, source);
@@ -229,6 +236,10 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   const int source_width = dem.width, source_height = dem.height;
   dem = geo::RefineDem(dem, options.dem_oversample,
                        static_cast<int64_t>(double(options.max_memory_bytes) / kBytesPerDemPost));
+  // Sea from the heights as given (orthometric for SRTM-like DEMs), before
+  // any datum change.
+  std::vector<uint8_t> sea_posts;
+  if (options.sea == "auto" && options.engine != "raster") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
   if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
   if (dem.filled_nodata_cells > 0) {
     reporter.Info("simulate: filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
@@ -242,6 +253,10 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   } else {
     t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
   }
+  int64_t sea_triangles = 0;
+  if (!sea_posts.empty()) sea_triangles = scene::MarkSeaTriangles(t.mesh, sea_posts);
+  // The bare DEM keeps its unit Lambertian material; the sea gets its own.
+  if (sea_triangles > 0) t.materials.Set(scene::kClassSea, material::DefaultMaterial(scene::kClassSea));
   t.grid_width = dem.width;
   t.grid_height = dem.height;
   const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame);
@@ -254,6 +269,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
                    {"source_width", source_width},
                    {"source_height", source_height},
                    {"oversample", options.dem_oversample},
+                   {"sea_triangles", sea_triangles},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
   return t;

@@ -44,6 +44,11 @@ struct SimulateRequest {
   // posts are coarser than the radar pixels, so that the mesh's planar
   // facets do not imprint streaks (docs/geometry.md).
   int dem_oversample = 1;
+  // Sea of a DEM (--sea auto|off, --sea-level M; trace engine): posts at or
+  // below the sea level connected to the DEM border get class `sea`
+  // (scene::SeaPostMask, the rule of `scene build` without coastline).
+  std::string sea = "auto";
+  double sea_level_m = 0.0;
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".

@@ -114,5 +114,25 @@ TEST(SimulateTest, ParsesNumberPairs) {
   EXPECT_THROW(ParseNumberPair("a,b", "--center"), ConfigError);
 }
 
+// ApplyJson reads every key ToJson writes (the options-file and Python
+// names of every field), and the round trip changes nothing.
+TEST(SimulateRequestTest, JsonRoundTripCoversEveryField) {
+  SimulateRequest changed;
+  changed.dem = "a.tif";
+  changed.geometry.heading_deg = 12.5;
+  changed.geometry.look_side = sensor::LookSide::kLeft;
+  changed.center_lonlat = Eigen::Vector2d(1.5, 42.5);
+  changed.nesz_db = -20.0;
+  changed.seed = 99;
+  SimulateRequest read;
+  read.ApplyJson(changed.ToJson(), "test");
+  EXPECT_EQ(read.ToJson(), changed.ToJson());
+  SimulateRequest defaults;
+  defaults.ApplyJson(SimulateRequest().ToJson(), "test");
+  EXPECT_EQ(defaults.ToJson(), SimulateRequest().ToJson());
+  EXPECT_THROW(defaults.ApplyJson(nlohmann::json{{"heading", 3}}, "test"), ConfigError);
+  EXPECT_THROW(defaults.ApplyJson(nlohmann::json{{"heading_deg", "north"}}, "test"), ConfigError);
+}
+
 }  // namespace
 }  // namespace gissar::pipeline

@@ -428,8 +428,27 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             const Vector3d mirror = dir + 2.0 * cos_in * normal;
             double diffuse_part = 0.0, specular_part = 0.0;
             if (bounce == 1) {
-              diffuse_part = m.diffuse * cos_in;
-              specular_part = m.Backscatter(cos_in) - diffuse_part;
+              // Diffuse term with the smooth-terrain shading normal when the
+              // mesh has one (barycentrics of the hit point); everything
+              // else keeps the facet normal.
+              double cos_shade = cos_in;
+              if (!mesh.shading_normals.empty()) {
+                const Eigen::Vector3i& tri = mesh.triangles[hit->triangle];
+                const Vector3d v0 = mesh.vertices[tri[0]].cast<double>();
+                const Vector3d e1 = mesh.vertices[tri[1]].cast<double>() - v0;
+                const Vector3d e2 = mesh.vertices[tri[2]].cast<double>() - v0;
+                const Vector3d w = p - v0;
+                const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2);
+                const double det = d11 * d22 - d12 * d12;
+                if (det > 0.0) {
+                  const double u = (d22 * w.dot(e1) - d12 * w.dot(e2)) / det;
+                  const double v = (d11 * w.dot(e2) - d12 * w.dot(e1)) / det;
+                  const Vector3d ns = mesh.ShadingNormal(hit->triangle, float(u), float(v)).cast<double>();
+                  cos_shade = std::max(0.0, -ns.dot(dir));
+                }
+              }
+              diffuse_part = m.diffuse * cos_shade;
+              specular_part = m.Backscatter(cos_in) - m.diffuse * cos_in;
             } else {
               const double cos_out = normal.dot(to_radar);
               if (cos_out > 0.0 &&

@@ -76,6 +76,34 @@ TEST(SarRendererTest, FlatPlaneReadsTheLambertianValue) {
   }
 }
 
+// Smooth terrain: the diffuse term of the first bounce uses the mesh's
+// interpolated shading normal. Flat ground whose vertices all carry the
+// shading normal n = (-0.5, 0, 1) / |.| reads n . (-look) (unit Lambertian);
+// a zero shading normal at a vertex falls back to the facet: sin(depression).
+TEST(SarRendererTest, ShadingNormalsDriveTheDiffuseTerm) {
+  for (double heading : {0.0, 30.0}) {
+    for (bool flat : {false, true}) {
+      scene::TriangleMesh mesh;
+      AddGround(mesh, -300, 300, -300, 300);
+      const Vector3f n = Vector3f(-0.5f, 0.0f, 1.0f).normalized();
+      mesh.shading_normals.assign(mesh.vertices.size(), n);
+      if (flat) mesh.shading_normals[0] = mesh.shading_normals[2] = Vector3f::Zero();  // in both triangles
+      const auto g = sensor::SarGeometry::Covering(Options(heading, 40.0, 2.0), Vector3d::Zero(), mesh.vertices);
+      const SarImage image = Render(mesh, g);
+      double sum = 0;
+      int count = 0;
+      for (int r = int(g.v0()) - 40; r <= int(g.v0()) + 40; ++r) {
+        for (int c = int(g.u0()) - 30; c <= int(g.u0()) + 30; ++c) {
+          sum += image.intensity[size_t(r) * image.width + c];
+          ++count;
+        }
+      }
+      const double expected = flat ? std::sin(40.0 * kDeg) : n.cast<double>().dot(-g.look_direction());
+      EXPECT_NEAR(sum / count / expected, 1.0, 0.01) << "heading " << heading << " flat " << flat;
+    }
+  }
+}
+
 TEST(SarRendererTest, ReflectivityScalesTheImage) {
   scene::TriangleMesh mesh;
   AddGround(mesh, -100, 100, -100, 100);
