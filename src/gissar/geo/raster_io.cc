@@ -1,6 +1,7 @@
 #include "gissar/geo/raster_io.h"
 
 #include <gdal_priv.h>
+#include <ogr_spatialref.h>
 
 #include <memory>
 
@@ -27,6 +28,36 @@ void SetMetadata(GDALDataset* ds, const Metadata& metadata) {
   for (const auto& [key, value] : metadata) ds->SetMetadataItem(key.c_str(), value.c_str());
 }
 
+void SetGeoreference(GDALDataset* ds, const Georeference& georeference, const fs::path& path) {
+  if (!georeference.gcps.empty()) {
+    std::vector<GDAL_GCP> gcps(georeference.gcps.size());
+    std::vector<std::string> ids(gcps.size());
+    for (size_t i = 0; i < gcps.size(); ++i) {
+      const GroundControlPoint& g = georeference.gcps[i];
+      ids[i] = std::to_string(i + 1);
+      gcps[i].pszId = ids[i].data();
+      gcps[i].pszInfo = const_cast<char*>("");
+      gcps[i].dfGCPPixel = g.pixel;
+      gcps[i].dfGCPLine = g.line;
+      gcps[i].dfGCPX = g.lon_deg;
+      gcps[i].dfGCPY = g.lat_deg;
+      gcps[i].dfGCPZ = g.height_m;
+    }
+    OGRSpatialReference wgs84;
+    wgs84.importFromEPSG(4326);
+    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    if (ds->SetGCPs(static_cast<int>(gcps.size()), gcps.data(), &wgs84) != CE_None) {
+      throw IoError("cannot write GCPs: " + LastGdalMessage(), path.string());
+    }
+  }
+  for (const auto& [key, value] : georeference.rpc) {
+    ds->SetMetadataItem(key.c_str(), value.c_str(), "RPC");
+  }
+  for (const auto& [key, value] : georeference.geolocation) {
+    ds->SetMetadataItem(key.c_str(), value.c_str(), "GEOLOCATION");
+  }
+}
+
 // Closes the dataset and turns a failure during flushing into IoError.
 void CloseChecked(DatasetPtr ds, const fs::path& path) {
   CPLErrorReset();
@@ -48,6 +79,25 @@ DatasetPtr OpenForReading(const fs::path& path) {
 
 }  // namespace
 
+Metadata LonLatGeolocation(int lon_band, int lat_band) {
+  EnsureGdal();
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  char* wkt = nullptr;
+  wgs84.exportToWkt(&wkt);
+  Metadata m{{"SRS", wkt},
+             {"X_BAND", std::to_string(lon_band)},
+             {"Y_BAND", std::to_string(lat_band)},
+             {"PIXEL_OFFSET", "0"},
+             {"LINE_OFFSET", "0"},
+             {"PIXEL_STEP", "1"},
+             {"LINE_STEP", "1"},
+             {"GEOREFERENCING_CONVENTION", "PIXEL_CENTER"}};
+  CPLFree(wkt);
+  return m;
+}
+
 void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   const int nbands = static_cast<int>(raster.bands.size());
   if (nbands == 0) throw IoError("no band to write", path.string());
@@ -56,12 +106,17 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
                                         GDT_Float32, const_cast<char**>(options)));
   if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
   SetMetadata(ds.get(), raster.metadata);
+  SetGeoreference(ds.get(), raster.georeference, path);
   for (int b = 0; b < nbands; ++b) {
     GDALRasterBand* band = ds->GetRasterBand(b + 1);
     if (b < static_cast<int>(raster.band_names.size())) {
       band->SetDescription(raster.band_names[b].c_str());
     }
-    if (!raster.band_unit.empty()) band->SetUnitType(raster.band_unit.c_str());
+    if (b < static_cast<int>(raster.band_units.size())) {
+      band->SetUnitType(raster.band_units[b].c_str());
+    } else if (!raster.band_unit.empty()) {
+      band->SetUnitType(raster.band_unit.c_str());
+    }
     if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
                        const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
                        GDT_Float32, 0, 0, nullptr) != CE_None) {
@@ -72,12 +127,33 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
 }
 
 void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width,
-                      int height, const Metadata& metadata) {
+                      int height, const Metadata& metadata, const Georeference& georeference,
+                      const ByteCategories& categories) {
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
   DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, 1, GDT_Byte,
                                         const_cast<char**>(options)));
   if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
   SetMetadata(ds.get(), metadata);
+  SetGeoreference(ds.get(), georeference, path);
+  if (!categories.names.empty()) {
+    // GeoTIFF keeps category names only in a PAM .aux.xml sidecar, which
+    // would not follow an atomic rename: they go to band metadata
+    // (CATEGORY_<value>=name, in the TIFF's GDAL_METADATA tag) instead.
+    for (size_t i = 0; i < categories.names.size(); ++i) {
+      ds->GetRasterBand(1)->SetMetadataItem(("CATEGORY_" + std::to_string(i)).c_str(),
+                                            categories.names[i].c_str());
+    }
+  }
+  if (!categories.colours.empty()) {
+    GDALColorTable table(GPI_RGB);
+    for (size_t i = 0; i < categories.colours.size(); ++i) {
+      const auto& c = categories.colours[i];
+      const GDALColorEntry entry{c[0], c[1], c[2], c[3]};
+      table.SetColorEntry(static_cast<int>(i), &entry);
+    }
+    ds->GetRasterBand(1)->SetColorTable(&table);
+    ds->GetRasterBand(1)->SetColorInterpretation(GCI_PaletteIndex);
+  }
   if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
                                      const_cast<uint8_t*>(data.data()), width, height, GDT_Byte,
                                      0, 0, nullptr) != CE_None) {
@@ -126,6 +202,25 @@ void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width,
                                            nullptr));
   if (!png) throw IoError("cannot write PNG: " + LastGdalMessage(), path.string());
   CloseChecked(std::move(png), path);
+}
+
+Georeference ReadGeoreference(const fs::path& path) {
+  DatasetPtr ds = OpenForReading(path);
+  Georeference georeference;
+  const GDAL_GCP* gcps = ds->GetGCPs();
+  for (int i = 0; i < ds->GetGCPCount(); ++i) {
+    georeference.gcps.push_back(
+        {gcps[i].dfGCPPixel, gcps[i].dfGCPLine, gcps[i].dfGCPX, gcps[i].dfGCPY, gcps[i].dfGCPZ});
+  }
+  if (char** items = ds->GetMetadata("RPC")) {
+    for (int i = 0; items[i] != nullptr; ++i) {
+      char* key = nullptr;
+      const char* value = CPLParseNameValue(items[i], &key);
+      if (key != nullptr && value != nullptr) georeference.rpc[key] = value;
+      CPLFree(key);
+    }
+  }
+  return georeference;
 }
 
 FloatRaster ReadFloatRaster(const fs::path& path) {

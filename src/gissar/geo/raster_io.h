@@ -4,6 +4,7 @@
 // the path on failure.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -14,6 +15,33 @@ namespace gissar::geo {
 
 using Metadata = std::map<std::string, std::string>;
 
+// A ground control point in GDAL's convention: (pixel, line) of the raster's
+// corner-based grid (the centre of column c is pixel c + 0.5), WGS84
+// longitude/latitude in degrees and height above the ellipsoid in metres.
+struct GroundControlPoint {
+  double pixel = 0.0;
+  double line = 0.0;
+  double lon_deg = 0.0;
+  double lat_deg = 0.0;
+  double height_m = 0.0;
+};
+
+// Georeferencing of a raster without a geotransform (radar geometry): GCPs
+// in WGS84 (EPSG:4326) and GDAL "RPC" metadata-domain items (LINE_OFF, ...,
+// SAMP_DEN_COEFF) and GDAL "GEOLOCATION" items (X_BAND, Y_BAND, SRS, ...;
+// without X_DATASET the arrays are bands of the raster itself). Any may be
+// empty.
+struct Georeference {
+  std::vector<GroundControlPoint> gcps;
+  Metadata rpc;
+  Metadata geolocation;
+  bool empty() const { return gcps.empty() && rpc.empty() && geolocation.empty(); }
+};
+
+// GEOLOCATION items for WGS84 longitude/latitude bands (1-based) of the
+// raster itself, one value per pixel.
+Metadata LonLatGeolocation(int lon_band, int lat_band);
+
 // A float32 band stack: `bands[b]` holds width*height values, row-major.
 struct FloatRaster {
   int width = 0;
@@ -22,15 +50,30 @@ struct FloatRaster {
   std::vector<std::string> band_names;  // one per band (may be empty)
   Metadata metadata;                    // dataset metadata items
   std::string band_unit = {};           // unit of every band (GDAL unit type; may be empty)
+  Georeference georeference;            // GCPs/RPCs (radar geometry), may be empty
+  std::vector<std::string> band_units;  // GDAL unit type per band (may be empty)
 };
 
 // Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Radar-geometry images
-// carry no geotransform: their geometry is in `metadata`.
+// carry no geotransform: their geometry is in `metadata`, and their
+// georeferencing (when given) as WGS84 GCPs and RPC metadata.
 void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& raster);
 
 // Writes a single-band uint8 GeoTIFF (masks, class maps) with metadata.
+// Categories of a class raster: names (value = index; written as band
+// metadata CATEGORY_<value>) and RGBA colours (a TIFF colour table).
+struct ByteCategories {
+  std::vector<std::string> names;
+  std::vector<std::array<uint8_t, 4>> colours;  // same length as names, or empty
+};
+
 void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8_t>& data,
-                      int width, int height, const Metadata& metadata);
+                      int width, int height, const Metadata& metadata,
+                      const Georeference& georeference = {}, const ByteCategories& categories = {});
+
+// Reads the GCPs (as stored, in their own CRS) and the RPC domain of a raster.
+// Throws InputError when missing or unreadable.
+Georeference ReadGeoreference(const std::filesystem::path& path);
 
 // Writes a single-band CFloat32 GeoTIFF (single-look complex image) from
 // row-major real and imaginary planes, with metadata and a band unit.

@@ -165,6 +165,8 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   raster.metadata["GISSAR_BANDS"] =
       "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (linear intensity); 6 longitude, 7 latitude "
       "(WGS84 degrees, float32: ~1 m), 8 ellipsoidal height (m) of each pixel's ground point (NaN: none)";
+  // GDAL geolocation arrays: gdalwarp -geoloc places the image from bands 6 and 7.
+  raster.georeference.geolocation = geo::LonLatGeolocation(6, 7);
   geo::WriteFloatGeoTiff(tif, raster);
   image::DbStretch stretch;
   geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);

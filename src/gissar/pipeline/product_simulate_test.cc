@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "gissar/geo/raster_io.h"
+#include "gissar/geo/warp.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
@@ -89,6 +90,28 @@ TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
     EXPECT_GT(raster.bands[6][k], 34.1401);
     EXPECT_LT(raster.bands[6][k], 34.2102);
   }
+  // GDAL's geolocation-array transformer (what gdalwarp -geoloc uses) reads
+  // bands 6/7 from the GEOLOCATION metadata: each pixel centre maps to its
+  // own ground point (within 1 m; ground pixels are ~9 m).
+  std::vector<Eigen::Vector2d> pixels, want;
+  for (int r = 10; r < 150; r += 23) {
+    for (int c = 7; c < 200; c += 31) {
+      const size_t k = size_t(r) * 200 + c;
+      if (!std::isfinite(raster.bands[5][k])) continue;
+      pixels.emplace_back(c + 0.5, r + 0.5);
+      want.emplace_back(raster.bands[5][k], raster.bands[6][k]);
+    }
+  }
+  ASSERT_GE(pixels.size(), 20u);
+  const auto got = geo::PixelsToLonLat(dir / "sim.tif", {"METHOD=GEOLOC_ARRAY"}, pixels);
+  double worst_m = 0;
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const double dx = (got[i].x() - want[i].x()) * 111320.0 * std::cos(want[i].y() * M_PI / 180.0);
+    const double dy = (got[i].y() - want[i].y()) * 110574.0;
+    worst_m = std::max(worst_m, std::isfinite(dx + dy) ? std::hypot(dx, dy) : 1e9);
+  }
+  std::printf("[ measured ] geolocation arrays: worst %.3f m over %zu pixels\n", worst_m, pixels.size());
+  EXPECT_LT(worst_m, 1.0);
   ValidateRequest o;
   o.simulate = s;
   o.simulate.out_prefix.clear();

@@ -1,5 +1,7 @@
 #include "gissar/pipeline/simulate.h"
 
+#include "gissar/pipeline/georeferencing.h"
+
 #include "gissar/pipeline/product_simulate.h"
 
 #include <cmath>
@@ -552,6 +554,18 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     raster.band_names.push_back(layer_names[layer]);
   }
   raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
+  raster.band_units.assign(raster.bands.size(), raster.band_unit);
+  // WGS84 GCPs on the terrain and RPCs fitted to the geometry (docs/georeferencing.md).
+  nlohmann::json georeference_record;
+  try {
+    sensor::GeoreferenceReport georeference_report;
+    raster.georeference = SimulationGeoreference(terrain, geometry, &georeference_report);
+    georeference_record = {{"gcps", georeference_report.gcp_count},
+                           {"rpc_max_error_px", georeference_report.rpc_max_error_px},
+                           {"rpc_rms_error_px", georeference_report.rpc_rms_error_px}};
+  } catch (const ConfigError& e) {
+    georeference_record = {{"gcps", 0}, {"reason", e.what()}};
+  }
   if (!contributions_csv.empty()) WriteContributions(contributions_csv, image.contributions, geometry);
   geo::WriteFloatGeoTiff(tif, raster);
   if (options.coherent) {
@@ -579,11 +593,14 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   }
   geo::Metadata mask_metadata = metadata;
   mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
-  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata);
+  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata, raster.georeference,
+                        geo::ByteCategories{{"none", "layover", "shadow", "layover and shadow"},
+                                            {{0, 0, 0, 0}, {255, 64, 0, 255}, {0, 64, 255, 255}, {255, 0, 255, 255}}});
 
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array(
       {InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
+  provenance["georeference"] = georeference_record;
   provenance["terrain"] = terrain.description;
   provenance["materials"] = terrain.materials.ToJson();
   provenance["frame"] = {{"type", options.vertical_datum == "egm96"

@@ -1,0 +1,108 @@
+#include "gissar/pipeline/georeferencing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace gissar::pipeline {
+
+TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.vertices) {
+  if (!terrain.mesh.triangles.empty()) {
+    triangles_ = &terrain.mesh.triangles;
+    triangle_count_ = terrain.mesh.triangles.size();
+  } else if (terrain.grid_width > 1 && terrain.grid_height > 1) {
+    grid_width_ = terrain.grid_width;
+    grid_height_ = terrain.grid_height;
+    triangle_count_ = size_t(grid_width_ - 1) * (grid_height_ - 1) * 2;
+  }
+  double x_min = 1e300, x_max = -1e300, y_min = 1e300, y_max = -1e300;
+  z_min_ = 1e300;
+  z_max_ = -1e300;
+  for (const auto& v : vertices_) {
+    if (!v.allFinite()) continue;
+    x_min = std::min<double>(x_min, v.x());
+    x_max = std::max<double>(x_max, v.x());
+    y_min = std::min<double>(y_min, v.y());
+    y_max = std::max<double>(y_max, v.y());
+    z_min_ = std::min<double>(z_min_, v.z());
+    z_max_ = std::max<double>(z_max_, v.z());
+  }
+  if (triangle_count_ == 0 || x_min > x_max) {
+    nx_ = ny_ = 0;
+    return;
+  }
+  const double area = std::max((x_max - x_min) * (y_max - y_min), 1.0);
+  cell_ = std::max(std::sqrt(4.0 * area / double(triangle_count_)), 1e-3);
+  x0_ = x_min;
+  y0_ = y_min;
+  nx_ = std::max(1, int(std::ceil((x_max - x_min) / cell_)) + 1);
+  ny_ = std::max(1, int(std::ceil((y_max - y_min) / cell_)) + 1);
+  std::vector<uint32_t> counts(size_t(nx_) * ny_ + 1, 0);
+  auto for_cells = [&](size_t t, auto&& fn) {
+    const Eigen::Vector3i tri = Triangle(t);
+    const auto &a = vertices_[tri[0]], &b = vertices_[tri[1]], &c = vertices_[tri[2]];
+    if (!a.allFinite() || !b.allFinite() || !c.allFinite()) return;
+    const int i0 = int((std::min({a.x(), b.x(), c.x()}) - x0_) / cell_);
+    const int i1 = int((std::max({a.x(), b.x(), c.x()}) - x0_) / cell_);
+    const int j0 = int((std::min({a.y(), b.y(), c.y()}) - y0_) / cell_);
+    const int j1 = int((std::max({a.y(), b.y(), c.y()}) - y0_) / cell_);
+    for (int j = std::max(j0, 0); j <= std::min(j1, ny_ - 1); ++j)
+      for (int i = std::max(i0, 0); i <= std::min(i1, nx_ - 1); ++i) fn(size_t(j) * nx_ + i);
+  };
+  for (size_t t = 0; t < triangle_count_; ++t) for_cells(t, [&](size_t cell) { ++counts[cell + 1]; });
+  for (size_t k = 1; k < counts.size(); ++k) counts[k] += counts[k - 1];
+  start_ = counts;
+  members_.resize(start_.back());
+  std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+  for (size_t t = 0; t < triangle_count_; ++t) {
+    for_cells(t, [&](size_t cell) { members_[fill[cell]++] = uint32_t(t); });
+  }
+}
+
+Eigen::Vector3i TerrainSurface::Triangle(size_t t) const {
+  if (triangles_ != nullptr) return (*triangles_)[t];
+  const size_t quad = t / 2;
+  const int i = int(quad % (grid_width_ - 1)), j = int(quad / (grid_width_ - 1));
+  const int a = j * grid_width_ + i, b = a + 1, c = a + grid_width_, d = c + 1;
+  return t % 2 == 0 ? Eigen::Vector3i(a, b, d) : Eigen::Vector3i(a, d, c);
+}
+
+double TerrainSurface::operator()(double x, double y) const {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (nx_ == 0) return nan;
+  const int i = int(std::floor((x - x0_) / cell_)), j = int(std::floor((y - y0_) / cell_));
+  if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return nan;
+  const size_t cell = size_t(j) * nx_ + i;
+  double best = nan;
+  for (uint32_t k = start_[cell]; k < start_[cell + 1]; ++k) {
+    const Eigen::Vector3i tri = Triangle(members_[k]);
+    const Eigen::Vector3d a = vertices_[tri[0]].cast<double>(), b = vertices_[tri[1]].cast<double>(),
+                          c = vertices_[tri[2]].cast<double>();
+    const double det = (b.y() - c.y()) * (a.x() - c.x()) + (c.x() - b.x()) * (a.y() - c.y());
+    if (std::abs(det) < 1e-12) continue;  // vertical wall
+    const double w0 = ((b.y() - c.y()) * (x - c.x()) + (c.x() - b.x()) * (y - c.y())) / det;
+    const double w1 = ((c.y() - a.y()) * (x - c.x()) + (a.x() - c.x()) * (y - c.y())) / det;
+    const double w2 = 1.0 - w0 - w1;
+    const double tol = -1e-9;
+    if (w0 < tol || w1 < tol || w2 < tol) continue;
+    const double z = w0 * a.z() + w1 * b.z() + w2 * c.z();
+    if (!(z <= best)) best = z;
+  }
+  return best;
+}
+
+geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
+                                         sensor::GeoreferenceReport* report) {
+  const TerrainSurface surface(terrain);
+  // 12 x 12 nodes; where part of the image sees no terrain (a rotated image
+  // around a DEM), a denser lattice until at least 100 GCPs hit it.
+  geo::Georeference g;
+  for (int grid = 12;; grid += 4) {
+    g = sensor::SlantRangeGeoreference(
+        geometry, terrain.frame, [&](double x, double y) { return surface(x, y); }, surface.z_min_m(),
+        surface.z_max_m(), grid, report);
+    if (g.gcps.size() >= 100 || grid >= 40) return g;
+  }
+}
+
+}  // namespace gissar::pipeline

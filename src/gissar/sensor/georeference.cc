@@ -1,0 +1,193 @@
+#include "gissar/sensor/georeference.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+#include <Eigen/Dense>
+
+#include "gissar/util/error.h"
+
+namespace gissar::sensor {
+namespace {
+
+// GDAL's (RPC00B) order of the 20 cubic terms in (L = lon, P = lat, H = height).
+std::array<double, 20> RpcTerms(double L, double P, double H) {
+  return {1.0,       L,         P,         H,         L * P,     L * H,     P * H,
+          L * L,     P * P,     H * H,     P * L * H, L * L * L, L * P * P, L * H * H,
+          L * L * P, P * P * P, P * H * H, L * L * H, P * P * H, H * H * H};
+}
+
+std::string Coefficients(const Eigen::VectorXd& c) {
+  std::string out;
+  char buf[40];
+  for (int i = 0; i < c.size(); ++i) {
+    std::snprintf(buf, sizeof(buf), "%s%.17g", i ? " " : "", c[i]);
+    out += buf;
+  }
+  return out;
+}
+
+std::string Number(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+}  // namespace
+
+geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo::LocalFrame& frame,
+                                         const SurfaceHeight& surface, double z_min_m,
+                                         double z_max_m, int grid, GeoreferenceReport* report) {
+  if (grid < 2) throw ConfigError("GCP grid must be at least 2 x 2", "georeference");
+  const double margin_m = 100.0;
+  const double z_top = z_max_m + margin_m;
+  const double z_bottom = z_min_m - margin_m;
+  const double step_m =
+      0.25 * std::min(geometry.range_spacing_m(), geometry.azimuth_spacing_m());
+  const Eigen::Vector3d up(0.0, 0.0, 1.0);
+  Eigen::Vector3d n_up = geometry.range_plane_normal();
+  if (n_up.z() < 0) n_up = -n_up;
+  const Eigen::Vector3d& l = geometry.look_direction();
+  const Eigen::Vector3d& h = geometry.flight_direction();
+  Eigen::Vector3d r_h(l.x(), l.y(), 0.0);
+  r_h.normalize();
+
+  geo::Georeference out;
+  for (int j = 0; j < grid; ++j) {
+    for (int i = 0; i < grid; ++i) {
+      const double col = (geometry.width() - 1) * double(i) / (grid - 1);
+      const double row = (geometry.height() - 1) * double(j) / (grid - 1);
+      const double along = (row - geometry.v0()) * geometry.azimuth_spacing_m();
+      const double range = geometry.slant_range_m() + (col - geometry.u0()) * geometry.range_spacing_m();
+      // The locus of the pixel as a curve point(s), s from the top down.
+      std::function<Eigen::Vector3d(double)> point;
+      double s_top, s_bottom, ds;
+      if (geometry.mode() == ProjectionMode::kAffine) {
+        const Eigen::Vector3d base = geometry.scene_centre() +
+                                     (range - geometry.slant_range_m()) * l + along * h;
+        point = [base, n_up](double t) -> Eigen::Vector3d { return base + t * n_up; };
+        s_top = (z_top - base.z()) / n_up.z();
+        s_bottom = (z_bottom - base.z()) / n_up.z();
+        ds = -step_m;
+      } else {
+        const Eigen::Vector3d sensor = geometry.SensorPosition(along);
+        point = [sensor, r_h, up, range](double phi) -> Eigen::Vector3d {
+          return sensor + range * (std::cos(phi) * r_h - std::sin(phi) * up);
+        };
+        auto angle = [&](double z) { return std::asin(std::clamp((sensor.z() - z) / range, -1.0, 1.0)); };
+        s_top = angle(z_top);
+        s_bottom = angle(z_bottom);
+        ds = step_m / range;
+      }
+      auto above = [&](double s, bool* valid) {
+        const Eigen::Vector3d p = point(s);
+        const double zs = surface(p.x(), p.y());
+        *valid = std::isfinite(zs);
+        return p.z() - zs;
+      };
+      const int steps = static_cast<int>(std::ceil((s_bottom - s_top) / ds));
+      double prev_s = s_top;
+      bool prev_valid = false;
+      double prev_f = above(prev_s, &prev_valid);
+      for (int k = 1; k <= steps; ++k) {
+        const double s = s_top + k * ds;
+        bool valid = false;
+        const double f = above(s, &valid);
+        if (valid && prev_valid && prev_f > 0 && f <= 0) {
+          double a = prev_s, b = s;
+          for (int it = 0; it < 60; ++it) {
+            const double m = 0.5 * (a + b);
+            bool v = false;
+            const double fm = above(m, &v);
+            if (!v || fm > 0) a = m; else b = m;
+          }
+          const Eigen::Vector3d p = point(0.5 * (a + b));
+          const Eigen::Vector3d g = frame.GeodeticFromEnu(p);
+          const Eigen::Vector2d px = geometry.Project(p);
+          out.gcps.push_back({px.x() + 0.5, px.y() + 0.5, g.x(), g.y(), g.z()});
+          break;
+        }
+        prev_s = s;
+        prev_f = f;
+        prev_valid = valid;
+      }
+    }
+  }
+  if (out.gcps.size() < 3) {
+    throw ConfigError("fewer than 3 image pixels see the terrain; no georeferencing possible",
+                      "georeference");
+  }
+
+  // RPC fit on a lattice over the GCPs' footprint.
+  double lon_min = 1e9, lon_max = -1e9, lat_min = 1e9, lat_max = -1e9, h_min = 1e9, h_max = -1e9;
+  for (const auto& g : out.gcps) {
+    lon_min = std::min(lon_min, g.lon_deg);
+    lon_max = std::max(lon_max, g.lon_deg);
+    lat_min = std::min(lat_min, g.lat_deg);
+    lat_max = std::max(lat_max, g.lat_deg);
+    h_min = std::min(h_min, g.height_m);
+    h_max = std::max(h_max, g.height_m);
+  }
+  const double lon_off = 0.5 * (lon_min + lon_max), lat_off = 0.5 * (lat_min + lat_max);
+  const double h_off = 0.5 * (h_min + h_max);
+  const double lon_scale = std::max(0.55 * (lon_max - lon_min), 1e-6);
+  const double lat_scale = std::max(0.55 * (lat_max - lat_min), 1e-6);
+  const double h_scale = 0.5 * (h_max - h_min) + margin_m;
+  const double samp_off = 0.5 * (geometry.width() - 1), line_off = 0.5 * (geometry.height() - 1);
+  const double samp_scale = std::max(0.5 * geometry.width(), 1.0);
+  const double line_scale = std::max(0.5 * geometry.height(), 1.0);
+  const int nl = 15, nh = 7;
+  const int n = nl * nl * nh;
+  Eigen::MatrixXd A(n, 20);
+  Eigen::VectorXd bs(n), bl(n);
+  int k = 0;
+  for (int a = 0; a < nh; ++a) {
+    for (int b = 0; b < nl; ++b) {
+      for (int c = 0; c < nl; ++c, ++k) {
+        const double H = -1.0 + 2.0 * a / (nh - 1);
+        const double P = -1.0 + 2.0 * b / (nl - 1);
+        const double L = -1.0 + 2.0 * c / (nl - 1);
+        const Eigen::Vector3d enu = frame.EnuFromGeodetic(lon_off + L * lon_scale,
+                                                          lat_off + P * lat_scale, h_off + H * h_scale);
+        const Eigen::Vector2d px = geometry.Project(enu);
+        const auto terms = RpcTerms(L, P, H);
+        for (int t = 0; t < 20; ++t) A(k, t) = terms[t];
+        bs[k] = (px.x() - samp_off) / samp_scale;
+        bl[k] = (px.y() - line_off) / line_scale;
+      }
+    }
+  }
+  const auto qr = A.colPivHouseholderQr();
+  const Eigen::VectorXd cs = qr.solve(bs), cl = qr.solve(bl);
+  const Eigen::VectorXd rs = (A * cs - bs) * samp_scale, rl = (A * cl - bl) * line_scale;
+  double max_err = 0.0, sum2 = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double e = std::hypot(rs[i], rl[i]);
+    max_err = std::max(max_err, e);
+    sum2 += e * e;
+  }
+  Eigen::VectorXd den = Eigen::VectorXd::Zero(20);
+  den[0] = 1.0;
+  out.rpc = {{"LINE_OFF", Number(line_off)},     {"SAMP_OFF", Number(samp_off)},
+             {"LAT_OFF", Number(lat_off)},       {"LONG_OFF", Number(lon_off)},
+             {"HEIGHT_OFF", Number(h_off)},      {"LINE_SCALE", Number(line_scale)},
+             {"SAMP_SCALE", Number(samp_scale)}, {"LAT_SCALE", Number(lat_scale)},
+             {"LONG_SCALE", Number(lon_scale)},  {"HEIGHT_SCALE", Number(h_scale)},
+             {"LINE_NUM_COEFF", Coefficients(cl)}, {"LINE_DEN_COEFF", Coefficients(den)},
+             {"SAMP_NUM_COEFF", Coefficients(cs)}, {"SAMP_DEN_COEFF", Coefficients(den)},
+             {"MIN_LONG", Number(lon_off - lon_scale)}, {"MAX_LONG", Number(lon_off + lon_scale)},
+             {"MIN_LAT", Number(lat_off - lat_scale)},  {"MAX_LAT", Number(lat_off + lat_scale)},
+             {"ERR_BIAS", Number(-1.0)}, {"ERR_RAND", Number(-1.0)}};
+  if (report != nullptr) {
+    report->gcp_count = static_cast<int>(out.gcps.size());
+    report->rpc_max_error_px = max_err;
+    report->rpc_rms_error_px = std::sqrt(sum2 / n);
+  }
+  return out;
+}
+
+}  // namespace gissar::sensor
