@@ -113,7 +113,8 @@ TEST(InterruptTest, SignalWhileWritingRemovesPartialFiles) {
   const bool writing = WaitFor(pid, [&] {
     for (const auto& e : fs::directory_iterator(out)) {
       std::error_code ec;
-      if (e.path().filename().string().rfind(".returns.csv.tmp-", 0) == 0 && fs::file_size(e.path(), ec) > 0) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind(".gs-", 0) == 0 && name.find(".tmp") != std::string::npos && fs::file_size(e.path(), ec) > 0) {
         return true;
       }
     }

@@ -54,6 +54,7 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
   Stopwatch total;
   const std::string& prefix = options.base.out_prefix;
   AtomicOutputs outputs;
+  outputs.LockPrefix(prefix);  // one lock for every frame
   std::vector<fs::path> tifs, pngs;
   for (int i = 0; i < options.frames; ++i) {
     tifs.push_back(outputs.Add(prefix + FrameSuffix(i) + ".tif"));
