@@ -134,7 +134,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   int col0 = 0, row0 = 0;
   if (options.window) {
     const auto [c, r, w, h] = *options.window;
-    if (c < 0 || r < 0 || w < 2 || h < 2 || c + w > dem.width || r + h > dem.height) {
+    if (c < 0 || r < 0 || w < 2 || h < 2 || int64_t{c} + w > dem.width || int64_t{r} + h > dem.height) {
       throw ConfigError("window " + std::to_string(c) + "," + std::to_string(r) + "," +
                             std::to_string(w) + "," + std::to_string(h) + " is not inside the " +
                             std::to_string(dem.width) + "x" + std::to_string(dem.height) + " DEM",

@@ -89,7 +89,10 @@ void SimulateRequest::Check() const {
   if (!(speckle_looks == 0.0 || (speckle_looks >= 1.0 && std::isfinite(speckle_looks)))) {
     throw ConfigError("speckle looks must be 0 (off) or >= 1", "--speckle-looks");
   }
-  if (std::isinf(nesz_db)) throw ConfigError("NESZ must be a finite number of dB", "--nesz");
+  // NaN = no thermal noise; otherwise [-100, 60] dB keeps 10^(NESZ/10) a finite float.
+  if (!std::isnan(nesz_db) && !(nesz_db >= kMinNeszDb && nesz_db <= kMaxNeszDb)) {
+    throw ConfigError("NESZ must be in [-100, 60] dB", "--nesz");
+  }
   if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
   std::vector<fs::path> outs = {fs::path(contributions)};
   for (const char* suffix : {".tif", ".png", "_quicklook.png", "_mask.tif", ".json"}) outs.push_back(out_prefix + suffix);

@@ -271,6 +271,9 @@ fs::path AtomicOutputs::Add(const fs::path& final_path) {
     throw IoError("output exists and is not a regular file", final_path.string());
   }
   if (final_path.string().size() + 1 > kPathBytes) throw IoError("output path is too long", final_path.string());
+  if (final_path.filename().string().size() > 255) {
+    throw IoError("output file name is longer than 255 bytes", final_path.string());
+  }
   const fs::path resolved = Resolved(final_path);
   for (size_t i = 0; i < final_paths_.size(); ++i) {
     std::error_code eq;
