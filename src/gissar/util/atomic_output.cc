@@ -373,6 +373,16 @@ void AtomicOutputs::Commit() {
 }
 
 void CheckOutputsAreNotInputs(const std::vector<fs::path>& outputs, const std::vector<std::string>& inputs) {
+  // Inputs that would never end (a FIFO, a device, a socket) are refused
+  // before anything opens them; GDAL virtual paths (/vsizip/...) are not local.
+  for (const std::string& input : inputs) {
+    if (input.empty() || input.rfind("/vsi", 0) == 0) continue;
+    struct stat st {};
+    if (stat(input.c_str(), &st) != 0) continue;  // missing: the reader says so
+    if (S_ISFIFO(st.st_mode) || S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) || S_ISSOCK(st.st_mode)) {
+      throw InputError("input is not a regular file (a FIFO, device or socket)", input);
+    }
+  }
   for (const fs::path& out : outputs) {
     for (const std::string& input : inputs) {
       std::error_code ec;

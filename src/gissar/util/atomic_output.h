@@ -80,7 +80,8 @@ class AtomicOutputs {
 // of `outputs` names the same existing file as one of `inputs` (compared with
 // std::filesystem::equivalent, so links and different spellings count), and
 // ConfigError("two outputs name the same file X", output) when two outputs do
-// (also before they exist); empty entries are ignored. Commands call it before
+// (also before they exist); InputError when an input is a FIFO, a device or a
+// socket (GDAL "/vsi..." paths are not checked); empty entries are ignored. Commands call it before
 // reading anything.
 void CheckOutputsAreNotInputs(const std::vector<std::filesystem::path>& outputs,
                               const std::vector<std::string>& inputs);

@@ -242,6 +242,20 @@ TEST(AtomicOutputsTest, AnOutputThatIsNotARegularFileIsAnError) {
   EXPECT_EQ(SortedEntries(dir), std::vector<std::string>{"pipe.tif"});
 }
 
+TEST(AtomicOutputsTest, AFifoAsInputIsRefusedBeforeOpening) {
+  const fs::path dir = testing::MakeTempDir();
+  ASSERT_EQ(mkfifo((dir / "dem.tif").c_str(), 0644), 0);
+  // Opening the FIFO would block: the check must only stat it.
+  try {
+    CheckOutputsAreNotInputs({dir / "out.tif"}, {(dir / "dem.tif").string()});
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.message(), "input is not a regular file (a FIFO, device or socket)");
+    EXPECT_EQ(e.where(), (dir / "dem.tif").string());
+  }
+  EXPECT_NO_THROW(CheckOutputsAreNotInputs({dir / "out.tif"}, {"/vsizip/absent.zip/dem.tif"}));
+}
+
 TEST(AtomicOutputsTest, TwoOutputsNamingTheSameFileAreAConfigError) {
   const fs::path dir = testing::MakeTempDir();
   {
