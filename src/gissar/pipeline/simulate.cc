@@ -380,6 +380,17 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
                     "image of " + std::to_string(geometry.width()) + " x " +
                         std::to_string(geometry.height()) + " pixels",
                     "use coarser --range-spacing/--azimuth-spacing, a smaller --width/--height");
+  if (!options.contributions.empty()) {
+    // Every ray may return once per bounce, each return kept in memory.
+    const double returns = geometry.width() * double(geometry.height()) * options.rays_per_cell * options.bounces;
+    CheckMemoryBudget(returns * double(sizeof(render::Contribution)) +
+                          kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
+                          double(mesh.MemoryBytes()) * 3.0,
+                      options.max_memory_bytes,
+                      "recording up to " + std::to_string(int64_t(returns)) +
+                          " contributions (--contributions)",
+                      "use fewer --rays-per-cell or --bounces, coarser spacings, or no --contributions");
+  }
   {
     reporter.Info("simulate: image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
         " pixels, " +
