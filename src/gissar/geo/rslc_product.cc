@@ -294,6 +294,12 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
   p.slant_range_m = r.Doubles(f, freq + "/slantRange");
   CheckUniformIncreasing(p.slant_range_m, "slantRange", where);
   if (!(p.slant_range_m.front() > 0.0)) throw InputError("slant ranges must be positive", where);
+  if (options.max_bytes > 0) {
+    CheckMemoryBudget(options.bytes_per_pixel * double(p.rows()) * double(p.cols()), options.max_bytes,
+                      "product grid of " + std::to_string(p.rows()) + " x " + std::to_string(p.cols()) + " pixels (" +
+                          where + ")",
+                      "crop the product");
+  }
   p.center_frequency_hz = r.Scalar(f, freq + "/processedCenterFrequency");
   if (!(p.center_frequency_hz > 1e6 && p.center_frequency_hz < 1e12)) {
     throw InputError("processedCenterFrequency out of range (1 MHz .. 1 THz)", where);
@@ -346,12 +352,6 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
     throw InputError("SLC layer " + layer + " does not match the " + std::to_string(p.rows()) + " x " +
                          std::to_string(p.cols()) + " radar grid",
                      where);
-  }
-  if (options.max_bytes > 0) {
-    CheckMemoryBudget(options.bytes_per_pixel * double(p.rows()) * double(p.cols()), options.max_bytes,
-                      "product grid of " + std::to_string(p.rows()) + " x " + std::to_string(p.cols()) + " pixels (" +
-                          where + ")",
-                      "crop the product");
   }
   if (options.read_amplitude) {
     H5Id type(H5Dget_type(ds.get()), H5Tclose);
