@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <sstream>
 
@@ -211,6 +212,24 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   if (band->RasterIO(GF_Read, col0, row0, dem.width, dem.height, raw.data(), dem.width,
                      dem.height, GDT_Float64, 0, 0, nullptr) != CE_None) {
     throw InputError("cannot read DEM heights: " + LastGdalMessage(), where);
+  }
+  // The band's scale and offset (height = stored * scale + offset, e.g. an
+  // Int16 DEM in decimetres): applied to every cell that is not no-data (the
+  // no-data value is a stored value).
+  int has_scale = 0, has_offset = 0;
+  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
+  if ((has_scale && !(std::isfinite(scale) && scale != 0.0)) || (has_offset && !std::isfinite(offset))) {
+    throw InputError("DEM band scale/offset must be finite with a non-zero scale", where);
+  }
+  if ((has_scale && scale != 1.0) || (has_offset && offset != 0.0)) {
+    const double s = has_scale ? scale : 1.0, o = has_offset ? offset : 0.0;
+    for (double& v : raw) {
+      if (IsVoid(v, has_nodata != 0, nodata)) {
+        v = std::numeric_limits<double>::quiet_NaN();  // stays void after scaling
+      } else {
+        v = v * s + o;
+      }
+    }
   }
   int64_t voids = 0, out_of_range = 0;
   double lowest = kMinHeightM, highest = kMaxHeightM;
