@@ -216,6 +216,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   // The band's scale and offset (height = stored * scale + offset, e.g. an
   // Int16 DEM in decimetres): applied to every cell that is not no-data (the
   // no-data value is a stored value).
+  bool nodata_marked = has_nodata != 0;
   int has_scale = 0, has_offset = 0;
   const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
   if ((has_scale && !(std::isfinite(scale) && scale != 0.0)) || (has_offset && !std::isfinite(offset))) {
@@ -224,17 +225,18 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   if ((has_scale && scale != 1.0) || (has_offset && offset != 0.0)) {
     const double s = has_scale ? scale : 1.0, o = has_offset ? offset : 0.0;
     for (double& v : raw) {
-      if (IsVoid(v, has_nodata != 0, nodata)) {
+      if (IsVoid(v, nodata_marked, nodata)) {
         v = std::numeric_limits<double>::quiet_NaN();  // stays void after scaling
       } else {
         v = v * s + o;
       }
     }
+    nodata_marked = false;  // voids are NaN now; a scaled height may equal the stored no-data value
   }
   int64_t voids = 0, out_of_range = 0;
   double lowest = kMinHeightM, highest = kMaxHeightM;
   for (double v : raw) {
-    if (IsVoid(v, has_nodata != 0, nodata)) {
+    if (IsVoid(v, nodata_marked, nodata)) {
       ++voids;
     } else if (v < kMinHeightM || v > kMaxHeightM) {
       ++out_of_range;
@@ -262,7 +264,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   constexpr float kVoid = -3.0e38f;
   dem.heights_m.resize(raw.size());
   for (size_t i = 0; i < raw.size(); ++i) {
-    dem.heights_m[i] = IsVoid(raw[i], has_nodata != 0, nodata) ? kVoid : static_cast<float>(raw[i]);
+    dem.heights_m[i] = IsVoid(raw[i], nodata_marked, nodata) ? kVoid : static_cast<float>(raw[i]);
   }
   if (voids > 0) {
     FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells, where);
