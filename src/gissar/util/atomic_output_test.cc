@@ -60,11 +60,20 @@ TEST(AtomicOutputsTest, DestructionWithoutCommitLeavesNothing) {
 
 TEST(AtomicOutputsTest, CommitFailsWhenAnOutputWasNeverWritten) {
   const fs::path dir = testing::MakeTempDir();
-  AtomicOutputs outputs;
-  WriteText(outputs.Add(dir / "a.txt"), "A");
-  outputs.Add(dir / "b.txt");
-  EXPECT_THROW(outputs.Commit(), IoError);
-  EXPECT_EQ(CountEntries(dir), 0u);
+  WriteText(dir / "a.txt", "old");
+  {
+    AtomicOutputs outputs;
+    WriteText(outputs.Add(dir / "a.txt"), "A");
+    outputs.Add(dir / "b.txt");
+    EXPECT_THROW(outputs.Commit(), IoError);
+    // Only the earlier output and the lock of the live run.
+    EXPECT_EQ(CountEntries(dir), 2u);
+  }
+  EXPECT_EQ(CountEntries(dir), 1u);
+  std::ifstream in(dir / "a.txt");
+  std::string text;
+  in >> text;
+  EXPECT_EQ(text, "old");
 }
 
 TEST(AtomicOutputsTest, MissingDirectoryIsAnIoError) {
