@@ -10,7 +10,7 @@ FUZZ_DIR ?= build-fuzz
 FUZZ_SECONDS ?= 60
 FUZZERS ?=
 
-.PHONY: all deps configure build install docs-numbers test test-sanitize test-sanitize-ci fuzz demo bench clean
+.PHONY: all deps configure build install install-python docs-numbers test test-sanitize test-sanitize-ci fuzz demo bench clean
 
 all: build
 
@@ -28,6 +28,16 @@ build: configure
 PREFIX ?= /usr/local
 install: build
 	@cmake --install $(BUILD_DIR) --prefix $(PREFIX)
+
+# `make install-python`: the Python package into the virtual environment
+# $(VENV) (made with --system-site-packages for Debian's NumPy/GDAL; reuses
+# the build tree, offline): then `$(VENV)/bin/python -c "import gissar"`
+# works from any directory.
+VENV ?= .venv
+install-python: build
+	@test -x $(VENV)/bin/python || /usr/bin/python3 -m venv --system-site-packages $(VENV)
+	@GISSAR_BUILD_DIR=$(CURDIR)/$(BUILD_DIR) $(VENV)/bin/python -m pip install -q --no-build-isolation --no-index .
+	@echo "install-python: gissar installed into $(VENV) ($(VENV)/bin/python)"
 
 # Rewrites the figures docs/tutorial.md quotes from a fresh run of the
 # tutorial (scripts/docs_numbers.py; the docs_tutorial test compares them).

@@ -5,9 +5,12 @@
 // gissar.InputError / ConfigError / IoError (subclasses of gissar.Error)
 // with the same message. Heavy work runs without the GIL.
 #include <atomic>
+#include <cctype>
+#include <map>
 #include <cmath>
 #include <memory>
 
+#include <pybind11/eval.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -19,6 +22,7 @@
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/views.h"
 #include "gissar/geo/memory_raster.h"
+#include "gissar/pipeline/field_names.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/annotated.h"
 #include "gissar/image/class_map.h"
@@ -118,6 +122,38 @@ py::array_t<uint8_t> RgbArray(const image::RgbImage& img) {
   py::array_t<uint8_t> out({img.height, img.width, 3});
   std::copy(img.rgb.begin(), img.rgb.end(), out.mutable_data());
   return out;
+}
+
+// An error's text for Python: "<what> (<where>)", where a command-line flag
+// ("--heading", "--range-spacing/--azimuth-spacing") is replaced by the
+// Python parameter of the same request field ("heading_deg").
+std::string PythonMessage(const Error& e) {
+  static const std::map<std::string, std::string> parameter_of_flag = [] {
+    std::map<std::string, std::string> m;
+    const nlohmann::json fields = pipeline::SimulateRequest().ToJson();
+    for (const auto& [key, value] : fields.items()) {
+      m[pipeline::FlagOfField(key)] = key;
+    }
+    return m;
+  }();
+  std::string where = e.where();
+  std::string out;
+  size_t i = 0;
+  while (i < where.size()) {
+    const size_t start = where.find("--", i);
+    if (start == std::string::npos) {
+      out += where.substr(i);
+      break;
+    }
+    size_t end = start + 2;
+    while (end < where.size() && (std::isalnum(static_cast<unsigned char>(where[end])) || where[end] == '-')) ++end;
+    out += where.substr(i, start - i);
+    const std::string flag = where.substr(start, end - start);
+    const auto it = parameter_of_flag.find(flag);
+    out += it != parameter_of_flag.end() ? it->second : flag;
+    i = end;
+  }
+  return where.empty() ? e.message() : e.message() + " (" + out + ")";
 }
 
 // The Python door's Reporter (util/reporter.h): warnings become Python
@@ -569,30 +605,64 @@ py::dict MatchImages(const py::array_t<float, py::array::c_style | py::array::fo
 
 }  // namespace
 
-PYBIND11_MODULE(gissar, m) {
+PYBIND11_MODULE(_core, m) {
   m.doc() = "gissar: SAR simulation of real terrain from GIS data, and affine SAR pose estimation.";
-  static py::exception<Error> error(m, "Error", PyExc_RuntimeError);
-  static py::exception<InputError> input_error(m, "InputError", error.ptr());
-  static py::exception<ConfigError> config_error(m, "ConfigError", error.ptr());
-  static py::exception<IoError> io_error(m, "IoError", error.ptr());
-  static py::exception<CancelledError> cancelled(m, "Cancelled", error.ptr());
-  PyReporter::WarningType() = PyErr_NewException("gissar.GissarWarning", PyExc_UserWarning, nullptr);
-  m.attr("GissarWarning") = py::handle(PyReporter::WarningType());
+  // The exception family, as Python classes with the Python bases users
+  // catch: bad arguments are ValueError, files OSError (a missing file
+  // FileNotFoundError), numerical failures RuntimeError.
+  py::dict classes;
+  py::exec(R"(
+class Error(Exception):
+    """Base class of gissar's errors."""
+class InputError(Error, ValueError):
+    """Bad input data: unreadable or invalid contents."""
+class MissingFileError(InputError, FileNotFoundError):
+    """An input file that does not exist."""
+class ConfigError(Error, ValueError):
+    """A bad argument: out of range, unknown or inconsistent."""
+class IoError(Error, OSError):
+    """A read or write that failed at the operating-system or driver level."""
+class Cancelled(Error, RuntimeError):
+    """The run was stopped by its progress callback."""
+class GissarWarning(UserWarning):
+    """Something the user should know although the run went on."""
+for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled, GissarWarning):
+    _c.__module__ = "gissar"
+)", py::globals(), classes);
+  static py::object error_type, input_type, missing_type, config_type, io_type, cancelled_type;
+  error_type = classes["Error"];
+  input_type = classes["InputError"];
+  missing_type = classes["MissingFileError"];
+  config_type = classes["ConfigError"];
+  io_type = classes["IoError"];
+  cancelled_type = classes["Cancelled"];
+  for (const char* name : {"Error", "InputError", "MissingFileError", "ConfigError", "IoError", "Cancelled",
+                           "GissarWarning"}) {
+    m.attr(name) = classes[name];
+  }
+  PyReporter::WarningType() = classes["GissarWarning"].ptr();
+  Py_INCREF(PyReporter::WarningType());
   py::register_exception_translator([](std::exception_ptr p) {
+    auto raise = [](const py::object& type, const Error& e) {
+      PyErr_SetString(type.ptr(), PythonMessage(e).c_str());
+    };
     try {
       if (p) std::rethrow_exception(p);
     } catch (const InputError& e) {
-      input_error(e.what());
+      raise(e.message().find("does not exist") != std::string::npos ? missing_type : input_type, e);
     } catch (const ConfigError& e) {
-      config_error(e.what());
+      raise(config_type, e);
     } catch (const IoError& e) {
-      io_error(e.what());
+      raise(io_type, e);
     } catch (const CancelledError& e) {
-      cancelled(e.what());
+      raise(cancelled_type, e);
     } catch (const Error& e) {
-      error(e.what());
+      raise(error_type, e);
     }
   });
+
+  m.def("simulate_request_defaults", [] { return JsonToPython(pipeline::SimulateRequest().ToJson()); },
+        "The keywords of simulate with their defaults (the request fields, docs/conventions.md).");
 
   m.def("version", &VersionString, "Version string of the library.");
 

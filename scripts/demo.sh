@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The demo, on the bundled real data:
 #  1. bare terrain: SAR images of Andorra's SRTM DEM (its 403 voids filled)
-#     at headings 0 and 30 degrees, depression 40 degrees;
+#     at headings 0 and 30 degrees, depression 40 degrees, in exact mode (a
+#     flight line 20 km from the centre of a 33 km scene: the depression
+#     varies across the swath as it does for an airborne radar);
 #  2. GIS scene: the Andorra DEM + OpenStreetMap layers (water, forest, urban,
 #     roads, waterways) -> classified constrained Delaunay mesh -> SAR image;
 #  3. urban scene: Monaco DEM + OpenStreetMap buildings and roads.
@@ -29,13 +31,13 @@ product() {
 
 for heading in 0 30; do
   product "andorra_h${heading}" .png -- simulate --dem "$DATA/andorra/andorra_srtm3_dem_raw.tif" --fill-nodata \
-    --heading "$heading" --depression 40 --slant-range 20000 --range-spacing 30 --azimuth-spacing 30 \
+    --heading "$heading" --depression 40 --mode exact --slant-range 20000 --range-spacing 30 --azimuth-spacing 30 \
     --out "$OUT/andorra_h${heading}"
 done
 product andorra_scene _classes.png -- scene build --dem "$DATA/andorra/andorra_srtm3_dem_raw.tif" --fill-nodata \
   --vectors "$DATA/andorra/andorra_osm.gpkg" --out "$OUT/andorra_scene"
 "$GISSAR" scene info "$OUT/andorra_scene.gscene" > "$OUT/andorra_scene_info.txt"
-product andorra_scene_h0 .png -- simulate --scene "$OUT/andorra_scene.gscene" --heading 0 --depression 40 \
+product andorra_scene_h0 .png -- simulate --scene "$OUT/andorra_scene.gscene" --heading 0 --depression 40 --mode exact \
   --slant-range 20000 --range-spacing 30 --azimuth-spacing 30 --out "$OUT/andorra_scene_h0"
 product monaco_scene _classes.png -- scene build --dem "$DATA/monaco/monaco_srtm3_dem.tif" --fill-nodata \
   --osm "$DATA/monaco/monaco.osm.gz" --out "$OUT/monaco_scene"

@@ -19,6 +19,7 @@ PACKAGES=(
   libgif-dev                                   # animated GIF (heading sequences)
   povray                                       # benchmarks: POV-Ray side by side (make bench)
   libssl-dev python3
+  python3-venv python3-pip python3-setuptools          # pip install . (make install-python)
   pybind11-dev python3-dev python3-numpy python3-pytest python3-gdal  # Python API
 )
 

@@ -330,3 +330,27 @@ def test_library_warnings_are_python_warnings(tmp_path):
     with pytest.warns(gissar.GissarWarning, match="outside the DEM"):
         gissar.Scene.build(dem=DEM, vectors=[os.path.join(ROOT, "data", "andorra", "andorra_osm.gpkg")],
                            window=(150, 70, 60, 60), out_prefix=str(tmp_path / "w"))
+
+
+def test_errors_are_python_errors_naming_python_parameters():
+    assert issubclass(gissar.ConfigError, ValueError) and issubclass(gissar.InputError, ValueError)
+    assert issubclass(gissar.IoError, OSError) and issubclass(gissar.Cancelled, RuntimeError)
+    with pytest.raises(FileNotFoundError, match="DEM file does not exist"):
+        gissar.simulate(dem="/nonexistent/dem.tif", heading_deg=0, depression_deg=40)
+    # The message names the Python parameter, not the command-line flag.
+    with pytest.raises(ValueError, match=r"\(depression_deg\)$"):
+        gissar.simulate(dem=DEM, heading_deg=0, depression_deg=95)
+    with pytest.raises(ValueError, match=r"\(range_spacing_m\)$"):
+        gissar.simulate(dem=DEM, heading_deg=0, depression_deg=40, range_spacing_m=-3)
+
+
+def test_simulate_has_a_real_signature():
+    import inspect
+    params = inspect.signature(gissar.simulate).parameters
+    assert list(params)[0] == "dem"
+    for name in ("heading_deg", "depression_deg", "range_spacing_m", "slant_range_m", "transform", "crs",
+                 "progress"):
+        assert name in params, name
+    assert params["rays_per_cell"].default == 4.0
+    assert "heading_deg: default" in gissar.simulate.__doc__ and "(degrees)" in gissar.simulate.__doc__
+    assert gissar.__version__ == gissar.version().split()[1]

@@ -325,7 +325,7 @@ bool MakeFixture(const std::string& name, const fs::path& dir) {
     gissar::geo::WriteFloatGeoTiff(path, raster);
   } else if (name == "scene.gscene") {
     gissar::scene::WriteScene(path, SmallScene());
-  } else if (name == "scene_truncated.gscene" || name == "scene_v2.gscene" ||
+  } else if (name == "scene_truncated.gscene" || name == "scene_v9.gscene" ||
              name == "scene_bad_end.gscene" || name == "scene_bad_index.gscene" ||
              name == "scene_nan_vertex.gscene" || name == "scene_huge_count.gscene" ||
              name == "scene_bad_header.gscene" || name == "scene_bad_class.gscene") {
@@ -340,7 +340,7 @@ bool MakeFixture(const std::string& name, const fs::path& dir) {
     std::memcpy(&json_bytes, bytes.data() + 12, sizeof(json_bytes));
     const size_t counts = 20 + json_bytes;  // vertex count, then triangle count
     if (name == "scene_truncated.gscene") bytes.resize(bytes.size() * 2 / 3);
-    if (name == "scene_v2.gscene") bytes[8] = 2;
+    if (name == "scene_v9.gscene") bytes[8] = 9;
     if (name == "scene_bad_end.gscene") bytes[bytes.size() - 1] = 'X';
     if (name == "scene_huge_count.gscene") {
       const uint64_t huge = uint64_t{1} << 62;
@@ -625,7 +625,7 @@ const char* kFixtureNames[] = {
     "dem_header_only.tif", "dem_nan.tif", "dem_inf.tif", "dem_all_nodata.tif",
     "dem_unmarked_nodata.tif", "dem_1x1.tif", "dem_1x40.tif", "dem_pole.tif",
     "dem_beyond_pole.tif", "dem_antimeridian.tif", "scene.gscene", "scene_truncated.gscene",
-    "scene_v2.gscene", "scene_bad_end.gscene", "scene_bad_index.gscene",
+    "scene_v9.gscene", "scene_bad_end.gscene", "scene_bad_index.gscene",
     "scene_nan_vertex.gscene", "scene_huge_count.gscene", "scene_bad_header.gscene",
     "scene_bad_class.gscene", "dem_65535_bands.tif"};
 

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/pipeline/field_names.h"
 #include "gissar/util/error.h"
 
 namespace gissar::cli {
@@ -79,24 +80,6 @@ std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* arg
   return args;
 }
 
-std::string FlagOfKey(const std::string& key) {
-  // Flags whose name is not the field's (docs/conventions.md).
-  if (key == "out_prefix") return "--out";
-  if (key == "center_lonlat") return "--center";
-  if (key == "look_side") return "--look";
-  std::string name = key;
-  for (const char* unit : {"_deg", "_m", "_db", "_bytes", "_px", "_s"}) {
-    const std::string suffix = unit;
-    if (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
-      name.resize(name.size() - suffix.size());
-      break;
-    }
-  }
-  for (char& c : name) {
-    if (c == '_') c = '-';
-  }
-  return "--" + name;
-}
 
 void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
   std::string file;
@@ -125,7 +108,7 @@ void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
   auto [command, insert_at] = LeafCommand(app, args);
   std::vector<std::string> expanded;
   for (const auto& [key, value] : values.items()) {
-    const std::string flag = FlagOfKey(key);
+    const std::string flag = pipeline::FlagOfField(key);
     const CLI::Option* option = command->get_option_no_throw(flag);
     if (option == nullptr || key == "options") throw ConfigError("unknown key '" + key + "'", file);
     if (HasFlag(args, flag) || value.is_null()) continue;

@@ -21,11 +21,6 @@ std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* arg
 // null keeps the default; lists become "A,B".
 void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args);
 
-// The flag of a request field: kebab case of the snake_case name without
-// its unit suffix (heading_deg -> --heading); out_prefix is --out,
-// center_lonlat --center, look_side --look.
-std::string FlagOfKey(const std::string& key);
-
 // Throws ConfigError "unknown command 'X'; did you mean Y?" when a command
 // word of `args` names no command (even with --help, which would otherwise
 // print the general help and succeed).

@@ -30,6 +30,10 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
                     "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png (class map), PREFIX_3d.png (3-D view), PREFIX.json")
       ->required();
   build->add_flag("--obj", options->export_obj, "Also write PREFIX.obj + PREFIX.mtl (class colours) for 3-D viewers");
+  build->add_option("--sea", options->sea, "Sea: auto (coastline ways, else DEM at or below --sea-level connected to the border) or off");
+  build->add_option("--sea-level", options->sea_level_m, "Sea level for --sea auto without coastline, metres (DEM heights; default 0)");
+  build->add_option("--dem-oversample", options->dem_oversample, "Refine the DEM N times (cubic) before meshing (default 1)");
+  build->add_flag("--flat-shading", options->flat_shading, "No smooth per-vertex shading normals on the terrain");
   auto max_memory = std::make_shared<std::string>();
   build->add_option("--max-memory", *max_memory,
                     "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early");

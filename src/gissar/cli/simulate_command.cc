@@ -25,6 +25,8 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--vertical-datum", options->vertical_datum,
                   "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
       ->capture_default_str();
+  cmd->add_option("--sea", options->sea, "DEM sea: auto (heights <= --sea-level connected to the border are class sea) or off")->capture_default_str();
+  cmd->add_option("--sea-level", options->sea_level_m, "Sea level for --sea auto, metres in the DEM's heights")->capture_default_str();
   cmd->add_flag("--fill-nodata", options->fill_nodata,
                 "Fill DEM no-data cells (GDAL FillNodata) instead of failing");
   cmd->add_option("--heading", options->geometry.heading_deg,
@@ -56,9 +58,20 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--bounces", options->bounces, "Reflections followed per ray (1 = single bounce)")
       ->capture_default_str();
   cmd->add_flag("--coherent", options->coherent,
-                "Coherent mode: complex sum per cell with phase 4 pi r / lambda and random scatterer phases");
-  cmd->add_option("--wavelength", options->wavelength_m, "Radar wavelength, metres (coherent mode)")
+                "Coherent mode: complex sum per pixel (path phase 4 pi r / lambda, random micro-phase of rough surfaces), complex PSF; writes PREFIX_slc.tif");
+  cmd->add_option("--wavelength", options->wavelength_m, "Radar wavelength, metres (materials' sigma0 laws, coherent phase)")
       ->capture_default_str();
+  cmd->add_option("--polarization", options->polarization,
+                  "Polarisation of the materials' sigma0 laws: HH, HV, VH or VV")
+      ->capture_default_str();
+  cmd->add_option("--radiometry", options->radiometry,
+                  "Output quantity: sigma0, beta0 or gamma0 (ellipsoid incidence; docs/radiometry.md)")
+      ->capture_default_str();
+  cmd->add_flag("--db", options->db, "Write decibels (10 log10) instead of linear m2/m2 (no return: NaN)");
+  cmd->add_option("--materials", options->materials,
+                  "Materials file (JSON, class -> sigma0 law); with --dem it sets the class 'default'");
+  cmd->add_option("--reflectors", options->reflectors,
+                  "Canonical reflectors CSV: type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg");
   cmd->add_option("--contributions", options->contributions,
                   "CSV with one row per return: azimuth, range, elevation, intensity, bounces, specular, hit, class");
   cmd->add_option("--range-resolution", options->range_resolution_m,
@@ -70,7 +83,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--speckle-looks", options->speckle_looks,
                   "Multiplicative L-look gamma speckle (0 = off)")
       ->capture_default_str();
-  cmd->add_option("--nesz", options->nesz_db, "Thermal noise floor (NESZ), dB in image units");
+  cmd->add_option("--nesz", options->nesz_db, "Thermal noise floor (NESZ), dB sigma0");
   cmd->add_option("--seed", options->seed, "Seed of speckle and noise")->capture_default_str();
   cmd->add_option("--out", options->out_prefix,
                   "Output prefix: PREFIX.tif, PREFIX.png, PREFIX_quicklook.png (dB colour bar, axes in m), PREFIX_mask.tif, PREFIX.json")

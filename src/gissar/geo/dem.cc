@@ -256,18 +256,63 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
                          " cells are no-data)",
                      where);
   }
-  if (voids > 0 && !options.fill_nodata) {
-    throw InputError("DEM has " + std::to_string(voids) +
-                         " no-data cells; use --fill-nodata to interpolate them",
+  // Voids 4-connected to the raster border (through voids).
+  std::vector<uint8_t> border_void;
+  int64_t border_voids = 0;
+  if (voids > 0 && options.border_nodata_outside) {
+    const int w = dem.width, h = dem.height;
+    border_void.assign(raw.size(), 0);
+    std::vector<size_t> stack;
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        const size_t i = size_t(r) * w + c;
+        if ((r == 0 || c == 0 || r == h - 1 || c == w - 1) && IsVoid(raw[i], nodata_marked, nodata)) {
+          border_void[i] = 1;
+          stack.push_back(i);
+        }
+      }
+    }
+    while (!stack.empty()) {
+      const size_t i = stack.back();
+      stack.pop_back();
+      ++border_voids;
+      const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
+      const std::pair<int, int> next[4] = {{c - 1, r}, {c + 1, r}, {c, r - 1}, {c, r + 1}};
+      for (const auto& [nc, nr] : next) {
+        if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
+        const size_t j = size_t(nr) * w + nc;
+        if (!border_void[j] && IsVoid(raw[j], nodata_marked, nodata)) {
+          border_void[j] = 1;
+          stack.push_back(j);
+        }
+      }
+    }
+  }
+  if (voids - border_voids > 0 && !options.fill_nodata) {
+    throw InputError("DEM has " + std::to_string(voids - border_voids) + " no-data cells" +
+                         (border_voids > 0 ? " inside (" + std::to_string(border_voids) +
+                                                 " more on its border are left out of the scene)"
+                                           : std::string()) +
+                         "; use --fill-nodata to interpolate them",
                      where);
   }
   constexpr float kVoid = -3.0e38f;
   dem.heights_m.resize(raw.size());
+  float lowest_valid = std::numeric_limits<float>::max();
   for (size_t i = 0; i < raw.size(); ++i) {
     dem.heights_m[i] = IsVoid(raw[i], nodata_marked, nodata) ? kVoid : static_cast<float>(raw[i]);
+    if (dem.heights_m[i] != kVoid) lowest_valid = std::min(lowest_valid, dem.heights_m[i]);
   }
   if (voids > 0) {
-    FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells, where);
+    dem.nodata_mask.resize(raw.size());
+    for (size_t i = 0; i < raw.size(); ++i) dem.nodata_mask[i] = IsVoid(raw[i], nodata_marked, nodata) ? 1 : 0;
+    // Border no-data: a placeholder height, never filled.
+    for (size_t i = 0; i < border_void.size(); ++i) {
+      if (border_void[i]) dem.heights_m[i] = lowest_valid;
+    }
+    if (voids > border_voids) {
+      FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells, where);
+    }
     int64_t left = 0;
     for (float v : dem.heights_m) left += (v == kVoid || !std::isfinite(v)) ? 1 : 0;
     if (left > 0) {
@@ -275,7 +320,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
                            " no-data cells are too far from valid heights to fill",
                        where);
     }
-    dem.filled_nodata_cells = voids;
+    dem.filled_nodata_cells = voids - border_voids;
   }
   return dem;
 }
@@ -428,6 +473,18 @@ Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
   out.height = h;
   out.heights_m.assign(size_t(w) * h, 0.0f);
   for (int c = 0; c < w; ++c) RefineLine(rows.data() + c, size_t(w), dem.height, factor, out.heights_m.data() + c, size_t(w));
+  if (!dem.nodata_mask.empty()) {
+    out.nodata_mask.assign(size_t(w) * h, 0);
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        const int c0 = c / factor, r0 = r / factor;
+        const int c1 = std::min(c0 + (c % factor ? 1 : 0), dem.width - 1);
+        const int r1 = std::min(r0 + (r % factor ? 1 : 0), dem.height - 1);
+        out.nodata_mask[size_t(r) * w + c] =
+            dem.IsNodata(c0, r0) || dem.IsNodata(c1, r0) || dem.IsNodata(c0, r1) || dem.IsNodata(c1, r1);
+      }
+    }
+  }
   // Same post centres: post (i * factor, j * factor) at the old post (i, j).
   auto& g = out.geotransform;
   const auto& g0 = dem.geotransform;

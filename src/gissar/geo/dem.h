@@ -23,6 +23,12 @@ struct DemReadOptions {
   bool fill_nodata = false;
   // Largest distance, in DEM cells, searched for valid values when filling.
   double fill_max_search_cells = 200.0;
+  // No-data connected to the raster's border (e.g. the collar of a
+  // reprojected DEM) is left out of the scene by the caller rather than
+  // filled: it needs no --fill-nodata and is not filled; its posts are marked
+  // in nodata_mask and get the lowest valid height as a placeholder.
+  // Interior no-data still follows `fill_nodata`.
+  bool border_nodata_outside = false;
   // 1-based band index.
   int band = 1;
   // Memory budget of the caller's job (--max-memory) and what the job needs
@@ -53,6 +59,13 @@ struct Dem {
   std::array<double, 6> geotransform;  // GDAL convention (cell corners)
   std::string crs_wkt;                 // CRS of the map coordinates
   int64_t filled_nodata_cells = 0;     // no-data cells filled on reading
+  // 1 where the raster had no data (the height there was filled), row-major
+  // like heights_m; empty when the raster had no no-data cell.
+  std::vector<uint8_t> nodata_mask;
+
+  bool IsNodata(int col, int row) const {
+    return !nodata_mask.empty() && nodata_mask[size_t(row) * width + col] != 0;
+  }
 
   float HeightAt(int col, int row) const { return heights_m[size_t(row) * width + col]; }
   // Map coordinates of a (fractional) post position.
@@ -90,7 +103,8 @@ Dem ReadDem(const std::filesystem::path& path, const DemReadOptions& options = {
 // slope, so the facets of a meshed coarse DEM (one plane per half cell,
 // i.e. streaks of constant brightness several radar pixels long when the
 // posts are coarser than the pixels) become smoothly varying normals.
-// factor 1 returns the DEM unchanged. Throws ConfigError (--dem-oversample)
+// factor 1 returns the DEM unchanged. A refined post is no-data when one of
+// the original posts around it (the cell it lies in) is. Throws ConfigError (--dem-oversample)
 // when factor is outside [1, kMaxDemOversample] and InputError naming the
 // DEM when the refined grid would exceed max_posts.
 inline constexpr int kMaxDemOversample = 16;

@@ -61,6 +61,7 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
     if (b < static_cast<int>(raster.band_names.size())) {
       band->SetDescription(raster.band_names[b].c_str());
     }
+    if (!raster.band_unit.empty()) band->SetUnitType(raster.band_unit.c_str());
     if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
                        const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
                        GDT_Float32, 0, 0, nullptr) != CE_None) {
@@ -80,6 +81,31 @@ void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, in
   if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
                                      const_cast<uint8_t*>(data.data()), width, height, GDT_Byte,
                                      0, 0, nullptr) != CE_None) {
+    throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
+  }
+  CloseChecked(std::move(ds), path);
+}
+
+void WriteComplexGeoTiff(const fs::path& path, const std::vector<float>& real, const std::vector<float>& imag,
+                         int width, int height, const Metadata& metadata, const std::string& band_unit) {
+  if (real.size() != size_t(width) * height || imag.size() != real.size()) {
+    throw IoError("complex planes do not match the image size", path.string());
+  }
+  std::vector<float> interleaved(2 * real.size());
+  for (size_t k = 0; k < real.size(); ++k) {
+    interleaved[2 * k] = real[k];
+    interleaved[2 * k + 1] = imag[k];
+  }
+  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
+  DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, 1, GDT_CFloat32,
+                                        const_cast<char**>(options)));
+  if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+  SetMetadata(ds.get(), metadata);
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  band->SetDescription("slc");
+  if (!band_unit.empty()) band->SetUnitType(band_unit.c_str());
+  if (band->RasterIO(GF_Write, 0, 0, width, height, interleaved.data(), width, height, GDT_CFloat32, 0, 0,
+                     nullptr) != CE_None) {
     throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
   }
   CloseChecked(std::move(ds), path);

@@ -21,6 +21,7 @@ struct FloatRaster {
   std::vector<std::vector<float>> bands;
   std::vector<std::string> band_names;  // one per band (may be empty)
   Metadata metadata;                    // dataset metadata items
+  std::string band_unit = {};           // unit of every band (GDAL unit type; may be empty)
 };
 
 // Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Radar-geometry images
@@ -30,6 +31,12 @@ void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& ras
 // Writes a single-band uint8 GeoTIFF (masks, class maps) with metadata.
 void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8_t>& data,
                       int width, int height, const Metadata& metadata);
+
+// Writes a single-band CFloat32 GeoTIFF (single-look complex image) from
+// row-major real and imaginary planes, with metadata and a band unit.
+void WriteComplexGeoTiff(const std::filesystem::path& path, const std::vector<float>& real,
+                         const std::vector<float>& imag, int width, int height, const Metadata& metadata,
+                         const std::string& band_unit = "");
 
 // Writes an 8-bit PNG with 1 (grey), 3 (RGB) or 4 (RGBA) channels,
 // interleaved row-major.

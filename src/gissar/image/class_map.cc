@@ -15,6 +15,7 @@ const std::array<std::array<uint8_t, 3>, scene::kClassCount>& ClassColours() {
       {{160, 160, 160}},  // urban
       {{20, 20, 20}},     // road
       {{210, 50, 40}},    // building
+      {{15, 50, 130}},    // sea
   }};
   return colours;
 }

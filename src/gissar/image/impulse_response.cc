@@ -116,21 +116,17 @@ double HalfPowerWidth(const std::vector<double>& profile) {
   return crossing(1) - crossing(-1);
 }
 
-void ApplyImpulseResponse(std::vector<float>& intensity, int width, int height,
-                          double range_resolution_px, double azimuth_resolution_px,
-                          SpectralWindow window) {
-  GISSAR_CHECK(intensity.size() == size_t(width) * height);
-  if (range_resolution_px <= 0.0 && azimuth_resolution_px <= 0.0) return;
-  const std::vector<double> kx = range_resolution_px > 0
-                                     ? IntensityImpulseResponse(range_resolution_px, window)
-                                     : std::vector<double>{1.0};
-  const std::vector<double> ky = azimuth_resolution_px > 0
-                                     ? IntensityImpulseResponse(azimuth_resolution_px, window)
-                                     : std::vector<double>{1.0};
+namespace {
+
+// Convolves the row-major plane with the separable kernel kx (along rows) x
+// ky (along columns), centred, by FFT with zero padding; with
+// `non_negative` values below zero (round-off) are clamped.
+void ConvolveSeparable(std::vector<float>& plane, int width, int height, const std::vector<double>& kx,
+                       const std::vector<double>& ky, bool non_negative) {
   const int hx = static_cast<int>(kx.size() / 2), hy = static_cast<int>(ky.size() / 2);
   const int pw = cv::getOptimalDFTSize(width + 2 * hx), ph = cv::getOptimalDFTSize(height + 2 * hy);
   cv::Mat image = cv::Mat::zeros(ph, pw, CV_32F);
-  cv::Mat(height, width, CV_32F, intensity.data()).copyTo(image(cv::Rect(0, 0, width, height)));
+  cv::Mat(height, width, CV_32F, plane.data()).copyTo(image(cv::Rect(0, 0, width, height)));
   // Kernel placed with its centre at the origin (wrapped), so the result is
   // aligned with the input.
   cv::Mat kernel = cv::Mat::zeros(ph, pw, CV_32F);
@@ -148,8 +144,94 @@ void ApplyImpulseResponse(std::vector<float>& intensity, int width, int height,
   cv::idft(product, result, cv::DFT_REAL_OUTPUT | cv::DFT_SCALE);
   for (int r = 0; r < height; ++r) {
     const float* src = result.ptr<float>(r);
-    float* dst = intensity.data() + size_t(r) * width;
-    for (int c = 0; c < width; ++c) dst[c] = std::max(0.0f, src[c]);  // FFT round-off below 0
+    float* dst = plane.data() + size_t(r) * width;
+    for (int c = 0; c < width; ++c) dst[c] = non_negative ? std::max(0.0f, src[c]) : src[c];
+  }
+}
+
+}  // namespace
+
+void ApplyImpulseResponse(std::vector<float>& intensity, int width, int height,
+                          double range_resolution_px, double azimuth_resolution_px,
+                          SpectralWindow window) {
+  GISSAR_CHECK(intensity.size() == size_t(width) * height);
+  if (range_resolution_px <= 0.0 && azimuth_resolution_px <= 0.0) return;
+  const std::vector<double> kx = range_resolution_px > 0
+                                     ? IntensityImpulseResponse(range_resolution_px, window)
+                                     : std::vector<double>{1.0};
+  const std::vector<double> ky = azimuth_resolution_px > 0
+                                     ? IntensityImpulseResponse(azimuth_resolution_px, window)
+                                     : std::vector<double>{1.0};
+  ConvolveSeparable(intensity, width, height, kx, ky, /*non_negative=*/true);
+}
+
+std::vector<double> AmplitudeImpulseResponse(double resolution_px, SpectralWindow window, double half_width_res) {
+  int first = 0;
+  std::vector<double> k = ShiftedAmplitudeResponse(0.0, resolution_px, window, &first, half_width_res);
+  return k;
+}
+
+std::vector<double> ShiftedAmplitudeResponse(double centre_px, double resolution_px, SpectralWindow window,
+                                             int* first, double half_width_res) {
+  if (!(resolution_px > 0.0)) {
+    *first = static_cast<int>(std::floor(centre_px + 0.5));
+    return {1.0};
+  }
+  const double scale = UnitHalfPowerWidth(window) / resolution_px;
+  const int half = std::max(2, static_cast<int>(std::ceil(half_width_res * resolution_px)));
+  const int c = static_cast<int>(std::floor(centre_px + 0.5));
+  *first = c - half;
+  std::vector<double> k(2 * half + 1);
+  double sum2 = 0.0;
+  for (int i = 0; i <= 2 * half; ++i) {
+    k[i] = Amplitude(window, (c - half + i - centre_px) * scale);
+    sum2 += k[i] * k[i];
+  }
+  for (double& v : k) v /= std::sqrt(sum2);
+  return k;
+}
+
+void ApplyComplexImpulseResponse(std::vector<float>& real, std::vector<float>& imag, int width, int height,
+                                 double range_resolution_px, double azimuth_resolution_px,
+                                 SpectralWindow window) {
+  GISSAR_CHECK(real.size() == size_t(width) * height && imag.size() == real.size());
+  if (range_resolution_px <= 0.0 && azimuth_resolution_px <= 0.0) return;
+  const std::vector<double> kx = range_resolution_px > 0 ? AmplitudeImpulseResponse(range_resolution_px, window)
+                                                         : std::vector<double>{1.0};
+  const std::vector<double> ky = azimuth_resolution_px > 0
+                                     ? AmplitudeImpulseResponse(azimuth_resolution_px, window)
+                                     : std::vector<double>{1.0};
+  ConvolveSeparable(real, width, height, kx, ky, false);
+  ConvolveSeparable(imag, width, height, kx, ky, false);
+}
+
+std::vector<float> CorrelatedSpeckle(const std::vector<float>& intensity, int width, int height,
+                                     double range_resolution_px, double azimuth_resolution_px,
+                                     SpectralWindow window, double looks, uint64_t seed) {
+  GISSAR_CHECK(intensity.size() == size_t(width) * height);
+  const int n_looks = std::max(1, static_cast<int>(std::lround(looks)));
+  std::vector<float> out(intensity.size(), 0.0f);
+  std::mt19937_64 rng(seed * 0x2545F4914F6CDD1DULL + 17);
+  std::normal_distribution<double> gauss(0.0, std::sqrt(0.5));
+  std::vector<float> re(intensity.size()), im(intensity.size());
+  for (int look = 0; look < n_looks; ++look) {
+    for (size_t k = 0; k < intensity.size(); ++k) {
+      const double a = std::sqrt(std::max(0.0f, intensity[k]));
+      re[k] = static_cast<float>(a * gauss(rng));
+      im[k] = static_cast<float>(a * gauss(rng));
+    }
+    ApplyComplexImpulseResponse(re, im, width, height, range_resolution_px, azimuth_resolution_px, window);
+    for (size_t k = 0; k < out.size(); ++k) out[k] += (re[k] * re[k] + im[k] * im[k]) / float(n_looks);
+  }
+  return out;
+}
+
+void AddComplexThermalNoise(std::vector<float>& real, std::vector<float>& imag, double nesz_db, uint64_t seed) {
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
+  std::normal_distribution<double> noise(0.0, std::sqrt(0.5 * std::pow(10.0, nesz_db / 10.0)));
+  for (size_t k = 0; k < real.size(); ++k) {
+    real[k] = static_cast<float>(real[k] + noise(rng));
+    imag[k] = static_cast<float>(imag[k] + noise(rng));
   }
 }
 

@@ -1,10 +1,189 @@
 #include "gissar/material/material.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <fstream>
 
 #include "gissar/util/error.h"
 
 namespace gissar::material {
+namespace {
+
+using cd = std::complex<double>;
+constexpr double kDeg = M_PI / 180.0;
+constexpr double kGravity = 9.81;  // m/s^2
+constexpr double kLightSpeed = 299792458.0;
+
+// Fresnel power reflectivities (H, V) of a half-space of permittivity eps
+// at incidence theta (radians).
+std::pair<double, double> Fresnel(cd eps, double theta) {
+  const double c = std::cos(theta), s2 = std::sin(theta) * std::sin(theta);
+  const cd root = std::sqrt(eps - s2);
+  const double gh = std::norm((c - root) / (c + root));
+  const double gv = std::norm((eps * c - root) / (eps * c + root));
+  return {gh, gv};
+}
+
+// Oh, Sarabandi & Ulaby (1992), IEEE TGRS 30(2) 370-381: the empirical
+// model of bare-soil backscatter from the Fresnel reflectivities and ks.
+double OhSigma0(cd eps, double rms_height_m, double theta, double wavelength_m, Polarization pol) {
+  const double ks = 2.0 * M_PI / wavelength_m * rms_height_m;
+  const cd root = std::sqrt(eps);
+  const double gamma0 = std::norm((1.0 - root) / (1.0 + root));
+  const auto [gh, gv] = Fresnel(eps, theta);
+  const double g = 0.7 * (1.0 - std::exp(-0.65 * std::pow(ks, 1.8)));
+  const double sqrt_p =
+      std::max(1e-6, 1.0 - std::pow(2.0 * theta / M_PI, 1.0 / (3.0 * gamma0)) * std::exp(-ks));
+  const double q = 0.23 * std::sqrt(gamma0) * (1.0 - std::exp(-ks));
+  const double c3 = std::pow(std::cos(theta), 3.0);
+  const double vv = g * c3 * (gv + gh) / sqrt_p;
+  switch (pol) {
+    case Polarization::kVV:
+      return vv;
+    case Polarization::kHH:
+      return g * sqrt_p * c3 * (gv + gh);
+    default:
+      return q * vv;
+  }
+}
+
+// First-order small-perturbation (Bragg) coefficients g_HH, g_VV
+// (Valenzuela 1978).
+std::pair<cd, cd> BraggCoefficients(cd eps, double theta) {
+  const double c = std::cos(theta), s2 = std::sin(theta) * std::sin(theta);
+  const cd root = std::sqrt(eps - s2);
+  const cd ghh = (eps - 1.0) / ((c + root) * (c + root));
+  const cd gvv = (eps - 1.0) * (eps * (1.0 + s2) - s2) / ((eps * c + root) * (eps * c + root));
+  return {ghh, gvv};
+}
+
+// Two-scale sea/water backscatter: Bragg (SPM) on the Elfouhaily spectrum
+// averaged over the large-scale slopes in the incidence plane, plus the
+// geometric-optics (Kirchhoff) quasi-specular term; Cox & Munk (1954)
+// clean-surface mean-square slope.
+double BraggSigma0(const Material& m, double theta, double wavelength_m, Polarization pol) {
+  const cd eps = WaterPermittivity(wavelength_m, m.salinity_psu);
+  const double k = 2.0 * M_PI / wavelength_m;
+  const double mss = 0.003 + 0.00512 * m.wind_speed_m_s;
+  const double s = std::sqrt(0.5 * mss);  // slope std per direction
+  auto spm = [&](double t) {
+    t = std::max(std::abs(t), 10.0 * kDeg);  // SPM is not valid near nadir
+    const auto [ghh, gvv] = BraggCoefficients(eps, t);
+    const double b = ElfouhailyCurvature(2.0 * k * std::sin(t), m.wind_speed_m_s);
+    const double geom = std::pow(std::cos(t), 4.0) / (8.0 * std::pow(std::sin(t), 4.0)) * b;
+    switch (pol) {
+      case Polarization::kVV:
+        return std::norm(gvv) * geom;
+      case Polarization::kHH:
+        return std::norm(ghh) * geom;
+      default:
+        return 0.5 * mss * std::norm(gvv - ghh) * geom;  // out-of-plane tilts
+    }
+  };
+  constexpr int kSteps = 41;
+  double sum = 0.0, wsum = 0.0;
+  for (int i = 0; i < kSteps; ++i) {
+    const double z = -3.0 + 6.0 * i / (kSteps - 1);
+    const double w = std::exp(-0.5 * z * z);
+    sum += w * spm(theta - std::atan(z * s));
+    wsum += w;
+  }
+  double sigma = sum / wsum;
+  if (pol == Polarization::kHH || pol == Polarization::kVV) {
+    const cd root = std::sqrt(eps);
+    const double r0 = std::norm((1.0 - root) / (1.0 + root));
+    const double t2 = std::tan(theta) * std::tan(theta);
+    sigma += r0 * std::exp(-t2 / mss) / (mss * std::pow(std::cos(theta), 4.0));
+  }
+  return sigma;
+}
+
+double TableSigma0(const std::vector<std::pair<double, double>>& table, double theta_deg) {
+  if (theta_deg <= table.front().first) return std::pow(10.0, table.front().second / 10.0);
+  if (theta_deg >= table.back().first) return std::pow(10.0, table.back().second / 10.0);
+  const auto it = std::upper_bound(table.begin(), table.end(), theta_deg,
+                                   [](double v, const std::pair<double, double>& p) { return v < p.first; });
+  const auto& [x1, y1] = *it;
+  const auto& [x0, y0] = *(it - 1);
+  const double db = y0 + (y1 - y0) * (theta_deg - x0) / (x1 - x0);
+  return std::pow(10.0, db / 10.0);
+}
+
+constexpr double kTableStepDeg = 0.05;
+constexpr int kTableSamples = 1800;  // 90 deg / step
+
+}  // namespace
+
+Polarization ParsePolarization(const std::string& text, const std::string& option) {
+  std::string up = text;
+  for (char& c : up) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (up == "HH") return Polarization::kHH;
+  if (up == "HV") return Polarization::kHV;
+  if (up == "VH") return Polarization::kVH;
+  if (up == "VV") return Polarization::kVV;
+  throw ConfigError("polarization must be HH, HV, VH or VV, got '" + text + "'", option);
+}
+
+std::string ToString(Polarization pol) {
+  switch (pol) {
+    case Polarization::kHH: return "HH";
+    case Polarization::kHV: return "HV";
+    case Polarization::kVH: return "VH";
+    default: return "VV";
+  }
+}
+
+std::string ToString(ScatteringModel model) {
+  switch (model) {
+    case ScatteringModel::kTable: return "table";
+    case ScatteringModel::kOh: return "oh";
+    case ScatteringModel::kBragg: return "bragg";
+    case ScatteringModel::kWaterCloud: return "water_cloud";
+    default: return "lambert";
+  }
+}
+
+std::complex<double> WaterPermittivity(double wavelength_m, double salinity_psu) {
+  // Debye relaxation at 20 deg C; static permittivity and relaxation time
+  // fall linearly with salinity (Klein & Swift 1977 at 35 psu: 71.6,
+  // 9.0 ps, 4.8 S/m).
+  const double f = salinity_psu / 35.0;
+  const double eps_s = 80.1 - f * (80.1 - 71.6);
+  const double tau = 9.36e-12 - f * (9.36e-12 - 9.0e-12);
+  const double sigma_ionic = 4.8 * f;
+  constexpr double kEpsInf = 4.9, kEps0 = 8.854187817e-12;
+  const double omega = 2.0 * M_PI * kLightSpeed / wavelength_m;
+  cd eps = kEpsInf + (eps_s - kEpsInf) / cd(1.0, omega * tau);
+  eps -= cd(0.0, sigma_ionic / (omega * kEps0));
+  return eps;
+}
+
+double ElfouhailyCurvature(double k, double u10) {
+  if (!(u10 > 0.0) || !(k > 0.0)) return 0.0;
+  constexpr double kOmega = 0.84;  // inverse wave age, fully developed sea
+  constexpr double kCm = 0.23;     // m/s, minimum phase speed
+  constexpr double kKm = 370.0;    // rad/m
+  const double kp = kGravity * kOmega * kOmega / (u10 * u10);
+  const double cp = std::sqrt(kGravity / kp);
+  const double c = std::sqrt(kGravity / k * (1.0 + (k / kKm) * (k / kKm)));
+  // Long waves.
+  const double alpha_p = 6e-3 * std::sqrt(kOmega);
+  const double gamma = kOmega <= 1.0 ? 1.7 : 1.7 + 6.0 * std::log(kOmega);
+  const double sigma_j = 0.08 * (1.0 + 4.0 * std::pow(kOmega, -3.0));
+  const double big_gamma = std::exp(-std::pow(std::sqrt(k / kp) - 1.0, 2.0) / (2.0 * sigma_j * sigma_j));
+  const double lpm = std::exp(-1.25 * (kp / k) * (kp / k));
+  const double jp = std::pow(gamma, big_gamma);
+  const double fp = lpm * jp * std::exp(-kOmega / std::sqrt(10.0) * (std::sqrt(k / kp) - 1.0));
+  const double bl = 0.5 * alpha_p * (cp / c) * fp;
+  // Short waves; friction velocity from the Wu (1982) drag coefficient.
+  const double ustar = std::sqrt((0.8 + 0.065 * u10) * 1e-3) * u10;
+  const double alpha_m = std::max(1e-5, ustar <= kCm ? 0.01 * (1.0 + std::log(ustar / kCm))
+                                                      : 0.01 * (1.0 + 3.0 * std::log(ustar / kCm)));
+  const double fm = std::exp(-0.25 * std::pow(k / kKm - 1.0, 2.0));
+  const double bh = 0.5 * alpha_m * (kCm / c) * fm * lpm * jp;
+  return bl + bh;
+}
 
 double Material::Backscatter(double cos_incidence) const {
   if (cos_incidence <= 0.0) return 0.0;
@@ -14,6 +193,36 @@ double Material::Backscatter(double cos_incidence) const {
     if (cos_mirror > 0.0) value += specular * std::pow(cos_mirror, 1.0 / roughness);
   }
   return value;
+}
+
+double Material::Sigma0(double cos_incidence, double wavelength_m, Polarization pol) const {
+  if (cos_incidence <= 0.0) return 0.0;
+  const double theta = std::acos(std::min(1.0, cos_incidence));
+  double sigma = 0.0;
+  switch (model) {
+    case ScatteringModel::kLambert:
+      sigma = 4.0 * cos_incidence * Backscatter(cos_incidence);
+      if (pol == Polarization::kHV || pol == Polarization::kVH) sigma = 0.0;
+      break;
+    case ScatteringModel::kTable:
+      sigma = TableSigma0(sigma0_db, theta / kDeg);
+      break;
+    case ScatteringModel::kOh:
+      sigma = OhSigma0(permittivity, rms_height_m, theta, wavelength_m, pol);
+      break;
+    case ScatteringModel::kBragg:
+      sigma = BraggSigma0(*this, theta, wavelength_m, pol);
+      break;
+    case ScatteringModel::kWaterCloud: {
+      const bool cross = pol == Polarization::kHV || pol == Polarization::kVH;
+      const double gamma = std::pow(10.0, (cross ? canopy_cross_gamma_db : canopy_gamma_db) / 10.0);
+      const double tau2 = std::exp(-2.0 * canopy_optical_depth / cos_incidence);
+      sigma = gamma * cos_incidence * (1.0 - tau2) +
+              tau2 * OhSigma0(permittivity, rms_height_m, theta, wavelength_m, pol);
+      break;
+    }
+  }
+  return sigma * std::pow(10.0, gain_db / 10.0);
 }
 
 void Material::Check() const {
@@ -29,13 +238,94 @@ void Material::Check() const {
     throw ConfigError("roughness must be in (0, 1], is " + std::to_string(roughness),
                       "material " + name);
   }
+  if (diffuse + mirror > 1.0 + 1e-12) {
+    throw ConfigError("diffuse + mirror must be <= 1 (albedo above 1 creates energy), is " +
+                          std::to_string(diffuse + mirror),
+                      "material " + name);
+  }
+  if (model == ScatteringModel::kTable) {
+    if (sigma0_db.empty()) throw ConfigError("sigma0_db needs at least one row", "material " + name);
+    for (size_t i = 0; i < sigma0_db.size(); ++i) {
+      const auto& [inc, db] = sigma0_db[i];
+      if (!std::isfinite(inc) || inc < 0.0 || inc > 90.0 || !std::isfinite(db) ||
+          (i > 0 && !(inc > sigma0_db[i - 1].first))) {
+        throw ConfigError("sigma0_db row " + std::to_string(i) +
+                              ": incidence must increase within [0, 90] deg and dB be finite",
+                          "material " + name);
+      }
+    }
+  }
+  if (!(permittivity.real() >= 1.0) || !(permittivity.imag() <= 0.0) || !std::isfinite(permittivity.real()) ||
+      !std::isfinite(permittivity.imag())) {
+    throw ConfigError("permittivity must have eps' >= 1 and loss eps'' >= 0", "material " + name);
+  }
+  if (!(rms_height_m > 0.0 && rms_height_m < 1.0)) {
+    throw ConfigError("rms_height_m must be in (0, 1) m", "material " + name);
+  }
+  if (!(wind_speed_m_s >= 0.0 && wind_speed_m_s <= 50.0)) {
+    throw ConfigError("wind_speed_m_s must be in [0, 50]", "material " + name);
+  }
+  if (!(salinity_psu >= 0.0 && salinity_psu <= 45.0)) {
+    throw ConfigError("salinity_psu must be in [0, 45]", "material " + name);
+  }
+  if (!(canopy_optical_depth >= 0.0 && canopy_optical_depth < 100.0) || !std::isfinite(canopy_gamma_db) ||
+      !std::isfinite(canopy_cross_gamma_db) || !std::isfinite(gain_db)) {
+    throw ConfigError("canopy/gain parameters must be finite (optical depth >= 0)", "material " + name);
+  }
 }
 
-MaterialTable::MaterialTable() : materials_(1) {}
+nlohmann::json Material::ToJson() const {
+  nlohmann::json j = {{"model", ToString(model)}, {"diffuse", diffuse}, {"specular", specular},
+                      {"roughness", roughness}, {"mirror", mirror}, {"gain_db", gain_db}};
+  switch (model) {
+    case ScatteringModel::kTable: {
+      nlohmann::json rows = nlohmann::json::array();
+      for (const auto& [inc, db] : sigma0_db) rows.push_back({inc, db});
+      j["sigma0_db"] = rows;
+      break;
+    }
+    case ScatteringModel::kWaterCloud:
+      j["canopy_gamma_db"] = canopy_gamma_db;
+      j["canopy_cross_gamma_db"] = canopy_cross_gamma_db;
+      j["canopy_optical_depth"] = canopy_optical_depth;
+      [[fallthrough]];
+    case ScatteringModel::kOh:
+      j["permittivity"] = {permittivity.real(), -permittivity.imag()};
+      j["rms_height_m"] = rms_height_m;
+      break;
+    case ScatteringModel::kBragg:
+      j["wind_speed_m_s"] = wind_speed_m_s;
+      j["salinity_psu"] = salinity_psu;
+      break;
+    default:
+      break;
+  }
+  if (!source.empty()) j["source"] = source;
+  return j;
+}
+
+Sigma0Table::Sigma0Table(const Material& material, double wavelength_m, Polarization pol)
+    : samples_(kTableSamples + 1) {
+  for (int i = 0; i <= kTableSamples; ++i) {
+    const double theta = i * kTableStepDeg * kDeg;
+    samples_[i] = i == kTableSamples ? 0.0f
+                                     : static_cast<float>(material.Sigma0(std::cos(theta), wavelength_m, pol));
+  }
+}
+
+double Sigma0Table::operator()(double cos_incidence) const {
+  if (cos_incidence <= 0.0 || samples_.empty()) return 0.0;
+  const double x = std::acos(std::min(1.0, cos_incidence)) / (kTableStepDeg * kDeg);
+  const int i = std::min(kTableSamples - 1, static_cast<int>(x));
+  const double f = x - i;
+  return samples_[i] + f * (samples_[i + 1] - samples_[i]);
+}
+
+MaterialTable::MaterialTable() : materials_(1, DefaultMaterial(scene::kClassDefault)) {}
 
 void MaterialTable::Set(scene::ClassId id, Material material) {
   material.Check();
-  if (id >= materials_.size()) materials_.resize(size_t(id) + 1);
+  if (id >= materials_.size()) materials_.resize(size_t(id) + 1, materials_[0]);
   materials_[id] = std::move(material);
 }
 
@@ -43,29 +333,157 @@ const Material& MaterialTable::Get(scene::ClassId id) const {
   return id < materials_.size() ? materials_[id] : materials_[0];
 }
 
+std::vector<Sigma0Table> MaterialTable::Tables(double wavelength_m, Polarization pol) const {
+  std::vector<Sigma0Table> tables;
+  tables.reserve(materials_.size());
+  for (const Material& m : materials_) tables.emplace_back(m, wavelength_m, pol);
+  return tables;
+}
+
 nlohmann::json MaterialTable::ToJson() const {
   nlohmann::json j = nlohmann::json::object();
-  for (const Material& m : materials_) {
-    j[m.name] = {{"diffuse", m.diffuse}, {"specular", m.specular}, {"roughness", m.roughness},
-                 {"mirror", m.mirror}};
-  }
+  for (const Material& m : materials_) j[m.name] = m.ToJson();
   return j;
 }
 
 Material DefaultMaterial(scene::ClassId id) {
+  Material m;
+  m.model = ScatteringModel::kOh;
+  // The sea (its own class, separate from inland water, where the scene
+  // module defines it): two-scale Bragg on salt water.
+  if (id < scene::ClassNames().size() && scene::ClassNames()[id] == "sea") {
+    m.name = "sea";
+    m.diffuse = 0.03, m.specular = 0.9, m.roughness = 0.05, m.mirror = 0.9;
+    m.model = ScatteringModel::kBragg;
+    m.wind_speed_m_s = 3.0;
+    m.salinity_psu = 35.0;
+    m.source = "two-scale Bragg on the Elfouhaily et al. 1997 spectrum, wind 3 m/s; Debye sea water "
+               "(Klein & Swift 1977, 35 psu)";
+    return m;
+  }
   switch (id) {
     case scene::kClassWater:
-      return {"water", 0.03, 0.9, 0.05, 0.9};
+      m.name = "water";
+      m.diffuse = 0.03, m.specular = 0.9, m.roughness = 0.05, m.mirror = 0.9;
+      m.model = ScatteringModel::kBragg;
+      m.wind_speed_m_s = 3.0;
+      m.salinity_psu = 0.0;
+      m.source = "two-scale Bragg on the Elfouhaily et al. 1997 spectrum, wind 3 m/s; Debye fresh water";
+      break;
     case scene::kClassForest:
-      return {"forest", 0.85, 0.05, 1.0, 0.0};
+      m.name = "forest";
+      m.diffuse = 0.85, m.specular = 0.05, m.roughness = 1.0, m.mirror = 0.0;
+      m.model = ScatteringModel::kWaterCloud;
+      m.canopy_gamma_db = -6.5;
+      m.canopy_cross_gamma_db = -12.5;
+      m.canopy_optical_depth = 1.0;
+      m.permittivity = {10.0, -2.0};
+      m.rms_height_m = 0.02;
+      m.source = "water-cloud model (Attema & Ulaby 1978); opaque-canopy gamma -6.5 dB co-pol, -12.5 dB "
+                 "cross-pol (C-band tropical forest calibration value)";
+      break;
     case scene::kClassUrban:
-      return {"urban", 0.6, 0.3, 0.3, 0.3};
+      m.name = "urban";
+      m.diffuse = 0.6, m.specular = 0.3, m.roughness = 0.3, m.mirror = 0.3;
+      m.permittivity = {6.0, -0.5};
+      m.rms_height_m = 0.015;
+      m.source = "Oh et al. 1992, concrete/soil mix eps 6-0.5j, rms height 1.5 cm";
+      break;
     case scene::kClassRoad:
-      return {"road", 0.12, 0.6, 0.1, 0.5};
+      m.name = "road";
+      m.diffuse = 0.12, m.specular = 0.6, m.roughness = 0.1, m.mirror = 0.5;
+      m.permittivity = {4.5, -0.2};
+      m.rms_height_m = 0.002;
+      m.source = "Oh et al. 1992, asphalt eps 4.5-0.2j, rms height 2 mm";
+      break;
     case scene::kClassBuilding:
-      return {"building", 0.4, 0.6, 0.15, 0.7};
+      m.name = "building";
+      m.diffuse = 0.3, m.specular = 0.6, m.roughness = 0.15, m.mirror = 0.7;
+      m.permittivity = {6.0, -0.5};
+      m.rms_height_m = 0.005;
+      m.source = "Oh et al. 1992, concrete eps 6-0.5j, rms height 5 mm";
+      break;
     default:
-      return {"default", 0.5, 0.1, 0.6, 0.0};
+      m.name = "default";
+      m.diffuse = 0.5, m.specular = 0.1, m.roughness = 0.6, m.mirror = 0.0;
+      m.permittivity = {6.0, -1.0};
+      m.rms_height_m = 0.01;
+      m.source = "Oh et al. 1992, dry soil eps 6-1j, rms height 1 cm";
+      break;
+  }
+  return m;
+}
+
+void ApplyOverrides(Material& m, const nlohmann::json& fields, const std::string& where,
+                    const std::string& source) {
+  if (!fields.is_object()) throw ConfigError("'" + where + "' must be an object", source);
+  bool model_given = false;
+  for (const auto& [key, value] : fields.items()) {
+    const std::string at = where + "." + key;
+    auto number = [&]() {
+      if (!value.is_number()) throw ConfigError("'" + at + "' must be a number", source);
+      return value.get<double>();
+    };
+    if (key == "model") {
+      if (!value.is_string()) throw ConfigError("'" + at + "' must be a string", source);
+      const std::string s = value.get<std::string>();
+      if (s == "lambert") m.model = ScatteringModel::kLambert;
+      else if (s == "table") m.model = ScatteringModel::kTable;
+      else if (s == "oh") m.model = ScatteringModel::kOh;
+      else if (s == "bragg") m.model = ScatteringModel::kBragg;
+      else if (s == "water_cloud") m.model = ScatteringModel::kWaterCloud;
+      else throw ConfigError("'" + at + "' must be lambert, table, oh, bragg or water_cloud", source);
+      model_given = true;
+    } else if (key == "sigma0_db") {
+      if (!value.is_array() || value.empty()) {
+        throw ConfigError("'" + at + "' must be a list of [incidence_deg, dB] pairs", source);
+      }
+      m.sigma0_db.clear();
+      for (const auto& row : value) {
+        if (!row.is_array() || row.size() != 2 || !row[0].is_number() || !row[1].is_number()) {
+          throw ConfigError("'" + at + "' must be a list of [incidence_deg, dB] pairs", source);
+        }
+        m.sigma0_db.emplace_back(row[0].get<double>(), row[1].get<double>());
+      }
+      if (!model_given) m.model = ScatteringModel::kTable;
+    } else if (key == "permittivity") {
+      if (!value.is_array() || value.size() != 2 || !value[0].is_number() || !value[1].is_number()) {
+        throw ConfigError("'" + at + "' must be [eps', eps''] (loss positive)", source);
+      }
+      m.permittivity = {value[0].get<double>(), -value[1].get<double>()};
+    } else if (key == "source") {
+      if (!value.is_string()) throw ConfigError("'" + at + "' must be a string", source);
+      m.source = value.get<std::string>();
+    } else if (key == "diffuse") {
+      m.diffuse = number();
+    } else if (key == "specular") {
+      m.specular = number();
+    } else if (key == "roughness") {
+      m.roughness = number();
+    } else if (key == "mirror") {
+      m.mirror = number();
+    } else if (key == "rms_height_m") {
+      m.rms_height_m = number();
+    } else if (key == "wind_speed_m_s") {
+      m.wind_speed_m_s = number();
+    } else if (key == "salinity_psu") {
+      m.salinity_psu = number();
+    } else if (key == "canopy_gamma_db") {
+      m.canopy_gamma_db = number();
+    } else if (key == "canopy_cross_gamma_db") {
+      m.canopy_cross_gamma_db = number();
+    } else if (key == "canopy_optical_depth") {
+      m.canopy_optical_depth = number();
+    } else if (key == "gain_db") {
+      m.gain_db = number();
+    } else {
+      throw ConfigError("unknown key '" + at + "'", source);
+    }
+  }
+  try {
+    m.Check();
+  } catch (const ConfigError& e) {
+    throw ConfigError("'" + where + "': " + e.message(), source);
   }
 }
 
@@ -77,32 +495,23 @@ MaterialTable SceneMaterials(const nlohmann::json& overrides, const std::string&
   for (const auto& [name, fields] : overrides.items()) {
     const auto id = scene::ClassIdFromName(name);
     if (!id) throw ConfigError("unknown key 'materials." + name + "' (not a class)", source);
-    if (!fields.is_object()) throw ConfigError("'materials." + name + "' must be an object", source);
     Material m = table.Get(*id);
-    for (const auto& [key, value] : fields.items()) {
-      const std::string where = "materials." + name + "." + key;
-      if (!value.is_number()) throw ConfigError("'" + where + "' must be a number", source);
-      const double v = value.get<double>();
-      if (key == "diffuse") {
-        m.diffuse = v;
-      } else if (key == "specular") {
-        m.specular = v;
-      } else if (key == "roughness") {
-        m.roughness = v;
-      } else if (key == "mirror") {
-        m.mirror = v;
-      } else {
-        throw ConfigError("unknown key '" + where + "'", source);
-      }
-    }
-    try {
-      m.Check();
-    } catch (const ConfigError& e) {
-      throw ConfigError("'materials." + name + "': " + e.message(), source);
-    }
+    ApplyOverrides(m, fields, "materials." + name, source);
     table.Set(*id, m);
   }
   return table;
+}
+
+nlohmann::json ReadMaterialsFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw IoError("cannot read materials file", path);
+  try {
+    nlohmann::json j = nlohmann::json::parse(in);
+    if (!j.is_object()) throw ConfigError("a materials file is an object of class name -> parameters", path);
+    return j;
+  } catch (const nlohmann::json::parse_error& e) {
+    throw ConfigError(std::string("not valid JSON: ") + e.what(), path);
+  }
 }
 
 }  // namespace gissar::material

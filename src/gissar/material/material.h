@@ -1,11 +1,25 @@
-// Radar reflection properties per scene class, RaySAR-style: a Lambertian
-// diffuse term, a specular highlight in a cone whose width follows the
-// surface roughness, and a mirror reflectivity that continues a ray (used by
-// the multi-bounce renderer).
+// Radar reflection properties per scene class.
+//
+// Single bounce (monostatic backscatter) is a scattering law in calibrated
+// terms: the backscattering coefficient sigma0(theta_l, lambda, pol), m^2 of
+// radar cross section per m^2 of surface, at local incidence theta_l (from
+// the surface normal), wavelength lambda and polarisation. The laws are
+// physical surface and volume models with documented parameters
+// (docs/radiometry.md): Oh et al. 1992 for soil, roads and buildings,
+// two-scale Bragg scattering on an Elfouhaily et al. 1997 wind-sea spectrum
+// for water and sea, the water-cloud model (Attema & Ulaby 1978) for
+// vegetation, a user table of (incidence, dB) pairs, or the legacy
+// Lambertian+specular law (sigma0 = 4 cos(theta) times the returned share).
+//
+// Later bounces (bistatic) use the RaySAR-style terms: a Lambertian diffuse
+// share, a specular cone whose width follows `roughness`, and a mirror share
+// that continues the ray. Energy: diffuse + mirror <= 1.
 #pragma once
 
 #include <array>
+#include <complex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -15,33 +29,96 @@
 
 namespace gissar::material {
 
+enum class Polarization { kHH, kHV, kVH, kVV };
+// "HH", "HV", "VH", "VV" (case-insensitive); throws ConfigError naming
+// `option` otherwise.
+Polarization ParsePolarization(const std::string& text, const std::string& option);
+std::string ToString(Polarization pol);
+
+enum class ScatteringModel { kLambert, kTable, kOh, kBragg, kWaterCloud };
+std::string ToString(ScatteringModel model);
+
+// Relative permittivity of water by a single Debye relaxation at 20 deg C
+// (Klein & Swift 1977 parameters; fresh water salinity 0, sea water 35 psu
+// with ionic conductivity 4.8 S/m), eps' - j eps'' returned as
+// (eps', -eps''). wavelength_m > 0.
+std::complex<double> WaterPermittivity(double wavelength_m, double salinity_psu);
+
+// Elfouhaily et al. (1997) omnidirectional curvature spectrum B(k) of a
+// wind sea (fully developed, Omega = 0.84) at wavenumber k (rad/m) for a
+// 10 m wind speed u10 (m/s). The short-wave amplitude alpha_m is floored at
+// 1e-5 (calm water below the capillary threshold).
+double ElfouhailyCurvature(double k_rad_m, double u10_m_s);
+
 struct Material {
   std::string name = "default";
+  // Bistatic (later-bounce) terms and the legacy single-bounce law.
   // Lambertian reflectivity: returns diffuse * cos(theta) of the incident
   // power at local incidence theta.
   double diffuse = 1.0;
   // Specular highlight strength: returns specular * cos(2 theta)^(1/roughness)
-  // towards the radar (the mirror direction's cosine with the view
-  // direction is cos(2 theta) in backscatter), zero beyond theta = 45 deg.
+  // towards the radar, zero beyond theta = 45 deg.
   double specular = 0.0;
   // In (0, 1]: small values give a narrow cone (smooth surface).
   double roughness = 1.0;
   // Share of the power that continues as a mirror-reflected ray.
   double mirror = 0.0;
 
-  // Single-bounce backscatter for cos(local incidence) `cos_incidence`
-  // (values <= 0: back face, returns 0).
+  // Single-bounce law and its parameters.
+  ScatteringModel model = ScatteringModel::kLambert;
+  // kTable: (incidence deg, sigma0 dB) pairs, incidence strictly increasing
+  // in [0, 90]; linear interpolation in dB, constant beyond the ends.
+  std::vector<std::pair<double, double>> sigma0_db = {};
+  // kOh, and the ground under a kWaterCloud canopy: relative permittivity
+  // eps' - j eps'' stored as (eps', -eps''), rms height (metres).
+  std::complex<double> permittivity{6.0, -1.0};
+  double rms_height_m = 0.01;
+  // kBragg: 10 m wind speed and salinity (0 fresh water, 35 sea).
+  double wind_speed_m_s = 3.0;
+  double salinity_psu = 0.0;
+  // kWaterCloud: gamma of an opaque canopy, co- and cross-polarised (dB),
+  // and the canopy's one-way optical depth at nadir (B V2).
+  double canopy_gamma_db = -6.5;
+  double canopy_cross_gamma_db = -12.5;
+  double canopy_optical_depth = 1.0;
+  // Offset of every return of the class (dB; 0 = the law as given).
+  double gain_db = 0.0;
+  // Where the law's numbers come from (free text, recorded in sidecars).
+  std::string source = {};
+
+  // Legacy single-bounce returned share for cos(local incidence)
+  // `cos_incidence` (values <= 0: back face, returns 0).
   double Backscatter(double cos_incidence) const;
 
+  // sigma0 (linear, m^2/m^2) at cos(local incidence) `cos_incidence` for
+  // `wavelength_m` and `pol`; 0 for cos_incidence <= 0.
+  double Sigma0(double cos_incidence, double wavelength_m, Polarization pol) const;
+
   // Throws ConfigError naming the material when a coefficient is negative,
-  // above 1, not finite, or roughness is not in (0, 1].
+  // above 1, not finite, roughness is not in (0, 1], diffuse + mirror > 1
+  // (energy from nowhere), or a model parameter is out of range.
   void Check() const;
+  nlohmann::json ToJson() const;
+};
+
+// A material's sigma0 sampled every 0.05 deg of local incidence for one
+// wavelength and polarisation (linear interpolation): the renderers' fast
+// lookup.
+class Sigma0Table {
+ public:
+  Sigma0Table() = default;
+  Sigma0Table(const Material& material, double wavelength_m, Polarization pol);
+  // sigma0 (linear) at cos(local incidence); 0 for cos <= 0.
+  double operator()(double cos_incidence) const;
+
+ private:
+  std::vector<float> samples_;  // at theta = i * step, i = 0 .. kSamples
 };
 
 // Materials indexed by scene::ClassId.
 class MaterialTable {
  public:
-  // One "default" Lambertian material with diffuse = 1 for class 0.
+  // One "default" material for class 0 (DefaultMaterial(kClassDefault)).
   MaterialTable();
 
   // Sets the material of class `id` (growing the table with defaults).
@@ -49,6 +126,8 @@ class MaterialTable {
   // The material of class `id`; the class-0 material when unset.
   const Material& Get(scene::ClassId id) const;
   size_t size() const { return materials_.size(); }
+  // One Sigma0Table per class (index = ClassId).
+  std::vector<Sigma0Table> Tables(double wavelength_m, Polarization pol) const;
 
   nlohmann::json ToJson() const;
 
@@ -56,16 +135,29 @@ class MaterialTable {
   std::vector<Material> materials_;
 };
 
-// The default material of each GIS scene class, following the thesis's
-// approximations (docs/scene.md): water strongly specular and dark in
-// diffuse backscatter, forest strongly diffuse, roads specular, buildings
-// reflective.
+// The default material of each scene class (docs/radiometry.md names the
+// source of every number): bare terrain (`default`) Oh 1992 on dry soil,
+// forest the water-cloud model, water two-scale Bragg, urban ground, roads
+// and buildings Oh 1992 with their permittivities and roughness.
 Material DefaultMaterial(scene::ClassId id);
 
+// Applies one class's overrides ({"model": "oh", "rms_height_m": 0.02, ...}
+// or {"sigma0_db": [[0, -10], [90, -10]]}) to `m`. Keys: model, sigma0_db,
+// permittivity ([eps', eps''], loss positive), rms_height_m, wind_speed_m_s,
+// salinity_psu, canopy_gamma_db, canopy_cross_gamma_db,
+// canopy_optical_depth, gain_db, source, diffuse, specular, roughness,
+// mirror. Giving sigma0_db selects the table model. Throws ConfigError
+// naming `where` + key and `source` for unknown keys and bad values.
+void ApplyOverrides(Material& m, const nlohmann::json& fields, const std::string& where,
+                    const std::string& source);
+
 // The table of every scene class: defaults, overridden by `overrides`
-// ({"water": {"diffuse": 0.02, ...}}, keys diffuse/specular/roughness/mirror).
-// Throws ConfigError naming the key and `source` for unknown classes or
-// keys, non-numbers and out-of-range values.
+// ({"water": {"diffuse": 0.02, ...}}). Throws ConfigError naming the key and
+// `source` for unknown classes or keys, non-numbers and out-of-range values.
 MaterialTable SceneMaterials(const nlohmann::json& overrides, const std::string& source);
+
+// A materials file (JSON object of class name -> overrides, as above) read
+// from `path`. Throws IoError / ConfigError naming the file.
+nlohmann::json ReadMaterialsFile(const std::string& path);
 
 }  // namespace gissar::material

@@ -424,9 +424,7 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
     material::MaterialTable materials = terrain.materials;
     for (int c = 0; c < std::max<int>(scene::kClassCount, int(terrain.materials.size())); ++c) {
       material::Material m = terrain.materials.Get(static_cast<scene::ClassId>(c));
-      const double f = std::pow(10.0, uni(-options.material_db, options.material_db) / 10.0);
-      m.diffuse = std::min(1.0, m.diffuse * f);
-      m.specular = std::min(1.0, m.specular * f);
+      m.gain_db += uni(-options.material_db, options.material_db);
       materials.Set(static_cast<scene::ClassId>(c), m);
     }
     render::RenderOptions ro;

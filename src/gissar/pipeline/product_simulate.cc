@@ -65,7 +65,8 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
 
   Terrain terrain = LoadTerrain(options);
   const render::EmbreeScene embree(terrain.mesh);
-  const render::RenderOptions ro = RenderOptionsOf(options, &reporter);
+  render::RenderOptions ro = RenderOptionsOf(options, &reporter);
+  ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
   sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
   sim.ground_speed_mps = sim.image.tracing_geometry.azimuth_spacing_m / sim.grid.dt_s;
   say(std::to_string(sim.image.geolocated) + " pixels geolocated, " + std::to_string(sim.image.contributions) +

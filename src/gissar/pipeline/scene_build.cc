@@ -1,5 +1,6 @@
 #include "gissar/pipeline/scene_build.h"
 
+#include <cmath>
 #include <cstdio>
 #include <iomanip>
 #include <sstream>
@@ -45,6 +46,13 @@ void SceneBuildRequest::Check() const {
   const int sources = !config.empty() + !osm.empty() + !vectors.empty();
   if (sources > 1) throw ConfigError("give one of --config, --osm, --vectors", "--config/--osm/--vectors");
   if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
+  if (sea != "auto" && sea != "off") throw ConfigError("expected auto or off, got '" + sea + "'", "--sea");
+  if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
+  if (dem_oversample < 1 || dem_oversample > geo::kMaxDemOversample) {
+    throw ConfigError("DEM oversampling must be in [1, " + std::to_string(geo::kMaxDemOversample) + "], got " +
+                          std::to_string(dem_oversample),
+                      "--dem-oversample");
+  }
   std::vector<std::string> inputs = {dem, osm, config};
   inputs.insert(inputs.end(), vectors.begin(), vectors.end());
   std::vector<fs::path> outs;
@@ -64,6 +72,10 @@ json SceneBuildRequest::ToJson() const {
           {"center_lonlat", center_lonlat ? json{center_lonlat->x(), center_lonlat->y()} : json(nullptr)},
           {"out_prefix", out_prefix},
           {"export_obj", export_obj},
+          {"sea", sea},
+          {"sea_level_m", sea_level_m},
+          {"dem_oversample", dem_oversample},
+          {"flat_shading", flat_shading},
           {"max_memory_bytes", max_memory_bytes}};
 }
 
@@ -91,16 +103,20 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
   } else {
     config.source = "no vector data";
   }
+  config.sea_auto = options.sea == "auto";
+  config.sea_level_m = options.sea_level_m;
   const material::MaterialTable materials = material::SceneMaterials(config.materials, config.source);
 
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
+  read_options.border_nodata_outside = true;  // a collar is left out of the scene, not filled
   read_options.window = options.window;
   // Constrained triangulation (CGAL vertices and faces with info), GEOS
   // regions and the output mesh, per DEM post; vector constraints add more.
   read_options.bytes_per_post = 512;
   read_options.max_bytes = options.max_memory_bytes;
-  const geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  const geo::Dem dem = geo::RefineDem(geo::ReadDem(options.dem, read_options), options.dem_oversample,
+                                      options.max_memory_bytes / read_options.bytes_per_post);
   const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, options.center_lonlat, std::nullopt);
   const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
   scene::GisScene built = scene::BuildGisScene(dem, frame, config, reporter);
@@ -126,6 +142,19 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
            {"features_outside", built.stats.features_outside},
            {"repaired_geometries", built.stats.repaired_geometries},
            {"buildings", built.stats.buildings},
+           {"merged_buildings", built.stats.merged_buildings},
+           {"step_walls", built.stats.step_walls},
+           {"buried_wall_triangles", built.stats.buried_wall_triangles},
+           {"coastline_features", built.stats.coastline_features},
+           {"coastline_extended_ends", built.stats.coastline_extended_ends},
+           {"sea_faces_on_land", built.stats.sea_faces_on_land},
+           {"sea_from_dem", built.stats.sea_from_dem},
+           {"outside_posts", built.stats.outside_posts},
+           {"dropped_faces", built.stats.dropped_faces},
+           {"needle_faces", built.stats.needle_faces},
+           {"sliver_faces", built.stats.sliver_faces},
+           {"steep_slivers", built.stats.steep_slivers},
+           {"shading_normals", !options.flat_shading},
            {"build_seconds", built.stats.seconds}};
 
   json inputs = json::array({InputFileRecord(options.dem)});
@@ -139,6 +168,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
 
   scene::SceneFile file;
   file.mesh = std::move(built.mesh);
+  if (!options.flat_shading) file.mesh.SmoothShadingNormals(scene::kClassBuilding);
   file.origin_lon_deg = frame.origin_lon_deg();
   file.origin_lat_deg = frame.origin_lat_deg();
   file.centre_enu = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);

@@ -30,6 +30,14 @@ struct SceneBuildRequest {
   // Also PREFIX.obj + PREFIX.mtl (Wavefront, one material per class in the
   // class-map colours) for any 3-D viewer.
   bool export_obj = false;
+  // Sea (--sea auto|off, --sea-level M): coastline layers, else DEM posts at
+  // or below the sea level connected to the border (scene::SeaPostMask).
+  std::string sea = "auto";
+  double sea_level_m = 0.0;
+  // DEM refinement before meshing (--dem-oversample, geo::RefineDem).
+  int dem_oversample = 1;
+  // --flat-shading: no per-vertex shading normals (smooth terrain) in the scene.
+  bool flat_shading = false;
   // Memory budget (--max-memory), bytes: the DEM (window) is checked against
   // it before it is read.
   int64_t max_memory_bytes = DefaultMemoryLimitBytes();

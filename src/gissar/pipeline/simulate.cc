@@ -14,9 +14,11 @@
 #include "gissar/image/annotated.h"
 #include "gissar/image/impulse_response.h"
 #include "gissar/image/quicklook.h"
+#include "gissar/image/radiometry.h"
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/raster_renderer.h"
+#include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
 #include <limits>
@@ -54,6 +56,8 @@ void SimulateRequest::Check() const {
                           std::to_string(dem_oversample),
                       "--dem-oversample");
   }
+  if (sea != "auto" && sea != "off") throw ConfigError("expected auto or off, got '" + sea + "'", "--sea");
+  if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
   if (dem_oversample != 1 && !scene.empty()) {
     throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
   }
@@ -93,10 +97,23 @@ void SimulateRequest::Check() const {
   if (!std::isnan(nesz_db) && !(nesz_db >= kMinNeszDb && nesz_db <= kMaxNeszDb)) {
     throw ConfigError("NESZ must be in [-100, 60] dB", "--nesz");
   }
+  image::ParseRadiometry(radiometry, "--radiometry");
+  if (!reflectors.empty() && engine == "raster") {
+    throw ConfigError("the raster engine renders no reflectors (use --engine trace)", "--engine/--reflectors");
+  }
+  if (!reflectors.empty() && !product.empty()) {
+    throw ConfigError("reflectors are not rendered on product grids yet", "--product/--reflectors");
+  }
+  material::ParsePolarization(polarization, "--polarization");
+  if (coherent && speckle_looks > 0.0) {
+    throw ConfigError("coherent mode forms its own speckle; do not add simulated speckle",
+                      "--coherent/--speckle-looks");
+  }
   if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
   std::vector<fs::path> outs = {fs::path(contributions)};
   for (const char* suffix : {".tif", ".png", "_quicklook.png", "_mask.tif", ".json"}) outs.push_back(out_prefix + suffix);
-  CheckOutputsAreNotInputs(outs, {dem, scene, product});
+  if (coherent) outs.push_back(out_prefix + "_slc.tif");
+  CheckOutputsAreNotInputs(outs, {dem, scene, product, materials, reflectors});
 }
 
 nlohmann::json SimulateRequest::ToJson() const {
@@ -106,6 +123,8 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["product"] = product;
   j["vertical_datum"] = vertical_datum;
   j["dem_oversample"] = dem_oversample;
+  j["sea"] = sea;
+  j["sea_level_m"] = sea_level_m;
   j["fill_nodata"] = fill_nodata;
   j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
                                      : nlohmann::json(nullptr);
@@ -125,6 +144,11 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["bounces"] = bounces;
   j["coherent"] = coherent;
   j["wavelength_m"] = wavelength_m;
+  j["polarization"] = polarization;
+  j["radiometry"] = radiometry;
+  j["db"] = db;
+  j["materials"] = materials;
+  j["reflectors"] = reflectors;
   j["contributions"] = contributions;
   j["range_resolution_m"] = range_resolution_m;
   j["azimuth_resolution_m"] = azimuth_resolution_m;
@@ -170,6 +194,8 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "product") set(product);
     else if (key == "vertical_datum") set(vertical_datum);
     else if (key == "dem_oversample") set(dem_oversample);
+    else if (key == "sea") set(sea);
+    else if (key == "sea_level_m") set(sea_level_m);
     else if (key == "fill_nodata") set(fill_nodata);
     else if (key == "center_lonlat") center_lonlat = PairOrNull(value, key, source);
     else if (key == "center_map") center_map = PairOrNull(value, key, source);
@@ -193,6 +219,11 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "bounces") set(bounces);
     else if (key == "coherent") set(coherent);
     else if (key == "wavelength_m") set(wavelength_m);
+    else if (key == "polarization") set(polarization);
+    else if (key == "radiometry") set(radiometry);
+    else if (key == "db") set(db);
+    else if (key == "materials") set(materials);
+    else if (key == "reflectors") set(reflectors);
     else if (key == "contributions") set(contributions);
     else if (key == "range_resolution_m") set(range_resolution_m);
     else if (key == "azimuth_resolution_m") set(azimuth_resolution_m);
@@ -230,6 +261,10 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   const int source_width = dem.width, source_height = dem.height;
   dem = geo::RefineDem(dem, options.dem_oversample,
                        static_cast<int64_t>(double(options.max_memory_bytes) / kBytesPerDemPost));
+  // Sea from the heights as given (orthometric for SRTM-like DEMs), before
+  // any datum change.
+  std::vector<uint8_t> sea_posts;
+  if (options.sea == "auto" && options.engine != "raster") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
   if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
   if (dem.filled_nodata_cells > 0) {
     reporter.Info("simulate: filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
@@ -243,6 +278,10 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   } else {
     t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
   }
+  int64_t sea_triangles = 0;
+  if (!sea_posts.empty()) sea_triangles = scene::MarkSeaTriangles(t.mesh, sea_posts);
+  // The bare DEM keeps its unit Lambertian material; the sea gets its own.
+  if (sea_triangles > 0) t.materials.Set(scene::kClassSea, material::DefaultMaterial(scene::kClassSea));
   t.grid_width = dem.width;
   t.grid_height = dem.height;
   const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame);
@@ -255,6 +294,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
                    {"source_width", source_width},
                    {"source_height", source_height},
                    {"oversample", options.dem_oversample},
+                   {"sea_triangles", sea_triangles},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
   return t;
@@ -305,7 +345,23 @@ void WriteContributions(const fs::path& path, const std::vector<render::Contribu
 }  // namespace
 
 Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter) {
-  return options.scene.empty() ? TerrainFromDem(options, reporter) : TerrainFromScene(options);
+  Terrain t = options.scene.empty() ? TerrainFromDem(options, reporter) : TerrainFromScene(options);
+  if (!options.materials.empty()) {
+    const nlohmann::json file = material::ReadMaterialsFile(options.materials);
+    for (const auto& [name, fields] : file.items()) {
+      const auto id = scene::ClassIdFromName(name);
+      if (!id || (options.scene.empty() && *id != scene::kClassDefault)) {
+        throw ConfigError("unknown class '" + name + "'" +
+                              (options.scene.empty() ? " (a DEM has the single class 'default')" : ""),
+                          options.materials);
+      }
+      material::Material m = t.materials.Get(*id);
+      m.name = name;
+      material::ApplyOverrides(m, fields, name, options.materials);
+      t.materials.Set(*id, m);
+    }
+  }
+  return t;
 }
 
 void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const SimulateRequest& options) {
@@ -321,6 +377,30 @@ void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const
                     terrain.frame.GeodeticFromEnu(terrain.centre_enu).z()};
 }
 
+std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
+                                                    const render::EmbreeScene& embree) {
+  std::vector<render::SceneReflector> out;
+  if (options.reflectors.empty()) return out;
+  const double top = terrain.mesh.Bounds().max().z() + 100.0;
+  for (const material::ReflectorSpec& spec : material::ReadReflectorsCsv(options.reflectors)) {
+    const Eigen::Vector3d above = terrain.frame.EnuFromGeodetic(spec.lon_deg, spec.lat_deg, top);
+    const auto hit = embree.Intersect(above.cast<float>(), Eigen::Vector3f(0, 0, -1), 0.0f,
+                                      std::numeric_limits<float>::infinity());
+    if (!hit) {
+      throw InputError("reflector lies outside the terrain", options.reflectors + " row " + std::to_string(spec.row));
+    }
+    const Eigen::Vector3d ground = above - Eigen::Vector3d(0, 0, hit->t);
+    render::SceneReflector r;
+    r.type = spec.type;
+    r.size_m = spec.size_m;
+    r.apex_enu = ground + Eigen::Vector3d(0, 0, spec.apex_height_m);
+    r.boresight_enu = material::BoresightVector(spec.boresight_azimuth_deg, spec.boresight_elevation_deg);
+    r.row = spec.row;
+    out.push_back(r);
+  }
+  return out;
+}
+
 sensor::SarGeometryOptions ResolvedGeometry(const SimulateRequest& options, const Terrain& terrain) {
   sensor::SarGeometryOptions g = options.geometry;
   if (g.range_spacing_m == 0.0) g.range_spacing_m = terrain.post_spacing_m;
@@ -328,16 +408,25 @@ sensor::SarGeometryOptions ResolvedGeometry(const SimulateRequest& options, cons
   return g;
 }
 
+std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry) {
+  std::vector<double> incidence(geometry.width());
+  for (int c = 0; c < geometry.width(); ++c) incidence[c] = geometry.IncidenceDeg(c);
+  return incidence;
+}
+
 void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry) {
-  image::ApplyImpulseResponse(image.intensity, image.width, image.height,
-                              options.range_resolution_m / geometry.range_spacing_m(),
-                              options.azimuth_resolution_m / geometry.azimuth_spacing_m(),
-                              image::ParseSpectralWindow(options.psf_window, "--psf-window"));
-  if (options.speckle_looks >= 1.0) {
-    image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
-  }
-  if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
+  image::SensorEffects effects;
+  effects.range_resolution_px = options.range_resolution_m / geometry.range_spacing_m();
+  effects.azimuth_resolution_px = options.azimuth_resolution_m / geometry.azimuth_spacing_m();
+  effects.window = image::ParseSpectralWindow(options.psf_window, "--psf-window");
+  effects.speckle_looks = options.speckle_looks;
+  effects.nesz_db = options.nesz_db;
+  effects.seed = options.seed;
+  effects.radiometry = image::ParseRadiometry(options.radiometry, "--radiometry");
+  effects.db = options.db;
+  effects.wavelength_m = options.wavelength_m;
+  image::ApplySensorEffects(image, effects, ColumnIncidenceDeg(geometry));
 }
 
 render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* reporter) {
@@ -346,6 +435,7 @@ render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* 
   r.max_bounces = options.bounces;
   r.coherent = options.coherent;
   r.wavelength_m = options.wavelength_m;
+  r.polarization = material::ParsePolarization(options.polarization, "--polarization");
   r.seed = options.seed;
   r.record_contributions = !options.contributions.empty();
   r.reporter = reporter;
@@ -398,9 +488,14 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
                        : std::to_string(mesh.triangle_count()) + " triangles"));
   }
   out.image = raster_engine ? render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height,
-                                                      terrain.materials, geometry)
-                            : render::RenderSar(*embree, mesh, terrain.materials, geometry,
-                                                RenderOptionsOf(options, &reporter));
+                                                      terrain.materials, geometry, {}, options.wavelength_m,
+                                                      material::ParsePolarization(options.polarization,
+                                                                                  "--polarization"))
+                            : [&] {
+                                render::RenderOptions ro = RenderOptionsOf(options, &reporter);
+                                ro.reflectors = PlaceReflectors(options, terrain, *embree);
+                                return render::RenderSar(*embree, mesh, terrain.materials, geometry, ro);
+                              }();
   // Sensor effects: impulse response, speckle, thermal noise (in this order).
   step = Stopwatch();
   ApplySensorEffects(out.image, options, geometry);
@@ -416,6 +511,7 @@ void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs&
   o.annotated_png = o.files.Add(options.out_prefix + "_quicklook.png");
   o.mask_tif = o.files.Add(options.out_prefix + "_mask.tif");
   o.json = o.files.Add(options.out_prefix + ".json");
+  if (options.coherent) o.slc_tif = o.files.Add(options.out_prefix + "_slc.tif");
   if (!options.contributions.empty()) o.contributions_csv = o.files.Add(options.contributions);
 }
 
@@ -440,6 +536,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   const fs::path& mask_tif = reserved.mask_tif;
   const fs::path& json = reserved.json;
   const fs::path& contributions_csv = reserved.contributions_csv;
+  const fs::path& slc_tif = reserved.slc_tif;
   nlohmann::json timings = simulated.timings_s;
   Stopwatch step;
   const Terrain& terrain = simulated.terrain;
@@ -457,10 +554,12 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   metadata["GISSAR_FRAME"] = "local ENU tangent frame on WGS84, origin lon,lat,h=" +
                              std::to_string(frame.origin_lon_deg()) + "," +
                              std::to_string(frame.origin_lat_deg()) + ",0";
-  metadata["GISSAR_UNITS"] = "linear intensity, flat ground = rho*sin(depression)";
+  metadata["GISSAR_UNITS"] = options.radiometry + (options.db ? " (dB)" : " (linear, m2/m2)");
+  metadata["GISSAR_RADIOMETRY"] = options.radiometry;
   metadata["GISSAR_TERRAIN"] = fs::absolute(options.scene.empty() ? options.dem : options.scene).string();
   metadata["GISSAR_VERSION"] = VersionString();
   geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
+  raster.band_unit = image::RadiometryUnit(options.db);
   const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
   for (int layer = 0; layer < render::kBounceLayers; ++layer) {
     raster.bands.push_back(image.bounce_layers[layer]);
@@ -469,8 +568,19 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
   if (!contributions_csv.empty()) WriteContributions(contributions_csv, image.contributions, geometry);
   geo::WriteFloatGeoTiff(tif, raster);
+  if (options.coherent) {
+    geo::Metadata slc_metadata = metadata;
+    slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
+    geo::WriteComplexGeoTiff(slc_tif, image.real, image.imag, image.width, image.height, slc_metadata,
+                             "sqrt(m2/m2)");
+  }
+  // Quicklooks from the linear values.
+  std::vector<float> linear = image.intensity;
+  if (options.db) {
+    for (float& v : linear) v = std::isnan(v) ? 0.0f : static_cast<float>(std::pow(10.0, v / 10.0));
+  }
   image::DbStretch stretch;
-  geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width,
+  geo::WritePng(png, image::DbQuicklook(linear, 2.0, 98.0, &stretch), image.width,
                 image.height, 1);
   {
     char title[160];
@@ -478,7 +588,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                   geometry_options.heading_deg, geometry_options.depression_deg, geometry.range_spacing_m(),
                   geometry.azimuth_spacing_m());
     const image::RgbImage annotated = image::AnnotatedQuicklook(
-        image.intensity, image.width, image.height, geometry.range_spacing_m(), geometry.azimuth_spacing_m(), title);
+        linear, image.width, image.height, geometry.range_spacing_m(), geometry.azimuth_spacing_m(), title);
     geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
   }
   geo::Metadata mask_metadata = metadata;
@@ -518,10 +628,34 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   provenance["stats"] = {{"triangles", mesh.triangle_count()},
                          {"rays", image.stats.rays},
                          {"hits", image.stats.hits},
+                         {"sub_rays", image.stats.sub_rays},
                          {"shadow_rays", image.stats.shadow_rays},
                          {"dem_cells", image.stats.cells},
                          {"mask_pixels",
                           MaskPixelCounts(image.mask)}};
+  provenance["radiometry"] = {
+      {"quantity", options.radiometry},
+      {"scale", options.db ? "dB" : "linear"},
+      {"unit", image::RadiometryUnit(options.db)},
+      {"polarization", options.polarization},
+      {"wavelength_m", options.wavelength_m},
+      {"nesz_db", std::isnan(options.nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(options.nesz_db)},
+      {"incidence_reference",
+       geometry.mode() == sensor::ProjectionMode::kAffine
+           ? "ellipsoid incidence = 90 deg - depression (affine)"
+           : "ellipsoid incidence on the tangent plane through the scene centre, per range column"},
+      {"incidence_deg_first_last_column",
+       {geometry.IncidenceDeg(0), geometry.IncidenceDeg(geometry.width() - 1)}},
+      {"range_spacing_m", geometry.range_spacing_m()},
+      {"azimuth_spacing_m", geometry.azimuth_spacing_m()},
+      {"reflector_returns", image.points.size()}};
+  provenance["sampling"] = {
+      {"footprint_pixels", image.stats.footprint_pixels},
+      {"empty_footprint_pixels", image.stats.empty_footprint_pixels},
+      {"empty_footprint_fraction",
+       image.stats.footprint_pixels > 0
+           ? double(image.stats.empty_footprint_pixels) / double(image.stats.footprint_pixels)
+           : 0.0}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db},
                              {"percentiles", {2, 98}}};
   timings["write"] = step.ElapsedSeconds();

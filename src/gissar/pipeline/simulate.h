@@ -49,6 +49,11 @@ struct SimulateRequest {
   // posts are coarser than the radar pixels, so that the mesh's planar
   // facets do not imprint streaks (docs/geometry.md).
   int dem_oversample = 1;
+  // Sea of a DEM (--sea auto|off, --sea-level M; trace engine): posts at or
+  // below the sea level connected to the DEM border get class `sea`
+  // (scene::SeaPostMask, the rule of `scene build` without coastline).
+  std::string sea = "auto";
+  double sea_level_m = 0.0;
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".
@@ -60,7 +65,18 @@ struct SimulateRequest {
   double rays_per_cell = 4.0;
   int bounces = 3;                 // reflections followed per ray
   bool coherent = false;           // complex sum with phase 4 pi r / lambda
-  double wavelength_m = 0.031;     // X band
+  double wavelength_m = 0.031;     // X band; selects the materials' sigma0 laws
+  std::string polarization = "VV";  // HH, HV, VH or VV: the materials' laws
+  // Output radiometry (docs/radiometry.md): "sigma0", "beta0" or "gamma0",
+  // linear (m2/m2) or, with `db`, decibels.
+  std::string radiometry = "sigma0";
+  bool db = false;
+  // A materials file (JSON: class name -> law parameters) applied over the
+  // defaults; with --dem it sets the single class `default`.
+  std::string materials;
+  // Canonical reflectors (CSV, docs/radiometry.md): trihedrals, dihedrals,
+  // plates with their physical-optics RCS.
+  std::string reflectors;
   std::string contributions;       // optional CSV of every return (RaySAR-style)
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
   // spectral window ("none", "hamming", "taylor").
@@ -68,11 +84,13 @@ struct SimulateRequest {
   double azimuth_resolution_m = 0.0;
   std::string psf_window = "none";
   // Multiplicative L-look gamma speckle (0 = off) and thermal noise floor
-  // (NESZ, dB in image units; NaN = off), both seeded.
+  // (NESZ, dB sigma0; NaN = off), both seeded.
   double speckle_looks = 0.0;
   double nesz_db = std::numeric_limits<double>::quiet_NaN();  // NaN = none; else in [kMinNeszDb, kMaxNeszDb]
   uint64_t seed = 1;
-  std::string out_prefix;  // writes PREFIX.tif, PREFIX.png, PREFIX_quicklook.png, PREFIX_mask.tif, PREFIX.json
+  // writes PREFIX.tif, PREFIX.png, PREFIX_quicklook.png, PREFIX_mask.tif,
+  // PREFIX.json and, in coherent mode, PREFIX_slc.tif (CFloat32)
+  std::string out_prefix;
   // Memory budget (--max-memory), bytes: the DEM (or scene) and the image
   // are checked against it before they are allocated, and a job over it
   // fails with a ConfigError saying how to reduce it.
@@ -116,6 +134,12 @@ struct Terrain {
   nlohmann::json description;  // for provenance
 };
 
+// The reflectors of options.reflectors placed on the terrain surface in
+// `embree` (apex = surface height at lon, lat + apex_height_m), ENU.
+// Throws InputError naming the file and row for a reflector off the terrain.
+std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
+                                                    const render::EmbreeScene& embree);
+
 // Loads options.dem or options.scene; the centre follows --center /
 // --center-map for DEMs. With engine "raster" a DEM's mesh holds only its
 // posts (no triangles). Throws the gissar::Error family.
@@ -130,7 +154,11 @@ void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree,
 // terrain's post spacing.
 sensor::SarGeometryOptions ResolvedGeometry(const SimulateRequest& options, const Terrain& terrain);
 
-// Impulse response, speckle and thermal noise of the options, in that order.
+// Ellipsoid incidence (degrees) of every image column (SarGeometry::IncidenceDeg).
+std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry);
+
+// Impulse response, speckle and thermal noise of the options, in that
+// order, then the output radiometry (image::ApplySensorEffects).
 void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry);
 
@@ -162,10 +190,10 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter 
 // work so that a missing or read-only directory fails first.
 struct SimulationOutputs {
   AtomicOutputs files;
-  std::filesystem::path tif, png, annotated_png, mask_tif, json, contributions_csv;
+  std::filesystem::path tif, png, annotated_png, mask_tif, json, contributions_csv, slc_tif;
 };
-// Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json and the
-// contributions CSV when asked. Throws IoError for a missing or read-only
+// Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _slc.tif in
+// coherent mode and the contributions CSV when asked. Throws IoError for a missing or read-only
 // directory.
 void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& outputs);
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iomanip>
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/util/error.h"
@@ -107,11 +108,90 @@ TEST(SimulateTest, OutputMayNotOverwriteTheDem) {
   EXPECT_THROW(options.Check(), ConfigError);
 }
 
+// Radiometry options: sidecar and band metadata carry the quantity and unit;
+// a coherent run with a reflector writes the SLC, and the reflector is the
+// brightest return; bad combinations and rows are errors naming the input.
+TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest base = AndorraOptions(dir, 30.0);
+  base.radiometry = "gamma0";
+  RunSimulate(base, "");
+  nlohmann::json provenance;
+  std::ifstream(base.out_prefix + ".json") >> provenance;
+  EXPECT_EQ(provenance["radiometry"]["quantity"], "gamma0");
+  EXPECT_EQ(provenance["radiometry"]["unit"], "m2/m2");
+  EXPECT_EQ(provenance["radiometry"]["range_spacing_m"], 150.0);
+  EXPECT_TRUE(provenance["sampling"].contains("empty_footprint_fraction"));
+  EXPECT_LT(provenance["sampling"]["empty_footprint_fraction"].get<double>(), 0.01);
+  const double lon = provenance["scene_centre"]["lon_deg"], lat = provenance["scene_centre"]["lat_deg"];
+
+  // A 3 m trihedral at the centre, facing the sensor (heading 30, looking
+  // right: the sensor lies towards bearing 300 deg, 40 deg up).
+  const fs::path csv = dir / "reflectors.csv";
+  std::ofstream(csv) << "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n"
+                     << "trihedral," << std::setprecision(12) << lon << "," << lat << ",0.5,3,300,40\n";
+  SimulateRequest coherent = AndorraOptions(dir, 30.0);
+  coherent.out_prefix = (dir / "coherent").string();
+  coherent.coherent = true;
+  coherent.reflectors = csv.string();
+  coherent.db = true;
+  const SimulateResult result = RunSimulate(coherent, "");
+  EXPECT_EQ(result.outputs.size(), 6u);
+  EXPECT_TRUE(fs::exists(dir / "coherent_slc.tif"));
+  const geo::FloatRaster image = geo::ReadFloatRaster(coherent.out_prefix + ".tif");
+  EXPECT_EQ(image.metadata.at("GISSAR_RADIOMETRY"), "sigma0");
+  float peak = -1e9f;
+  for (float v : image.bands[3]) peak = std::max(peak, std::isnan(v) ? -1e9f : v);  // triple bounce band, dB
+  // sigma = 4 pi 3^4 / (3 lambda^2) = 3.531e5 m2 at X band (0.031 m) over
+  // 150 m x 150 m pixels: beta0 15.69 in one pixel (no impulse response),
+  // sigma0 = beta0 sin(50 deg) = 12.02: 10.80 dB.
+  EXPECT_NEAR(peak, 10.80, 0.05);
+
+  SimulateRequest bad = coherent;
+  bad.speckle_looks = 4.0;
+  EXPECT_THROW(bad.Check(), ConfigError);
+  std::ofstream(csv) << "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n"
+                     << "trihedral," << lon << "," << lat << ",0,1,300,40\n"
+                     << "trihedral,0.0,0.0,0,1,300,40\n";
+  try {
+    RunSimulate(coherent, "");
+    FAIL() << "a reflector off the DEM";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.where().find("row 2"), std::string::npos) << e.what();
+  }
+  const fs::path materials = dir / "materials.json";
+  std::ofstream(materials) << R"({"water": {"wind_speed_m_s": 5}})";
+  SimulateRequest dem_materials = AndorraOptions(dir, 30.0);
+  dem_materials.out_prefix = (dir / "m").string();
+  dem_materials.materials = materials.string();
+  EXPECT_THROW(RunSimulate(dem_materials, ""), ConfigError);
+}
+
 TEST(SimulateTest, ParsesNumberPairs) {
   EXPECT_EQ(ParseNumberPair("1.6,42.5", "--center"), Eigen::Vector2d(1.6, 42.5));
   EXPECT_THROW(ParseNumberPair("1.6", "--center"), ConfigError);
   EXPECT_THROW(ParseNumberPair("1.6,42.5,3", "--center"), ConfigError);
   EXPECT_THROW(ParseNumberPair("a,b", "--center"), ConfigError);
+}
+
+// ApplyJson reads every key ToJson writes (the options-file and Python
+// names of every field), and the round trip changes nothing.
+TEST(SimulateRequestTest, JsonRoundTripCoversEveryField) {
+  SimulateRequest changed;
+  changed.dem = "a.tif";
+  changed.geometry.heading_deg = 12.5;
+  changed.geometry.look_side = sensor::LookSide::kLeft;
+  changed.center_lonlat = Eigen::Vector2d(1.5, 42.5);
+  changed.nesz_db = -20.0;
+  changed.seed = 99;
+  SimulateRequest read;
+  read.ApplyJson(changed.ToJson(), "test");
+  EXPECT_EQ(read.ToJson(), changed.ToJson());
+  SimulateRequest defaults;
+  defaults.ApplyJson(SimulateRequest().ToJson(), "test");
+  EXPECT_EQ(defaults.ToJson(), SimulateRequest().ToJson());
+  EXPECT_THROW(defaults.ApplyJson(nlohmann::json{{"heading", 3}}, "test"), ConfigError);
+  EXPECT_THROW(defaults.ApplyJson(nlohmann::json{{"heading_deg", "north"}}, "test"), ConfigError);
 }
 
 }  // namespace

@@ -199,8 +199,11 @@ TEST(MultiBounceTest, CoherentSingleLookIntensityIsExponential) {
   o.rays_per_cell = 16.0;
   o.coherent = true;
   o.seed = 11;
-  const SarImage image = RenderSar(embree, mesh, material::MaterialTable(), g, o);
-  const double expected_mean = std::sin(40 * kDeg);
+  material::MaterialTable lambert;
+  lambert.Set(0, material::Material{"default", 1.0});
+  const SarImage image = RenderSar(embree, mesh, lambert, g, o);
+  // beta0 of a unit Lambertian plane: 4 sin^2(d) / cos(d).
+  const double expected_mean = 4.0 * std::sin(40 * kDeg) * std::tan(40 * kDeg);
   std::vector<double> samples;
   // Every other pixel (neighbours share splatted scatterers), away from edges.
   for (int r = int(g.v0()) - 120; r <= int(g.v0()) + 120; r += 2)

@@ -48,21 +48,9 @@ struct SweepView {
 };
 
 // Everything a task needs, in float relative to the scene centre.
-// Single-bounce backscatter of a material in float (material::Material::
-// Backscatter): diffuse cos(t) plus the specular cone.
-struct Reflectivity {
-  float diffuse = 1.0f, specular = 0.0f, inv_roughness = 1.0f;
-  explicit Reflectivity(const material::Material& m)
-      : diffuse(float(m.diffuse)), specular(float(m.specular)), inv_roughness(float(1.0 / m.roughness)) {}
-  float Backscatter(float cos_in) const {
-    float value = diffuse * cos_in;
-    if (specular > 0.0f) {
-      const float cos_mirror = 2.0f * cos_in * cos_in - 1.0f;
-      if (cos_mirror > 0.0f) value += specular * std::pow(cos_mirror, inv_roughness);
-    }
-    return value;
-  }
-};
+// Single-bounce backscatter of a material: its sigma0 law sampled for the
+// wavelength and polarisation (material::Sigma0Table).
+using Reflectivity = material::Sigma0Table;
 
 struct Context {
   const Eigen::Vector3f* posts = nullptr;
@@ -74,7 +62,7 @@ struct Context {
   Eigen::Vector3f xc, h, l, n, n_up;  // n_up: upward slant-plane normal (affine)
   float up_sign = 1;  // n_up = up_sign * n
   float range0 = 0, inv_dr = 0, inv_da = 0, u0 = 0, v0 = 0, da = 0;
-  float power_scale = 0;  // 1 / (dr da tan(d))
+  float power_scale = 0;  // 1 / (dr da): RCS per pixel area (beta0)
   // Horizon line J lies at along-track coordinate line_offset + J *
   // line_spacing (metres); line_offset = -v0 * da puts line J = r *
   // lines_per_row on the centres of image row r, so that the mask, which is
@@ -477,8 +465,7 @@ class ChunkRenderer {
     const float r0 = s0.row[k0], r1 = s1.row[k1], r2 = s2.row[k2];
 
     if (!turned_away && !all_dark) {
-      const float power = 0.5f * twice_area * cos_in *
-                          material.Backscatter(cos_in) * ctx_.power_scale;
+      const float power = 0.5f * twice_area * static_cast<float>(material(cos_in)) * ctx_.power_scale;
       const float extent = std::max({std::abs(c1 - c0), std::abs(c2 - c0), std::abs(c2 - c1),
                                      std::abs(r1 - r0), std::abs(r2 - r0), std::abs(r2 - r1)});
       int m = std::clamp(static_cast<int>(std::ceil(extent / kSampleSpacingPx)), 1, 256);
@@ -625,7 +612,8 @@ SweepView MakeSweepView(const std::vector<Eigen::Vector3f>& posts, int width, in
 SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, int height,
                          const material::MaterialTable& materials,
                          const sensor::SarGeometry& geometry,
-                         const std::vector<scene::ClassId>& cell_classes) {
+                         const std::vector<scene::ClassId>& cell_classes, double wavelength_m,
+                         material::Polarization polarization) {
   GISSAR_CHECK(width >= 2 && height >= 2);
   GISSAR_CHECK(posts.size() == size_t(width) * height);
   GISSAR_CHECK(cell_classes.empty() || cell_classes.size() == size_t(width - 1) * (height - 1));
@@ -635,7 +623,7 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
   ctx.grid_width = width;
   ctx.classes = cell_classes.empty() ? nullptr : cell_classes.data();
   for (size_t id = 0; id < std::max<size_t>(materials.size(), 1); ++id) {
-    ctx.materials.emplace_back(materials.Get(static_cast<scene::ClassId>(id)));
+    ctx.materials.emplace_back(materials.Get(static_cast<scene::ClassId>(id)), wavelength_m, polarization);
   }
   ctx.affine = geometry.mode() == sensor::ProjectionMode::kAffine;
   ctx.xc = geometry.scene_centre().cast<float>();
@@ -650,9 +638,7 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
   ctx.da = static_cast<float>(geometry.azimuth_spacing_m());
   ctx.u0 = static_cast<float>(geometry.u0());
   ctx.v0 = static_cast<float>(geometry.v0());
-  const double depression = geometry.options().depression_deg * M_PI / 180.0;
-  ctx.power_scale = static_cast<float>(
-      1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m() * std::tan(depression)));
+  ctx.power_scale = static_cast<float>(1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m()));
   ctx.width = geometry.width();
   ctx.height = geometry.height();
 

@@ -8,13 +8,12 @@
 //
 // It renders the same image as RenderSar on a single-bounce scene of the
 // same mesh (docs/performance.md, "DEM-raster engine"): the tracer's rays
-// sample every lit surface with a density proportional to cos(theta) per
-// unit area, each returning Backscatter(cos theta) / N, so a lit patch of
-// area A returns
-//     A cos(theta) Backscatter(cos theta) / (dr da tan(d))
-// (dr, da the pixel spacings, d the scene-centre depression) in both affine
-// and exact mode; the raster engine deposits exactly that, splatted
-// bilinearly at the patch's projection.
+// cover every lit surface, each returning sigma0 times the area it covers,
+// so a lit patch of area A returns
+//     A sigma0(theta_l) / (dr da)
+// (dr, da the pixel spacings) in both affine and exact mode; the raster
+// engine deposits exactly that, splatted bilinearly at the patch's
+// projection.
 #pragma once
 
 #include <vector>
@@ -36,11 +35,12 @@ namespace gissar::render {
 //
 // `cell_classes`: empty (every cell class 0) or one class per cell,
 // (width - 1) x (height - 1) row-major; the class indexes `materials`, whose
-// single-bounce Backscatter is used (the mirror share is ignored: no
-// multi-bounce).
+// single-bounce sigma0 law for `wavelength_m` and `polarization` is used
+// (the mirror share is ignored: no multi-bounce).
 //
-// Returns the SarImage of RenderSar: `intensity` normalised identically
-// (flat ground at the scene-centre depression d reads rho sin(d)),
+// Returns the SarImage of RenderSar: `intensity` calibrated identically
+// (beta0: each patch of area A returns sigma0(theta_l) A over the pixel
+// area),
 // bounce_layers[0] equal to it and the other layers zero, the mask with the
 // same codes and semantics (value at each pixel centre: kMaskShadow when a
 // surface covering it faces away from the radar or lies below the horizon
@@ -58,6 +58,8 @@ namespace gissar::render {
 SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, int height,
                          const material::MaterialTable& materials,
                          const sensor::SarGeometry& geometry,
-                         const std::vector<scene::ClassId>& cell_classes = {});
+                         const std::vector<scene::ClassId>& cell_classes = {},
+                         double wavelength_m = 0.031,
+                         material::Polarization polarization = material::Polarization::kVV);
 
 }  // namespace gissar::render

@@ -44,8 +44,19 @@ Grid MakeGrid(int width, int height, double spacing, double x0, double y0, Heigh
   return g;
 }
 
+// One unit Lambertian class (albedo 1): sigma0 = 4 cos^2(theta_l).
+material::MaterialTable UnitLambert() {
+  material::MaterialTable table;
+  table.Set(0, material::Material{"default", 1.0});
+  return table;
+}
+
+// The image is beta0: the legacy expectations (rho sin(d) on flat ground)
+// times 4 tan(d), d the scene-centre depression (docs/radiometry.md).
+double Calibrated(double depression_rad) { return 4.0 * std::tan(depression_rad); }
+
 SarImage Raster(const Grid& grid, const sensor::SarGeometry& g,
-                const material::MaterialTable& materials = material::MaterialTable(),
+                const material::MaterialTable& materials = UnitLambert(),
                 const std::vector<scene::ClassId>& classes = {}) {
   return RenderSarRaster(grid.posts, grid.width, grid.height, materials, g, classes);
 }
@@ -56,7 +67,7 @@ SarImage Trace(const Grid& grid, const sensor::SarGeometry& g, double rays_per_c
   RenderOptions o;
   o.rays_per_cell = rays_per_cell;
   o.max_bounces = 1;
-  return RenderSar(embree, mesh, material::MaterialTable(), g, o);
+  return RenderSar(embree, mesh, UnitLambert(), g, o);
 }
 
 // Flat ground reads rho sin(d) everywhere at any heading; the sampling of
@@ -83,7 +94,7 @@ TEST(RasterRendererTest, FlatGroundReadsTheLambertianValue) {
       const double mean = sum / n;
       const double cv = std::sqrt(std::max(0.0, sum2 / n - mean * mean)) / mean;
       SCOPED_TRACE("depression " + std::to_string(depression) + " heading " + std::to_string(heading));
-      EXPECT_NEAR(mean / std::sin(depression * kDeg), 1.0, 0.01);
+      EXPECT_NEAR(mean / (std::sin(depression * kDeg) * Calibrated(depression * kDeg)), 1.0, 0.01);
       EXPECT_LT(cv, 0.04);
       EXPECT_EQ(image.stats.cells, 150 * 150);
       EXPECT_EQ(image.bounce_layers[0], image.intensity);
@@ -112,7 +123,7 @@ TEST(RasterRendererTest, ExactModeFlatGroundFollowsTheLocalDepression) {
         const double range = g.slant_range_m() + (c - g.u0()) * g.range_spacing_m();
         const double ground = std::sqrt(range * range - sensor.z() * sensor.z());
         const double dp = std::atan2(sensor.z(), ground);
-        expected += std::sin(dp) * std::tan(dp) / std::tan(40 * kDeg) / 25.0;
+        expected += std::sin(dp) * std::tan(dp) / std::tan(40 * kDeg) * Calibrated(40 * kDeg) / 25.0;
         measured += image.intensity[size_t(r) * image.width + c] / 25.0;
       }
     }
@@ -132,7 +143,7 @@ TEST(RasterRendererTest, FacingSlopeIsForeshortenedAndSteepBackSlopeIsShadow) {
   const int row = static_cast<int>(g.v0());
   const double d = 40 * kDeg;
   const double cos_t = Vector3d(-0.5, 0, 1).normalized().dot(-g.look_direction());
-  const double expected = (1 / std::tan(d)) * cos_t * cos_t / std::sqrt(1 - cos_t * cos_t);
+  const double expected = Calibrated(d) * (1 / std::tan(d)) * cos_t * cos_t / std::sqrt(1 - cos_t * cos_t);
   const Eigen::Vector2d west = g.Project(Vector3d(-40, 0, 40));
   EXPECT_NEAR(image.intensity[size_t(row) * image.width + std::lround(west.x())], expected, 0.02 * expected);
   const Eigen::Vector2d east = g.Project(Vector3d(10, 0, 60 - std::tan(60 * kDeg) * 10));
@@ -191,7 +202,7 @@ TEST(RasterRendererTest, CellClassesSelectTheMaterial) {
   std::vector<scene::ClassId> classes(100 * 100, 0);
   for (int r = 0; r < 100; ++r)
     for (int c = 0; c < 50; ++c) classes[size_t(r) * 100 + c] = 3;
-  material::MaterialTable materials;
+  material::MaterialTable materials = UnitLambert();
   materials.Set(3, material::Material{"dark", 0.25});
   const auto g = sensor::SarGeometry::Covering(Options(0, 40, 2.0), Vector3d::Zero(), grid.posts);
   const SarImage image = Raster(grid, g, materials, classes);
@@ -202,8 +213,10 @@ TEST(RasterRendererTest, CellClassesSelectTheMaterial) {
         sum += image.intensity[size_t(std::lround(px.y()) + dr) * image.width + std::lround(px.x()) + dc];
     return sum / 25.0;
   };
-  EXPECT_NEAR(mean(g.Project(Vector3d(-50, 0, 0))), 0.25 * std::sin(40 * kDeg), 0.0025);
-  EXPECT_NEAR(mean(g.Project(Vector3d(50, 0, 0))), std::sin(40 * kDeg), 0.01);
+  EXPECT_NEAR(mean(g.Project(Vector3d(-50, 0, 0))), 0.25 * std::sin(40 * kDeg) * Calibrated(40 * kDeg),
+              0.0025 * Calibrated(40 * kDeg));
+  EXPECT_NEAR(mean(g.Project(Vector3d(50, 0, 0))), std::sin(40 * kDeg) * Calibrated(40 * kDeg),
+              0.01 * Calibrated(40 * kDeg));
 }
 
 Grid Fractal(int n, double spacing, double relief, uint64_t seed) {

@@ -35,6 +35,8 @@ struct RayGrid {
   double e0 = 0.0, de = 0.0;
   double back_off_m = 0.0;  // affine: origin plane distance behind Xc along -l
   double ray_weight = 0.0;  // 1 / rays per cell
+  double de_m = 0.0;        // across-range ray spacing, metres (exact: at the scene-centre range)
+  double k_el = 1.0;        // rays per slant-range pixel on flat ground
 };
 
 RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box,
@@ -66,6 +68,8 @@ RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box
     lo = std::min(lo, e);
     hi = std::max(hi, e);
   }
+  grid.de_m = de_m;
+  grid.k_el = k_el;
   grid.de = g.mode() == sensor::ProjectionMode::kAffine ? de_m : de_m / g.slant_range_m();
   grid.e0 = lo - grid.de;
   grid.n_el = static_cast<int>(std::ceil((hi - lo) / grid.de)) + 3;
@@ -128,6 +132,7 @@ struct Band {
     double col, row;
     float value;
     bool amplitude;
+    double box_cols = -1.0, box_rows = -1.0;  // >= 0: a box footprint (SplatBox)
   };
   std::vector<Overflow>* overflow = nullptr;
 };
@@ -160,6 +165,14 @@ void Splat(Band& band, int width, int plane, double col, double row, float value
   }
 }
 
+// Area-integrated splat of the box footprint wc x wr (pixels) at (col, row).
+void SplatFootprint(Band& band, int width, int plane, double col, double row, double wc, double wr,
+                    float value) {
+  float* base = band.values + size_t(plane) * band.rows * width;
+  if (!SplatBox(base, width, band.row0, band.rows, col, row, wc, wr, value, /*clip=*/false)) {
+    band.overflow->push_back({plane, col, row, value, false, wc, wr});
+  }
+}
 
 // SplitMix64: a per-scatterer random phase from (seed, ray, bounce).
 double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
@@ -170,9 +183,52 @@ double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
 }
 
+// Coherent rough-surface return: amplitude `amplitude` spread over the
+// footprint (see SplatFootprint) into the real and imaginary planes 0 and 1,
+// each pixel receiving sqrt(share) of it with its own seeded micro-phase
+// (the parts of a footprint are independent scatterers), so that the
+// expected intensity of every pixel is the incoherent share, before and
+// after any linear filtering. Pixels outside the band go to the overflow.
+void SplatFootprintPhasors(Band& band, int width, double col, double row, double wc, double wr, double amplitude,
+                           double phase, uint64_t seed, uint64_t ray_id, uint64_t key) {
+  double cs[kMaxShares], rs[kMaxShares];
+  int c0 = 0, r0 = 0;
+  const int nc = FootprintShares(col, wc, &c0, cs), nr = FootprintShares(row, wr, &r0, rs);
+  float* plane_re = band.values;
+  float* plane_im = band.values + size_t(band.rows) * width;
+  for (int j = 0; j < nr; ++j) {
+    if (rs[j] == 0.0) continue;
+    const int r = r0 + j;
+    for (int i = 0; i < nc; ++i) {
+      const int c = c0 + i;
+      if (c < 0 || c >= width || cs[i] == 0.0) continue;
+      const double micro = RandomPhase(seed ^ (0x632be59bd9b4e019ULL * uint64_t(int64_t(r) * width + c + 1)), ray_id, key);
+      const double a = amplitude * std::sqrt(rs[j] * cs[i]);
+      const float re = static_cast<float>(a * std::cos(phase + micro)), im = static_cast<float>(a * std::sin(phase + micro));
+      if (r < band.row0 || r >= band.row0 + band.rows) {
+        band.overflow->push_back({0, double(c), double(r), re, true});
+        band.overflow->push_back({1, double(c), double(r), im, true});
+        continue;
+      }
+      const size_t k = size_t(r - band.row0) * width + c;
+      plane_re[k] += re;
+      plane_im[k] += im;
+    }
+  }
+}
+
 // Below this cosine of the local incidence angle, a visibility ray of the
 // mask that finds its own triangle is continued past it.
 constexpr double kSelfHitCos = 0.05;
+
+// First-bounce footprints wider than twice the flat-ground footprint of a
+// ray (1 / rays per slant-range pixel), and at least this wide (pixels),
+// are split into sub-rays (at most kMaxSubRays).
+constexpr double kMinSplitFootprintPx = 0.25;
+constexpr int kMaxSubRays = 64;
+
+// Internal flag of the mask pass: a lit surface covers the pixel centre.
+constexpr uint8_t kLitBit = 8;
 
 // Small offset along a ray that clears float rounding of scene coordinates.
 float RayEpsilon(const Eigen::AlignedBox3d& box) {
@@ -195,7 +251,7 @@ void RenderOptions::Check() const {
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
-                                             int64_t* shadow_rays) {
+                                             int64_t* shadow_rays, std::vector<uint8_t>* lit) {
   const int width = geometry.width(), height = geometry.height();
   std::vector<std::atomic<uint8_t>> flags(size_t(width) * height);
   for (auto& f : flags) f.store(0, std::memory_order_relaxed);
@@ -262,6 +318,10 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
             }
             if (occluded) {
               code = kMaskShadow;
+            } else if (lit != nullptr) {
+              flags[size_t(r) * width + c].fetch_or(kLitBit, std::memory_order_relaxed);
+            }
+            if (occluded) {
             } else if (normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0) {
               code = kMaskLayover;
             }
@@ -276,7 +336,12 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
   });
   if (shadow_rays != nullptr) *shadow_rays = rays.load();
   std::vector<uint8_t> mask(flags.size());
-  for (size_t i = 0; i < flags.size(); ++i) mask[i] = flags[i].load(std::memory_order_relaxed);
+  if (lit != nullptr) lit->assign(flags.size(), 0);
+  for (size_t i = 0; i < flags.size(); ++i) {
+    const uint8_t f = flags[i].load(std::memory_order_relaxed);
+    mask[i] = f & (kMaskLayover | kMaskShadow);
+    if (lit != nullptr) (*lit)[i] = (f & kLitBit) != 0;
+  }
   return mask;
 }
 
@@ -299,6 +364,13 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   const float eps = RayEpsilon(box);
   const double far_affine = range0 + box.diagonal().norm();
   const double wavenumber2 = 4.0 * M_PI / options.wavelength_m;  // phase per metre of slant range
+  const double inv_pixel_area = 1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m());
+  const double split_footprint_px = std::max(kMinSplitFootprintPx, 2.0 / grid.k_el);
+  const std::vector<material::Sigma0Table> sigma0_tables = materials.Tables(options.wavelength_m, options.polarization);
+  auto sigma0_of = [&](scene::ClassId id, double cos_in) {
+    return sigma0_tables[id < sigma0_tables.size() ? id : 0](cos_in);
+  };
+  auto gain_of = [&](scene::ClassId id) { return std::pow(10.0, materials.Get(id).gain_db / 10.0); };
 
   // Planes: total intensity (coherent: real and imaginary amplitude), then
   // one per bounce count that can occur (the others stay zero).
@@ -330,7 +402,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   std::vector<std::vector<Contribution>> block_contributions(options.record_contributions ? n_blocks : 0);
   tbb::enumerable_thread_specific<std::vector<float>> band_buffers;
   std::array<std::mutex, 64> row_locks;  // by image row modulo 64
-  std::atomic<int64_t> hits{0};
+  std::atomic<int64_t> hits{0}, sub_rays{0};
   Reporter& reporter = options.reporter != nullptr ? *options.reporter : NullReporter();
   Progress progress("simulate: tracing", n_blocks, reporter);
   Stopwatch trace_watch;
@@ -346,7 +418,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       buffer.assign(size_t(planes) * band.rows * width, 0.0f);
       band.values = buffer.data();
       band.overflow = &block_overflow[b];
-      int64_t local_hits = 0;
+      int64_t local_hits = 0, local_sub_rays = 0;
       // Primary rays go out 16 at a time along an azimuth row (neighbouring
       // origins, parallel or fanned directions: a coherent packet); each
       // lane's later bounces are then followed one ray at a time, lanes in
@@ -404,8 +476,53 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
           const int j = j0 + k;
           Vector3d origin = lane_origin[k], dir = lane_dir[k];
           double travelled = lane_travelled[k];
-          double power = grid.ray_weight;
+          double area = 0.0;   // beam cross-section of the ray at its first hit, m^2
+          double share = 1.0;  // product of the mirror shares so far
           const uint64_t ray_id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
+          // One return into the image (and the contributions): `value` is
+          // beta0 summed over its footprint; box_cols >= 0: the first-bounce
+          // footprint (pixels), else a point. `phase_key` picks the random
+          // micro-phase of rough-surface returns.
+          auto emit = [&](double value, double range, double along, double box_cols, double box_rows, int bounce,
+                          int phase_key, const Vector3d& p, scene::ClassId hit_class, bool specular) {
+            const double col = geometry.ColumnOfRange(range), row = geometry.RowOfAlongTrack(along);
+            const int layer = std::min(bounce, kBounceLayers) - 1;
+            auto deposit = [&](int plane) {
+              if (box_cols >= 0.0) {
+                SplatFootprint(band, width, plane, col, row, box_cols, box_rows, static_cast<float>(value));
+              } else {
+                Splat(band, width, plane, col, row, static_cast<float>(value));
+              }
+            };
+            deposit(total_planes + layer);
+            if (options.coherent) {
+              // Rough-surface (first-bounce) returns: random micro-phase;
+              // mirror paths: deterministic path phase.
+              const double phase = wavenumber2 * range;
+              const double amplitude = std::sqrt(value);
+              if (bounce == 1) {
+                SplatFootprintPhasors(band, width, col, row, std::max(0.0, box_cols), box_rows, amplitude, phase,
+                                      options.seed, ray_id, uint64_t(phase_key));
+              } else {
+                Splat(band, width, 0, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
+                Splat(band, width, 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
+              }
+            } else {
+              deposit(0);
+            }
+            if (options.record_contributions) {
+              Contribution c;
+              c.azimuth_m = along;
+              c.range_m = range;
+              c.elevation_m = (p - xc).dot(n);
+              c.intensity = static_cast<float>(value);
+              c.bounces = static_cast<uint8_t>(bounce);
+              c.specular = specular;
+              c.hit_enu = p.cast<float>();
+              c.class_id = hit_class;
+              block_contributions[b].push_back(c);
+            }
+          };
           for (int bounce = 1; bounce <= options.max_bounces; ++bounce) {
             const auto hit = bounce == 1 ? std::optional<RayHit>(RayHit{packet.tfar[k], packet.triangle[k]})
                                          : embree.Intersect(origin.cast<float>(), dir.cast<float>(), eps,
@@ -418,18 +535,90 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 (bounce == 1 ? lane_normal[k] : mesh.Normal(hit->triangle)).cast<double>();
             const double cos_in = -normal.dot(dir);
             if (cos_in <= 0.0) break;  // back face: blocked
-            const material::Material& m =
-                materials.Get(bounce == 1 ? lane_class[k] : mesh.classes[hit->triangle]);
-            if (bounce == 1 && !affine) power *= travelled / range0;  // beam widening with range
+            const scene::ClassId class_id = bounce == 1 ? lane_class[k] : mesh.classes[hit->triangle];
+            const material::Material& m = materials.Get(class_id);
+            // Beam cross-section: constant in affine mode, growing with
+            // range in exact mode (constant angular spacing).
+            if (bounce == 1) area = affine ? grid.da * grid.de_m : grid.da * grid.de * travelled;
             // Return to the radar from p.
             const double a_p = geometry.AlongTrack(p);
             const Vector3d to_radar = affine ? Vector3d(-l) : Vector3d((geometry.SensorPosition(a_p) - p).normalized());
             const double back = affine ? range0 + (p - xc).dot(l) : (geometry.SensorPosition(a_p) - p).norm();
             const Vector3d mirror = dir + 2.0 * cos_in * normal;
             double diffuse_part = 0.0, specular_part = 0.0;
+            double value = 0.0;
+            double box_cols = -1.0, box_rows = -1.0;
             if (bounce == 1) {
-              diffuse_part = m.diffuse * cos_in;
+              // The local incidence of the class's sigma0 law comes from the
+              // smooth-terrain shading normal when the mesh has one
+              // (barycentrics of the hit point); the footprint's geometry
+              // keeps the facet normal.
+              double cos_shade = cos_in;
+              if (!mesh.shading_normals.empty()) {
+                const Eigen::Vector3i& tri = mesh.triangles[hit->triangle];
+                const Vector3d v0 = mesh.vertices[tri[0]].cast<double>();
+                const Vector3d e1 = mesh.vertices[tri[1]].cast<double>() - v0;
+                const Vector3d e2 = mesh.vertices[tri[2]].cast<double>() - v0;
+                const Vector3d w = p - v0;
+                const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2);
+                const double det = d11 * d22 - d12 * d12;
+                if (det > 0.0) {
+                  const double u = (d22 * w.dot(e1) - d12 * w.dot(e2)) / det;
+                  const double v = (d11 * w.dot(e2) - d12 * w.dot(e1)) / det;
+                  const Vector3d ns = mesh.ShadingNormal(hit->triangle, float(u), float(v)).cast<double>();
+                  cos_shade = std::max(0.0, -ns.dot(dir));
+                }
+              }
+              // sigma0 times the surface area the ray covers, per pixel area.
+              const double cos_eff = std::max(cos_in, kMaskEdgeOnCos);
+              value = sigma0_of(class_id, cos_shade) * area / cos_eff * inv_pixel_area;
+              diffuse_part = m.diffuse * cos_in;  // for the `specular` flag of contributions
               specular_part = m.Backscatter(cos_in) - diffuse_part;
+              // Footprint: the neighbouring ray across range hits the same
+              // plane s_e |N.v_e| / cos(theta_l) further in slant range.
+              const double e = grid.e0 + j * grid.de;
+              const Vector3d v_e = affine ? Vector3d(n) : Vector3d(-std::sin(e) * l + std::cos(e) * n);
+              const double s_e = affine ? grid.de_m : travelled * grid.de;
+              box_cols = s_e * std::abs(normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
+              box_rows = grid.da / geometry.azimuth_spacing_m();
+              if (box_cols > split_footprint_px) {
+                // Adaptive sampling: a footprint wider than a pixel (a
+                // surface seen near grazing) is covered by sub-rays across
+                // the ray's interval, each with its own hit, normal and
+                // share of the cross-section, so the surface's true
+                // relief, not the plane of one triangle, decides where the
+                // power lands. The ray itself continues (multi-bounce).
+                const int subs = std::min(kMaxSubRays, static_cast<int>(std::ceil(box_cols / split_footprint_px)));
+                local_sub_rays += subs;
+                for (int q = 0; q < subs; ++q) {
+                  const double e_q = e + grid.de * ((q + 0.5) / subs - 0.5);
+                  Vector3d o_q, d_q;
+                  double trav_q;
+                  if (!PrimaryRay(geometry, grid, box, a, e_q, sensor, &o_q, &d_q, &trav_q)) continue;
+                  const auto h_q = embree.Intersect(o_q.cast<float>(), d_q.cast<float>(), 0.0f,
+                                                    std::numeric_limits<float>::infinity());
+                  if (!h_q) continue;
+                  const Vector3d p_q = o_q + double(h_q->t) * d_q;
+                  trav_q += h_q->t;
+                  const Vector3d n_q = mesh.Normal(h_q->triangle).cast<double>();
+                  const double cos_q = -n_q.dot(d_q);
+                  if (cos_q <= 0.0) continue;
+                  const double cos_q_eff = std::max(cos_q, kMaskEdgeOnCos);
+                  const scene::ClassId class_q = mesh.classes[h_q->triangle];
+                  const double area_q = affine ? grid.da * grid.de_m / subs : grid.da * grid.de / subs * trav_q;
+                  const double value_q = sigma0_of(class_q, cos_q) * area_q / cos_q_eff * inv_pixel_area;
+                  if (!(value_q > 0.0)) continue;
+                  const Vector3d v_q = affine ? Vector3d(n) : Vector3d(-std::sin(e_q) * l + std::cos(e_q) * n);
+                  const double s_q = affine ? grid.de_m / subs : trav_q * grid.de / subs;
+                  const double cols_q = s_q * std::abs(n_q.dot(v_q)) / cos_q_eff / geometry.range_spacing_m();
+                  const double a_q = geometry.AlongTrack(p_q);
+                  const double back_q =
+                      affine ? range0 + (p_q - xc).dot(l) : (geometry.SensorPosition(a_q) - p_q).norm();
+                  emit(value_q, 0.5 * (trav_q + back_q), 0.5 * (a + a_q), cols_q, box_rows, 1, 1000 + q, p_q,
+                       class_q, false);
+                }
+                value = 0.0;  // returned by the sub-rays
+              }
             } else {
               const double cos_out = normal.dot(to_radar);
               if (cos_out > 0.0 &&
@@ -439,38 +628,15 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 const double cos_spec = mirror.dot(to_radar);
                 if (cos_spec > 0.0 && m.specular > 0.0) specular_part = m.specular * std::pow(cos_spec, 1.0 / m.roughness);
               }
+              value = 4.0 * area * share * (diffuse_part + specular_part) * gain_of(class_id) * inv_pixel_area;
             }
-            const double value = power * (diffuse_part + specular_part);
             if (value > 0.0) {
-              const double range = 0.5 * (travelled + back);
-              const double along = 0.5 * (a + a_p);  // first and last hit
-              const double col = geometry.ColumnOfRange(range), row = geometry.RowOfAlongTrack(along);
-              const int layer = std::min(bounce, kBounceLayers) - 1;
-              Splat(band, width, total_planes + layer, col, row, static_cast<float>(value));
-              if (options.coherent) {
-                const double phase = wavenumber2 * range + RandomPhase(options.seed, ray_id, bounce);
-                const double amplitude = std::sqrt(value);
-                Splat(band, width, 0, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
-                Splat(band, width, 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
-              } else {
-                Splat(band, width, 0, col, row, static_cast<float>(value));
-              }
-              if (options.record_contributions) {
-                Contribution c;
-                c.azimuth_m = along;
-                c.range_m = range;
-                c.elevation_m = (p - xc).dot(n);
-                c.intensity = static_cast<float>(value);
-                c.bounces = static_cast<uint8_t>(bounce);
-                c.specular = specular_part > diffuse_part;
-                c.hit_enu = p.cast<float>();
-                c.class_id = mesh.classes[hit->triangle];
-                block_contributions[b].push_back(c);
-              }
+              emit(value, 0.5 * (travelled + back), 0.5 * (a + a_p), box_cols, box_rows, bounce, bounce, p,
+                   mesh.classes[hit->triangle], specular_part > diffuse_part);
             }
             // Continue as the mirror ray.
-            power *= m.mirror;
-            if (power < 1e-9 * grid.ray_weight) break;
+            share *= m.mirror;
+            if (share < 1e-9) break;
             origin = p;
             dir = mirror.normalized();
           }
@@ -489,6 +655,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
         }
       }
       hits.fetch_add(local_hits, std::memory_order_relaxed);
+      sub_rays.fetch_add(local_sub_rays, std::memory_order_relaxed);
       progress.Advance(1);
       ThrowIfCancelled(reporter, "simulate: tracing");
     }
@@ -496,7 +663,13 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   progress.Done();
 
   for (const auto& overflow : block_overflow) {
-    for (const Band::Overflow& o : overflow) SplatBilinear(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
+    for (const Band::Overflow& o : overflow) {
+      if (o.box_cols >= 0.0) {
+        SplatBox(full[o.plane].data(), width, 0, height, o.col, o.row, o.box_cols, o.box_rows, o.value, /*clip=*/true);
+      } else {
+        SplatBilinear(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
+      }
+    }
   }
   // Tracing phase: rays, shading, splatting and merging (not the assembly
   // of the output planes below).
@@ -506,6 +679,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     for (size_t k = 0; k < image.intensity.size(); ++k) {
       image.intensity[k] = full[0][k] * full[0][k] + full[1][k] * full[1][k];
     }
+    image.real = std::move(full[0]);
+    image.imag = std::move(full[1]);
   } else {
     image.intensity = std::move(full[0]);
   }
@@ -521,11 +696,45 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   }
   image.stats.rays = int64_t{grid.n_az} * grid.n_el;
   image.stats.hits = hits.load();
+  image.stats.sub_rays = sub_rays.load();
 
   Stopwatch mask_watch;
-  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays);
+  image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m);
+  std::vector<uint8_t> lit;
+  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit);
+  for (size_t q = 0; q < lit.size(); ++q) {
+    if (!lit[q]) continue;
+    ++image.stats.footprint_pixels;
+    if (!(image.bounce_layers[0][q] > 0.0f)) ++image.stats.empty_footprint_pixels;
+  }
   image.stats.mask_seconds = mask_watch.ElapsedSeconds();
   return image;
+}
+
+std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::vector<SceneReflector>& reflectors,
+                                          const sensor::SarGeometry& geometry, double wavelength_m) {
+  std::vector<PointReturn> out;
+  const double inv_pixel_area = 1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m());
+  for (const SceneReflector& r : reflectors) {
+    const Vector3d to_sensor = -geometry.RayDirectionTo(r.apex_enu);
+    const double rcs = material::ReflectorRcs(r.type, r.size_m, wavelength_m, r.boresight_enu, to_sensor);
+    if (!(rcs > 0.0)) continue;
+    // Clear the reflector's own ground: start the visibility ray a few
+    // centimetres out.
+    const double far = geometry.mode() == sensor::ProjectionMode::kAffine
+                           ? geometry.slant_range_m() * 2.0
+                           : (geometry.SensorPosition(geometry.AlongTrack(r.apex_enu)) - r.apex_enu).norm();
+    if (embree.Occluded(r.apex_enu.cast<float>(), to_sensor.cast<float>(), 0.05f, static_cast<float>(far))) continue;
+    PointReturn p;
+    const Eigen::Vector2d px = geometry.Project(r.apex_enu);
+    p.col = px.x();
+    p.row = px.y();
+    p.beta0_sum = rcs * inv_pixel_area;
+    p.range_m = geometry.SlantRange(r.apex_enu);
+    p.layer = r.type == material::ReflectorType::kPlate ? 0 : r.type == material::ReflectorType::kDihedral ? 1 : 2;
+    out.push_back(p);
+  }
+  return out;
 }
 
 int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::TriangleMesh& mesh,

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "gissar/material/material.h"
+#include "gissar/material/reflector.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
@@ -27,6 +28,25 @@ inline constexpr uint8_t kMaskShadow = 2;  // kMaskLayover | kMaskShadow = 3: bo
 // decided by rounding otherwise.
 inline constexpr double kMaskEdgeOnCos = 1e-3;
 
+// A canonical reflector in the scene (material/reflector.h), ENU metres.
+struct SceneReflector {
+  material::ReflectorType type = material::ReflectorType::kTrihedral;
+  double size_m = 1.0;
+  Eigen::Vector3d apex_enu = Eigen::Vector3d::Zero();  // phase centre
+  Eigen::Vector3d boresight_enu = Eigen::Vector3d::UnitZ();  // towards the sensor
+  int row = 0;  // CSV row, for messages
+};
+
+// A point scatterer's return, added analytically by the sensor stage
+// (image::ApplySensorEffects) after the impulse response: its integrated
+// response sums to beta0_sum = RCS / (range_spacing_m azimuth_spacing_m).
+struct PointReturn {
+  double col = 0.0, row = 0.0;  // continuous pixel of the phase centre
+  double beta0_sum = 0.0;
+  double range_m = 0.0;          // slant range of the phase centre (coherent phase 4 pi r / lambda)
+  int layer = 0;                 // bounce band: 0 single (plate), 1 double (dihedral), 2 triple (trihedral)
+};
+
 struct RenderOptions {
   // Rays per resolution cell on flat ground at the scene-centre depression:
   // round(sqrt(N)) along azimuth times N / that across range. >= 1.
@@ -40,8 +60,14 @@ struct RenderOptions {
   // cell, each with phase 4 pi r / lambda plus a random phase per
   // scatterer (seeded) instead of a sum of intensities.
   bool coherent = false;
-  double wavelength_m = 0.031;  // X band
+  // Radar wavelength (X band by default) and polarisation: they select the
+  // materials' sigma0 laws, and the wavelength sets the coherent phase.
+  double wavelength_m = 0.031;
+  material::Polarization polarization = material::Polarization::kVV;
   uint64_t seed = 1;
+  // Canonical reflectors: their returns (RCS towards the sensor, zero when
+  // the way back is occluded) go to SarImage::points.
+  std::vector<SceneReflector> reflectors;
   // Where tracing progress goes, and who may cancel it (nullptr: nowhere,
   // never). Not owned; must outlive the render.
   Reporter* reporter = nullptr;
@@ -55,7 +81,7 @@ struct Contribution {
   double azimuth_m = 0.0;    // along-track coordinate (rule: see docs/geometry.md)
   double range_m = 0.0;      // slant range: half the total path length
   double elevation_m = 0.0;  // last hit's offset along the slant-range plane normal n
-  float intensity = 0.0f;    // power returned (image units)
+  float intensity = 0.0f;    // beta0 it adds to the image: RCS (m^2) / pixel area (m^2)
   uint8_t bounces = 1;       // 1 single, 2 double, ...
   bool specular = false;     // the specular term dominated this return
   Eigen::Vector3f hit_enu = Eigen::Vector3f::Zero();  // last hit position
@@ -68,19 +94,33 @@ inline constexpr int kBounceLayers = 4;  // single, double, triple, >= 4
 struct RenderStats {
   int64_t rays = 0;           // primary rays traced
   int64_t hits = 0;           // rays that hit the scene
+  int64_t sub_rays = 0;       // extra first-bounce rays of footprint splitting (near-grazing hits)
   int64_t shadow_rays = 0;    // visibility rays of the mask
   int64_t cells = 0;          // DEM cells projected (raster engine)
   double trace_seconds = 0.0;  // tracer: rays, shading, splatting, merging; raster: all
   double mask_seconds = 0.0;
+  // Illuminated footprint: pixels whose centre a lit surface covers (the
+  // mask pass), and those of them that received no single-bounce return.
+  int64_t footprint_pixels = 0;
+  int64_t empty_footprint_pixels = 0;
 };
 
 struct SarImage {
   int width = 0;                // columns: slant range
   int height = 0;               // rows: azimuth
-  std::vector<float> intensity; // linear, row-major: all bounces (coherent sum in coherent mode)
+  // beta0 (radar brightness, linear m^2/m^2), row-major: the sum of the
+  // radar cross sections returned into each pixel over its area
+  // range_spacing_m * azimuth_spacing_m; all bounces (coherent sum in
+  // coherent mode).
+  std::vector<float> intensity;
   // Intensity per bounce count (incoherent): [0] single, [1] double,
   // [2] triple, [3] four or more.
   std::array<std::vector<float>, kBounceLayers> bounce_layers;
+  // Coherent mode: the complex image (amplitude sqrt(beta0)) before the
+  // sensor stage; `intensity` is its detected power. Empty otherwise.
+  std::vector<float> real, imag;
+  // Canonical reflectors' returns (added by the sensor stage).
+  std::vector<PointReturn> points;
   std::vector<Contribution> contributions;  // when record_contributions
   std::vector<uint8_t> mask;    // kMask* codes, row-major
   RenderStats stats;
@@ -89,22 +129,35 @@ struct SarImage {
 // Renders the single-bounce Lambertian image and the layover/shadow mask of
 // `mesh` (already in `embree`) seen with `geometry`.
 //
-// Intensity: every ray carries an equal share of the power crossing the
-// beam; a hit with local incidence theta returns its material's
-// Backscatter(cos theta) of it (diffuse rho * cos(theta) plus the specular
-// highlight, see material.h), splatted bilinearly onto
-// the four pixel centres around its continuous (column, row). The image is
-// normalised so that flat ground at the scene-centre depression d reads
-// rho * cos(90 deg - d) = rho * sin(d); foreshortened slopes read more,
-// slopes turned away less, occluded surfaces nothing. In exact mode a ray's
-// share grows with its range (constant angular spacing), so flat ground reads
-// rho * sin(d_p) * tan(d_p) / tan(d) at a point of depression d_p.
+// Calibration (docs/radiometry.md): every primary ray stands for the beam
+// cross-section A (m^2, perpendicular to the ray) between it and its
+// neighbours: da_ray x de metres in affine mode, da_ray x (range x de rad)
+// in exact mode. Its first hit, on a surface at local incidence theta_l,
+// covers the surface area A / cos(theta_l) and returns the radar cross
+// section sigma0(theta_l) A / cos(theta_l) (the material's law for the
+// wavelength and polarisation). The image is beta0: RCS per pixel area
+// dr x da. Values do not depend on the ray count, the image size or the
+// pixel spacing: flat ground of constant sigma0 reads sigma0 / sin(theta_i).
+// A first-bounce return is spread over its footprint in the image (the
+// ray's cross-section projected through the hit surface's plane into range
+// and azimuth, at most kMaxBoxWidthPx wide) by area integration, so that the
+// footprints of neighbouring rays tile a surface's image without gaps
+// whatever the incidence, slope and pixel/ray ratio; later bounces are
+// splatted bilinearly at their (column, row).
 //
-// Multi-bounce (up to max_bounces): at every hit the power sent back to the
-// radar is recorded: at the first hit the material's backscatter; at later
-// hits, if the way back to the radar is free, diffuse * cos(angle to the
-// radar) plus the specular cone around the mirror direction. Each hit
-// continues as a mirror ray with the material's `mirror` share of the power.
+// Coherent mode: each return adds phasors of total power `value`: the
+// single-bounce (rough-surface) return sqrt(share x value) in each pixel of
+// its footprint with phase 4 pi r / lambda plus a seeded random micro-phase
+// per ray and pixel (so the mean intensity equals the incoherent image
+// whatever the ray count, also after the complex PSF); mirror paths (later
+// bounces) with the deterministic phase 4 pi r / lambda of their path (r:
+// half the path), split with the square roots of the bilinear weights.
+//
+// Multi-bounce (up to max_bounces): at later hits, if the way back to the
+// radar is free, the ray returns RCS 4 A f, with f = diffuse * cos(angle
+// to the radar) plus the specular cone around the mirror direction, times
+// the mirror shares of the earlier hits. Each hit continues as a mirror ray
+// with the material's `mirror` share of the power.
 // A return's slant range is half the total path (sensor -> hits -> sensor);
 // its azimuth is the mean of the first and last hit's along-track
 // coordinates (docs/geometry.md). Results do not depend on the thread count.
@@ -128,10 +181,18 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
                                  const sensor::SarGeometry& geometry, double rays_per_cell,
                                  int64_t* hits = nullptr);
 
-// Only the layover/shadow mask (see RenderSar).
+// Returns of `reflectors` seen with `geometry` at `wavelength_m`: RCS from
+// material::ReflectorRcs towards the sensor, none where the way from the
+// apex to the sensor is occluded or the RCS is zero.
+std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::vector<SceneReflector>& reflectors,
+                                          const sensor::SarGeometry& geometry, double wavelength_m);
+
+// Only the layover/shadow mask (see RenderSar). `lit` (optional): 1 where a
+// lit surface (facing the radar, not occluded) covers the pixel centre.
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
-                                             int64_t* shadow_rays = nullptr);
+                                             int64_t* shadow_rays = nullptr,
+                                             std::vector<uint8_t>* lit = nullptr);
 
 }  // namespace gissar::render

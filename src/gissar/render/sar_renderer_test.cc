@@ -40,14 +40,26 @@ void AddGround(scene::TriangleMesh& mesh, float x0, float x1, float y0, float y1
   AddFacingQuad(mesh, {x0, y0, 0}, {x1, y0, 0}, {x1, y1, 0}, {x0, y1, 0}, Vector3f::UnitZ());
 }
 
+// One unit Lambertian class (albedo 1): sigma0 = 4 cos^2(theta_l).
+material::MaterialTable UnitLambert() {
+  material::MaterialTable table;
+  table.Set(0, material::Material{"default", 1.0});
+  return table;
+}
+
+// The image is beta0: a Lambertian surface of albedo rho reads
+// 4 rho cos^2(theta_l) over its area per image area. Flat ground at
+// depression d: 4 rho sin^2(d) / cos(d) = rho sin(d) * Calibrated(d).
+double Calibrated(double depression_rad) { return 4.0 * std::tan(depression_rad); }
+
 SarImage Render(const scene::TriangleMesh& mesh, const sensor::SarGeometry& g,
                 double rays_per_cell = 4.0) {
   const EmbreeScene embree(mesh);
-  return RenderSar(embree, mesh, material::MaterialTable(), g, Quiet(rays_per_cell));
+  return RenderSar(embree, mesh, UnitLambert(), g, Quiet(rays_per_cell));
 }
 
-// Flat ground reads rho * cos(incidence) = sin(depression) everywhere, with
-// no speckle-like ripple from the ray layout.
+// Flat ground reads 4 rho sin^2(d) / cos(d) (beta0 of sigma0 = 4 rho cos^2)
+// everywhere, with no speckle-like ripple from the ray layout.
 TEST(SarRendererTest, FlatPlaneReadsTheLambertianValue) {
   for (double depression : {25.0, 40.0, 60.0}) {
     for (double heading : {0.0, 30.0, 200.0}) {
@@ -69,9 +81,37 @@ TEST(SarRendererTest, FlatPlaneReadsTheLambertianValue) {
       }
       const double mean = sum / n;
       const double cv = std::sqrt(std::max(0.0, sum2 / n - mean * mean)) / mean;
-      const double expected = std::sin(depression * kDeg);
+      const double expected = std::sin(depression * kDeg) * Calibrated(depression * kDeg);
       EXPECT_NEAR(mean / expected, 1.0, 0.01) << "depression " << depression << " heading " << heading;
       EXPECT_LT(cv, 0.02) << "depression " << depression << " heading " << heading;
+    }
+  }
+}
+
+// Smooth terrain: the diffuse term of the first bounce uses the mesh's
+// interpolated shading normal. Flat ground whose vertices all carry the
+// shading normal n = (-0.5, 0, 1) / |.| reads n . (-look) (unit Lambertian);
+// a zero shading normal at a vertex falls back to the facet: sin(depression).
+TEST(SarRendererTest, ShadingNormalsDriveTheDiffuseTerm) {
+  for (double heading : {0.0, 30.0}) {
+    for (bool flat : {false, true}) {
+      scene::TriangleMesh mesh;
+      AddGround(mesh, -300, 300, -300, 300);
+      const Vector3f n = Vector3f(-0.5f, 0.0f, 1.0f).normalized();
+      mesh.shading_normals.assign(mesh.vertices.size(), n);
+      if (flat) mesh.shading_normals[0] = mesh.shading_normals[2] = Vector3f::Zero();  // in both triangles
+      const auto g = sensor::SarGeometry::Covering(Options(heading, 40.0, 2.0), Vector3d::Zero(), mesh.vertices);
+      const SarImage image = Render(mesh, g);
+      double sum = 0;
+      int count = 0;
+      for (int r = int(g.v0()) - 40; r <= int(g.v0()) + 40; ++r) {
+        for (int c = int(g.u0()) - 30; c <= int(g.u0()) + 30; ++c) {
+          sum += image.intensity[size_t(r) * image.width + c];
+          ++count;
+        }
+      }
+      const double expected = flat ? std::sin(40.0 * kDeg) : n.cast<double>().dot(-g.look_direction());
+      EXPECT_NEAR(sum / count / expected, 1.0, 0.01) << "heading " << heading << " flat " << flat;
     }
   }
 }
@@ -81,12 +121,13 @@ TEST(SarRendererTest, ReflectivityScalesTheImage) {
   AddGround(mesh, -100, 100, -100, 100);
   mesh.classes.assign(mesh.triangle_count(), 2);
   material::MaterialTable materials;
+  materials.Set(0, material::Material{"default", 1.0});
   materials.Set(2, material::Material{"dark", 0.25});
   const auto g = sensor::SarGeometry::Covering(Options(0, 40, 1.0), Vector3d::Zero(), mesh.vertices);
   const EmbreeScene embree(mesh);
   const SarImage image = RenderSar(embree, mesh, materials, g, Quiet());
   const size_t centre = size_t(g.v0()) * image.width + size_t(g.u0());
-  EXPECT_NEAR(image.intensity[centre], 0.25 * std::sin(40 * kDeg), 1e-4);
+  EXPECT_NEAR(image.intensity[centre], 0.25 * std::sin(40 * kDeg) * Calibrated(40 * kDeg), 4e-4);
 }
 
 // A box of height H with vertical walls on flat ground, radar looking east
@@ -147,7 +188,7 @@ TEST(SarRendererTest, BoxLayoverAndShadowMatchClosedForms) {
     const int roof_back_col = static_cast<int>(std::ceil(g.Project(Vector3d(x1, 0, H)).x()));
     EXPECT_EQ(image.mask[size_t(row) * image.width + roof_back_col], kMaskShadow);
     EXPECT_EQ(image.mask[size_t(row) * image.width + roof_back_col - 1], kMaskNone);
-    const float ground = static_cast<float>(std::sin(d));
+    const float ground = static_cast<float>(std::sin(d) * Calibrated(d));
     EXPECT_EQ(image.intensity[size_t(row) * image.width + roof_back_col + 2], 0.0f);
     EXPECT_GT(image.intensity[size_t(row) * image.width + foot_col - 1], 1.2f * ground);
   }
@@ -236,10 +277,11 @@ TEST(SarRendererTest, SlopeTurnedAwayIsShadowAndFacingSlopeIsBrighter) {
   // tan(t_flat) / tan(t) times flat ground's rays, each returning cos(t):
   // I = cot(d) * cos^2(t) / sin(t) (flat ground: sin(d)).
   const double d = 40 * kDeg;
-  const double expected = (1 / std::tan(d)) * cos_west * cos_west / std::sqrt(1 - cos_west * cos_west);
+  const double expected =
+      Calibrated(d) * (1 / std::tan(d)) * cos_west * cos_west / std::sqrt(1 - cos_west * cos_west);
   const double measured = image.intensity[size_t(row) * image.width + std::lround(west_px.x())];
   EXPECT_NEAR(measured, expected, 0.02 * expected);
-  EXPECT_GT(measured, 1.3 * std::sin(d));
+  EXPECT_GT(measured, 1.3 * std::sin(d) * Calibrated(d));
   const Eigen::Vector2d east_px = g.Project(Vector3d(10, 0, 60 - std::tan(60 * kDeg) * 10));
   EXPECT_EQ(image.mask[size_t(row) * image.width + std::lround(east_px.x())], kMaskShadow);
 }

@@ -13,6 +13,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <unordered_map>
@@ -169,6 +170,315 @@ GeomPtr MakePoint(const Geos& geos, const Vector2d& p) {
   return Own(geos, GEOSGeom_createPoint_r(geos.ctx(), seq));
 }
 
+// ---------------------------------------------------------------- coastline
+// Sea from coastline ways (plan M; OSM: land on the left of the way).
+// Chains are merged head to tail keeping their direction; an end inside the
+// extent is extended straight, along the direction of the chain's last
+// 200 m, until it leaves the extent's bounding box (the extract ends there,
+// the coast goes on). The extent is cut along the chains and its boundary;
+// a face is sea when the coastline edges on its boundary have it on their
+// right (length-weighted vote), land when on their left; faces without a
+// coastline edge are land.
+GeomPtr CoastlineSea(const Geos& geos, const GEOSGeometry* extent, const std::vector<Vector2d>& extent_ring,
+                     const std::vector<std::vector<Vector2d>>& lines, int64_t* extended_ends) {
+  Vector2d lo = extent_ring[0], hi = extent_ring[0];
+  for (const Vector2d& p : extent_ring) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double diag = (hi - lo).norm();
+  // Merge (directed).
+  std::vector<GEOSGeometry*> raw;
+  for (const auto& l : lines) {
+    if (GeomPtr g = MakeLine(geos, l)) raw.push_back(g.release());
+  }
+  if (raw.empty()) return nullptr;
+  GeomPtr multi = Own(geos, GEOSGeom_createCollection_r(geos.ctx(), GEOS_MULTILINESTRING, raw.data(), raw.size()));
+  GeomPtr merged = Own(geos, GEOSLineMergeDirected_r(geos.ctx(), multi.get()));
+  if (!merged) return nullptr;
+  std::vector<std::vector<Vector2d>> chains;
+  auto read_line = [&](const GEOSGeometry* g) {
+    const GEOSCoordSequence* seq = GEOSGeom_getCoordSeq_r(geos.ctx(), g);
+    unsigned n = 0;
+    GEOSCoordSeq_getSize_r(geos.ctx(), seq, &n);
+    std::vector<Vector2d> pts(n);
+    for (unsigned i = 0; i < n; ++i) GEOSCoordSeq_getXY_r(geos.ctx(), seq, i, &pts[i].x(), &pts[i].y());
+    if (pts.size() >= 2) chains.push_back(std::move(pts));
+  };
+  for (int i = 0; i < GEOSGetNumGeometries_r(geos.ctx(), merged.get()); ++i) {
+    read_line(GEOSGetGeometryN_r(geos.ctx(), merged.get(), i));
+  }
+  const PreparedPtr prepared(GEOSPrepare_r(geos.ctx(), extent), PreparedDeleter{geos.ctx()});
+  auto inside = [&](const Vector2d& p) {
+    GeomPtr point = MakePoint(geos, p);
+    return GEOSPreparedIntersects_r(geos.ctx(), prepared.get(), point.get()) == 1;
+  };
+  // Distance from p along unit direction d to the bounding box's boundary.
+  auto exit_distance = [&](const Vector2d& p, const Vector2d& d) {
+    double t = diag;
+    for (int k = 0; k < 2; ++k) {
+      if (d[k] > 1e-12) t = std::min(t, (hi[k] - p[k]) / d[k]);
+      if (d[k] < -1e-12) t = std::min(t, (lo[k] - p[k]) / d[k]);
+    }
+    return std::max(t, 0.0) + 1.0;
+  };
+  auto direction_back = [](const std::vector<Vector2d>& pts, bool from_end) {
+    // Unit vector pointing out of the chain at that end.
+    const Vector2d end = from_end ? pts.back() : pts.front();
+    double length = 0.0;
+    Vector2d q = end;
+    for (size_t k = 1; k < pts.size() && length < 200.0; ++k) {
+      const Vector2d& next = from_end ? pts[pts.size() - 1 - k] : pts[k];
+      length += (next - q).norm();
+      q = next;
+    }
+    const Vector2d d = end - q;
+    return d.norm() > 0 ? Vector2d(d / d.norm()) : Vector2d(0, 0);
+  };
+  for (auto& chain : chains) {
+    if ((chain.front() - chain.back()).norm() < 1e-9) continue;
+    if (inside(chain.front())) {
+      const Vector2d d = direction_back(chain, false);
+      if (d.norm() > 0) {
+        chain.insert(chain.begin(), chain.front() + exit_distance(chain.front(), d) * d);
+        ++*extended_ends;
+      }
+    }
+    if (inside(chain.back())) {
+      const Vector2d d = direction_back(chain, true);
+      if (d.norm() > 0) {
+        chain.push_back(chain.back() + exit_distance(chain.back(), d) * d);
+        ++*extended_ends;
+      }
+    }
+  }
+  // Directed segments, hashed by the grid cells they pass through.
+  struct Segment {
+    Vector2d s, t;
+  };
+  std::vector<Segment> segments;
+  for (const auto& chain : chains) {
+    for (size_t k = 0; k + 1 < chain.size(); ++k) {
+      if ((chain[k + 1] - chain[k]).norm() > 0) segments.push_back({chain[k], chain[k + 1]});
+    }
+  }
+  const double cell = std::max(diag / 512.0, 1e-3);
+  auto key = [&](const Vector2d& p) {
+    return std::make_pair(static_cast<int64_t>(std::floor((p.x() - lo.x()) / cell)),
+                          static_cast<int64_t>(std::floor((p.y() - lo.y()) / cell)));
+  };
+  std::map<std::pair<int64_t, int64_t>, std::vector<int>> grid;
+  for (size_t i = 0; i < segments.size(); ++i) {
+    const Vector2d d = segments[i].t - segments[i].s;
+    const int n = static_cast<int>(std::ceil(d.norm() / (0.5 * cell))) + 1;
+    std::pair<int64_t, int64_t> last{std::numeric_limits<int64_t>::min(), 0};
+    for (int k = 0; k <= n; ++k) {
+      const auto c = key(segments[i].s + (double(k) / n) * d);
+      if (c == last) continue;
+      last = c;
+      auto& bucket = grid[c];
+      if (bucket.empty() || bucket.back() != static_cast<int>(i)) bucket.push_back(static_cast<int>(i));
+    }
+  }
+  // Node the chains with the extent boundary and polygonize.
+  std::vector<GEOSGeometry*> pieces;
+  pieces.push_back(GEOSBoundary_r(geos.ctx(), extent));
+  // Whole chains (they cross the boundary: noding splits both there; the
+  // parts outside are dangles that polygonizing drops).
+  for (const auto& chain : chains) {
+    if (GeomPtr line = MakeLine(geos, chain)) pieces.push_back(line.release());
+  }
+  GeomPtr all = Own(geos, GEOSGeom_createCollection_r(geos.ctx(), GEOS_GEOMETRYCOLLECTION, pieces.data(), pieces.size()));
+  GeomPtr noded = Own(geos, GEOSUnaryUnion_r(geos.ctx(), all.get()));
+  if (!noded) return nullptr;
+  const GEOSGeometry* noded_raw = noded.get();
+  GeomPtr faces = Own(geos, GEOSPolygonize_r(geos.ctx(), &noded_raw, 1));
+  if (!faces) return nullptr;
+  std::vector<GeomPtr> sea_faces;
+  auto ring_points = [&](const GEOSGeometry* ring, bool want_ccw) {
+    const GEOSCoordSequence* seq = GEOSGeom_getCoordSeq_r(geos.ctx(), ring);
+    unsigned n = 0;
+    GEOSCoordSeq_getSize_r(geos.ctx(), seq, &n);
+    std::vector<Vector2d> pts(n);
+    for (unsigned i = 0; i < n; ++i) GEOSCoordSeq_getXY_r(geos.ctx(), seq, i, &pts[i].x(), &pts[i].y());
+    double area2 = 0.0;
+    for (size_t i = 0; i + 1 < pts.size(); ++i) area2 += pts[i].x() * pts[i + 1].y() - pts[i + 1].x() * pts[i].y();
+    if ((area2 > 0) != want_ccw) std::reverse(pts.begin(), pts.end());
+    return pts;
+  };
+  for (int f = 0; f < GEOSGetNumGeometries_r(geos.ctx(), faces.get()); ++f) {
+    const GEOSGeometry* face = GEOSGetGeometryN_r(geos.ctx(), faces.get(), f);
+    // Rings with the face on their left: shell counter-clockwise, holes clockwise.
+    std::vector<std::vector<Vector2d>> rings = {ring_points(GEOSGetExteriorRing_r(geos.ctx(), face), true)};
+    for (int h = 0; h < GEOSGetNumInteriorRings_r(geos.ctx(), face); ++h) {
+      rings.push_back(ring_points(GEOSGetInteriorRingN_r(geos.ctx(), face, h), false));
+    }
+    double vote = 0.0;
+    for (const auto& ring : rings) {
+      for (size_t k = 0; k + 1 < ring.size(); ++k) {
+        const Vector2d p = ring[k], q = ring[k + 1], m = 0.5 * (p + q);
+        const double len = (q - p).norm();
+        if (len <= 0) continue;
+        const auto centre = key(m);
+        std::vector<int> candidates;
+        for (int64_t di = -1; di <= 1; ++di) {
+          for (int64_t dj = -1; dj <= 1; ++dj) {
+            auto it = grid.find({centre.first + di, centre.second + dj});
+            if (it != grid.end()) candidates.insert(candidates.end(), it->second.begin(), it->second.end());
+          }
+        }
+        for (int i : candidates) {
+          const Vector2d st = segments[i].t - segments[i].s;
+          const double st_len = st.norm();
+          const Vector2d rel = m - segments[i].s;
+          const double along = rel.dot(st) / st_len;
+          const double off = std::abs(rel.x() * st.y() - rel.y() * st.x()) / st_len;
+          if (along < -1e-6 || along > st_len + 1e-6 || off > 1e-4) continue;
+          vote += (q - p).dot(st) > 0 ? len : -len;  // face on the left of the coast: land
+          break;
+        }
+      }
+    }
+    if (vote < 0) sea_faces.push_back(Own(geos, GEOSGeom_clone_r(geos.ctx(), face)));
+  }
+  return UnionAll(geos, sea_faces);
+}
+
+}  // namespace
+
+std::vector<uint8_t> SeaPostMask(const geo::Dem& dem, double sea_level_m) {
+  const int w = dem.width, h = dem.height;
+  std::vector<uint8_t> sea(size_t(w) * h, 0);
+  auto low = [&](size_t i) {
+    return (dem.nodata_mask.empty() || dem.nodata_mask[i] == 0) && dem.heights_m[i] <= sea_level_m;
+  };
+  std::deque<size_t> queue;
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      if (r != 0 && r != h - 1 && c != 0 && c != w - 1) continue;
+      const size_t i = size_t(r) * w + c;
+      if (!sea[i] && low(i)) {
+        sea[i] = 1;
+        queue.push_back(i);
+      }
+    }
+  }
+  while (!queue.empty()) {
+    const size_t i = queue.front();
+    queue.pop_front();
+    const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
+    const std::pair<int, int> next[4] = {{c - 1, r}, {c + 1, r}, {c, r - 1}, {c, r + 1}};
+    for (const auto& [nc, nr] : next) {
+      if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
+      const size_t j = size_t(nr) * w + nc;
+      if (sea[j]) continue;
+      if (low(j) || dem.IsNodata(nc, nr)) {  // a void joins the sea only from a sea post
+        sea[j] = 1;
+        queue.push_back(j);
+      }
+    }
+  }
+  return sea;
+}
+
+int64_t MarkSeaTriangles(TriangleMesh& mesh, const std::vector<uint8_t>& sea_posts) {
+  int64_t marked = 0;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const Eigen::Vector3i& tri = mesh.triangles[t];
+    if (mesh.classes[t] != kClassDefault) continue;
+    if (sea_posts[size_t(tri[0])] && sea_posts[size_t(tri[1])] && sea_posts[size_t(tri[2])]) {
+      mesh.classes[t] = kClassSea;
+      ++marked;
+    }
+  }
+  return marked;
+}
+
+namespace {
+
+// Snaps constraint segments to the DEM post lattice (posts at A * (col, row)):
+// an end within `tol` of a post moves onto it, and a segment passing within
+// `tol` of a post is split there. Otherwise a footprint edge running through
+// posts (after reprojection, a few micrometres beside them) leaves sliver
+// triangles between the constraint and the posts whose rounded normals point
+// anywhere and whose centroids lie on the boundary (neither inside nor
+// outside). Moves boundaries by less than `tol`.
+// Ends for which on_border(cell coordinates) holds snap within
+// border_fraction of a cell (in cell units along each axis).
+std::vector<std::array<Vector2d, 2>> SnapToPosts(const std::vector<std::array<Vector2d, 2>>& segments,
+                                                 const Eigen::Matrix2d& A, int width, int height, double tol,
+                                                 const std::function<bool(const Vector2d&)>& on_border,
+                                                 double border_fraction) {
+  const Eigen::Matrix2d inv = A.inverse();
+  auto post = [&](int c, int r) { return Vector2d(A * Vector2d(c, r)); };
+  auto snap_end = [&](const Vector2d& p) {
+    const Vector2d cell = inv * p;
+    const int c = static_cast<int>(std::lround(cell.x())), r = static_cast<int>(std::lround(cell.y()));
+    if (c < 0 || r < 0 || c >= width || r >= height) return p;
+    const Vector2d q = post(c, r);
+    if ((q - p).norm() < tol) return q;
+    if (std::abs(cell.x() - c) < border_fraction && std::abs(cell.y() - r) < border_fraction && on_border(cell)) {
+      return q;
+    }
+    return p;
+  };
+  std::vector<std::array<Vector2d, 2>> out;
+  out.reserve(segments.size());
+  for (const auto& [a0, b0] : segments) {
+    const Vector2d a = snap_end(a0), b = snap_end(b0);
+    const double length = (b - a).norm();
+    if (length == 0.0) continue;  // both ends on one post
+    const Vector2d dir = (b - a) / length;
+    const Vector2d ca = inv * a, cb = inv * b;
+    const int c0 = std::max(0, static_cast<int>(std::floor(std::min(ca.x(), cb.x()))) - 1);
+    const int c1 = std::min(width - 1, static_cast<int>(std::ceil(std::max(ca.x(), cb.x()))) + 1);
+    const int r0 = std::max(0, static_cast<int>(std::floor(std::min(ca.y(), cb.y()))) - 1);
+    const int r1 = std::min(height - 1, static_cast<int>(std::ceil(std::max(ca.y(), cb.y()))) + 1);
+    std::vector<std::pair<double, Vector2d>> splits;
+    if (double(c1 - c0 + 1) * double(r1 - r0 + 1) < 4e6) {
+      for (int r = r0; r <= r1; ++r) {
+        for (int c = c0; c <= c1; ++c) {
+          const Vector2d q = post(c, r);
+          const double t = (q - a).dot(dir);
+          if (t <= tol || t >= length - tol) continue;
+          const Vector2d d = q - a;
+          if (std::abs(d.x() * dir.y() - d.y() * dir.x()) < tol) splits.emplace_back(t, q);
+        }
+      }
+    }
+    // Crossings with the lattice's column and row lines: every vertex of a
+    // constraint then lies on a cell edge or inside one cell, so its edges
+    // follow the DEM (bilinear heights) instead of chords across many cells
+    // that leave steep slivers beside them. A crossing within `tol` of a
+    // post is the post.
+    for (int axis = 0; axis < 2; ++axis) {
+      const double u0 = ca[axis], u1 = cb[axis];
+      if (std::abs(u1 - u0) < 1e-12) continue;
+      for (int k = static_cast<int>(std::floor(std::min(u0, u1))) + 1; k < std::max(u0, u1); ++k) {
+        const double f = (k - u0) / (u1 - u0);
+        Vector2d cell = ca + f * (cb - ca);
+        cell[axis] = k;
+        const double other = std::round(cell[1 - axis]);
+        Vector2d q = A * cell;
+        const Vector2d snapped = A * (axis == 0 ? Vector2d(k, other) : Vector2d(other, k));
+        if ((snapped - q).norm() < tol) q = snapped;
+        const double t = (q - a).dot(dir);
+        if (t <= tol || t >= length - tol) continue;
+        splits.emplace_back(t, q);
+      }
+    }
+    std::sort(splits.begin(), splits.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    Vector2d prev = a;
+    for (const auto& [t, q] : splits) {
+      if ((q - prev).norm() < tol) continue;
+      out.push_back({prev, q});
+      prev = q;
+    }
+    out.push_back({prev, b});  // |b - prev| >= tol unless there was no split
+  }
+  return out;
+}
+
 // ---------------------------------------------------------------- CGAL
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 // DEM post index + 1; 0 for vertices inserted by constraints (CGAL
@@ -268,11 +578,75 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
                                              A * Vector2d(0, dem.height - 1), A * Vector2d(0, 0)};
   GeomPtr extent = MakePolygon(geos, {extent_ring});
   if (GEOSisValid_r(geos.ctx(), extent.get()) != 1) extent = Own(geos, GEOSMakeValid_r(geos.ctx(), extent.get()));
+
+  // Valid area: DEM no-data connected to the border (a reprojection collar,
+  // voids on the edge) is outside the scene unless it joins the sea (the
+  // --sea auto rule); a cell is in the scene when its four posts are.
+  const std::vector<uint8_t> dem_sea =
+      config.sea_auto ? SeaPostMask(dem, config.sea_level_m) : std::vector<uint8_t>();
+  std::vector<uint8_t> outside;
+  if (!dem.nodata_mask.empty()) {
+    const int w = dem.width, h = dem.height;
+    outside.assign(size_t(w) * h, 0);
+    std::vector<size_t> stack;
+    auto push = [&](int c, int r) {
+      const size_t i = size_t(r) * w + c;
+      if (outside[i] || !dem.nodata_mask[i] || (!dem_sea.empty() && dem_sea[i])) return;
+      outside[i] = 1;
+      stack.push_back(i);
+    };
+    for (int c = 0; c < w; ++c) {
+      push(c, 0);
+      push(c, h - 1);
+    }
+    for (int r = 0; r < h; ++r) {
+      push(0, r);
+      push(w - 1, r);
+    }
+    while (!stack.empty()) {
+      const size_t i = stack.back();
+      stack.pop_back();
+      ++stats.outside_posts;
+      const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
+      if (c > 0) push(c - 1, r);
+      if (c + 1 < w) push(c + 1, r);
+      if (r > 0) push(c, r - 1);
+      if (r + 1 < h) push(c, r + 1);
+    }
+    if (stats.outside_posts == 0) outside.clear();
+  }
+  auto cell_valid = [&](int c, int r) {
+    if (outside.empty()) return true;
+    const size_t i = size_t(r) * dem.width + c;
+    return !outside[i] && !outside[i + 1] && !outside[i + dem.width] && !outside[i + dem.width + 1];
+  };
+  if (!outside.empty()) {
+    // Union of row runs of valid cells.
+    std::vector<GeomPtr> runs;
+    for (int r = 0; r + 1 < dem.height; ++r) {
+      for (int c = 0; c + 1 < dem.width;) {
+        if (!cell_valid(c, r)) {
+          ++c;
+          continue;
+        }
+        int e = c;
+        while (e + 1 < dem.width && cell_valid(e, r)) ++e;
+        runs.push_back(MakePolygon(geos, {{A * Vector2d(c, r), A * Vector2d(e, r), A * Vector2d(e, r + 1),
+                                           A * Vector2d(c, r + 1), A * Vector2d(c, r)}}));
+        c = e;
+      }
+    }
+    extent = UnionAll(geos, runs);
+    if (IsEmpty(geos, extent.get())) throw InputError("the DEM has no valid cell", dem.source);
+    say(std::to_string(stats.outside_posts) + " no-data posts on the DEM border left out of the scene");
+  }
   const PreparedPtr extent_prepared(GEOSPrepare_r(geos.ctx(), extent.get()), PreparedDeleter{geos.ctx()});
 
   // Vector layers -> clipped polygons per class (and individual buildings).
   std::array<std::vector<GeomPtr>, kClassCount> parts;
   std::vector<Building> buildings;
+  std::vector<std::vector<Vector2d>> coast_lines;  // plan M, land on the left
+  std::vector<GeomPtr> islands;                     // closed coastlines: land
   for (const LayerSpec& layer : config.layers) {
     const std::vector<geo::VectorFeature> features =
         geo::ReadVectorLayer(layer.source, dem.crs_wkt);
@@ -285,6 +659,31 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     int64_t repaired = 0, outside = 0, used = 0;
     for (const geo::VectorFeature& feature : features) {
       ++stats.features_read;
+      if (layer.kind == LayerKind::kCoastline) {
+        if (!config.sea_auto) continue;
+        ++stats.coastline_features;
+        for (const geo::LinePoints& line : feature.lines) {
+          std::vector<Vector2d> pts;
+          for (const Vector2d& p : line) pts.push_back(to_planar(p));
+          if (pts.size() >= 2) coast_lines.push_back(std::move(pts));
+        }
+        for (const geo::PolygonRings& polygon : feature.polygons) {
+          std::vector<std::vector<Vector2d>> rings;
+          for (const geo::Ring& ring : polygon) {
+            std::vector<Vector2d> pts;
+            for (const Vector2d& p : ring) pts.push_back(to_planar(p));
+            if (!pts.empty() && (pts.front() - pts.back()).norm() > 0) pts.push_back(pts.front());
+            rings.push_back(std::move(pts));
+          }
+          GeomPtr g = MakePolygon(geos, rings);
+          if (g && GEOSisValid_r(geos.ctx(), g.get()) != 1) {
+            g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
+          }
+          if (g) islands.push_back(std::move(g));
+        }
+        ++used;
+        continue;
+      }
       std::vector<GeomPtr> pieces;
       if (layer.kind == LayerKind::kLine) {
         const double width = layer.line_width_m > 0
@@ -357,6 +756,66 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   }
   stats.buildings = static_cast<int64_t>(buildings.size());
 
+  // Sea: coastline ways closed against the extent (islands are land); else
+  // the DEM fallback below (per triangle, after the triangulation).
+  if (!coast_lines.empty() || !islands.empty()) {
+    GeomPtr sea = coast_lines.empty()
+                      ? Own(geos, GEOSGeom_clone_r(geos.ctx(), extent.get()))
+                      : CoastlineSea(geos, extent.get(), extent_ring, coast_lines, &stats.coastline_extended_ends);
+    if (sea && !islands.empty()) {
+      GeomPtr land = UnionAll(geos, islands);
+      if (land) sea = PolygonalPart(geos, Own(geos, GEOSDifference_r(geos.ctx(), sea.get(), land.get())));
+    }
+    if (sea) sea = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), sea.get(), extent.get())));
+    double area = 0.0;
+    if (!IsEmpty(geos, sea.get())) {
+      GEOSArea_r(geos.ctx(), sea.get(), &area);
+      parts[kClassSea].push_back(std::move(sea));
+    }
+    if (stats.coastline_extended_ends > 0) {
+      scene.warnings.push_back(std::to_string(stats.coastline_extended_ends) +
+                               " coastline ends inside the DEM extended straight to its edge");
+    }
+    say("coastline: " + std::to_string(stats.coastline_features) + " features, sea " +
+        std::to_string(area / 1e6) + " km2");
+  }
+  std::vector<uint8_t> sea_posts;
+  if (config.sea_auto && coast_lines.empty() && islands.empty() && parts[kClassSea].empty()) {
+    sea_posts = dem_sea;
+    stats.sea_from_dem = std::find(sea_posts.begin(), sea_posts.end(), 1) != sea_posts.end();
+    if (!stats.sea_from_dem) sea_posts.clear();
+  }
+  // Where a coastline had to be extended beyond the data, the extension is
+  // a guess: sea there is kept only within 2 posts of DEM posts at most 1 m
+  // above the sea level (a cell whose four posts are all farther is land).
+  std::vector<uint8_t> near_low;
+  if (stats.coastline_extended_ends > 0) {
+    const int w = dem.width, h = dem.height;
+    near_low.assign(size_t(w) * h, 0);
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        if (dem.heights_m[size_t(r) * w + c] > config.sea_level_m + 1.0) continue;
+        for (int rr = std::max(0, r - 2); rr <= std::min(h - 1, r + 2); ++rr) {
+          for (int cc = std::max(0, c - 2); cc <= std::min(w - 1, c + 2); ++cc) near_low[size_t(rr) * w + cc] = 1;
+        }
+      }
+    }
+  }
+  auto cell_is_land = [&](const Vector2d& centroid) {
+    const Vector2d cell = cell_from_planar * centroid;
+    const int c = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
+    const int r = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
+    const size_t i = size_t(r) * dem.width + c;
+    return !near_low[i] && !near_low[i + 1] && !near_low[i + dem.width] && !near_low[i + dem.width + 1];
+  };
+  auto cell_is_sea = [&](const Vector2d& centroid) {
+    const Vector2d cell = cell_from_planar * centroid;
+    const int c = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
+    const int r = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
+    const size_t i = size_t(r) * dem.width + c;
+    return sea_posts[i] && sea_posts[i + 1] && sea_posts[i + dem.width] && sea_posts[i + dem.width + 1];
+  };
+
   // Class regions: union per class, then priority-resolved areas.
   std::array<GeomPtr, kClassCount> unions;
   std::array<PreparedPtr, kClassCount> prepared;
@@ -415,6 +874,28 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   for (Building& b : buildings) {
     b.prepared = PreparedPtr(GEOSPrepare_r(geos.ctx(), b.footprint.get()), PreparedDeleter{geos.ctx()});
   }
+  if (!outside.empty()) AppendBoundarySegments(geos, extent.get(), scene.boundary_segments);
+  {
+    const double cell_m = std::min(A.col(0).norm(), A.col(1).norm());
+    // Ends on the scene's border (the DEM edge or the edge of its valid
+    // area: lattice lines next to a cell outside) also merge into a post
+    // along the border within 5 % of a cell, so that no sliver forms there.
+    auto on_border = [&](const Vector2d& cell) {
+      const double tol = 1e-3;
+      const bool on_col = std::abs(cell.x() - std::round(cell.x())) < tol;
+      const bool on_row = std::abs(cell.y() - std::round(cell.y())) < tol;
+      if (!on_col && !on_row) return false;
+      const int c = static_cast<int>(std::round(cell.x())), r = static_cast<int>(std::round(cell.y()));
+      if ((on_col && (c <= 0 || c >= dem.width - 1)) || (on_row && (r <= 0 || r >= dem.height - 1))) return true;
+      if (outside.empty()) return false;
+      const int fc = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
+      const int fr = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
+      if (on_col) return !cell_valid(std::max(0, c - 1), fr) || !cell_valid(std::min(dem.width - 2, c), fr);
+      return !cell_valid(fc, std::max(0, r - 1)) || !cell_valid(fc, std::min(dem.height - 2, r));
+    };
+    scene.boundary_segments =
+        SnapToPosts(scene.boundary_segments, A, dem.width, dem.height, 1e-3 * cell_m, on_border, 0.05);
+  }
   stats.constraint_segments = static_cast<int64_t>(scene.boundary_segments.size());
 
   // Constrained Delaunay triangulation of the DEM posts and the boundaries.
@@ -442,18 +923,66 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   struct Region {
     ClassId cls = kClassDefault;
     int building = -1;
+    bool outside = false;  // beyond the valid area: not in the scene
   };
   std::vector<Region> regions;
+  // Faces whose three vertices are DEM posts of one lattice row or column:
+  // along the hull the posts of a border row are collinear only up to the
+  // rounding of A * (col, row), and the exact predicates fill the gap with
+  // needle faces spanning many posts (in 3-D, curtains hanging between
+  // distant posts). They are not part of the scene and do not connect
+  // regions.
+  auto lattice_degenerate = [&](Cdt::Face_handle f) {
+    int64_t post[3];
+    bool all_posts = true;
+    Vector2d cell[3];
+    for (int k = 0; k < 3; ++k) {
+      post[k] = f->vertex(k)->info().post - 1;
+      all_posts &= post[k] >= 0;
+      cell[k] = cell_from_planar * Vector2d(f->vertex(k)->point().x(), f->vertex(k)->point().y());
+    }
+    if (all_posts) {
+      const int64_t w = dem.width;
+      if ((post[0] / w == post[1] / w && post[1] / w == post[2] / w) ||
+          (post[0] % w == post[1] % w && post[1] % w == post[2] % w)) {
+        return true;
+      }
+    }
+    // All three on one border line of the DEM (with vertices inserted there).
+    for (int axis = 0; axis < 2; ++axis) {
+      for (const double line : {0.0, (axis == 0 ? dem.width : dem.height) - 1.0}) {
+        if (std::abs(cell[0][axis] - line) < 1e-6 && std::abs(cell[1][axis] - line) < 1e-6 &&
+            std::abs(cell[2][axis] - line) < 1e-6) {
+          return true;
+        }
+      }
+    }
+    return false;
+  };
   for (auto seed = cdt.finite_faces_begin(); seed != cdt.finite_faces_end(); ++seed) {
     if (seed->info() >= 0) continue;
     const int id = static_cast<int>(regions.size());
+    if (lattice_degenerate(seed)) {
+      Region needle;
+      needle.outside = true;
+      regions.push_back(needle);
+      seed->info() = id;
+      ++stats.needle_faces;
+      continue;
+    }
     const auto& p0 = seed->vertex(0)->point();
     const auto& p1 = seed->vertex(1)->point();
     const auto& p2 = seed->vertex(2)->point();
     const Vector2d centroid((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0);
     Region region;
+    if (!outside.empty()) {
+      const Vector2d cell = cell_from_planar * centroid;
+      region.outside = !cell_valid(std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2),
+                                   std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2));
+    }
     GeomPtr point = MakePoint(geos, centroid);
     for (int c : order) {
+      if (region.outside) break;
       if (c != kClassDefault && prepared[c] &&
           GEOSPreparedContains_r(geos.ctx(), prepared[c].get(), point.get()) == 1) {
         region.cls = static_cast<ClassId>(c);
@@ -477,7 +1006,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       queue.pop_front();
       for (int i = 0; i < 3; ++i) {
         const Cdt::Face_handle n = f->neighbor(i);
-        if (cdt.is_infinite(n) || n->info() >= 0 || f->is_constrained(i)) continue;
+        if (cdt.is_infinite(n) || n->info() >= 0 || f->is_constrained(i) || lattice_degenerate(n)) continue;
         n->info() = id;
         queue.push_back(n);
       }
@@ -492,7 +1021,12 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     const Vector2d m(v->point().x(), v->point().y());
     double h;
     if (v->info().post > 0) {
-      h = dem.heights_m[size_t(v->info().post - 1)];
+      const size_t post = size_t(v->info().post - 1);
+      h = dem.heights_m[post];
+      // A void that joined the sea lies at sea level.
+      if (!dem_sea.empty() && dem_sea[post] && !dem.nodata_mask.empty() && dem.nodata_mask[post]) {
+        h = config.sea_level_m;
+      }
     } else {
       ++stats.inserted_vertices;
       Vector2d cell = cell_from_planar * m;
@@ -504,54 +1038,170 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     planar.push_back(m);
     heights.push_back(h);
   }
-  std::vector<double> roof_height(buildings.size(), -std::numeric_limits<double>::infinity());
+
+  // Building groups: footprints that share a mesh edge and have the same
+  // height tag merge into one block (one roof, no walls between them).
+  std::vector<int> group(buildings.size());
+  for (size_t b = 0; b < buildings.size(); ++b) group[b] = static_cast<int>(b);
+  std::function<int(int)> find = [&](int b) { return group[b] == b ? b : group[b] = find(group[b]); };
+  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    const int b = regions[f->info()].building;
+    if (b < 0) continue;
+    for (int i = 0; i < 3; ++i) {
+      const Cdt::Face_handle n = f->neighbor(i);
+      if (cdt.is_infinite(n)) continue;
+      const int o = regions[n->info()].building;
+      if (o < 0 || o == b || buildings[o].height_m != buildings[b].height_m) continue;
+      const int ra = find(b), rb = find(o);
+      if (ra != rb) group[std::max(ra, rb)] = std::min(ra, rb);
+    }
+  }
+  for (size_t b = 0; b < buildings.size(); ++b) group[b] = find(static_cast<int>(b));
+  for (size_t b = 0; b < buildings.size(); ++b) {
+    if (group[b] != static_cast<int>(b)) ++stats.merged_buildings;
+  }
+  // Flat roof at the group's lowest ground contact + its height (OSM's
+  // `height` is measured from the lowest point where the building meets the
+  // ground).
+  std::vector<double> roof_height(buildings.size(), std::numeric_limits<double>::infinity());
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
     const Region& region = regions[f->info()];
     if (region.building < 0) continue;
-    for (int i = 0; i < 3; ++i) {
-      roof_height[region.building] = std::max(roof_height[region.building], heights[ground_index[f->vertex(i)]]);
-    }
+    const int g = group[region.building];
+    for (int i = 0; i < 3; ++i) roof_height[g] = std::min(roof_height[g], heights[ground_index[f->vertex(i)]]);
   }
-  for (size_t b = 0; b < buildings.size(); ++b) roof_height[b] += buildings[b].height_m;
-  std::map<std::pair<int, int>, int> roof_index;  // (building, ground vertex) -> vertex
-  auto roof_vertex = [&](int building, int ground) {
-    auto [it, inserted] = roof_index.emplace(std::make_pair(building, ground), 0);
+  for (size_t b = 0; b < buildings.size(); ++b) {
+    if (group[b] == static_cast<int>(b) && std::isfinite(roof_height[b])) roof_height[b] += buildings[b].height_m;
+  }
+  std::map<std::pair<int, int>, int> roof_index;  // (group, ground vertex) -> vertex
+  auto roof_vertex = [&](int g, int ground) {
+    auto [it, inserted] = roof_index.emplace(std::make_pair(g, ground), 0);
     if (inserted) {
       it->second = static_cast<int>(planar.size());
       planar.push_back(planar[ground]);
-      heights.push_back(roof_height[building]);
+      heights.push_back(roof_height[g]);
     }
     return it->second;
   };
 
+  // Feet of walls on the ground: copies of the ground vertices, so that the
+  // terrain's smooth shading normals (per vertex) do not reach the walls.
+  std::unordered_map<int, int> foot_index;
+  auto wall_foot = [&](int ground) {
+    auto [it, inserted] = foot_index.emplace(ground, 0);
+    if (inserted) {
+      it->second = static_cast<int>(planar.size());
+      planar.push_back(planar[ground]);
+      heights.push_back(heights[ground]);
+    }
+    return it->second;
+  };
   std::vector<Eigen::Vector3i> triangles;
   std::vector<ClassId> classes;
-  struct Wall {
-    int a, b, opposite;  // ground vertices of the edge, vertex inside the roof face
-    int building;
+  // A wall triangle, ordered so that the horizontal part of its normal
+  // (computed in double precision from the plan coordinates and heights)
+  // points along `out` (a plan direction), or against it when `facing_out`
+  // is false. Vertical extent below 1 mm: dropped.
+  auto add_wall = [&](int p, int q, int r, const Vector2d& out, bool facing_out) {
+    const Eigen::Vector3d a(planar[p].x(), planar[p].y(), heights[p]);
+    const Eigen::Vector3d b(planar[q].x(), planar[q].y(), heights[q]);
+    const Eigen::Vector3d c(planar[r].x(), planar[r].y(), heights[r]);
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() < 1e-6) return;
+    const double along = n.x() * out.x() + n.y() * out.y();
+    triangles.push_back((along > 0) == facing_out ? Eigen::Vector3i(p, q, r) : Eigen::Vector3i(p, r, q));
+    classes.push_back(kClassBuilding);
   };
-  std::vector<Wall> walls;
+  // The wall of edge a -> b (plan, counter-clockwise around its footprint:
+  // the footprint lies to the left) from the bottom vertices to the top
+  // vertices at ground vertices a and b. Where the bottom is above the top
+  // (ground higher than the roof on a slope) that section is the side of a
+  // pit and faces into the footprint; the edge is split where they cross.
+  auto add_edge_walls = [&](int a, int b, int bottom_a, int bottom_b, int top_a, int top_b) {
+    const Vector2d d = planar[b] - planar[a];
+    const Vector2d out(d.y(), -d.x());  // right of a -> b
+    const double ha = heights[top_a] - heights[bottom_a], hb = heights[top_b] - heights[bottom_b];
+    if (ha >= 0 && hb >= 0) {
+      add_wall(bottom_a, bottom_b, top_b, out, true);
+      add_wall(bottom_a, top_b, top_a, out, true);
+      return;
+    }
+    if (ha <= 0 && hb <= 0) {
+      stats.buried_wall_triangles += 2;
+      add_wall(bottom_a, bottom_b, top_b, out, false);
+      add_wall(bottom_a, top_b, top_a, out, false);
+      return;
+    }
+    // Crossing at fraction s along a -> b: one vertex on the top surface.
+    const double s = ha / (ha - hb);
+    const int c = static_cast<int>(planar.size());
+    planar.push_back(planar[a] + s * d);
+    heights.push_back(heights[top_a] + s * (heights[top_b] - heights[top_a]));
+    ++stats.buried_wall_triangles;
+    add_wall(bottom_a, c, top_a, out, ha > 0);
+    add_wall(c, bottom_b, top_b, out, hb > 0);
+  };
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
     const Region& region = regions[f->info()];
+    if (region.outside) {
+      ++stats.dropped_faces;
+      continue;
+    }
     int g[3];
     for (int i = 0; i < 3; ++i) g[i] = ground_index[f->vertex(i)];
     const double area =
         0.5 * std::abs((planar[g[1]] - planar[g[0]]).x() * (planar[g[2]] - planar[g[0]]).y() -
                        (planar[g[1]] - planar[g[0]]).y() * (planar[g[2]] - planar[g[0]]).x());
-    stats.mesh_area_m2[region.cls] += area;
+    // Rounding slivers: no visible surface, arbitrary normals (a building's
+    // sliver still has its walls).
+    double longest = 0.0;
+    for (int k = 0; k < 3; ++k) longest = std::max(longest, (planar[g[k]] - planar[g[(k + 1) % 3]]).norm());
+    const bool sliver = 2.0 * area < 1e-5 * longest;  // narrower than 10 micrometres
+    if (sliver) ++stats.sliver_faces;
+    if (sliver && region.building < 0) continue;
     if (region.building < 0) {
+      ClassId cls = region.cls;
+      if (cls == kClassDefault && !sea_posts.empty() &&
+          cell_is_sea((planar[g[0]] + planar[g[1]] + planar[g[2]]) / 3.0)) {
+        cls = kClassSea;
+        stats.region_area_m2[kClassDefault] -= area;
+        stats.region_area_m2[kClassSea] += area;
+      } else if (cls == kClassSea && !near_low.empty() &&
+                 cell_is_land((planar[g[0]] + planar[g[1]] + planar[g[2]]) / 3.0)) {
+        cls = kClassDefault;
+        ++stats.sea_faces_on_land;
+        stats.region_area_m2[kClassSea] -= area;
+        stats.region_area_m2[kClassDefault] += area;
+      }
+      stats.mesh_area_m2[cls] += area;
       triangles.emplace_back(g[0], g[1], g[2]);
-      classes.push_back(region.cls);
+      classes.push_back(cls);
       continue;
     }
-    triangles.emplace_back(roof_vertex(region.building, g[0]), roof_vertex(region.building, g[1]),
-                           roof_vertex(region.building, g[2]));
-    classes.push_back(kClassBuilding);
+    stats.mesh_area_m2[region.cls] += area;
+    const int own = group[region.building];
+    if (!sliver) {
+      triangles.emplace_back(roof_vertex(own, g[0]), roof_vertex(own, g[1]), roof_vertex(own, g[2]));
+      classes.push_back(kClassBuilding);
+    }
     for (int i = 0; i < 3; ++i) {
+      // CGAL faces are counter-clockwise in M (ENU-aligned): edge i runs
+      // ccw(i) -> cw(i) with this face on its left.
+      const int a = g[Cdt::ccw(i)], b = g[Cdt::cw(i)];
       const Cdt::Face_handle n = f->neighbor(i);
-      const bool outside = cdt.is_infinite(n) || regions[n->info()].building != region.building;
-      if (!outside) continue;
-      walls.push_back({g[Cdt::ccw(i)], g[Cdt::cw(i)], g[i], region.building});
+      const int other = cdt.is_infinite(n) || regions[n->info()].building < 0
+                            ? -1
+                            : group[regions[n->info()].building];
+      if (other == own) continue;
+      if (other < 0) {
+        add_edge_walls(a, b, wall_foot(a), wall_foot(b), roof_vertex(own, a), roof_vertex(own, b));
+      } else if (roof_height[other] < roof_height[own]) {
+        // A step between touching blocks: only the part above the lower
+        // roof, on the higher block's side (the lower block emits nothing).
+        ++stats.step_walls;
+        add_edge_walls(a, b, roof_vertex(other, a), roof_vertex(other, b), roof_vertex(own, a),
+                       roof_vertex(own, b));
+      }
     }
   }
 
@@ -569,31 +1219,37 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   for (size_t i = 0; i < planar.size(); ++i) {
     mesh.vertices[i] = frame.EnuFromGeodetic(x[i], y[i], heights[i]).cast<float>();
   }
+  // Terrain slivers narrower than 10 cm in plan that stand steeper than 80
+  // degrees or face down once placed (three nearly collinear vertices on a
+  // curved bilinear cell or on Earth's curvature): dropped, a gap no radar
+  // pixel resolves, so that only buildings are near-vertical.
+  {
+    const float cos80 = static_cast<float>(std::cos(80.0 * M_PI / 180.0));
+    size_t kept = 0;
+    for (size_t t = 0; t < triangles.size(); ++t) {
+      const Eigen::Vector3i& tri = triangles[t];
+      if (classes[t] != kClassBuilding) {
+        const Eigen::Vector3d a = mesh.vertices[tri[0]].cast<double>();
+        const Eigen::Vector3d n =
+            (mesh.vertices[tri[1]].cast<double>() - a).cross(mesh.vertices[tri[2]].cast<double>() - a);
+        double longest = 0.0;
+        for (int k = 0; k < 3; ++k) longest = std::max(longest, (planar[tri[k]] - planar[tri[(k + 1) % 3]]).norm());
+        const Vector2d e1 = planar[tri[1]] - planar[tri[0]], e2 = planar[tri[2]] - planar[tri[0]];
+        const double width = std::abs(e1.x() * e2.y() - e1.y() * e2.x()) / std::max(longest, 1e-12);
+        if (n.z() <= cos80 * n.norm() && width < 0.1) {
+          ++stats.steep_slivers;
+          continue;
+        }
+      }
+      triangles[kept] = triangles[t];
+      classes[kept] = classes[t];
+      ++kept;
+    }
+    triangles.resize(kept);
+    classes.resize(kept);
+  }
   mesh.triangles = std::move(triangles);
   mesh.classes = std::move(classes);
-  for (const Wall& w : walls) {
-    const int ra = roof_vertex(w.building, w.a), rb = roof_vertex(w.building, w.b);
-    if (ra >= static_cast<int>(mesh.vertices.size()) || rb >= static_cast<int>(mesh.vertices.size())) {
-      GISSAR_CHECK_MSG(false, "roof vertex created after placement");
-    }
-    // The roof face lies to the left of a -> b (counter-clockwise in M):
-    // the wall's outward normal points to the right, away from `opposite`.
-    const Eigen::Vector3f pa = mesh.vertices[w.a], pb = mesh.vertices[w.b];
-    const Eigen::Vector3f qa = mesh.vertices[ra], qb = mesh.vertices[rb];
-    const Eigen::Vector3f inward = mesh.vertices[w.opposite] - 0.5f * (pa + pb);
-    Eigen::Vector3i t1(w.a, w.b, rb), t2(w.a, rb, ra);
-    const Eigen::Vector3f n = (pb - pa).cross(qb - pa);
-    if (n.dot(inward) > 0) {
-      t1 = Eigen::Vector3i(w.a, rb, w.b);
-      t2 = Eigen::Vector3i(w.a, ra, rb);
-    }
-    (void)qa;
-    if ((qb - pb).norm() < 1e-4f && (qa - pa).norm() < 1e-4f) continue;  // zero-height wall
-    mesh.triangles.push_back(t1);
-    mesh.triangles.push_back(t2);
-    mesh.classes.push_back(kClassBuilding);
-    mesh.classes.push_back(kClassBuilding);
-  }
   scene.planar = std::move(planar);
   for (ClassId c : mesh.classes) ++stats.triangles[c];
   stats.seconds = watch.ElapsedSeconds();

@@ -29,6 +29,18 @@ struct GisSceneStats {
   int64_t features_outside = 0;     // entirely outside the DEM: dropped
   int64_t repaired_geometries = 0;  // invalid geometries fixed by GEOS MakeValid
   int64_t buildings = 0;
+  int64_t coastline_features = 0;     // coastline ways and island polygons read
+  int64_t coastline_extended_ends = 0;  // chain ends inside the extent, extended to its edge
+  int64_t sea_faces_on_land = 0;      // faces beyond an extension that the DEM says are land
+  bool sea_from_dem = false;
+  int64_t outside_posts = 0;          // border-connected no-data posts left out of the scene
+  int64_t dropped_faces = 0;          // triangles outside the valid area (and needles)
+  int64_t sliver_faces = 0;           // faces narrower than 10 um in plan (rounding), not output
+  int64_t steep_slivers = 0;          // terrain slivers < 10 cm wide, steeper than 80 deg: dropped
+  int64_t needle_faces = 0;           // degenerate faces along the hull's lattice rows/columns, dropped          // the --sea auto fallback (no coastline) was applied
+  int64_t merged_buildings = 0;       // footprints merged into a touching one of equal height
+  int64_t step_walls = 0;             // edges between touching blocks of different roof heights
+  int64_t buried_wall_triangles = 0;  // wall sections where the ground is above the roof (pit sides)
   int64_t constraint_segments = 0;
   int64_t dem_posts = 0;
   int64_t inserted_vertices = 0;    // vertices that are not DEM posts
@@ -57,6 +69,19 @@ struct GisScene {
 // outside the DEM and repaired geometries are warnings.
 GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
                        const SceneConfig& config, Reporter& reporter = NullReporter());
+
+// The --sea auto fallback for a DEM without coastline: 1 for posts whose
+// height (taken as orthometric, the DEM's own datum) is at or below
+// `sea_level_m`, not no-data, and 4-connected to a border post of that kind
+// through such posts; a no-data post (dem.nodata_mask) becomes sea only when
+// connected to a sea post (so voids on a landlocked DEM's border stay land).
+// Row-major like dem.heights_m.
+std::vector<uint8_t> SeaPostMask(const geo::Dem& dem, double sea_level_m);
+
+// Sets class `sea` on default-class triangles whose three vertices are sea
+// posts, for meshes whose vertex i is DEM post i (MeshFromGrid). Returns the
+// number of triangles marked.
+int64_t MarkSeaTriangles(TriangleMesh& mesh, const std::vector<uint8_t>& sea_posts);
 
 // Building height from OSM-style tags: `height` (metres, "12", "12 m",
 // "12.5m"), else `building:levels` times `level_height_m`, else

@@ -13,7 +13,7 @@ using nlohmann::json;
 
 const std::array<std::string, kClassCount>& ClassNames() {
   static const std::array<std::string, kClassCount> names = {"default", "water", "forest",
-                                                             "urban",   "road",  "building"};
+                                                             "urban",   "road",  "building", "sea"};
   return names;
 }
 
@@ -42,9 +42,10 @@ json SceneConfig::ToJson() const {
                            {"layer", l.source.layer},
                            {"where", l.source.where},
                            {"class", ClassNames()[l.class_id]},
-                           {"geometry", l.kind == LayerKind::kLine       ? "line"
-                                        : l.kind == LayerKind::kBuilding ? "building"
-                                                                         : "polygon"},
+                           {"geometry", l.kind == LayerKind::kLine        ? "line"
+                                        : l.kind == LayerKind::kBuilding  ? "building"
+                                        : l.kind == LayerKind::kCoastline ? "coastline"
+                                                                          : "polygon"},
                            {"width_m", l.line_width_m}});
   }
   json priorities = json::object();
@@ -58,6 +59,8 @@ json SceneConfig::ToJson() const {
           {"building", {{"default_height_m", building_default_height_m},
                         {"level_height_m", building_level_height_m}}},
           {"densify_m", densify_m},
+          {"sea", sea_auto ? "auto" : "off"},
+          {"sea_level_m", sea_level_m},
           {"materials", materials}};
 }
 
@@ -91,7 +94,7 @@ ClassId ParseClass(const json& value, const std::string& key, const std::string&
   const auto id = ClassIdFromName(name);
   if (!id) {
     throw ConfigError("unknown class '" + name +
-                          "' at '" + key + "' (classes: default, water, forest, urban, road, building)",
+                          "' at '" + key + "' (classes: default, water, forest, urban, road, building, sea)",
                       file);
   }
   return *id;
@@ -147,15 +150,20 @@ SceneConfig LoadSceneConfig(const std::string& path) {
         spec.kind = LayerKind::kLine;
       } else if (geometry == "building") {
         spec.kind = LayerKind::kBuilding;
+      } else if (geometry == "coastline") {
+        spec.kind = LayerKind::kCoastline;
+        if (spec.class_id != kClassSea) {
+          throw ConfigError("'" + ctx + ".geometry' coastline needs class sea", path);
+        }
       } else {
-        throw ConfigError("'" + ctx + ".geometry' must be polygon, line or building", path);
+        throw ConfigError("'" + ctx + ".geometry' must be polygon, line, building or coastline", path);
       }
       if (l.contains("width_m")) spec.line_width_m = NonNegative(l["width_m"], ctx + ".width_m", path);
       config.layers.push_back(spec);
     }
   }
   if (root.contains("priorities")) {
-    OnlyKeys(root["priorities"], {"default", "water", "forest", "urban", "road", "building"},
+    OnlyKeys(root["priorities"], {"default", "water", "forest", "urban", "road", "building", "sea"},
              "priorities", path);
     for (const auto& [name, value] : root["priorities"].items()) {
       const double p = NonNegative(value, "priorities." + name, path);
@@ -191,7 +199,7 @@ SceneConfig LoadSceneConfig(const std::string& path) {
   if (root.contains("densify_m")) config.densify_m = NonNegative(root["densify_m"], "densify_m", path);
   if (root.contains("materials")) {
     const json& m = root["materials"];
-    OnlyKeys(m, {"default", "water", "forest", "urban", "road", "building"}, "materials", path);
+    OnlyKeys(m, {"default", "water", "forest", "urban", "road", "building", "sea"}, "materials", path);
     config.materials = m;
   }
   return config;
@@ -212,6 +220,11 @@ SceneConfig OsmPreset(const std::string& osm_path) {
       Layer(kClassBuilding, LayerKind::kBuilding, p, "multipolygons", "building IS NOT NULL"),
       Layer(kClassRoad, LayerKind::kLine, p, "lines", "highway IS NOT NULL"),
       Layer(kClassWater, LayerKind::kLine, p, "lines", "waterway IN ('river', 'canal')"),
+      // GDAL's default osmconf.ini keeps `natural` of lines in other_tags;
+      // closed coastline ways (islands) are multipolygons.
+      Layer(kClassSea, LayerKind::kCoastline, p, "lines",
+            "other_tags LIKE '%\"natural\"=>\"coastline\"%'"),
+      Layer(kClassSea, LayerKind::kCoastline, p, "multipolygons", "natural = 'coastline'"),
   };
   return c;
 }
@@ -237,6 +250,10 @@ SceneConfig LayerNamePreset(const std::vector<std::string>& paths, std::vector<s
         c.layers.push_back(Layer(kClassWater, LayerKind::kLine, path, name, ""));
       } else if (lower == "building" || lower == "buildings") {
         c.layers.push_back(Layer(kClassBuilding, LayerKind::kBuilding, path, name, ""));
+      } else if (lower == "sea") {
+        c.layers.push_back(Layer(kClassSea, LayerKind::kPolygon, path, name, ""));
+      } else if (lower == "coastline" || lower == "coastlines") {
+        c.layers.push_back(Layer(kClassSea, LayerKind::kCoastline, path, name, ""));
       } else {
         if (warnings) warnings->push_back("layer '" + name + "' of " + path + " has no class name: skipped");
         continue;
@@ -245,7 +262,7 @@ SceneConfig LayerNamePreset(const std::vector<std::string>& paths, std::vector<s
     }
     if (used == 0) {
       throw InputError("no layer named after a class (water, forest, urban, roads, waterways, "
-                       "buildings); give a --config",
+                       "buildings, sea, coastline); give a --config",
                        path);
     }
   }

@@ -26,10 +26,11 @@ enum : ClassId {
   kClassUrban = 3,
   kClassRoad = 4,
   kClassBuilding = 5,
+  kClassSea = 6,  // the sea (coastline polygons or the --sea auto fallback), not inland water
 };
-inline constexpr int kClassCount = 6;
+inline constexpr int kClassCount = 7;
 
-// "default", "water", "forest", "urban", "road", "building" (index = ClassId).
+// "default", "water", "forest", "urban", "road", "building", "sea" (index = ClassId).
 const std::array<std::string, kClassCount>& ClassNames();
 // ClassId of a class name; nullopt when unknown.
 std::optional<ClassId> ClassIdFromName(const std::string& name);
@@ -38,6 +39,10 @@ enum class LayerKind {
   kPolygon,   // areas of a class
   kLine,      // lines buffered into strips (roads, rivers)
   kBuilding,  // footprints extruded to a height
+  // OSM `natural=coastline` ways (land on the left of the way's direction):
+  // closed against the DEM extent into sea polygons. Closed coastline
+  // polygons (islands) are land.
+  kCoastline,
 };
 
 struct LayerSpec {
@@ -53,13 +58,19 @@ struct SceneConfig {
   std::string source;  // config file (or preset name) for messages
   std::vector<LayerSpec> layers;
   // Higher wins where classes overlap.
-  std::array<int, kClassCount> priority = {0, 4, 2, 3, 5, 6};
+  std::array<int, kClassCount> priority = {0, 4, 2, 3, 5, 6, 1};
   // Strip width (metres) per OSM `highway` / `waterway` value.
   std::map<std::string, double> line_widths_m;
   double default_road_width_m = 5.0;
   double default_waterway_width_m = 8.0;
   double building_default_height_m = 10.0;
   double building_level_height_m = 3.0;
+  // Sea (--sea auto|off, --sea-level): with `sea_auto`, coastline layers
+  // give the sea; without any coastline in the extent, DEM posts at or below
+  // `sea_level_m` (orthometric, the DEM's heights) connected to the DEM
+  // border are sea, and a no-data post becomes sea only next to sea posts.
+  bool sea_auto = true;
+  double sea_level_m = 0.0;
   // Split constraint edges longer than this (metres); 0 = never.
   double densify_m = 0.0;
   // {"water": {"diffuse": 0.05, ...}, ...}: validated by the material module.
@@ -79,11 +90,13 @@ SceneConfig LoadSceneConfig(const std::string& path);
 
 // Built-in preset for an OpenStreetMap file (.osm.pbf, .osm, .osm.gz) read
 // through GDAL's OSM driver: water, forest, urban and building polygons,
-// roads (highway=*) and rivers/canals as strips.
+// roads (highway=*) and rivers/canals as strips, natural=coastline ways
+// (sea).
 SceneConfig OsmPreset(const std::string& osm_path);
 
 // Preset for vector files whose layer names say their class: water, forest,
-// urban, road(s), waterway(s), building(s) (case-insensitive); other layers
+// urban, road(s), waterway(s), building(s), sea (polygons), coastline(s)
+// (lines, land on the left) (case-insensitive); other layers
 // are skipped with a warning appended to `warnings`. Throws InputError when
 // a file has no usable layer.
 SceneConfig LayerNamePreset(const std::vector<std::string>& paths,

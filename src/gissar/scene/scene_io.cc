@@ -74,6 +74,17 @@ void WriteScene(const fs::path& path, const SceneFile& scene) {
             static_cast<std::streamsize>(mesh.triangles.size() * sizeof(Eigen::Vector3i)));
   out.write(reinterpret_cast<const char*>(mesh.classes.data()),
             static_cast<std::streamsize>(mesh.classes.size()));
+  const bool normals = !mesh.shading_normals.empty();
+  if (normals && mesh.shading_normals.size() != mesh.vertices.size()) {
+    throw IoError("scene has " + std::to_string(mesh.shading_normals.size()) + " shading normals for " +
+                      std::to_string(mesh.vertices.size()) + " vertices",
+                  path.string());
+  }
+  Put(out, static_cast<uint8_t>(normals ? 1 : 0));
+  if (normals) {
+    out.write(reinterpret_cast<const char*>(mesh.shading_normals.data()),
+              static_cast<std::streamsize>(mesh.shading_normals.size() * sizeof(Eigen::Vector3f)));
+  }
   out.write(kEndMagic, sizeof(kEndMagic));
   out.close();
   if (!out) throw IoError("failed writing scene file", path.string());
@@ -126,7 +137,7 @@ SceneFile ReadScene(const fs::path& path) {
     throw InputError("scene header is corrupt: it needs 1 to 256 class names", path.string());
   }
   const uint64_t n = in.Get<uint64_t>(), m = in.Get<uint64_t>();
-  const uint64_t needed = n * sizeof(Eigen::Vector3f) + m * (sizeof(Eigen::Vector3i) + 1) + sizeof(kEndMagic);
+  const uint64_t needed = n * sizeof(Eigen::Vector3f) + m * (sizeof(Eigen::Vector3i) + 1) + 1 + sizeof(kEndMagic);
   if (n > (uint64_t{1} << 34) || m > (uint64_t{1} << 34) || needed > in.remaining()) {
     throw InputError("scene file is truncated", path.string());
   }
@@ -136,6 +147,20 @@ SceneFile ReadScene(const fs::path& path) {
   in.Bytes(scene.mesh.vertices.data(), n * sizeof(Eigen::Vector3f));
   in.Bytes(scene.mesh.triangles.data(), m * sizeof(Eigen::Vector3i));
   in.Bytes(scene.mesh.classes.data(), m);
+  const uint8_t normals = in.Get<uint8_t>();
+  if (normals > 1) throw InputError("scene file is corrupt (shading-normal flag)", path.string());
+  if (normals == 1) {
+    if (n * sizeof(Eigen::Vector3f) + sizeof(kEndMagic) > in.remaining()) {
+      throw InputError("scene file is truncated", path.string());
+    }
+    scene.mesh.shading_normals.resize(n);
+    in.Bytes(scene.mesh.shading_normals.data(), n * sizeof(Eigen::Vector3f));
+    for (const Eigen::Vector3f& v : scene.mesh.shading_normals) {
+      if (!v.allFinite() || (!v.isZero() && std::abs(v.norm() - 1.0f) > 1e-3f)) {
+        throw InputError("scene file is corrupt (shading normal neither unit nor zero)", path.string());
+      }
+    }
+  }
   char end[8] = {};
   in.Bytes(end, sizeof(end));
   if (std::memcmp(end, kEndMagic, sizeof(kEndMagic)) != 0) {

@@ -1,11 +1,13 @@
 // Scene files: a compact binary format that loads fast (".gscene"), and PLY
 // export with a per-face class property for MeshLab/Blender.
 //
-// .gscene layout (little-endian): magic "GISSARSC", uint32 version (1),
+// .gscene layout (little-endian): magic "GISSARSC", uint32 version (2),
 // uint64 JSON byte count + JSON (frame origin, scene centre, class names,
 // materials, provenance), uint64 vertex count, uint64 triangle count,
 // float32[3 n] ENU vertices, int32[3 m] triangles, uint8[m] classes,
-// magic "GSCNEND1".
+// uint8 shading-normal flag (0/1) and, when 1, float32[3 n] per-vertex unit
+// shading normals (zero = flat), magic "GSCNEND1". Version 1 (no normals)
+// is refused with a message to rebuild the scene.
 #pragma once
 
 #include <array>
@@ -21,7 +23,7 @@
 
 namespace gissar::scene {
 
-inline constexpr uint32_t kSceneFileVersion = 1;
+inline constexpr uint32_t kSceneFileVersion = 2;
 
 struct SceneFile {
   TriangleMesh mesh;              // ENU metres
@@ -42,7 +44,7 @@ void WriteScene(const std::filesystem::path& path, const SceneFile& scene);
 // checked against the file's length before anything is allocated), or
 // corrupt: a header that is not the expected JSON, a non-finite or invalid
 // frame origin or centre, no class names, out-of-range vertex indices or
-// class ids, non-finite vertices, a bad end marker.
+// class ids, non-finite vertices or shading normals, a bad end marker.
 SceneFile ReadScene(const std::filesystem::path& path);
 
 // Binary little-endian PLY with vertex x,y,z (float, ENU metres) and faces

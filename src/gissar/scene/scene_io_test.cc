@@ -37,6 +37,25 @@ TEST(SceneIoTest, RoundTrips) {
   EXPECT_EQ(back.materials["water"]["diffuse"], 0.01);
 }
 
+// Shading normals: the plane z = x / 10 + 3 y / 10 (posts 10 m apart)
+// has the unit normal (-0.1, -0.3, 1) / |(-0.1, -0.3, 1)| at every vertex; they
+// survive the round trip.
+TEST(SceneIoTest, ShadingNormalsRoundTrip) {
+  SceneFile s = Sample();
+  s.mesh.classes[1] = 0;
+  s.mesh.SmoothShadingNormals(5);
+  const Eigen::Vector3f expected = Eigen::Vector3f(-0.1f, -0.3f, 1.0f).normalized();
+  ASSERT_EQ(s.mesh.shading_normals.size(), 6u);
+  for (const auto& n : s.mesh.shading_normals) EXPECT_LT((n - expected).norm(), 1e-6f);
+  const fs::path path = testing::MakeTempDir() / "n.gscene";
+  WriteScene(path, s);
+  const SceneFile back = ReadScene(path);
+  EXPECT_EQ(back.mesh.shading_normals, s.mesh.shading_normals);
+  // Without normals the flag is 0 and the mesh reads back without them.
+  WriteScene(path, Sample());
+  EXPECT_TRUE(ReadScene(path).mesh.shading_normals.empty());
+}
+
 TEST(SceneIoTest, TruncatedWrongVersionAndForeignFilesAreInputErrors) {
   const fs::path dir = testing::MakeTempDir();
   WriteScene(dir / "s.gscene", Sample());
@@ -61,6 +80,9 @@ TEST(SceneIoTest, TruncatedWrongVersionAndForeignFilesAreInputErrors) {
   std::string other_version = bytes;
   other_version[8] = 7;
   expect(other_version, "version 7 is not supported");
+  std::string version_one = bytes;
+  version_one[8] = 1;
+  expect(version_one, "version 1 is not supported (this gissar reads 2); rebuild the scene");
   expect("solid cube\nfacet normal 0 0 1\n", "not a gissar scene");
   expect("", "too short");
   EXPECT_THROW(ReadScene(dir / "missing.gscene"), InputError);

@@ -12,6 +12,36 @@ Eigen::Vector3f TriangleMesh::Normal(size_t t) const {
   return norm > 0.0f ? Eigen::Vector3f(n / norm) : Eigen::Vector3f::Zero();
 }
 
+Eigen::Vector3f TriangleMesh::ShadingNormal(size_t t, float u, float v) const {
+  if (shading_normals.empty()) return Normal(t);
+  const Eigen::Vector3i& tri = triangles[t];
+  const Eigen::Vector3f& n0 = shading_normals[tri[0]];
+  const Eigen::Vector3f& n1 = shading_normals[tri[1]];
+  const Eigen::Vector3f& n2 = shading_normals[tri[2]];
+  if (n0.isZero() || n1.isZero() || n2.isZero()) return Normal(t);
+  const Eigen::Vector3f n = (1.0f - u - v) * n0 + u * n1 + v * n2;
+  const float norm = n.norm();
+  return norm > 0.0f ? Eigen::Vector3f(n / norm) : Normal(t);
+}
+
+void TriangleMesh::SmoothShadingNormals(ClassId excluded) {
+  std::vector<Eigen::Vector3d> sum(vertices.size(), Eigen::Vector3d::Zero());
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    if (classes[t] == excluded) continue;
+    const Eigen::Vector3i& tri = triangles[t];
+    const Eigen::Vector3d a = vertices[tri[0]].cast<double>();
+    // Cross product = normal * twice the area: area weighting.
+    const Eigen::Vector3d n =
+        (vertices[tri[1]].cast<double>() - a).cross(vertices[tri[2]].cast<double>() - a);
+    for (int k = 0; k < 3; ++k) sum[tri[k]] += n;
+  }
+  shading_normals.assign(vertices.size(), Eigen::Vector3f::Zero());
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    const double norm = sum[i].norm();
+    if (norm > 0.0) shading_normals[i] = (sum[i] / norm).cast<float>();
+  }
+}
+
 Eigen::AlignedBox3d TriangleMesh::Bounds() const {
   Eigen::AlignedBox3d box;
   for (const Eigen::Vector3f& v : vertices) box.extend(v.cast<double>());
@@ -20,6 +50,14 @@ Eigen::AlignedBox3d TriangleMesh::Bounds() const {
 
 void TriangleMesh::Append(const TriangleMesh& other) {
   const int offset = static_cast<int>(vertices.size());
+  if (!shading_normals.empty() || !other.shading_normals.empty()) {
+    shading_normals.resize(vertices.size(), Eigen::Vector3f::Zero());
+    if (other.shading_normals.empty()) {
+      shading_normals.resize(vertices.size() + other.vertices.size(), Eigen::Vector3f::Zero());
+    } else {
+      shading_normals.insert(shading_normals.end(), other.shading_normals.begin(), other.shading_normals.end());
+    }
+  }
   vertices.insert(vertices.end(), other.vertices.begin(), other.vertices.end());
   for (const Eigen::Vector3i& t : other.triangles) {
     triangles.push_back(t + Eigen::Vector3i::Constant(offset));
@@ -31,6 +69,7 @@ void TriangleMesh::AddTriangle(const Eigen::Vector3f& a, const Eigen::Vector3f& 
                                const Eigen::Vector3f& c, ClassId cls) {
   const int i = static_cast<int>(vertices.size());
   vertices.insert(vertices.end(), {a, b, c});
+  if (!shading_normals.empty()) shading_normals.resize(vertices.size(), Eigen::Vector3f::Zero());
   triangles.emplace_back(i, i + 1, i + 2);
   classes.push_back(cls);
 }
@@ -39,6 +78,7 @@ void TriangleMesh::AddQuad(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
                            const Eigen::Vector3f& c, const Eigen::Vector3f& d, ClassId cls) {
   const int i = static_cast<int>(vertices.size());
   vertices.insert(vertices.end(), {a, b, c, d});
+  if (!shading_normals.empty()) shading_normals.resize(vertices.size(), Eigen::Vector3f::Zero());
   triangles.emplace_back(i, i + 1, i + 2);
   triangles.emplace_back(i, i + 2, i + 3);
   classes.push_back(cls);
@@ -46,7 +86,7 @@ void TriangleMesh::AddQuad(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
 }
 
 size_t TriangleMesh::MemoryBytes() const {
-  return vertices.capacity() * sizeof(Eigen::Vector3f) +
+  return vertices.capacity() * sizeof(Eigen::Vector3f) + shading_normals.capacity() * sizeof(Eigen::Vector3f) +
          triangles.capacity() * sizeof(Eigen::Vector3i) + classes.capacity() * sizeof(ClassId);
 }
 

@@ -20,8 +20,24 @@ struct TriangleMesh {
   std::vector<Eigen::Vector3i> triangles;  // vertex indices, counter-clockwise seen
                                            // from the side the normal points to
   std::vector<ClassId> classes;            // one per triangle
+  // Optional per-vertex unit shading normals (smooth terrain): empty = flat
+  // shading everywhere; a zero vector at any vertex of a triangle = flat
+  // shading for that triangle (buildings). Geometry (hits, shadows, back
+  // faces, mirror directions) always uses the facet normal.
+  std::vector<Eigen::Vector3f> shading_normals;
 
   size_t triangle_count() const { return triangles.size(); }
+
+  // Shading normal of triangle `t` at barycentric (u, v) (the point
+  // (1-u-v) v0 + u v1 + v v2): the normalised interpolation of its vertices'
+  // shading normals, or Normal(t) when it has none.
+  Eigen::Vector3f ShadingNormal(size_t t, float u, float v) const;
+
+  // Sets shading_normals to the area-weighted mean of the facet normals of
+  // the triangles around each vertex, over triangles whose class is not
+  // `excluded` (e.g. buildings: their vertices get zero normals when no
+  // other triangle uses them).
+  void SmoothShadingNormals(ClassId excluded);
 
   // Unit normal of triangle `t` (right-hand rule on its vertex order); zero
   // for a degenerate triangle.

@@ -143,6 +143,15 @@ Eigen::Vector3d SarGeometry::UpwardRangePlaneNormal(const Eigen::Vector3d& p) co
   return n.z() >= 0.0 ? n : Eigen::Vector3d(-n);
 }
 
+double SarGeometry::IncidenceDeg(double col) const {
+  const double d = options_.depression_deg * M_PI / 180.0;
+  if (options_.mode == ProjectionMode::kAffine) return 90.0 - options_.depression_deg;
+  const double height = options_.slant_range_m * std::sin(d);
+  const double r = options_.slant_range_m + (col - u0_) * options_.range_spacing_m;
+  if (!(r > height)) return 0.0;
+  return 90.0 - std::asin(height / r) * 180.0 / M_PI;
+}
+
 double SarGeometry::ColumnOfRange(double slant_range_m) const {
   return (slant_range_m - options_.slant_range_m) / options_.range_spacing_m + u0_;
 }

@@ -105,6 +105,14 @@ class SarGeometry {
   // dot product with it is imaged flipped: the layover condition.
   Eigen::Vector3d UpwardRangePlaneNormal(const Eigen::Vector3d& p) const;
 
+  // Ellipsoid incidence angle theta_i (degrees from the vertical) of image
+  // column `col` (docs/radiometry.md): affine mode 90 deg - depression for
+  // every column; exact mode the angle at the point of the reference plane
+  // through the scene centre (the ellipsoid's tangent plane, curvature
+  // neglected) at the column's slant range from the flight line:
+  // 90 deg - asin(R sin(d) / r); 0 where r <= R sin(d) (below the sensor).
+  double IncidenceDeg(double col) const;
+
   // Column of a slant range and row of an along-track coordinate.
   double ColumnOfRange(double slant_range_m) const;
   double RowOfAlongTrack(double along_track_m) const;

@@ -1,0 +1,16 @@
+// How a request field is spelt at each door (docs/conventions.md): the
+// field's snake_case name with its unit suffix is the Python keyword, the
+// options-file key and the sidecar key; the CLI flag is derived from it.
+#pragma once
+
+#include <string>
+
+namespace gissar::pipeline {
+
+// The flag of a request field: kebab case of the snake_case name without
+// its unit suffix (heading_deg -> --heading, slant_range_m -> --slant-range);
+// the exceptions are out_prefix (--out), center_lonlat (--center) and
+// look_side (--look).
+std::string FlagOfField(const std::string& field);
+
+}  // namespace gissar::pipeline
