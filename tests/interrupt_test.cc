@@ -1,6 +1,8 @@
-// Interrupted runs (docs/robustness.md): SIGINT or SIGTERM at any point of
-// `gissar simulate` (while tracing, while writing its outputs) ends it with
-// status 128 + signal and leaves no output, partial or temporary, behind.
+// Interrupted runs (docs/robustness.md): SIGINT, SIGTERM or SIGHUP at any
+// point of `gissar simulate` (while tracing, while writing its outputs, during
+// the final commit) ends it with status 128 + signal, leaves no temporary, and
+// leaves an earlier run's outputs as they were; a second run on the same
+// --out while one is running fails at once.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -10,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <thread>
 
@@ -37,6 +40,7 @@ struct Job {
   std::string spacing_m = "30";
   bool contributions = true;  // also write a contributions CSV (written first)
   bool quiet = true;
+  std::string commit_pause;  // GISSAR_TEST_COMMIT_PAUSE for the child ("" = none)
 };
 
 // Starts `gissar simulate` on the Andorra DEM (480 x 300 posts) with stderr
@@ -54,6 +58,7 @@ pid_t StartSimulate(const fs::path& out_dir, const fs::path& err, const Job& job
   if (job.quiet) args.push_back("--quiet");
   const pid_t pid = fork();
   if (pid == 0) {
+    if (!job.commit_pause.empty()) setenv("GISSAR_TEST_COMMIT_PAUSE", job.commit_pause.c_str(), 1);
     const int fd = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     dup2(fd, 2);
     const int null_fd = open("/dev/null", O_WRONLY);
@@ -113,7 +118,8 @@ TEST(InterruptTest, SignalWhileWritingRemovesPartialFiles) {
   const bool writing = WaitFor(pid, [&] {
     for (const auto& e : fs::directory_iterator(out)) {
       std::error_code ec;
-      if (e.path().filename().string().rfind(".returns.csv.tmp-", 0) == 0 && fs::file_size(e.path(), ec) > 0) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind(".gs-", 0) == 0 && name.find(".tmp") != std::string::npos && fs::file_size(e.path(), ec) > 0) {
         return true;
       }
     }
@@ -137,6 +143,65 @@ TEST(InterruptTest, UninterruptedRunCommitsEveryOutput) {
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"returns.csv", "sim.json", "sim.png", "sim.tif", "sim_mask.tif",
                                             "sim_quicklook.png"}));
+}
+
+std::map<std::string, std::string> Snapshot(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::directory_iterator(dir)) files[e.path().filename().string()] = ReadText(e.path());
+  return files;
+}
+
+int RunToEnd(pid_t pid) {
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return status;
+}
+
+TEST(InterruptTest, SignalDuringTheFinalCommitKeepsTheEarlierRun) {
+  const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
+  Job job{"1", "60", true, true};
+  const int first = RunToEnd(StartSimulate(out, logs / "first", job));
+  ASSERT_TRUE(WIFEXITED(first) && WEXITSTATUS(first) == 0) << ReadText(logs / "first");
+  const std::map<std::string, std::string> before = Snapshot(out);
+  ASSERT_EQ(before.size(), 6u);
+  for (int sig : {SIGTERM, SIGHUP, SIGINT}) {
+    for (const char* stage : {"written", "renamed"}) {
+      const fs::path marker = logs / (std::string("paused_") + stage + std::to_string(sig));
+      job.commit_pause = std::string(stage) + ":" + marker.string();
+      job.rays_per_cell = "2";  // a different image: the earlier one must survive
+      const pid_t pid = StartSimulate(out, logs / "second", job);
+      ASSERT_TRUE(WaitFor(pid, [&] { return fs::exists(marker); })) << ReadText(logs / "second");
+      const int status = StopAndWait(pid, sig);
+      ASSERT_TRUE(WIFEXITED(status)) << stage;
+      EXPECT_EQ(WEXITSTATUS(status), 128 + sig) << stage;
+      EXPECT_TRUE(Snapshot(out) == before) << "signal " << sig << " at '" << stage
+                                           << "' changed the earlier outputs; now " << Entries(out).size()
+                                           << " entries";
+    }
+  }
+}
+
+TEST(InterruptTest, ASecondRunOnTheSameOutFailsAtOnce) {
+  const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
+  Job job{"1", "60", true, true};
+  const fs::path marker = logs / "paused";
+  job.commit_pause = "written:" + marker.string();
+  const pid_t first = StartSimulate(out, logs / "first", job);
+  ASSERT_TRUE(WaitFor(first, [&] { return fs::exists(marker); })) << ReadText(logs / "first");
+  job.commit_pause.clear();
+  const auto start = Clock::now();
+  const int second = RunToEnd(StartSimulate(out, logs / "second", job));
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  ASSERT_TRUE(WIFEXITED(second));
+  EXPECT_EQ(WEXITSTATUS(second), 2);
+  const std::string err = ReadText(logs / "second");
+  EXPECT_EQ(err.rfind("gissar: error: another gissar run is writing outputs with this prefix", 0), 0u) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_LT(seconds, 30.0);  // refused when reserving its outputs, before the DEM is read
+  const int status = StopAndWait(first, SIGTERM);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 128 + SIGTERM);
+  EXPECT_TRUE(Entries(out).empty()) << "left behind: " << Entries(out).front();
 }
 
 }  // namespace

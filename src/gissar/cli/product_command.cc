@@ -36,8 +36,14 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
                   "Report prefix: REPORT.json, REPORT.md, REPORT_side_by_side.png, REPORT_histogram.png")
       ->required();
 
+  auto max_memory = std::make_shared<std::string>();
+  cmd->add_option("--max-memory", *max_memory,
+                  "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger products fail early");
+
   registry.Add(cmd, [=](const CommandContext& context) {
     ValidateRequest resolved = *options;
+    resolved.simulate.max_memory_bytes =
+        MemoryBudgetBytes(*max_memory, context.force, resolved.simulate.max_memory_bytes);
     resolved.looks.clear();
     std::istringstream in(*looks);
     std::string item;

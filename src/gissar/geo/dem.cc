@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <sstream>
 
@@ -134,7 +135,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   int col0 = 0, row0 = 0;
   if (options.window) {
     const auto [c, r, w, h] = *options.window;
-    if (c < 0 || r < 0 || w < 2 || h < 2 || c + w > dem.width || r + h > dem.height) {
+    if (c < 0 || r < 0 || w < 2 || h < 2 || int64_t{c} + w > dem.width || int64_t{r} + h > dem.height) {
       throw ConfigError("window " + std::to_string(c) + "," + std::to_string(r) + "," +
                             std::to_string(w) + "," + std::to_string(h) + " is not inside the " +
                             std::to_string(dem.width) + "x" + std::to_string(dem.height) + " DEM",
@@ -212,10 +213,30 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
                      dem.height, GDT_Float64, 0, 0, nullptr) != CE_None) {
     throw InputError("cannot read DEM heights: " + LastGdalMessage(), where);
   }
+  // The band's scale and offset (height = stored * scale + offset, e.g. an
+  // Int16 DEM in decimetres): applied to every cell that is not no-data (the
+  // no-data value is a stored value).
+  bool nodata_marked = has_nodata != 0;
+  int has_scale = 0, has_offset = 0;
+  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
+  if ((has_scale && !(std::isfinite(scale) && scale != 0.0)) || (has_offset && !std::isfinite(offset))) {
+    throw InputError("DEM band scale/offset must be finite with a non-zero scale", where);
+  }
+  if ((has_scale && scale != 1.0) || (has_offset && offset != 0.0)) {
+    const double s = has_scale ? scale : 1.0, o = has_offset ? offset : 0.0;
+    for (double& v : raw) {
+      if (IsVoid(v, nodata_marked, nodata)) {
+        v = std::numeric_limits<double>::quiet_NaN();  // stays void after scaling
+      } else {
+        v = v * s + o;
+      }
+    }
+    nodata_marked = false;  // voids are NaN now; a scaled height may equal the stored no-data value
+  }
   int64_t voids = 0, out_of_range = 0;
   double lowest = kMinHeightM, highest = kMaxHeightM;
   for (double v : raw) {
-    if (IsVoid(v, has_nodata != 0, nodata)) {
+    if (IsVoid(v, nodata_marked, nodata)) {
       ++voids;
     } else if (v < kMinHeightM || v > kMaxHeightM) {
       ++out_of_range;
@@ -245,7 +266,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     for (int r = 0; r < h; ++r) {
       for (int c = 0; c < w; ++c) {
         const size_t i = size_t(r) * w + c;
-        if ((r == 0 || c == 0 || r == h - 1 || c == w - 1) && IsVoid(raw[i], has_nodata != 0, nodata)) {
+        if ((r == 0 || c == 0 || r == h - 1 || c == w - 1) && IsVoid(raw[i], nodata_marked, nodata)) {
           border_void[i] = 1;
           stack.push_back(i);
         }
@@ -260,7 +281,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
       for (const auto& [nc, nr] : next) {
         if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
         const size_t j = size_t(nr) * w + nc;
-        if (!border_void[j] && IsVoid(raw[j], has_nodata != 0, nodata)) {
+        if (!border_void[j] && IsVoid(raw[j], nodata_marked, nodata)) {
           border_void[j] = 1;
           stack.push_back(j);
         }
@@ -279,12 +300,12 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   dem.heights_m.resize(raw.size());
   float lowest_valid = std::numeric_limits<float>::max();
   for (size_t i = 0; i < raw.size(); ++i) {
-    dem.heights_m[i] = IsVoid(raw[i], has_nodata != 0, nodata) ? kVoid : static_cast<float>(raw[i]);
+    dem.heights_m[i] = IsVoid(raw[i], nodata_marked, nodata) ? kVoid : static_cast<float>(raw[i]);
     if (dem.heights_m[i] != kVoid) lowest_valid = std::min(lowest_valid, dem.heights_m[i]);
   }
   if (voids > 0) {
     dem.nodata_mask.resize(raw.size());
-    for (size_t i = 0; i < raw.size(); ++i) dem.nodata_mask[i] = IsVoid(raw[i], has_nodata != 0, nodata) ? 1 : 0;
+    for (size_t i = 0; i < raw.size(); ++i) dem.nodata_mask[i] = IsVoid(raw[i], nodata_marked, nodata) ? 1 : 0;
     // Border no-data: a placeholder height, never filled.
     for (size_t i = 0; i < border_void.size(); ++i) {
       if (border_void[i]) dem.heights_m[i] = lowest_valid;

@@ -134,6 +134,34 @@ TEST(DemTest, GeographicDemsNearAPoleOrAcrossTheAntimeridianAreRefused) {
   EXPECT_EQ(ReadDemError(dir / "polar.tif"), "");
 }
 
+TEST(DemTest, BandScaleAndOffsetAreApplied) {
+  EnsureGdal();
+  const auto dir = testing::MakeTempDir();
+  const auto path = dir / "dm.tif";
+  {
+    // Int16 decimetres above 1000 m: height = stored * 0.1 + 1000; -32768 is no-data.
+    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+    GDALDataset* ds = gtiff->Create(path.c_str(), 4, 3, 1, GDT_Int16, nullptr);
+    double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
+    ds->SetGeoTransform(gt);
+    OGRSpatialReference srs;
+    srs.importFromEPSG(32631);
+    ds->SetSpatialRef(&srs);
+    GDALRasterBand* band = ds->GetRasterBand(1);
+    band->SetScale(0.1);
+    band->SetOffset(1000.0);
+    band->SetNoDataValue(-32768);
+    std::vector<int16_t> h = {0, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 12345};
+    ASSERT_EQ(band->RasterIO(GF_Write, 0, 0, 4, 3, h.data(), 4, 3, GDT_Int16, 0, 0, nullptr), CE_None);
+    GDALClose(ds);
+  }
+  const Dem dem = ReadDem(path);
+  ASSERT_EQ(dem.heights_m.size(), 12u);
+  EXPECT_FLOAT_EQ(dem.heights_m[0], 1000.0f);
+  EXPECT_FLOAT_EQ(dem.heights_m[5], 1005.0f);
+  EXPECT_FLOAT_EQ(dem.heights_m[11], 2234.5f);
+}
+
 TEST(DemTest, HeightsOutsideEarthsRangeAreUnmarkedNoData) {
   const auto dir = testing::MakeTempDir();
   std::vector<float> z = Flat(8);

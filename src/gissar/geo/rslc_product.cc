@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "gissar/util/error.h"
+#include "gissar/util/memory_limit.h"
 
 namespace gissar::geo {
 namespace fs = std::filesystem;
@@ -61,7 +62,7 @@ class QuietHdf5 {
 
 class Reader {
  public:
-  Reader(const fs::path& path) : file_(path.string()) {}
+  Reader(const fs::path& path, int64_t max_bytes = 0) : file_(path.string()), max_bytes_(max_bytes) {}
 
   // True when every component of the absolute `path` exists.
   bool Exists(hid_t file, const std::string& path) const {
@@ -93,6 +94,13 @@ class Reader {
   std::vector<double> Doubles(hid_t file, const std::string& path, size_t expected_columns = 0) const {
     H5Id ds = OpenDataset(file, path);
     const std::vector<hsize_t> dims = Shape(ds.get());
+    double n_values = 1.0;
+    for (hsize_t d : dims) n_values *= double(d);
+    if (max_bytes_ > 0) {
+      CheckMemoryBudget(8.0 * n_values, max_bytes_, "dataset " + path + " of " + std::to_string(int64_t(n_values)) +
+                            " values (" + file_ + ")",
+                        "use a smaller product");
+    }
     size_t n = 1;
     for (hsize_t d : dims) n *= d;
     if (expected_columns > 0 && (dims.size() != 2 || dims[1] != expected_columns)) {
@@ -171,6 +179,7 @@ class Reader {
 
  private:
   std::string file_;
+  int64_t max_bytes_ = 0;
 };
 
 // Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
@@ -244,7 +253,7 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
   if (H5Fis_hdf5(where.c_str()) <= 0) throw InputError("not an HDF5 file (NISAR RSLC expected)", where);
   H5Id file(H5Fopen(where.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.valid()) throw InputError("cannot open HDF5 file", where);
-  const Reader r(path);
+  const Reader r(path, options.max_bytes);
   const hid_t f = file.get();
 
   // /science/<band>/{SLC|RSLC}: LSAR or SSAR, older or newer product name.
@@ -285,6 +294,12 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
   p.slant_range_m = r.Doubles(f, freq + "/slantRange");
   CheckUniformIncreasing(p.slant_range_m, "slantRange", where);
   if (!(p.slant_range_m.front() > 0.0)) throw InputError("slant ranges must be positive", where);
+  if (options.max_bytes > 0) {
+    CheckMemoryBudget(options.bytes_per_pixel * double(p.rows()) * double(p.cols()), options.max_bytes,
+                      "product grid of " + std::to_string(p.rows()) + " x " + std::to_string(p.cols()) + " pixels (" +
+                          where + ")",
+                      "crop the product");
+  }
   p.center_frequency_hz = r.Scalar(f, freq + "/processedCenterFrequency");
   if (!(p.center_frequency_hz > 1e6 && p.center_frequency_hz < 1e12)) {
     throw InputError("processedCenterFrequency out of range (1 MHz .. 1 THz)", where);

@@ -64,6 +64,12 @@ struct RslcReadOptions {
   std::string frequency = "A";
   std::string polarization = "HH";
   bool read_amplitude = true;
+  // Memory budget (--max-memory), bytes; 0 = none. Checked from the dataset
+  // shapes before anything large is read: every 1-D/2-D metadata array (8 B
+  // per value) and the radar grid at `bytes_per_pixel` per pixel (what the
+  // caller will allocate for it). Over it: ConfigError naming --max-memory.
+  int64_t max_bytes = 0;
+  double bytes_per_pixel = 12.0;  // the complex SLC read and its amplitude
 };
 
 // Speed of light in vacuum, m/s.

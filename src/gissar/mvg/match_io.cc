@@ -125,6 +125,12 @@ std::vector<std::vector<double>> ReadColumns(const std::filesystem::path& path,
         throw InputError("column '" + names[k] + "' is not finite: '" + std::string(text) + "'",
                          where);
       }
+      // Pixels and metres beyond 1e9 are no image or terrain; their squares
+      // would overflow the fits to infinity.
+      if (std::abs(v) > kMaxPointCoordinate) {
+        throw InputError("column '" + names[k] + "' is out of range [-1e9, 1e9]: '" + std::string(text) + "'",
+                         where);
+      }
       values.push_back(v);
     }
     records.push_back(std::move(values));

@@ -21,6 +21,10 @@
 
 namespace gissar::mvg {
 
+// Largest magnitude of a CSV coordinate (pixels or metres): larger values are
+// an InputError.
+constexpr double kMaxPointCoordinate = 1e9;
+
 // Matches from columns x1, y1, x2, y2 (pixels), in file order.
 std::vector<PointMatch> ReadMatchesCsv(const std::filesystem::path& path);
 

@@ -169,6 +169,30 @@ PriorPose ParsePriorJson(const nlohmann::json& json, const std::string& source) 
   return p;
 }
 
+namespace {
+
+// Largest search radius: the matcher's cost surface is (2s+1)^2 floats per
+// patch (2048 px: 64 MiB), and no image gissar reads needs more.
+constexpr int kMaxSearchPx = 2048;
+
+// A positive finite number from image metadata `key`; InputError otherwise
+// (never the library's "stod" message).
+double MetadataNumber(const std::string& text, const std::string& key, const std::string& image) {
+  size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(value) || !(value > 0)) {
+    throw InputError(key + " is not a positive number: '" + text + "'", image);
+  }
+  return value;
+}
+
+}  // namespace
+
 void LocateRequest::Check() const {
   CheckSceneOrDem(scene, dem);
   if (image.empty()) throw ConfigError("required", "--image");
@@ -178,7 +202,7 @@ void LocateRequest::Check() const {
   if (!look.empty()) sensor::ParseLookSide(look);
   if (range_spacing_m < 0 || azimuth_spacing_m < 0) throw ConfigError("must be > 0", "--range-spacing/--azimuth-spacing");
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
-  if (search_px < 5) throw ConfigError("must be >= 5", "--search");
+  if (search_px < 5 || search_px > kMaxSearchPx) throw ConfigError("must be in [5, 2048] px", "--search");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
   CheckOutputsAreNotInputs({out, composite_png}, {image, scene, dem, prior});
 }
@@ -213,12 +237,12 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   if (model.range_spacing_m == 0.0) {
     const auto v = meta("GISSAR_RANGE_SPACING_M");
     if (!v) throw ConfigError("the image has no GISSAR_RANGE_SPACING_M: give --range-spacing", options.image);
-    model.range_spacing_m = std::stod(*v);
+    model.range_spacing_m = MetadataNumber(*v, "GISSAR_RANGE_SPACING_M", options.image);
   }
   if (model.azimuth_spacing_m == 0.0) {
     const auto v = meta("GISSAR_AZIMUTH_SPACING_M");
     if (!v) throw ConfigError("the image has no GISSAR_AZIMUTH_SPACING_M: give --azimuth-spacing", options.image);
-    model.azimuth_spacing_m = std::stod(*v);
+    model.azimuth_spacing_m = MetadataNumber(*v, "GISSAR_AZIMUTH_SPACING_M", options.image);
   }
   if (!options.look.empty()) model.look_side = sensor::ParseLookSide(options.look);
   else if (const auto v = meta("GISSAR_LOOK_SIDE")) model.look_side = sensor::ParseLookSide(*v);
@@ -299,12 +323,19 @@ void EvaluateRequest::Check() const {
   if (!(slant_range_m > 0)) throw ConfigError("must be > 0", "--slant-range");
   if (!(depression_min_deg > 1 && depression_max_deg < 89 && depression_min_deg <= depression_max_deg))
     throw ConfigError("need 1 < min <= max < 89", "--depression-min/--depression-max");
-  if (speckle_looks != 0 && speckle_looks < 1) throw ConfigError("must be 0 (off) or >= 1", "--looks");
+  if (!(speckle_looks == 0 || (speckle_looks >= 1 && std::isfinite(speckle_looks)))) {
+    throw ConfigError("must be 0 (off) or a finite number >= 1", "--looks");
+  }
+  if (!std::isnan(nesz_db) && !(nesz_db >= kMinNeszDb && nesz_db <= kMaxNeszDb)) {
+    throw ConfigError("must be in [-100, 60] dB", "--nesz");
+  }
   if (!(material_db >= 0)) throw ConfigError("must be >= 0", "--material-db");
   if (!(dem_smoothing >= 0 && dem_smoothing <= 1)) throw ConfigError("must be in [0, 1]", "--dem-smoothing");
   if (!(success_cells > 0)) throw ConfigError("must be > 0", "--success-cells");
   nav::ParseMatcher(matcher, "--matcher");
-  if (search_px != 0 && search_px < 5) throw ConfigError("must be 0 (automatic) or >= 5", "--search");
+  if (search_px != 0 && (search_px < 5 || search_px > kMaxSearchPx)) {
+    throw ConfigError("must be 0 (automatic) or in [5, 2048] px", "--search");
+  }
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
 }
@@ -520,6 +551,7 @@ void MatchPairRequest::Check() const {
   if (warp.size() != 4) throw ConfigError("needs ROT_DEG,SCALE,TX,TY", "--warp");
   for (double v : warp) if (!std::isfinite(v)) throw ConfigError("must be finite", "--warp");
   if (!(warp[1] > 0)) throw ConfigError("scale must be > 0", "--warp");
+  if (search_px < 1 || search_px > kMaxSearchPx) throw ConfigError("must be in [1, 2048] px", "--search");
   nav::MatchOptions m;
   m.patch_px = patch_px;
   m.step_px = step_px;

@@ -143,6 +143,9 @@ json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, 
                      options.matches);
   }
   const mvg::TwoViewAnalysis& a = *analysis;
+  if (!std::isfinite(a.rms_gs_px) || !std::isfinite(a.rms_epi1_px) || !std::isfinite(a.rms_epi2_px)) {
+    throw InputError("the fit of F is not finite (coordinates too large or degenerate)", options.matches);
+  }
   json out = {{"command", "fmatrix"},
               {"command_line", command_line},
               {"version", VersionString()},
@@ -187,7 +190,9 @@ json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, 
 void ResectRequest::Check() const {
   if (points.empty()) throw ConfigError("a points CSV is required", "--points");
   RequireOutput(json_out, "--json");
-  if (!scene_centre.allFinite()) throw ConfigError("scene centre must be finite", "--scene-centre");
+  if (!scene_centre.allFinite() || scene_centre.cwiseAbs().maxCoeff() > mvg::kMaxPointCoordinate) {
+    throw ConfigError("scene centre must be finite and within [-1e9, 1e9] m", "--scene-centre");
+  }
   if (slant_range_m && !(*slant_range_m > 0)) throw ConfigError("slant range must be positive", "--slant-range");
 }
 
@@ -217,6 +222,11 @@ json RunResect(const ResectRequest& options, const std::string& command_line, Re
   if (!r) {
     throw InputError("the camera is undetermined: control points are degenerate (coplanar or collinear)",
                      options.points);
+  }
+  // A fit that came out non-finite is never reported (let alone as converged).
+  if (!std::isfinite(r->rms_px) || !std::isfinite(r->linear_rms_px) || !r->camera.allFinite() ||
+      !std::isfinite(r->pose.heading_deg) || !std::isfinite(r->pose.depression_deg)) {
+    throw InputError("the camera fit is not finite (coordinates too large or degenerate)", options.points);
   }
   json out = {{"command", "resect"},
               {"command_line", command_line},

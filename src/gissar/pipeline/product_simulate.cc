@@ -44,6 +44,8 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   ProductSimulation sim;
   geo::RslcReadOptions read;
   read.read_amplitude = read_amplitude;
+  read.max_bytes = options.max_memory_bytes;  // checked from the shapes, before reading
+  read.bytes_per_pixel = 400.0;
   sim.product = geo::ReadRslcProduct(options.product, read);
   const geo::RslcProduct& p = sim.product;
   const sensor::Orbit orbit(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);

@@ -32,6 +32,11 @@ std::array<int, 4> ParseWindow(const std::string& text, const std::string& optio
       sep[0] != ',' || sep[1] != ',' || sep[2] != ',') {
     throw ConfigError("expected a window 'COL,ROW,COLS,ROWS', got '" + text + "'", option);
   }
+  // Bounded so that COL + COLS and ROW + ROWS cannot overflow an int.
+  constexpr int kMaxCells = 1000000000;
+  for (int v : w) {
+    if (v < 0 || v > kMaxCells) throw ConfigError("window values must be in [0, 10^9] cells, got '" + text + "'", option);
+  }
   return w;
 }
 

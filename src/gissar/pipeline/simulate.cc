@@ -95,7 +95,10 @@ void SimulateRequest::Check() const {
   if (!(speckle_looks == 0.0 || (speckle_looks >= 1.0 && std::isfinite(speckle_looks)))) {
     throw ConfigError("speckle looks must be 0 (off) or >= 1", "--speckle-looks");
   }
-  if (std::isinf(nesz_db)) throw ConfigError("NESZ must be a finite number of dB", "--nesz");
+  // NaN = no thermal noise; otherwise [-100, 60] dB keeps 10^(NESZ/10) a finite float.
+  if (!std::isnan(nesz_db) && !(nesz_db >= kMinNeszDb && nesz_db <= kMaxNeszDb)) {
+    throw ConfigError("NESZ must be in [-100, 60] dB", "--nesz");
+  }
   image::ParseRadiometry(radiometry, "--radiometry");
   if (!reflectors.empty() && engine == "raster") {
     throw ConfigError("the raster engine renders no reflectors (use --engine trace)", "--engine/--reflectors");
@@ -469,6 +472,17 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
                     "image of " + std::to_string(geometry.width()) + " x " +
                         std::to_string(geometry.height()) + " pixels",
                     "use coarser --range-spacing/--azimuth-spacing, a smaller --width/--height");
+  if (!options.contributions.empty()) {
+    // Every ray may return once per bounce, each return kept in memory.
+    const double returns = geometry.width() * double(geometry.height()) * options.rays_per_cell * options.bounces;
+    CheckMemoryBudget(returns * double(sizeof(render::Contribution)) +
+                          kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
+                          double(mesh.MemoryBytes()) * 3.0,
+                      options.max_memory_bytes,
+                      "recording up to " + std::to_string(int64_t(returns)) +
+                          " contributions (--contributions)",
+                      "use fewer --rays-per-cell or --bounces, coarser spacings, or no --contributions");
+  }
   {
     reporter.Info("simulate: image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
         " pixels, " +

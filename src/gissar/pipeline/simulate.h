@@ -28,6 +28,11 @@
 
 namespace gissar::pipeline {
 
+// Accepted range of --nesz (dB in image units): beyond 60 dB the noise
+// intensity 10^(NESZ/10) overflows a float pixel.
+constexpr double kMinNeszDb = -100.0;
+constexpr double kMaxNeszDb = 60.0;
+
 struct SimulateRequest {
   std::string dem;                               // DEM raster (any GDAL format)
   std::string scene;                             // or a scene built by `gissar scene build`
@@ -81,7 +86,7 @@ struct SimulateRequest {
   // Multiplicative L-look gamma speckle (0 = off) and thermal noise floor
   // (NESZ, dB sigma0; NaN = off), both seeded.
   double speckle_looks = 0.0;
-  double nesz_db = std::numeric_limits<double>::quiet_NaN();
+  double nesz_db = std::numeric_limits<double>::quiet_NaN();  // NaN = none; else in [kMinNeszDb, kMaxNeszDb]
   uint64_t seed = 1;
   // writes PREFIX.tif, PREFIX.png, PREFIX_quicklook.png, PREFIX_mask.tif,
   // PREFIX.json and, in coherent mode, PREFIX_slc.tif (CFloat32)

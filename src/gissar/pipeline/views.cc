@@ -14,6 +14,7 @@
 #include "gissar/render/ortho_renderer.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
+#include "gissar/util/memory_limit.h"
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
@@ -54,6 +55,7 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
   Stopwatch total;
   const std::string& prefix = options.base.out_prefix;
   AtomicOutputs outputs;
+  outputs.LockPrefix(prefix);  // one lock for every frame
   std::vector<fs::path> tifs, pngs;
   for (int i = 0; i < options.frames; ++i) {
     tifs.push_back(outputs.Add(prefix + FrameSuffix(i) + ".tif"));
@@ -82,6 +84,14 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
     height = std::max(height, covering.height());
     frame_options.push_back(g);
   }
+  // One frame traced at a time (64 B per pixel, as simulate), plus every
+  // frame's 8-bit quicklook and the RGB contact sheet kept for the end.
+  const double pixels = double(width) * double(height);
+  CheckMemoryBudget(64.0 * pixels + 4.0 * pixels * options.frames + 3.0 * double(terrain.mesh.MemoryBytes()),
+                    options.base.max_memory_bytes,
+                    "sequence of " + std::to_string(options.frames) + " frames of " + std::to_string(width) + " x " +
+                        std::to_string(height) + " pixels",
+                    "use fewer --frames, coarser --range-spacing/--azimuth-spacing");
   render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
   std::vector<std::vector<uint8_t>> grey_frames;
   std::vector<std::string> captions;
@@ -167,6 +177,14 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
   PlaceSceneCentre(terrain, embree, options.base);
   const sensor::SarGeometry geometry = sensor::SarGeometry::Covering(
       ResolvedGeometry(options.base, terrain), terrain.centre_enu, terrain.mesh.vertices);
+  // The SAR image (64 B per pixel, as simulate), two RGB ortho views, the
+  // SAR quicklook and the side-by-side trio (about 3 x 3 B): 112 B per pixel.
+  CheckMemoryBudget(112.0 * double(geometry.width()) * double(geometry.height()) +
+                        3.0 * double(terrain.mesh.MemoryBytes()),
+                    options.base.max_memory_bytes,
+                    "ortho views of " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
+                        " pixels",
+                    "use coarser --range-spacing/--azimuth-spacing");
   const geo::LocalFrame& frame = terrain.frame;
   const render::HitColour colour = [&](const Eigen::Vector3d& enu, int32_t triangle) {
     if (photo) {

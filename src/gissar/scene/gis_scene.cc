@@ -498,7 +498,9 @@ double ParseMetres(const std::string& text, bool* ok) {
   const double v = std::strtod(text.c_str(), &end);
   std::string rest(end);
   while (!rest.empty() && rest.front() == ' ') rest.erase(rest.begin());
-  *ok = end != text.c_str() && std::isfinite(v) && v >= 0 && (rest.empty() || rest == "m");
+  // Beyond 10 km no height, width or level count is real (height=1e300 once
+  // built a scene with infinite vertices): such a tag is ignored like a malformed one.
+  *ok = end != text.c_str() && std::isfinite(v) && v >= 0 && v <= 1e4 && (rest.empty() || rest == "m");
   return v;
 }
 

@@ -749,6 +749,10 @@ TEST(GisSceneTest, BuildingHeightAndLineWidthRules) {
   EXPECT_EQ(BuildingHeight({{"height", "12.5 m"}}, 10, 3), 12.5);
   EXPECT_EQ(BuildingHeight({{"height", "tall"}, {"building:levels", "5"}}, 10, 3), 15.0);
   EXPECT_EQ(BuildingHeight({}, 10, 3), 10.0);
+  // Beyond 10 km a tag is ignored (the default, or the next rule, applies).
+  EXPECT_EQ(BuildingHeight({{"height", "1e300"}}, 10, 3), 10.0);
+  EXPECT_EQ(BuildingHeight({{"height", "1e300"}, {"building:levels", "4"}}, 10, 3), 12.0);
+  EXPECT_EQ(LineWidth({{"highway", "motorway"}, {"width", "1e300"}}, DefaultLineWidths(), 5), 25.0);
   const auto table = DefaultLineWidths();
   EXPECT_EQ(LineWidth({{"highway", "motorway"}}, table, 5), 25.0);
   EXPECT_EQ(LineWidth({{"highway", "motorway"}, {"width", "9"}}, table, 5), 9.0);

@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -12,18 +14,39 @@
 
 namespace gissar {
 
+namespace {
+
+// A positive byte count from the first word of `path`; 0 when the file is
+// missing, says "max", or holds anything else.
+int64_t ReadLimitFile(const std::string& path) {
+  std::ifstream in(path);
+  std::string limit;
+  if (!(in >> limit) || limit.empty() || limit == "max") return 0;
+  char* end = nullptr;
+  errno = 0;
+  const long long value = std::strtoll(limit.c_str(), &end, 10);
+  if (errno != 0 || end == nullptr || *end != '\0' || value <= 0) return 0;
+  return value;
+}
+
+}  // namespace
+
+int64_t CgroupMemoryLimitBytes(const std::string& cgroup_root) {
+  const int64_t v2 = ReadLimitFile(cgroup_root + "/memory.max");
+  int64_t v1 = ReadLimitFile(cgroup_root + "/memory/memory.limit_in_bytes");
+  // cgroup v1 says "no limit" with a huge number (PAGE_COUNTER_MAX pages).
+  if (v1 >= (int64_t{1} << 60)) v1 = 0;
+  if (v2 > 0 && v1 > 0) return std::min(v1, v2);
+  return v2 > 0 ? v2 : v1;
+}
+
 int64_t PhysicalMemoryBytes() {
   int64_t bytes = 0;
   const long pages = sysconf(_SC_PHYS_PAGES);
   const long page_size = sysconf(_SC_PAGESIZE);
   if (pages > 0 && page_size > 0) bytes = int64_t{pages} * page_size;
-  std::ifstream cgroup("/sys/fs/cgroup/memory.max");
-  std::string limit;
-  if (cgroup >> limit && !limit.empty() && limit != "max") {
-    char* end = nullptr;
-    const long long value = std::strtoll(limit.c_str(), &end, 10);
-    if (end != nullptr && *end == '\0' && value > 0 && (bytes == 0 || value < bytes)) bytes = value;
-  }
+  const int64_t cgroup = CgroupMemoryLimitBytes("/sys/fs/cgroup");
+  if (cgroup > 0 && (bytes == 0 || cgroup < bytes)) bytes = cgroup;
   return bytes;
 }
 

@@ -10,9 +10,15 @@
 namespace gissar {
 
 // Physical memory available to this process, bytes: the smaller of the
-// machine's RAM (sysconf) and the cgroup v2 limit (memory.max) when there is
-// one; 0 when neither can be read.
+// machine's RAM (sysconf) and the cgroup v1 or v2 limit when there is one
+// (CgroupMemoryLimitBytes); 0 when neither can be read.
 int64_t PhysicalMemoryBytes();
+
+// The memory limit of the cgroup mounted at `cgroup_root` (normally
+// /sys/fs/cgroup), bytes: the smaller of the v2 limit (memory.max) and the
+// v1 limit (memory/memory.limit_in_bytes, where values of 2^60 and more mean
+// none); 0 when there is neither.
+int64_t CgroupMemoryLimitBytes(const std::string& cgroup_root);
 
 // Default --max-memory: 3/4 of PhysicalMemoryBytes() (4 GiB when unknown).
 int64_t DefaultMemoryLimitBytes();

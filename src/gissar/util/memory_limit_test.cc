@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+
 #include "gissar/util/error.h"
+#include "gissar/util/testing.h"
 
 namespace gissar {
 namespace {
@@ -48,6 +52,21 @@ TEST(MemoryLimitTest, BudgetCheckSaysHowToReduceTheJob) {
   EXPECT_EQ(FormatBytes(100), "100 B");
   EXPECT_EQ(FormatBytes(1536), "1.5 KiB");
   EXPECT_EQ(FormatBytes(300.0 * (1 << 20)), "300 MiB");
+}
+
+TEST(MemoryLimitTest, CgroupV1AndV2LimitsAreRead) {
+  namespace fs = std::filesystem;
+  const fs::path root = testing::MakeTempDir();
+  EXPECT_EQ(CgroupMemoryLimitBytes(root.string()), 0);  // neither file
+  fs::create_directories(root / "memory");
+  std::ofstream(root / "memory" / "memory.limit_in_bytes") << "9223372036854771712\n";  // v1: no limit
+  EXPECT_EQ(CgroupMemoryLimitBytes(root.string()), 0);
+  std::ofstream(root / "memory" / "memory.limit_in_bytes") << "2147483648\n";  // v1: 2 GiB
+  EXPECT_EQ(CgroupMemoryLimitBytes(root.string()), int64_t{2} << 30);
+  std::ofstream(root / "memory.max") << "1073741824\n";  // v2: 1 GiB, the smaller
+  EXPECT_EQ(CgroupMemoryLimitBytes(root.string()), int64_t{1} << 30);
+  std::ofstream(root / "memory.max") << "max\n";
+  EXPECT_EQ(CgroupMemoryLimitBytes(root.string()), int64_t{2} << 30);
 }
 
 }  // namespace
