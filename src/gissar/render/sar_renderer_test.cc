@@ -88,10 +88,12 @@ TEST(SarRendererTest, FlatPlaneReadsTheLambertianValue) {
   }
 }
 
-// Smooth terrain: the diffuse term of the first bounce uses the mesh's
-// interpolated shading normal. Flat ground whose vertices all carry the
-// shading normal n = (-0.5, 0, 1) / |.| reads n . (-look) (unit Lambertian);
-// a zero shading normal at a vertex falls back to the facet: sin(depression).
+// Smooth terrain: the first bounce's sigma0 law takes its local incidence
+// from the mesh's interpolated shading normal; the footprint stays the
+// facet's. Flat ground whose vertices all carry the shading normal
+// n = (-0.5, 0, 1) / |.| reads the flat value scaled by the unit Lambertian
+// law's ratio (n . (-look))^2 / sin^2(depression); a zero shading normal at
+// a vertex falls back to the facet: the flat value sin(d) * Calibrated(d).
 TEST(SarRendererTest, ShadingNormalsDriveTheDiffuseTerm) {
   for (double heading : {0.0, 30.0}) {
     for (bool flat : {false, true}) {
@@ -110,7 +112,10 @@ TEST(SarRendererTest, ShadingNormalsDriveTheDiffuseTerm) {
           ++count;
         }
       }
-      const double expected = flat ? std::sin(40.0 * kDeg) : n.cast<double>().dot(-g.look_direction());
+      const double d = 40.0 * kDeg;
+      const double cos_shade = n.cast<double>().dot(-g.look_direction());
+      const double flat_value = std::sin(d) * Calibrated(d);
+      const double expected = flat ? flat_value : flat_value * (cos_shade * cos_shade) / (std::sin(d) * std::sin(d));
       EXPECT_NEAR(sum / count / expected, 1.0, 0.01) << "heading " << heading << " flat " << flat;
     }
   }
