@@ -306,7 +306,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   if (voids > 0) {
     dem.nodata_mask.resize(raw.size());
     for (size_t i = 0; i < raw.size(); ++i) dem.nodata_mask[i] = IsVoid(raw[i], nodata_marked, nodata) ? 1 : 0;
-    // Border no-data: a placeholder height, never filled.
+    // Border no-data: keeps the lowest valid height so the grid stays finite; the scene leaves these posts out (nodata_mask), never fills them.
     for (size_t i = 0; i < border_void.size(); ++i) {
       if (border_void[i]) dem.heights_m[i] = lowest_valid;
     }

@@ -26,7 +26,7 @@ struct DemReadOptions {
   // No-data connected to the raster's border (e.g. the collar of a
   // reprojected DEM) is left out of the scene by the caller rather than
   // filled: it needs no --fill-nodata and is not filled; its posts are marked
-  // in nodata_mask and get the lowest valid height as a placeholder.
+  // in nodata_mask and hold the lowest valid height (finite, never meshed).
   // Interior no-data still follows `fill_nodata`.
   bool border_nodata_outside = false;
   // 1-based band index.
