@@ -371,6 +371,11 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                                    options.spacing_m)) + 4;
   lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
   lo.step_px = options.step_px;
+  // The reference carries the observed image's noise floor (its NESZ, a
+  // property of the sensor): shadow and calm sea then read the same in both.
+  if (std::isfinite(options.nesz_db) && options.reference_floor) {
+    lo.reference_floor = std::max(lo.reference_floor, std::pow(10.0, options.nesz_db / 10.0));
+  }
 
   // True image centres are drawn where the whole image (and the prior's)
   // stays on the scene.
@@ -454,7 +459,8 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
       mo.step_px = lo.step_px;
       mo.search_px = lo.initial_search_px;
       for (size_t k = 0; k < matchers.size(); ++k) {
-        const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matchers[k], mo, lo.filter_px, lo.ransac_threshold_px);
+        const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matchers[k], mo, lo.filter_px, lo.ransac_threshold_px,
+                                                                lo.reference_floor);
         std::vector<double> errs;
         for (size_t i = 0; i < cm.world.size(); ++i) errs.push_back((cm.observed[i] - true_geometry.Project(cm.world[i])).norm());
         const double good = double(std::count_if(errs.begin(), errs.end(), [](double e) { return e < 1.0; }));
@@ -544,6 +550,7 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                    {"prior_horizontal_m", options.prior_horizontal_m}, {"prior_vertical_m", options.prior_vertical_m},
                    {"prior_heading_deg", options.prior_heading_deg}, {"matcher", options.matcher},
                    {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", lo.step_px}, {"bounces", options.bounces},
+                   {"reference_floor", lo.reference_floor},
                    {"rays_per_cell", options.rays_per_cell}}},
       {"inputs", {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
       {"seconds", total.ElapsedSeconds()}};
