@@ -370,7 +370,6 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   auto sigma0_of = [&](scene::ClassId id, double cos_in) {
     return sigma0_tables[id < sigma0_tables.size() ? id : 0](cos_in);
   };
-  auto gain_of = [&](scene::ClassId id) { return std::pow(10.0, materials.Get(id).gain_db / 10.0); };
 
   // Planes: total intensity (coherent: real and imaginary amplitude), then
   // one per bounce count that can occur (the others stay zero).
@@ -494,12 +493,17 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 Splat(band, width, plane, col, row, static_cast<float>(value));
               }
             };
+            // A later-bounce return stands for its path and the reversed
+            // path (same length, same power): twice the power; in coherent
+            // mode the two add in phase.
+            const double reciprocal = bounce > 1 ? 2.0 : 1.0;
+            value *= reciprocal;
             deposit(total_planes + layer);
             if (options.coherent) {
               // Rough-surface (first-bounce) returns: random micro-phase;
               // mirror paths: deterministic path phase.
               const double phase = wavenumber2 * range;
-              const double amplitude = std::sqrt(value);
+              const double amplitude = bounce > 1 ? 2.0 * std::sqrt(value / reciprocal) : std::sqrt(value);
               if (bounce == 1) {
                 SplatFootprintPhasors(band, width, col, row, std::max(0.0, box_cols), box_rows, amplitude, phase,
                                       options.seed, ray_id, uint64_t(phase_key));
@@ -620,22 +624,33 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 value = 0.0;  // returned by the sub-rays
               }
             } else {
+              // The mirror chain so far ends here and scatters back to the
+              // radar (reciprocal bistatic law). Its reversed path (radar ->
+              // this point -> the mirrors in reverse order -> radar) has
+              // the same length and, by reciprocity, the same power
+              // (material::PathRcsPerArea); the tracer does not follow it
+              // from the other end, so it is added here: twice the power
+              // (incoherent), twice the amplitude in phase (coherent).
               const double cos_out = normal.dot(to_radar);
               if (cos_out > 0.0 &&
                   !embree.Occluded(p.cast<float>(), to_radar.cast<float>(), eps,
                                    static_cast<float>(affine ? far_affine : back))) {
-                diffuse_part = m.diffuse * cos_out;
                 const double cos_spec = mirror.dot(to_radar);
-                if (cos_spec > 0.0 && m.specular > 0.0) specular_part = m.specular * std::pow(cos_spec, 1.0 / m.roughness);
+                diffuse_part = m.BistaticSigma0(cos_in, cos_out, -1.0);
+                specular_part = m.BistaticSigma0(cos_in, cos_out, cos_spec) - diffuse_part;
               }
-              value = 4.0 * area * share * (diffuse_part + specular_part) * gain_of(class_id) * inv_pixel_area;
+              // RCS of the path: bistatic sigma0 times the surface the ray's
+              // cross-section covers here (area / cos_in), times the mirror
+              // reflectivities on the way.
+              value = (diffuse_part + specular_part) * area / std::max(cos_in, kMaskEdgeOnCos) * share * inv_pixel_area;
             }
             if (value > 0.0) {
               emit(value, 0.5 * (travelled + back), 0.5 * (a + a_p), box_cols, box_rows, bounce, bounce, p,
                    mesh.classes[hit->triangle], specular_part > diffuse_part);
             }
-            // Continue as the mirror ray.
-            share *= m.mirror;
+            // Continue as the mirror ray, with the class's Fresnel mirror
+            // reflectivity at this incidence.
+            share *= m.MirrorReflectivity(cos_in, options.wavelength_m, options.polarization);
             if (share < 1e-9) break;
             origin = p;
             dir = mirror.normalized();
