@@ -90,6 +90,15 @@ void AddPointPhasor(std::vector<float>& re, std::vector<float>& im, int width, i
 
 }  // namespace
 
+void AddPointIntensities(render::SarImage& image, const SensorEffects& effects) {
+  const int w = image.width, h = image.height;
+  for (const render::PointReturn& p : image.points) {
+    AddPointIntensity(image.intensity, w, h, p.col, p.row, p.beta0_sum, effects);
+    auto& layer = image.bounce_layers[p.layer];
+    if (layer.size() == image.intensity.size()) AddPointIntensity(layer, w, h, p.col, p.row, p.beta0_sum, effects);
+  }
+}
+
 void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
                         const std::vector<double>& incidence_deg) {
   GISSAR_CHECK(incidence_deg.size() == size_t(image.width));

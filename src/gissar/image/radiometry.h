@@ -64,6 +64,13 @@ struct SensorEffects {
   double wavelength_m = 0.031;  // phase of the point returns
 };
 
+// Adds every point return of image.points (incoherent) to the total and to
+// its bounce band, with the intensity impulse response of `effects` centred
+// on it, integrating to its beta0_sum (the part of ApplySensorEffects'
+// step 3 for images that take no other sensor effect from it, e.g. product
+// grids).
+void AddPointIntensities(render::SarImage& image, const SensorEffects& effects);
+
 // Applies `effects` to `image` (beta0 on entry), with incidence_deg[c] the
 // ellipsoid incidence of column c. CHECKs the sizes and that a coherent
 // image has no speckle requested.
