@@ -189,13 +189,13 @@ double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
 // (the parts of a footprint are independent scatterers), so that the
 // expected intensity of every pixel is the incoherent share, before and
 // after any linear filtering. Pixels outside the band go to the overflow.
-void SplatFootprintPhasors(Band& band, int width, double col, double row, double wc, double wr, double amplitude,
-                           double phase, uint64_t seed, uint64_t ray_id, uint64_t key) {
+void SplatFootprintPhasors(Band& band, int width, int plane, double col, double row, double wc, double wr,
+                           double amplitude, double phase, uint64_t seed, uint64_t ray_id, uint64_t key) {
   double cs[kMaxShares], rs[kMaxShares];
   int c0 = 0, r0 = 0;
   const int nc = FootprintShares(col, wc, &c0, cs), nr = FootprintShares(row, wr, &r0, rs);
-  float* plane_re = band.values;
-  float* plane_im = band.values + size_t(band.rows) * width;
+  float* plane_re = band.values + size_t(plane) * band.rows * width;
+  float* plane_im = plane_re + size_t(band.rows) * width;
   for (int j = 0; j < nr; ++j) {
     if (rs[j] == 0.0) continue;
     const int r = r0 + j;
@@ -206,8 +206,8 @@ void SplatFootprintPhasors(Band& band, int width, double col, double row, double
       const double a = amplitude * std::sqrt(rs[j] * cs[i]);
       const float re = static_cast<float>(a * std::cos(phase + micro)), im = static_cast<float>(a * std::sin(phase + micro));
       if (r < band.row0 || r >= band.row0 + band.rows) {
-        band.overflow->push_back({0, double(c), double(r), re, true});
-        band.overflow->push_back({1, double(c), double(r), im, true});
+        band.overflow->push_back({plane, double(c), double(r), re, true});
+        band.overflow->push_back({plane + 1, double(c), double(r), im, true});
         continue;
       }
       const size_t k = size_t(r - band.row0) * width + c;
@@ -373,9 +373,11 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
 
   // Planes: total intensity (coherent: real and imaginary amplitude), then
   // one per bounce count that can occur (the others stay zero).
+  // Coherent mode adds a real and an imaginary plane per bounce count.
   const int total_planes = options.coherent ? 2 : 1;
   const int used_layers = std::min(options.max_bounces, kBounceLayers);
-  const int planes = total_planes + used_layers;
+  const int planes = total_planes + used_layers + (options.coherent ? 2 * used_layers : 0);
+  auto complex_layer_plane = [&](int layer) { return total_planes + used_layers + 2 * layer; };
 
   // Tiles: blocks of 16 image rows' worth of azimuth ray rows, in parallel.
   // Each accumulates into a band of image rows in its thread's buffer (plus
@@ -504,12 +506,16 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               // mirror paths: deterministic path phase.
               const double phase = wavenumber2 * range;
               const double amplitude = bounce > 1 ? 2.0 * std::sqrt(value / reciprocal) : std::sqrt(value);
-              if (bounce == 1) {
-                SplatFootprintPhasors(band, width, col, row, std::max(0.0, box_cols), box_rows, amplitude, phase,
-                                      options.seed, ray_id, uint64_t(phase_key));
-              } else {
-                Splat(band, width, 0, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
-                Splat(band, width, 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
+              // The same phasor into the total and into its bounce's complex
+              // band, so the complex bands add up to the complex total.
+              for (const int plane : {0, complex_layer_plane(layer)}) {
+                if (bounce == 1) {
+                  SplatFootprintPhasors(band, width, plane, col, row, std::max(0.0, box_cols), box_rows, amplitude,
+                                        phase, options.seed, ray_id, uint64_t(phase_key));
+                } else {
+                  Splat(band, width, plane, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
+                  Splat(band, width, plane + 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
+                }
               }
             } else {
               deposit(0);
@@ -696,6 +702,15 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     }
     image.real = std::move(full[0]);
     image.imag = std::move(full[1]);
+    for (int layer = 0; layer < kBounceLayers; ++layer) {
+      if (layer < used_layers) {
+        image.bounce_real[layer] = std::move(full[complex_layer_plane(layer)]);
+        image.bounce_imag[layer] = std::move(full[complex_layer_plane(layer) + 1]);
+      } else {
+        image.bounce_real[layer].assign(size_t(width) * height, 0.0f);
+        image.bounce_imag[layer].assign(size_t(width) * height, 0.0f);
+      }
+    }
   } else {
     image.intensity = std::move(full[0]);
   }
