@@ -90,6 +90,15 @@ void AddPointPhasor(std::vector<float>& re, std::vector<float>& im, int width, i
 
 }  // namespace
 
+void AddPointIntensities(render::SarImage& image, const SensorEffects& effects) {
+  const int w = image.width, h = image.height;
+  for (const render::PointReturn& p : image.points) {
+    AddPointIntensity(image.intensity, w, h, p.col, p.row, p.beta0_sum, effects);
+    auto& layer = image.bounce_layers[p.layer];
+    if (layer.size() == image.intensity.size()) AddPointIntensity(layer, w, h, p.col, p.row, p.beta0_sum, effects);
+  }
+}
+
 void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
                         const std::vector<double>& incidence_deg) {
   GISSAR_CHECK(incidence_deg.size() == size_t(image.width));
@@ -113,6 +122,11 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
     if (coherent) {
       ApplyComplexImpulseResponse(image.real, image.imag, w, h, effects.range_resolution_px,
                                   effects.azimuth_resolution_px, effects.window);
+      for (size_t b = 0; b < image.bounce_real.size(); ++b) {
+        if (image.bounce_real[b].size() != image.real.size()) continue;
+        ApplyComplexImpulseResponse(image.bounce_real[b], image.bounce_imag[b], w, h, effects.range_resolution_px,
+                                    effects.azimuth_resolution_px, effects.window);
+      }
     }
   }
   if (correlated_speckle) {
@@ -138,6 +152,11 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
     if (coherent) {
       AddPointPhasor(image.real, image.imag, w, h, p.col, p.row, std::sqrt(p.beta0_sum), wavenumber2 * p.range_m,
                      effects);
+      if (p.layer >= 0 && p.layer < static_cast<int>(image.bounce_real.size()) &&
+          image.bounce_real[p.layer].size() == image.real.size()) {
+        AddPointPhasor(image.bounce_real[p.layer], image.bounce_imag[p.layer], w, h, p.col, p.row,
+                       std::sqrt(p.beta0_sum), wavenumber2 * p.range_m, effects);
+      }
     } else {
       AddPointIntensity(image.intensity, w, h, p.col, p.row, p.beta0_sum, effects);
     }
@@ -150,9 +169,18 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
     sqrt_target[c] = std::sqrt(to_target[c]);
   }
   for (auto* band : layers) ScaleColumns(*band, w, h, to_sigma0);
+  auto complex_bounces = [&](auto&& f) {
+    for (size_t b = 0; b < image.bounce_real.size(); ++b) {
+      if (image.bounce_real[b].size() == image.real.size()) f(image.bounce_real[b], image.bounce_imag[b], b);
+    }
+  };
   if (coherent) {
     ScaleColumns(image.real, w, h, sqrt_sigma0);
     ScaleColumns(image.imag, w, h, sqrt_sigma0);
+    complex_bounces([&](std::vector<float>& re, std::vector<float>& im, size_t) {
+      ScaleColumns(re, w, h, sqrt_sigma0);
+      ScaleColumns(im, w, h, sqrt_sigma0);
+    });
     if (!std::isnan(effects.nesz_db)) AddComplexThermalNoise(image.real, image.imag, effects.nesz_db, effects.seed);
   } else {
     ScaleColumns(image.intensity, w, h, to_sigma0);
@@ -163,6 +191,10 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
     if (coherent) {
       ScaleColumns(image.real, w, h, sqrt_target);
       ScaleColumns(image.imag, w, h, sqrt_target);
+      complex_bounces([&](std::vector<float>& re, std::vector<float>& im, size_t) {
+        ScaleColumns(re, w, h, sqrt_target);
+        ScaleColumns(im, w, h, sqrt_target);
+      });
     } else {
       ScaleColumns(image.intensity, w, h, to_target);
     }
@@ -171,6 +203,11 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
     for (size_t k = 0; k < image.intensity.size(); ++k) {
       image.intensity[k] = image.real[k] * image.real[k] + image.imag[k] * image.imag[k];
     }
+    // The bounce bands: the detected power of their complex images.
+    complex_bounces([&](std::vector<float>& re, std::vector<float>& im, size_t b) {
+      if (image.bounce_layers[b].size() != re.size()) return;
+      for (size_t k = 0; k < re.size(); ++k) image.bounce_layers[b][k] = re[k] * re[k] + im[k] * im[k];
+    });
   }
   if (effects.db) {
     ToDecibels(image.intensity);

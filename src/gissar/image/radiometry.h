@@ -47,7 +47,9 @@ void ToDecibels(std::vector<float>& image);
 // Coherent (image.real/imag set; speckle must be 0): the complex image is
 // convolved with the amplitude response (before detection), the point
 // returns are added as phasors of phase 4 pi r / lambda, the total is
-// detected; the bounce bands stay incoherent intensities (steps 1 and 3).
+// detected; the complex bounce images (image.bounce_real/bounce_imag) take
+// the same response, phasors and scaling, and each bounce band becomes
+// their detected power (so the complex bands add up to the complex total).
 // Then, in both modes: conversion to sigma0; thermal noise of mean power
 // nesz_db (dB sigma0; NaN = off) on the total (complex noise in coherent
 // mode); conversion to `radiometry` (the complex planes by the square root
@@ -63,6 +65,13 @@ struct SensorEffects {
   bool db = false;
   double wavelength_m = 0.031;  // phase of the point returns
 };
+
+// Adds every point return of image.points (incoherent) to the total and to
+// its bounce band, with the intensity impulse response of `effects` centred
+// on it, integrating to its beta0_sum (the part of ApplySensorEffects'
+// step 3 for images that take no other sensor effect from it, e.g. product
+// grids).
+void AddPointIntensities(render::SarImage& image, const SensorEffects& effects);
 
 // Applies `effects` to `image` (beta0 on entry), with incidence_deg[c] the
 // ellipsoid incidence of column c. CHECKs the sizes and that a coherent

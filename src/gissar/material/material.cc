@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <stdexcept>
 
 #include "gissar/util/error.h"
 
@@ -71,7 +72,10 @@ double BraggSigma0(const Material& m, double theta, double wavelength_m, Polariz
     t = std::max(std::abs(t), 10.0 * kDeg);  // SPM is not valid near nadir
     const auto [ghh, gvv] = BraggCoefficients(eps, t);
     const double b = ElfouhailyCurvature(2.0 * k * std::sin(t), m.wind_speed_m_s);
-    const double geom = std::pow(std::cos(t), 4.0) / (8.0 * std::pow(std::sin(t), 4.0)) * b;
+    // sigma0 = 16 pi k^4 cos^4 |g|^2 Psi(K) (Wright 1968, Valenzuela 1978)
+    // with the isotropic Elfouhaily spectrum Psi(K) = B(K) / (2 pi K^4),
+    // K = 2 k sin(theta): cos^4 |g|^2 B / (2 sin^4).
+    const double geom = std::pow(std::cos(t), 4.0) / (2.0 * std::pow(std::sin(t), 4.0)) * b;
     switch (pol) {
       case Polarization::kVV:
         return std::norm(gvv) * geom;
@@ -114,6 +118,62 @@ constexpr double kTableStepDeg = 0.05;
 constexpr int kTableSamples = 1800;  // 90 deg / step
 
 }  // namespace
+
+double FresnelReflectivity(std::complex<double> eps, double cos_incidence, Polarization pol) {
+  if (!(cos_incidence > 0.0)) return 0.0;
+  const double theta = std::acos(std::min(1.0, cos_incidence));
+  const auto [gh, gv] = Fresnel(eps, theta);
+  switch (pol) {
+    case Polarization::kHH: return gh;
+    case Polarization::kVV: return gv;
+    default: return 0.5 * (gh + gv);
+  }
+}
+
+std::complex<double> Material::EffectivePermittivity(double wavelength_m) const {
+  return model == ScatteringModel::kBragg ? WaterPermittivity(wavelength_m, salinity_psu) : permittivity;
+}
+
+double Material::MirrorReflectivity(double cos_incidence, double wavelength_m, Polarization pol) const {
+  if (!(mirror > 0.0)) return 0.0;
+  return mirror * FresnelReflectivity(EffectivePermittivity(wavelength_m), cos_incidence, pol);
+}
+
+double Material::BistaticSigma0(double cos_in, double cos_out, double cos_spec) const {
+  if (!(cos_in > 0.0) || !(cos_out > 0.0)) return 0.0;
+  double value = diffuse * cos_in * cos_out;
+  if (specular > 0.0 && cos_spec > 0.0) {
+    value += specular * std::pow(std::min(1.0, cos_spec), 1.0 / roughness) * std::sqrt(cos_in * cos_out);
+  }
+  return 4.0 * value * std::pow(10.0, gain_db / 10.0);
+}
+
+double PathRcsPerArea(const std::vector<PathVertex>& vertices, int scatter, const Eigen::Vector3d& to_source,
+                      const Eigen::Vector3d& to_receiver, double wavelength_m, Polarization pol) {
+  const int n = static_cast<int>(vertices.size());
+  if (n == 0 || scatter < 0 || scatter >= n) throw std::invalid_argument("PathRcsPerArea: bad path or scatter index");
+  double value = 1.0;
+  for (int i = 0; i < n; ++i) {
+    const PathVertex& v = vertices[i];
+    if (v.material == nullptr) throw std::invalid_argument("PathRcsPerArea: vertex without material");
+    // Unit directions from this vertex back along the incoming segment and
+    // on along the outgoing one.
+    const Eigen::Vector3d back = i == 0 ? to_source : (vertices[i - 1].point - v.point).normalized();
+    const Eigen::Vector3d on = i == n - 1 ? to_receiver : (vertices[i + 1].point - v.point).normalized();
+    const double cos_in = v.normal.dot(back), cos_out = v.normal.dot(on);
+    if (!(cos_in > 0.0) || !(cos_out > 0.0)) return 0.0;
+    if (i == scatter) {
+      const Eigen::Vector3d mirror_dir = 2.0 * cos_in * v.normal - back;  // mirror image of the incident ray
+      value *= v.material->BistaticSigma0(cos_in, cos_out, mirror_dir.dot(on));
+    } else {
+      // Incidence: half the angle between the two directions (exact for a
+      // mirror geometry, where back . on = cos(2 theta)).
+      const double cos_half = std::sqrt(std::max(0.0, 0.5 * (1.0 + back.dot(on))));
+      value *= v.material->MirrorReflectivity(cos_half, wavelength_m, pol);
+    }
+  }
+  return value;
+}
 
 Polarization ParsePolarization(const std::string& text, const std::string& option) {
   std::string up = text;

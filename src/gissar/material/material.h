@@ -11,9 +11,12 @@
 // vegetation, a user table of (incidence, dB) pairs, or the legacy
 // Lambertian+specular law (sigma0 = 4 cos(theta) times the returned share).
 //
-// Later bounces (bistatic) use the RaySAR-style terms: a Lambertian diffuse
-// share, a specular cone whose width follows `roughness`, and a mirror share
-// that continues the ray. Energy: diffuse + mirror <= 1.
+// Later bounces (bistatic) use the RaySAR-style terms written as a
+// reciprocal bistatic scattering coefficient (BistaticSigma0: a Lambertian
+// diffuse share and a specular cone whose width follows `roughness`,
+// symmetric in the incident and scattered directions), and a mirror share
+// that continues the ray with the Fresnel reflectivity of the class's
+// permittivity (MirrorReflectivity). Energy: diffuse + mirror <= 1.
 #pragma once
 
 #include <array>
@@ -22,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include "gissar/scene/scene_config.h"
@@ -50,6 +54,13 @@ std::complex<double> WaterPermittivity(double wavelength_m, double salinity_psu)
 // 1e-5 (calm water below the capillary threshold).
 double ElfouhailyCurvature(double k_rad_m, double u10_m_s);
 
+// Fresnel power reflectivity |Gamma_p|^2 of a smooth half-space of relative
+// permittivity eps (eps' - j eps'', stored as (eps', -eps'')) at
+// cos(incidence) `cos_incidence` in (0, 1]: |Gamma_h|^2 for HH, |Gamma_v|^2
+// for VV, and their mean for HV/VH (the rotation of the polarisation basis
+// along a multi-bounce path is not modelled). 0 for cos_incidence <= 0.
+double FresnelReflectivity(std::complex<double> eps, double cos_incidence, Polarization pol);
+
 struct Material {
   std::string name = "default";
   // Bistatic (later-bounce) terms and the legacy single-bounce law.
@@ -61,7 +72,9 @@ struct Material {
   double specular = 0.0;
   // In (0, 1]: small values give a narrow cone (smooth surface).
   double roughness = 1.0;
-  // Share of the power that continues as a mirror-reflected ray.
+  // Coherent (mirror) share: the fraction of the smooth-surface Fresnel
+  // reflection that continues as a mirror-reflected ray (1 = a perfectly
+  // smooth surface; MirrorReflectivity).
   double mirror = 0.0;
 
   // Single-bounce law and its parameters.
@@ -93,6 +106,26 @@ struct Material {
   // sigma0 (linear, m^2/m^2) at cos(local incidence) `cos_incidence` for
   // `wavelength_m` and `pol`; 0 for cos_incidence <= 0.
   double Sigma0(double cos_incidence, double wavelength_m, Polarization pol) const;
+
+  // The permittivity of the Fresnel terms: Debye water at `wavelength_m`
+  // (WaterPermittivity with salinity_psu) for kBragg, else `permittivity`.
+  std::complex<double> EffectivePermittivity(double wavelength_m) const;
+
+  // Power carried on by the mirror ray at cos(local incidence)
+  // `cos_incidence`: mirror * FresnelReflectivity(EffectivePermittivity,
+  // cos_incidence, pol) (the same for either direction of travel).
+  double MirrorReflectivity(double cos_incidence, double wavelength_m, Polarization pol) const;
+
+  // Bistatic scattering coefficient (m^2 of RCS per m^2 of surface) from an
+  // incident direction at cos(incidence) `cos_in` into a scattered direction
+  // at cos(angle from the normal) `cos_out`, `cos_spec` the cosine between
+  // the scattered direction and the mirror direction of the incident one:
+  //   4 (diffuse cos_in cos_out + specular cos_spec^(1/roughness) sqrt(cos_in cos_out)),
+  // times the class gain. Symmetric under exchanging the incident and
+  // scattered directions (reciprocity); its monostatic value (cos_in =
+  // cos_out, cos_spec = cos 2 theta) is the kLambert law of Sigma0. 0 when
+  // either cosine is <= 0; no specular term for cos_spec <= 0.
+  double BistaticSigma0(double cos_in, double cos_out, double cos_spec) const;
 
   // Throws ConfigError naming the material when a coefficient is negative,
   // above 1, not finite, roughness is not in (0, 1], diffuse + mirror > 1
@@ -134,6 +167,28 @@ class MaterialTable {
  private:
   std::vector<Material> materials_;
 };
+
+// One vertex of a multi-bounce path (far field): its point, its unit
+// surface normal and its material.
+struct PathVertex {
+  Eigen::Vector3d point;
+  Eigen::Vector3d normal;
+  const Material* material = nullptr;
+};
+
+// RCS per m^2 of surface at the scattering vertex of a path on which a plane
+// wave arrives from the direction `to_source` (unit, pointing from
+// vertices[0] towards the source), meets vertices[0], ..., vertices[n-1] in
+// order and leaves vertices[n-1] towards `to_receiver` (unit). Vertex
+// `scatter` scatters with its BistaticSigma0; every other vertex is a mirror
+// with its MirrorReflectivity at the half angle between its incoming and
+// outgoing directions (its incidence for an exact mirror geometry). 0 when a
+// direction meets a vertex from behind. Reciprocal: the reversed path
+// (vertices reversed, scatter -> n-1-scatter, to_source and to_receiver
+// swapped) gives the same value. Throws std::invalid_argument for an empty
+// path, a scatter index out of range or a null material.
+double PathRcsPerArea(const std::vector<PathVertex>& vertices, int scatter, const Eigen::Vector3d& to_source,
+                      const Eigen::Vector3d& to_receiver, double wavelength_m, Polarization pol);
 
 // The default material of each scene class (docs/radiometry.md names the
 // source of every number): bare terrain (`default`) Oh 1992 on dry soil,

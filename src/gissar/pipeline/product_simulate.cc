@@ -11,6 +11,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/reference_geolocation.h"
 #include "gissar/image/impulse_response.h"
+#include "gissar/image/radiometry.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/image/side_by_side.h"
 #include "gissar/render/embree_scene.h"
@@ -67,6 +68,7 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   const render::EmbreeScene embree(terrain.mesh);
   render::RenderOptions ro = RenderOptionsOf(options, &reporter);
   ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
+  ro.reflectors = PlaceReflectors(options, terrain, embree);
   sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
   sim.ground_speed_mps = sim.image.tracing_geometry.azimuth_spacing_m / sim.grid.dt_s;
   say(std::to_string(sim.image.geolocated) + " pixels geolocated, " + std::to_string(sim.image.contributions) +
@@ -78,6 +80,11 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
                               options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m,
                               image::ParseSpectralWindow(options.psf_window, "--psf-window"));
   if (options.speckle_looks >= 1.0) image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
+  image::SensorEffects point_response;  // reflectors: the same impulse response, added after the speckle
+  point_response.range_resolution_px = options.range_resolution_m / sim.grid.dr_m;
+  point_response.azimuth_resolution_px = options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m;
+  point_response.window = image::ParseSpectralWindow(options.psf_window, "--psf-window");
+  image::AddPointIntensities(image, point_response);
   if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
   sim.terrain = terrain.description;
   sim.frame = {{"origin_lon_deg", terrain.frame.origin_lon_deg()},
@@ -186,6 +193,7 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
                          {"hits", image.stats.hits},
                          {"returns_reprojected", sim.image.contributions},
                          {"pixels_geolocated", sim.image.geolocated},
+                         {"reflector_returns", image.points.size()},
                          {"mask_pixels", MaskPixelCounts(image.mask)}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db}, {"percentiles", {2, 98}}};
   provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};

@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/warp.h"
 #include "gissar/util/error.h"
@@ -122,6 +126,59 @@ TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
   EXPECT_GT(r.report["correlation"][1]["r_db"].get<double>(), 0.135);
   EXPECT_GT(r.report["correlation"][2]["r_db"].get<double>(), 0.120);
 }
+// A trihedral (a = 1 m) on the San Andreas product grid, its boresight on
+// the sensor (the tracing geometry's heading and depression): the
+// difference between runs with and without it integrates to its physical
+// optics RCS 4 pi a^4 / (3 lambda^2) at the product's wavelength.
+TEST(ValidateTest, ReflectorOnTheProductGridHasItsClosedFormRcs) {
+  const auto dir = MakeTempDir();
+  SimulateRequest s;
+  s.product = DataPath("uavsar/SanAnd_129.h5").string();
+  s.dem = DataPath("uavsar/SanAnd_dem.tif").string();
+  s.out_prefix = (dir / "plain").string();
+  RunSimulate(s, "test");
+  const geo::FloatRaster plain = geo::ReadFloatRaster(dir / "plain.tif");
+  nlohmann::json side;
+  std::ifstream(dir / "plain.json") >> side;
+  const nlohmann::json& product = side["product"];
+  const double heading = product["tracing_geometry"]["heading_deg"].get<double>();
+  const double depression = product["tracing_geometry"]["depression_deg"].get<double>();
+  const double lambda = product["wavelength_m"].get<double>();
+  const double pixel_area_m2 =
+      product["slant_range_spacing_m"].get<double>() * product["tracing_geometry"]["azimuth_spacing_m"].get<double>();
+  const bool left = product["look_side"].get<std::string>() == "left";
+  // The ground point of the central pixel (bands 6/7: lon, lat).
+  const size_t centre = size_t(75) * 200 + 100;
+  const double lon = plain.bands[5][centre], lat = plain.bands[6][centre];
+  ASSERT_TRUE(std::isfinite(lon) && std::isfinite(lat));
+  {
+    std::ofstream csv(dir / "r.csv");
+    csv.precision(10);
+    csv << "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n"
+        << "trihedral," << lon << "," << lat << ",3,1," << heading + (left ? 90.0 : -90.0) << "," << depression << "\n";
+  }
+  s.reflectors = (dir / "r.csv").string();
+  s.out_prefix = (dir / "with").string();
+  RunSimulate(s, "test");
+  const geo::FloatRaster with = geo::ReadFloatRaster(dir / "with.tif");
+  double sum = 0, peak = 0;
+  size_t at = 0;
+  for (size_t k = 0; k < with.bands[0].size(); ++k) {
+    const double d = double(with.bands[0][k]) - double(plain.bands[0][k]);
+    sum += d;
+    if (d > peak) peak = d, at = k;
+  }
+  const double rcs_db = 10 * std::log10(sum * pixel_area_m2);
+  const double closed_db = 10 * std::log10(4 * M_PI / (3 * lambda * lambda));
+  std::printf("[ measured ] trihedral a = 1 m on the product grid (lambda %.4f m): %.2f dBm2, closed form %.2f\n",
+              lambda, rcs_db, closed_db);
+  EXPECT_NEAR(rcs_db, closed_db, 0.2);
+  // It lands on the pixel whose ground point it stands on (3 m above it:
+  // within a pixel in range).
+  EXPECT_LE(std::abs(int(at / 200) - 75), 1);
+  EXPECT_LE(std::abs(int(at % 200) - 100), 2);
+}
+
 
 TEST(ValidateTest, RejectsBadOptions) {
   ValidateRequest o;

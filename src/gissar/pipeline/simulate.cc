@@ -104,9 +104,6 @@ void SimulateRequest::Check() const {
   if (!reflectors.empty() && engine == "raster") {
     throw ConfigError("the raster engine renders no reflectors (use --engine trace)", "--engine/--reflectors");
   }
-  if (!reflectors.empty() && !product.empty()) {
-    throw ConfigError("reflectors are not rendered on product grids yet", "--product/--reflectors");
-  }
   material::ParsePolarization(polarization, "--polarization");
   if (coherent && speckle_looks > 0.0) {
     throw ConfigError("coherent mode forms its own speckle; do not add simulated speckle",

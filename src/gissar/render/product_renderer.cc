@@ -176,6 +176,20 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
       image.mask[k] = traced.mask[size_t(r) * geometry.width() + c];
     }
   }
+  // 6. Canonical reflectors: RCS, pattern and visibility as in the tracing
+  // geometry (RenderSar), the phase centre placed with the real geometry.
+  for (const SceneReflector& r : options.reflectors) {
+    const std::vector<PointReturn> seen = ReflectorReturns(embree, {r}, geometry, options.wavelength_m);
+    if (seen.empty()) continue;
+    const double along = geometry.AlongTrack(r.apex_enu);
+    const auto rc = sensor::Geo2Rdr(orbit, EcefOfEnu(frame, r.apex_enu), t_c + along / ground_speed);
+    if (!rc) continue;
+    PointReturn p = seen.front();
+    p.col = grid.ColOfRange(rc->range_m);
+    p.row = grid.RowOfTime(rc->time_s);
+    p.range_m = rc->range_m;
+    image.points.push_back(p);
+  }
   image.stats = traced.stats;
   return out;
 }

@@ -46,7 +46,10 @@ sensor::HeightFunction SceneHeightFunction(const EmbreeScene& embree, const scen
 // from `orbit`. options.coherent is not supported (ConfigError): the
 // re-projection moves returns by fractions of a pixel, which would break the
 // phase model. Throws InputError when no pixel of the grid reaches the
-// scene (the product lies outside the DEM).
+// scene (the product lies outside the DEM). options.reflectors come back as
+// image.points on the product grid (RCS and visibility as RenderSar gives
+// them; the phase centre by geo2rdr on the real orbit), for the sensor stage
+// (image::AddPointIntensities).
 ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                            const material::MaterialTable& materials, const geo::LocalFrame& frame,
                            const sensor::Orbit& orbit, const sensor::RadarGrid& grid,

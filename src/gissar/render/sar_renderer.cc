@@ -189,13 +189,13 @@ double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
 // (the parts of a footprint are independent scatterers), so that the
 // expected intensity of every pixel is the incoherent share, before and
 // after any linear filtering. Pixels outside the band go to the overflow.
-void SplatFootprintPhasors(Band& band, int width, double col, double row, double wc, double wr, double amplitude,
-                           double phase, uint64_t seed, uint64_t ray_id, uint64_t key) {
+void SplatFootprintPhasors(Band& band, int width, int plane, double col, double row, double wc, double wr,
+                           double amplitude, double phase, uint64_t seed, uint64_t ray_id, uint64_t key) {
   double cs[kMaxShares], rs[kMaxShares];
   int c0 = 0, r0 = 0;
   const int nc = FootprintShares(col, wc, &c0, cs), nr = FootprintShares(row, wr, &r0, rs);
-  float* plane_re = band.values;
-  float* plane_im = band.values + size_t(band.rows) * width;
+  float* plane_re = band.values + size_t(plane) * band.rows * width;
+  float* plane_im = plane_re + size_t(band.rows) * width;
   for (int j = 0; j < nr; ++j) {
     if (rs[j] == 0.0) continue;
     const int r = r0 + j;
@@ -206,8 +206,8 @@ void SplatFootprintPhasors(Band& band, int width, double col, double row, double
       const double a = amplitude * std::sqrt(rs[j] * cs[i]);
       const float re = static_cast<float>(a * std::cos(phase + micro)), im = static_cast<float>(a * std::sin(phase + micro));
       if (r < band.row0 || r >= band.row0 + band.rows) {
-        band.overflow->push_back({0, double(c), double(r), re, true});
-        band.overflow->push_back({1, double(c), double(r), im, true});
+        band.overflow->push_back({plane, double(c), double(r), re, true});
+        band.overflow->push_back({plane + 1, double(c), double(r), im, true});
         continue;
       }
       const size_t k = size_t(r - band.row0) * width + c;
@@ -370,13 +370,14 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   auto sigma0_of = [&](scene::ClassId id, double cos_in) {
     return sigma0_tables[id < sigma0_tables.size() ? id : 0](cos_in);
   };
-  auto gain_of = [&](scene::ClassId id) { return std::pow(10.0, materials.Get(id).gain_db / 10.0); };
 
   // Planes: total intensity (coherent: real and imaginary amplitude), then
   // one per bounce count that can occur (the others stay zero).
+  // Coherent mode adds a real and an imaginary plane per bounce count.
   const int total_planes = options.coherent ? 2 : 1;
   const int used_layers = std::min(options.max_bounces, kBounceLayers);
-  const int planes = total_planes + used_layers;
+  const int planes = total_planes + used_layers + (options.coherent ? 2 * used_layers : 0);
+  auto complex_layer_plane = [&](int layer) { return total_planes + used_layers + 2 * layer; };
 
   // Tiles: blocks of 16 image rows' worth of azimuth ray rows, in parallel.
   // Each accumulates into a band of image rows in its thread's buffer (plus
@@ -494,18 +495,27 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 Splat(band, width, plane, col, row, static_cast<float>(value));
               }
             };
+            // A later-bounce return stands for its path and the reversed
+            // path (same length, same power): twice the power; in coherent
+            // mode the two add in phase.
+            const double reciprocal = bounce > 1 ? 2.0 : 1.0;
+            value *= reciprocal;
             deposit(total_planes + layer);
             if (options.coherent) {
               // Rough-surface (first-bounce) returns: random micro-phase;
               // mirror paths: deterministic path phase.
               const double phase = wavenumber2 * range;
-              const double amplitude = std::sqrt(value);
-              if (bounce == 1) {
-                SplatFootprintPhasors(band, width, col, row, std::max(0.0, box_cols), box_rows, amplitude, phase,
-                                      options.seed, ray_id, uint64_t(phase_key));
-              } else {
-                Splat(band, width, 0, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
-                Splat(band, width, 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
+              const double amplitude = bounce > 1 ? 2.0 * std::sqrt(value / reciprocal) : std::sqrt(value);
+              // The same phasor into the total and into its bounce's complex
+              // band, so the complex bands add up to the complex total.
+              for (const int plane : {0, complex_layer_plane(layer)}) {
+                if (bounce == 1) {
+                  SplatFootprintPhasors(band, width, plane, col, row, std::max(0.0, box_cols), box_rows, amplitude,
+                                        phase, options.seed, ray_id, uint64_t(phase_key));
+                } else {
+                  Splat(band, width, plane, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
+                  Splat(band, width, plane + 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
+                }
               }
             } else {
               deposit(0);
@@ -622,22 +632,33 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 value = 0.0;  // returned by the sub-rays
               }
             } else {
+              // The mirror chain so far ends here and scatters back to the
+              // radar (reciprocal bistatic law). Its reversed path (radar ->
+              // this point -> the mirrors in reverse order -> radar) has
+              // the same length and, by reciprocity, the same power
+              // (material::PathRcsPerArea); the tracer does not follow it
+              // from the other end, so it is added here: twice the power
+              // (incoherent), twice the amplitude in phase (coherent).
               const double cos_out = normal.dot(to_radar);
               if (cos_out > 0.0 &&
                   !embree.Occluded(p.cast<float>(), to_radar.cast<float>(), eps,
                                    static_cast<float>(affine ? far_affine : back))) {
-                diffuse_part = m.diffuse * cos_out;
                 const double cos_spec = mirror.dot(to_radar);
-                if (cos_spec > 0.0 && m.specular > 0.0) specular_part = m.specular * std::pow(cos_spec, 1.0 / m.roughness);
+                diffuse_part = m.BistaticSigma0(cos_in, cos_out, -1.0);
+                specular_part = m.BistaticSigma0(cos_in, cos_out, cos_spec) - diffuse_part;
               }
-              value = 4.0 * area * share * (diffuse_part + specular_part) * gain_of(class_id) * inv_pixel_area;
+              // RCS of the path: bistatic sigma0 times the surface the ray's
+              // cross-section covers here (area / cos_in), times the mirror
+              // reflectivities on the way.
+              value = (diffuse_part + specular_part) * area / std::max(cos_in, kMaskEdgeOnCos) * share * inv_pixel_area;
             }
             if (value > 0.0) {
               emit(value, 0.5 * (travelled + back), 0.5 * (a + a_p), box_cols, box_rows, bounce, bounce, p,
                    mesh.classes[hit->triangle], specular_part > diffuse_part);
             }
-            // Continue as the mirror ray.
-            share *= m.mirror;
+            // Continue as the mirror ray, with the class's Fresnel mirror
+            // reflectivity at this incidence.
+            share *= m.MirrorReflectivity(cos_in, options.wavelength_m, options.polarization);
             if (share < 1e-9) break;
             origin = p;
             dir = mirror.normalized();
@@ -683,6 +704,15 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     }
     image.real = std::move(full[0]);
     image.imag = std::move(full[1]);
+    for (int layer = 0; layer < kBounceLayers; ++layer) {
+      if (layer < used_layers) {
+        image.bounce_real[layer] = std::move(full[complex_layer_plane(layer)]);
+        image.bounce_imag[layer] = std::move(full[complex_layer_plane(layer) + 1]);
+      } else {
+        image.bounce_real[layer].assign(size_t(width) * height, 0.0f);
+        image.bounce_imag[layer].assign(size_t(width) * height, 0.0f);
+      }
+    }
   } else {
     image.intensity = std::move(full[0]);
   }

@@ -113,12 +113,17 @@ struct SarImage {
   // range_spacing_m * azimuth_spacing_m; all bounces (coherent sum in
   // coherent mode).
   std::vector<float> intensity;
-  // Intensity per bounce count (incoherent): [0] single, [1] double,
-  // [2] triple, [3] four or more.
+  // Intensity per bounce count: [0] single, [1] double, [2] triple, [3] four
+  // or more (incoherent sums; after image::ApplySensorEffects in coherent
+  // mode, the detected power of bounce_real/bounce_imag).
   std::array<std::vector<float>, kBounceLayers> bounce_layers;
   // Coherent mode: the complex image (amplitude sqrt(beta0)) before the
   // sensor stage; `intensity` is its detected power. Empty otherwise.
   std::vector<float> real, imag;
+  // Coherent mode: the complex image of each bounce count (same layers as
+  // bounce_layers); they add up to real/imag (before thermal noise). Empty
+  // otherwise.
+  std::array<std::vector<float>, kBounceLayers> bounce_real, bounce_imag;
   // Canonical reflectors' returns (added by the sensor stage).
   std::vector<PointReturn> points;
   std::vector<Contribution> contributions;  // when record_contributions
