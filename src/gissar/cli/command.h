@@ -76,5 +76,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry);
 void AddNavCommands(CLI::App& root, CommandRegistry& registry);
 // Declares `gissar validate` (product_command.cc).
 void AddProductCommands(CLI::App& root, CommandRegistry& registry);
+// Declares `gissar geocode` (geocode_command.cc).
+void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli
