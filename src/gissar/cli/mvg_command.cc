@@ -87,10 +87,12 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--image1", o->image1, "Image 1")->required();
     cmd->add_option("--image2", o->image2, "Image 2")->required();
     cmd->add_option("--threshold", o->threshold_px, "RANSAC threshold, pixels")->capture_default_str();
-    cmd->add_option("--out", o->out_png, "Output PNG")->required();
+    cmd->add_option("--out", o->out_png, "Output prefix: PREFIX.png")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      RunEpipolar(*o);
-      context.out << o->out_png << "\n";
+      EpipolarRequest resolved = *o;
+      resolved.out_png = PrefixedOutput(o->out_png, ".png");
+      RunEpipolar(resolved);
+      context.out << resolved.out_png << "\n";
     });
   }
   {
@@ -99,10 +101,12 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
         "composite", "Green/magenta composite of two co-registered images (grey where they agree).");
     cmd->add_option("--green", o->green, "First image (e.g. the real one), band 1 linear intensity")->required();
     cmd->add_option("--magenta", o->magenta, "Second image (e.g. the simulation), same size")->required();
-    cmd->add_option("--out", o->out_png, "Output PNG")->required();
+    cmd->add_option("--out", o->out_png, "Output prefix: PREFIX.png")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      RunComposite(*o);
-      context.out << o->out_png << "\n";
+      CompositeRequest resolved = *o;
+      resolved.out_png = PrefixedOutput(o->out_png, ".png");
+      RunComposite(resolved);
+      context.out << resolved.out_png << "\n";
     });
   }
 }
