@@ -156,7 +156,7 @@ TEST(FmatrixCommandTest, DegenerateInputIsAClearError) {
       {csv("columns.csv", "x1,y1,x2\n1,2,3\n"), "columns.csv"},
   };
   for (const Case& c : cases) {
-    const Outcome o = RunGissar({"fmatrix", "--matches", c.file, "--json", (dir / "out.json").string()});
+    const Outcome o = RunGissar({"fmatrix", "--matches", c.file, "--out", (dir / "out").string()});
     const std::string& err = o.err;
     EXPECT_EQ(o.status, 2) << c.file;
     EXPECT_EQ(err.rfind("gissar: error: ", 0), 0u) << err;
@@ -354,9 +354,8 @@ TEST(HelpWalkTest, EveryCommandHasTheSharedFlagsWithOneMeaning) {
   const std::vector<std::vector<std::string>> leaves = LeafCommands();
   ASSERT_GE(leaves.size(), 15u);  // simulate, scene build/info, ..., geocode
   const std::string reference = RunGissar({"simulate", "--help"}).out;
-  // `scene info` prints and writes no file; fmatrix and resect still name
-  // their JSON with --json FILE (not yet --out PREFIX: issue 19 remainder).
-  const std::vector<std::string> no_files = {"scene info", "fmatrix", "resect"};
+  // `scene info` prints and writes no file.
+  const std::vector<std::string> no_files = {"scene info"};
   for (const auto& leaf : leaves) {
     std::string name;
     for (const auto& w : leaf) name += (name.empty() ? "" : " ") + w;
@@ -371,12 +370,11 @@ TEST(HelpWalkTest, EveryCommandHasTheSharedFlagsWithOneMeaning) {
     const std::string out = FlagLine(help, "--out");
     if (std::find(no_files.begin(), no_files.end(), name) != no_files.end()) {
       EXPECT_EQ(out, "") << name;
-      if (name != "scene info") EXPECT_NE(FlagLine(help, "--json"), "") << name;
     } else {
       EXPECT_NE(out.find("Output prefix: PREFIX"), std::string::npos) << name << ": " << out;
     }
     // Old spellings are not listed as flags of their own.
-    for (const char* old : {"--range-res", "--azimuth-res", "--range"}) {
+    for (const char* old : {"--range-res", "--azimuth-res", "--range", "--json"}) {
       EXPECT_EQ(FlagLine(help, old), "") << name << " " << old;
     }
   }
