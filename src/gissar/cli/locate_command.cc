@@ -65,9 +65,13 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell")->capture_default_str();
+    auto no_floor = std::make_shared<bool>(false);
+    cmd->add_flag("--no-reference-floor", *no_floor,
+                  "References without the observed noise floor (--nesz): dark areas at -40 dB instead");
     registry.Add(cmd, [=](const CommandContext& context) {
       EvaluateRequest r = *o;
       r.compare_matchers = !*no_compare;
+      r.reference_floor = !*no_floor;
       RunEvaluate(r, context.command_line, context.reporter);
       context.out << r.out_prefix << ".json\n" << r.out_prefix << "_trials.csv\n" << r.out_prefix << "_hist.png\n";
     });

@@ -35,8 +35,8 @@ std::optional<NavPose> Moved(const NavScene& scene, const NavPose& pose, const S
   return p;
 }
 
-double Similarity(const Reference& ref, const cv::Mat& observed_log, int filter_px) {
-  const cv::Mat ref_log = LogIntensity(ref.intensity, ref.geometry.width(), ref.geometry.height(), filter_px);
+double Similarity(const Reference& ref, const cv::Mat& observed_log, int filter_px, double floor) {
+  const cv::Mat ref_log = LogIntensity(ref.intensity, ref.geometry.width(), ref.geometry.height(), filter_px, floor);
   return ImageNcc(ref_log, observed_log);
 }
 
@@ -133,6 +133,7 @@ void LocateOptions::Check() const {
   if (!(ransac_threshold_px > 0.0)) throw ConfigError("must be > 0", "ransac_threshold_px");
   if (min_matches < 6) throw ConfigError("must be >= 6", "min_matches");
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "polish_evaluations");
+  if (!(reference_floor > 0.0) || !std::isfinite(reference_floor)) throw ConfigError("must be > 0", "reference_floor");
 }
 
 sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model) {
@@ -203,10 +204,11 @@ Reference RenderReference(const NavScene& scene, const NavPose& pose, const Sens
 }
 
 ControlMatches MatchReference(const Reference& reference, const cv::Mat& observed_log, Matcher matcher,
-                              const MatchOptions& match, int filter_px, double ransac_threshold_px) {
+                              const MatchOptions& match, int filter_px, double ransac_threshold_px,
+                              double reference_floor) {
   ControlMatches out;
   const cv::Mat ref_log = LogIntensity(reference.intensity, reference.geometry.width(),
-                                       reference.geometry.height(), filter_px);
+                                       reference.geometry.height(), filter_px, reference_floor);
   const std::vector<Correspondence> corr = Match(matcher, ref_log, observed_log, match, reference.valid);
   out.raw = static_cast<int>(corr.size());
   if (corr.size() < 6) return out;
@@ -251,13 +253,13 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   for (int it = 0; it < options.max_iterations; ++it) {
     const Reference ref = RenderReference(scene, pose, model);
     ++result.renders;
-    if (it == 0) result.prior_similarity = Similarity(ref, obs_log, options.filter_px);
+    if (it == 0) result.prior_similarity = Similarity(ref, obs_log, options.filter_px, options.reference_floor);
     MatchOptions mo;
     mo.patch_px = options.patch_px;
     mo.step_px = options.step_px;
     mo.search_px = search;
     const ControlMatches cm = MatchReference(ref, obs_log, options.matcher, mo, options.filter_px,
-                                             options.ransac_threshold_px);
+                                             options.ransac_threshold_px, options.reference_floor);
     result.iterations = it + 1;
     result.matches = cm.raw;
     result.inliers = static_cast<int>(cm.world.size());
@@ -294,7 +296,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
       const auto p = Moved(scene, pose, model, q[0], q[1], q[2], q[3]);
       if (!p) return 2.0;
       ++result.renders;
-      return -Similarity(RenderReference(scene, *p, model), obs_log, options.filter_px);
+      return -Similarity(RenderReference(scene, *p, model), obs_log, options.filter_px, options.reference_floor);
     };
     std::vector<Eigen::Vector4d> simplex(5, Eigen::Vector4d::Zero());
     const Eigen::Vector4d steps(0.05, 0.1, 0.3 * model.range_spacing_m, 0.3 * model.azimuth_spacing_m);
@@ -341,7 +343,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   }
   result.pose = pose;
   result.sensor_enu = pose.SensorPosition(model.look_side);
-  result.similarity = Similarity(RenderReference(scene, pose, model), obs_log, options.filter_px);
+  result.similarity = Similarity(RenderReference(scene, pose, model), obs_log, options.filter_px, options.reference_floor);
   ++result.renders;
   result.seconds = clock.ElapsedSeconds();
   return result;

@@ -107,6 +107,11 @@ struct LocateOptions {
   double ransac_threshold_px = 1.5;
   int min_matches = 8;
   int polish_evaluations = 0;      // Nelder-Mead evaluations (renders); 0 = off
+  // Linear intensity added to the reference image before the log: the
+  // observed sensor's noise floor (its NESZ as a linear sigma0), so that the
+  // reference's dark areas (shadow, calm sea) read what the sensor records
+  // there instead of a far lower floor. The observed image keeps 1e-4.
+  double reference_floor = 1e-4;
   // Throws ConfigError naming the field for out-of-range values.
   void Check() const;
 };
@@ -144,8 +149,10 @@ struct ControlMatches {
   std::vector<Eigen::Vector2d> observed;
   int raw = 0;  // correspondences before the filter
 };
+// `reference_floor`: LocateOptions::reference_floor.
 ControlMatches MatchReference(const Reference& reference, const cv::Mat& observed_log, Matcher matcher,
-                              const MatchOptions& match, int filter_px, double ransac_threshold_px);
+                              const MatchOptions& match, int filter_px, double ransac_threshold_px,
+                              double reference_floor = 1e-4);
 
 }  // namespace gissar::nav
 

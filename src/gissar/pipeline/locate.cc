@@ -371,6 +371,11 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                                    options.spacing_m)) + 4;
   lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
   lo.step_px = options.step_px;
+  // The reference carries the observed image's noise floor (its NESZ, a
+  // property of the sensor): shadow and calm sea then read the same in both.
+  if (std::isfinite(options.nesz_db) && options.reference_floor) {
+    lo.reference_floor = std::max(lo.reference_floor, std::pow(10.0, options.nesz_db / 10.0));
+  }
 
   // True image centres are drawn where the whole image (and the prior's)
   // stays on the scene.
@@ -391,7 +396,8 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                "trial,heading_deg,depression_deg,centre_x_m,centre_y_m,sensor_x_m,sensor_y_m,sensor_z_m,"
                "prior_position_error_m,prior_heading_error_deg,converged,iterations,inliers,rms_px,"
                "position_error_m,horizontal_error_m,vertical_error_m,position_error_cells,heading_error_deg,"
-               "depression_error_deg,sigma_heading_deg,similarity,prior_similarity,seconds,success");
+               "depression_error_deg,sigma_heading_deg,similarity,prior_similarity,seconds,success,matches,"
+               "sigma_depression_deg,prior_east_m,prior_north_m,prior_up_m");
   const std::vector<nav::Matcher> matchers = {nav::Matcher::kNcc, nav::Matcher::kChamfer, nav::Matcher::kFeatures};
   if (options.compare_matchers) {
     for (nav::Matcher m : matchers) {
@@ -453,7 +459,8 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
       mo.step_px = lo.step_px;
       mo.search_px = lo.initial_search_px;
       for (size_t k = 0; k < matchers.size(); ++k) {
-        const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matchers[k], mo, lo.filter_px, lo.ransac_threshold_px);
+        const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matchers[k], mo, lo.filter_px, lo.ransac_threshold_px,
+                                                                lo.reference_floor);
         std::vector<double> errs;
         for (size_t i = 0; i < cm.world.size(); ++i) errs.push_back((cm.observed[i] - true_geometry.Project(cm.world[i])).norm());
         const double good = double(std::count_if(errs.begin(), errs.end(), [](double e) { return e < 1.0; }));
@@ -486,12 +493,18 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                  std::remainder(heading_prior - truth.heading_deg, 360.0), r.converged ? 1 : 0, r.iterations, r.inliers,
                  r.rms_px, e3, eh, d.z(), cells, e_heading, e_dep, r.heading_sigma_deg, r.similarity, r.prior_similarity,
                  r.seconds, success ? 1 : 0);
+    const Eigen::Vector3d prior_offset = prior->SensorPosition(look) - sensor_true;
+    std::fprintf(csv, ",%d,%.5f,%.2f,%.2f,%.2f", r.matches, r.depression_sigma_deg, prior_offset.x(),
+                 prior_offset.y(), prior_offset.z());
     for (const auto& m : mrow) std::fprintf(csv, ",%.0f,%.0f,%.0f,%.4f", m[0], m[1], m[2], m[3]);
     std::fprintf(csv, "\n");
     {
-      char line[192];
-      std::snprintf(line, sizeof(line), "evaluate: trial %d/%d: position error %.1f m (%.2f cells), heading %.3f deg, %s, %.2f s",
-                    trial + 1, options.trials, e3, cells, e_heading, success ? "ok" : "FAIL", r.seconds);
+      char line[320];
+      std::snprintf(line, sizeof(line),
+                    "evaluate: trial %d/%d: prior offset %.0f m; %d matches, %d inliers, rms %.2f px; position error "
+                    "%.1f m (%.2f cells), heading %.3f deg, depression %+.3f deg, %s, %.2f s",
+                    trial + 1, options.trials, (prior->SensorPosition(look) - sensor_true).norm(), r.matches,
+                    r.inliers, r.rms_px, e3, cells, e_heading, e_dep, success ? "ok" : "FAIL", r.seconds);
       reporter.Info(line);
       ThrowIfCancelled(reporter, "evaluate");
     }
@@ -537,6 +550,7 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                    {"prior_horizontal_m", options.prior_horizontal_m}, {"prior_vertical_m", options.prior_vertical_m},
                    {"prior_heading_deg", options.prior_heading_deg}, {"matcher", options.matcher},
                    {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", lo.step_px}, {"bounces", options.bounces},
+                   {"reference_floor", lo.reference_floor},
                    {"rays_per_cell", options.rays_per_cell}}},
       {"inputs", {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
       {"seconds", total.ElapsedSeconds()}};

@@ -85,6 +85,9 @@ struct EvaluateRequest {
   int polish_evaluations = 0;
   int bounces = 1;
   double rays_per_cell = 4.0;
+  // The reference images carry the observed image's noise floor (NESZ) as
+  // nav::LocateOptions::reference_floor (--no-reference-floor: 1e-4).
+  bool reference_floor = true;
   void Check() const;
 };
 // Returns the summary JSON (also written to PREFIX.json).

@@ -5,6 +5,7 @@
 
 #include "gissar/pipeline/product_simulate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <cstdio>
@@ -267,7 +268,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   // Sea from the heights as given (orthometric for SRTM-like DEMs), before
   // any datum change.
   std::vector<uint8_t> sea_posts;
-  if (options.sea == "auto" && options.engine != "raster") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
+  if (options.sea == "auto") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
   if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
   if (dem.filled_nodata_cells > 0) {
     reporter.Info("simulate: filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
@@ -282,7 +283,27 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
     t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
   }
   int64_t sea_triangles = 0;
-  if (!sea_posts.empty()) sea_triangles = scene::MarkSeaTriangles(t.mesh, sea_posts);
+  if (!sea_posts.empty() && options.engine == "raster") {
+    // The raster engine's grid has no triangle list: classes per triangle in
+    // MeshFromGrid's order (the triangle holding post (c, r), then the one
+    // holding (c + 1, r + 1)), sea where all three posts are sea, as
+    // MarkSeaTriangles marks the tracer's mesh.
+    const int w = dem.width, h = dem.height;
+    std::vector<scene::ClassId> classes(size_t(w - 1) * (h - 1) * 2, scene::kClassDefault);
+    auto sea = [&](int c, int r) { return sea_posts[size_t(r) * w + c] != 0; };
+    for (int r = 0; r + 1 < h; ++r) {
+      for (int c = 0; c + 1 < w; ++c) {
+        const size_t cell = size_t(r) * (w - 1) + c;
+        const bool diagonal = sea(c + 1, r) && sea(c, r + 1);
+        if (diagonal && sea(c, r)) classes[2 * cell] = scene::kClassSea;
+        if (diagonal && sea(c + 1, r + 1)) classes[2 * cell + 1] = scene::kClassSea;
+      }
+    }
+    sea_triangles = std::count(classes.begin(), classes.end(), scene::kClassSea);
+    if (sea_triangles > 0) t.grid_classes = std::move(classes);
+  } else if (!sea_posts.empty()) {
+    sea_triangles = scene::MarkSeaTriangles(t.mesh, sea_posts);
+  }
   // The bare DEM keeps its unit Lambertian material; the sea gets its own.
   if (sea_triangles > 0) t.materials.Set(scene::kClassSea, material::DefaultMaterial(scene::kClassSea));
   t.grid_width = dem.width;
@@ -491,7 +512,8 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
                        : std::to_string(mesh.triangle_count()) + " triangles"));
   }
   out.image = raster_engine ? render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height,
-                                                      terrain.materials, geometry, {}, options.wavelength_m,
+                                                      terrain.materials, geometry, terrain.grid_classes,
+                                                      options.wavelength_m,
                                                       material::ParsePolarization(options.polarization,
                                                                                   "--polarization"))
                             : [&] {

@@ -49,9 +49,10 @@ struct SimulateRequest {
   // posts are coarser than the radar pixels, so that the mesh's planar
   // facets do not imprint streaks (docs/geometry.md).
   int dem_oversample = 1;
-  // Sea of a DEM (--sea auto|off, --sea-level M; trace engine): posts at or
-  // below the sea level connected to the DEM border get class `sea`
-  // (scene::SeaPostMask, the rule of `scene build` without coastline).
+  // Sea of a DEM (--sea auto|off, --sea-level M; both engines): triangles
+  // whose three posts are at or below the sea level and connected to the DEM
+  // border get class `sea` (scene::SeaPostMask, the rule of `scene build`
+  // without coastline).
   std::string sea = "auto";
   double sea_level_m = 0.0;
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
@@ -130,6 +131,9 @@ struct Terrain {
   // A DEM's grid of posts (mesh.vertices, row-major); 0 x 0 for scenes.
   int grid_width = 0;
   int grid_height = 0;
+  // Raster engine: the class of every triangle of the DEM's grid
+  // (scene::MeshFromGrid's order, e.g. the sea); empty = all `default`.
+  std::vector<scene::ClassId> grid_classes;
   material::MaterialTable materials;
   nlohmann::json description;  // for provenance
 };

@@ -5,7 +5,10 @@
 #include <fstream>
 #include <iomanip>
 
+#include "gissar/geo/dem.h"
 #include "gissar/geo/raster_io.h"
+#include "gissar/material/material.h"
+#include "gissar/scene/scene_config.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
@@ -165,6 +168,56 @@ TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
   dem_materials.out_prefix = (dir / "m").string();
   dem_materials.materials = materials.string();
   EXPECT_THROW(RunSimulate(dem_materials, ""), ConfigError);
+}
+
+// `simulate --dem` with --sea auto (the default), both engines: a DEM whose
+// west half is at 0 m (connected to the border: sea) and east half at 1 m
+// (land). Flat ground in a sigma0 image reads its class's law at the
+// incidence 50 deg (depression 40): the sea's law (material `sea`) west,
+// the bare terrain's (`default`) east. With --sea off both halves read
+// `default`.
+TEST(SimulateTest, DemSeaFallbackInBothEngines) {
+  const fs::path dir = testing::MakeTempDir();
+  const char* tm = "+proj=tmerc +lat_0=43.7 +lon_0=7.4 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+  std::vector<float> heights(101 * 101);
+  for (int r = 0; r < 101; ++r)
+    for (int c = 0; c < 101; ++c) heights[size_t(r) * 101 + c] = c < 50 ? 0.0f : 1.0f;
+  const fs::path dem = dir / "coast.tif";
+  geo::WriteDemGeoTiff(dem, heights, 101, 101, {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, tm);
+  const double cos_inc = std::cos(50 * M_PI / 180);
+  const double sea = material::DefaultMaterial(scene::kClassSea).Sigma0(cos_inc, 0.031, material::Polarization::kVV);
+  const double land =
+      material::DefaultMaterial(scene::kClassDefault).Sigma0(cos_inc, 0.031, material::Polarization::kVV);
+  ASSERT_LT(sea, 0.5 * land);  // the two are told apart
+  for (const std::string engine : {"trace", "raster"}) {
+    for (const std::string mode : {"auto", "off"}) {
+      SimulateRequest o;
+      o.dem = dem.string();
+      o.engine = engine;
+      o.sea = mode;
+      o.bounces = 1;
+      o.geometry.heading_deg = 0.0;
+      o.geometry.depression_deg = 40.0;
+      o.geometry.range_spacing_m = o.geometry.azimuth_spacing_m = 5.0;
+      o.out_prefix = (dir / (engine + mode)).string();
+      RunSimulate(o, "test");
+      const geo::FloatRaster image = geo::ReadFloatRaster(dir / (engine + mode + ".tif"));
+      const double u0 = std::stod(image.metadata.at("GISSAR_U0")), v0 = std::stod(image.metadata.at("GISSAR_V0"));
+      auto mean = [&](double x_m, double y_m) {
+        const int c = int(std::lround(u0 + x_m * std::cos(40 * M_PI / 180) / 5.0));
+        const int r = int(std::lround(v0 + y_m / 5.0));
+        double sum = 0;
+        for (int dr = -2; dr <= 2; ++dr)
+          for (int dc = -2; dc <= 2; ++dc) sum += image.bands[0][size_t(r + dr) * image.width + c + dc];
+        return sum / 25;
+      };
+      SCOPED_TRACE(engine + " --sea " + mode);
+      const double west = mode == "auto" ? sea : land;
+      EXPECT_NEAR(mean(-250, 0), west, 0.03 * west);
+      EXPECT_NEAR(mean(-250, 200), west, 0.03 * west);
+      EXPECT_NEAR(mean(250, 0), land, 0.03 * land);
+    }
+  }
 }
 
 TEST(SimulateTest, ParsesNumberPairs) {

@@ -56,6 +56,8 @@ struct Context {
   const Eigen::Vector3f* posts = nullptr;
   int grid_width = 0;
   const scene::ClassId* classes = nullptr;  // per cell (c, r): r * (grid_width - 1) + c
+  bool triangle_classes = false;  // classes per triangle: 2 (r * (grid_width - 1) + c) + k
+  const Eigen::Vector3f* normals = nullptr;  // per-post shading normals (nullptr: flat)
   std::vector<Reflectivity> materials;  // by class id
   SweepView view;
   bool affine = true;
@@ -83,10 +85,12 @@ struct Step {
   std::vector<float> e;        // elevation: metres along n (exact: R tan of the angle from l)
   std::vector<float> col, row; // continuous pixel
   std::vector<float> margin;   // e minus the horizon before the post (< 0: shadow)
+  std::vector<Eigen::Vector3f> normal;  // shading normal (zero: flat), with ctx.normals
   bool Has(int t) const { return t >= t_lo && t <= t_hi; }
   bool empty() const { return t_hi < t_lo; }
   void Reserve(int n) {
     for (auto* v : {&x, &y, &z, &a, &xl, &xn, &e, &col, &row, &margin}) v->resize(size_t(n));
+    normal.resize(size_t(n));
   }
 };
 
@@ -245,6 +249,7 @@ class ChunkRenderer {
       cur_.e[k] = e;
       cur_.col[k] = range_offset * ctx_.inv_dr + ctx_.u0;
       cur_.row[k] = a * ctx_.inv_da + ctx_.v0;
+      if (ctx_.normals != nullptr) cur_.normal[k] = ctx_.normals[&p - ctx_.posts];
     }
   }
 
@@ -408,21 +413,41 @@ class ChunkRenderer {
       const float amin = std::min(std::min(A.step->a[A.k], C.step->a[C.k]), std::min(B.step->a[B.k], D.step->a[D.k]));
       const float amax = std::max(std::max(A.step->a[A.k], C.step->a[C.k]), std::max(B.step->a[B.k], D.step->a[D.k]));
       if (amax <= a_lo_cells_ || amin >= a_hi_cells_) continue;
-      const Reflectivity* m = &ctx_.materials[0];
+      // Materials of the cell's two triangles: the first one rendered below
+      // is (A, B, C) or (A, B, D), the second (B, D, C) or (A, D, C).
+      const Reflectivity* m1 = &ctx_.materials[0];
+      const Reflectivity* m2 = m1;
       if (ctx_.classes != nullptr) {
         // The cell's lowest (c, r) corner.
         const int c = std::min(v.c0 + (s - 1) * v.cs, v.c0 + s * v.cs) + std::min(t * v.ct, (t + 1) * v.ct);
         const int r = std::min(v.r0 + (s - 1) * v.rs, v.r0 + s * v.rs) + std::min(t * v.rt, (t + 1) * v.rt);
-        const scene::ClassId id = ctx_.classes[size_t(r) * (ctx_.grid_width - 1) + c];
-        m = &ctx_.materials[id < ctx_.materials.size() ? id : 0];
+        const size_t cell = size_t(r) * (ctx_.grid_width - 1) + c;
+        auto material_of = [&](scene::ClassId id) { return &ctx_.materials[id < ctx_.materials.size() ? id : 0]; };
+        if (!ctx_.triangle_classes) {
+          m1 = m2 = material_of(ctx_.classes[cell]);
+        } else {
+          // MeshFromGrid's triangle 0 holds post (c, r), triangle 1 post
+          // (c + 1, r + 1): the corners off the diagonal. Which of the two is
+          // the first triangle's corner off the diagonal decides.
+          auto post_of = [&](int ss, int tt) {
+            return std::array<int, 2>{v.c0 + ss * v.cs + tt * v.ct, v.r0 + ss * v.rs + tt * v.rt};
+          };
+          const std::array<int, 2> low{c, r};
+          // The first triangle's corner off the diagonal: A for a (B, C)
+          // diagonal, B for an (A, D) diagonal.
+          const std::array<int, 2> off = v.diagonal_bc ? post_of(s - 1, t) : post_of(s, t);
+          const bool first_holds_low = off == low;
+          m1 = material_of(ctx_.classes[2 * cell + (first_holds_low ? 0 : 1)]);
+          m2 = material_of(ctx_.classes[2 * cell + (first_holds_low ? 1 : 0)]);
+        }
       }
       cell_t_ = t;
       if (v.diagonal_bc) {
-        Triangle(A, B, C, v.sign1, *m);
-        Triangle(B, D, C, v.sign2, *m);
+        Triangle(A, B, C, v.sign1, *m1);
+        Triangle(B, D, C, v.sign2, *m2);
       } else {
-        Triangle(A, B, D, v.sign1, *m);
-        Triangle(A, D, C, v.sign2, *m);
+        Triangle(A, B, D, v.sign1, *m1);
+        Triangle(A, D, C, v.sign2, *m2);
       }
     }
   }
@@ -464,8 +489,13 @@ class ChunkRenderer {
                 u2 = &s2 == &cur_ ? 1.0f : 0.0f;
     const float r0 = s0.row[k0], r1 = s1.row[k1], r2 = s2.row[k2];
 
+    // Smooth shading: the sigma0 law at the normal interpolated between the
+    // posts' shading normals (RenderSar's rule); flat when one is zero.
+    const bool smooth = ctx_.normals != nullptr && !s0.normal[k0].isZero() && !s1.normal[k1].isZero() &&
+                        !s2.normal[k2].isZero();
     if (!turned_away && !all_dark) {
       const float power = 0.5f * twice_area * static_cast<float>(material(cos_in)) * ctx_.power_scale;
+      const float area_power = 0.5f * twice_area * ctx_.power_scale;
       const float extent = std::max({std::abs(c1 - c0), std::abs(c2 - c0), std::abs(c2 - c1),
                                      std::abs(r1 - r0), std::abs(r2 - r0), std::abs(r2 - r1)});
       int m = std::clamp(static_cast<int>(std::ceil(extent / kSampleSpacingPx)), 1, 256);
@@ -479,11 +509,19 @@ class ChunkRenderer {
       // (i + 1/2, j + 1/2), (i + 1, j + 1/2), (i + 1/2, j + 1).
       const float inv_m = 1.0f / float(m);
       const float share = power * inv_m * inv_m / 3.0f;
+      const float area_share = area_power * inv_m * inv_m / 3.0f;
       auto sample = [&](float u, float v) {
         u *= inv_m;
         v *= inv_m;
         if (!all_lit && m0 + u * (m1 - m0) + v * (m2 - m0) < 0.0f) return;
-        Deposit(c0 + u * (c1 - c0) + v * (c2 - c0), r0 + u * (r1 - r0) + v * (r2 - r0), share);
+        float value = share;
+        if (smooth) {
+          const Eigen::Vector3f ns = (1.0f - u - v) * s0.normal[k0] + u * s1.normal[k1] + v * s2.normal[k2];
+          const float norm = ns.norm();
+          const float cos_shade = norm > 0.0f ? std::max(0.0f, -ns.dot(dir) / norm) : cos_in;
+          value = area_share * static_cast<float>(material(cos_shade));
+        }
+        Deposit(c0 + u * (c1 - c0) + v * (c2 - c0), r0 + u * (r1 - r0) + v * (r2 - r0), value);
       };
       for (int i = 0; i < m; ++i) {
         for (int j = 0; i + j < m; ++j) {
@@ -613,15 +651,19 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
                          const material::MaterialTable& materials,
                          const sensor::SarGeometry& geometry,
                          const std::vector<scene::ClassId>& cell_classes, double wavelength_m,
-                         material::Polarization polarization) {
+                         material::Polarization polarization, const std::vector<Eigen::Vector3f>& post_normals) {
   GISSAR_CHECK(width >= 2 && height >= 2);
   GISSAR_CHECK(posts.size() == size_t(width) * height);
-  GISSAR_CHECK(cell_classes.empty() || cell_classes.size() == size_t(width - 1) * (height - 1));
+  const size_t cells = size_t(width - 1) * (height - 1);
+  GISSAR_CHECK(cell_classes.empty() || cell_classes.size() == cells || cell_classes.size() == 2 * cells);
+  GISSAR_CHECK(post_normals.empty() || post_normals.size() == posts.size());
   Stopwatch watch;
   Context ctx;
   ctx.posts = posts.data();
   ctx.grid_width = width;
   ctx.classes = cell_classes.empty() ? nullptr : cell_classes.data();
+  ctx.triangle_classes = cell_classes.size() == 2 * cells;
+  ctx.normals = post_normals.empty() ? nullptr : post_normals.data();
   for (size_t id = 0; id < std::max<size_t>(materials.size(), 1); ++id) {
     ctx.materials.emplace_back(materials.Get(static_cast<scene::ClassId>(id)), wavelength_m, polarization);
   }

@@ -33,10 +33,21 @@ namespace gissar::render {
 // along the diagonal from post (c+1, r) to (c, r+1), normals up) seen with
 // `geometry`, in affine or exact mode.
 //
-// `cell_classes`: empty (every cell class 0) or one class per cell,
-// (width - 1) x (height - 1) row-major; the class indexes `materials`, whose
-// single-bounce sigma0 law for `wavelength_m` and `polarization` is used
-// (the mirror share is ignored: no multi-bounce).
+// `cell_classes`: empty (every cell class 0), one class per cell,
+// (width - 1) x (height - 1) row-major, or one class per triangle in
+// scene::MeshFromGrid's order (2 per cell: first the triangle holding post
+// (c, r), then the one holding post (c + 1, r + 1)), so that a mesh's
+// `classes` (e.g. the sea of scene::MarkSeaTriangles) can be passed as they
+// are; the class indexes `materials`, whose single-bounce sigma0 law for
+// `wavelength_m` and `polarization` is used (the mirror share is ignored: no
+// multi-bounce).
+//
+// `post_normals`: empty (flat shading) or one unit shading normal per post
+// (e.g. scene::TriangleMesh::SmoothShadingNormals of the grid mesh; a zero
+// normal means flat shading for the triangles that use the post). As in
+// RenderSar, the local incidence of the sigma0 law then comes from the
+// normal interpolated at each sample point of a triangle (cos clamped at 0),
+// while the geometry (what is lit, the projected area) keeps the facet.
 //
 // Returns the SarImage of RenderSar: `intensity` calibrated identically
 // (beta0: each patch of area A returns sigma0(theta_l) A over the pixel
@@ -54,12 +65,14 @@ namespace gissar::render {
 // the thread count.
 //
 // CHECKs that the grid has at least 2 x 2 posts, that posts.size() ==
-// width * height and that cell_classes is empty or has one class per cell.
+// width * height, that cell_classes is empty or has one class per cell or
+// per triangle, and that post_normals is empty or has one normal per post.
 SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, int height,
                          const material::MaterialTable& materials,
                          const sensor::SarGeometry& geometry,
                          const std::vector<scene::ClassId>& cell_classes = {},
                          double wavelength_m = 0.031,
-                         material::Polarization polarization = material::Polarization::kVV);
+                         material::Polarization polarization = material::Polarization::kVV,
+                         const std::vector<Eigen::Vector3f>& post_normals = {});
 
 }  // namespace gissar::render

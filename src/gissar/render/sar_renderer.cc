@@ -553,22 +553,23 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               // smooth-terrain shading normal when the mesh has one
               // (barycentrics of the hit point); the footprint's geometry
               // keeps the facet normal.
-              double cos_shade = cos_in;
-              if (!mesh.shading_normals.empty()) {
-                const Eigen::Vector3i& tri = mesh.triangles[hit->triangle];
+              // (The adaptive sub-rays below do the same at their own hits.)
+              auto shade = [&](uint32_t triangle, const Vector3d& point, const Vector3d& ray, double cos_facet) {
+                if (mesh.shading_normals.empty()) return cos_facet;
+                const Eigen::Vector3i& tri = mesh.triangles[triangle];
                 const Vector3d v0 = mesh.vertices[tri[0]].cast<double>();
                 const Vector3d e1 = mesh.vertices[tri[1]].cast<double>() - v0;
                 const Vector3d e2 = mesh.vertices[tri[2]].cast<double>() - v0;
-                const Vector3d w = p - v0;
+                const Vector3d w = point - v0;
                 const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2);
                 const double det = d11 * d22 - d12 * d12;
-                if (det > 0.0) {
-                  const double u = (d22 * w.dot(e1) - d12 * w.dot(e2)) / det;
-                  const double v = (d11 * w.dot(e2) - d12 * w.dot(e1)) / det;
-                  const Vector3d ns = mesh.ShadingNormal(hit->triangle, float(u), float(v)).cast<double>();
-                  cos_shade = std::max(0.0, -ns.dot(dir));
-                }
-              }
+                if (!(det > 0.0)) return cos_facet;
+                const double u = (d22 * w.dot(e1) - d12 * w.dot(e2)) / det;
+                const double v = (d11 * w.dot(e2) - d12 * w.dot(e1)) / det;
+                const Vector3d ns = mesh.ShadingNormal(triangle, float(u), float(v)).cast<double>();
+                return std::max(0.0, -ns.dot(ray));
+              };
+              const double cos_shade = shade(hit->triangle, p, dir, cos_in);
               // sigma0 times the surface area the ray covers, per pixel area.
               const double cos_eff = std::max(cos_in, kMaskEdgeOnCos);
               value = sigma0_of(class_id, cos_shade) * area / cos_eff * inv_pixel_area;
@@ -606,7 +607,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                   const double cos_q_eff = std::max(cos_q, kMaskEdgeOnCos);
                   const scene::ClassId class_q = mesh.classes[h_q->triangle];
                   const double area_q = affine ? grid.da * grid.de_m / subs : grid.da * grid.de / subs * trav_q;
-                  const double value_q = sigma0_of(class_q, cos_q) * area_q / cos_q_eff * inv_pixel_area;
+                  const double value_q =
+                      sigma0_of(class_q, shade(h_q->triangle, p_q, d_q, cos_q)) * area_q / cos_q_eff * inv_pixel_area;
                   if (!(value_q > 0.0)) continue;
                   const Vector3d v_q = affine ? Vector3d(n) : Vector3d(-std::sin(e_q) * l + std::cos(e_q) * n);
                   const double s_q = affine ? grid.de_m / subs : trav_q * grid.de / subs;
