@@ -21,6 +21,7 @@ PACKAGES=(
   libssl-dev python3
   python3-venv python3-pip python3-setuptools          # pip install . (make install-python)
   pybind11-dev python3-dev python3-numpy python3-pytest python3-gdal  # Python API
+  python3-jsonschema                                   # STAC Items against the published schemas (tests/stac_test.py)
 )
 
 missing=()

@@ -142,7 +142,7 @@ TEST(InterruptTest, UninterruptedRunCommitsEveryOutput) {
   std::vector<std::string> names = Entries(out);
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"returns.csv", "sim.json", "sim.png", "sim.tif", "sim_mask.tif",
-                                            "sim_quicklook.png"}));
+                                            "sim_quicklook.png", "sim_stac.json"}));
 }
 
 std::map<std::string, std::string> Snapshot(const fs::path& dir) {
@@ -163,7 +163,7 @@ TEST(InterruptTest, SignalDuringTheFinalCommitKeepsTheEarlierRun) {
   const int first = RunToEnd(StartSimulate(out, logs / "first", job));
   ASSERT_TRUE(WIFEXITED(first) && WEXITSTATUS(first) == 0) << ReadText(logs / "first");
   const std::map<std::string, std::string> before = Snapshot(out);
-  ASSERT_EQ(before.size(), 6u);
+  ASSERT_EQ(before.size(), 7u);
   for (int sig : {SIGTERM, SIGHUP, SIGINT}) {
     for (const char* stage : {"written", "renamed"}) {
       const fs::path marker = logs / (std::string("paused_") + stage + std::to_string(sig));

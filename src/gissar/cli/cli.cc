@@ -90,6 +90,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddMvgCommands(app, registry);
   AddNavCommands(app, registry);
   AddProductCommands(app, registry);
+  AddGeocodeCommand(app, registry);
   CommonFlags common;
   AddCommonFlags(app, common);
 

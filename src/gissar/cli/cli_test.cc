@@ -6,12 +6,14 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/cli/command.h"
 #include "gissar/util/testing.h"
 
 namespace gissar::cli {
@@ -154,7 +156,7 @@ TEST(FmatrixCommandTest, DegenerateInputIsAClearError) {
       {csv("columns.csv", "x1,y1,x2\n1,2,3\n"), "columns.csv"},
   };
   for (const Case& c : cases) {
-    const Outcome o = RunGissar({"fmatrix", "--matches", c.file, "--json", (dir / "out.json").string()});
+    const Outcome o = RunGissar({"fmatrix", "--matches", c.file, "--out", (dir / "out").string()});
     const std::string& err = o.err;
     EXPECT_EQ(o.status, 2) << c.file;
     EXPECT_EQ(err.rfind("gissar: error: ", 0), 0u) << err;
@@ -280,7 +282,7 @@ TEST(CommonFlagsTest, QuietLogLevelAndThreads) {
   Outcome o = RunBinary(kSmallSimulate + " --quiet --out " + (dir / "q").string(), dir);
   ASSERT_EQ(o.status, 0);
   EXPECT_EQ(o.err, "");
-  EXPECT_EQ(CountLines(o.out), 5u);  // the five files written
+  EXPECT_EQ(CountLines(o.out), 6u);  // the six files written
   o = RunBinary(kSmallSimulate + " --threads 1 --out " + (dir / "t1").string(), dir);
   ASSERT_EQ(o.status, 0);
   EXPECT_NE(o.err.find("simulate: image "), std::string::npos) << o.err;
@@ -303,5 +305,130 @@ TEST(CommonFlagsTest, ForceLiftsTheMemoryBudget) {
   o = RunBinary(kSmallSimulate + " --max-memory 1M --force --quiet --out " + (dir / "b").string(), dir);
   EXPECT_EQ(o.status, 0) << o.err;
 }
+// The leaf commands of `gissar --help` (and `gissar scene --help`).
+std::vector<std::vector<std::string>> LeafCommands() {
+  std::vector<std::vector<std::string>> leaves;
+  std::function<void(std::vector<std::string>)> walk = [&](std::vector<std::string> path) {
+    std::vector<std::string> args = path;
+    args.push_back("--help");
+    const Outcome help = RunGissar(args);
+    EXPECT_EQ(help.status, 0);
+    const size_t at = help.out.find("Subcommands:");
+    if (at == std::string::npos) {
+      leaves.push_back(path);
+      return;
+    }
+    std::istringstream lines(help.out.substr(at));
+    std::string line;
+    std::getline(lines, line);
+    while (std::getline(lines, line)) {
+      std::istringstream words(line);
+      std::string name;
+      if (line.rfind("  ", 0) != 0 || !(words >> name)) continue;
+      std::vector<std::string> child = path;
+      child.push_back(name);
+      walk(child);
+    }
+  };
+  walk({});
+  return leaves;
+}
+
+// The help line of `flag` ("  --flag TYPE   description"), or "".
+std::string FlagLine(const std::string& help, const std::string& flag) {
+  std::istringstream lines(help);
+  std::string line;
+  while (std::getline(lines, line)) {
+    std::istringstream words(line);
+    std::string first;
+    words >> first;
+    if (first == flag || first.rfind(flag + ",", 0) == 0) return line;
+  }
+  return "";
+}
+
+// Every command's --help lists the shared flags with the same spelling,
+// type and meaning (their help lines are identical to simulate's), and
+// every command that writes files takes --out as an output prefix.
+TEST(HelpWalkTest, EveryCommandHasTheSharedFlagsWithOneMeaning) {
+  const std::vector<std::vector<std::string>> leaves = LeafCommands();
+  ASSERT_GE(leaves.size(), 15u);  // simulate, scene build/info, ..., geocode
+  const std::string reference = RunGissar({"simulate", "--help"}).out;
+  // `scene info` prints and writes no file.
+  const std::vector<std::string> no_files = {"scene info"};
+  for (const auto& leaf : leaves) {
+    std::string name;
+    for (const auto& w : leaf) name += (name.empty() ? "" : " ") + w;
+    std::vector<std::string> args = leaf;
+    args.push_back("--help");
+    const std::string help = RunGissar(args).out;
+    for (const char* flag : {"--quiet", "--log-level", "--threads", "--force", "--options"}) {
+      const std::string line = FlagLine(help, flag);
+      EXPECT_FALSE(line.empty()) << name << " lacks " << flag;
+      EXPECT_EQ(line, FlagLine(reference, flag)) << name << " " << flag;
+    }
+    const std::string out = FlagLine(help, "--out");
+    if (std::find(no_files.begin(), no_files.end(), name) != no_files.end()) {
+      EXPECT_EQ(out, "") << name;
+    } else {
+      EXPECT_NE(out.find("Output prefix: PREFIX"), std::string::npos) << name << ": " << out;
+    }
+    // Old spellings are not listed as flags of their own.
+    for (const char* old : {"--range-res", "--azimuth-res", "--range", "--json"}) {
+      EXPECT_EQ(FlagLine(help, old), "") << name << " " << old;
+    }
+  }
+}
+
+// A mistyped flag gets "did you mean" on every command: the shared --quiet,
+// and the command's own first flag with one letter dropped.
+TEST(HelpWalkTest, EveryCommandSuggestsTheFlagMeant) {
+  for (const auto& leaf : LeafCommands()) {
+    std::string name;
+    for (const auto& w : leaf) name += (name.empty() ? "" : " ") + w;
+    std::vector<std::string> args = leaf;
+    args.push_back("--qiuet");
+    Outcome o = RunGissar(args);
+    EXPECT_EQ(o.status, 2) << name;
+    EXPECT_NE(o.err.find("did you mean --quiet?"), std::string::npos) << name << ": " << o.err;
+    EXPECT_EQ(CountLines(o.err), 1u) << name;
+    // The command's own first flag after --help.
+    std::vector<std::string> help_args = leaf;
+    help_args.push_back("--help");
+    std::istringstream lines(RunGissar(help_args).out);
+    std::string line, own;
+    while (std::getline(lines, line)) {
+      std::istringstream words(line);
+      std::string first;
+      words >> first;
+      if (first.rfind("--", 0) == 0 && first != "--help" && first.size() >= 6) {
+        own = first.substr(0, first.find(','));
+        break;
+      }
+    }
+    ASSERT_FALSE(own.empty()) << name;
+    args = leaf;
+    args.push_back(own.substr(0, 3) + own.substr(4));  // one letter dropped
+    o = RunGissar(args);
+    EXPECT_EQ(o.status, 2) << name;
+    EXPECT_NE(o.err.find("did you mean " + own + "?"), std::string::npos) << name << ": " << o.err;
+  }
+}
+
+// --out is a prefix for the single-file commands too: PREFIX.png.
+TEST(HelpWalkTest, SingleFileOutputIsAPrefix) {
+  EXPECT_EQ(PrefixedOutput("dir/pair", ".png"), "dir/pair.png");
+  EXPECT_EQ(PrefixedOutput("dir/pair.png", ".png"), "dir/pair.png");  // the older spelling: the file itself
+  EXPECT_EQ(PrefixedOutput("fix", ".json"), "fix.json");
+  const fs::path dir = testing::MakeTempDir();
+  const std::vector<float> a(16, 1.0f);
+  geo::WriteFloatGeoTiff(dir / "a.tif", geo::FloatRaster{4, 4, {a}, {"total"}, {}});
+  const Outcome o = RunGissar({"composite", "--green", (dir / "a.tif").string(), "--magenta",
+                               (dir / "a.tif").string(), "--out", (dir / "pair").string(), "--quiet"});
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_TRUE(fs::exists(dir / "pair.png"));
+  EXPECT_EQ(o.out, (dir / "pair.png").string() + "\n");
+}
+
 }  // namespace
 }  // namespace gissar::cli

@@ -43,6 +43,17 @@ inline void RequirePositiveIfGiven(const CLI::App& cmd, const std::string& flag,
 // naming it when malformed), else the default; --force lifts it.
 int64_t MemoryBudgetBytes(const std::string& max_memory_flag, bool force, int64_t fallback_bytes);
 
+// `--out PREFIX` of a command that writes one file: PREFIX + extension. A
+// value that already ends with the extension names that file (the older
+// spelling, a path, keeps working).
+inline std::string PrefixedOutput(const std::string& prefix, const std::string& extension) {
+  if (prefix.size() > extension.size() &&
+      prefix.compare(prefix.size() - extension.size(), extension.size(), extension) == 0) {
+    return prefix;
+  }
+  return prefix + extension;
+}
+
 class CommandRegistry {
  public:
   void Add(CLI::App* subcommand, CommandAction action) {
@@ -76,5 +87,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry);
 void AddNavCommands(CLI::App& root, CommandRegistry& registry);
 // Declares `gissar validate` (product_command.cc).
 void AddProductCommands(CLI::App& root, CommandRegistry& registry);
+// Declares `gissar geocode` (geocode_command.cc).
+void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli

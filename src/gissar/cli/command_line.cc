@@ -21,6 +21,7 @@ constexpr DeprecatedFlag kDeprecatedFlags[] = {
     {"--range-res", "--range-spacing"},
     {"--azimuth-res", "--azimuth-spacing"},
     {"--range", "--slant-range"},
+    {"--json", "--out"},  // fmatrix, resect: --out PREFIX writes PREFIX.json
 };
 
 // The command a command line names ("simulate", "scene build") and the

@@ -16,7 +16,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
     cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md)")->required();
-    cmd->add_option("--out", o->out, "Result JSON")->required();
+    cmd->add_option("--out", o->out, "Output prefix: PREFIX.json (the fix)")->required();
     cmd->add_option("--composite", o->composite_png,
                     "PNG: observed (green) over simulated (magenta) at the prior and at the fix");
     cmd->add_option("--range-spacing", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
@@ -29,8 +29,10 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--bounces", o->bounces, "Reflections per ray in the reference renders")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell in the reference renders")->capture_default_str();
     registry.Add(cmd, [=](const CommandContext& context) {
-      const auto report = RunLocate(*o, context.command_line, context.reporter);
-      context.out << o->out << "\n";
+      LocateRequest resolved = *o;
+      resolved.out = PrefixedOutput(o->out, ".json");
+      const auto report = RunLocate(resolved, context.command_line, context.reporter);
+      context.out << resolved.out << "\n";
     });
   }
   {
@@ -85,10 +87,12 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--step", o->step_px, "Grid step, px")->capture_default_str();
     cmd->add_option("--search", o->search_px, "Search radius, px")->capture_default_str();
     cmd->add_option("--filter", o->filter_px, "Speckle box filter, px")->capture_default_str();
-    cmd->add_option("--out", o->out, "Result JSON")->required();
+    cmd->add_option("--out", o->out, "Output prefix: PREFIX.json (errors per matcher)")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      RunMatchPair(*o, context.command_line, context.reporter);
-      context.out << o->out << "\n";
+      MatchPairRequest resolved = *o;
+      resolved.out = PrefixedOutput(o->out, ".json");
+      RunMatchPair(resolved, context.command_line, context.reporter);
+      context.out << resolved.out << "\n";
     });
   }
 }

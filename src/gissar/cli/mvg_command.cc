@@ -23,13 +23,14 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--threshold", o->threshold_px, "RANSAC inlier threshold, pixels")->capture_default_str();
     cmd->add_flag("--no-ransac", *all, "One Gold Standard fit to all matches");
     cmd->add_option("--seed", o->seed, "RANSAC seed")->capture_default_str();
-    cmd->add_option("--json", o->json_out, "Output JSON")->required();
+    cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the fit)")->required();
     cmd->add_option("--plot", o->plot_prefix, "Pictures: PREFIX_kvd.png (KvD diagram) and, with the images, "
                                               "PREFIX_epipolar.png (matches and epipolar lines)");
     cmd->add_option("--image1", o->image1, "Image 1 (any GDAL raster) for --plot");
     cmd->add_option("--image2", o->image2, "Image 2 for --plot");
     registry.Add(cmd, [=](const CommandContext& context) {
       FmatrixRequest r = *o;
+      r.json_out = PrefixedOutput(o->json_out, ".json");
       r.robust = !*all;
       if (!res1->empty()) r.res1 = ParseNumberPair(*res1, "--res1");
       if (!res2->empty()) r.res2 = ParseNumberPair(*res2, "--res2");
@@ -50,9 +51,10 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--points", o->points, "CSV with a header and columns X,Y,Z,x,y (ENU m, pixels)")->required();
     cmd->add_option("--scene-centre", *centre, "Scene centre Xc X,Y,Z (ENU m; default 0,0,0)")->delimiter(',')->expected(3);
     cmd->add_option("--slant-range", *range, "Measured slant range to Xc, metres: also gives the sensor position");
-    cmd->add_option("--json", o->json_out, "Output JSON")->required();
+    cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the camera)")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
       ResectRequest r = *o;
+      r.json_out = PrefixedOutput(o->json_out, ".json");
       if (!centre->empty()) r.scene_centre = Eigen::Vector3d((*centre)[0], (*centre)[1], (*centre)[2]);
       if (*range != 0.0) r.slant_range_m = *range;
       RunResect(r, context.command_line, context.reporter);
@@ -87,10 +89,12 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--image1", o->image1, "Image 1")->required();
     cmd->add_option("--image2", o->image2, "Image 2")->required();
     cmd->add_option("--threshold", o->threshold_px, "RANSAC threshold, pixels")->capture_default_str();
-    cmd->add_option("--out", o->out_png, "Output PNG")->required();
+    cmd->add_option("--out", o->out_png, "Output prefix: PREFIX.png")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      RunEpipolar(*o);
-      context.out << o->out_png << "\n";
+      EpipolarRequest resolved = *o;
+      resolved.out_png = PrefixedOutput(o->out_png, ".png");
+      RunEpipolar(resolved);
+      context.out << resolved.out_png << "\n";
     });
   }
   {
@@ -99,10 +103,12 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
         "composite", "Green/magenta composite of two co-registered images (grey where they agree).");
     cmd->add_option("--green", o->green, "First image (e.g. the real one), band 1 linear intensity")->required();
     cmd->add_option("--magenta", o->magenta, "Second image (e.g. the simulation), same size")->required();
-    cmd->add_option("--out", o->out_png, "Output PNG")->required();
+    cmd->add_option("--out", o->out_png, "Output prefix: PREFIX.png")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
-      RunComposite(*o);
-      context.out << o->out_png << "\n";
+      CompositeRequest resolved = *o;
+      resolved.out_png = PrefixedOutput(o->out_png, ".png");
+      RunComposite(resolved);
+      context.out << resolved.out_png << "\n";
     });
   }
 }

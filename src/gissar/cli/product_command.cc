@@ -33,7 +33,7 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_option("--bounces", options->simulate.bounces, "Reflections followed per ray")->capture_default_str();
   cmd->add_option("--out", options->out_prefix,
-                  "Report prefix: REPORT.json, REPORT.md, REPORT_side_by_side.png, REPORT_histogram.png")
+                  "Output prefix: PREFIX.json, PREFIX.md, PREFIX_side_by_side.png, PREFIX_histogram.png")
       ->required();
 
   auto max_memory = std::make_shared<std::string>();

@@ -27,7 +27,7 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
   build->add_option("--config", options->config, "Scene config JSON (layers, classes, widths, materials)");
   build->add_option("--center", *center, "Scene centre LON,LAT (default: DEM centre)");
   build->add_option("--out", options->out_prefix,
-                    "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png (class map), PREFIX_3d.png (3-D view), PREFIX.json")
+                    "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png (class map), PREFIX_3d.png (3-D view), PREFIX.json, PREFIX_mesh.json (the meshes' frame)")
       ->required();
   build->add_flag("--obj", options->export_obj, "Also write PREFIX.obj + PREFIX.mtl (class colours) for 3-D viewers");
   build->add_option("--sea", options->sea, "Sea: auto (coastline ways, else DEM at or below --sea-level connected to the border) or off");

@@ -86,7 +86,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--nesz", options->nesz_db, "Thermal noise floor (NESZ), dB sigma0");
   cmd->add_option("--seed", options->seed, "Seed of speckle and noise")->capture_default_str();
   cmd->add_option("--out", options->out_prefix,
-                  "Output prefix: PREFIX.tif, PREFIX.png, PREFIX_quicklook.png (dB colour bar, axes in m), PREFIX_mask.tif, PREFIX.json")
+                  "Output prefix: PREFIX.tif, PREFIX.png, PREFIX_quicklook.png (dB colour bar, axes in m), PREFIX_mask.tif, PREFIX.json, PREFIX_stac.json (STAC Item)")
       ->required();
   auto max_memory = std::make_shared<std::string>();
   cmd->add_option("--max-memory", *max_memory,

@@ -3,6 +3,7 @@
 #include <ogr_spatialref.h>
 
 #include <cmath>
+#include <memory>
 
 #include "gissar/geo/gdal_env.h"
 #include "gissar/util/error.h"
@@ -123,6 +124,31 @@ void CrsTransform::ToLonLat(std::vector<double>& x, std::vector<double>& y) cons
 
 void CrsTransform::FromLonLat(std::vector<double>& lon, std::vector<double>& lat) const {
   TransformInPlace(impl_->from_lonlat, lon, lat);
+}
+
+std::vector<Eigen::Vector3d> ApplyProjPipeline(const std::string& pipeline,
+                                               const std::vector<Eigen::Vector3d>& points) {
+  EnsureGdal();
+  OGRCoordinateTransformationOptions options;
+  if (!options.SetCoordinateOperation(pipeline.c_str(), false)) {
+    throw InputError("PROJ rejects the pipeline: " + LastGdalMessage(), pipeline);
+  }
+  std::unique_ptr<OGRCoordinateTransformation> transform(
+      OGRCreateCoordinateTransformation(nullptr, nullptr, options));
+  if (!transform) throw InputError("cannot build the PROJ pipeline: " + LastGdalMessage(), pipeline);
+  std::vector<double> x, y, z;
+  for (const auto& p : points) {
+    x.push_back(p.x());
+    y.push_back(p.y());
+    z.push_back(p.z());
+  }
+  std::vector<int> ok(points.size(), 0);
+  if (!points.empty() && !transform->Transform(points.size(), x.data(), y.data(), z.data(), nullptr, ok.data())) {
+    throw InputError("PROJ pipeline failed on a point", pipeline);
+  }
+  std::vector<Eigen::Vector3d> out;
+  for (size_t i = 0; i < points.size(); ++i) out.emplace_back(x[i], y[i], z[i]);
+  return out;
 }
 
 }  // namespace gissar::geo

@@ -44,6 +44,13 @@ class LocalFrame {
 // Transforms coordinates of a CRS (given as WKT or any string OGR accepts)
 // to WGS84 longitude/latitude in degrees, and back, through PROJ. Axis order
 // is always (x/easting/longitude, y/northing/latitude).
+// Applies a PROJ pipeline string ("+proj=pipeline +step ...") to points,
+// coordinates in the pipeline's own units (e.g. the ENU -> WGS84 degrees
+// pipeline of a mesh sidecar). Throws InputError when PROJ rejects it or a
+// point fails.
+std::vector<Eigen::Vector3d> ApplyProjPipeline(const std::string& pipeline,
+                                               const std::vector<Eigen::Vector3d>& points);
+
 class CrsTransform {
  public:
   // Throws InputError when the CRS cannot be parsed or no transformation

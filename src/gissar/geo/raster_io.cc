@@ -3,6 +3,10 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
 #include <memory>
 
 #include "gissar/geo/gdal_env.h"
@@ -107,8 +111,19 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
   SetMetadata(ds.get(), raster.metadata);
   SetGeoreference(ds.get(), raster.georeference, path);
+  if (raster.geotransform.size() == 6) {
+    std::array<double, 6> gt;
+    std::copy(raster.geotransform.begin(), raster.geotransform.end(), gt.begin());
+    if (ds->SetGeoTransform(gt.data()) != CE_None) throw IoError("cannot set geotransform: " + LastGdalMessage(), path.string());
+  }
+  if (!raster.crs.empty()) {
+    OGRSpatialReference srs;
+    if (srs.SetFromUserInput(raster.crs.c_str()) != OGRERR_NONE) throw IoError("cannot parse CRS '" + raster.crs + "'", path.string());
+    if (ds->SetSpatialRef(&srs) != CE_None) throw IoError("cannot set CRS: " + LastGdalMessage(), path.string());
+  }
   for (int b = 0; b < nbands; ++b) {
     GDALRasterBand* band = ds->GetRasterBand(b + 1);
+    if (raster.nodata_nan) band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
     if (b < static_cast<int>(raster.band_names.size())) {
       band->SetDescription(raster.band_names[b].c_str());
     }
@@ -237,6 +252,17 @@ FloatRaster ReadFloatRaster(const fs::path& path) {
     }
     raster.bands.push_back(std::move(values));
     raster.band_names.emplace_back(band->GetDescription());
+    raster.band_units.emplace_back(band->GetUnitType());
+    int has_nodata = 0;
+    const double nodata = band->GetNoDataValue(&has_nodata);
+    if (b == 1) raster.nodata_nan = has_nodata != 0 && std::isnan(nodata);
+  }
+  double gt[6];
+  if (ds->GetGeoTransform(gt) == CE_None) raster.geotransform.assign(gt, gt + 6);
+  if (const OGRSpatialReference* srs = ds->GetSpatialRef()) {
+    char* wkt = nullptr;
+    if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) raster.crs = wkt;
+    CPLFree(wkt);
   }
   if (char** items = ds->GetMetadata()) {
     for (char** item = items; *item != nullptr; ++item) {

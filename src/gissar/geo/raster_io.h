@@ -52,9 +52,17 @@ struct FloatRaster {
   std::string band_unit = {};           // unit of every band (GDAL unit type; may be empty)
   Georeference georeference;            // GCPs/RPCs (radar geometry), may be empty
   std::vector<std::string> band_units;  // GDAL unit type per band (may be empty)
+  // Map-geometry rasters: GDAL geotransform (cell corners) and CRS (any
+  // definition OGR accepts, e.g. "EPSG:32631"); both empty for radar geometry.
+  std::vector<double> geotransform = {};  // 6 coefficients, or empty
+  std::string crs = {};
+  // Declares NaN as every band's no-data value (pixels outside the footprint).
+  bool nodata_nan = false;
 };
 
-// Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Radar-geometry images
+// Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Map-geometry rasters
+// carry raster.geotransform and raster.crs (an unparsable CRS is an IoError).
+// Radar-geometry images
 // carry no geotransform: their geometry is in `metadata`, and their
 // georeferencing (when given) as WGS84 GCPs and RPC metadata.
 void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& raster);
@@ -86,8 +94,9 @@ void WriteComplexGeoTiff(const std::filesystem::path& path, const std::vector<fl
 void WritePng(const std::filesystem::path& path, const std::vector<uint8_t>& data, int width,
               int height, int channels);
 
-// Reads every band of a raster as float32 with its dataset metadata and
-// band descriptions. Throws InputError when missing or unreadable.
+// Reads every band of a raster as float32 with its dataset metadata, band
+// descriptions and units, geotransform and CRS (WKT) when it has them, and
+// nodata_nan when band 1 declares NaN no-data. Throws InputError when missing or unreadable.
 FloatRaster ReadFloatRaster(const std::filesystem::path& path);
 
 // Reads band 1 of a raster as uint8 (e.g. a mask). Throws InputError.

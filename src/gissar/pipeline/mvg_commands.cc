@@ -86,7 +86,7 @@ image::RgbImage EpipolarPicture(const std::vector<mvg::PointMatch>& matches, con
 
 void FmatrixRequest::Check() const {
   if (matches.empty()) throw ConfigError("a matches CSV is required", "--matches");
-  RequireOutput(json_out, "--json");
+  RequireOutput(json_out, "--out");
   CheckSpacing(res1, "--res1");
   CheckSpacing(res2, "--res2");
   if (res1.has_value() != res2.has_value()) throw ConfigError("give both --res1 and --res2", "--res1/--res2");
@@ -101,7 +101,7 @@ void FmatrixRequest::Check() const {
 
 json FmatrixRequest::ToJson() const {
   return {{"matches", matches}, {"res1", Pair(res1)}, {"res2", Pair(res2)}, {"depressions", Pair(depressions)},
-          {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"json", json_out},
+          {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"out", json_out},
           {"plot", plot_prefix}, {"image1", image1}, {"image2", image2}};
 }
 
@@ -189,7 +189,7 @@ json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, 
 
 void ResectRequest::Check() const {
   if (points.empty()) throw ConfigError("a points CSV is required", "--points");
-  RequireOutput(json_out, "--json");
+  RequireOutput(json_out, "--out");
   if (!scene_centre.allFinite() || scene_centre.cwiseAbs().maxCoeff() > mvg::kMaxPointCoordinate) {
     throw ConfigError("scene centre must be finite and within [-1e9, 1e9] m", "--scene-centre");
   }
@@ -200,7 +200,7 @@ json ResectRequest::ToJson() const {
   return {{"points", points},
           {"scene_centre", {scene_centre.x(), scene_centre.y(), scene_centre.z()}},
           {"slant_range_m", slant_range_m ? json(*slant_range_m) : json(nullptr)},
-          {"json", json_out}};
+          {"out", json_out}};
 }
 
 json RunResect(const ResectRequest& options, const std::string& command_line, Reporter& reporter) {

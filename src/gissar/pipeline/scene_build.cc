@@ -20,6 +20,28 @@
 #include "gissar/util/provenance.h"
 
 namespace gissar::pipeline {
+
+static std::string Num17(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+nlohmann::json MeshCrsRecord(double origin_lon_deg, double origin_lat_deg) {
+  const std::string lon = Num17(origin_lon_deg), lat = Num17(origin_lat_deg);
+  return {{"crs", "local ENU tangent frame on WGS84 (x east, y north, z up; metres)"},
+          {"ellipsoid", "WGS84"},
+          {"origin_lon_deg", origin_lon_deg},
+          {"origin_lat_deg", origin_lat_deg},
+          {"origin_height_m", 0.0},
+          {"axes", {"east", "north", "up"}},
+          {"unit", "m"},
+          {"proj_pipeline_to_wgs84",
+           "+proj=pipeline +step +inv +proj=topocentric +ellps=WGS84 +lon_0=" + lon + " +lat_0=" + lat +
+               " +h_0=0 +step +inv +proj=cart +ellps=WGS84 +step +proj=unitconvert +xy_in=rad +xy_out=deg"},
+          {"note", "apply with: cct <proj_pipeline_to_wgs84> (output: longitude, latitude degrees, ellipsoidal height m)"}};
+}
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -56,7 +78,7 @@ void SceneBuildRequest::Check() const {
   std::vector<std::string> inputs = {dem, osm, config};
   inputs.insert(inputs.end(), vectors.begin(), vectors.end());
   std::vector<fs::path> outs;
-  for (const char* suffix : {".gscene", ".ply", "_classes.png", "_3d.png", ".json", ".obj", ".mtl"}) {
+  for (const char* suffix : {".gscene", ".ply", "_classes.png", "_3d.png", ".json", "_mesh.json", ".obj", ".mtl"}) {
     outs.push_back(out_prefix + suffix);
   }
   CheckOutputsAreNotInputs(outs, inputs);
@@ -88,6 +110,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
   const fs::path png_path = outputs.Add(options.out_prefix + "_classes.png");
   const fs::path view_path = outputs.Add(options.out_prefix + "_3d.png");
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const fs::path mesh_json_path = outputs.Add(options.out_prefix + "_mesh.json");
   const fs::path obj_path = options.export_obj ? outputs.Add(options.out_prefix + ".obj") : fs::path();
   const fs::path mtl_path = options.export_obj ? outputs.Add(options.out_prefix + ".mtl") : fs::path();
 
@@ -182,14 +205,22 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
                      {"post_spacing_m", 0.5 * (spacing.x() + spacing.y())},
                      {"config", config.ToJson()}};
   scene::WriteScene(scene_path, file);
-  scene::WritePly(ply_path, file.mesh, file.class_names);
+  // The meshes' georeference: header comments and PREFIX_mesh.json.
+  const json mesh_crs = MeshCrsRecord(file.origin_lon_deg, file.origin_lat_deg);
+  const std::vector<std::string> mesh_comments = {
+      "crs " + mesh_crs["crs"].get<std::string>(),
+      "origin_lon_deg " + Num17(file.origin_lon_deg) + " origin_lat_deg " + Num17(file.origin_lat_deg) +
+          " origin_height_m 0",
+      "enu_to_wgs84 " + mesh_crs["proj_pipeline_to_wgs84"].get<std::string>()};
+  WriteJsonFile(mesh_crs, mesh_json_path);
+  scene::WritePly(ply_path, file.mesh, file.class_names, mesh_comments);
   const image::RgbImage class_map = image::RenderClassMap(file.mesh, file.class_names);
   geo::WritePng(png_path, class_map.rgb, class_map.width, class_map.height, 3);
   const image::RgbImage view = image::RenderMeshView(file.mesh, image::ClassColourList());
   geo::WritePng(view_path, view.rgb, view.width, view.height, 3);
   if (options.export_obj) {
     scene::WriteObj(obj_path, mtl_path, fs::path(options.out_prefix + ".mtl").filename().string(), file.mesh,
-                    file.class_names, image::ClassColourList());
+                    file.class_names, image::ClassColourList(), mesh_comments);
   }
 
   const Eigen::AlignedBox3d box = file.mesh.Bounds();

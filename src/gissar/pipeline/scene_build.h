@@ -58,6 +58,13 @@ struct SceneBuildResult {
 // geometries, empty layers, features outside the DEM) are printed as
 // "gissar: warning: ..." lines on stderr and recorded in the JSON. Throws the
 // gissar::Error family on failure.
+// The georeference of a scene's PLY/OBJ meshes (PREFIX_mesh.json): the
+// local ENU tangent frame on WGS84 at (lon0, lat0, height 0), x east, y
+// north, z up, metres, and the PROJ pipeline taking mesh coordinates to
+// WGS84 longitude/latitude (degrees) and ellipsoidal height (cct, or
+// geo::ApplyProjPipeline).
+nlohmann::json MeshCrsRecord(double origin_lon_deg, double origin_lat_deg);
+
 SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 // Prints counts per class, extent, triangle count and memory of a scene

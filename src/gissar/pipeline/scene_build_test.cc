@@ -4,10 +4,12 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "gissar/pipeline/simulate.h"
 #include "gissar/geo/dem.h"
+#include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/material/material.h"
 #include "gissar/scene/scene_io.h"
@@ -147,7 +149,7 @@ TEST(SceneBuildTest, AndorraSceneBuildsAndSimulates) {
   o.out_prefix = (dir / "andorra").string();
   o.export_obj = true;
   const SceneBuildResult result = RunSceneBuild(o, "test");
-  ASSERT_EQ(result.outputs.size(), 7u);  // .gscene .ply _classes.png _3d.png .json .obj .mtl
+  ASSERT_EQ(result.outputs.size(), 8u);  // .gscene .ply _classes.png _3d.png .json _mesh.json .obj .mtl
   for (const auto& p : result.outputs) EXPECT_GT(fs::file_size(p), 100u) << p;
   {
     // The OBJ names its MTL by the final name (not AtomicOutputs' temporary
@@ -219,6 +221,57 @@ TEST(SceneBuildTest, BadVectorInputGivesClearErrorsOrCountedWarnings) {
   ASSERT_EQ(result.summary["warnings"].size(), 1u);
   EXPECT_NE(result.summary["warnings"][0].get<std::string>().find("89 features outside the DEM"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir / "scene.gscene"));
+}
+
+// The PLY/OBJ meshes say where they are: header comments and
+// PREFIX_mesh.json give the ENU frame's origin and a PROJ pipeline that takes
+// mesh coordinates to WGS84; applied by PROJ, it puts the mesh's vertices
+// back on the DEM posts they came from (map position and height).
+TEST(SceneBuildTest, MeshExportsCarryOriginAndCrs) {
+  const fs::path dir = testing::MakeTempDir();
+  std::ofstream(dir / "config.json") << R"({"layers": []})";
+  SceneBuildRequest o = BuildOptions(FlatDem(dir), (dir / "config.json").string(), dir);
+  o.export_obj = true;
+  RunSceneBuild(o, "test");
+  nlohmann::json crs;
+  std::ifstream(o.out_prefix + "_mesh.json") >> crs;
+  const std::string pipeline = crs.at("proj_pipeline_to_wgs84").get<std::string>();
+  // The DEM's centre (map 0, 0) is the frame origin: lon_0 = 1.6, lat_0 = 42.5.
+  EXPECT_NEAR(crs.at("origin_lon_deg").get<double>(), 1.6, 1e-9);
+  EXPECT_NEAR(crs.at("origin_lat_deg").get<double>(), 42.5, 1e-9);
+  for (const char* suffix : {".ply", ".obj"}) {
+    std::ifstream file(o.out_prefix + suffix, std::ios::binary);
+    std::string header((std::istreambuf_iterator<char>(file)), {});
+    header = header.substr(0, 2000);
+    EXPECT_NE(header.find("origin_lon_deg 1.6"), std::string::npos) << suffix;
+    EXPECT_NE(header.find(pipeline), std::string::npos) << suffix;
+  }
+  const scene::SceneFile scene = scene::ReadScene(o.out_prefix + ".gscene");
+  // Vertices at the DEM's corner and centre posts: map (-500, 500), (0, 0), (500, -500), height 100.
+  std::vector<Eigen::Vector3d> enu;
+  std::vector<Eigen::Vector2d> want;
+  for (const Eigen::Vector2d& m : {Eigen::Vector2d(-500, 500), Eigen::Vector2d(0, 0), Eigen::Vector2d(500, -500)}) {
+    double best = 1e9;
+    Eigen::Vector3d pick;
+    for (const auto& v : scene.mesh.vertices) {
+      // ENU ~ local TM near the origin (within 0.1 m over 1 km): find the post.
+      const double d = (v.head<2>().cast<double>() - m).norm();
+      if (d < best) best = d, pick = v.cast<double>();
+    }
+    ASSERT_LT(best, 1.0);
+    enu.push_back(pick);
+    want.push_back(m);
+  }
+  const std::vector<Eigen::Vector3d> geodetic = geo::ApplyProjPipeline(pipeline, enu);
+  const geo::CrsTransform tm(kLocalTm);
+  std::vector<double> x, y;
+  for (const auto& g : geodetic) x.push_back(g.x()), y.push_back(g.y());
+  tm.FromLonLat(x, y);
+  for (size_t i = 0; i < want.size(); ++i) {
+    EXPECT_NEAR(x[i], want[i].x(), 0.01) << i;
+    EXPECT_NEAR(y[i], want[i].y(), 0.01) << i;
+    EXPECT_NEAR(geodetic[i].z(), 100.0, 0.01) << i;  // the DEM's height, ellipsoidal
+  }
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "gissar/pipeline/simulate.h"
 
 #include "gissar/pipeline/georeferencing.h"
+#include "gissar/pipeline/stac.h"
 
 #include "gissar/pipeline/product_simulate.h"
 
@@ -532,6 +533,7 @@ void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs&
   o.annotated_png = o.files.Add(options.out_prefix + "_quicklook.png");
   o.mask_tif = o.files.Add(options.out_prefix + "_mask.tif");
   o.json = o.files.Add(options.out_prefix + ".json");
+  o.stac_json = o.files.Add(options.out_prefix + "_stac.json");
   if (options.coherent) o.slc_tif = o.files.Add(options.out_prefix + "_slc.tif");
   if (!options.contributions.empty()) o.contributions_csv = o.files.Add(options.contributions);
 }
@@ -694,6 +696,39 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
            : 0.0}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db},
                              {"percentiles", {2, 98}}};
+  // The STAC Item (stac.h): footprint from the GCPs on the imaged terrain.
+  {
+    StacProduct p;
+    p.id = fs::path(options.out_prefix).filename().string();
+    p.datetime_utc = provenance["created_utc"].get<std::string>();
+    for (const auto& g : raster.georeference.gcps) p.footprint_lonlat.emplace_back(g.lon_deg, g.lat_deg);
+    if (p.footprint_lonlat.empty()) p.footprint_lonlat.emplace_back(centre.lon_deg, centre.lat_deg);
+    p.wavelength_m = options.wavelength_m;
+    p.polarization = options.polarization;
+    p.product_type = "DETECTED_SLANT_RANGE";
+    p.observation_direction = sensor::ToString(geometry_options.look_side);
+    p.range_spacing_m = geometry.range_spacing_m();
+    p.azimuth_spacing_m = geometry.azimuth_spacing_m();
+    p.range_resolution_m = options.range_resolution_m;
+    p.azimuth_resolution_m = options.azimuth_resolution_m;
+    p.looks_equivalent_number = options.speckle_looks;
+    p.incidence_deg = geometry.IncidenceDeg(geometry.u0());
+    p.off_nadir_deg = 90.0 - geometry_options.depression_deg;
+    p.look_azimuth_deg = geometry_options.heading_deg + (geometry_options.look_side == sensor::LookSide::kRight ? 90.0 : -90.0);
+    p.width = image.width;
+    p.height = image.height;
+    p.lineage = "simulated by gissar simulate (" + options.engine + ", " + sensor::ToString(geometry.mode()) +
+                " projection) from " + fs::path(options.scene.empty() ? options.dem : options.scene).filename().string();
+    const std::string tiff = "image/tiff; application=geotiff";
+    auto final_of = [&](const fs::path& suffix) { return fs::path(options.out_prefix + suffix.string()); };
+    p.assets = {{"image", final_of(".tif"), tiff, "Slant-range " + options.radiometry + " (total and per-bounce bands)", {"data"}},
+                {"layover_shadow_mask", final_of("_mask.tif"), tiff, "Layover/shadow mask", {"data", "layover-shadow"}},
+                {"thumbnail", final_of(".png"), "image/png", "Quicklook (dB stretch)", {"thumbnail"}},
+                {"quicklook", final_of("_quicklook.png"), "image/png", "Annotated quicklook", {"overview"}},
+                {"provenance", final_of(".json"), "application/json", "gissar provenance sidecar", {"metadata"}}};
+    if (options.coherent) p.assets.push_back({"slc", final_of("_slc.tif"), tiff, "Single-look complex image", {"data"}});
+    WriteJsonFile(StacItem(p, fs::path(options.out_prefix).parent_path()), reserved.stac_json);
+  }
   timings["write"] = step.ElapsedSeconds();
   timings["total"] = total.ElapsedSeconds();
   provenance["timings_s"] = timings;

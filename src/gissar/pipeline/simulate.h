@@ -194,9 +194,9 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter 
 // work so that a missing or read-only directory fails first.
 struct SimulationOutputs {
   AtomicOutputs files;
-  std::filesystem::path tif, png, annotated_png, mask_tif, json, contributions_csv, slc_tif;
+  std::filesystem::path tif, png, annotated_png, mask_tif, json, stac_json, contributions_csv, slc_tif;
 };
-// Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _slc.tif in
+// Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _stac.json (STAC Item, stac.h), _slc.tif in
 // coherent mode and the contributions CSV when asked. Throws IoError for a missing or read-only
 // directory.
 void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& outputs);

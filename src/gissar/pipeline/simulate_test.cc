@@ -32,7 +32,7 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   const fs::path dir = testing::MakeTempDir();
   const SimulateRequest options = AndorraOptions(dir, 30.0);
   const SimulateResult result = RunSimulate(options, "gissar simulate (test)");
-  ASSERT_EQ(result.outputs.size(), 5u);
+  ASSERT_EQ(result.outputs.size(), 6u);
   for (const auto& p : result.outputs) EXPECT_TRUE(fs::exists(p)) << p;
   // The annotated quicklook: the image plus axes (70 + 50 px), title (44 px)
   // and the dB colour bar (110 px).
@@ -139,7 +139,7 @@ TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
   coherent.reflectors = csv.string();
   coherent.db = true;
   const SimulateResult result = RunSimulate(coherent, "");
-  EXPECT_EQ(result.outputs.size(), 6u);
+  EXPECT_EQ(result.outputs.size(), 7u);
   EXPECT_TRUE(fs::exists(dir / "coherent_slc.tif"));
   const geo::FloatRaster image = geo::ReadFloatRaster(coherent.out_prefix + ".tif");
   EXPECT_EQ(image.metadata.at("GISSAR_RADIOMETRY"), "sigma0");

@@ -183,13 +183,15 @@ SceneFile ReadScene(const fs::path& path) {
   return scene;
 }
 
-void WritePly(const fs::path& path, const TriangleMesh& mesh, const std::vector<std::string>& class_names) {
+void WritePly(const fs::path& path, const TriangleMesh& mesh, const std::vector<std::string>& class_names,
+              const std::vector<std::string>& header_comments) {
   std::ofstream out(path, std::ios::binary);
   if (!out) throw IoError("cannot open PLY for writing", path.string());
   out << "ply\nformat binary_little_endian 1.0\ncomment gissar scene, ENU metres\n";
   for (size_t i = 0; i < class_names.size(); ++i) {
     out << "comment class " << i << " " << class_names[i] << "\n";
   }
+  for (const std::string& line : header_comments) out << "comment " << line << "\n";
   out << "element vertex " << mesh.vertices.size()
       << "\nproperty float x\nproperty float y\nproperty float z\n"
       << "element face " << mesh.triangles.size()
@@ -214,7 +216,8 @@ void WriteObj(const fs::path& path, const TriangleMesh& mesh, const std::vector<
 
 void WriteObj(const fs::path& path, const fs::path& mtl_path, const std::string& mtllib_name,
               const TriangleMesh& mesh, const std::vector<std::string>& class_names,
-              const std::vector<std::array<uint8_t, 3>>& class_colours) {
+              const std::vector<std::array<uint8_t, 3>>& class_colours,
+              const std::vector<std::string>& header_comments) {
   {
     std::ofstream mtl(mtl_path);
     if (!mtl) throw IoError("cannot open MTL for writing", mtl_path.string());
@@ -227,7 +230,9 @@ void WriteObj(const fs::path& path, const fs::path& mtl_path, const std::string&
   }
   std::ofstream out(path);
   if (!out) throw IoError("cannot open OBJ for writing", path.string());
-  out << "# gissar scene, ENU metres (x east, y north, z up)\nmtllib " << mtllib_name << "\n";
+  out << "# gissar scene, ENU metres (x east, y north, z up)\n";
+  for (const std::string& line : header_comments) out << "# " << line << "\n";
+  out << "mtllib " << mtllib_name << "\n";
   out.precision(9);
   for (const Eigen::Vector3f& v : mesh.vertices) out << "v " << v.x() << " " << v.y() << " " << v.z() << "\n";
   // Faces grouped by class.

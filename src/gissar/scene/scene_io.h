@@ -48,9 +48,11 @@ void WriteScene(const std::filesystem::path& path, const SceneFile& scene);
 SceneFile ReadScene(const std::filesystem::path& path);
 
 // Binary little-endian PLY with vertex x,y,z (float, ENU metres) and faces
-// with vertex_indices and a uchar `class` property; class names in comments.
+// with vertex_indices and a uchar `class` property; class names in comments,
+// then `header_comments` (one line each, e.g. the frame's origin and CRS).
 void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh,
-              const std::vector<std::string>& class_names);
+              const std::vector<std::string>& class_names,
+              const std::vector<std::string>& header_comments = {});
 
 // Wavefront OBJ (+ MTL beside it, same stem) with one material per class
 // coloured like the class map, for any 3-D viewer. `class_colours[i]` is the
@@ -62,9 +64,11 @@ void WriteObj(const std::filesystem::path& path, const TriangleMesh& mesh,
 // The same with the MTL written to `mtl_path` and referenced from the OBJ as
 // `mtllib_name` (for writers that go through temporary names, e.g.
 // AtomicOutputs: the OBJ must name the MTL's final file name).
+// `header_comments` are written as "# ..." lines after the first.
 void WriteObj(const std::filesystem::path& path, const std::filesystem::path& mtl_path,
               const std::string& mtllib_name, const TriangleMesh& mesh,
               const std::vector<std::string>& class_names,
-              const std::vector<std::array<uint8_t, 3>>& class_colours);
+              const std::vector<std::array<uint8_t, 3>>& class_colours,
+              const std::vector<std::string>& header_comments = {});
 
 }  // namespace gissar::scene

@@ -1,0 +1,31 @@
+// `gissar geocode` flags (pipeline/geocode.h holds the request and the work).
+#include <memory>
+
+#include "gissar/cli/command.h"
+#include "gissar/pipeline/geocode.h"
+
+namespace gissar::cli {
+
+void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry) {
+  auto request = std::make_shared<pipeline::GeocodeRequest>();
+  auto max_memory = std::make_shared<std::string>();
+  CLI::App* cmd = root.add_subcommand(
+      "geocode", "Terrain-corrected map-geometry image of a gissar slant-range image (exact back-geocoding on its terrain).");
+  cmd->add_option("--image", request->image, "PREFIX.tif of `gissar simulate` (PREFIX.json, PREFIX_mask.tif beside it)")
+      ->required();
+  cmd->add_option("--dem", request->dem, "DEM whose heights replace the simulation's terrain (default: the sidecar's)");
+  cmd->add_option("--crs", request->crs, "Output CRS, e.g. EPSG:32631 (projected; default: UTM zone of the scene centre)");
+  cmd->add_option("--pixel-size", request->pixel_size_m, "Output pixel size, m (default: the image's larger spacing)");
+  cmd->add_option("--resampling", request->resampling, "bilinear or average")->capture_default_str();
+  cmd->add_option("--max-memory", *max_memory, "Memory budget, e.g. 4G (default: 3/4 of RAM)");
+  cmd->add_option("--out", request->out_prefix, "Output prefix: PREFIX.tif (map geometry), PREFIX.json, PREFIX_stac.json")->required();
+  registry.Add(cmd, [=](const CommandContext& context) {
+    pipeline::GeocodeRequest resolved = *request;
+    RequirePositiveIfGiven(*cmd, "--pixel-size", resolved.pixel_size_m);
+    resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
+    const pipeline::GeocodeResult result = pipeline::RunGeocode(resolved, context.command_line, context.reporter);
+    for (const auto& path : result.outputs) context.out << path.string() << "\n";
+  });
+}
+
+}  // namespace gissar::cli
