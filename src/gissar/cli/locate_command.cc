@@ -31,6 +31,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     registry.Add(cmd, [=](const CommandContext& context) {
       const auto report = RunLocate(*o, context.command_line, context.reporter);
       context.out << o->out << "\n";
+      if (!report.at("converged").get<bool>()) context.no_result = report.at("reason").get<std::string>();
     });
   }
   {

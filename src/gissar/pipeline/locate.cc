@@ -280,6 +280,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
       {"pose", result},
       {"prior", PoseJson(*start, model.look_side, terrain.frame)},
       {"converged", r.converged},
+      {"reason", r.converged ? nlohmann::json(nullptr) : nlohmann::json(r.failure_reason)},
       {"iterations", r.iterations},
       {"renders", r.renders},
       {"matches", r.matches},
