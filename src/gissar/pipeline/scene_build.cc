@@ -141,6 +141,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
            {"features_read", built.stats.features_read},
            {"features_outside", built.stats.features_outside},
            {"repaired_geometries", built.stats.repaired_geometries},
+           {"simplified_outlines", built.stats.simplified_outlines},
            {"buildings", built.stats.buildings},
            {"merged_buildings", built.stats.merged_buildings},
            {"step_walls", built.stats.step_walls},
