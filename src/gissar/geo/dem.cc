@@ -460,7 +460,9 @@ Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
   if (double(w) * double(h) > double(max_posts)) {
     throw InputError("DEM of " + std::to_string(dem.width) + "x" + std::to_string(dem.height) + " posts refined " +
                          std::to_string(factor) + " times has " + std::to_string(w) + "x" + std::to_string(h) +
-                         " posts, over the memory limit (--max-memory); lower --dem-oversample or crop the DEM",
+                         " posts, over the " + std::to_string(max_posts) +
+                         " the memory limit allows (--max-memory); lower --dem-oversample, crop the DEM, "
+                         "raise --max-memory, or run it anyway with --force",
                      dem.source);
   }
   // Along rows first (width grows), then along columns.

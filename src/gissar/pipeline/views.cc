@@ -171,7 +171,9 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
   const fs::path json_path = outputs.Add(prefix + ".json");
 
   std::unique_ptr<geo::Orthophoto> photo;
-  if (!options.orthophoto.empty()) photo = std::make_unique<geo::Orthophoto>(options.orthophoto);
+  if (!options.orthophoto.empty()) {
+    photo = std::make_unique<geo::Orthophoto>(options.orthophoto, options.base.max_memory_bytes);
+  }
   Terrain terrain = LoadTerrain(options.base);
   const render::EmbreeScene embree(terrain.mesh);
   PlaceSceneCentre(terrain, embree, options.base);
