@@ -100,6 +100,11 @@ void SimulateRequest::Check() const {
     throw ConfigError("NESZ must be in [-100, 60] dB", "--nesz");
   }
   image::ParseRadiometry(radiometry, "--radiometry");
+  // Radar wavelengths run from Ka band (8 mm) to VHF (10 m); [1 mm, 100 m]
+  // keeps every band and refuses nonsense such as 1e-30 m.
+  if (!(wavelength_m >= 1e-3 && wavelength_m <= 100.0)) {
+    throw ConfigError("wavelength must be in [0.001, 100] m", "--wavelength");
+  }
   if (!reflectors.empty() && engine == "raster") {
     throw ConfigError("the raster engine renders no reflectors (use --engine trace)", "--engine/--reflectors");
   }
@@ -416,6 +421,19 @@ std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry) {
   return incidence;
 }
 
+void CheckImpulseResponsePixels(double range_resolution_px, double azimuth_resolution_px) {
+  auto check = [](double px, const char* axis, const char* flag) {
+    if (px > kMaxImpulseResponsePx) {
+      throw ConfigError(std::string(axis) + " resolution spans " + std::to_string(std::llround(std::min(px, 1e18))) +
+                            " pixels of the " + axis + " spacing, over the limit of " +
+                            std::to_string(int(kMaxImpulseResponsePx)) + "; give a finer resolution or a coarser spacing",
+                        flag);
+    }
+  };
+  check(range_resolution_px, "range", "--range-resolution");
+  check(azimuth_resolution_px, "azimuth", "--azimuth-resolution");
+}
+
 void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry) {
   image::SensorEffects effects;
@@ -466,6 +484,8 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   }
   out.geometry = sensor::SarGeometry::Covering(out.geometry_options, terrain.centre_enu, mesh.vertices);
   const sensor::SarGeometry& geometry = *out.geometry;
+  CheckImpulseResponsePixels(options.range_resolution_m / geometry.range_spacing_m(),
+                             options.azimuth_resolution_m / geometry.azimuth_spacing_m());
   CheckMemoryBudget(kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
                         double(mesh.MemoryBytes()) * 3.0,
                     options.max_memory_bytes,

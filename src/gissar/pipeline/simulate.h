@@ -32,6 +32,13 @@ namespace gissar::pipeline {
 // intensity 10^(NESZ/10) overflows a float pixel.
 constexpr double kMinNeszDb = -100.0;
 constexpr double kMaxNeszDb = 60.0;
+// Widest impulse response, in pixels of the image spacing: the PSF kernel
+// grows with it (a 1e9 m resolution would never finish).
+constexpr double kMaxImpulseResponsePx = 1024.0;
+
+// Throws ConfigError naming --range-resolution / --azimuth-resolution when
+// the impulse response is wider than kMaxImpulseResponsePx pixels.
+void CheckImpulseResponsePixels(double range_resolution_px, double azimuth_resolution_px);
 
 struct SimulateRequest {
   std::string dem;                               // DEM raster (any GDAL format)

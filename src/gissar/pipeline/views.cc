@@ -34,8 +34,8 @@ std::string FrameSuffix(int i) {
 
 void SequenceRequest::Check() const {
   base.Check();
-  if (!std::isfinite(heading_from_deg)) throw ConfigError("heading must be finite", "--heading-from");
-  if (!std::isfinite(heading_to_deg)) throw ConfigError("heading must be finite", "--heading-to");
+  if (!(std::abs(heading_from_deg) <= 360.0)) throw ConfigError("heading must be in [-360, 360] degrees", "--heading-from");
+  if (!(std::abs(heading_to_deg) <= 360.0)) throw ConfigError("heading must be in [-360, 360] degrees", "--heading-to");
   if (frames < 2 || frames > 360) throw ConfigError("frames must be in [2, 360]", "--frames");
   if (frame_delay_cs < 1 || frame_delay_cs > 6000) throw ConfigError("frame delay must be in [1, 6000] cs", "--frame-delay");
 }
