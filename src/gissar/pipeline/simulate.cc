@@ -53,6 +53,10 @@ void SimulateRequest::Check() const {
     throw ConfigError("vertical datum must be 'ellipsoid' or 'egm96', got '" + vertical_datum + "'",
                       "--vertical-datum");
   }
+  CheckVerticalUnits(vertical_units);
+  if (!vertical_units.empty() && !scene.empty()) {
+    throw ConfigError("a scene keeps the heights it was built with", "--vertical-units");
+  }
   if (dem_oversample < 1 || dem_oversample > geo::kMaxDemOversample) {
     throw ConfigError("DEM oversampling must be in [1, " + std::to_string(geo::kMaxDemOversample) + "], got " +
                           std::to_string(dem_oversample),
@@ -129,6 +133,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["scene"] = scene;
   j["product"] = product;
   j["vertical_datum"] = vertical_datum;
+  j["vertical_units"] = vertical_units;
   j["dem_oversample"] = dem_oversample;
   j["sea"] = sea;
   j["sea_level_m"] = sea_level_m;
@@ -200,6 +205,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "scene") set(scene);
     else if (key == "product") set(product);
     else if (key == "vertical_datum") set(vertical_datum);
+    else if (key == "vertical_units") set(vertical_units);
     else if (key == "dem_oversample") set(dem_oversample);
     else if (key == "sea") set(sea);
     else if (key == "sea_level_m") set(sea_level_m);
@@ -264,6 +270,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   read_options.fill_nodata = options.fill_nodata;
   read_options.max_bytes = options.max_memory_bytes;
   read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
+  read_options.vertical_units = options.vertical_units;
   geo::Dem dem = geo::ReadDem(options.dem, read_options);
   const int source_width = dem.width, source_height = dem.height;
   dem = geo::RefineDem(dem, options.dem_oversample,
@@ -301,6 +308,8 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
                    {"source_width", source_width},
                    {"source_height", source_height},
                    {"oversample", options.dem_oversample},
+                   {"vertical_unit_m", dem.vertical_unit_m},
+                   {"vertical_unit_source", dem.vertical_unit_source},
                    {"sea_triangles", sea_triangles},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
@@ -419,6 +428,12 @@ std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry) {
   std::vector<double> incidence(geometry.width());
   for (int c = 0; c < geometry.width(); ++c) incidence[c] = geometry.IncidenceDeg(c);
   return incidence;
+}
+
+void CheckVerticalUnits(const std::string& units) {
+  if (!units.empty() && units != "m" && units != "ft" && units != "us-ft") {
+    throw ConfigError("vertical units must be m, ft or us-ft, got '" + units + "'", "--vertical-units");
+  }
 }
 
 void CheckImpulseResponsePixels(double range_resolution_px, double azimuth_resolution_px) {

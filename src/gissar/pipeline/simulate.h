@@ -40,6 +40,10 @@ constexpr double kMaxImpulseResponsePx = 1024.0;
 // the impulse response is wider than kMaxImpulseResponsePx pixels.
 void CheckImpulseResponsePixels(double range_resolution_px, double azimuth_resolution_px);
 
+// Throws ConfigError naming --vertical-units unless `units` is "" (from the
+// DEM file), "m", "ft" or "us-ft".
+void CheckVerticalUnits(const std::string& units);
+
 struct SimulateRequest {
   std::string dem;                               // DEM raster (any GDAL format)
   std::string scene;                             // or a scene built by `gissar scene build`
@@ -50,6 +54,9 @@ struct SimulateRequest {
   // ellipsoidal heights, as given) or "egm96" (orthometric, as SRTM: the
   // EGM96 undulation is added at every post).
   std::string vertical_datum = "ellipsoid";
+  // Unit of the DEM's heights: "" = from the file (band unit, vertical CRS,
+  // else metres), or m, ft, us-ft (geo::DemReadOptions::vertical_units).
+  std::string vertical_units;
   bool fill_nodata = false;                      // fill DEM voids instead of failing
   // Refine the DEM by this factor before meshing (geo::RefineDem: cubic
   // convolution, original posts kept): 1 = posts as given. Use it when the
