@@ -12,6 +12,7 @@
 #include "gissar/image/gif_writer.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/render/ortho_renderer.h"
+#include "gissar/sensor/sar_geometry.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/memory_limit.h"
@@ -34,8 +35,12 @@ std::string FrameSuffix(int i) {
 
 void SequenceRequest::Check() const {
   base.Check();
-  if (!(std::abs(heading_from_deg) <= 360.0)) throw ConfigError("heading must be in [-360, 360] degrees", "--heading-from");
-  if (!(std::abs(heading_to_deg) <= 360.0)) throw ConfigError("heading must be in [-360, 360] degrees", "--heading-to");
+  if (!(std::abs(heading_from_deg) <= sensor::kMaxAbsHeadingDeg)) {
+    throw ConfigError("heading must be within +-10000 degrees", "--heading-from");
+  }
+  if (!(std::abs(heading_to_deg) <= sensor::kMaxAbsHeadingDeg)) {
+    throw ConfigError("heading must be within +-10000 degrees", "--heading-to");
+  }
   if (frames < 2 || frames > 360) throw ConfigError("frames must be in [2, 360]", "--frames");
   if (frame_delay_cs < 1 || frame_delay_cs > 6000) throw ConfigError("frame delay must be in [1, 6000] cs", "--frame-delay");
 }

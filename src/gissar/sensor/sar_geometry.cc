@@ -51,11 +51,12 @@ std::string ToString(ProjectionMode mode) {
 }
 
 void SarGeometryOptions::Check() const {
-  // Bounds: a heading is an angle (one turn either way); the farthest SAR
-  // is geostationary (36,000 km): 1e8 m bounds any slant range; 100 km
-  // bounds any pixel spacing.
-  if (!std::isfinite(heading_deg) || std::abs(heading_deg) > 360.0) {
-    throw ConfigError("heading must be in [-360, 360] degrees, got " + Num(heading_deg), "--heading");
+  // Bounds: a heading is an angle (headings drift past 360 in pose
+  // searches, so a few turns are fine, but 1e300 is no direction); the
+  // farthest SAR is geostationary (36,000 km): 1e8 m bounds any slant
+  // range; 100 km bounds any pixel spacing.
+  if (!std::isfinite(heading_deg) || std::abs(heading_deg) > kMaxAbsHeadingDeg) {
+    throw ConfigError("heading must be within +-10000 degrees, got " + Num(heading_deg), "--heading");
   }
   if (!std::isfinite(depression_deg) || depression_deg <= 0.0 || depression_deg >= 90.0) {
     throw ConfigError("depression must be in (0, 90) degrees, got " + Num(depression_deg),

@@ -42,10 +42,11 @@ Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSid
 
 // Bounds of SarGeometryOptions::Check (geostationary orbits are at 3.6e7 m).
 inline constexpr double kMaxSlantRangeM = 1e8;
+inline constexpr double kMaxAbsHeadingDeg = 1e4;
 inline constexpr double kMaxPixelSpacingM = 1e5;
 
 struct SarGeometryOptions {
-  double heading_deg = 0.0;       // flight direction, clockwise from north, in [-360, 360]
+  double heading_deg = 0.0;       // flight direction, clockwise from north, |h| <= kMaxAbsHeadingDeg
   double depression_deg = 40.0;   // at the scene centre, in (0, 90)
   LookSide look_side = LookSide::kRight;
   double slant_range_m = 10000.0;  // sensor to scene centre, in (0, kMaxSlantRangeM]
