@@ -62,17 +62,20 @@ test-sanitize: deps
 	@cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) --timeout 1500
 
 # CI's subset under ASan + UBSan (time budget): the unit tests of the library
-# modules below the CLI (util, geo, scene, material, sensor, render, mvg).
+# modules below the CLI (util, geo, scene, material, sensor, render, mvg) and
+# the whole bad-input catalogue through the sanitized binary.
 SANITIZE_CI_TESTS = util_test geo_test scene_test material_test sensor_test render_test mvg_test
+SANITIZE_CI_TARGETS = $(SANITIZE_CI_TESTS) gissar bad_inputs_driver
+SANITIZE_CI_LABELS = $(SANITIZE_CI_TESTS) bad_inputs
 test-sanitize-ci: export ASAN_OPTIONS = detect_leaks=1:detect_stack_use_after_return=0:check_initialization_order=1:strict_init_order=1
 test-sanitize-ci: export LSAN_OPTIONS = suppressions=$(CURDIR)/scripts/sanitizer/lsan.supp:print_suppressions=0
 test-sanitize-ci: export UBSAN_OPTIONS = print_stacktrace=1:halt_on_error=1
 test-sanitize-ci: deps
 	@cmake -S . -B $(SANITIZE_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGISSAR_SANITIZE=ON \
 	  -DGISSAR_BUILD_BENCH=OFF > /dev/null
-	@cmake --build $(SANITIZE_DIR) -j$(JOBS) $(addprefix --target ,$(SANITIZE_CI_TESTS))
+	@cmake --build $(SANITIZE_DIR) -j$(JOBS) $(addprefix --target ,$(SANITIZE_CI_TARGETS))
 	@cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) --timeout 1500 \
-	  -L '^($(subst $(eval) ,|,$(strip $(SANITIZE_CI_TESTS))))$$'
+	  -L '^($(subst $(eval) ,|,$(strip $(SANITIZE_CI_LABELS))))$$'
 
 fuzz: build
 	@bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS) $(BUILD_DIR) $(FUZZERS)

@@ -13,6 +13,10 @@
 //    contains every `error:` substring of the case, stdout is empty;
 //  - for status 0: every stderr line starts "gissar: warning: " and contains
 //    the case's `warning:` substrings, and every `output:` file exists;
+//  - for status 3 (no result): the last stderr line starts "gissar: no result: "
+//    and contains every `error:` substring, the others are warnings, every
+//    `output:` file exists, and each `.json` output says "converged": false
+//    with a non-empty "reason";
 //  - in both: the case's input files are unchanged and no file appeared
 //    beside them; for status 2 the output directories stay empty.
 // A case whose command `gissar --help` does not list fails: nothing is
@@ -103,7 +107,7 @@ Case ParseCase(const fs::path& path) {
       c.run = value;
     } else if (key == "status") {
       c.status = std::atoi(value.c_str());
-      if (c.status != 0 && c.status != 2) Die(where + ": status is 0 or 2");
+      if (c.status != 0 && c.status != 2 && c.status != 3) Die(where + ": status is 0, 2 or 3");
     } else if (key == "error") {
       c.errors.push_back(value);
     } else if (key == "warning") {
@@ -130,6 +134,9 @@ Case ParseCase(const fs::path& path) {
   if (c.run.empty()) Die(path.string() + ": no 'run' line");
   if (c.description.empty()) Die(path.string() + ": starts with no '#' line saying what it covers");
   if (c.status == 2 && c.errors.empty()) Die(path.string() + ": an error case needs 'error:' lines");
+  if (c.status == 3 && (c.errors.empty() || c.outputs.empty())) {
+    Die(path.string() + ": a no-result case needs 'error:' lines (the reason) and its 'output:' result file");
+  }
   return c;
 }
 
@@ -320,8 +327,18 @@ bool MakeFixture(const std::string& name, const fs::path& dir) {
     put(0, 4);
     bytes += std::string(16, '\0');
     WriteBytes(path, bytes);
+  } else if (name == "image_flat64.tif") {
+    // Featureless: nothing for `locate` to match (a no-result, not a bad input).
+    gissar::geo::FloatRaster raster;
+    raster.width = raster.height = 64;
+    raster.bands = {std::vector<float>(64 * 64, 0.1f)};
+    raster.band_names = {"total"};
+    gissar::geo::WriteFloatGeoTiff(path, raster);
   } else if (name == "image.tif") {
-    gissar::geo::FloatRaster raster{16, 16, {std::vector<float>(256, 0.5f)}, {"total"}, {}};
+    gissar::geo::FloatRaster raster;
+    raster.width = raster.height = 16;
+    raster.bands = {std::vector<float>(256, 0.5f)};
+    raster.band_names = {"total"};
     gissar::geo::WriteFloatGeoTiff(path, raster);
   } else if (name == "scene.gscene") {
     gissar::scene::WriteScene(path, SmallScene());
@@ -579,8 +596,31 @@ int RunCase(const std::string& gissar, const fs::path& case_file) {
       }
       if (fs::exists(work / "missing-dir")) failures.push_back("created the missing directory");
     } else {
-      for (const std::string& line : err_lines) {
+      const bool no_result = c.status == 3;
+      for (size_t i = 0; i < err_lines.size(); ++i) {
+        const std::string& line = err_lines[i];
+        if (no_result && i + 1 == err_lines.size()) continue;
         if (line.rfind("gissar: warning: ", 0) != 0) failures.push_back("stderr line is not a warning: " + line);
+      }
+      if (no_result) {
+        const std::string last = err_lines.empty() ? "" : err_lines.back();
+        if (last.rfind("gissar: no result: ", 0) != 0) {
+          failures.push_back("the last stderr line does not start with 'gissar: no result: '");
+        }
+        for (const std::string& e : c.errors) {
+          const std::string want = Replace(e, values);
+          if (last.find(want) == std::string::npos) failures.push_back("no-result line lacks '" + want + "'");
+        }
+        for (const std::string& name : c.outputs) {
+          if (fs::path(name).extension() != ".json" || !fs::is_regular_file(out / name)) continue;
+          const std::string text = ReadBytes(out / name);
+          if (text.find("\"converged\": false") == std::string::npos) {
+            failures.push_back(name + " does not say \"converged\": false");
+          }
+          if (text.find("\"reason\": \"") == std::string::npos || text.find("\"reason\": \"\"") != std::string::npos) {
+            failures.push_back(name + " gives no reason");
+          }
+        }
       }
       for (const std::string& w : c.warnings) {
         if (o.err.find(Replace(w, values)) == std::string::npos) failures.push_back("no warning with '" + w + "'");
@@ -627,7 +667,7 @@ const char* kFixtureNames[] = {
     "dem_beyond_pole.tif", "dem_antimeridian.tif", "scene.gscene", "scene_truncated.gscene",
     "scene_v9.gscene", "scene_bad_end.gscene", "scene_bad_index.gscene",
     "scene_nan_vertex.gscene", "scene_huge_count.gscene", "scene_bad_header.gscene",
-    "scene_bad_class.gscene", "dem_65535_bands.tif"};
+    "scene_bad_class.gscene", "dem_65535_bands.tif", "image_flat64.tif"};
 
 // Seed corpora of the fuzzers (fuzz/): the built-in inputs and the inline
 // files of every case, sorted by the reader they feed: DIR/dem (.tif, .vrt,

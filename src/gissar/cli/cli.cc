@@ -23,6 +23,7 @@ namespace gissar::cli {
 namespace {
 
 constexpr int kExitError = 2;
+constexpr int kExitNoResult = 3;  // the result file says converged: false and why
 
 std::string JoinCommandLine(int argc, const char* const* argv) {
   std::string line;
@@ -123,7 +124,12 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
     if (common.threads > 0) {
       thread_limit.emplace(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(common.threads));
     }
-    registry.RunParsed(CommandContext{JoinCommandLine(argc, argv), out, *reporter, common.force});
+    const CommandContext context{JoinCommandLine(argc, argv), out, *reporter, common.force};
+    registry.RunParsed(context);
+    if (context.no_result) {
+      err << "gissar: no result: " << OneLine(*context.no_result) << "\n";
+      return kExitNoResult;
+    }
   } catch (const Error& e) {
     err << "gissar: error: " << OneLine(e.what()) << "\n";
     return kExitError;

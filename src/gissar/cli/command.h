@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <ostream>
 #include <sstream>
 #include <string>
@@ -24,6 +25,9 @@ struct CommandContext {
   std::ostream& out;         // results (paths, tables)
   Reporter& reporter;        // progress, information, warnings (terminal_reporter.h)
   bool force = false;        // --force: run jobs over the memory budget
+  // Set by a command that ran to the end and wrote its result file but found
+  // no result (a pose fix that did not converge): the reason, for exit status 3.
+  mutable std::optional<std::string> no_result;
 };
 
 using CommandAction = std::function<void(const CommandContext&)>;

@@ -22,6 +22,8 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--dem-oversample", options->dem_oversample,
                   "Refine the DEM this many times (cubic convolution) before meshing; for posts coarser than the pixels")
       ->capture_default_str();
+  cmd->add_option("--vertical-units", options->vertical_units,
+                  "Unit of the DEM heights: m, ft or us-ft (default: the file's band unit or vertical CRS, else m)");
   cmd->add_option("--vertical-datum", options->vertical_datum,
                   "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
       ->capture_default_str();

@@ -5,6 +5,7 @@
 #include <ogr_spatialref.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -233,6 +234,46 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     }
     nodata_marked = false;  // voids are NaN now; a scaled height may equal the stored no-data value
   }
+  // Vertical unit: the option, else the band's unit type, else the vertical
+  // axis of a compound CRS, else metres. Heights become metres here, before
+  // the range check (a DEM in feet is not silently read as metres).
+  {
+    std::string unit_name = options.vertical_units;
+    dem.vertical_unit_source = "--vertical-units";
+    if (unit_name.empty()) {
+      const char* band_unit = band->GetUnitType();
+      if (band_unit != nullptr && band_unit[0] != '\0') {
+        unit_name = band_unit;
+        dem.vertical_unit_source = "band unit type";
+      }
+    }
+    if (unit_name.empty() && srs->IsCompound()) {
+      const char* crs_unit = nullptr;
+      srs->GetTargetLinearUnits("VERT_CS", &crs_unit);
+      if (crs_unit != nullptr && crs_unit[0] != '\0') {
+        unit_name = crs_unit;
+        dem.vertical_unit_source = "vertical CRS";
+      }
+    }
+    if (unit_name.empty()) {
+      unit_name = "m";
+      dem.vertical_unit_source = "default (the file names no unit)";
+    }
+    const std::optional<double> metres = MetresPerVerticalUnit(unit_name);
+    if (!metres) {
+      throw InputError("DEM heights are in an unknown unit '" + unit_name + "' (" + dem.vertical_unit_source +
+                           "); give --vertical-units m, ft or us-ft",
+                       where);
+    }
+    dem.vertical_unit_m = *metres;
+    if (*metres != 1.0) {
+      for (double& v : raw) {
+        if (!IsVoid(v, nodata_marked, nodata)) v *= *metres;
+        else v = std::numeric_limits<double>::quiet_NaN();
+      }
+      nodata_marked = false;  // voids are NaN now (a converted height may equal the no-data value)
+    }
+  }
   int64_t voids = 0, out_of_range = 0;
   double lowest = kMinHeightM, highest = kMaxHeightM;
   for (double v : raw) {
@@ -448,6 +489,23 @@ void RefineLine(const float* in, size_t in_stride, int n, int factor, float* out
 
 }  // namespace
 
+std::optional<double> MetresPerVerticalUnit(const std::string& name) {
+  std::string n;
+  for (char ch : name) n += static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  while (!n.empty() && n.back() == ' ') n.pop_back();
+  while (!n.empty() && n.front() == ' ') n.erase(n.begin());
+  for (const char* m : {"m", "metre", "metres", "meter", "meters"}) {
+    if (n == m) return 1.0;
+  }
+  for (const char* ft : {"ft", "foot", "feet", "international foot", "foot (international)", "international feet"}) {
+    if (n == ft) return 0.3048;
+  }
+  for (const char* us : {"us-ft", "us_ft", "ftus", "us survey foot", "us survey feet", "foot_us", "us-foot"}) {
+    if (n == us) return 1200.0 / 3937.0;
+  }
+  return std::nullopt;
+}
+
 Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
   if (factor < 1 || factor > kMaxDemOversample) {
     throw ConfigError("DEM oversampling must be in [1, " + std::to_string(kMaxDemOversample) + "], got " +
@@ -460,7 +518,9 @@ Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
   if (double(w) * double(h) > double(max_posts)) {
     throw InputError("DEM of " + std::to_string(dem.width) + "x" + std::to_string(dem.height) + " posts refined " +
                          std::to_string(factor) + " times has " + std::to_string(w) + "x" + std::to_string(h) +
-                         " posts, over the memory limit (--max-memory); lower --dem-oversample or crop the DEM",
+                         " posts, over the " + std::to_string(max_posts) +
+                         " the memory limit allows (--max-memory); lower --dem-oversample, crop the DEM, "
+                         "raise --max-memory, or run it anyway with --force",
                      dem.source);
   }
   // Along rows first (width grows), then along columns.

@@ -40,7 +40,18 @@ struct DemReadOptions {
   // Optional window (first column, first row, columns, rows) in raster
   // cells: only that part is read, so large DEMs need not be loaded whole.
   std::optional<std::array<int, 4>> window;
+  // Unit of the stored heights (--vertical-units): "" = from the file (the
+  // band's unit type, else the vertical axis of a compound CRS, else metres),
+  // "m", "ft" (international foot, 0.3048 m) or "us-ft" (US survey foot,
+  // 1200/3937 m). Heights are converted to metres on reading.
+  std::string vertical_units;
 };
+
+// Metres per unit of a vertical-unit name: the --vertical-units values (m,
+// ft, us-ft) and the spellings GDAL and PROJ use ("metre", "meter", "foot",
+// "US survey foot", "ftUS", ...); case-insensitive. nullopt for anything
+// else.
+std::optional<double> MetresPerVerticalUnit(const std::string& name);
 
 // Heights a DEM may hold, metres: Earth's surface lies within about
 // -11 km (ocean trenches) and +8.9 km.
@@ -59,6 +70,8 @@ struct Dem {
   std::array<double, 6> geotransform;  // GDAL convention (cell corners)
   std::string crs_wkt;                 // CRS of the map coordinates
   int64_t filled_nodata_cells = 0;     // no-data cells filled on reading
+  double vertical_unit_m = 1.0;        // metres per stored height unit (converted on reading)
+  std::string vertical_unit_source;    // where that unit came from (option, band unit, CRS, default)
   // 1 where the raster had no data (the height there was filled), row-major
   // like heights_m; empty when the raster had no no-data cell.
   std::vector<uint8_t> nodata_mask;

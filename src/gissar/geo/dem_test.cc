@@ -162,6 +162,81 @@ TEST(DemTest, BandScaleAndOffsetAreApplied) {
   EXPECT_FLOAT_EQ(dem.heights_m[11], 2234.5f);
 }
 
+// A 2x2 Float32 DEM in UTM 31N holding `stored`, with the band unit `unit`
+// ("" = none) and the CRS `crs` (any OGR definition).
+std::string UnitDem(const std::filesystem::path& path, const std::vector<float>& stored, const char* unit,
+                    const char* crs = "EPSG:32631") {
+  EnsureGdal();
+  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+  GDALDataset* ds = gtiff->Create(path.c_str(), 2, 2, 1, GDT_Float32, nullptr);
+  double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
+  ds->SetGeoTransform(gt);
+  OGRSpatialReference srs;
+  srs.SetFromUserInput(crs);
+  ds->SetSpatialRef(&srs);
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  if (unit[0] != '\0') band->SetUnitType(unit);
+  std::vector<float> h = stored;
+  EXPECT_EQ(band->RasterIO(GF_Write, 0, 0, 2, 2, h.data(), 2, 2, GDT_Float32, 0, 0, nullptr), CE_None);
+  GDALClose(ds);
+  return path.string();
+}
+
+// Heights in feet become metres: 1 ft = 0.3048 m exactly, 1 US survey foot
+// = 1200/3937 m; a unit the reader does not know is an error naming the way
+// out; --vertical-units overrides the file.
+TEST(DemTest, VerticalUnitsFromTheFileOrTheOptionBecomeMetres) {
+  const auto dir = testing::MakeTempDir();
+  const std::vector<float> stored = {0.0f, 100.0f, 1000.0f, 10000.0f};
+  const Dem feet = ReadDem(UnitDem(dir / "ft.tif", stored, "ft"));
+  EXPECT_FLOAT_EQ(feet.heights_m[1], 30.48f);
+  EXPECT_FLOAT_EQ(feet.heights_m[3], 3048.0f);  // 10,000 ft: in range only once converted
+  EXPECT_DOUBLE_EQ(feet.vertical_unit_m, 0.3048);
+  EXPECT_EQ(feet.vertical_unit_source, "band unit type");
+
+  const Dem us = ReadDem(UnitDem(dir / "us.tif", stored, "US survey foot"));
+  EXPECT_NEAR(us.heights_m[2], 1000.0 * 1200.0 / 3937.0, 1e-3);
+
+  const Dem metres = ReadDem(UnitDem(dir / "m.tif", stored, "metre"));
+  EXPECT_FLOAT_EQ(metres.heights_m[3], 10000.0f);
+  const Dem none = ReadDem(UnitDem(dir / "none.tif", stored, ""));
+  EXPECT_FLOAT_EQ(none.heights_m[1], 100.0f);
+  EXPECT_EQ(none.vertical_unit_source, "default (the file names no unit)");
+
+  const std::string furlong = UnitDem(dir / "furlong.tif", stored, "furlong");
+  try {
+    ReadDem(furlong);
+    ADD_FAILURE() << "an unknown unit must be an error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'furlong'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--vertical-units"), std::string::npos) << e.what();
+  }
+  DemReadOptions as_metres;
+  as_metres.vertical_units = "m";
+  EXPECT_FLOAT_EQ(ReadDem(furlong, as_metres).heights_m[1], 100.0f);
+  DemReadOptions as_feet;
+  as_feet.vertical_units = "ft";
+  EXPECT_FLOAT_EQ(ReadDem(UnitDem(dir / "m2.tif", stored, "m"), as_feet).heights_m[1], 30.48f);
+
+  EXPECT_EQ(MetresPerVerticalUnit("Meters"), 1.0);
+  EXPECT_EQ(MetresPerVerticalUnit("foot"), 0.3048);
+  EXPECT_EQ(MetresPerVerticalUnit("ftUS"), 1200.0 / 3937.0);
+  EXPECT_FALSE(MetresPerVerticalUnit("km").has_value());
+}
+
+// With no unit set on the band, a compound CRS's vertical axis gives the
+// unit (EPSG:6360: NAVD88 height in US survey feet). GDAL's GeoTIFF driver
+// reports it as the band's unit type (VerticalUnitsGeoKey), other drivers
+// only in the CRS: either way the heights become metres.
+TEST(DemTest, VerticalUnitOfACompoundCrs) {
+  const auto dir = testing::MakeTempDir();
+  const Dem dem = ReadDem(UnitDem(dir / "navd88ft.tif", {0.0f, 100.0f, 200.0f, 300.0f}, "", "EPSG:32631+6360"));
+  EXPECT_TRUE(dem.vertical_unit_source == "vertical CRS" || dem.vertical_unit_source == "band unit type")
+      << dem.vertical_unit_source;
+  EXPECT_NEAR(dem.heights_m[1], 100.0 * 1200.0 / 3937.0, 1e-3);
+  EXPECT_NEAR(dem.vertical_unit_m, 1200.0 / 3937.0, 1e-12);
+}
+
 TEST(DemTest, HeightsOutsideEarthsRangeAreUnmarkedNoData) {
   const auto dir = testing::MakeTempDir();
   std::vector<float> z = Flat(8);

@@ -7,10 +7,11 @@
 
 #include "gissar/geo/gdal_env.h"
 #include "gissar/util/error.h"
+#include "gissar/util/memory_limit.h"
 
 namespace gissar::geo {
 
-Orthophoto::Orthophoto(const std::string& path) {
+Orthophoto::Orthophoto(const std::string& path, int64_t max_bytes) {
   EnsureGdal();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError("orthophoto does not exist", path);
@@ -30,6 +31,10 @@ Orthophoto::Orthophoto(const std::string& path) {
   width_ = ds->GetRasterXSize();
   height_ = ds->GetRasterYSize();
   if (int64_t{width_} * height_ > (int64_t{1} << 30)) throw InputError("orthophoto is too large", path);
+  CheckMemoryBudget(3.0 * double(width_) * double(height_), max_bytes,
+                    "orthophoto " + path + " of " + std::to_string(width_) + " x " + std::to_string(height_) +
+                        " pixels",
+                    "crop or downsample it (gdal_translate -projwin / -outsize)");
   rgb_.resize(size_t(width_) * height_ * 3);
   const int bands = ds->GetRasterCount();
   for (int c = 0; c < 3; ++c) {

@@ -263,16 +263,27 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
     result.iterations = it + 1;
     result.matches = cm.raw;
     result.inliers = static_cast<int>(cm.world.size());
-    if (result.inliers < options.min_matches) break;
+    if (result.inliers < options.min_matches) {
+      result.failure_reason = "too few consistent matches between the image and the reference (" +
+                              std::to_string(result.inliers) + " after RANSAC of " + std::to_string(cm.raw) +
+                              ", at least " + std::to_string(options.min_matches) + " needed)";
+      break;
+    }
     const auto res = ResectKnownSpacing(cm.world, cm.observed, pose.centre_enu, model, pose.heading_deg,
                                         pose.depression_deg);
-    if (!res) break;
+    if (!res) {
+      result.failure_reason = "the matches determine no camera (degenerate control points)";
+      break;
+    }
     const double a = ((model.width - 1) / 2.0 - res->u0) * model.range_spacing_m;
     const double b = ((model.height - 1) / 2.0 - res->v0) * model.azimuth_spacing_m;
     const double d_heading = std::remainder(res->heading_deg - pose.heading_deg, 360.0);
     const double d_depression = res->depression_deg - pose.depression_deg;
     const auto next = Moved(scene, pose, model, d_heading, d_depression, a, b);
-    if (!next) break;
+    if (!next) {
+      result.failure_reason = "the resected pose's line of sight leaves the scene";
+      break;
+    }
     result.rms_px = res->rms_px;
     result.heading_sigma_deg = res->sigma[0];
     result.depression_sigma_deg = res->sigma[1];
@@ -289,6 +300,12 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
     if (last_update_px < 0.1) break;
   }
   result.converged = last_update_px < 0.5;
+  if (result.converged) {
+    result.failure_reason.clear();
+  } else if (result.failure_reason.empty()) {
+    result.failure_reason = "the pose update did not settle below 0.5 px in " + std::to_string(result.iterations) +
+                            " iterations (last " + std::to_string(last_update_px) + " px)";
+  }
 
   if (options.polish_evaluations > 0 && result.converged) {
     // Nelder-Mead on -NCC over (heading, depression, shift along l, along h).

@@ -120,6 +120,8 @@ struct LocateResult {
   NavPose pose;
   Eigen::Vector3d sensor_enu = Eigen::Vector3d::Zero();
   bool converged = false;
+  // Why there is no fix when `converged` is false (one sentence), else empty.
+  std::string failure_reason;
   int iterations = 0;
   int matches = 0;                 // correspondences of the last iteration
   int inliers = 0;                 // after RANSAC

@@ -280,6 +280,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
       {"pose", result},
       {"prior", PoseJson(*start, model.look_side, terrain.frame)},
       {"converged", r.converged},
+      {"reason", r.converged ? nlohmann::json(nullptr) : nlohmann::json(r.failure_reason)},
       {"iterations", r.iterations},
       {"renders", r.renders},
       {"matches", r.matches},
@@ -316,7 +317,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
 
 void EvaluateRequest::Check() const {
   CheckSceneOrDem(scene, dem);
-  if (trials < 1) throw ConfigError("must be >= 1", "--trials");
+  if (trials < 1 || trials > kMaxTrials) throw ConfigError("must be in [1, 100000]", "--trials");
   if (out_prefix.empty()) throw ConfigError("required", "--out");
   if (!(spacing_m > 0)) throw ConfigError("must be > 0", "--spacing");
   if (size_px < 48) throw ConfigError("must be >= 48", "--size");

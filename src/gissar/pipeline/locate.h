@@ -60,6 +60,9 @@ struct LocateRequest {
 };
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
+// Most Monte-Carlo trials one `evaluate` runs (each is a whole pose fix).
+constexpr int kMaxTrials = 100000;
+
 struct EvaluateRequest {
   std::string scene;
   std::string dem;

@@ -75,6 +75,8 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
       " returns re-projected");
 
   render::SarImage& image = sim.image.image;
+  CheckImpulseResponsePixels(options.range_resolution_m / sim.grid.dr_m,
+                             options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m);
   image::ApplyImpulseResponse(image.intensity, image.width, image.height,
                               options.range_resolution_m / sim.grid.dr_m,
                               options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m,

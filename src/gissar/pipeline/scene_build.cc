@@ -10,6 +10,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/class_map.h"
 #include "gissar/image/mesh_view.h"
+#include "gissar/pipeline/simulate.h"
 #include "gissar/material/material.h"
 #include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_config.h"
@@ -70,6 +71,7 @@ void SceneBuildRequest::Check() const {
   if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
   if (sea != "auto" && sea != "off") throw ConfigError("expected auto or off, got '" + sea + "'", "--sea");
   if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
+  CheckVerticalUnits(vertical_units);
   if (dem_oversample < 1 || dem_oversample > geo::kMaxDemOversample) {
     throw ConfigError("DEM oversampling must be in [1, " + std::to_string(geo::kMaxDemOversample) + "], got " +
                           std::to_string(dem_oversample),
@@ -97,6 +99,7 @@ json SceneBuildRequest::ToJson() const {
           {"sea", sea},
           {"sea_level_m", sea_level_m},
           {"dem_oversample", dem_oversample},
+          {"vertical_units", vertical_units},
           {"flat_shading", flat_shading},
           {"max_memory_bytes", max_memory_bytes}};
 }
@@ -138,6 +141,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
   // regions and the output mesh, per DEM post; vector constraints add more.
   read_options.bytes_per_post = 512;
   read_options.max_bytes = options.max_memory_bytes;
+  read_options.vertical_units = options.vertical_units;
   const geo::Dem dem = geo::RefineDem(geo::ReadDem(options.dem, read_options), options.dem_oversample,
                                       options.max_memory_bytes / read_options.bytes_per_post);
   const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, options.center_lonlat, std::nullopt);
@@ -159,11 +163,14 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
            {"triangles", built.mesh.triangle_count()},
            {"vertices", built.mesh.vertices.size()},
            {"dem_posts", built.stats.dem_posts},
+           {"dem_vertical_unit_m", dem.vertical_unit_m},
+           {"dem_vertical_unit_source", dem.vertical_unit_source},
            {"inserted_vertices", built.stats.inserted_vertices},
            {"constraint_segments", built.stats.constraint_segments},
            {"features_read", built.stats.features_read},
            {"features_outside", built.stats.features_outside},
            {"repaired_geometries", built.stats.repaired_geometries},
+           {"simplified_outlines", built.stats.simplified_outlines},
            {"buildings", built.stats.buildings},
            {"merged_buildings", built.stats.merged_buildings},
            {"step_walls", built.stats.step_walls},

@@ -36,6 +36,8 @@ struct SceneBuildRequest {
   double sea_level_m = 0.0;
   // DEM refinement before meshing (--dem-oversample, geo::RefineDem).
   int dem_oversample = 1;
+  // Unit of the DEM's heights (--vertical-units): "" = from the file, m, ft or us-ft.
+  std::string vertical_units;
   // --flat-shading: no per-vertex shading normals (smooth terrain) in the scene.
   bool flat_shading = false;
   // Memory budget (--max-memory), bytes: the DEM (window) is checked against

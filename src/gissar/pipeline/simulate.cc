@@ -55,6 +55,10 @@ void SimulateRequest::Check() const {
     throw ConfigError("vertical datum must be 'ellipsoid' or 'egm96', got '" + vertical_datum + "'",
                       "--vertical-datum");
   }
+  CheckVerticalUnits(vertical_units);
+  if (!vertical_units.empty() && !scene.empty()) {
+    throw ConfigError("a scene keeps the heights it was built with", "--vertical-units");
+  }
   if (dem_oversample < 1 || dem_oversample > geo::kMaxDemOversample) {
     throw ConfigError("DEM oversampling must be in [1, " + std::to_string(geo::kMaxDemOversample) + "], got " +
                           std::to_string(dem_oversample),
@@ -102,6 +106,11 @@ void SimulateRequest::Check() const {
     throw ConfigError("NESZ must be in [-100, 60] dB", "--nesz");
   }
   image::ParseRadiometry(radiometry, "--radiometry");
+  // Radar wavelengths run from Ka band (8 mm) to VHF (10 m); [1 mm, 100 m]
+  // keeps every band and refuses nonsense such as 1e-30 m.
+  if (!(wavelength_m >= 1e-3 && wavelength_m <= 100.0)) {
+    throw ConfigError("wavelength must be in [0.001, 100] m", "--wavelength");
+  }
   if (!reflectors.empty() && engine == "raster") {
     throw ConfigError("the raster engine renders no reflectors (use --engine trace)", "--engine/--reflectors");
   }
@@ -123,6 +132,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["scene"] = scene;
   j["product"] = product;
   j["vertical_datum"] = vertical_datum;
+  j["vertical_units"] = vertical_units;
   j["dem_oversample"] = dem_oversample;
   j["sea"] = sea;
   j["sea_level_m"] = sea_level_m;
@@ -194,6 +204,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "scene") set(scene);
     else if (key == "product") set(product);
     else if (key == "vertical_datum") set(vertical_datum);
+    else if (key == "vertical_units") set(vertical_units);
     else if (key == "dem_oversample") set(dem_oversample);
     else if (key == "sea") set(sea);
     else if (key == "sea_level_m") set(sea_level_m);
@@ -258,6 +269,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   read_options.fill_nodata = options.fill_nodata;
   read_options.max_bytes = options.max_memory_bytes;
   read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
+  read_options.vertical_units = options.vertical_units;
   geo::Dem dem = geo::ReadDem(options.dem, read_options);
   const int source_width = dem.width, source_height = dem.height;
   dem = geo::RefineDem(dem, options.dem_oversample,
@@ -315,6 +327,8 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
                    {"source_width", source_width},
                    {"source_height", source_height},
                    {"oversample", options.dem_oversample},
+                   {"vertical_unit_m", dem.vertical_unit_m},
+                   {"vertical_unit_source", dem.vertical_unit_source},
                    {"sea_triangles", sea_triangles},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
@@ -435,6 +449,25 @@ std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry) {
   return incidence;
 }
 
+void CheckVerticalUnits(const std::string& units) {
+  if (!units.empty() && units != "m" && units != "ft" && units != "us-ft") {
+    throw ConfigError("vertical units must be m, ft or us-ft, got '" + units + "'", "--vertical-units");
+  }
+}
+
+void CheckImpulseResponsePixels(double range_resolution_px, double azimuth_resolution_px) {
+  auto check = [](double px, const char* axis, const char* flag) {
+    if (px > kMaxImpulseResponsePx) {
+      throw ConfigError(std::string(axis) + " resolution spans " + std::to_string(std::llround(std::min(px, 1e18))) +
+                            " pixels of the " + axis + " spacing, over the limit of " +
+                            std::to_string(int(kMaxImpulseResponsePx)) + "; give a finer resolution or a coarser spacing",
+                        flag);
+    }
+  };
+  check(range_resolution_px, "range", "--range-resolution");
+  check(azimuth_resolution_px, "azimuth", "--azimuth-resolution");
+}
+
 void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry) {
   image::SensorEffects effects;
@@ -485,6 +518,8 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   }
   out.geometry = sensor::SarGeometry::Covering(out.geometry_options, terrain.centre_enu, mesh.vertices);
   const sensor::SarGeometry& geometry = *out.geometry;
+  CheckImpulseResponsePixels(options.range_resolution_m / geometry.range_spacing_m(),
+                             options.azimuth_resolution_m / geometry.azimuth_spacing_m());
   CheckMemoryBudget(kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
                         double(mesh.MemoryBytes()) * 3.0,
                     options.max_memory_bytes,

@@ -32,6 +32,17 @@ namespace gissar::pipeline {
 // intensity 10^(NESZ/10) overflows a float pixel.
 constexpr double kMinNeszDb = -100.0;
 constexpr double kMaxNeszDb = 60.0;
+// Widest impulse response, in pixels of the image spacing: the PSF kernel
+// grows with it (a 1e9 m resolution would never finish).
+constexpr double kMaxImpulseResponsePx = 1024.0;
+
+// Throws ConfigError naming --range-resolution / --azimuth-resolution when
+// the impulse response is wider than kMaxImpulseResponsePx pixels.
+void CheckImpulseResponsePixels(double range_resolution_px, double azimuth_resolution_px);
+
+// Throws ConfigError naming --vertical-units unless `units` is "" (from the
+// DEM file), "m", "ft" or "us-ft".
+void CheckVerticalUnits(const std::string& units);
 
 struct SimulateRequest {
   std::string dem;                               // DEM raster (any GDAL format)
@@ -43,6 +54,9 @@ struct SimulateRequest {
   // ellipsoidal heights, as given) or "egm96" (orthometric, as SRTM: the
   // EGM96 undulation is added at every post).
   std::string vertical_datum = "ellipsoid";
+  // Unit of the DEM's heights: "" = from the file (band unit, vertical CRS,
+  // else metres), or m, ft, us-ft (geo::DemReadOptions::vertical_units).
+  std::string vertical_units;
   bool fill_nodata = false;                      // fill DEM voids instead of failing
   // Refine the DEM by this factor before meshing (geo::RefineDem: cubic
   // convolution, original posts kept): 1 = posts as given. Use it when the

@@ -12,6 +12,7 @@
 #include "gissar/image/gif_writer.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/render/ortho_renderer.h"
+#include "gissar/sensor/sar_geometry.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/memory_limit.h"
@@ -34,8 +35,12 @@ std::string FrameSuffix(int i) {
 
 void SequenceRequest::Check() const {
   base.Check();
-  if (!std::isfinite(heading_from_deg)) throw ConfigError("heading must be finite", "--heading-from");
-  if (!std::isfinite(heading_to_deg)) throw ConfigError("heading must be finite", "--heading-to");
+  if (!(std::abs(heading_from_deg) <= sensor::kMaxAbsHeadingDeg)) {
+    throw ConfigError("heading must be within +-10000 degrees", "--heading-from");
+  }
+  if (!(std::abs(heading_to_deg) <= sensor::kMaxAbsHeadingDeg)) {
+    throw ConfigError("heading must be within +-10000 degrees", "--heading-to");
+  }
   if (frames < 2 || frames > 360) throw ConfigError("frames must be in [2, 360]", "--frames");
   if (frame_delay_cs < 1 || frame_delay_cs > 6000) throw ConfigError("frame delay must be in [1, 6000] cs", "--frame-delay");
 }
@@ -171,7 +176,9 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
   const fs::path json_path = outputs.Add(prefix + ".json");
 
   std::unique_ptr<geo::Orthophoto> photo;
-  if (!options.orthophoto.empty()) photo = std::make_unique<geo::Orthophoto>(options.orthophoto);
+  if (!options.orthophoto.empty()) {
+    photo = std::make_unique<geo::Orthophoto>(options.orthophoto, options.base.max_memory_bytes);
+  }
   Terrain terrain = LoadTerrain(options.base);
   const render::EmbreeScene embree(terrain.mesh);
   PlaceSceneCentre(terrain, embree, options.base);

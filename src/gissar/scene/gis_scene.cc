@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <deque>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <unordered_map>
@@ -568,6 +569,23 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   }
   const Eigen::Matrix2d A = scene.planar_from_cell;
   const Eigen::Matrix2d cell_from_planar = A.inverse();
+  // Over-sampled outlines (mean vertex spacing under 1 % of a DEM cell, e.g.
+  // a polygon of 10^6 vertices) are simplified (GEOS, topology preserved)
+  // to 1/1000 of a cell, the tolerance of the post snapping below: the mesh
+  // cannot use finer detail, and the triangulation would grow with it.
+  // Ordinary outlines (OSM vertices metres apart) are kept as they are, so
+  // that neighbours sharing a wall keep identical vertices.
+  const double cell_size_m = std::min(A.col(0).norm(), A.col(1).norm());
+  auto simplify_if_oversampled = [&](GeomPtr g) {
+    const int count = GEOSGetNumCoordinates_r(geos.ctx(), g.get());
+    double length = 0.0;
+    if (count < 1000 || GEOSLength_r(geos.ctx(), g.get(), &length) != 1) return g;
+    if (length / count >= 0.01 * cell_size_m) return g;
+    GeomPtr simple = Own(geos, GEOSTopologyPreserveSimplify_r(geos.ctx(), g.get(), 1e-3 * cell_size_m));
+    if (!simple || IsEmpty(geos, simple.get())) return g;
+    ++stats.simplified_outlines;
+    return simple;
+  };
   auto to_planar = [&](const Vector2d& map_xy) {
     double c = 0, r = 0;
     dem.PostFromMap(map_xy.x(), map_xy.y(), &c, &r);
@@ -725,6 +743,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
         if (GEOSPreparedIntersects_r(geos.ctx(), extent_prepared.get(), piece.get()) != 1) continue;
         GeomPtr clipped = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), piece.get(), extent.get())));
         if (IsEmpty(geos, clipped.get())) continue;
+        clipped = simplify_if_oversampled(std::move(clipped));
         any_inside = true;
         if (config.densify_m > 0) {
           clipped = Own(geos, GEOSDensify_r(geos.ctx(), clipped.get(), config.densify_m));
@@ -914,8 +933,22 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     cdt.insert(posts.begin(), posts.end());
     stats.dem_posts = static_cast<int64_t>(posts.size());
   }
-  for (const auto& [a, b] : scene.boundary_segments) {
-    cdt.insert_constraint(CdtPoint(a.x(), a.y()), CdtPoint(b.x(), b.y()));
+  {
+    // Boundaries come as chains (a segment starts where the previous one
+    // ended): each end is located from the previous vertex's face, so the
+    // point location is a short walk and a polygon of 10^6 vertices
+    // triangulates in seconds (a walk from an arbitrary face crosses the
+    // fans of earlier constraints: quadratic).
+    Cdt::Vertex_handle previous;
+    Vector2d previous_point(std::numeric_limits<double>::quiet_NaN(), 0.0);
+    for (const auto& [a, b] : scene.boundary_segments) {
+      const Cdt::Face_handle hint = previous != Cdt::Vertex_handle() ? previous->face() : Cdt::Face_handle();
+      const Cdt::Vertex_handle va = a == previous_point ? previous : cdt.insert(CdtPoint(a.x(), a.y()), hint);
+      const Cdt::Vertex_handle vb = cdt.insert(CdtPoint(b.x(), b.y()), va->face());
+      if (va != vb) cdt.insert_constraint(va, vb);
+      previous = vb;
+      previous_point = b;
+    }
   }
 
   // Regions: faces connected without crossing a constraint share a class.

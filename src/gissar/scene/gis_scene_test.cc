@@ -423,6 +423,51 @@ TEST(GisSceneTest, WallsOfRandomPostSnappedFootprintsFaceOutwards) {
 // 40 with height 12 has its lowest contact at x = 0 (100 m): roof at 112 m;
 // its walls are 12 m high at x = 0 and 8 m at x = 40. With height 2 the roof
 // (102 m) is below the ground beyond x = 20 (pit sides, facing in).
+// A round building outlined by 10^6 vertices (1.3 mm apart): the outline is
+// simplified to 1/1000 of a cell (1 cm here), so the triangulation stays
+// small; the roof keeps the circle's area pi r^2 (a chord tolerance of 1 cm
+// changes it by at most perimeter x 1 cm = 0.01 %) and every wall faces out.
+TEST(GisSceneTest, MillionVertexOutlineIsSimplifiedNotTriangulated) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = FlatDem(dir);
+  constexpr int kVertices = 1000000;
+  constexpr double kRadius = 200.0;
+  std::vector<Vector2d> ring;
+  ring.reserve(kVertices + 1);
+  for (int i = 0; i < kVertices; ++i) {
+    const double a = 2.0 * M_PI * i / kVertices;
+    ring.emplace_back(kRadius * std::cos(a), kRadius * std::sin(a));
+  }
+  ring.push_back(ring.front());
+  const std::string buildings =
+      WriteGeoJson(dir / "round.geojson", {{"Polygon", {ring}, R"({"height": "10"})"}});
+  SceneConfig config;
+  config.layers = {Spec(buildings, kClassBuilding, LayerKind::kBuilding)};
+  const GisScene scene = Build(dem, config);
+  EXPECT_EQ(scene.stats.simplified_outlines, 1);
+  EXPECT_LT(scene.stats.constraint_segments, 20000);
+  const TriangleMesh& mesh = scene.mesh;
+  double roof_area = 0.0;
+  int64_t walls = 0, inward = 0;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (mesh.classes[t] != kClassBuilding) continue;
+    const Eigen::Vector3f& a = mesh.vertices[mesh.triangles[t][0]];
+    const Eigen::Vector3f& b = mesh.vertices[mesh.triangles[t][1]];
+    const Eigen::Vector3f& c = mesh.vertices[mesh.triangles[t][2]];
+    const Eigen::Vector3d cross = ((b - a).cross(c - a)).cast<double>();
+    const Eigen::Vector3f centre = (a + b + c) / 3.0f;
+    if (cross.z() > 0.999 * cross.norm()) {
+      roof_area += 0.5 * cross.norm();
+    } else if (std::abs(cross.z()) < 1e-3 * cross.norm()) {
+      ++walls;
+      if (cross.head<2>().dot(centre.head<2>().cast<double>()) <= 0.0) ++inward;
+    }
+  }
+  EXPECT_NEAR(roof_area, M_PI * kRadius * kRadius, 1e-4 * M_PI * kRadius * kRadius);
+  EXPECT_GT(walls, 100);
+  EXPECT_EQ(inward, 0);
+}
+
 TEST(GisSceneTest, RoofsSitAtTheLowestGroundContactPlusHeight) {
   const fs::path dir = testing::MakeTempDir();
   const std::string dem = DemOf(dir / "slope.tif", [](double x, double) { return 100.0 + 0.1 * x; });
@@ -463,7 +508,9 @@ TEST(GisSceneTest, RoofsSitAtTheLowestGroundContactPlusHeight) {
     const Vector2d d = n.head<2>().cast<double>().normalized() * 0.05;
     const Vector2d p = c.head<2>().cast<double>();
     (Inside(low, p + d) ? facing_in : facing_out) += AreaOf(mesh, t);
-    if (std::abs(c.x() - 40.0f) < 0.1f) EXPECT_LT(n.x(), -0.99f) << "pit side faces into the footprint";
+    if (std::abs(c.x() - 40.0f) < 0.1f) {
+      EXPECT_LT(n.x(), -0.99f) << "pit side faces into the footprint";
+    }
   }
   EXPECT_NEAR(facing_out, 60.0 + 2 * 20.0, 0.2);
   EXPECT_NEAR(facing_in, 60.0 + 2 * 20.0, 0.2);

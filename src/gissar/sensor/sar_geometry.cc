@@ -51,20 +51,26 @@ std::string ToString(ProjectionMode mode) {
 }
 
 void SarGeometryOptions::Check() const {
-  if (!std::isfinite(heading_deg)) throw ConfigError("heading must be a finite number", "--heading");
+  // Bounds: a heading is an angle (headings drift past 360 in pose
+  // searches, so a few turns are fine, but 1e300 is no direction); the
+  // farthest SAR is geostationary (36,000 km): 1e8 m bounds any slant
+  // range; 100 km bounds any pixel spacing.
+  if (!std::isfinite(heading_deg) || std::abs(heading_deg) > kMaxAbsHeadingDeg) {
+    throw ConfigError("heading must be within +-10000 degrees, got " + Num(heading_deg), "--heading");
+  }
   if (!std::isfinite(depression_deg) || depression_deg <= 0.0 || depression_deg >= 90.0) {
     throw ConfigError("depression must be in (0, 90) degrees, got " + Num(depression_deg),
                       "--depression");
   }
-  if (!std::isfinite(slant_range_m) || slant_range_m <= 0.0) {
-    throw ConfigError("slant range must be positive, got " + Num(slant_range_m), "--slant-range");
+  if (!std::isfinite(slant_range_m) || slant_range_m <= 0.0 || slant_range_m > kMaxSlantRangeM) {
+    throw ConfigError("slant range must be in (0, 1e8] m, got " + Num(slant_range_m), "--slant-range");
   }
-  if (!std::isfinite(range_spacing_m) || range_spacing_m <= 0.0) {
-    throw ConfigError("range pixel spacing must be positive, got " + Num(range_spacing_m),
+  if (!std::isfinite(range_spacing_m) || range_spacing_m <= 0.0 || range_spacing_m > kMaxPixelSpacingM) {
+    throw ConfigError("range pixel spacing must be in (0, 1e5] m, got " + Num(range_spacing_m),
                       "--range-spacing");
   }
-  if (!std::isfinite(azimuth_spacing_m) || azimuth_spacing_m <= 0.0) {
-    throw ConfigError("azimuth pixel spacing must be positive, got " + Num(azimuth_spacing_m),
+  if (!std::isfinite(azimuth_spacing_m) || azimuth_spacing_m <= 0.0 || azimuth_spacing_m > kMaxPixelSpacingM) {
+    throw ConfigError("azimuth pixel spacing must be in (0, 1e5] m, got " + Num(azimuth_spacing_m),
                       "--azimuth-spacing");
   }
   if (width < 0 || height < 0) throw ConfigError("image size must not be negative", "--width/--height");

@@ -40,13 +40,18 @@ Eigen::Vector3d FlightDirection(double heading_deg);
 // right-looking, its opposite for left-looking). No validation.
 Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSide look_side);
 
+// Bounds of SarGeometryOptions::Check (geostationary orbits are at 3.6e7 m).
+inline constexpr double kMaxSlantRangeM = 1e8;
+inline constexpr double kMaxAbsHeadingDeg = 1e4;
+inline constexpr double kMaxPixelSpacingM = 1e5;
+
 struct SarGeometryOptions {
-  double heading_deg = 0.0;       // flight direction, clockwise from north
+  double heading_deg = 0.0;       // flight direction, clockwise from north, |h| <= kMaxAbsHeadingDeg
   double depression_deg = 40.0;   // at the scene centre, in (0, 90)
   LookSide look_side = LookSide::kRight;
-  double slant_range_m = 10000.0;  // sensor to scene centre, > 0
-  double range_spacing_m = 0.0;    // pixel spacing in slant range, > 0
-  double azimuth_spacing_m = 0.0;  // pixel spacing along track, > 0
+  double slant_range_m = 10000.0;  // sensor to scene centre, in (0, kMaxSlantRangeM]
+  double range_spacing_m = 0.0;    // pixel spacing in slant range, in (0, kMaxPixelSpacingM]
+  double azimuth_spacing_m = 0.0;  // pixel spacing along track, in (0, kMaxPixelSpacingM]
   ProjectionMode mode = ProjectionMode::kAffine;
   int width = 0;   // image columns (range); 0 = cover the whole scene
   int height = 0;  // image rows (azimuth); 0 = cover the whole scene
