@@ -1,3 +1,4 @@
+#include "gissar/pipeline/image_probe_testing.h"
 #include "gissar/pipeline/scene_build.h"
 
 #include <gtest/gtest.h>
@@ -82,17 +83,7 @@ TEST(SceneBuildTest, WaterIsDarkerByTheMaterialRatio) {
   std::ofstream(dir / "config.json") << R"({"layers": [{"path": "water.geojson", "class": "water"}]})";
   RunSceneBuild(BuildOptions(FlatDem(dir), (dir / "config.json").string(), dir), "test");
   const geo::FloatRaster image = Simulate((dir / "scene.gscene").string(), dir, 5.0);
-  const double u0 = std::stod(image.metadata.at("GISSAR_U0")), v0 = std::stod(image.metadata.at("GISSAR_V0"));
-  auto mean = [&](double x_m, double y_m) {
-    // 5 x 5 pixels around the projection of ground point (x, y) (heading 0:
-    // range along x, azimuth along y).
-    const int c = int(std::lround(u0 + x_m * std::cos(40 * M_PI / 180) / 5.0));
-    const int r = int(std::lround(v0 + y_m / 5.0));
-    double sum = 0;
-    for (int dr = -2; dr <= 2; ++dr)
-      for (int dc = -2; dc <= 2; ++dc) sum += image.bands[0][size_t(r + dr) * image.width + c + dc];
-    return sum / 25;
-  };
+  auto mean = [&](double x_m, double y_m) { return MeanAroundGroundPoint(image, x_m, y_m, 40.0, 5.0); };
   // The image is sigma0 (docs/radiometry.md): flat ground reads its class's
   // law at the incidence 50 deg, X band (0.031 m), VV.
   const double cos_inc = std::sin(40 * M_PI / 180);

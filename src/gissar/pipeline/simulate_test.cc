@@ -1,3 +1,4 @@
+#include "gissar/pipeline/image_probe_testing.h"
 #include "gissar/pipeline/simulate.h"
 
 #include <gtest/gtest.h>
@@ -202,15 +203,7 @@ TEST(SimulateTest, DemSeaFallbackInBothEngines) {
       o.out_prefix = (dir / (engine + mode)).string();
       RunSimulate(o, "test");
       const geo::FloatRaster image = geo::ReadFloatRaster(dir / (engine + mode + ".tif"));
-      const double u0 = std::stod(image.metadata.at("GISSAR_U0")), v0 = std::stod(image.metadata.at("GISSAR_V0"));
-      auto mean = [&](double x_m, double y_m) {
-        const int c = int(std::lround(u0 + x_m * std::cos(40 * M_PI / 180) / 5.0));
-        const int r = int(std::lround(v0 + y_m / 5.0));
-        double sum = 0;
-        for (int dr = -2; dr <= 2; ++dr)
-          for (int dc = -2; dc <= 2; ++dc) sum += image.bands[0][size_t(r + dr) * image.width + c + dc];
-        return sum / 25;
-      };
+      auto mean = [&](double x_m, double y_m) { return MeanAroundGroundPoint(image, x_m, y_m, 40.0, 5.0); };
       SCOPED_TRACE(engine + " --sea " + mode);
       const double west = mode == "auto" ? sea : land;
       EXPECT_NEAR(mean(-250, 0), west, 0.03 * west);
