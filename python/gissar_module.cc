@@ -101,7 +101,9 @@ pipeline::SimulateRequest SimulateOptionsFrom(const py::kwargs& kwargs) {
 }
 
 // A float image (H, W) from a NumPy array (any real dtype, C order after
-// conversion); `what` names the argument in errors.
+// conversion); `what` names the argument in errors. No-data (NaN, e.g.
+// outside a simulation's footprint) counts as no return: 0, as the file
+// readers of locate and matchpair do.
 struct FloatImage {
   std::vector<float> values;
   int width = 0, height = 0;
@@ -115,6 +117,7 @@ FloatImage ToFloatImage(const py::array_t<float, py::array::c_style | py::array:
   out.height = static_cast<int>(a.shape(0));
   out.width = static_cast<int>(a.shape(1));
   out.values.assign(a.data(), a.data() + a.size());
+  for (float& v : out.values) if (std::isnan(v)) v = 0.0f;
   return out;
 }
 
@@ -278,8 +281,9 @@ py::dict Simulate(py::kwargs kwargs) {
   }
   py::array_t<bool> layover({image.height, image.width}), shadow({image.height, image.width});
   for (size_t i = 0; i < image.mask.size(); ++i) {
-    layover.mutable_data()[i] = (image.mask[i] & 1) != 0;
-    shadow.mutable_data()[i] = (image.mask[i] & 2) != 0;
+    const bool inside = image.mask[i] != render::kMaskOutside;
+    layover.mutable_data()[i] = inside && (image.mask[i] & 1) != 0;
+    shadow.mutable_data()[i] = inside && (image.mask[i] & 2) != 0;
   }
   py::dict out;
   out["image"] = Image(image.intensity, image.height, image.width);
@@ -304,7 +308,9 @@ py::dict SimulateProduct(const std::string& product, py::kwargs kwargs) {
     options.Check();
     sim = pipeline::SimulateProduct(options, /*read_amplitude=*/true, reporter);
   }
-  const render::SarImage& image = sim.image.image;
+  // As the CLI writes it: NaN (mask 255) where a pixel has no ground point.
+  render::SarImage image = sim.image.image;
+  if (image.footprint.size() == image.intensity.size()) pipeline::MarkOutsideFootprint(image, sim.image.image.footprint);
   const int h = image.height, w = image.width;
   py::array_t<float> bands({render::kBounceLayers, h, w});
   for (int b = 0; b < render::kBounceLayers; ++b) {
@@ -732,7 +738,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "docs/conventions.md); dem may be a (H, W) NumPy array of heights with transform= (GDAL's six "
         "coefficients or affine.Affine) and crs= (EPSG code, WKT or pyproj CRS); progress=callable(stage, done, total) gets the tracing progress (return False "
         "to stop: gissar.Cancelled); information lines go to the 'gissar' logger. Returns {'image': (H, W) float32 linear "
-        "intensity, 'bounces': (4, H, W) single/double/triple/>=4, 'mask': (H, W) uint8 (1 layover, 2 shadow), "
+        "intensity, 'bounces': (4, H, W) single/double/triple/>=4, 'mask': (H, W) uint8 (1 layover, 2 shadow, 3 both, 255 outside the imaged footprint where the images are NaN), "
         "'geometry': metadata, 'options': the options}. Identical to `gissar simulate`'s GeoTIFF.");
 
   m.def("simulate_product", &SimulateProduct, py::arg("product"),

@@ -58,8 +58,12 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
                     "--range-spacing", "250", "--azimuth-spacing", "250", "--speckle-looks", "4", "--seed", "9",
                     "--out", prefix, "--quiet"], check=True, stdout=subprocess.DEVNULL)
     tif = gdal.Open(prefix + ".tif")  # keep the dataset alive while reading its bands
-    assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), image)
-    assert np.array_equal(tif.GetRasterBand(3).ReadAsArray(), result["bounces"][1])
+    assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), image, equal_nan=True)
+    assert np.array_equal(tif.GetRasterBand(3).ReadAsArray(), result["bounces"][1], equal_nan=True)
+    # No-data (NaN, declared) exactly where the mask says "outside the footprint" (255).
+    assert np.isnan(tif.GetRasterBand(1).GetNoDataValue())
+    assert np.array_equal(np.isnan(image), result["mask"] == 255)
+    assert 0 < np.isnan(image).sum() < image.size
     mask_ds = gdal.Open(prefix + "_mask.tif")
     assert np.array_equal(mask_ds.GetRasterBand(1).ReadAsArray(), result["mask"])
 
@@ -129,15 +133,16 @@ def test_scene_simulate_returns_geometry_and_masks(small_scene):
     assert (g.height, g.width) == sim["image"].shape
     assert g.heading_deg == 20 and g.depression_deg == 35 and g.range_spacing_m == 60
     assert sim["metadata"]["GISSAR_HEADING_DEG"] == "20"
-    assert np.array_equal(sim["layover"], (sim["mask"] & 1) == 1)
-    assert np.array_equal(sim["shadow"], (sim["mask"] & 2) == 2)
+    inside = sim["mask"] != 255  # 255: outside the imaged footprint
+    assert np.array_equal(sim["layover"], ((sim["mask"] & 1) == 1) & inside)
+    assert np.array_equal(sim["shadow"], ((sim["mask"] & 2) == 2) & inside)
     # The scene centre projects to (u0, v0) and the sensor is R away along the line of sight.
     c = np.array(g.scene_centre_enu_m)
     np.testing.assert_allclose(g.project(c[None, :])[0], [g.u0, g.v0], atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(np.array(g.sensor_position()) - c), g.slant_range_m, rtol=1e-12)
     same = gissar.simulate(scene=small_scene.path, heading_deg=20, depression_deg=35, range_spacing_m=60,
                            azimuth_spacing_m=60)
-    assert np.array_equal(same["image"], sim["image"])
+    assert np.array_equal(same["image"], sim["image"], equal_nan=True)
     with pytest.raises(gissar.ConfigError):
         small_scene.simulate(dem=DEM, heading_deg=0, depression_deg=40)
 
@@ -284,7 +289,7 @@ def test_simulate_product_matches_the_cli_and_the_reference_geolocation(tmp_path
     subprocess.run([os.environ["GISSAR_CLI"], "simulate", "--product", product, "--dem", dem, "--seed", "3",
                     "--out", prefix, "--quiet"], check=True, stdout=subprocess.DEVNULL)
     tif = gdal.Open(prefix + ".tif")
-    assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), image)
+    assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), image, equal_nan=True)
     assert np.array_equal(tif.GetRasterBand(6).ReadAsArray(), result["lon_deg"])
     # ISCE's per-pixel longitude/latitude of the same chip (float64 ENVI rasters).
     topo = os.path.join(ROOT, "data", "uavsar", "topo_winnipeg")
@@ -308,7 +313,7 @@ def test_simulate_takes_a_dem_array_with_transform_and_crs(tmp_path):
     common = dict(heading_deg=30.0, depression_deg=40.0, range_spacing_m=250.0, azimuth_spacing_m=250.0)
     from_file = gissar.simulate(dem=DEM, **common)
     from_array = gissar.simulate(dem=heights, transform=ds.GetGeoTransform(), crs=ds.GetProjection(), **common)
-    assert np.array_equal(from_file["image"], from_array["image"])
+    assert np.array_equal(from_file["image"], from_array["image"], equal_nan=True)
     with pytest.raises(gissar.ConfigError, match="needs transform= and crs="):
         gissar.simulate(dem=heights, **common)
     with pytest.raises(gissar.ConfigError, match="not a CRS"):

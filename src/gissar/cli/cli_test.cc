@@ -187,7 +187,13 @@ Outcome RunBinary(const std::string& arguments, const fs::path& dir) {
   return o;
 }
 
-std::vector<float> FirstBand(const fs::path& tif) { return geo::ReadFloatRaster(tif).bands.at(0); }
+// Band 1 with no-data (NaN, outside the footprint) as -1, so that == compares
+// two images pixel for pixel.
+std::vector<float> FirstBand(const fs::path& tif) {
+  std::vector<float> band = geo::ReadFloatRaster(tif).bands.at(0);
+  for (float& v : band) if (std::isnan(v)) v = -1.0f;
+  return band;
+}
 
 const std::string kSmallSimulate =
     "simulate --dem " + testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string() +

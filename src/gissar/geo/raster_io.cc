@@ -166,9 +166,14 @@ void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, in
       const GDALColorEntry entry{c[0], c[1], c[2], c[3]};
       table.SetColorEntry(static_cast<int>(i), &entry);
     }
+    if (categories.nodata && *categories.nodata >= categories.colours.size()) {
+      const GDALColorEntry transparent{0, 0, 0, 0};
+      table.SetColorEntry(*categories.nodata, &transparent);
+    }
     ds->GetRasterBand(1)->SetColorTable(&table);
     ds->GetRasterBand(1)->SetColorInterpretation(GCI_PaletteIndex);
   }
+  if (categories.nodata) ds->GetRasterBand(1)->SetNoDataValue(*categories.nodata);
   if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
                                      const_cast<uint8_t*>(data.data()), width, height, GDT_Byte,
                                      0, 0, nullptr) != CE_None) {

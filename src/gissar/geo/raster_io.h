@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,7 @@ void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& ras
 struct ByteCategories {
   std::vector<std::string> names;
   std::vector<std::array<uint8_t, 4>> colours;  // same length as names, or empty
+  std::optional<uint8_t> nodata;                 // declared no-data value (transparent), if any
 };
 
 void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8_t>& data,

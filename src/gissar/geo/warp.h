@@ -8,6 +8,8 @@
 
 #include <Eigen/Core>
 
+#include "gissar/geo/raster_io.h"
+
 namespace gissar::geo {
 
 // Runs GDALWarp(src -> dst) with `gdalwarp`-style arguments (e.g. {"-rpc",
@@ -29,5 +31,13 @@ std::vector<double> ReadGeoTransform(const std::filesystem::path& path);
 std::vector<Eigen::Vector2d> PixelsToLonLat(const std::filesystem::path& path,
                                             const std::vector<std::string>& transformer_options,
                                             const std::vector<Eigen::Vector2d>& pixels);
+
+// The thin-plate spline through `gcps` that `gdalwarp -tps` builds (GDAL's
+// TPS transformer, pixel/line -> the GCPs' longitude/latitude), evaluated at
+// `pixels` (GDAL's corner-based convention). A point that does not transform
+// is NaN. Throws InputError when GDAL cannot build the spline (e.g. fewer than
+// 3 GCPs, or all collinear).
+std::vector<Eigen::Vector2d> TpsLonLat(const std::vector<GroundControlPoint>& gcps,
+                                       const std::vector<Eigen::Vector2d>& pixels);
 
 }  // namespace gissar::geo

@@ -302,7 +302,8 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
         }
         const int mc = std::clamp(int(std::lround(q.x())), 0, image.width - 1);
         const int mr = std::clamp(int(std::lround(q.y())), 0, image.height - 1);
-        code |= mask[size_t(mr) * image.width + mc] & 3;
+        const uint8_t m = mask[size_t(mr) * image.width + mc];
+        if (m != render::kMaskOutside) code |= m & 3;
       }
       if (seen == 0) continue;
       const size_t o = size_t(row) * width + col;

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 
+#include "gissar/geo/warp.h"
+#include "gissar/util/error.h"
+
 namespace gissar::pipeline {
 
 TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.vertices) {
@@ -92,17 +95,107 @@ double TerrainSurface::operator()(double x, double y) const {
 }
 
 geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
-                                         sensor::GeoreferenceReport* report) {
+                                         sensor::GeoreferenceReport* report, const std::vector<uint8_t>* mask,
+                                         TpsRefinement* refinement) {
   const TerrainSurface surface(terrain);
+  const auto height_at = [&](double x, double y) { return surface(x, y); };
   // 12 x 12 nodes; where part of the image sees no terrain (a rotated image
   // around a DEM), a denser lattice until at least 100 GCPs hit it.
   geo::Georeference g;
   for (int grid = 12;; grid += 4) {
-    g = sensor::SlantRangeGeoreference(
-        geometry, terrain.frame, [&](double x, double y) { return surface(x, y); }, surface.z_min_m(),
-        surface.z_max_m(), grid, report);
-    if (g.gcps.size() >= 100 || grid >= 40) return g;
+    g = sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(),
+                                       grid, report);
+    if (g.gcps.size() >= 100 || grid >= 40) break;
   }
+  if (refinement != nullptr) *refinement = TpsRefinement{};
+
+  // Refinement for TPS users (gdalwarp -tps): candidate terrain points on a
+  // dense lattice (about one every 3 pixels); wherever the spline through the
+  // GCPs misses a candidate by more than kTpsToleranceSpacings of the finer
+  // pixel spacing on the ground, the worst candidates become GCPs, a few
+  // pixels apart, until none misses or kMaxGcps is reached. Candidates in or
+  // next to layover, shadow or outside the footprint are not used: there the
+  // pixel-to-ground map folds and no spline can follow it.
+  const int w = geometry.width(), h = geometry.height();
+  const int dense = std::clamp(std::max(w, h) / 3, 12, kTpsCandidateLattice);
+  const std::vector<geo::GroundControlPoint> lattice =
+      sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(), dense)
+          .gcps;
+  std::vector<geo::GroundControlPoint> candidates;
+  for (const auto& p : lattice) {
+    bool clear = true;
+    if (mask != nullptr && mask->size() == size_t(w) * h) {
+      const int c = int(std::floor(p.pixel)), r = int(std::floor(p.line));
+      for (int dr = -1; dr <= 1 && clear; ++dr) {
+        for (int dc = -1; dc <= 1 && clear; ++dc) {
+          const int cc = std::clamp(c + dc, 0, w - 1), rr = std::clamp(r + dr, 0, h - 1);
+          clear = (*mask)[size_t(rr) * w + cc] == 0;
+        }
+      }
+    }
+    if (clear) candidates.push_back(p);
+  }
+  if (candidates.empty()) return g;
+  const double spacing_m = std::min(geometry.range_spacing_m(), geometry.azimuth_spacing_m());
+  const double tolerance_m = kTpsToleranceSpacings * spacing_m;
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector2d> truth_xy;
+  for (const auto& p : candidates) {
+    pixels.emplace_back(p.pixel, p.line);
+    truth_xy.push_back(terrain.frame.EnuFromGeodetic(p.lon_deg, p.lat_deg, 0.0).head<2>());
+  }
+  std::vector<double> error_m(candidates.size(), 0.0);
+  auto measure = [&] {
+    const std::vector<Eigen::Vector2d> lonlat = geo::TpsLonLat(g.gcps, pixels);
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      error_m[i] = lonlat[i].allFinite()
+                       ? (terrain.frame.EnuFromGeodetic(lonlat[i].x(), lonlat[i].y(), 0.0).head<2>() - truth_xy[i]).norm()
+                       : std::numeric_limits<double>::infinity();
+    }
+  };
+  int rounds = 0, added_total = 0;
+  bool measured = false;
+  for (;;) {
+    try {
+      measure();  // the errors of the GCPs as they are now
+      measured = true;
+    } catch (const InputError&) {
+      break;  // GDAL could not build the spline (degenerate GCPs): keep what there is
+    }
+    if (rounds >= kTpsMaxRounds || int(g.gcps.size()) >= kMaxGcps) break;
+    std::vector<size_t> order(candidates.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return error_m[a] > error_m[b]; });
+    int added = 0;
+    for (size_t i : order) {
+      if (!(error_m[i] > tolerance_m) || int(g.gcps.size()) >= kMaxGcps || added >= kTpsMaxAddedPerRound) break;
+      bool far = true;
+      for (const auto& q : g.gcps) {
+        if (std::hypot(q.pixel - candidates[i].pixel, q.line - candidates[i].line) < kTpsMinSeparationPx) {
+          far = false;
+          break;
+        }
+      }
+      if (!far) continue;
+      g.gcps.push_back(candidates[i]);
+      ++added;
+    }
+    if (added == 0) break;
+    added_total += added;
+    ++rounds;
+  }
+  if (refinement != nullptr && measured) {
+    std::vector<double> sorted = error_m;
+    std::sort(sorted.begin(), sorted.end());
+    refinement->candidates = int(candidates.size());
+    refinement->added_gcps = added_total;
+    refinement->rounds = rounds;
+    refinement->tolerance_m = tolerance_m;
+    refinement->max_error_m = sorted.back();
+    refinement->p95_error_m = sorted[std::min(sorted.size() - 1, sorted.size() * 95 / 100)];
+  }
+  if (report != nullptr) report->gcp_count = int(g.gcps.size());
+  return g;
 }
 
 }  // namespace gissar::pipeline

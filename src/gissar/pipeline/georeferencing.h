@@ -36,11 +36,39 @@ class TerrainSurface {
   double z_min_ = 0, z_max_ = 0;
 };
 
-// GCPs (12 x 12, or a denser lattice up to 40 x 40 until at least 100 of
-// them see the terrain) and RPCs of a simulated image on its terrain; the fit's
-// residuals go to `report`. Throws ConfigError when the image does not see
-// the terrain.
+// Limits of the GCP refinement for thin-plate-spline users (gdalwarp -tps).
+inline constexpr int kMaxGcps = 1024;
+inline constexpr int kTpsCandidateLattice = 150;  // candidates: at most 150 x 150, about one per 3 px
+inline constexpr int kTpsMaxRounds = 8;
+inline constexpr int kTpsMaxAddedPerRound = 160;
+inline constexpr double kTpsMinSeparationPx = 3.0;
+inline constexpr double kTpsToleranceSpacings = 0.4;  // of the finer pixel spacing, on the ground
+
+// What the refinement did, for the sidecar. Errors are horizontal ground
+// distances (metres) between the spline through the final GCPs and the
+// simulation's own terrain point of each candidate pixel.
+struct TpsRefinement {
+  int candidates = 0;   // lattice pixels clear of layover/shadow/no-data
+  int added_gcps = 0;   // GCPs added to the base lattice
+  int rounds = 0;
+  double tolerance_m = 0.0;
+  double max_error_m = 0.0;
+  double p95_error_m = 0.0;
+};
+
+// GCPs and RPCs of a simulated image on its terrain; the RPC fit's residuals
+// and the GCP count go to `report`. GCPs: a 12 x 12 lattice (or a denser one,
+// up to 40 x 40, until at least 100 of them see the terrain), then refined
+// for gdalwarp -tps: wherever GDAL's thin-plate spline through the GCPs puts
+// a candidate pixel (a lattice about one node per 3 pixels, at most 150 x 150,
+// away from layover/shadow/no-data in `mask` when given) more than
+// kTpsToleranceSpacings x the finer pixel spacing from its terrain point,
+// the worst candidates (at least kTpsMinSeparationPx from every GCP) are added,
+// in rounds, up to kMaxGcps GCPs. `refinement` (optional) tells what it did.
+// Throws ConfigError when the image does not see the terrain.
 geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
-                                         sensor::GeoreferenceReport* report = nullptr);
+                                         sensor::GeoreferenceReport* report = nullptr,
+                                         const std::vector<uint8_t>* mask = nullptr,
+                                         TpsRefinement* refinement = nullptr);
 
 }  // namespace gissar::pipeline

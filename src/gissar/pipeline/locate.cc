@@ -244,6 +244,17 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
     if (!v) throw ConfigError("the image has no GISSAR_AZIMUTH_SPACING_M: give --azimuth-spacing", options.image);
     model.azimuth_spacing_m = MetadataNumber(*v, "GISSAR_AZIMUTH_SPACING_M", options.image);
   }
+  // A prior far from the image's own slant range converges to a wrong fix:
+  // refuse it (the image states the range it was made at).
+  if (const auto v = meta("GISSAR_SLANT_RANGE_M")) {
+    const double image_range_m = MetadataNumber(*v, "GISSAR_SLANT_RANGE_M", options.image);
+    if (image_range_m > 0 && std::abs(prior.slant_range_m - image_range_m) > kMaxPriorRangeMismatch * image_range_m) {
+      throw ConfigError("the prior's slant range " + std::to_string(int64_t(std::lround(prior.slant_range_m))) +
+                            " m disagrees with the image's " + std::to_string(int64_t(std::lround(image_range_m))) +
+                            " m by more than 10 %",
+                        options.prior + ": slant_range_m");
+    }
+  }
   if (!options.look.empty()) model.look_side = sensor::ParseLookSide(options.look);
   else if (const auto v = meta("GISSAR_LOOK_SIDE")) model.look_side = sensor::ParseLookSide(*v);
   model.Check();

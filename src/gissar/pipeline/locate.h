@@ -18,6 +18,10 @@
 
 namespace gissar::pipeline {
 
+// locate refuses a prior whose slant range differs from the image's
+// GISSAR_SLANT_RANGE_M by more than this fraction of it.
+inline constexpr double kMaxPriorRangeMismatch = 0.10;
+
 // Prior/result pose JSON (keys; any other key is a ConfigError naming the
 // key and the file):
 //   "heading_deg"      flight direction, degrees clockwise from north (required)

@@ -74,6 +74,22 @@ TEST(Locate, FixesASimulatedImageFromADriftedPrior) {
   std::printf("locate: position error %.2f m, heading error %.3f deg\n", err, r["pose"]["heading_deg"].get<double>() - 31.0);
   EXPECT_LT(std::abs(r["pose"]["heading_deg"].get<double>() - 31.0), 0.2);
   EXPECT_GT(r["similarity_ncc"].get<double>(), r["prior_similarity_ncc"].get<double>());
+
+  // A prior at 20 km for an image made at 10 km (the image says so) is
+  // refused, naming the key; 10.9 km (9 % off) is accepted as a prior.
+  nlohmann::json far = prior;
+  far["slant_range_m"] = 20000.0;
+  std::ofstream(dir / "far.json") << far.dump();
+  lo.prior = (dir / "far.json").string();
+  lo.out = (dir / "far_fix.json").string();
+  try {
+    RunLocate(lo, "test");
+    ADD_FAILURE() << "a prior 100 % off the image's slant range was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("10 %"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.where()).find("slant_range_m"), std::string::npos) << e.where();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "far_fix.json"));
 }
 
 TEST(MatchPair, RecoversKnownWarpOnSentinel1Dates) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <sstream>
 
@@ -159,7 +160,9 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   const fs::path json = outputs.Add(options.out_prefix + ".json");
 
   ProductSimulation sim = SimulateProduct(options, false, reporter);
-  const render::SarImage& image = sim.image.image;
+  // NaN where the pixel has no ground point on the terrain (declared no-data, mask 255).
+  render::SarImage image = sim.image.image;
+  if (image.footprint.size() == image.intensity.size()) MarkOutsideFootprint(image, sim.image.image.footprint);
   geo::Metadata metadata = ProductMetadata(sim, options);
   geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
   const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
@@ -167,6 +170,8 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
     raster.bands.push_back(image.bounce_layers[layer]);
     raster.band_names.push_back(layer_names[layer]);
   }
+  raster.nodata_nan = true;
+  const std::vector<uint8_t>& mask = image.mask;
   raster.bands.push_back(sim.image.lon_deg);
   raster.band_names.push_back("lon_deg");
   raster.bands.push_back(sim.image.lat_deg);
@@ -182,8 +187,8 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   image::DbStretch stretch;
   geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);
   geo::Metadata mask_metadata = metadata;
-  mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
-  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata);
+  mask_metadata["GISSAR_MASK_CODES"] = kMaskCodesText;
+  geo::WriteByteGeoTiff(mask_tif, mask, image.width, image.height, mask_metadata, {}, MaskCategories());
 
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array(
@@ -196,7 +201,7 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
                          {"returns_reprojected", sim.image.contributions},
                          {"pixels_geolocated", sim.image.geolocated},
                          {"reflector_returns", image.points.size()},
-                         {"mask_pixels", MaskPixelCounts(image.mask)}};
+                         {"mask_pixels", MaskPixelCounts(mask)}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db}, {"percentiles", {2, 98}}};
   provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};
   return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());

@@ -27,6 +27,7 @@
 #include "gissar/scene/triangle_mesh.h"
 #include <limits>
 #include "gissar/util/atomic_output.h"
+#include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
@@ -468,6 +469,36 @@ void CheckImpulseResponsePixels(double range_resolution_px, double azimuth_resol
   check(azimuth_resolution_px, "azimuth", "--azimuth-resolution");
 }
 
+namespace {
+std::string FormatNumber(double v) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.4g", v);
+  return text;
+}
+}  // namespace
+
+void CheckViewingGeometry(const sensor::SarGeometry& geometry, const scene::TriangleMesh& mesh, Reporter& reporter) {
+  const double depression = geometry.options().depression_deg;
+  if (depression < kGrazingDepressionDeg) {
+    reporter.Warn("simulate: depression " + FormatNumber(depression) + " deg is grazing (below " +
+                  FormatNumber(kGrazingDepressionDeg) + "): most terrain will be in shadow");
+  } else if (depression > kSteepDepressionDeg) {
+    reporter.Warn("simulate: depression " + FormatNumber(depression) + " deg is near nadir (above " +
+                  FormatNumber(kSteepDepressionDeg) + "): slant range barely resolves the ground");
+  }
+  if (geometry.mode() != sensor::ProjectionMode::kExact || mesh.vertices.empty()) return;
+  // Exact mode: a sensor at or below the highest terrain sees it from below
+  // (lines of sight run through the relief).
+  double top = -std::numeric_limits<double>::infinity();
+  for (const auto& v : mesh.vertices) if (std::isfinite(v.z())) top = std::max(top, double(v.z()));
+  const double sensor_z = geometry.SensorPosition(0.0).z();
+  if (!(sensor_z > top)) {
+    throw ConfigError("the sensor (" + FormatNumber(sensor_z) + " m) is not above the terrain's highest point (" +
+                          FormatNumber(top) + " m): raise --slant-range or --depression",
+                      "--slant-range/--depression");
+  }
+}
+
 void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry) {
   image::SensorEffects effects;
@@ -480,7 +511,40 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
   effects.radiometry = image::ParseRadiometry(options.radiometry, "--radiometry");
   effects.db = options.db;
   effects.wavelength_m = options.wavelength_m;
+  // The footprint: pixel centres a surface covers, and pixels a return
+  // reached before the impulse response spreads it (a multi-bounce path may
+  // land beyond the terrain's projection).
+  std::vector<uint8_t> inside = image.footprint;
+  if (inside.size() == image.intensity.size()) {
+    for (size_t i = 0; i < inside.size(); ++i) {
+      if (image.intensity[i] > 0.0f || (!image.real.empty() && (image.real[i] != 0.0f || image.imag[i] != 0.0f))) {
+        inside[i] = 1;
+      }
+    }
+  }
   image::ApplySensorEffects(image, effects, ColumnIncidenceDeg(geometry));
+  if (inside.size() == image.intensity.size()) MarkOutsideFootprint(image, inside);
+}
+
+void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside) {
+  GISSAR_CHECK(inside.size() == image.intensity.size());
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  auto blank = [&](std::vector<float>& band) {
+    if (band.size() != inside.size()) return;
+    for (size_t i = 0; i < inside.size(); ++i) if (!inside[i]) band[i] = nan;
+  };
+  blank(image.intensity);
+  blank(image.real);
+  blank(image.imag);
+  for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+    blank(image.bounce_layers[layer]);
+    blank(image.bounce_real[layer]);
+    blank(image.bounce_imag[layer]);
+  }
+  if (image.mask.size() == inside.size()) {
+    for (size_t i = 0; i < inside.size(); ++i) if (!inside[i]) image.mask[i] = render::kMaskOutside;
+  }
+  image.footprint = inside;
 }
 
 render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* reporter) {
@@ -518,6 +582,7 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   }
   out.geometry = sensor::SarGeometry::Covering(out.geometry_options, terrain.centre_enu, mesh.vertices);
   const sensor::SarGeometry& geometry = *out.geometry;
+  CheckViewingGeometry(geometry, mesh, reporter);
   CheckImpulseResponsePixels(options.range_resolution_m / geometry.range_spacing_m(),
                              options.azimuth_resolution_m / geometry.azimuth_spacing_m());
   CheckMemoryBudget(kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
@@ -625,14 +690,24 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   }
   raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
   raster.band_units.assign(raster.bands.size(), raster.band_unit);
+  // NaN outside the imaged footprint (ApplySensorEffects), declared.
+  raster.nodata_nan = true;
   // WGS84 GCPs on the terrain and RPCs fitted to the geometry (docs/georeferencing.md).
   nlohmann::json georeference_record;
   try {
     sensor::GeoreferenceReport georeference_report;
-    raster.georeference = SimulationGeoreference(terrain, geometry, &georeference_report);
+    TpsRefinement tps;
+    raster.georeference = SimulationGeoreference(terrain, geometry, &georeference_report, &image.mask, &tps);
     georeference_record = {{"gcps", georeference_report.gcp_count},
                            {"rpc_max_error_px", georeference_report.rpc_max_error_px},
-                           {"rpc_rms_error_px", georeference_report.rpc_rms_error_px}};
+                           {"rpc_rms_error_px", georeference_report.rpc_rms_error_px},
+                           {"tps_refinement",
+                            {{"candidates", tps.candidates},
+                             {"added_gcps", tps.added_gcps},
+                             {"rounds", tps.rounds},
+                             {"tolerance_m", tps.tolerance_m},
+                             {"max_error_m", tps.max_error_m},
+                             {"p95_error_m", tps.p95_error_m}}}};
   } catch (const ConfigError& e) {
     georeference_record = {{"gcps", 0}, {"reason", e.what()}};
   }
@@ -646,8 +721,9 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   }
   // Quicklooks from the linear values.
   std::vector<float> linear = image.intensity;
-  if (options.db) {
-    for (float& v : linear) v = std::isnan(v) ? 0.0f : static_cast<float>(std::pow(10.0, v / 10.0));
+  for (float& v : linear) {
+    if (std::isnan(v)) v = 0.0f;  // no-data: black
+    else if (options.db) v = static_cast<float>(std::pow(10.0, v / 10.0));
   }
   image::DbStretch stretch;
   geo::WritePng(png, image::DbQuicklook(linear, 2.0, 98.0, &stretch), image.width,
@@ -662,10 +738,9 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
   }
   geo::Metadata mask_metadata = metadata;
-  mask_metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
+  mask_metadata["GISSAR_MASK_CODES"] = kMaskCodesText;
   geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata, raster.georeference,
-                        geo::ByteCategories{{"none", "layover", "shadow", "layover and shadow"},
-                                            {{0, 0, 0, 0}, {255, 64, 0, 255}, {0, 64, 255, 255}, {255, 0, 255, 255}}});
+                        MaskCategories());
 
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array(
@@ -770,10 +845,20 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
 }
 
+geo::ByteCategories MaskCategories() {
+  geo::ByteCategories c{{"none", "layover", "shadow", "layover and shadow"},
+                        {{0, 0, 0, 0}, {255, 64, 0, 255}, {0, 64, 255, 255}, {255, 0, 255, 255}}};
+  c.nodata = render::kMaskOutside;
+  return c;
+}
+
 nlohmann::json MaskPixelCounts(const std::vector<uint8_t>& mask) {
-  int64_t c[4] = {0, 0, 0, 0};
-  for (uint8_t v : mask) ++c[v & 3];
-  return {{"none", c[0]}, {"layover", c[1]}, {"shadow", c[2]}, {"layover_and_shadow", c[3]}};
+  int64_t c[4] = {0, 0, 0, 0}, outside = 0;
+  for (uint8_t v : mask) {
+    if (v == render::kMaskOutside) ++outside;
+    else ++c[v & 3];
+  }
+  return {{"none", c[0]}, {"layover", c[1]}, {"shadow", c[2]}, {"layover_and_shadow", c[3]}, {"outside", outside}};
 }
 
 SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenance, const fs::path& json,

@@ -17,6 +17,7 @@
 #include "gissar/util/reporter.h"
 #include "gissar/geo/dem.h"
 #include "gissar/geo/local_frame.h"
+#include "gissar/geo/raster_io.h"
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
@@ -175,10 +176,27 @@ sensor::SarGeometryOptions ResolvedGeometry(const SimulateRequest& options, cons
 // Ellipsoid incidence (degrees) of every image column (SarGeometry::IncidenceDeg).
 std::vector<double> ColumnIncidenceDeg(const sensor::SarGeometry& geometry);
 
+// Depressions outside [kGrazingDepressionDeg, kSteepDepressionDeg] are
+// meaningful but unusual: a warning.
+inline constexpr double kGrazingDepressionDeg = 5.0;
+inline constexpr double kSteepDepressionDeg = 85.0;
+
+// Sanity of a resolved viewing geometry: warns (through `reporter`) about a
+// grazing or near-nadir depression; in exact mode throws ConfigError when the
+// sensor is not above the terrain's highest vertex.
+void CheckViewingGeometry(const sensor::SarGeometry& geometry, const scene::TriangleMesh& mesh, Reporter& reporter);
+
 // Impulse response, speckle and thermal noise of the options, in that
-// order, then the output radiometry (image::ApplySensorEffects).
+// order, then the output radiometry (image::ApplySensorEffects). When the
+// renderer gave a footprint, pixels outside it (no surface covers the centre
+// and no return reached the pixel) become no-data: MarkOutsideFootprint.
 void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry);
+
+// Sets every float band of `image` (intensity, per-bounce, complex) to NaN
+// and the mask to render::kMaskOutside where inside[i] == 0, and stores
+// `inside` as image.footprint. CHECKs the size.
+void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside);
 
 // The tracer's options of a simulation: rays per cell, bounces, coherence,
 // wavelength, seed, contributions (when options.contributions is set) and
@@ -231,8 +249,15 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
 SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 // Pixel counts of a layover/shadow mask by code, for provenance:
-// {"none", "layover", "shadow", "layover_and_shadow"}.
+// {"none", "layover", "shadow", "layover_and_shadow", "outside"} (outside:
+// render::kMaskOutside, no-data).
 nlohmann::json MaskPixelCounts(const std::vector<uint8_t>& mask);
+
+// Text of the mask codes (GISSAR_MASK_CODES metadata) and the mask GeoTIFF's
+// categories: names and colours of codes 0-3, no-data render::kMaskOutside.
+inline constexpr const char* kMaskCodesText =
+    "0 none, 1 layover, 2 shadow, 3 layover and shadow, 255 outside the imaged footprint (no-data)";
+geo::ByteCategories MaskCategories();
 
 // Finishes a simulation's outputs: records their absolute final paths in
 // provenance["outputs"], writes `provenance` to `json` (one of the reserved

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <fstream>
 #include <iomanip>
 
@@ -49,26 +50,32 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   ASSERT_EQ(image.bands.size(), 5u);  // total, single, double, triple, >= 4
   EXPECT_EQ(image.band_names[2], "double");
   // Bare DEM (no mirror material): everything is single bounce.
-  EXPECT_EQ(image.bands[0], image.bands[1]);
-  double sum = 0;
-  int positive = 0;
-  for (float v : image.bands[0]) {
-    ASSERT_TRUE(std::isfinite(v));
-    ASSERT_GE(v, 0.0f);
-    sum += v;
-    positive += v > 0;
-  }
-  EXPECT_GT(positive, image.width * image.height / 3);
-
+  EXPECT_EQ(std::memcmp(image.bands[0].data(), image.bands[1].data(), image.bands[0].size() * sizeof(float)), 0);
+  EXPECT_TRUE(image.nodata_nan);
   int w = 0, h = 0;
   const auto mask = geo::ReadByteRaster(options.out_prefix + "_mask.tif", &w, &h);
   EXPECT_EQ(w, image.width);
-  int shadow = 0, layover = 0;
-  for (uint8_t m : mask) {
-    ASSERT_LE(m, 3);
-    shadow += (m & 2) != 0;
-    layover += (m & 1) != 0;
+  // NaN exactly outside the imaged footprint (mask 255): the rotated DEM
+  // leaves the image's corners without terrain; shadow inside it stays a
+  // number (no return), told apart from no-data.
+  int positive = 0, outside = 0, shadow = 0, layover = 0;
+  for (size_t i = 0; i < mask.size(); ++i) {
+    const float v = image.bands[0][i];
+    if (mask[i] == render::kMaskOutside) {
+      ASSERT_TRUE(std::isnan(v)) << i;
+      ++outside;
+      continue;
+    }
+    ASSERT_LE(mask[i], 3);
+    ASSERT_TRUE(std::isfinite(v)) << i;
+    ASSERT_GE(v, 0.0f);
+    positive += v > 0;
+    shadow += (mask[i] & 2) != 0;
+    layover += (mask[i] & 1) != 0;
   }
+  EXPECT_GT(positive, image.width * image.height / 3);
+  EXPECT_GT(outside, 0);
+  EXPECT_TRUE(std::isnan(image.bands[0][0]));  // heading 30: the first corner sees no terrain
   // Pyrenean relief at 40 deg depression: slopes turned away steeper than
   // 40 deg cast shadows; slopes facing the radar fold over.
   EXPECT_GT(shadow, 0);
@@ -82,6 +89,7 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   EXPECT_EQ(provenance["stats"]["mask_pixels"]["shadow"].get<int>() +
                 provenance["stats"]["mask_pixels"]["layover_and_shadow"].get<int>(),
             shadow);
+  EXPECT_EQ(provenance["stats"]["mask_pixels"]["outside"].get<int>(), outside);
   EXPECT_TRUE(provenance["timings_s"].contains("trace"));
   EXPECT_NE(provenance["version"].get<std::string>().find("gissar"), std::string::npos);
 }
@@ -92,7 +100,9 @@ TEST(SimulateTest, SameInputsGiveIdenticalImages) {
   RunSimulate(AndorraOptions(b, 0.0), "");
   const auto ia = geo::ReadFloatRaster(a / "andorra_0.tif");
   const auto ib = geo::ReadFloatRaster(b / "andorra_0.tif");
-  EXPECT_EQ(ia.bands[0], ib.bands[0]);
+  // Bit for bit, no-data (NaN) included.
+  ASSERT_EQ(ia.bands[0].size(), ib.bands[0].size());
+  EXPECT_EQ(std::memcmp(ia.bands[0].data(), ib.bands[0].data(), ia.bands[0].size() * sizeof(float)), 0);
 }
 
 TEST(SimulateTest, FailureLeavesNoOutput) {
@@ -211,6 +221,88 @@ TEST(SimulateTest, DemSeaFallbackInBothEngines) {
       EXPECT_NEAR(mean(250, 0), land, 0.03 * land);
     }
   }
+}
+
+// A flat 1 km square seen at heading 45 deg: its image is a rhombus of
+// area 1000^2 cos(40 deg) / (5 x 5) = 30,642 pixels (flat ground: slant
+// range = ground range x cos(depression)); measured 31,530 (tracer) and
+// 31,503 (raster) with the edge pixels a splat reaches; every pixel outside is NaN,
+// declared no-data, with mask 255 (kMaskOutside), in both engines.
+TEST(SimulateTest, FlatSquareIsNoDataOutsideItsFootprint) {
+  const fs::path dir = testing::MakeTempDir();
+  const char* tm = "+proj=tmerc +lat_0=43.7 +lon_0=7.4 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+  const std::vector<float> heights(101 * 101, 0.0f);
+  const fs::path dem = dir / "flat.tif";
+  geo::WriteDemGeoTiff(dem, heights, 101, 101, {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, tm);
+  const double expected = 1000.0 * 1000.0 * std::cos(40.0 * M_PI / 180.0) / 25.0;
+  for (const std::string engine : {"trace", "raster"}) {
+    SCOPED_TRACE(engine);
+    SimulateRequest o;
+    o.dem = dem.string();
+    o.engine = engine;
+    o.bounces = 1;
+    o.geometry.heading_deg = 45.0;
+    o.geometry.depression_deg = 40.0;
+    o.geometry.range_spacing_m = o.geometry.azimuth_spacing_m = 5.0;
+    o.out_prefix = (dir / engine).string();
+    RunSimulate(o, "test");
+    const geo::FloatRaster image = geo::ReadFloatRaster(o.out_prefix + ".tif");
+    EXPECT_TRUE(image.nodata_nan);
+    int w = 0, h = 0;
+    const auto mask = geo::ReadByteRaster(o.out_prefix + "_mask.tif", &w, &h);
+    ASSERT_EQ(mask.size(), image.bands[0].size());
+    int finite = 0;
+    for (size_t i = 0; i < mask.size(); ++i) {
+      const bool nan = std::isnan(image.bands[0][i]);
+      ASSERT_EQ(nan, mask[i] == render::kMaskOutside) << i;
+      for (size_t b = 1; b < image.bands.size(); ++b) ASSERT_EQ(std::isnan(image.bands[b][i]), nan) << b;
+      if (!nan) {
+        ++finite;
+        EXPECT_GT(image.bands[0][i], 0.0f) << i;  // flat lit ground: a return in every footprint pixel
+      }
+    }
+    // Pixel centres on the rhombus (diagonals 1414 m / 5 m = 282.8 px in
+    // azimuth, 1414 cos 40 / 5 = 216.7 px in range; perimeter 712.5 px),
+    // plus the edge pixels a ray's splat reaches (at most 1.5 px beyond it).
+    const double perimeter = 4.0 * std::hypot(282.84 / 2, 216.67 / 2);
+    EXPECT_GE(finite, expected - 0.5 * perimeter);
+    EXPECT_LE(finite, expected + 1.5 * perimeter);
+    // The corners of the image see no terrain; its centre does.
+    EXPECT_TRUE(std::isnan(image.bands[0][0]));
+    EXPECT_TRUE(std::isnan(image.bands[0][size_t(h) * w - 1]));
+    EXPECT_FALSE(std::isnan(image.bands[0][size_t(h / 2) * w + w / 2]));
+  }
+}
+
+// Exact mode with the sensor 10 km away at 5 deg depression over Andorra:
+// it flies at about 0.87 km above the DEM centre (~2 km), below the 3 km
+// peaks: refused before rendering, nothing written. A grazing depression
+// in affine mode is only a warning.
+TEST(SimulateTest, SensorBelowThePeaksIsRefusedAndGrazingWarned) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest o = AndorraOptions(dir, 0.0);
+  o.geometry.mode = sensor::ProjectionMode::kExact;
+  o.geometry.depression_deg = 5.0;
+  o.geometry.slant_range_m = 10000.0;
+  try {
+    RunSimulate(o, "test");
+    ADD_FAILURE() << "accepted a sensor below the terrain";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("not above the terrain"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(o.out_prefix + ".tif"));
+
+  struct Collect : Reporter {
+    std::vector<std::string> warnings;
+    void Warn(const std::string& line) override { warnings.push_back(line); }
+  } collect;
+  o = AndorraOptions(dir, 0.0);
+  o.geometry.depression_deg = 2.0;
+  o.bounces = 1;
+  RunSimulate(o, "test", collect);
+  int grazing = 0;
+  for (const std::string& w : collect.warnings) grazing += w.find("depression 2 deg is grazing") != std::string::npos;
+  EXPECT_EQ(grazing, 1);
 }
 
 TEST(SimulateTest, ParsesNumberPairs) {

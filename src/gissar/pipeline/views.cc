@@ -121,7 +121,9 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
     geo::Metadata metadata;
     for (const auto& [k, v] : geometry.ToMetadata()) metadata[k] = v;
     metadata["GISSAR_VERSION"] = VersionString();
-    geo::WriteFloatGeoTiff(tifs[i], geo::FloatRaster{width, height, {image.intensity}, {"total"}, metadata});
+    geo::FloatRaster frame_raster{width, height, {image.intensity}, {"total"}, metadata};
+    frame_raster.nodata_nan = true;  // outside the imaged footprint (ApplySensorEffects)
+    geo::WriteFloatGeoTiff(tifs[i], frame_raster);
     std::vector<uint8_t> grey = i == 0 ? image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch)
                                        : image::DbQuicklookWithStretch(image.intensity, stretch);
     geo::WritePng(pngs[i], grey, width, height, 1);

@@ -167,8 +167,10 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
 
   // 5. Mask through each pixel's ground point.
   image.mask.assign(n, kMaskNone);
+  image.footprint.assign(n, 0);  // pixels with a ground point on the terrain
   for (size_t k = 0; k < n; ++k) {
     if (!std::isfinite(out.height_m[k])) continue;
+    image.footprint[k] = 1;
     const Vector3d p = frame.EnuFromGeodetic(out.lon_deg_exact[k], out.lat_deg_exact[k], out.height_m[k]);
     const Eigen::Vector2d q = geometry.Project(p);
     const int c = static_cast<int>(std::lround(q.x())), r = static_cast<int>(std::lround(q.y()));

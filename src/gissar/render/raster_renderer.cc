@@ -14,6 +14,10 @@
 namespace gissar::render {
 namespace {
 
+// Internal flag of the mask: a surface covers the pixel centre (split into
+// SarImage::footprint at the end).
+constexpr uint8_t kCoveredFlag = 16;
+
 // Horizon of an azimuth line that has not met the terrain yet.
 constexpr float kNoHorizon = -1e30f;
 // Image rows rendered by one task. Each task renders every cell that
@@ -574,7 +578,7 @@ class ChunkRenderer {
           } else {
             code = flipped ? kMaskLayover : kMaskNone;
           }
-          mask_[size_t(r) * ctx_.width + c] |= code;
+          mask_[size_t(r) * ctx_.width + c] |= code | kCoveredFlag;
         }
       }
     }
@@ -722,6 +726,11 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
       ChunkRenderer(ctx, row0, row1, image.intensity.data(), image.mask.data()).Run();
     }
   });
+  image.footprint.assign(image.mask.size(), 0);
+  for (size_t i = 0; i < image.mask.size(); ++i) {
+    image.footprint[i] = (image.mask[i] & kCoveredFlag) != 0;
+    image.mask[i] &= kMaskLayover | kMaskShadow;
+  }
   image.bounce_layers[0] = image.intensity;
   for (int layer = 1; layer < kBounceLayers; ++layer) {
     image.bounce_layers[layer].assign(image.intensity.size(), 0.0f);

@@ -227,8 +227,10 @@ constexpr double kSelfHitCos = 0.05;
 constexpr double kMinSplitFootprintPx = 0.25;
 constexpr int kMaxSubRays = 64;
 
-// Internal flag of the mask pass: a lit surface covers the pixel centre.
+// Internal flags of the mask pass: a lit surface covers the pixel centre;
+// any surface does.
 constexpr uint8_t kLitBit = 8;
+constexpr uint8_t kCoveredBit = 16;
 
 // Small offset along a ray that clears float rounding of scene coordinates.
 float RayEpsilon(const Eigen::AlignedBox3d& box) {
@@ -251,7 +253,8 @@ void RenderOptions::Check() const {
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
-                                             int64_t* shadow_rays, std::vector<uint8_t>* lit) {
+                                             int64_t* shadow_rays, std::vector<uint8_t>* lit,
+                                             std::vector<uint8_t>* covered) {
   const int width = geometry.width(), height = geometry.height();
   std::vector<std::atomic<uint8_t>> flags(size_t(width) * height);
   for (auto& f : flags) f.store(0, std::memory_order_relaxed);
@@ -326,9 +329,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
               code = kMaskLayover;
             }
           }
-          if (code != kMaskNone) {
-            flags[size_t(r) * width + c].fetch_or(code, std::memory_order_relaxed);
-          }
+          flags[size_t(r) * width + c].fetch_or(code | kCoveredBit, std::memory_order_relaxed);
         }
       }
     }
@@ -337,10 +338,12 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
   if (shadow_rays != nullptr) *shadow_rays = rays.load();
   std::vector<uint8_t> mask(flags.size());
   if (lit != nullptr) lit->assign(flags.size(), 0);
+  if (covered != nullptr) covered->assign(flags.size(), 0);
   for (size_t i = 0; i < flags.size(); ++i) {
     const uint8_t f = flags[i].load(std::memory_order_relaxed);
     mask[i] = f & (kMaskLayover | kMaskShadow);
     if (lit != nullptr) (*lit)[i] = (f & kLitBit) != 0;
+    if (covered != nullptr) (*covered)[i] = (f & kCoveredBit) != 0;
   }
   return mask;
 }
@@ -733,7 +736,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   Stopwatch mask_watch;
   image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m);
   std::vector<uint8_t> lit;
-  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit);
+  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit, &image.footprint);
   for (size_t q = 0; q < lit.size(); ++q) {
     if (!lit[q]) continue;
     ++image.stats.footprint_pixels;

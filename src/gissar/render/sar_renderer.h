@@ -22,6 +22,10 @@ namespace gissar::render {
 inline constexpr uint8_t kMaskNone = 0;
 inline constexpr uint8_t kMaskLayover = 1;
 inline constexpr uint8_t kMaskShadow = 2;  // kMaskLayover | kMaskShadow = 3: both
+// Written masks: no surface covers the pixel centre and no return landed
+// there (outside the imaged footprint; the images are NaN there). The
+// no-data value of the mask GeoTIFFs.
+inline constexpr uint8_t kMaskOutside = 255;
 // The masks of both engines count a surface seen at cos(local incidence)
 // at or below this (within 0.06 deg of edge-on) as turned away: shadow.
 // Exactly grazing surfaces return no power, and whether they are lit is
@@ -128,6 +132,10 @@ struct SarImage {
   std::vector<PointReturn> points;
   std::vector<Contribution> contributions;  // when record_contributions
   std::vector<uint8_t> mask;    // kMask* codes, row-major
+  // 1 where a projected surface of the scene (lit, shadowed or turned away)
+  // covers the pixel centre: the imaged footprint; 0 outside it (no terrain
+  // maps there). Row-major, same size as mask.
+  std::vector<uint8_t> footprint;
   RenderStats stats;
 };
 
@@ -194,10 +202,13 @@ std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::
 
 // Only the layover/shadow mask (see RenderSar). `lit` (optional): 1 where a
 // lit surface (facing the radar, not occluded) covers the pixel centre.
+// `covered` (optional): 1 where any surface not seen exactly edge-on covers
+// the pixel centre (SarImage::footprint).
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
                                              int64_t* shadow_rays = nullptr,
-                                             std::vector<uint8_t>* lit = nullptr);
+                                             std::vector<uint8_t>* lit = nullptr,
+                                             std::vector<uint8_t>* covered = nullptr);
 
 }  // namespace gissar::render
