@@ -187,6 +187,24 @@ Outcome RunBinary(const std::string& arguments, const fs::path& dir) {
   return o;
 }
 
+// `--out sim` (a prefix with no directory) writes in the working directory;
+// the STAC Item's hrefs are then plain file names (this failed at the very
+// end with "cannot make absolute path" before).
+TEST(CliTest, OutPrefixWithoutADirectory) {
+  const fs::path dir = testing::MakeTempDir();
+  const fs::path before = fs::current_path();
+  fs::current_path(dir);
+  const Outcome o = RunGissar({"simulate", "--dem", testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string(),
+                               "--heading", "0", "--depression", "40", "--range-spacing", "400", "--azimuth-spacing",
+                               "400", "--out", "sim", "--quiet"});
+  fs::current_path(before);
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_TRUE(fs::exists(dir / "sim.tif"));
+  std::ifstream in(dir / "sim_stac.json");
+  const nlohmann::json item = nlohmann::json::parse(in);
+  EXPECT_EQ(item["assets"]["image"]["href"], "sim.tif") << item["assets"].dump();
+}
+
 // Band 1 with no-data (NaN, outside the footprint) as -1, so that == compares
 // two images pixel for pixel.
 std::vector<float> FirstBand(const fs::path& tif) {

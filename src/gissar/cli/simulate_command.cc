@@ -70,6 +70,8 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
                   "Output quantity: sigma0, beta0 or gamma0 (ellipsoid incidence; docs/radiometry.md)")
       ->capture_default_str();
   cmd->add_flag("--db", options->db, "Write decibels (10 log10) instead of linear m2/m2 (no return: NaN)");
+  cmd->add_flag("--layers", options->layers,
+                "Also write PREFIX_layers.tif: local incidence (deg) and projected terrain area (m2) per pixel");
   cmd->add_option("--materials", options->materials,
                   "Materials file (JSON, class -> sigma0 law); with --dem it sets the class 'default'");
   cmd->add_option("--reflectors", options->reflectors,

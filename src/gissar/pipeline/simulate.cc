@@ -22,6 +22,7 @@
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/raster_renderer.h"
+#include "gissar/render/terrain_layers.h"
 #include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
@@ -159,6 +160,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["polarization"] = polarization;
   j["radiometry"] = radiometry;
   j["db"] = db;
+  j["layers"] = layers;
   j["materials"] = materials;
   j["reflectors"] = reflectors;
   j["contributions"] = contributions;
@@ -235,6 +237,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "polarization") set(polarization);
     else if (key == "radiometry") set(radiometry);
     else if (key == "db") set(db);
+    else if (key == "layers") set(layers);
     else if (key == "materials") set(materials);
     else if (key == "reflectors") set(reflectors);
     else if (key == "contributions") set(contributions);
@@ -635,6 +638,7 @@ void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs&
   o.json = o.files.Add(options.out_prefix + ".json");
   o.stac_json = o.files.Add(options.out_prefix + "_stac.json");
   if (options.coherent) o.slc_tif = o.files.Add(options.out_prefix + "_slc.tif");
+  if (options.layers) o.layers_tif = o.files.Add(options.out_prefix + "_layers.tif");
   if (!options.contributions.empty()) o.contributions_csv = o.files.Add(options.contributions);
 }
 
@@ -718,6 +722,26 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
     geo::WriteComplexGeoTiff(slc_tif, image.real, image.imag, image.width, image.height, slc_metadata,
                              "sqrt(m2/m2)");
+  }
+  if (!reserved.layers_tif.empty()) {
+    const Stopwatch layers_watch;
+    // The raster engine keeps the DEM as posts only: triangulate them as it does.
+    const bool posts_only = mesh.triangles.empty() && terrain.grid_width > 1 && terrain.grid_height > 1;
+    const render::TerrainLayers layers = render::ComputeTerrainLayers(
+        posts_only ? scene::MeshFromGrid(mesh.vertices, terrain.grid_width, terrain.grid_height) : mesh, geometry);
+    geo::FloatRaster out{image.width, image.height, {layers.local_incidence_deg, layers.projected_area_m2},
+                         {"local_incidence", "projected_area"}, metadata};
+    out.band_units = {"deg", "m2"};
+    out.nodata_nan = true;
+    out.georeference = raster.georeference;
+    out.metadata["GISSAR_BANDS"] =
+        "1 local incidence (deg, area-weighted over the surfaces facing the radar), 2 projected area (m2 of "
+        "terrain facing the radar in the pixel, occlusion ignored)";
+    for (size_t i = 0; i < image.footprint.size() && i < out.bands[0].size(); ++i) {
+      if (!image.footprint[i]) out.bands[0][i] = out.bands[1][i] = std::numeric_limits<float>::quiet_NaN();
+    }
+    geo::WriteFloatGeoTiff(reserved.layers_tif, out);
+    timings["layers"] = layers_watch.ElapsedSeconds();
   }
   // Quicklooks from the linear values.
   std::vector<float> linear = image.intensity;
@@ -837,6 +861,10 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                 {"quicklook", final_of("_quicklook.png"), "image/png", "Annotated quicklook", {"overview"}},
                 {"provenance", final_of(".json"), "application/json", "gissar provenance sidecar", {"metadata"}}};
     if (options.coherent) p.assets.push_back({"slc", final_of("_slc.tif"), tiff, "Single-look complex image", {"data"}});
+    if (options.layers) {
+      p.assets.push_back({"layers", final_of("_layers.tif"), tiff, "Local incidence angle and projected terrain area",
+                          {"data", "local-incidence-angle"}});
+    }
     WriteJsonFile(StacItem(p, fs::path(options.out_prefix).parent_path()), reserved.stac_json);
   }
   timings["write"] = step.ElapsedSeconds();

@@ -94,6 +94,10 @@ struct SimulateRequest {
   // plates with their physical-optics RCS.
   std::string reflectors;
   std::string contributions;       // optional CSV of every return (RaySAR-style)
+  // Also write PREFIX_layers.tif (slant-range geometry, same GCPs/RPCs):
+  // band 1 local_incidence (deg), band 2 projected_area (m2 of terrain per
+  // pixel), render::ComputeTerrainLayers; NaN outside the footprint.
+  bool layers = false;
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
   // spectral window ("none", "hamming", "taylor").
   double range_resolution_m = 0.0;
@@ -226,10 +230,10 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter 
 // work so that a missing or read-only directory fails first.
 struct SimulationOutputs {
   AtomicOutputs files;
-  std::filesystem::path tif, png, annotated_png, mask_tif, json, stac_json, contributions_csv, slc_tif;
+  std::filesystem::path tif, png, annotated_png, mask_tif, json, stac_json, contributions_csv, slc_tif, layers_tif;
 };
 // Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _stac.json (STAC Item, stac.h), _slc.tif in
-// coherent mode and the contributions CSV when asked. Throws IoError for a missing or read-only
+// coherent mode, _layers.tif with `layers` and the contributions CSV when asked. Throws IoError for a missing or read-only
 // directory.
 void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& outputs);
 

@@ -245,9 +245,20 @@ TEST(SimulateTest, FlatSquareIsNoDataOutsideItsFootprint) {
     o.geometry.depression_deg = 40.0;
     o.geometry.range_spacing_m = o.geometry.azimuth_spacing_m = 5.0;
     o.out_prefix = (dir / engine).string();
+    o.layers = true;
     RunSimulate(o, "test");
     const geo::FloatRaster image = geo::ReadFloatRaster(o.out_prefix + ".tif");
     EXPECT_TRUE(image.nodata_nan);
+    // --layers: flat ground, local incidence 50 deg and 5 x 5 / sin 50 =
+    // 32.64 m2 of terrain in every interior pixel; NaN where the image is.
+    const geo::FloatRaster layers = geo::ReadFloatRaster(o.out_prefix + "_layers.tif");
+    ASSERT_EQ(layers.bands.size(), 2u);
+    EXPECT_EQ(layers.band_names[1], "projected_area");
+    const size_t middle = size_t(image.height / 2) * image.width + image.width / 2;
+    EXPECT_NEAR(layers.bands[0][middle], 50.0, 1e-3);
+    EXPECT_NEAR(layers.bands[1][middle], 25.0 / std::sin(50.0 * M_PI / 180.0), 1e-3);
+    EXPECT_TRUE(std::isnan(layers.bands[1][0]));
+    EXPECT_FALSE(geo::ReadGeoreference(o.out_prefix + "_layers.tif").gcps.empty());
     int w = 0, h = 0;
     const auto mask = geo::ReadByteRaster(o.out_prefix + "_mask.tif", &w, &h);
     ASSERT_EQ(mask.size(), image.bands[0].size());
@@ -322,6 +333,7 @@ TEST(SimulateRequestTest, JsonRoundTripCoversEveryField) {
   changed.center_lonlat = Eigen::Vector2d(1.5, 42.5);
   changed.nesz_db = -20.0;
   changed.seed = 99;
+  changed.layers = true;
   SimulateRequest read;
   read.ApplyJson(changed.ToJson(), "test");
   EXPECT_EQ(read.ToJson(), changed.ToJson());

@@ -103,8 +103,11 @@ json StacItem(const StacProduct& product, const fs::path& item_directory) {
     properties["proj:bbox"] = {std::min(x0, x1), std::min(y0, y1), std::max(x0, x1), std::max(y0, y1)};
   }
   json assets = json::object();
+  // An output prefix without a directory ("--out sim") puts the Item in the
+  // working directory: its parent path is empty.
+  const fs::path base = fs::absolute(item_directory.empty() ? fs::path(".") : item_directory).lexically_normal();
   for (const StacAsset& a : product.assets) {
-    assets[a.key] = {{"href", fs::absolute(a.path).lexically_normal().lexically_relative(fs::absolute(item_directory).lexically_normal()).generic_string()},
+    assets[a.key] = {{"href", fs::absolute(a.path).lexically_normal().lexically_relative(base).generic_string()},
                      {"type", a.type},
                      {"title", a.title},
                      {"roles", a.roles}};
