@@ -264,8 +264,10 @@ TEST(CommonFlagsTest, OldFmatrixAndResectSpellingsWorkWithAWarning) {
                          "1,0.75", "--depressions", "40,45", "--out", (dir / "new").string()});
   ASSERT_EQ(o.status, 0) << o.err;
   EXPECT_EQ(o.err.find("deprecated"), std::string::npos) << o.err;
-  o = RunGissar({"fmatrix", "--matches", matches, "--res1", "1,1", "--res2=0.75,0.75", "--depressions", "40,45",
-                 "--out", (dir / "old").string()});
+  // The binary: warnings go to the process's stderr.
+  o = RunBinary("fmatrix --matches " + matches + " --res1 1,1 --res2=0.75,0.75 --depressions 40,45 --out " +
+                    (dir / "old").string(),
+                dir);
   ASSERT_EQ(o.status, 0) << o.err;
   EXPECT_NE(o.err.find("gissar: warning: --res1 is deprecated and will be removed; use --range-spacing R1,R2 "
                        "--azimuth-spacing A1,A2"),
@@ -316,8 +318,9 @@ TEST(CommonFlagsTest, OldFmatrixAndResectSpellingsWorkWithAWarning) {
   o = RunGissar({"resect", "--points", (dir / "p.csv").string(), "--center-enu", "0,0,0", "--out",
                  (dir / "rnew").string()});
   ASSERT_EQ(o.status, 0) << o.err;
-  o = RunGissar({"resect", "--points", (dir / "p.csv").string(), "--scene-centre", "0,0,0", "--out",
-                 (dir / "rold").string()});
+  o = RunBinary("resect --points " + (dir / "p.csv").string() + " --scene-centre 0,0,0 --out " +
+                    (dir / "rold").string(),
+                dir);
   ASSERT_EQ(o.status, 0) << o.err;
   EXPECT_NE(o.err.find("gissar: warning: --scene-centre is deprecated and will be removed; use --center-enu"),
             std::string::npos) << o.err;

@@ -75,20 +75,35 @@ void CloseChecked(DatasetPtr ds, const fs::path& path) {
   }
 }
 
-// COG staging. A large raster is built in GDAL's MEM driver and copied with
+// COG staging. A large raster is viewed through GDAL's MEM driver and copied with
 // the COG driver (GDAL 3.6): internal overviews, IFDs and overviews ahead of
 // the full-resolution tiles. A small one is created directly as a tiled GTiff.
 bool IsCog(int width, int height) { return width > kCogMinSidePx || height > kCogMinSidePx; }
 
-// Creates the dataset the writer fills: a GTiff at `path` (small raster) or
-// an in-memory staging dataset (COG; FinishGeoTiff copies it to `path`).
-DatasetPtr CreateStaged(const fs::path& path, int width, int height, int nbands, GDALDataType type,
-                        const char* const* gtiff_options) {
-  DatasetPtr ds(IsCog(width, height)
-                    ? Driver("MEM")->Create("", width, height, nbands, type, nullptr)
-                    : Driver("GTiff")->Create(path.c_str(), width, height, nbands, type,
-                                              const_cast<char**>(gtiff_options)));
-  if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+// Creates the dataset the writer fills: a GTiff at `path` (small raster; the
+// writer then writes the planes with RasterIO) or, for a COG, an in-memory
+// view of the caller's `planes` (one per band, row-major, never written:
+// no staging copy) that FinishGeoTiff copies to `path`.
+DatasetPtr CreateStaged(const fs::path& path, int width, int height, GDALDataType type,
+                        const std::vector<const void*>& planes, const char* const* gtiff_options) {
+  const int nbands = static_cast<int>(planes.size());
+  if (!IsCog(width, height)) {
+    DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, nbands, type,
+                                          const_cast<char**>(gtiff_options)));
+    if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+    return ds;
+  }
+  DatasetPtr ds(Driver("MEM")->Create("", width, height, 0, type, nullptr));
+  if (!ds) throw IoError("cannot stage the raster in memory: " + LastGdalMessage(), path.string());
+  for (const void* plane : planes) {
+    char pointer[64] = {};
+    pointer[CPLPrintPointer(pointer, const_cast<void*>(plane), sizeof(pointer) - 1)] = '\0';
+    const std::string option = std::string("DATAPOINTER=") + pointer;
+    const char* options[] = {option.c_str(), nullptr};
+    if (ds->AddBand(type, const_cast<char**>(options)) != CE_None) {
+      throw IoError("cannot stage the raster in memory: " + LastGdalMessage(), path.string());
+    }
+  }
   return ds;
 }
 
@@ -207,7 +222,12 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   const int nbands = static_cast<int>(raster.bands.size());
   if (nbands == 0) throw IoError("no band to write", path.string());
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "PREDICTOR=1", "NUM_THREADS=ALL_CPUS", nullptr};
-  DatasetPtr ds = CreateStaged(path, raster.width, raster.height, nbands, GDT_Float32, options);
+  std::vector<const void*> planes;
+  for (const std::vector<float>& b : raster.bands) {
+    if (b.size() != size_t(raster.width) * raster.height) throw IoError("band size does not match the raster", path.string());
+    planes.push_back(b.data());
+  }
+  DatasetPtr ds = CreateStaged(path, raster.width, raster.height, GDT_Float32, planes, options);
   SetMetadata(ds.get(), raster.metadata);
   SetGeoreference(ds.get(), raster.georeference, path);
   if (raster.geotransform.size() == 6) {
@@ -231,7 +251,8 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
     } else if (!raster.band_unit.empty()) {
       band->SetUnitType(raster.band_unit.c_str());
     }
-    if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
+    if (!IsCog(raster.width, raster.height) &&
+        band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
                        const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
                        GDT_Float32, 0, 0, nullptr) != CE_None) {
       throw IoError("cannot write GeoTIFF band: " + LastGdalMessage(), path.string());
@@ -246,7 +267,8 @@ void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, in
                       int height, const Metadata& metadata, const Georeference& georeference,
                       const ByteCategories& categories) {
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
-  DatasetPtr ds = CreateStaged(path, width, height, 1, GDT_Byte, options);
+  if (data.size() != size_t(width) * height) throw IoError("data size does not match the raster", path.string());
+  DatasetPtr ds = CreateStaged(path, width, height, GDT_Byte, {data.data()}, options);
   SetMetadata(ds.get(), metadata);
   SetGeoreference(ds.get(), georeference, path);
   if (!categories.names.empty()) {
@@ -268,7 +290,8 @@ void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, in
     ds->GetRasterBand(1)->SetColorTable(&table);
     ds->GetRasterBand(1)->SetColorInterpretation(GCI_PaletteIndex);
   }
-  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
+  if (!IsCog(width, height) &&
+      ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
                                      const_cast<uint8_t*>(data.data()), width, height, GDT_Byte,
                                      0, 0, nullptr) != CE_None) {
     throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
@@ -289,12 +312,13 @@ void WriteComplexGeoTiff(const fs::path& path, const std::vector<float>& real, c
     interleaved[2 * k + 1] = imag[k];
   }
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
-  DatasetPtr ds = CreateStaged(path, width, height, 1, GDT_CFloat32, options);
+  DatasetPtr ds = CreateStaged(path, width, height, GDT_CFloat32, {interleaved.data()}, options);
   SetMetadata(ds.get(), metadata);
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetDescription("slc");
   if (!band_unit.empty()) band->SetUnitType(band_unit.c_str());
-  if (band->RasterIO(GF_Write, 0, 0, width, height, interleaved.data(), width, height, GDT_CFloat32, 0, 0,
+  if (!IsCog(width, height) &&
+      band->RasterIO(GF_Write, 0, 0, width, height, interleaved.data(), width, height, GDT_CFloat32, 0, 0,
                      nullptr) != CE_None) {
     throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
   }
