@@ -84,7 +84,9 @@ def run(out):
         g = sim["geometry"]
         save(f"sar_h{heading:03.0f}_quicklook.png",
              gissar.annotated_quicklook(sim["image"], g.range_spacing_m, g.azimuth_spacing_m,
-                                        f"Andorra, heading {heading:.0f} deg, depression {DEPRESSION_DEG:.0f} deg"))
+                                        f"Andorra, heading {heading:.0f} deg, depression {DEPRESSION_DEG:.0f} deg",
+                                        near_range_m=g.slant_range_m - g.u0 * g.range_spacing_m,
+                                        azimuth_origin_m=-g.v0 * g.azimuth_spacing_m))
         say(f"image at heading {heading:.0f} deg: {sim['image'].shape[1]} x {sim['image'].shape[0]} px, "
             f"layover {sim['layover'].mean():.1%}, shadow {sim['shadow'].mean():.1%}")
         sims.append(sim)
@@ -115,7 +117,7 @@ def run(out):
     say(f"matches: {len(x1)}")
 
     # 4. F (RANSAC + Gold Standard) and its Koenderink-van Doorn reading: the heading change.
-    f = gissar.fmatrix(x1, x2, res1=(SPACING_M, SPACING_M), res2=(SPACING_M, SPACING_M),
+    f = gissar.fmatrix(x1, x2, range_spacing_m=(SPACING_M, SPACING_M), azimuth_spacing_m=(SPACING_M, SPACING_M),
                        depressions_deg=(DEPRESSION_DEG, DEPRESSION_DEG))
     kvd = gissar.kvd(f["F_calibrated"])
     dpsi = f["heading_change_deg"]

@@ -335,6 +335,13 @@ py::dict SimulateProduct(const std::string& product, py::kwargs kwargs) {
   return out;
 }
 
+// A renamed keyword: DeprecationWarning naming the new one (docs/conventions.md:
+// old spellings keep working for one release). Raises when warnings are errors.
+void WarnDeprecatedKeyword(const std::string& old_keyword, const std::string& replacement) {
+  const std::string message = old_keyword + " is deprecated and will be removed; use " + replacement;
+  if (PyErr_WarnEx(PyExc_DeprecationWarning, message.c_str(), 1) != 0) throw py::error_already_set();
+}
+
 py::array_t<double> Project(const sensor::SarGeometry& g, const py::array_t<double, py::array::c_style>& points) {
   if (points.ndim() != 2 || points.shape(1) != 3) throw InputError("points must be an (N, 3) array", "project");
   py::array_t<double> out({points.shape(0), py::ssize_t(2)});
@@ -776,13 +783,38 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
 
   m.def("fmatrix", [](const py::array_t<double, py::array::c_style>& x1, const py::array_t<double, py::array::c_style>& x2,
                       std::optional<std::array<double, 2>> res1, std::optional<std::array<double, 2>> res2,
-                      std::optional<std::array<double, 2>> depressions_deg, double threshold_px, uint64_t seed) {
+                      std::optional<std::array<double, 2>> depressions_deg, double threshold_px, uint64_t seed,
+                      std::optional<std::array<double, 2>> range_spacing_m,
+                      std::optional<std::array<double, 2>> azimuth_spacing_m) {
         const auto matches = Matches(x1, x2);
         mvg::TwoViewOptions o;
         o.ransac.threshold_px = threshold_px;
         o.ransac.seed = seed;
-        if (res1) o.k1 = mvg::SarIntrinsics((*res1)[0], (*res1)[1]);
-        if (res2) o.k2 = mvg::SarIntrinsics((*res2)[0], (*res2)[1]);
+        // res1=(R1, A1), res2=(R2, A2): deprecated spelling of
+        // range_spacing_m=(R1, R2), azimuth_spacing_m=(A1, A2).
+        if (res1 || res2) {
+          const char* replacement = "range_spacing_m=(R1, R2), azimuth_spacing_m=(A1, A2)";
+          if (res1) WarnDeprecatedKeyword("res1", replacement);
+          if (res2) WarnDeprecatedKeyword("res2", replacement);
+          if (!res1 || !res2) throw ConfigError("give both res1 and res2", "gissar.fmatrix");
+          if (range_spacing_m || azimuth_spacing_m) {
+            throw ConfigError("give the spacings once, as range_spacing_m/azimuth_spacing_m", "gissar.fmatrix");
+          }
+          range_spacing_m = std::array<double, 2>{(*res1)[0], (*res2)[0]};
+          azimuth_spacing_m = std::array<double, 2>{(*res1)[1], (*res2)[1]};
+        }
+        if (range_spacing_m.has_value() != azimuth_spacing_m.has_value()) {
+          throw ConfigError("give both range_spacing_m and azimuth_spacing_m", "gissar.fmatrix");
+        }
+        if (range_spacing_m) {
+          for (int i = 0; i < 2; ++i) {
+            if (!((*range_spacing_m)[i] > 0 && (*azimuth_spacing_m)[i] > 0)) {
+              throw ConfigError("pixel spacings must be positive", "range_spacing_m/azimuth_spacing_m");
+            }
+          }
+          o.k1 = mvg::SarIntrinsics((*range_spacing_m)[0], (*azimuth_spacing_m)[0]);
+          o.k2 = mvg::SarIntrinsics((*range_spacing_m)[1], (*azimuth_spacing_m)[1]);
+        }
         if (depressions_deg) {
           o.depression1_deg = (*depressions_deg)[0];
           o.depression2_deg = (*depressions_deg)[1];
@@ -803,11 +835,21 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         if (a->sar) out["heading_change_deg"] = a->sar->heading_change_deg;
         return out;
       }, py::arg("x1"), py::arg("x2"), py::arg("res1") = py::none(), py::arg("res2") = py::none(),
-      py::arg("depressions_deg") = py::none(), py::arg("threshold_px") = 1.5, py::arg("seed") = 1,
-      "Affine fundamental matrix of (N, 2) pixel matches x1 <-> x2 (RANSAC + Gold Standard), KvD, heading change.");
+      py::arg("depressions_deg") = py::none(), py::arg("threshold_px") = 1.5, py::arg("seed") = 1, py::kw_only(),
+      py::arg("range_spacing_m") = py::none(), py::arg("azimuth_spacing_m") = py::none(),
+      "Affine fundamental matrix of (N, 2) pixel matches x1 <-> x2 (RANSAC + Gold Standard), KvD, heading change. "
+      "Calibrated with range_spacing_m=(R1, R2) and azimuth_spacing_m=(A1, A2), metres per pixel of images 1 and 2 "
+      "(res1=(R1, A1), res2=(R2, A2): deprecated, DeprecationWarning).");
 
   m.def("resect", [](const py::array_t<double, py::array::c_style>& world, const py::array_t<double, py::array::c_style>& pixels,
-                     std::array<double, 3> scene_centre_enu_m) {
+                     std::optional<std::array<double, 3>> center_enu_m,
+                     std::optional<std::array<double, 3>> scene_centre_enu_m) {
+        if (scene_centre_enu_m) {
+          WarnDeprecatedKeyword("scene_centre_enu_m", "center_enu_m");
+          if (center_enu_m) throw ConfigError("give the scene centre once, as center_enu_m", "gissar.resect");
+          center_enu_m = scene_centre_enu_m;
+        }
+        const std::array<double, 3> centre = center_enu_m.value_or(std::array<double, 3>{0, 0, 0});
         if (world.ndim() != 2 || world.shape(1) != 3 || pixels.ndim() != 2 || pixels.shape(1) != 2 ||
             world.shape(0) != pixels.shape(0)) {
           throw InputError("world must be (N, 3) and pixels (N, 2)", "gissar.resect");
@@ -818,7 +860,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
           points[i].pixel = {pixels.at(i, 0), pixels.at(i, 1)};
         }
         mvg::ResectionOptions o;
-        o.scene_centre = {scene_centre_enu_m[0], scene_centre_enu_m[1], scene_centre_enu_m[2]};
+        o.scene_centre = {centre[0], centre[1], centre[2]};
         std::optional<mvg::ResectionResult> r;
         {
           py::gil_scoped_release release;
@@ -829,8 +871,10 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
                         py::arg("range_spacing_m") = r->pose.range_spacing_m,
                         py::arg("azimuth_spacing_m") = r->pose.azimuth_spacing_m, py::arg("u0") = r->pose.u0,
                         py::arg("v0") = r->pose.v0, py::arg("rms_px") = r->rms_px, py::arg("camera") = Mat(r->camera));
-      }, py::arg("world_enu_m"), py::arg("pixels"), py::arg("scene_centre_enu_m") = std::array<double, 3>{0, 0, 0},
-      "Affine SAR resection from (N, 3) ENU points (m) and their (N, 2) pixels.");
+      }, py::arg("world_enu_m"), py::arg("pixels"), py::arg("center_enu_m") = py::none(), py::kw_only(),
+      py::arg("scene_centre_enu_m") = py::none(),
+      "Affine SAR resection from (N, 3) ENU points (m) and their (N, 2) pixels; center_enu_m: the scene centre Xc "
+      "(ENU m, default 0,0,0; scene_centre_enu_m: deprecated, DeprecationWarning).");
 
   m.def("register_points", [](const py::array_t<double, py::array::c_style>& fixed_px,
                               const py::array_t<double, py::array::c_style>& moving_px, const std::string& transform,
@@ -1035,14 +1079,23 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
       "dB quicklook of a linear intensity image: (grey (H, W) uint8, (low_db, high_db)); 10 log10 I mapped from "
       "its low to high percentile onto grey 1..255, no return (I <= 0) = 0.");
   m.def("annotated_quicklook", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& intensity,
-                                  double range_spacing_m, double azimuth_spacing_m, const std::string& title) {
+                                  double range_spacing_m, double azimuth_spacing_m, const std::string& title,
+                                  double near_range_m, double azimuth_origin_m) {
         const FloatImage im = ToFloatImage(intensity, "gissar.annotated_quicklook");
         if (!(range_spacing_m > 0 && azimuth_spacing_m > 0)) {
           throw ConfigError("pixel spacings must be positive", "range_spacing_m/azimuth_spacing_m");
         }
-        return RgbArray(image::AnnotatedQuicklook(im.values, im.width, im.height, range_spacing_m, azimuth_spacing_m, title));
+        if (!std::isfinite(near_range_m) || !std::isfinite(azimuth_origin_m)) {
+          throw ConfigError("axis origins must be finite", "near_range_m/azimuth_origin_m");
+        }
+        return RgbArray(image::AnnotatedQuicklook(
+            im.values, im.width, im.height,
+            image::QuicklookAxes{near_range_m, range_spacing_m, azimuth_origin_m, azimuth_spacing_m}, title));
       }, py::arg("intensity"), py::arg("range_spacing_m"), py::arg("azimuth_spacing_m"), py::arg("title") = "",
-      "dB quicklook with axes in metres (slant range, azimuth), a dB colour bar and a title: (H', W', 3) uint8.");
+      py::arg("near_range_m") = 0.0, py::arg("azimuth_origin_m") = 0.0,
+      "dB quicklook with a slant-range axis (near_range_m = slant range of column 0) and an along-track axis "
+      "(azimuth_origin_m = along-track coordinate of row 0, e.g. -v0 * azimuth_spacing_m for metres from the scene "
+      "centre), km when values reach 1000 m, a dB colour bar and a title: (H', W', 3) uint8.");
   m.def("composite", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& green,
                         const py::array_t<float, py::array::c_style | py::array::forcecast>& magenta) {
         const FloatImage a = ToFloatImage(green, "gissar.composite: green");

@@ -34,7 +34,7 @@ def test_fmatrix_heading_change_and_resection():
                         delimiter=",", names=True)
     x1 = np.column_stack([pts["x1"], pts["y1"]])
     x2 = np.column_stack([pts["x2"], pts["y2"]])
-    out = gissar.fmatrix(x1, x2, res1=(1, 1), res2=(1, 1), depressions_deg=(40, 40))
+    out = gissar.fmatrix(x1, x2, range_spacing_m=(1, 1), azimuth_spacing_m=(1, 1), depressions_deg=(40, 40))
     assert out["F"].shape == (3, 3)
     assert abs(out["heading_change_deg"] - 30.0) < 1e-6
     assert abs(out["kvd"]["theta_deg"] - 23.198952052312735) < 1e-7
@@ -42,6 +42,24 @@ def test_fmatrix_heading_change_and_resection():
     pose = gissar.resect(world, x2)
     assert abs(pose["heading_deg"] - 30.0) < 1e-6
     assert abs(pose["depression_deg"] - 40.0) < 1e-6
+    assert gissar.resect(world, x2, center_enu_m=(0, 0, 0))["heading_deg"] == pose["heading_deg"]
+
+
+def test_old_keyword_spellings_still_work_with_a_deprecation_warning():
+    pts = np.genfromtxt(os.path.join(TESTDATA, "case2_thesis_dpsi30_dep40_noisefree_points.csv"),
+                        delimiter=",", names=True)
+    x1 = np.column_stack([pts["x1"], pts["y1"]])
+    x2 = np.column_stack([pts["x2"], pts["y2"]])
+    new = gissar.fmatrix(x1, x2, range_spacing_m=(1, 1), azimuth_spacing_m=(1, 1), depressions_deg=(40, 40))
+    with pytest.warns(DeprecationWarning, match="res1 is deprecated.*range_spacing_m"):
+        old = gissar.fmatrix(x1, x2, res1=(1, 1), res2=(1, 1), depressions_deg=(40, 40))
+    np.testing.assert_array_equal(old["F"], new["F"])
+    with pytest.raises(gissar.ConfigError):
+        gissar.fmatrix(x1, x2, range_spacing_m=(1, 1))
+    world = np.column_stack([pts["X"], pts["Y"], pts["Z"]])
+    with pytest.warns(DeprecationWarning, match="scene_centre_enu_m is deprecated.*center_enu_m"):
+        old_pose = gissar.resect(world, x2, scene_centre_enu_m=(0, 0, 0))
+    assert old_pose["heading_deg"] == gissar.resect(world, x2, center_enu_m=(0, 0, 0))["heading_deg"]
 
 
 def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
@@ -205,6 +223,13 @@ def test_pictures_as_arrays_and_files(tmp_path):
     ann = gissar.annotated_quicklook(intensity, 30.0, 15.0, "ramp")
     assert ann.shape == (50 + 44 + 50, 70 + 70 + 90 + 20, 3)
     assert np.array_equal(ann[44:94, 70:140, 0], gissar.quicklook(intensity)[0])
+    # True slant range (column 0 at 9.5 km) and along track from the scene centre: the picture is the
+    # same size, the image itself unchanged, the axis labels differ.
+    true_axes = gissar.annotated_quicklook(intensity, 30.0, 15.0, "ramp", near_range_m=9500.0,
+                                           azimuth_origin_m=-25 * 15.0)
+    assert true_axes.shape == ann.shape
+    assert np.array_equal(true_axes[44:94, 70:140], ann[44:94, 70:140])
+    assert not np.array_equal(true_axes[94:], ann[94:])
     comp = gissar.composite(intensity, 3.0 * intensity)  # a gain only: grey everywhere
     assert np.abs(comp[..., 0].astype(int) - comp[..., 1]).max() <= 1 and np.array_equal(comp[..., 0], comp[..., 2])
     kvd = gissar.kvd_diagram(1.0, 23.2, 11.6, 30.0)

@@ -278,6 +278,82 @@ TEST(CommonFlagsTest, DeprecatedSpellingWorksWithAWarning) {
   EXPECT_EQ(FirstBand(dir / "new.tif"), FirstBand(dir / "old.tif"));
 }
 
+// fmatrix --res1 R1,A1 --res2 R2,A2 = --range-spacing R1,R2 --azimuth-spacing
+// A1,A2 (case 3: 1 m pixels in view 1, 0.75 m in view 2), resect
+// --scene-centre = --center-enu; the old spellings warn, naming the new flags.
+TEST(CommonFlagsTest, OldFmatrixAndResectSpellingsWorkWithAWarning) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string matches = testing::TestDataPath("affine/case3_dpsi30_dep40_45_res1_0.75_points.csv").string();
+  Outcome o = RunGissar({"fmatrix", "--matches", matches, "--range-spacing", "1,0.75", "--azimuth-spacing",
+                         "1,0.75", "--depressions", "40,45", "--out", (dir / "new").string()});
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_EQ(o.err.find("deprecated"), std::string::npos) << o.err;
+  // The binary: warnings go to the process's stderr.
+  o = RunBinary("fmatrix --matches " + matches + " --res1 1,1 --res2=0.75,0.75 --depressions 40,45 --out " +
+                    (dir / "old").string(),
+                dir);
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_NE(o.err.find("gissar: warning: --res1 is deprecated and will be removed; use --range-spacing R1,R2 "
+                       "--azimuth-spacing A1,A2"),
+            std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("--res2 is deprecated"), std::string::npos) << o.err;
+  nlohmann::json a, b;
+  std::ifstream(dir / "new.json") >> a;
+  std::ifstream(dir / "old.json") >> b;
+  EXPECT_EQ(a["F_calibrated"], b["F_calibrated"]);
+  EXPECT_EQ(a["heading_change_deg"], b["heading_change_deg"]);
+  EXPECT_EQ(b["options"]["range_spacing_m"], nlohmann::json::array({1.0, 0.75}));
+  EXPECT_EQ(b["options"]["azimuth_spacing_m"], nlohmann::json::array({1.0, 0.75}));
+  // One old flag alone, or old and new together: exit 2.
+  o = RunGissar({"fmatrix", "--matches", matches, "--res1", "1,1", "--out", (dir / "x").string()});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("give both --res1 and --res2"), std::string::npos) << o.err;
+  o = RunGissar({"fmatrix", "--matches", matches, "--res1", "1,1", "--res2", "1,1", "--range-spacing", "1,1",
+                 "--azimuth-spacing", "1,1", "--out", (dir / "x").string()});
+  EXPECT_EQ(o.status, 2);
+  o = RunGissar({"fmatrix", "--matches", matches, "--range-spacing", "1,1", "--out", (dir / "x").string()});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("give both --range-spacing"), std::string::npos) << o.err;
+  EXPECT_FALSE(fs::exists(dir / "x.json"));
+
+  const std::string points = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  // resect reads X,Y,Z,x,y: the reference case's 3-D points with their image-1 pixels.
+  std::ifstream in(points);
+  std::string header, line;
+  std::getline(in, header);
+  std::vector<std::string> names;
+  {
+    std::istringstream h(header);
+    for (std::string name; std::getline(h, name, ',');) names.push_back(name);
+  }
+  auto column = [&](const std::string& name) {
+    return static_cast<size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+  };
+  std::ofstream csv(dir / "p.csv");
+  csv << "X,Y,Z,x,y\n";
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::istringstream l(line);
+    for (std::string cell; std::getline(l, cell, ',');) cells.push_back(cell);
+    csv << cells[column("X")] << "," << cells[column("Y")] << "," << cells[column("Z")] << "," << cells[column("x1")]
+        << "," << cells[column("y1")] << "\n";
+  }
+  csv.close();
+  o = RunGissar({"resect", "--points", (dir / "p.csv").string(), "--center-enu", "0,0,0", "--out",
+                 (dir / "rnew").string()});
+  ASSERT_EQ(o.status, 0) << o.err;
+  o = RunBinary("resect --points " + (dir / "p.csv").string() + " --scene-centre 0,0,0 --out " +
+                    (dir / "rold").string(),
+                dir);
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_NE(o.err.find("gissar: warning: --scene-centre is deprecated and will be removed; use --center-enu"),
+            std::string::npos) << o.err;
+  std::ifstream(dir / "rnew.json") >> a;
+  std::ifstream(dir / "rold.json") >> b;
+  EXPECT_EQ(a["heading_deg"], b["heading_deg"]);
+  EXPECT_EQ(b["options"]["center_enu_m"], nlohmann::json::array({0.0, 0.0, 0.0}));
+}
+
 TEST(CommonFlagsTest, MisspeltFlagOrCommandGetsASuggestion) {
   const fs::path dir = testing::MakeTempDir();
   Outcome o = RunGissar({"simulate", "--dem", "x.tif", "--heading", "0", "--depresion", "40", "--out", "y"});
@@ -398,7 +474,7 @@ TEST(HelpWalkTest, EveryCommandHasTheSharedFlagsWithOneMeaning) {
       EXPECT_NE(out.find("Output prefix: PREFIX"), std::string::npos) << name << ": " << out;
     }
     // Old spellings are not listed as flags of their own.
-    for (const char* old : {"--range-res", "--azimuth-res", "--range", "--json"}) {
+    for (const char* old : {"--range-res", "--azimuth-res", "--range", "--json", "--res1", "--res2", "--scene-centre"}) {
       EXPECT_EQ(FlagLine(help, old), "") << name << " " << old;
     }
   }

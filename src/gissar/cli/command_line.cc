@@ -22,6 +22,9 @@ constexpr DeprecatedFlag kDeprecatedFlags[] = {
     {"--azimuth-res", "--azimuth-spacing"},
     {"--range", "--slant-range"},
     {"--json", "--out"},  // fmatrix, resect: --out PREFIX writes PREFIX.json
+    {"--scene-centre", "--center-enu"},  // resect
+    // fmatrix --res1/--res2 regroup their values: hidden options of fmatrix
+    // (cli/mvg_command.cc) warn with DeprecationWarning.
 };
 
 // The command a command line names ("simulate", "scene build") and the
@@ -65,6 +68,10 @@ size_t EditDistance(const std::string& a, const std::string& b) {
 
 }  // namespace
 
+std::string DeprecationWarning(const std::string& old_flag, const std::string& replacement) {
+  return old_flag + " is deprecated and will be removed; use " + replacement;
+}
+
 std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* argv,
                                                 std::vector<std::string>& warnings) {
   std::vector<std::string> args(argv, argv + argc);
@@ -74,7 +81,7 @@ std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* arg
       const std::string old_name = d.old_name;
       if (args[i] == old_name || args[i].rfind(old_name + "=", 0) == 0) {
         args[i] = d.new_name + args[i].substr(old_name.size());
-        warnings.push_back(old_name + " is deprecated and will be removed; use " + d.new_name);
+        warnings.push_back(DeprecationWarning(old_name, d.new_name));
       }
     }
   }

@@ -10,6 +10,10 @@
 
 namespace gissar::cli {
 
+// The one wording of a deprecation warning: "OLD is deprecated and will be
+// removed; use REPLACEMENT".
+std::string DeprecationWarning(const std::string& old_flag, const std::string& replacement);
+
 // argv with deprecated spellings replaced (also in "--old=value" form); one
 // warning per replaced flag naming the new one is appended to `warnings`.
 std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* argv,

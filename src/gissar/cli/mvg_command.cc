@@ -2,8 +2,10 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
+#include "gissar/cli/command_line.h"
 #include "gissar/pipeline/mvg_commands.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/util/error.h"
 
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
@@ -11,14 +13,21 @@ using namespace gissar::pipeline;  // the requests and Run functions this comman
 void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
   {
     auto o = std::make_shared<FmatrixRequest>();
-    auto res1 = std::make_shared<std::string>(), res2 = std::make_shared<std::string>();
+    auto range_spacing = std::make_shared<std::string>(), azimuth_spacing = std::make_shared<std::string>();
+    auto res1 = std::make_shared<std::string>(), res2 = std::make_shared<std::string>();  // deprecated
     auto depressions = std::make_shared<std::string>();
     auto all = std::make_shared<bool>(false);
     CLI::App* cmd = root.add_subcommand(
         "fmatrix", "Affine fundamental matrix (RANSAC + Gold Standard), KvD decomposition and heading change.");
     cmd->add_option("--matches", o->matches, "CSV with a header and columns x1,y1,x2,y2 (others ignored)")->required();
-    cmd->add_option("--res1", *res1, "Image 1 pixel spacing RANGE,AZIMUTH in metres (calibrated F)");
-    cmd->add_option("--res2", *res2, "Image 2 pixel spacing RANGE,AZIMUTH in metres");
+    cmd->add_option("--range-spacing", *range_spacing,
+                    "Slant-range pixel spacing R1,R2 of images 1 and 2, metres (calibrated F, with --azimuth-spacing)");
+    cmd->add_option("--azimuth-spacing", *azimuth_spacing, "Along-track pixel spacing A1,A2 of images 1 and 2, metres");
+    // Until the next release: --res1 R1,A1 --res2 R2,A2 (one image each), not
+    // listed in --help. Not a plain rename (ReplaceDeprecatedFlags): the
+    // values regroup across the two new flags.
+    cmd->add_option("--res1", *res1)->group("");
+    cmd->add_option("--res2", *res2)->group("");
     cmd->add_option("--depressions", *depressions, "Depressions D1,D2 in degrees: gives the heading change");
     cmd->add_option("--threshold", o->threshold_px, "RANSAC inlier threshold, pixels")->capture_default_str();
     cmd->add_flag("--no-ransac", *all, "One Gold Standard fit to all matches");
@@ -32,8 +41,20 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
       FmatrixRequest r = *o;
       r.json_out = PrefixedOutput(o->json_out, ".json");
       r.robust = !*all;
-      if (!res1->empty()) r.res1 = ParseNumberPair(*res1, "--res1");
-      if (!res2->empty()) r.res2 = ParseNumberPair(*res2, "--res2");
+      if (!range_spacing->empty()) r.range_spacing_m = ParseNumberPair(*range_spacing, "--range-spacing");
+      if (!azimuth_spacing->empty()) r.azimuth_spacing_m = ParseNumberPair(*azimuth_spacing, "--azimuth-spacing");
+      if (!res1->empty() || !res2->empty()) {
+        const std::string replacement = "--range-spacing R1,R2 --azimuth-spacing A1,A2";
+        if (!res1->empty()) context.reporter.Warn(DeprecationWarning("--res1", replacement));
+        if (!res2->empty()) context.reporter.Warn(DeprecationWarning("--res2", replacement));
+        if (res1->empty() || res2->empty()) throw ConfigError("give both --res1 and --res2", "--res1/--res2");
+        if (r.range_spacing_m || r.azimuth_spacing_m) {
+          throw ConfigError("give the spacings once, as --range-spacing/--azimuth-spacing", "--res1/--res2");
+        }
+        const Eigen::Vector2d a = ParseNumberPair(*res1, "--res1"), b = ParseNumberPair(*res2, "--res2");
+        r.range_spacing_m = Eigen::Vector2d(a.x(), b.x());
+        r.azimuth_spacing_m = Eigen::Vector2d(a.y(), b.y());
+      }
       if (!depressions->empty()) r.depressions = ParseNumberPair(*depressions, "--depressions");
       const auto out = RunFmatrix(r, context.command_line, context.reporter);
       context.out << r.json_out << "\n";
@@ -44,18 +65,18 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
   }
   {
     auto o = std::make_shared<ResectRequest>();
-    auto centre = std::make_shared<std::vector<double>>();
+    auto center = std::make_shared<std::vector<double>>();
     auto range = std::make_shared<double>(0.0);
     CLI::App* cmd = root.add_subcommand(
         "resect", "Affine SAR camera (heading, depression, spacings) from >= 4 known 3-D points.");
     cmd->add_option("--points", o->points, "CSV with a header and columns X,Y,Z,x,y (ENU m, pixels)")->required();
-    cmd->add_option("--scene-centre", *centre, "Scene centre Xc X,Y,Z (ENU m; default 0,0,0)")->delimiter(',')->expected(3);
+    cmd->add_option("--center-enu", *center, "Scene centre Xc X,Y,Z (ENU m; default 0,0,0)")->delimiter(',')->expected(3);
     cmd->add_option("--slant-range", *range, "Measured slant range to Xc, metres: also gives the sensor position");
     cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the camera)")->required();
     registry.Add(cmd, [=](const CommandContext& context) {
       ResectRequest r = *o;
       r.json_out = PrefixedOutput(o->json_out, ".json");
-      if (!centre->empty()) r.scene_centre = Eigen::Vector3d((*centre)[0], (*centre)[1], (*centre)[2]);
+      if (!center->empty()) r.center_enu_m = Eigen::Vector3d((*center)[0], (*center)[1], (*center)[2]);
       if (*range != 0.0) r.slant_range_m = *range;
       RunResect(r, context.command_line, context.reporter);
       context.out << r.json_out << "\n";

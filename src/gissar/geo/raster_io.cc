@@ -1,11 +1,14 @@
 #include "gissar/geo/raster_io.h"
 
+#include <cpl_string.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <memory>
 
@@ -72,6 +75,119 @@ void CloseChecked(DatasetPtr ds, const fs::path& path) {
   }
 }
 
+// COG staging. A large raster is viewed through GDAL's MEM driver and copied with
+// the COG driver (GDAL 3.6): internal overviews, IFDs and overviews ahead of
+// the full-resolution tiles. A small one is created directly as a tiled GTiff.
+bool IsCog(int width, int height) { return width > kCogMinSidePx || height > kCogMinSidePx; }
+
+// Creates the dataset the writer fills: a GTiff at `path` (small raster; the
+// writer then writes the planes with RasterIO) or, for a COG, an in-memory
+// view of the caller's `planes` (one per band, row-major, never written:
+// no staging copy) that FinishGeoTiff copies to `path`.
+DatasetPtr CreateStaged(const fs::path& path, int width, int height, GDALDataType type,
+                        const std::vector<const void*>& planes, const char* const* gtiff_options) {
+  const int nbands = static_cast<int>(planes.size());
+  if (!IsCog(width, height)) {
+    DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, nbands, type,
+                                          const_cast<char**>(gtiff_options)));
+    if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+    return ds;
+  }
+  DatasetPtr ds(Driver("MEM")->Create("", width, height, 0, type, nullptr));
+  if (!ds) throw IoError("cannot stage the raster in memory: " + LastGdalMessage(), path.string());
+  for (const void* plane : planes) {
+    char pointer[64] = {};
+    pointer[CPLPrintPointer(pointer, const_cast<void*>(plane), sizeof(pointer) - 1)] = '\0';
+    const std::string option = std::string("DATAPOINTER=") + pointer;
+    const char* options[] = {option.c_str(), nullptr};
+    if (ds->AddBand(type, const_cast<char**>(options)) != CE_None) {
+      throw IoError("cannot stage the raster in memory: " + LastGdalMessage(), path.string());
+    }
+  }
+  return ds;
+}
+
+// GDAL 3.6's GTiff/COG CreateCopy writes only the default metadata domain
+// (plus RPC) into the GDAL_METADATA tag; COPY_SRC_MDD arrived in 3.8. A COG's
+// GEOLOCATION items therefore travel as a default-domain placeholder of the
+// exact byte length of their XML, which PatchGeolocation overwrites in place
+// after the copy (same length: the COG layout is untouched).
+constexpr const char* kGeolocationPlaceholderKey = "GISSAR_GEOLOCATION_RESERVED";
+
+std::string GeolocationXml(const Metadata& geolocation) {
+  std::string xml;
+  for (const auto& [key, value] : geolocation) {
+    char* k = CPLEscapeString(key.c_str(), -1, CPLES_XML);
+    char* v = CPLEscapeString(value.c_str(), -1, CPLES_XML);
+    xml += std::string("<Item name=\"") + k + "\" domain=\"GEOLOCATION\">" + v + "</Item>";
+    CPLFree(k);
+    CPLFree(v);
+  }
+  return xml;
+}
+
+std::string PlaceholderXml(size_t length) {
+  return std::string("<Item name=\"") + kGeolocationPlaceholderKey + "\">" + std::string(length, 'x') + "</Item>";
+}
+
+void PatchGeolocation(const fs::path& path, const Metadata& geolocation) {
+  const std::string items = GeolocationXml(geolocation);
+  const std::string placeholder = PlaceholderXml(items.size());
+  std::fstream file(path, std::ios::in | std::ios::out | std::ios::binary);
+  if (!file) throw IoError("cannot reopen COG to write GEOLOCATION metadata", path.string());
+  // The GDAL_METADATA tag sits in the COG header, ahead of all tiles.
+  std::string head(4u << 20, '\0');
+  file.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(file.gcount()));
+  const size_t at = head.find(placeholder);
+  if (at == std::string::npos || head.find(placeholder, at + 1) != std::string::npos) {
+    throw IoError("GEOLOCATION placeholder not found once in the COG header", path.string());
+  }
+  std::string replacement = items;
+  replacement.resize(placeholder.size(), ' ');  // whitespace between XML elements
+  file.clear();
+  file.seekp(static_cast<std::streamoff>(at));
+  file.write(replacement.data(), static_cast<std::streamsize>(replacement.size()));
+  file.close();
+  if (!file) throw IoError("cannot write GEOLOCATION metadata into the COG", path.string());
+  // Read back: every item present, the placeholder gone.
+  DatasetPtr check(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  bool same = check && check->GetMetadataItem(kGeolocationPlaceholderKey) == nullptr;
+  for (const auto& [key, value] : geolocation) {
+    const char* back = same ? check->GetMetadataItem(key.c_str(), "GEOLOCATION") : nullptr;
+    same = back != nullptr && value == back;
+  }
+  if (!same) throw IoError("GEOLOCATION metadata did not read back from the COG", path.string());
+}
+
+// Small raster: closes the GTiff. Large: copies the staged MEM dataset to a
+// COG at `path` (overviews resampled with `resampling`; the COG driver's own
+// temporary overview file goes to /vsimem, never next to `path`).
+void FinishGeoTiff(DatasetPtr ds, const fs::path& path, const char* resampling,
+                   const Metadata& geolocation = {}) {
+  if (!IsCog(ds->GetRasterXSize(), ds->GetRasterYSize())) {
+    CloseChecked(std::move(ds), path);
+    return;
+  }
+  if (!geolocation.empty()) {
+    ds->SetMetadataItem(kGeolocationPlaceholderKey,
+                        std::string(GeolocationXml(geolocation).size(), 'x').c_str());
+  }
+  const std::string resampling_option = std::string("RESAMPLING=") + resampling;
+  const char* options[] = {"COMPRESS=DEFLATE", "BLOCKSIZE=512",
+                           resampling_option.c_str(), "NUM_THREADS=ALL_CPUS", nullptr};
+  const std::string old_tmpdir = CPLGetThreadLocalConfigOption("CPL_TMPDIR", "");
+  CPLSetThreadLocalConfigOption("CPL_TMPDIR", "/vsimem");
+  CPLErrorReset();
+  DatasetPtr cog(Driver("COG")->CreateCopy(path.c_str(), ds.get(), FALSE, const_cast<char**>(options),
+                                           nullptr, nullptr));
+  const std::string message = LastGdalMessage();
+  CPLSetThreadLocalConfigOption("CPL_TMPDIR", old_tmpdir.empty() ? nullptr : old_tmpdir.c_str());
+  if (!cog) throw IoError("cannot write Cloud-Optimized GeoTIFF: " + message, path.string());
+  CloseChecked(std::move(cog), path);
+  if (!geolocation.empty()) PatchGeolocation(path, geolocation);
+}
+
 DatasetPtr OpenForReading(const fs::path& path) {
   EnsureGdal();
   std::error_code ec;
@@ -106,9 +222,12 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   const int nbands = static_cast<int>(raster.bands.size());
   if (nbands == 0) throw IoError("no band to write", path.string());
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "PREDICTOR=1", "NUM_THREADS=ALL_CPUS", nullptr};
-  DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), raster.width, raster.height, nbands,
-                                        GDT_Float32, const_cast<char**>(options)));
-  if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+  std::vector<const void*> planes;
+  for (const std::vector<float>& b : raster.bands) {
+    if (b.size() != size_t(raster.width) * raster.height) throw IoError("band size does not match the raster", path.string());
+    planes.push_back(b.data());
+  }
+  DatasetPtr ds = CreateStaged(path, raster.width, raster.height, GDT_Float32, planes, options);
   SetMetadata(ds.get(), raster.metadata);
   SetGeoreference(ds.get(), raster.georeference, path);
   if (raster.geotransform.size() == 6) {
@@ -132,22 +251,24 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
     } else if (!raster.band_unit.empty()) {
       band->SetUnitType(raster.band_unit.c_str());
     }
-    if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
+    if (!IsCog(raster.width, raster.height) &&
+        band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
                        const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
                        GDT_Float32, 0, 0, nullptr) != CE_None) {
       throw IoError("cannot write GeoTIFF band: " + LastGdalMessage(), path.string());
     }
   }
-  CloseChecked(std::move(ds), path);
+  // AVERAGE skips NaN (no-data) samples: an overview pixel is the mean of
+  // its valid full-resolution pixels, NaN only where all are NaN.
+  FinishGeoTiff(std::move(ds), path, "AVERAGE", raster.georeference.geolocation);
 }
 
 void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width,
                       int height, const Metadata& metadata, const Georeference& georeference,
                       const ByteCategories& categories) {
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
-  DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, 1, GDT_Byte,
-                                        const_cast<char**>(options)));
-  if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+  if (data.size() != size_t(width) * height) throw IoError("data size does not match the raster", path.string());
+  DatasetPtr ds = CreateStaged(path, width, height, GDT_Byte, {data.data()}, options);
   SetMetadata(ds.get(), metadata);
   SetGeoreference(ds.get(), georeference, path);
   if (!categories.names.empty()) {
@@ -174,12 +295,15 @@ void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, in
     ds->GetRasterBand(1)->SetColorInterpretation(GCI_PaletteIndex);
   }
   if (categories.nodata) ds->GetRasterBand(1)->SetNoDataValue(*categories.nodata);
-  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
+  if (!IsCog(width, height) &&
+      ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height,
                                      const_cast<uint8_t*>(data.data()), width, height, GDT_Byte,
                                      0, 0, nullptr) != CE_None) {
     throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
   }
-  CloseChecked(std::move(ds), path);
+  // NEAREST: an overview pixel of a mask or class map is one of its source
+  // pixels' classes, never an average of class numbers.
+  FinishGeoTiff(std::move(ds), path, "NEAREST", georeference.geolocation);
 }
 
 void WriteComplexGeoTiff(const fs::path& path, const std::vector<float>& real, const std::vector<float>& imag,
@@ -193,18 +317,21 @@ void WriteComplexGeoTiff(const fs::path& path, const std::vector<float>& real, c
     interleaved[2 * k + 1] = imag[k];
   }
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
-  DatasetPtr ds(Driver("GTiff")->Create(path.c_str(), width, height, 1, GDT_CFloat32,
-                                        const_cast<char**>(options)));
-  if (!ds) throw IoError("cannot create GeoTIFF: " + LastGdalMessage(), path.string());
+  DatasetPtr ds = CreateStaged(path, width, height, GDT_CFloat32, {interleaved.data()}, options);
   SetMetadata(ds.get(), metadata);
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetDescription("slc");
   if (!band_unit.empty()) band->SetUnitType(band_unit.c_str());
-  if (band->RasterIO(GF_Write, 0, 0, width, height, interleaved.data(), width, height, GDT_CFloat32, 0, 0,
+  if (!IsCog(width, height) &&
+      band->RasterIO(GF_Write, 0, 0, width, height, interleaved.data(), width, height, GDT_CFloat32, 0, 0,
                      nullptr) != CE_None) {
     throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
   }
-  CloseChecked(std::move(ds), path);
+  // NEAREST: each overview sample is a true SLC sample (phase kept, mean
+  // intensity unbiased). AVERAGE would sum random speckle phasors coherently
+  // and darken distributed scatterers by the decimation factor, point
+  // targets not.
+  FinishGeoTiff(std::move(ds), path, "NEAREST");
 }
 
 void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,

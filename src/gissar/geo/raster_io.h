@@ -61,6 +61,15 @@ struct FloatRaster {
   bool nodata_nan = false;
 };
 
+// Every GeoTIFF writer below writes a DEFLATE-compressed, tiled GeoTIFF.
+// A raster with either side over kCogMinSidePx pixels is written as a
+// Cloud-Optimized GeoTIFF (GDAL COG driver, 512-pixel tiles) with internal
+// overviews halving down to 512 pixels or less: AVERAGE for float bands
+// (NaN no-data skipped), NEAREST for uint8 masks/class maps and CFloat32.
+// Metadata, GCPs, RPC and GEOLOCATION domains, units, band names, no-data,
+// colour table and geotransform/CRS are the same in both layouts.
+inline constexpr int kCogMinSidePx = 1024;
+
 // Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Map-geometry rasters
 // carry raster.geotransform and raster.crs (an unparsable CRS is an IoError).
 // Radar-geometry images

@@ -3,6 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <cmath>
+#include <filesystem>
+#include <iterator>
+#include <limits>
+#include <sstream>
 
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
@@ -72,9 +79,190 @@ TEST(RasterIoTest, GeoreferencingUnitsAndCategoriesAreWritten) {
   GDALClose(m);
 }
 
+std::string Layout(GDALDataset* ds) {
+  const char* layout = ds->GetMetadataItem("LAYOUT", "IMAGE_STRUCTURE");
+  return layout != nullptr ? layout : "";
+}
+
+TEST(RasterIoTest, LargeFloatRasterIsACogWithOverviewsAndKeepsEverything) {
+  const auto dir = testing::MakeTempDir();
+  constexpr int kW = 2048, kH = 1500;
+  FloatRaster raster;
+  raster.width = kW;
+  raster.height = kH;
+  raster.bands = {std::vector<float>(size_t(kW) * kH, 1.0f), std::vector<float>(size_t(kW) * kH, 2.0f)};
+  // Top-left 2x2 block of band 1: NaN, 3, 5, 7 -> AVERAGE overview pixel (3+5+7)/3 = 5.
+  raster.bands[0][0] = std::numeric_limits<float>::quiet_NaN();
+  raster.bands[0][1] = 3.0f;
+  raster.bands[0][kW] = 5.0f;
+  raster.bands[0][kW + 1] = 7.0f;
+  raster.band_names = {"total", "lon"};
+  raster.band_units = {"linear intensity", "degree"};
+  raster.metadata = {{"GISSAR_HEADING_DEG", "30"}, {"GISSAR_SENSOR", "test"}};
+  raster.nodata_nan = true;
+  raster.georeference.gcps = {{0.5, 0.5, 1.5, 42.5, 1000.0}, {2047.5, 0.5, 1.6, 42.5, 1100.0},
+                              {0.5, 1499.5, 1.5, 42.4, 900.0}};
+  // A complete RPC set (GDAL writes the RPC tag only for a parsable model).
+  const std::string unit_numerator = "1 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0";
+  const std::string lon_numerator = "0 1 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0";
+  raster.georeference.rpc = {{"LINE_OFF", "750"},      {"SAMP_OFF", "1024"},     {"LAT_OFF", "42.45"},
+                             {"LONG_OFF", "1.55"},     {"HEIGHT_OFF", "1000"},   {"LINE_SCALE", "750"},
+                             {"SAMP_SCALE", "1024"},   {"LAT_SCALE", "0.05"},    {"LONG_SCALE", "0.05"},
+                             {"HEIGHT_SCALE", "500"},  {"LINE_NUM_COEFF", unit_numerator},
+                             {"LINE_DEN_COEFF", unit_numerator}, {"SAMP_NUM_COEFF", lon_numerator},
+                             {"SAMP_DEN_COEFF", unit_numerator}};
+  raster.georeference.geolocation = LonLatGeolocation(2, 2);
+  WriteFloatGeoTiff(dir / "big.tif", raster);
+  // Only the file itself: the COG driver's temporary overviews stayed in memory.
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()), 1);
+
+  GDALDataset* ds = GDALDataset::Open((dir / "big.tif").c_str());
+  ASSERT_NE(ds, nullptr);
+  EXPECT_EQ(Layout(ds), "COG");
+  GDALRasterBand* b1 = ds->GetRasterBand(1);
+  // 2048x1500 -> 1024x750 -> 512x375 (halving until both sides <= 512).
+  ASSERT_EQ(b1->GetOverviewCount(), 2);
+  EXPECT_EQ(b1->GetOverview(0)->GetXSize(), 1024);
+  EXPECT_EQ(b1->GetOverview(1)->GetYSize(), 375);
+  float corner = 0.0f;
+  ASSERT_EQ(b1->GetOverview(0)->RasterIO(GF_Read, 0, 0, 1, 1, &corner, 1, 1, GDT_Float32, 0, 0, nullptr), CE_None);
+  EXPECT_FLOAT_EQ(corner, 5.0f);
+  EXPECT_EQ(ds->GetGCPCount(), 3);
+  ASSERT_NE(ds->GetGCPSpatialRef(), nullptr);
+  EXPECT_STREQ(ds->GetGCPSpatialRef()->GetAuthorityCode(nullptr), "4326");
+  int block_w = 0, block_h = 0;
+  b1->GetBlockSize(&block_w, &block_h);
+  EXPECT_EQ(block_w, 512);
+  const Metadata geolocation = raster.georeference.geolocation;
+  for (const auto& [key, value] : geolocation) {
+    ASSERT_NE(ds->GetMetadataItem(key.c_str(), "GEOLOCATION"), nullptr) << key;
+    EXPECT_EQ(ds->GetMetadataItem(key.c_str(), "GEOLOCATION"), value) << key;
+  }
+  EXPECT_EQ(ds->GetMetadataItem("GISSAR_GEOLOCATION_RESERVED"), nullptr);
+  GDALClose(ds);
+
+  const Georeference g = ReadGeoreference(dir / "big.tif");
+  ASSERT_EQ(g.gcps.size(), 3u);
+  EXPECT_DOUBLE_EQ(g.gcps[1].pixel, 2047.5);
+  EXPECT_DOUBLE_EQ(g.gcps[1].lon_deg, 1.6);
+  EXPECT_DOUBLE_EQ(g.gcps[2].lat_deg, 42.4);
+  EXPECT_DOUBLE_EQ(g.gcps[1].height_m, 1100.0);
+  // Every RPC item reads back with the same numbers (GDAL reformats them and
+  // adds ERR_BIAS/ERR_RAND).
+  auto numbers = [](const std::string& text) {
+    std::istringstream in(text);
+    std::vector<double> v;
+    for (double x; in >> x;) v.push_back(x);
+    return v;
+  };
+  for (const auto& [key, value] : raster.georeference.rpc) {
+    ASSERT_EQ(g.rpc.count(key), 1u) << key;
+    EXPECT_EQ(numbers(g.rpc.at(key)), numbers(value)) << key;
+  }
+  const FloatRaster back = ReadFloatRaster(dir / "big.tif");
+  EXPECT_EQ(back.width, kW);
+  EXPECT_EQ(back.height, kH);
+  ASSERT_EQ(back.bands.size(), 2u);
+  EXPECT_TRUE(std::isnan(back.bands[0][0]));
+  EXPECT_EQ(back.bands[0][kW + 1], 7.0f);
+  EXPECT_EQ(back.bands[1], raster.bands[1]);
+  EXPECT_EQ(back.band_names, raster.band_names);
+  EXPECT_EQ(back.band_units, raster.band_units);
+  EXPECT_TRUE(back.nodata_nan);
+  EXPECT_EQ(back.metadata.at("GISSAR_HEADING_DEG"), "30");
+  EXPECT_EQ(back.metadata.at("GISSAR_SENSOR"), "test");
+  EXPECT_EQ(back.metadata.count("GISSAR_GEOLOCATION_RESERVED"), 0u);
+  EXPECT_TRUE(back.geotransform.empty());
+}
+
+TEST(RasterIoTest, LargeMapRasterKeepsGeotransformAndCrs) {
+  const auto dir = testing::MakeTempDir();
+  FloatRaster raster{1100, 40, {std::vector<float>(1100 * 40, 0.5f)}, {"gamma0"}, {}};
+  raster.geotransform = {500000.0, 10.0, 0.0, 4700000.0, 0.0, -10.0};
+  raster.crs = "EPSG:32631";
+  WriteFloatGeoTiff(dir / "map.tif", raster);
+  GDALDataset* ds = GDALDataset::Open((dir / "map.tif").c_str());
+  ASSERT_NE(ds, nullptr);
+  EXPECT_EQ(Layout(ds), "COG");  // 1100 > 1024 on one side is enough
+  EXPECT_EQ(ds->GetRasterBand(1)->GetOverviewCount(), 2);  // 550x20, 275x10
+  double gt[6];
+  ASSERT_EQ(ds->GetGeoTransform(gt), CE_None);
+  EXPECT_DOUBLE_EQ(gt[0], 500000.0);
+  EXPECT_DOUBLE_EQ(gt[5], -10.0);
+  ASSERT_NE(ds->GetSpatialRef(), nullptr);
+  EXPECT_STREQ(ds->GetSpatialRef()->GetAuthorityCode(nullptr), "32631");
+  GDALClose(ds);
+}
+
+TEST(RasterIoTest, SmallRasterIsAPlainTiledGeoTiffWithoutOverviews) {
+  const auto dir = testing::MakeTempDir();
+  FloatRaster raster{1024, 1024, {std::vector<float>(1024 * 1024, 1.0f)}, {"total"}, {}};
+  raster.georeference.geolocation = LonLatGeolocation(1, 1);
+  WriteFloatGeoTiff(dir / "small.tif", raster);
+  GDALDataset* ds = GDALDataset::Open((dir / "small.tif").c_str());
+  ASSERT_NE(ds, nullptr);
+  EXPECT_NE(Layout(ds), "COG");
+  EXPECT_EQ(ds->GetRasterBand(1)->GetOverviewCount(), 0);
+  EXPECT_STREQ(ds->GetMetadataItem("X_BAND", "GEOLOCATION"), "1");
+  GDALClose(ds);
+}
+
+TEST(RasterIoTest, LargeMaskKeepsColourTableAndCategoriesWithNearestOverviews) {
+  const auto dir = testing::MakeTempDir();
+  constexpr int kW = 1500, kH = 1200;
+  std::vector<uint8_t> mask(size_t(kW) * kH, 0);
+  // Top-left 2x2 block 1,2 / 2,2: NEAREST keeps a class value (1), never an average.
+  mask[0] = 1;
+  mask[1] = 2;
+  mask[kW] = 2;
+  mask[kW + 1] = 2;
+  WriteByteGeoTiff(dir / "m.tif", mask, kW, kH, {{"GISSAR_KIND", "classes"}}, {},
+                   ByteCategories{{"none", "layover", "shadow"}, {{0, 0, 0, 255}, {255, 0, 0, 255}, {0, 0, 255, 255}}});
+  GDALDataset* m = GDALDataset::Open((dir / "m.tif").c_str());
+  ASSERT_NE(m, nullptr);
+  EXPECT_EQ(Layout(m), "COG");
+  GDALRasterBand* band = m->GetRasterBand(1);
+  ASSERT_EQ(band->GetOverviewCount(), 2);  // 750x600, 375x300
+  uint8_t corner = 0;
+  ASSERT_EQ(band->GetOverview(0)->RasterIO(GF_Read, 0, 0, 1, 1, &corner, 1, 1, GDT_Byte, 0, 0, nullptr), CE_None);
+  EXPECT_TRUE(corner == 1 || corner == 2) << int(corner);
+  EXPECT_STREQ(band->GetMetadataItem("CATEGORY_2"), "shadow");
+  EXPECT_STREQ(m->GetMetadataItem("GISSAR_KIND"), "classes");
+  ASSERT_NE(band->GetColorTable(), nullptr);
+  EXPECT_EQ(band->GetColorTable()->GetColorEntry(2)->c3, 255);
+  EXPECT_EQ(band->GetColorInterpretation(), GCI_PaletteIndex);
+  GDALClose(m);
+  int w = 0, h = 0;
+  EXPECT_EQ(ReadByteRaster(dir / "m.tif", &w, &h), mask);
+}
+
+TEST(RasterIoTest, LargeComplexRasterIsACfloat32Cog) {
+  const auto dir = testing::MakeTempDir();
+  constexpr int kW = 1030, kH = 8;
+  std::vector<float> re(size_t(kW) * kH, 1.0f), im(size_t(kW) * kH, -2.0f);
+  re[3] = 4.0f;
+  WriteComplexGeoTiff(dir / "slc.tif", re, im, kW, kH, {{"GISSAR_MODE", "coherent"}}, "amplitude");
+  GDALDataset* ds = GDALDataset::Open((dir / "slc.tif").c_str());
+  ASSERT_NE(ds, nullptr);
+  EXPECT_EQ(Layout(ds), "COG");
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  EXPECT_EQ(band->GetRasterDataType(), GDT_CFloat32);
+  EXPECT_EQ(band->GetOverviewCount(), 2);  // 515x4, 257x2
+  EXPECT_STREQ(band->GetDescription(), "slc");
+  EXPECT_STREQ(band->GetUnitType(), "amplitude");
+  EXPECT_STREQ(ds->GetMetadataItem("GISSAR_MODE"), "coherent");
+  float z[2] = {0, 0};
+  ASSERT_EQ(band->RasterIO(GF_Read, 3, 0, 1, 1, z, 1, 1, GDT_CFloat32, 0, 0, nullptr), CE_None);
+  EXPECT_EQ(z[0], 4.0f);
+  EXPECT_EQ(z[1], -2.0f);
+  GDALClose(ds);
+}
+
 TEST(RasterIoTest, WritingIntoMissingDirectoryIsAnIoError) {
   FloatRaster raster{2, 2, {std::vector<float>(4)}, {}, {}};
   EXPECT_THROW(WriteFloatGeoTiff("/nonexistent/dir/x.tif", raster), IoError);
+  FloatRaster large{1100, 2, {std::vector<float>(2200)}, {}, {}};
+  EXPECT_THROW(WriteFloatGeoTiff("/nonexistent/dir/x.tif", large), IoError);
 }
 
 }  // namespace

@@ -33,9 +33,32 @@ RgbImage ToRgb(const cv::Mat& m) {
 
 }  // namespace
 
+std::vector<AxisTick> AxisTicks(double origin_m, double spacing_m, int pixels, int target_ticks,
+                                std::string* unit) {
+  GISSAR_CHECK(spacing_m > 0 && pixels > 0 && std::isfinite(origin_m));
+  const double first_m = origin_m, last_m = origin_m + (pixels - 1) * spacing_m;
+  const bool km = std::max(std::abs(first_m), std::abs(last_m)) >= 1000.0;
+  if (unit != nullptr) *unit = km ? "km" : "m";
+  const double scale = km ? 1e-3 : 1.0;
+  const double step_m = NiceStep(std::max(last_m - first_m, spacing_m), target_ticks);
+  const double step_unit = step_m * scale;
+  const int decimals = step_unit < 1.0 ? static_cast<int>(std::ceil(-std::log10(step_unit) - 1e-9)) : 0;
+  std::vector<AxisTick> ticks;
+  // Multiples of the step, counted as integers to avoid accumulating error.
+  const long long k0 = static_cast<long long>(std::ceil(first_m / step_m - 1e-9));
+  const long long k1 = static_cast<long long>(std::floor(last_m / step_m + 1e-9));
+  for (long long k = k0; k <= k1; ++k) {
+    const double v = static_cast<double>(k) * step_m;
+    const double label_value = v * scale;
+    ticks.push_back({(v - origin_m) / spacing_m, v, Fmt(label_value == 0.0 ? 0.0 : label_value, decimals)});
+  }
+  return ticks;
+}
+
 RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int height,
-                            double range_spacing_m, double azimuth_spacing_m, const std::string& title) {
-  GISSAR_CHECK(intensity.size() == size_t(width) * height && range_spacing_m > 0 && azimuth_spacing_m > 0);
+                            const QuicklookAxes& axes, const std::string& title) {
+  GISSAR_CHECK(intensity.size() == size_t(width) * height && axes.range_spacing_m > 0 &&
+               axes.azimuth_spacing_m > 0);
   DbStretch stretch;
   const std::vector<uint8_t> grey = DbQuicklook(intensity, 2.0, 98.0, &stretch);
   const int left = 70, top = 44, bottom = 50, bar = 90;
@@ -51,25 +74,29 @@ RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int 
   while (title_scale > 0.3 && cv::getTextSize(title, font, title_scale, 1, nullptr).width > title_room) title_scale -= 0.05;
   cv::putText(canvas, title, cv::Point(4, 18), font, title_scale, black, 1, cv::LINE_AA);
   cv::rectangle(canvas, cv::Rect(left - 1, top - 1, width + 2, height + 2), black, 1);
-  // Range axis (bottom).
-  const double range_span = width * range_spacing_m;
-  const double rstep = NiceStep(range_span, 6);
-  for (double r = 0; r <= range_span + 1e-9; r += rstep) {
-    const int x = left + static_cast<int>(std::lround(r / range_spacing_m));
+  // Slant-range axis (bottom): true slant range, near range on the left.
+  std::string range_unit;
+  for (const AxisTick& t : AxisTicks(axes.range_origin_m, axes.range_spacing_m, width, 6, &range_unit)) {
+    const int x = left + static_cast<int>(std::lround(t.pixel));
+    const int text_width = cv::getTextSize(t.label, font, 0.4, 1, nullptr).width;
     cv::line(canvas, cv::Point(x, top + height + 1), cv::Point(x, top + height + 6), black, 1);
-    cv::putText(canvas, Fmt(r), cv::Point(x - 12, top + height + 20), font, 0.4, black, 1, cv::LINE_AA);
+    cv::putText(canvas, t.label, cv::Point(x - text_width / 2, top + height + 20), font, 0.4, black, 1, cv::LINE_AA);
   }
-  cv::putText(canvas, "slant range [m] ->", cv::Point(left + width / 2 - 60, top + height + 40), font, 0.45,
-              black, 1, cv::LINE_AA);
-  // Azimuth axis (left).
-  const double az_span = height * azimuth_spacing_m;
-  const double astep = NiceStep(az_span, 6);
-  for (double a = 0; a <= az_span + 1e-9; a += astep) {
-    const int y = top + static_cast<int>(std::lround(a / azimuth_spacing_m));
+  cv::putText(canvas, "slant range (" + range_unit + ") ->", cv::Point(left + width / 2 - 60, top + height + 40), font,
+              0.45, black, 1, cv::LINE_AA);
+  // Along-track axis (left), relative to the scene centre, increasing down.
+  std::string azimuth_unit;
+  for (const AxisTick& t : AxisTicks(axes.azimuth_origin_m, axes.azimuth_spacing_m, height, 6, &azimuth_unit)) {
+    const int y = top + static_cast<int>(std::lround(t.pixel));
     cv::line(canvas, cv::Point(left - 6, y), cv::Point(left - 2, y), black, 1);
-    cv::putText(canvas, Fmt(a), cv::Point(2, y + 4), font, 0.4, black, 1, cv::LINE_AA);
+    cv::putText(canvas, t.label, cv::Point(2, y + 4), font, 0.4, black, 1, cv::LINE_AA);
   }
-  cv::putText(canvas, "azimuth [m]", cv::Point(2, top - 8), font, 0.4, black, 1, cv::LINE_AA);
+  // The long label when it ends before the colour bar's "dB".
+  std::string azimuth_label = "along track from scene centre (" + azimuth_unit + ")";
+  if (cv::getTextSize(azimuth_label, font, 0.4, 1, nullptr).width > left + width + 10) {
+    azimuth_label = "along track (" + azimuth_unit + ")";
+  }
+  cv::putText(canvas, azimuth_label, cv::Point(2, top - 8), font, 0.4, black, 1, cv::LINE_AA);
   // Colour bar in dB.
   const int bx = left + width + 20, bw = 18;
   for (int y = 0; y < height; ++y) {

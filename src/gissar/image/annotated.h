@@ -1,4 +1,5 @@
-// Pictures for people: annotated quicklooks (dB colour bar, axes in metres)
+// Pictures for people: annotated quicklooks (dB colour bar, slant-range and
+// along-track axes)
 // and the Koenderink-van Doorn diagram of a two-view geometry.
 #pragma once
 
@@ -10,12 +11,39 @@
 
 namespace gissar::image {
 
+// Axes of an annotated quicklook: the value at the centre of column 0 / row 0
+// and the metres per pixel (> 0). For a simulated image (sensor::SarGeometry)
+// the column c shows slant range R + (c - u0) dr (the scene centre's range R
+// at column u0, affine and exact mode alike) and row r the along-track
+// coordinate (r - v0) da from the scene centre.
+struct QuicklookAxes {
+  double range_origin_m = 0.0;    // slant range of column 0
+  double range_spacing_m = 1.0;   // slant-range metres per column
+  double azimuth_origin_m = 0.0;  // along-track coordinate of row 0
+  double azimuth_spacing_m = 1.0; // along-track metres per row
+};
+
+// One labelled tick of an axis: its pixel coordinate (column or row of the
+// image, pixel centres at integers), its value in metres and its label.
+struct AxisTick {
+  double pixel = 0.0;
+  double value_m = 0.0;
+  std::string label;
+};
+
+// Ticks every "nice" step (1, 2 or 5 x 10^k m, about `target_ticks` of them)
+// over pixels 0 .. pixels-1 of an axis whose pixel p has value origin_m +
+// p * spacing_m. Labels are in km when the largest |value| at the ends is
+// 1000 m or more (*unit = "km"), else in m, with just enough decimals for
+// the step.
+std::vector<AxisTick> AxisTicks(double origin_m, double spacing_m, int pixels, int target_ticks,
+                                std::string* unit);
+
 // The dB quicklook of `intensity` (width x height, linear) with a title, a
-// horizontal axis in slant-range metres, a vertical axis in azimuth metres
-// (relative to the image origin, ticks every "nice" step) and a grey-scale
-// colour bar labelled in dB. Spacings in metres per pixel, > 0.
+// horizontal slant-range axis and a vertical along-track axis (ticks from
+// AxisTicks) and a grey-scale colour bar labelled in dB.
 RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int height,
-                            double range_spacing_m, double azimuth_spacing_m, const std::string& title);
+                            const QuicklookAxes& axes, const std::string& title);
 
 // The KvD reading of an affine F: the image plane with the rotation axis at
 // angle phi (the bas-relief axis, about which the unknown rho turns), the

@@ -59,7 +59,7 @@ namespace {
 TEST(AnnotatedTest, QuicklookKeepsTheImageAndAddsAxes) {
   std::vector<float> intensity(80 * 60);
   for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = 0.1f + float(i % 80) / 80.0f;
-  const RgbImage picture = AnnotatedQuicklook(intensity, 80, 60, 2.0, 3.0, "test");
+  const RgbImage picture = AnnotatedQuicklook(intensity, 80, 60, QuicklookAxes{9800.0, 2.0, -90.0, 3.0}, "test");
   EXPECT_EQ(picture.width, 80 + 70 + 90 + 20);
   EXPECT_EQ(picture.height, 60 + 44 + 50);
   // The image sits at (70, 44) unchanged (grey values equal in R, G, B).
@@ -70,6 +70,47 @@ TEST(AnnotatedTest, QuicklookKeepsTheImageAndAddsAxes) {
       EXPECT_EQ(p[0], grey[size_t(y) * 80 + x]);
       EXPECT_EQ(p[1], p[0]);
     }
+}
+
+TEST(AnnotatedTest, SlantRangeTicksStartAtTheNearRange) {
+  // Scene centre at slant range 10 km on column u0 = 100, 5 m per column,
+  // 200 columns: column 0 is at 10000 - 100 * 5 = 9500 m, column 199 at
+  // 10495 m. Span 995 m / 6 ticks = 166 m -> nice step 200 m; multiples of
+  // 200 m inside: 9600 ... 10400 m at columns (v - 9500) / 5; labels in km
+  // (|values| >= 1000 m) with one decimal (step 0.2 km).
+  std::string unit;
+  const std::vector<AxisTick> ticks = AxisTicks(10000.0 - 100 * 5.0, 5.0, 200, 6, &unit);
+  EXPECT_EQ(unit, "km");
+  ASSERT_EQ(ticks.size(), 5u);
+  const double columns[] = {20, 60, 100, 140, 180};
+  const char* labels[] = {"9.6", "9.8", "10.0", "10.2", "10.4"};
+  for (size_t i = 0; i < ticks.size(); ++i) {
+    EXPECT_NEAR(ticks[i].pixel, columns[i], 1e-9) << i;
+    EXPECT_NEAR(ticks[i].value_m, 9600.0 + 200.0 * i, 1e-9) << i;
+    EXPECT_EQ(ticks[i].label, labels[i]) << i;
+  }
+}
+
+TEST(AnnotatedTest, AlongTrackTicksAreRelativeToTheSceneCentre) {
+  // 120 rows, scene centre on row v0 = 60, 2.5 m per row: row 0 is at
+  // -150 m, row 119 at +147.5 m. Span 297.5 m / 6 = 49.6 m -> step 50 m;
+  // ticks -150 ... 100 m at rows (a + 150) / 2.5, labels in metres.
+  std::string unit;
+  const std::vector<AxisTick> ticks = AxisTicks(-60 * 2.5, 2.5, 120, 6, &unit);
+  EXPECT_EQ(unit, "m");
+  ASSERT_EQ(ticks.size(), 6u);
+  const char* labels[] = {"-150", "-100", "-50", "0", "50", "100"};
+  for (size_t i = 0; i < ticks.size(); ++i) {
+    EXPECT_NEAR(ticks[i].pixel, 20.0 * i, 1e-9) << i;
+    EXPECT_EQ(ticks[i].label, labels[i]) << i;
+  }
+  // A 2 km span: step 500 m; 1000 m reached, so km with one decimal.
+  const std::vector<AxisTick> km = AxisTicks(-1000.0, 10.0, 201, 6, &unit);
+  EXPECT_EQ(unit, "km");
+  ASSERT_EQ(km.size(), 5u);
+  EXPECT_EQ(km.front().label, "-1.0");
+  EXPECT_EQ(km[2].label, "0.0");
+  EXPECT_NEAR(km[3].pixel, 150.0, 1e-9);
 }
 
 TEST(AnnotatedTest, KvdDiagramDraws) {

@@ -87,9 +87,11 @@ image::RgbImage EpipolarPicture(const std::vector<mvg::PointMatch>& matches, con
 void FmatrixRequest::Check() const {
   if (matches.empty()) throw ConfigError("a matches CSV is required", "--matches");
   RequireOutput(json_out, "--out");
-  CheckSpacing(res1, "--res1");
-  CheckSpacing(res2, "--res2");
-  if (res1.has_value() != res2.has_value()) throw ConfigError("give both --res1 and --res2", "--res1/--res2");
+  CheckSpacing(range_spacing_m, "--range-spacing");
+  CheckSpacing(azimuth_spacing_m, "--azimuth-spacing");
+  if (range_spacing_m.has_value() != azimuth_spacing_m.has_value()) {
+    throw ConfigError("give both --range-spacing R1,R2 and --azimuth-spacing A1,A2", "--range-spacing/--azimuth-spacing");
+  }
   if (depressions && !(depressions->x() > 0 && depressions->x() < 90 && depressions->y() > 0 &&
                        depressions->y() < 90)) {
     throw ConfigError("depressions must be in (0, 90) degrees", "--depressions");
@@ -100,7 +102,8 @@ void FmatrixRequest::Check() const {
 }
 
 json FmatrixRequest::ToJson() const {
-  return {{"matches", matches}, {"res1", Pair(res1)}, {"res2", Pair(res2)}, {"depressions", Pair(depressions)},
+  return {{"matches", matches}, {"range_spacing_m", Pair(range_spacing_m)},
+          {"azimuth_spacing_m", Pair(azimuth_spacing_m)}, {"depressions", Pair(depressions)},
           {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"out", json_out},
           {"plot", plot_prefix}, {"image1", image1}, {"image2", image2}};
 }
@@ -123,9 +126,9 @@ json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, 
   two.robust = options.robust;
   two.ransac.threshold_px = options.threshold_px;
   two.ransac.seed = options.seed;
-  if (options.res1) {
-    two.k1 = mvg::SarIntrinsics(options.res1->x(), options.res1->y());
-    two.k2 = mvg::SarIntrinsics(options.res2->x(), options.res2->y());
+  if (options.range_spacing_m) {
+    two.k1 = mvg::SarIntrinsics(options.range_spacing_m->x(), options.azimuth_spacing_m->x());
+    two.k2 = mvg::SarIntrinsics(options.range_spacing_m->y(), options.azimuth_spacing_m->y());
   }
   if (options.depressions) {
     two.depression1_deg = options.depressions->x();
@@ -154,7 +157,7 @@ json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, 
               {"convention", "[x2 y2 1] F [x1 y1 1]' = 0, F = [0 0 a; 0 0 b; c d e], ||(a,b,c,d)|| = 1, c > 0"},
               {"F", Matrix(a.f)},
               {"F_calibrated", Matrix(a.f_calibrated)},
-              {"calibrated", options.res1.has_value()},
+              {"calibrated", options.range_spacing_m.has_value()},
               {"num_matches", a.num_matches},
               {"inliers", a.inliers},
               {"rms_gs_px", a.rms_gs_px},
@@ -190,15 +193,15 @@ json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, 
 void ResectRequest::Check() const {
   if (points.empty()) throw ConfigError("a points CSV is required", "--points");
   RequireOutput(json_out, "--out");
-  if (!scene_centre.allFinite() || scene_centre.cwiseAbs().maxCoeff() > mvg::kMaxPointCoordinate) {
-    throw ConfigError("scene centre must be finite and within [-1e9, 1e9] m", "--scene-centre");
+  if (!center_enu_m.allFinite() || center_enu_m.cwiseAbs().maxCoeff() > mvg::kMaxPointCoordinate) {
+    throw ConfigError("scene centre must be finite and within [-1e9, 1e9] m", "--center-enu");
   }
   if (slant_range_m && !(*slant_range_m > 0)) throw ConfigError("slant range must be positive", "--slant-range");
 }
 
 json ResectRequest::ToJson() const {
   return {{"points", points},
-          {"scene_centre", {scene_centre.x(), scene_centre.y(), scene_centre.z()}},
+          {"center_enu_m", {center_enu_m.x(), center_enu_m.y(), center_enu_m.z()}},
           {"slant_range_m", slant_range_m ? json(*slant_range_m) : json(nullptr)},
           {"out", json_out}};
 }
@@ -211,7 +214,7 @@ json RunResect(const ResectRequest& options, const std::string& command_line, Re
     throw InputError("at least 4 control points are needed, got " + std::to_string(points.size()), options.points);
   }
   mvg::ResectionOptions ro;
-  ro.scene_centre = options.scene_centre;
+  ro.scene_centre = options.center_enu_m;
   ro.slant_range_m = options.slant_range_m;
   std::optional<mvg::ResectionResult> r;
   try {

@@ -17,8 +17,10 @@ namespace gissar::pipeline {
 
 struct FmatrixRequest {
   std::string matches;                      // CSV with columns x1,y1,x2,y2
-  std::optional<Eigen::Vector2d> res1;      // range, azimuth pixel spacing of image 1 (m)
-  std::optional<Eigen::Vector2d> res2;      // of image 2
+  // Pixel spacings (m per pixel) of images 1 and 2 (calibrated F): slant
+  // range (R1, R2) and along track (A1, A2); both or neither.
+  std::optional<Eigen::Vector2d> range_spacing_m;
+  std::optional<Eigen::Vector2d> azimuth_spacing_m;
   std::optional<Eigen::Vector2d> depressions;  // of images 1 and 2 (degrees)
   double threshold_px = 1.5;                // RANSAC inlier threshold (Gold Standard distance)
   bool robust = true;                       // RANSAC + refit, or one Gold Standard fit
@@ -42,7 +44,7 @@ nlohmann::json RunFmatrix(const FmatrixRequest& options, const std::string& comm
 
 struct ResectRequest {
   std::string points;                        // CSV with columns X,Y,Z,x,y (ENU m, pixels)
-  Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  // Xc, ENU metres
+  Eigen::Vector3d center_enu_m = Eigen::Vector3d::Zero();  // scene centre Xc, ENU metres
   std::optional<double> slant_range_m;       // measured range to Xc: sensor position
   std::string json_out;
   void Check() const;

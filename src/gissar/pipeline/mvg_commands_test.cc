@@ -155,8 +155,8 @@ TEST(MvgEndToEndTest, SimulatedTargetsGiveHeadingChangeAndPose) {
   }
   FmatrixRequest f;
   f.matches = (dir / "matches.csv").string();
-  f.res1 = Vector2d(1, 1);
-  f.res2 = Vector2d(1, 1);
+  f.range_spacing_m = Vector2d(1, 1);
+  f.azimuth_spacing_m = Vector2d(1, 1);
   f.depressions = Vector2d(40, 40);
   f.json_out = (dir / "f.json").string();
   const nlohmann::json fj = RunFmatrix(f, "test");
@@ -177,7 +177,7 @@ TEST(FmatrixCommandTest, ReferenceCase2) {
   FmatrixRequest f;
   f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
   f.depressions = Vector2d(40, 40);
-  f.res1 = f.res2 = Vector2d(1, 1);
+  f.range_spacing_m = f.azimuth_spacing_m = Vector2d(1, 1);
   f.json_out = (dir / "f.json").string();
   const nlohmann::json out = RunFmatrix(f, "test");
   nlohmann::json ref;
@@ -199,7 +199,7 @@ TEST(FmatrixCommandTest, PlotsTheKvdDiagramAndTheEpipolarPair) {
   FmatrixRequest f;
   f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
   f.depressions = Vector2d(40, 40);
-  f.res1 = f.res2 = Vector2d(1, 1);
+  f.range_spacing_m = f.azimuth_spacing_m = Vector2d(1, 1);
   f.json_out = (dir / "f.json").string();
   f.plot_prefix = (dir / "f").string();
   f.image1 = f.image2 = (dir / "a.tif").string();

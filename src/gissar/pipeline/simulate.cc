@@ -758,7 +758,10 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                   geometry_options.heading_deg, geometry_options.depression_deg, geometry.range_spacing_m(),
                   geometry.azimuth_spacing_m());
     const image::RgbImage annotated = image::AnnotatedQuicklook(
-        linear, image.width, image.height, geometry.range_spacing_m(), geometry.azimuth_spacing_m(), title);
+        linear, image.width, image.height,
+        {geometry.slant_range_m() - geometry.u0() * geometry.range_spacing_m(), geometry.range_spacing_m(),
+         -geometry.v0() * geometry.azimuth_spacing_m(), geometry.azimuth_spacing_m()},
+        title);
     geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
   }
   geo::Metadata mask_metadata = metadata;
