@@ -59,6 +59,7 @@ SceneBuildRequest BuildOptions(const std::string& dem, const std::string& config
   o.dem = dem;
   o.config = config;
   o.out_prefix = (out / "scene").string();
+  o.vertical_datum = "ellipsoid";  // the flat DEM's CRS names none: no warning
   return o;
 }
 
