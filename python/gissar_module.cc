@@ -394,9 +394,10 @@ PyScene LoadPyScene(const std::string& path) {
 
 PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
                      const std::string& osm, const std::string& config, bool fill_nodata,
-                     std::optional<std::array<int, 4>> window, bool export_obj) {
+                     std::optional<std::array<int, 4>> window, bool export_obj, const std::string& vertical_datum) {
   pipeline::SceneBuildRequest o;
   o.dem = dem;
+  o.vertical_datum = vertical_datum;
   o.out_prefix = out_prefix;
   o.vectors = vectors;
   o.osm = osm;
@@ -750,7 +751,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
 
   m.def("simulate_product", &SimulateProduct, py::arg("product"),
         "Simulate a real product's radar grid (NISAR RSLC HDF5, e.g. the UAVSAR chips): keywords as for "
-        "simulate (dem or scene, fill_nodata, dem_oversample, vertical_datum 'ellipsoid'|'egm96', rays_per_cell, "
+        "simulate (dem or scene, fill_nodata, dem_oversample, vertical_datum ''|'ellipsoid'|'egm96'|'egm2008'|'EPSG:n', rays_per_cell, "
         "bounces, seed, ...; no heading/depression/spacings: the product fixes them). Returns {'image': (rows, "
         "cols) float32 linear intensity on the product grid (rows = zero-Doppler lines, cols = slant-range bins), "
         "'bounces': (4, rows, cols), 'mask': uint8, 'lon_deg'/'lat_deg'/'height_m': per-pixel ground point "
@@ -775,10 +776,11 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
       }, py::arg("path"), "A .gscene file as arrays: vertices (N, 3) ENU m, triangles (M, 3), classes (M,).");
 
   m.def("build_scene", [](const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
-                          const std::string& osm, const std::string& config, bool fill_nodata) {
-        return BuildPyScene(dem, out_prefix, vectors, osm, config, fill_nodata, std::nullopt, false).summary;
+                          const std::string& osm, const std::string& config, bool fill_nodata,
+                          const std::string& vertical_datum) {
+        return BuildPyScene(dem, out_prefix, vectors, osm, config, fill_nodata, std::nullopt, false, vertical_datum).summary;
       }, py::arg("dem"), py::arg("out_prefix"), py::arg("vectors") = std::vector<std::string>{},
-      py::arg("osm") = "", py::arg("config") = "", py::arg("fill_nodata") = false,
+      py::arg("osm") = "", py::arg("config") = "", py::arg("fill_nodata") = false, py::arg("vertical_datum") = "",
       "`gissar scene build`: writes PREFIX.gscene/.ply/_classes.png/.json, returns the summary.");
 
   m.def("fmatrix", [](const py::array_t<double, py::array::c_style>& x1, const py::array_t<double, py::array::c_style>& x2,
@@ -902,9 +904,10 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
       .def_static("build", &BuildPyScene, py::arg("dem"), py::arg("out_prefix"),
                   py::arg("vectors") = std::vector<std::string>{}, py::arg("osm") = "", py::arg("config") = "",
                   py::arg("fill_nodata") = false, py::arg("window") = py::none(), py::arg("export_obj") = false,
+                  py::arg("vertical_datum") = "",
                   "`gissar scene build`: DEM (+ vector layers / OSM / config) -> PREFIX.gscene, .ply, "
                   "_classes.png (class map), _3d.png (3-D view), .json (and .obj/.mtl with export_obj). "
-                  "window = (col, row, cols, rows) of the DEM. Returns the loaded Scene (its .summary holds "
+                  "window = (col, row, cols, rows) of the DEM; vertical_datum as --vertical-datum (\"\" = from the file). Returns the loaded Scene (its .summary holds "
                   "the build summary).")
       .def_readonly("path", &PyScene::path)
       .def_readonly("summary", &PyScene::summary)

@@ -111,6 +111,18 @@ def test_scene_round_trip(tmp_path):
 WINDOW = (150, 70, 120, 100)  # a ~8 x 9 km corner of Andorra: builds in about a second
 
 
+def test_vertical_datum_keyword(tmp_path):
+    # The bundled SRTM DEM is tagged EPSG:4326+5773: egm96 from the file; the keyword takes the flag's values.
+    s = gissar.Scene.build(DEM, str(tmp_path / "s"), window=WINDOW)
+    assert s.summary["vertical_datum"] == {"datum": "egm96", "source": "file"}
+    e = gissar.Scene.build(DEM, str(tmp_path / "e"), window=WINDOW, vertical_datum="EPSG:4979")
+    assert e.summary["vertical_datum"] == {"datum": "ellipsoid", "source": "flag"}
+    with pytest.raises(gissar.ConfigError, match="got .egm97. \\(vertical_datum\\)"):
+        gissar.Scene.build(DEM, str(tmp_path / "x"), window=WINDOW, vertical_datum="egm97")
+    with pytest.raises(gissar.InputError, match="us_nga_egm08_25.tif"):
+        gissar.simulate(dem=DEM, heading_deg=0, depression_deg=40, vertical_datum="egm2008")
+
+
 @pytest.fixture(scope="module")
 def small_scene(tmp_path_factory):
     out = tmp_path_factory.mktemp("scene")

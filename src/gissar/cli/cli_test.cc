@@ -473,6 +473,11 @@ TEST(HelpWalkTest, EveryCommandHasTheSharedFlagsWithOneMeaning) {
     } else {
       EXPECT_NE(out.find("Output prefix: PREFIX"), std::string::npos) << name << ": " << out;
     }
+    // Every command that reads a DEM takes its vertical datum, with simulate's help line.
+    if (!FlagLine(help, "--dem").empty()) {
+      EXPECT_NE(FlagLine(help, "--vertical-datum"), "") << name << " reads a DEM but lacks --vertical-datum";
+      EXPECT_EQ(FlagLine(help, "--vertical-datum"), FlagLine(reference, "--vertical-datum")) << name;
+    }
     // Old spellings are not listed as flags of their own.
     for (const char* old : {"--range-res", "--azimuth-res", "--range", "--json", "--res1", "--res2", "--scene-centre"}) {
       EXPECT_EQ(FlagLine(help, old), "") << name << " " << old;

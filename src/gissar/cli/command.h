@@ -35,6 +35,11 @@ using CommandAction = std::function<void(const CommandContext&)>;
 // Throws ConfigError naming `flag` when the command line gave `flag` a
 // value that is not > 0 (pixel spacings, where 0 means "automatic" only when
 // the flag is omitted).
+// Help of --vertical-datum, on every command that reads a DEM.
+inline constexpr const char* kVerticalDatumHelp =
+    "Datum of the DEM heights: ellipsoid, egm96, egm2008 or EPSG:n of a vertical CRS (default: the file's "
+    "vertical CRS, else ellipsoid with a warning)";
+
 inline void RequirePositiveIfGiven(const CLI::App& cmd, const std::string& flag, double value) {
   if (cmd.count(flag) > 0 && !(value > 0.0)) {
     std::ostringstream text;

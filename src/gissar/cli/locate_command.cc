@@ -15,6 +15,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--image", o->image, "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)")->required();
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
+    cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
     cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md)")->required();
     cmd->add_option("--out", o->out, "Output prefix: PREFIX.json (the fix)")->required();
     cmd->add_option("--composite", o->composite_png,
@@ -43,6 +44,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
         "evaluate", "Monte-Carlo evaluation of `locate`: success rate, position/heading errors, time per fix.");
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
+    cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
     cmd->add_option("--trials", o->trials, "Trials")->capture_default_str();
     cmd->add_option("--seed", o->seed, "Seed")->capture_default_str();
     cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.json, PREFIX_trials.csv, PREFIX_hist.png")->required();

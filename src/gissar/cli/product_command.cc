@@ -24,9 +24,7 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_option("--vertical-units", options->simulate.vertical_units,
                   "Unit of the DEM heights: m, ft or us-ft (default: the file's band unit or vertical CRS, else m)");
-  cmd->add_option("--vertical-datum", options->simulate.vertical_datum,
-                  "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
-      ->capture_default_str();
+  cmd->add_option("--vertical-datum", options->simulate.vertical_datum, kVerticalDatumHelp);
   cmd->add_option("--reference-geolocation", options->reference_geolocation,
                   "Directory with a peer's per-pixel x.rdr, y.rdr, z.rdr (lon, lat, height; ISCE topo) and simamp.rdr");
   cmd->add_option("--looks", *looks, "Multilook sizes k of the k x k correlations, comma-separated")

@@ -24,9 +24,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_option("--vertical-units", options->vertical_units,
                   "Unit of the DEM heights: m, ft or us-ft (default: the file's band unit or vertical CRS, else m)");
-  cmd->add_option("--vertical-datum", options->vertical_datum,
-                  "DEM heights: ellipsoid (used as WGS84 ellipsoidal) or egm96 (EGM96 undulation added)")
-      ->capture_default_str();
+  cmd->add_option("--vertical-datum", options->vertical_datum, kVerticalDatumHelp);
   cmd->add_option("--sea", options->sea, "DEM sea: auto (heights <= --sea-level connected to the border are class sea) or off")->capture_default_str();
   cmd->add_option("--sea-level", options->sea_level_m, "Sea level for --sea auto, metres in the DEM's heights")->capture_default_str();
   cmd->add_flag("--fill-nodata", options->fill_nodata,

@@ -22,6 +22,7 @@ struct CommonFlags {
     cmd->add_option("--dem", o.dem, "DEM raster (or --scene)");
     cmd->add_option("--scene", o.scene, "Scene file from `gissar scene build`");
     cmd->add_flag("--fill-nodata", o.fill_nodata, "Fill DEM no-data cells");
+    cmd->add_option("--vertical-datum", o.vertical_datum, kVerticalDatumHelp);
     if (with_heading) cmd->add_option("--heading", o.geometry.heading_deg, "Heading, degrees from north")->required();
     cmd->add_option("--depression", o.geometry.depression_deg, "Depression at the scene centre, degrees")->required();
     cmd->add_option("--look", *look, "right or left")->capture_default_str();

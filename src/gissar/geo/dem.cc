@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "gissar/geo/gdal_env.h"
+#include "gissar/geo/vertical_datum.h"
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/memory_limit.h"
@@ -204,6 +205,8 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   srs->exportToWkt(&wkt);
   dem.crs_wkt = wkt != nullptr ? wkt : "";
   CPLFree(wkt);
+  dem.file_vertical_datum =
+      VerticalDatumOfCrs(dem.crs_wkt, ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "");
   if (srs->IsGeographic()) CheckGeographicExtent(dem, *srs);
 
   GDALRasterBand* band = ds->GetRasterBand(options.band);

@@ -72,6 +72,10 @@ struct Dem {
   int64_t filled_nodata_cells = 0;     // no-data cells filled on reading
   double vertical_unit_m = 1.0;        // metres per stored height unit (converted on reading)
   std::string vertical_unit_source;    // where that unit came from (option, band unit, CRS, default)
+  // Vertical datum the file gives its heights (geo::VerticalDatumOfCrs: from
+  // a compound or 3-D CRS, or the SRTM .hgt driver); "" when it says nothing.
+  // Heights are as stored: ToEllipsoidalHeights (vertical_datum.h) converts.
+  std::string file_vertical_datum;
   // 1 where the raster had no data (the height there was filled), row-major
   // like heights_m; empty when the raster had no no-data cell.
   std::vector<uint8_t> nodata_mask;

@@ -3,8 +3,8 @@
 // latitude) at ellipsoidal height 0. x = East, y = North (true north at the
 // origin), z = Up, metres. Earth curvature is kept: a point 15 km from the
 // origin at height 0 lies ~17.6 m below the tangent plane, as a real sensor
-// sees it. DEM heights are used as given (no geoid correction; see
-// docs/geometry.md).
+// sees it. Heights are WGS84 ellipsoidal: DEM heights in another vertical
+// datum are converted first (vertical_datum.h, docs/geometry.md).
 #pragma once
 
 #include <memory>

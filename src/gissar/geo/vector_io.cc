@@ -162,6 +162,9 @@ std::vector<VectorFeature> ReadVectorLayer(const VectorLayerRequest& request,
   if (target.SetFromUserInput(target_crs_wkt.c_str()) != OGRERR_NONE) {
     throw InputError("cannot parse the target CRS", where);
   }
+  // Features are placed horizontally (their heights come from the DEM): the
+  // horizontal part of a compound DEM CRS (e.g. EPSG:4326+5773).
+  if (target.IsCompound()) target.StripVertical();
   target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   OGRSpatialReference source(*source_srs);
   source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);

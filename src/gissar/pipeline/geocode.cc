@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "gissar/geo/local_frame.h"
+#include "gissar/geo/vertical_datum.h"
 #include "gissar/pipeline/georeferencing.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/stac.h"
@@ -89,6 +90,7 @@ Terrain LoadImageTerrain(const GeocodeRequest& request, const json& sidecar, con
   const double lat0 = sidecar["frame"]["origin_lat_deg"].get<double>();
   if (!request.dem.empty()) {
     o.dem = request.dem;
+    o.vertical_datum = request.vertical_datum;
     o.scene.clear();
     o.dem_oversample = 1;
     o.center_map.reset();
@@ -111,6 +113,10 @@ Terrain LoadImageTerrain(const GeocodeRequest& request, const json& sidecar, con
 
 void GeocodeRequest::Check() const {
   if (image.empty()) throw ConfigError("an image is required", "--image");
+  geo::CanonicalVerticalDatum(vertical_datum, "--vertical-datum");
+  if (!vertical_datum.empty() && dem.empty()) {
+    throw ConfigError("goes with --dem (the simulation's own terrain keeps its datum)", "--vertical-datum");
+  }
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
   if (!(pixel_size_m >= 0.0) || !std::isfinite(pixel_size_m)) throw ConfigError("must be >= 0 (0 = automatic)", "--pixel-size");
   if (resampling != "bilinear" && resampling != "average") {
@@ -127,7 +133,7 @@ void GeocodeRequest::Check() const {
 }
 
 json GeocodeRequest::ToJson() const {
-  return {{"image", image},     {"dem", dem},         {"crs", crs},
+  return {{"image", image},     {"dem", dem},         {"vertical_datum", vertical_datum}, {"crs", crs},
           {"pixel_size_m", pixel_size_m}, {"resampling", resampling}, {"out_prefix", out_prefix}};
 }
 
@@ -374,6 +380,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   provenance["inputs"] = inputs;
   provenance["grid"] = {{"crs", crs}, {"geotransform", geotransform}, {"width", width}, {"height", height},
                         {"pixel_size_m", px}, {"points_per_pixel", k * k}};
+  provenance["vertical_datum"] = VerticalDatumRecord(terrain);
   provenance["terrain"] = request.dem.empty() ? "the simulation's own terrain (sidecar options)" : "--dem, in the simulation's frame";
   provenance["projection_mode"] = sensor::ToString(geometry.mode());
   provenance["bands"] = out.band_names;

@@ -31,8 +31,12 @@ struct GeocodeRequest {
   // PREFIX.json sidecar and PREFIX_mask.tif must lie beside it.
   std::string image;
   // Optional DEM whose heights replace the simulation's terrain (any GDAL
-  // raster; heights used as the simulation's --vertical-datum says).
+  // raster).
   std::string dem;
+  // Vertical datum of --dem's heights (SimulateRequest::vertical_datum: ""
+  // = from the file, else ellipsoid with a warning); only with --dem (the
+  // simulation's own terrain keeps its datum).
+  std::string vertical_datum;
   // Output CRS, any definition OGR accepts ("EPSG:32631", a PROJ string);
   // must be projected (metres). Empty = the UTM zone of the scene centre.
   std::string crs;

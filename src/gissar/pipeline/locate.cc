@@ -12,6 +12,7 @@
 
 #include "gissar/pipeline/simulate.h"
 #include "gissar/geo/raster_io.h"
+#include "gissar/geo/vertical_datum.h"
 #include "gissar/image/composite.h"
 #include "gissar/image/contact_sheet.h"
 #include "gissar/image/impulse_response.h"
@@ -88,16 +89,18 @@ scene::TriangleMesh SmoothedTerrain(const scene::TriangleMesh& mesh, double lamb
   return out;
 }
 
-SimulateRequest TerrainOptions(const std::string& scene, const std::string& dem) {
+SimulateRequest TerrainOptions(const std::string& scene, const std::string& dem, const std::string& vertical_datum) {
   SimulateRequest so;
   so.scene = scene;
   so.dem = dem;
+  so.vertical_datum = vertical_datum;
   so.fill_nodata = true;
   return so;
 }
 
-void CheckSceneOrDem(const std::string& scene, const std::string& dem) {
+void CheckSceneOrDem(const std::string& scene, const std::string& dem, const std::string& vertical_datum) {
   if (scene.empty() == dem.empty()) throw ConfigError("give exactly one of --scene and --dem", "--scene");
+  geo::CanonicalVerticalDatum(vertical_datum, "--vertical-datum");
 }
 
 // Error histogram (position error in resolution cells) as an RGB PNG.
@@ -194,7 +197,7 @@ double MetadataNumber(const std::string& text, const std::string& key, const std
 }  // namespace
 
 void LocateRequest::Check() const {
-  CheckSceneOrDem(scene, dem);
+  CheckSceneOrDem(scene, dem, vertical_datum);
   if (image.empty()) throw ConfigError("required", "--image");
   if (prior.empty()) throw ConfigError("required", "--prior");
   if (out.empty()) throw ConfigError("required", "--out");
@@ -261,7 +264,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   std::vector<float> observed = raster.bands.at(0);
   for (float& v : observed) if (!std::isfinite(v)) v = 0.0f;
 
-  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem));
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum), reporter);
   const render::EmbreeScene embree(terrain.mesh);
   nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
   std::optional<nav::NavPose> start;
@@ -308,6 +311,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
       {"sensor_model", {{"range_spacing_m", model.range_spacing_m}, {"azimuth_spacing_m", model.azimuth_spacing_m},
                          {"width", model.width}, {"height", model.height}, {"look", sensor::ToString(model.look_side)}}},
       {"matcher", options.matcher},
+      {"vertical_datum", VerticalDatumRecord(terrain)},
       {"inputs", {{"image", InputFileRecord(options.image)},
                   {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)},
                   {"prior", InputFileRecord(options.prior)}}}};
@@ -327,7 +331,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
 }
 
 void EvaluateRequest::Check() const {
-  CheckSceneOrDem(scene, dem);
+  CheckSceneOrDem(scene, dem, vertical_datum);
   if (trials < 1 || trials > kMaxTrials) throw ConfigError("must be in [1, 100000]", "--trials");
   if (out_prefix.empty()) throw ConfigError("required", "--out");
   if (!(spacing_m > 0)) throw ConfigError("must be > 0", "--spacing");
@@ -362,7 +366,7 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
   CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
                            {options.scene, options.dem});
 
-  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem));
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum), reporter);
   const render::EmbreeScene embree(terrain.mesh);
   const scene::TriangleMesh observed_mesh = SmoothedTerrain(terrain.mesh, options.dem_smoothing);
   const render::EmbreeScene observed_embree(observed_mesh);
@@ -564,6 +568,7 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                    {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", lo.step_px}, {"bounces", options.bounces},
                    {"reference_floor", lo.reference_floor},
                    {"rays_per_cell", options.rays_per_cell}}},
+      {"vertical_datum", VerticalDatumRecord(terrain)},
       {"inputs", {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
       {"seconds", total.ElapsedSeconds()}};
   WriteJsonFile(summary, json_path);

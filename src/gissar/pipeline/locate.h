@@ -45,6 +45,7 @@ struct LocateRequest {
   std::string image;   // observed image: GeoTIFF (band 1 linear intensity) with GISSAR_* metadata
   std::string scene;   // .gscene (or a DEM with --dem)
   std::string dem;
+  std::string vertical_datum;  // of --dem's heights ("" = from the file; SimulateRequest::vertical_datum)
   std::string prior;   // prior pose JSON
   std::string out;     // result JSON
   // Optional picture: the observed image (green) over the simulation
@@ -70,6 +71,7 @@ constexpr int kMaxTrials = 100000;
 struct EvaluateRequest {
   std::string scene;
   std::string dem;
+  std::string vertical_datum;  // of --dem's heights ("" = from the file; SimulateRequest::vertical_datum)
   int trials = 20;
   uint64_t seed = 1;
   std::string out_prefix;  // PREFIX.json, PREFIX_trials.csv, PREFIX_hist.png

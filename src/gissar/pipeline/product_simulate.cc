@@ -65,7 +65,7 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   say("product " + std::to_string(p.rows()) + " lines x " + std::to_string(p.cols()) + " range bins, " +
       (p.look_left ? "left" : "right") + "-looking, wavelength " + std::to_string(p.wavelength_m) + " m");
 
-  Terrain terrain = LoadTerrain(options);
+  Terrain terrain = LoadTerrain(options, reporter);
   const render::EmbreeScene embree(terrain.mesh);
   render::RenderOptions ro = RenderOptionsOf(options, &reporter);
   ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
@@ -92,7 +92,8 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   sim.terrain = terrain.description;
   sim.frame = {{"origin_lon_deg", terrain.frame.origin_lon_deg()},
                {"origin_lat_deg", terrain.frame.origin_lat_deg()},
-               {"vertical_datum", options.vertical_datum}};
+               {"vertical_datum", terrain.vertical_datum},
+               {"vertical_datum_source", terrain.vertical_datum_source}};
   return sim;
 }
 
@@ -141,8 +142,9 @@ geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateReques
   std::snprintf(buffer, sizeof buffer, "%.9g", sim.grid.dr_m);
   m["GISSAR_RANGE_SPACING_M"] = buffer;
   m["GISSAR_LOOK_SIDE"] = sim.product.look_left ? "left" : "right";
-  m["GISSAR_VERTICAL_DATUM"] = options.vertical_datum == "egm96" ? "DEM EGM96 heights + EGM96 undulation"
-                                                                  : "DEM heights used as WGS84 ellipsoidal";
+  const std::string datum = sim.frame.value("vertical_datum", std::string("ellipsoid"));
+  m["GISSAR_VERTICAL_DATUM"] = datum != "ellipsoid" ? "DEM " + datum + " heights + geoid undulation"
+                                                    : "DEM heights used as WGS84 ellipsoidal";
   m["GISSAR_VERSION"] = VersionString();
   return m;
 }
@@ -196,6 +198,7 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   provenance["product"] = ProductJson(sim);
   provenance["terrain"] = sim.terrain;
   provenance["frame"] = sim.frame;
+  provenance["vertical_datum"] = {{"datum", sim.frame["vertical_datum"]}, {"source", sim.frame["vertical_datum_source"]}};
   provenance["stats"] = {{"rays", image.stats.rays},
                          {"hits", image.stats.hits},
                          {"returns_reprojected", sim.image.contributions},
@@ -326,6 +329,7 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   report["product"] = ProductJson(sim);
   report["terrain"] = sim.terrain;
   report["frame"] = sim.frame;
+  report["vertical_datum"] = {{"datum", sim.frame["vertical_datum"]}, {"source", sim.frame["vertical_datum_source"]}};
   report["mask_pixels"] = MaskPixelCounts(image.mask);
   report["pixels_geolocated"] = sim.image.geolocated;
 
@@ -483,7 +487,8 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   std::ostringstream md;
   md << "# Validation of " << fs::path(options.simulate.product).filename().string() << "\n\n";
   md << "Terrain: " << (options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)
-     << " (vertical datum: " << options.simulate.vertical_datum << "); grid " << height << " lines x " << width
+     << " (vertical datum: " << sim.frame["vertical_datum"].get<std::string>() << ", source: "
+     << sim.frame["vertical_datum_source"].get<std::string>() << "); grid " << height << " lines x " << width
      << " range bins.\n\n## Correlation with the real amplitude\n\n";
   md << "Multilook: k x k non-overlapping blocks; intensity (|SLC|^2, power) averaged for r (intensity) and "
         "r (dB) (10 log10 of the block mean), amplitude averaged for r (amplitude). Peer: simamp block means.\n\n";

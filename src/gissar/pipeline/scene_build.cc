@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "gissar/geo/dem.h"
+#include "gissar/geo/vertical_datum.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/class_map.h"
@@ -63,6 +64,28 @@ std::array<int, 4> ParseWindow(const std::string& text, const std::string& optio
   return w;
 }
 
+namespace {
+
+// Moves every vertex (ENU of `frame`, heights in `datum`) up the ellipsoid
+// normal by the geoid undulation there: ellipsoidal heights.
+void RaiseToEllipsoidalHeights(scene::TriangleMesh& mesh, const geo::LocalFrame& frame, const std::string& datum,
+                               const std::string& where) {
+  if (datum == "ellipsoid" || mesh.vertices.empty()) return;
+  std::vector<double> lon(mesh.vertices.size()), lat(lon.size()), h(lon.size());
+  for (size_t i = 0; i < lon.size(); ++i) {
+    const Eigen::Vector3d g = frame.GeodeticFromEnu(mesh.vertices[i].cast<double>());
+    lon[i] = g.x();
+    lat[i] = g.y();
+    h[i] = g.z();
+  }
+  const std::vector<double> n = geo::GeoidUndulationsM(datum, lon, lat, where);
+  for (size_t i = 0; i < lon.size(); ++i) {
+    mesh.vertices[i] = frame.EnuFromGeodetic(lon[i], lat[i], h[i] + n[i]).cast<float>();
+  }
+}
+
+}  // namespace
+
 void SceneBuildRequest::Check() const {
   if (dem.empty()) throw ConfigError("a DEM is required", "--dem");
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
@@ -72,6 +95,7 @@ void SceneBuildRequest::Check() const {
   if (sea != "auto" && sea != "off") throw ConfigError("expected auto or off, got '" + sea + "'", "--sea");
   if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
   CheckVerticalUnits(vertical_units);
+  geo::CanonicalVerticalDatum(vertical_datum, "--vertical-datum");
   if (dem_oversample < 1 || dem_oversample > geo::kMaxDemOversample) {
     throw ConfigError("DEM oversampling must be in [1, " + std::to_string(geo::kMaxDemOversample) + "], got " +
                           std::to_string(dem_oversample),
@@ -100,6 +124,7 @@ json SceneBuildRequest::ToJson() const {
           {"sea_level_m", sea_level_m},
           {"dem_oversample", dem_oversample},
           {"vertical_units", vertical_units},
+          {"vertical_datum", vertical_datum},
           {"flat_shading", flat_shading},
           {"max_memory_bytes", max_memory_bytes}};
 }
@@ -144,9 +169,16 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
   read_options.vertical_units = options.vertical_units;
   const geo::Dem dem = geo::RefineDem(geo::ReadDem(options.dem, read_options), options.dem_oversample,
                                       options.max_memory_bytes / read_options.bytes_per_post);
-  const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, options.center_lonlat, std::nullopt);
+  const geo::VerticalDatumChoice datum =
+      geo::ResolveVerticalDatum(geo::CanonicalVerticalDatum(options.vertical_datum), dem.file_vertical_datum);
+  if (datum.source == "assumed") warnings.push_back(geo::AssumedDatumWarning(options.dem));
+  geo::GeoPoint centre = geo::ResolveSceneCentre(dem, options.center_lonlat, std::nullopt);
   const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
+  // Built from the heights as given (the sea rule compares orthometric
+  // heights with --sea-level), then raised to ellipsoidal heights.
   scene::GisScene built = scene::BuildGisScene(dem, frame, config, reporter);
+  RaiseToEllipsoidalHeights(built.mesh, frame, datum.datum, options.dem);
+  centre.height_m += geo::GeoidUndulationsM(datum.datum, {centre.lon_deg}, {centre.lat_deg}, options.dem)[0];
   warnings.insert(warnings.end(), built.warnings.begin(), built.warnings.end());
   for (const std::string& w : warnings) reporter.Warn(w);
 
@@ -165,6 +197,8 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
            {"dem_posts", built.stats.dem_posts},
            {"dem_vertical_unit_m", dem.vertical_unit_m},
            {"dem_vertical_unit_source", dem.vertical_unit_source},
+           {"dem_vertical_datum", datum.datum},
+           {"dem_vertical_datum_source", datum.source},
            {"inserted_vertices", built.stats.inserted_vertices},
            {"constraint_segments", built.stats.constraint_segments},
            {"features_read", built.stats.features_read},
@@ -210,6 +244,8 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
   file.provenance = {{"version", VersionString()},
                      {"dem", fs::absolute(options.dem).string()},
                      {"post_spacing_m", 0.5 * (spacing.x() + spacing.y())},
+                     {"vertical_datum", datum.datum},
+                     {"vertical_datum_source", datum.source},
                      {"config", config.ToJson()}};
   scene::WriteScene(scene_path, file);
   // The meshes' georeference: header comments and PREFIX_mesh.json.
@@ -239,6 +275,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
                   {"config", config.ToJson()},
                   {"materials", materials.ToJson()},
                   {"inputs", inputs},
+                  {"vertical_datum", {{"datum", datum.datum}, {"source", datum.source}}},
                   {"frame", {{"type", "ENU tangent frame, WGS84"},
                              {"origin_lon_deg", file.origin_lon_deg},
                              {"origin_lat_deg", file.origin_lat_deg}}},

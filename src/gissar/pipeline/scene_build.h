@@ -38,6 +38,11 @@ struct SceneBuildRequest {
   int dem_oversample = 1;
   // Unit of the DEM's heights (--vertical-units): "" = from the file, m, ft or us-ft.
   std::string vertical_units;
+  // Vertical datum of the DEM's heights (--vertical-datum, SimulateRequest's
+  // rule): "" = from the file, else ellipsoid with a warning. The sea rule
+  // uses the heights as given (orthometric); the mesh is then raised to
+  // ellipsoidal heights, and the scene records the datum.
+  std::string vertical_datum;
   // --flat-shading: no per-vertex shading normals (smooth terrain) in the scene.
   bool flat_shading = false;
   // Memory budget (--max-memory), bytes: the DEM (window) is checked against

@@ -59,6 +59,7 @@ SceneBuildRequest BuildOptions(const std::string& dem, const std::string& config
   o.dem = dem;
   o.config = config;
   o.out_prefix = (out / "scene").string();
+  o.vertical_datum = "ellipsoid";  // the flat DEM's CRS names none: no warning
   return o;
 }
 
@@ -262,6 +263,114 @@ TEST(SceneBuildTest, MeshExportsCarryOriginAndCrs) {
     EXPECT_NEAR(x[i], want[i].x(), 0.01) << i;
     EXPECT_NEAR(y[i], want[i].y(), 0.01) << i;
     EXPECT_NEAR(geodetic[i].z(), 100.0, 0.01) << i;  // the DEM's height, ellipsoidal
+  }
+}
+
+// Records the warnings of a run.
+struct WarningRecorder : Reporter {
+  std::vector<std::string> warnings;
+  void Warn(const std::string& line) override { warnings.push_back(line); }
+};
+
+// 21 x 21 posts of 0.0005 deg centred on (1.6 E, 42.5 N): heights 100 m, the
+// five western columns -5 m (below the 0 m sea level, on the border).
+std::string CoastDem(const fs::path& path, const std::string& crs) {
+  std::vector<float> h(21 * 21, 100.0f);
+  for (int r = 0; r < 21; ++r) {
+    for (int c = 0; c < 5; ++c) h[size_t(r) * 21 + c] = -5.0f;
+  }
+  geo::WriteDemGeoTiff(path, h, 21, 21, {1.6 - 10.5 * 0.0005, 0.0005, 0.0, 42.5 + 10.5 * 0.0005, 0.0, -0.0005}, crs);
+  return path.string();
+}
+
+// EGM96 undulation at (1.6 E, 42.5 N): PROJ's `cct +proj=vgridshift
+// +grids=egm96_15.gtx` gives 52.7906 m.
+constexpr double kN = 52.7906;
+
+// A DEM tagged EPSG:4326+5773 is egm96 by default: the scene is raised by N,
+// the sea rule still sees the orthometric heights (-5 m is sea), and the
+// scene keeps the datum; an untagged DEM is ellipsoid with one warning.
+TEST(SceneBuildTest, VerticalDatumFromTheFileRaisesTheSceneAndIsKept) {
+  const fs::path dir = testing::MakeTempDir();
+  SceneBuildRequest o;
+  o.dem = CoastDem(dir / "egm96.tif", "EPSG:4326+5773");
+  o.out_prefix = (dir / "egm96").string();
+  WarningRecorder quiet;
+  const SceneBuildResult built = RunSceneBuild(o, "test", quiet);
+  EXPECT_TRUE(quiet.warnings.empty());
+  EXPECT_EQ(built.summary["vertical_datum"]["datum"], "egm96");
+  EXPECT_EQ(built.summary["vertical_datum"]["source"], "file");
+  EXPECT_EQ(built.summary["stats"]["sea_from_dem"], true);
+  const scene::SceneFile file = scene::ReadScene(dir / "egm96.gscene");
+  EXPECT_EQ(file.provenance["vertical_datum"], "egm96");
+  EXPECT_NEAR(file.centre_height_m, 100.0 + kN, 0.01);
+  // Every vertex lies at its orthometric height + N (-5 + N or 100 + N).
+  const geo::LocalFrame frame(file.origin_lon_deg, file.origin_lat_deg, 0.0);
+  int sea_level = 0, land = 0;
+  for (const Eigen::Vector3f& v : file.mesh.vertices) {
+    const double h = frame.GeodeticFromEnu(v.cast<double>()).z();
+    if (std::abs(h - (-5.0 + kN)) < 0.05) ++sea_level;
+    else if (std::abs(h - (100.0 + kN)) < 0.05) ++land;
+  }
+  EXPECT_EQ(sea_level, 5 * 21);
+  EXPECT_EQ(sea_level + land, int(file.mesh.vertices.size()));
+  int sea_triangles = 0;
+  for (scene::ClassId c : file.mesh.classes) sea_triangles += c == scene::kClassSea;
+  EXPECT_GT(sea_triangles, 0);
+
+  // The scene keeps its datum: the same explicitly (EPSG:5773 = egm96) is
+  // fine, another one is a ConfigError naming the flag.
+  SimulateRequest s;
+  s.scene = (dir / "egm96.gscene").string();
+  s.vertical_datum = "EPSG:5773";
+  EXPECT_EQ(LoadTerrain(s).vertical_datum, "egm96");
+  s.vertical_datum = "ellipsoid";
+  try {
+    LoadTerrain(s);
+    ADD_FAILURE() << "a scene built on egm96 accepted --vertical-datum ellipsoid";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("--vertical-datum"), std::string::npos) << e.what();
+  }
+
+  // Untagged: ellipsoid, assumed, one warning naming the file and the flag.
+  o.dem = CoastDem(dir / "plain.tif", "EPSG:4326");
+  o.out_prefix = (dir / "plain").string();
+  WarningRecorder recorder;
+  const SceneBuildResult plain = RunSceneBuild(o, "test", recorder);
+  EXPECT_EQ(plain.summary["vertical_datum"]["datum"], "ellipsoid");
+  EXPECT_EQ(plain.summary["vertical_datum"]["source"], "assumed");
+  ASSERT_EQ(recorder.warnings.size(), 1u);
+  EXPECT_NE(recorder.warnings[0].find("plain.tif"), std::string::npos) << recorder.warnings[0];
+  EXPECT_NE(recorder.warnings[0].find("--vertical-datum"), std::string::npos) << recorder.warnings[0];
+  EXPECT_NEAR(scene::ReadScene(dir / "plain.gscene").centre_height_m, 100.0, 1e-3);
+}
+
+// simulate's DEM path: the file's datum by default, the flag over it, the
+// sea from the orthometric heights, and a missing EGM2008 grid an InputError.
+TEST(SceneBuildTest, SimulateDemTakesTheDatumFromTheFileOrTheFlag) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest s;
+  s.dem = CoastDem(dir / "egm96.tif", "EPSG:4326+5773");
+  s.center_lonlat = Eigen::Vector2d(1.6, 42.5);
+  Terrain t = LoadTerrain(s);
+  EXPECT_EQ(t.vertical_datum, "egm96");
+  EXPECT_EQ(t.vertical_datum_source, "file");
+  EXPECT_NEAR(t.centre.height_m, 100.0 + kN, 0.01);
+  EXPECT_EQ(t.description["vertical_datum"], "egm96");
+  int sea_triangles = 0;
+  for (scene::ClassId c : t.mesh.classes) sea_triangles += c == scene::kClassSea;
+  EXPECT_EQ(sea_triangles, 2 * 4 * 20);  // the 4 x 20 cells between the sea posts
+  s.vertical_datum = "ellipsoid";
+  t = LoadTerrain(s);
+  EXPECT_EQ(t.vertical_datum_source, "flag");
+  EXPECT_NEAR(t.centre.height_m, 100.0, 1e-3);
+  s.vertical_datum = "egm2008";
+  try {
+    LoadTerrain(s);
+    GTEST_SKIP() << "PROJ found the EGM2008 grid here";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("us_nga_egm08_25.tif"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("egm96.tif"), std::string::npos) << e.what();
   }
 }
 

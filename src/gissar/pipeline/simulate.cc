@@ -13,6 +13,7 @@
 
 #include "gissar/geo/dem.h"
 #include "gissar/geo/geoid.h"
+#include "gissar/geo/vertical_datum.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/annotated.h"
@@ -53,10 +54,7 @@ void SimulateRequest::Check() const {
     throw ConfigError("give exactly one terrain: a DEM or a scene", "--dem/--scene");
   }
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
-  if (vertical_datum != "ellipsoid" && vertical_datum != "egm96") {
-    throw ConfigError("vertical datum must be 'ellipsoid' or 'egm96', got '" + vertical_datum + "'",
-                      "--vertical-datum");
-  }
+  geo::CanonicalVerticalDatum(vertical_datum, "--vertical-datum");
   CheckVerticalUnits(vertical_units);
   if (!vertical_units.empty() && !scene.empty()) {
     throw ConfigError("a scene keeps the heights it was built with", "--vertical-units");
@@ -70,9 +68,6 @@ void SimulateRequest::Check() const {
   if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
   if (dem_oversample != 1 && !scene.empty()) {
     throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
-  }
-  if (vertical_datum == "egm96" && !scene.empty()) {
-    throw ConfigError("a scene keeps the datum it was built with", "--vertical-datum");
   }
   if (!product.empty()) CheckProductOptions(*this);
   if (engine != "trace" && engine != "raster") {
@@ -282,11 +277,16 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   // any datum change.
   std::vector<uint8_t> sea_posts;
   if (options.sea == "auto") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
-  if (options.vertical_datum == "egm96") geo::Egm96ToEllipsoidal(dem, geo::Egm96Geoid());
+  const geo::VerticalDatumChoice datum =
+      geo::ResolveVerticalDatum(geo::CanonicalVerticalDatum(options.vertical_datum), dem.file_vertical_datum);
+  if (datum.source == "assumed") reporter.Warn(geo::AssumedDatumWarning(options.dem));
+  geo::ToEllipsoidalHeights(dem, datum.datum);
   if (dem.filled_nodata_cells > 0) {
     reporter.Info("simulate: filled " + std::to_string(dem.filled_nodata_cells) + " no-data cells");
   }
   Terrain t;
+  t.vertical_datum = datum.datum;
+  t.vertical_datum_source = datum.source;
   t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
   t.frame = geo::LocalFrame(t.centre.lon_deg, t.centre.lat_deg, 0.0);
   t.centre_enu = t.frame.EnuFromGeodetic(t.centre.lon_deg, t.centre.lat_deg, t.centre.height_m);
@@ -333,6 +333,8 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
                    {"oversample", options.dem_oversample},
                    {"vertical_unit_m", dem.vertical_unit_m},
                    {"vertical_unit_source", dem.vertical_unit_source},
+                   {"vertical_datum", datum.datum},
+                   {"vertical_datum_source", datum.source},
                    {"sea_triangles", sea_triangles},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
@@ -360,7 +362,24 @@ Terrain TerrainFromScene(const SimulateRequest& options) {
     }
     t.post_spacing_m = spacing.get<double>();
   }
+  // The datum the scene was built with (scenes older than the record:
+  // heights used as given, i.e. ellipsoidal).
+  if (file.provenance.is_object() && file.provenance.contains("vertical_datum")) {
+    const nlohmann::json& d = file.provenance["vertical_datum"];
+    if (!d.is_string()) throw InputError("scene provenance has an invalid vertical_datum", options.scene);
+    t.vertical_datum = d.get<std::string>();
+    t.vertical_datum_source = "scene (" + file.provenance.value("vertical_datum_source", std::string("?")) + ")";
+  } else {
+    t.vertical_datum_source = "scene (built without a datum record: heights as given)";
+  }
+  const std::string asked = geo::CanonicalVerticalDatum(options.vertical_datum);
+  if (!asked.empty() && asked != t.vertical_datum) {
+    throw ConfigError("a scene keeps the datum it was built with (" + t.vertical_datum + "), got " + asked,
+                      "--vertical-datum");
+  }
   t.description = {{"type", "scene"},
+                   {"vertical_datum", t.vertical_datum},
+                   {"vertical_datum_source", t.vertical_datum_source},
                    {"triangles", file.mesh.triangle_count()},
                    {"class_names", file.class_names},
                    {"scene_provenance", file.provenance}};
@@ -382,6 +401,10 @@ void WriteContributions(const fs::path& path, const std::vector<render::Contribu
 }
 
 }  // namespace
+
+nlohmann::json VerticalDatumRecord(const Terrain& terrain) {
+  return {{"datum", terrain.vertical_datum}, {"source", terrain.vertical_datum_source}};
+}
 
 Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter) {
   Terrain t = options.scene.empty() ? TerrainFromDem(options, reporter) : TerrainFromScene(options);
@@ -775,8 +798,10 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   provenance["georeference"] = georeference_record;
   provenance["terrain"] = terrain.description;
   provenance["materials"] = terrain.materials.ToJson();
-  provenance["frame"] = {{"type", options.vertical_datum == "egm96"
-                                      ? "ENU tangent frame, WGS84; DEM heights EGM96 + undulation = ellipsoidal"
+  provenance["vertical_datum"] = VerticalDatumRecord(terrain);
+  provenance["frame"] = {{"type", terrain.vertical_datum != "ellipsoid"
+                                      ? "ENU tangent frame, WGS84; DEM heights " + terrain.vertical_datum +
+                                            " + undulation = ellipsoidal"
                                       : "ENU tangent frame, WGS84; DEM heights used as ellipsoidal"},
                          {"origin_lon_deg", frame.origin_lon_deg()},
                          {"origin_lat_deg", frame.origin_lat_deg()},

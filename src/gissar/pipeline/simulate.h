@@ -51,10 +51,13 @@ struct SimulateRequest {
   // A real product (NISAR RSLC HDF5): render on its radar grid with its
   // orbit instead of the idealised geometry (product_simulate.h).
   std::string product;
-  // Vertical datum of the DEM heights: "ellipsoid" (used as WGS84
-  // ellipsoidal heights, as given) or "egm96" (orthometric, as SRTM: the
-  // EGM96 undulation is added at every post).
-  std::string vertical_datum = "ellipsoid";
+  // Vertical datum of the DEM heights (--vertical-datum): "" = from the
+  // file's vertical CRS, else ellipsoid with a warning; "ellipsoid" (WGS84
+  // ellipsoidal heights, used as given), "egm96" (orthometric, as SRTM),
+  // "egm2008" or "EPSG:<n>" of a vertical CRS: the geoid undulation is added
+  // at every post (geo/vertical_datum.h). A scene keeps the datum it was
+  // built with: an explicit different one is a ConfigError.
+  std::string vertical_datum;
   // Unit of the DEM's heights: "" = from the file (band unit, vertical CRS,
   // else metres), or m, ft, us-ft (geo::DemReadOptions::vertical_units).
   std::string vertical_units;
@@ -154,6 +157,11 @@ struct Terrain {
   // (scene::MeshFromGrid's order, e.g. the sea); empty = all `default`.
   std::vector<scene::ClassId> grid_classes;
   material::MaterialTable materials;
+  // Datum of the source DEM's heights (now ellipsoidal in the mesh) and
+  // where it came from: flag, file or assumed (a scene: the datum it was
+  // built with).
+  std::string vertical_datum = "ellipsoid";
+  std::string vertical_datum_source = "assumed";
   nlohmann::json description;  // for provenance
 };
 
@@ -167,6 +175,9 @@ std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& optio
 // --center-map for DEMs. With engine "raster" a DEM's mesh holds only its
 // posts (no triangles). Throws the gissar::Error family.
 Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter = NullReporter());
+// {"datum": ..., "source": flag|file|assumed|scene (...)}: the sidecars'
+// record of the DEM heights' vertical datum.
+nlohmann::json VerticalDatumRecord(const Terrain& terrain);
 
 // For scenes: moves the centre to options.center_lonlat on the scene's
 // surface (found by a vertical ray). Throws ConfigError when it is outside.

@@ -70,7 +70,7 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
   const fs::path gif = outputs.Add(prefix + ".gif");
   const fs::path json_path = outputs.Add(prefix + ".json");
 
-  Terrain terrain = LoadTerrain(options.base);
+  Terrain terrain = LoadTerrain(options.base, reporter);
   Stopwatch bvh_watch;
   const render::EmbreeScene embree(terrain.mesh);
   SequenceResult result;
@@ -147,6 +147,7 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
                      {"options", options.ToJson()},
                      {"inputs", json::array({InputFileRecord(options.base.scene.empty() ? options.base.dem : options.base.scene)})},
                      {"terrain", terrain.description},
+                     {"vertical_datum", VerticalDatumRecord(terrain)},
                      {"materials", terrain.materials.ToJson()},
                      {"image", {{"width", width}, {"height", height}}},
                      {"sensor_altitude_enu_m", sensor0.z()},
@@ -181,7 +182,7 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
   if (!options.orthophoto.empty()) {
     photo = std::make_unique<geo::Orthophoto>(options.orthophoto, options.base.max_memory_bytes);
   }
-  Terrain terrain = LoadTerrain(options.base);
+  Terrain terrain = LoadTerrain(options.base, reporter);
   const render::EmbreeScene embree(terrain.mesh);
   PlaceSceneCentre(terrain, embree, options.base);
   const sensor::SarGeometry geometry = sensor::SarGeometry::Covering(
@@ -226,6 +227,7 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
                  {"options", options.base.ToJson()},
                  {"orthophoto", options.orthophoto},
                  {"inputs", inputs},
+                 {"vertical_datum", VerticalDatumRecord(terrain)},
                  {"geometry", geometry.ToMetadata()}},
                 json_path);
   outputs.Commit();
