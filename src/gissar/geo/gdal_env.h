@@ -3,6 +3,13 @@
 #pragma once
 
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <gdal.h>
+#include <gdal_alg.h>
+
+#include "gissar/geo/raster_io.h"
 
 namespace gissar::geo {
 
@@ -13,5 +20,21 @@ void EnsureGdal();
 
 // The last message GDAL reported on this thread ("" when none).
 std::string LastGdalMessage();
+
+// GCPs in GDAL's form (ids "1", "2", ...; pixel/line, X = longitude,
+// Y = latitude, Z = height). `list` points into `ids`: keep the object alive
+// while GDAL uses it, and do not copy it.
+struct GdalGcpList {
+  explicit GdalGcpList(const std::vector<GroundControlPoint>& gcps);
+  GdalGcpList(const GdalGcpList&) = delete;
+  GdalGcpList& operator=(const GdalGcpList&) = delete;
+  std::vector<std::string> ids;
+  std::vector<GDAL_GCP> list;
+};
+
+// Runs a GDAL transformer (pixel/line -> georeferenced, bDstToSrc = FALSE)
+// over `pixels`; a point it cannot transform is NaN.
+std::vector<Eigen::Vector2d> TransformPixels(GDALTransformerFunc transform, void* transformer,
+                                             const std::vector<Eigen::Vector2d>& pixels);
 
 }  // namespace gissar::geo

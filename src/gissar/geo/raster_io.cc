@@ -37,23 +37,11 @@ void SetMetadata(GDALDataset* ds, const Metadata& metadata) {
 
 void SetGeoreference(GDALDataset* ds, const Georeference& georeference, const fs::path& path) {
   if (!georeference.gcps.empty()) {
-    std::vector<GDAL_GCP> gcps(georeference.gcps.size());
-    std::vector<std::string> ids(gcps.size());
-    for (size_t i = 0; i < gcps.size(); ++i) {
-      const GroundControlPoint& g = georeference.gcps[i];
-      ids[i] = std::to_string(i + 1);
-      gcps[i].pszId = ids[i].data();
-      gcps[i].pszInfo = const_cast<char*>("");
-      gcps[i].dfGCPPixel = g.pixel;
-      gcps[i].dfGCPLine = g.line;
-      gcps[i].dfGCPX = g.lon_deg;
-      gcps[i].dfGCPY = g.lat_deg;
-      gcps[i].dfGCPZ = g.height_m;
-    }
+    const GdalGcpList gcps(georeference.gcps);
     OGRSpatialReference wgs84;
     wgs84.importFromEPSG(4326);
     wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    if (ds->SetGCPs(static_cast<int>(gcps.size()), gcps.data(), &wgs84) != CE_None) {
+    if (ds->SetGCPs(static_cast<int>(gcps.list.size()), gcps.list.data(), &wgs84) != CE_None) {
       throw IoError("cannot write GCPs: " + LastGdalMessage(), path.string());
     }
   }
@@ -109,10 +97,10 @@ DatasetPtr CreateStaged(const fs::path& path, int width, int height, GDALDataTyp
 
 // GDAL 3.6's GTiff/COG CreateCopy writes only the default metadata domain
 // (plus RPC) into the GDAL_METADATA tag; COPY_SRC_MDD arrived in 3.8. A COG's
-// GEOLOCATION items therefore travel as a default-domain placeholder of the
+// GEOLOCATION items therefore travel as a default-domain reserved slot of the
 // exact byte length of their XML, which PatchGeolocation overwrites in place
 // after the copy (same length: the COG layout is untouched).
-constexpr const char* kGeolocationPlaceholderKey = "GISSAR_GEOLOCATION_RESERVED";
+constexpr const char* kGeolocationReservedKey = "GISSAR_GEOLOCATION_RESERVED";
 
 std::string GeolocationXml(const Metadata& geolocation) {
   std::string xml;
@@ -126,33 +114,33 @@ std::string GeolocationXml(const Metadata& geolocation) {
   return xml;
 }
 
-std::string PlaceholderXml(size_t length) {
-  return std::string("<Item name=\"") + kGeolocationPlaceholderKey + "\">" + std::string(length, 'x') + "</Item>";
+std::string ReservedSlotXml(size_t length) {
+  return std::string("<Item name=\"") + kGeolocationReservedKey + "\">" + std::string(length, 'x') + "</Item>";
 }
 
 void PatchGeolocation(const fs::path& path, const Metadata& geolocation) {
   const std::string items = GeolocationXml(geolocation);
-  const std::string placeholder = PlaceholderXml(items.size());
+  const std::string slot = ReservedSlotXml(items.size());
   std::fstream file(path, std::ios::in | std::ios::out | std::ios::binary);
   if (!file) throw IoError("cannot reopen COG to write GEOLOCATION metadata", path.string());
   // The GDAL_METADATA tag sits in the COG header, ahead of all tiles.
   std::string head(4u << 20, '\0');
   file.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<size_t>(file.gcount()));
-  const size_t at = head.find(placeholder);
-  if (at == std::string::npos || head.find(placeholder, at + 1) != std::string::npos) {
-    throw IoError("GEOLOCATION placeholder not found once in the COG header", path.string());
+  const size_t at = head.find(slot);
+  if (at == std::string::npos || head.find(slot, at + 1) != std::string::npos) {
+    throw IoError("reserved GEOLOCATION slot not found once in the COG header", path.string());
   }
   std::string replacement = items;
-  replacement.resize(placeholder.size(), ' ');  // whitespace between XML elements
+  replacement.resize(slot.size(), ' ');  // whitespace between XML elements
   file.clear();
   file.seekp(static_cast<std::streamoff>(at));
   file.write(replacement.data(), static_cast<std::streamsize>(replacement.size()));
   file.close();
   if (!file) throw IoError("cannot write GEOLOCATION metadata into the COG", path.string());
-  // Read back: every item present, the placeholder gone.
+  // Read back: every item present, the reserved slot gone.
   DatasetPtr check(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  bool same = check && check->GetMetadataItem(kGeolocationPlaceholderKey) == nullptr;
+  bool same = check && check->GetMetadataItem(kGeolocationReservedKey) == nullptr;
   for (const auto& [key, value] : geolocation) {
     const char* back = same ? check->GetMetadataItem(key.c_str(), "GEOLOCATION") : nullptr;
     same = back != nullptr && value == back;
@@ -170,7 +158,7 @@ void FinishGeoTiff(DatasetPtr ds, const fs::path& path, const char* resampling,
     return;
   }
   if (!geolocation.empty()) {
-    ds->SetMetadataItem(kGeolocationPlaceholderKey,
+    ds->SetMetadataItem(kGeolocationReservedKey,
                         std::string(GeolocationXml(geolocation).size(), 'x').c_str());
   }
   const std::string resampling_option = std::string("RESAMPLING=") + resampling;

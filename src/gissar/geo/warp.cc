@@ -65,51 +65,20 @@ std::vector<Eigen::Vector2d> PixelsToLonLat(const fs::path& path,
     GDALClose(ds);
     throw InputError("cannot build a transformer: " + message, path.string());
   }
-  const int n = static_cast<int>(pixels.size());
-  std::vector<double> x(n), y(n), z(n, 0.0);
-  std::vector<int> ok(n, 0);
-  for (int i = 0; i < n; ++i) {
-    x[i] = pixels[i].x();
-    y[i] = pixels[i].y();
-  }
-  GDALGenImgProjTransform(transformer, FALSE, n, x.data(), y.data(), z.data(), ok.data());
+  std::vector<Eigen::Vector2d> out = TransformPixels(GDALGenImgProjTransform, transformer, pixels);
   GDALDestroyGenImgProjTransformer(transformer);
   GDALClose(ds);
-  std::vector<Eigen::Vector2d> out(n);
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (int i = 0; i < n; ++i) out[i] = ok[i] ? Eigen::Vector2d(x[i], y[i]) : Eigen::Vector2d(nan, nan);
   return out;
 }
 
 std::vector<Eigen::Vector2d> TpsLonLat(const std::vector<GroundControlPoint>& gcps,
                                        const std::vector<Eigen::Vector2d>& pixels) {
   EnsureGdal();
-  std::vector<GDAL_GCP> list(gcps.size());
-  std::vector<std::string> ids(gcps.size());
-  for (size_t i = 0; i < gcps.size(); ++i) {
-    ids[i] = std::to_string(i + 1);
-    list[i].pszId = ids[i].data();
-    list[i].pszInfo = const_cast<char*>("");
-    list[i].dfGCPPixel = gcps[i].pixel;
-    list[i].dfGCPLine = gcps[i].line;
-    list[i].dfGCPX = gcps[i].lon_deg;
-    list[i].dfGCPY = gcps[i].lat_deg;
-    list[i].dfGCPZ = gcps[i].height_m;
-  }
-  void* tps = GDALCreateTPSTransformer(static_cast<int>(list.size()), list.data(), FALSE);
+  GdalGcpList list(gcps);
+  void* tps = GDALCreateTPSTransformer(static_cast<int>(list.list.size()), list.list.data(), FALSE);
   if (tps == nullptr) throw InputError("cannot build a thin-plate spline: " + LastGdalMessage(), "GCPs");
-  const int n = static_cast<int>(pixels.size());
-  std::vector<double> x(n), y(n), z(n, 0.0);
-  std::vector<int> ok(n, 0);
-  for (int i = 0; i < n; ++i) {
-    x[i] = pixels[i].x();
-    y[i] = pixels[i].y();
-  }
-  GDALTPSTransform(tps, FALSE, n, x.data(), y.data(), z.data(), ok.data());
+  std::vector<Eigen::Vector2d> out = TransformPixels(GDALTPSTransform, tps, pixels);
   GDALDestroyTPSTransformer(tps);
-  std::vector<Eigen::Vector2d> out(n);
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (int i = 0; i < n; ++i) out[i] = ok[i] ? Eigen::Vector2d(x[i], y[i]) : Eigen::Vector2d(nan, nan);
   return out;
 }
 
