@@ -3,6 +3,7 @@
 #include <gdal_alg.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
 
 #include <algorithm>
 #include <cctype>
@@ -507,6 +508,71 @@ std::optional<double> MetresPerVerticalUnit(const std::string& name) {
     if (n == us) return 1200.0 / 3937.0;
   }
   return std::nullopt;
+}
+
+std::vector<std::vector<PostRing>> LowlandPolygons(const Dem& dem, double level_m) {
+  GISSAR_CHECK(dem.width >= 2 && dem.height >= 2 && dem.heights_m.size() == size_t(dem.width) * dem.height);
+  const auto [lo, hi] = std::minmax_element(dem.heights_m.begin(), dem.heights_m.end());
+  if (*lo > level_m) return {};
+  if (*hi <= level_m) {
+    const double x1 = dem.width - 0.5, y1 = dem.height - 0.5;
+    return {{PostRing{{-0.5, -0.5}, {x1, -0.5}, {x1, y1}, {-0.5, y1}, {-0.5, -0.5}}}};
+  }
+  EnsureGdal();
+  const std::string where = "contour of " + (dem.source.empty() ? std::string("the DEM") : dem.source);
+  GDALDriverManager* drivers = GetGDALDriverManager();
+  GDALDriver* mem = drivers->GetDriverByName("MEM");
+  GDALDriver* memory_vector = drivers->GetDriverByName("Memory");
+  DatasetPtr grid(mem ? mem->Create("", dem.width, dem.height, 1, GDT_Float32, nullptr) : nullptr);
+  DatasetPtr out(memory_vector ? memory_vector->Create("", 0, 0, 0, GDT_Unknown, nullptr) : nullptr);
+  if (!grid || !out) throw IoError("cannot stage the DEM for contouring: " + LastGdalMessage(), where);
+  // Post (c, r) at coordinates (c, r): the cell corner is half a post off.
+  double transform[6] = {-0.5, 1.0, 0.0, -0.5, 0.0, 1.0};
+  grid->SetGeoTransform(transform);
+  GDALRasterBand* band = grid->GetRasterBand(1);
+  if (band->RasterIO(GF_Write, 0, 0, dem.width, dem.height, const_cast<float*>(dem.heights_m.data()), dem.width,
+                     dem.height, GDT_Float32, 0, 0, nullptr) != CE_None) {
+    throw IoError("cannot stage the DEM for contouring: " + LastGdalMessage(), where);
+  }
+  OGRLayer* layer = out->CreateLayer("lowland", nullptr, wkbMultiPolygon, nullptr);
+  if (!layer) throw IoError("cannot create the contour layer: " + LastGdalMessage(), where);
+  for (const char* name : {"id", "elev_min", "elev_max"}) {
+    OGRFieldDefn field(name, std::string(name) == "id" ? OFTInteger : OFTReal);
+    layer->CreateField(&field);
+  }
+  std::ostringstream level_text;
+  level_text.precision(17);
+  level_text << "FIXED_LEVELS=" << level_m;
+  const std::string level = level_text.str();
+  const char* options[] = {level.c_str(), "POLYGONIZE=YES", "ID_FIELD=0", "ELEV_FIELD_MIN=1",
+                           "ELEV_FIELD_MAX=2", nullptr};
+  if (GDALContourGenerateEx(band, OGRLayer::ToHandle(layer), const_cast<char**>(options), nullptr, nullptr) !=
+      CE_None) {
+    throw IoError("GDAL contour generation failed: " + LastGdalMessage(), where);
+  }
+  // The polygons of the interval from the lowest height up to the level.
+  std::vector<std::vector<PostRing>> polygons;
+  layer->ResetReading();
+  for (auto& feature : *layer) {
+    if (!(feature->GetFieldAsDouble(1) < level_m)) continue;
+    const OGRGeometry* g = feature->GetGeometryRef();
+    if (!g) continue;
+    auto add_polygon = [&](const OGRPolygon* p) {
+      std::vector<PostRing> rings;
+      for (const OGRLinearRing* ring : *p) {
+        PostRing points;
+        for (const OGRPoint& q : *ring) points.emplace_back(q.getX(), q.getY());
+        if (points.size() >= 4) rings.push_back(std::move(points));
+      }
+      if (!rings.empty()) polygons.push_back(std::move(rings));
+    };
+    const OGRwkbGeometryType type = wkbFlatten(g->getGeometryType());
+    if (type == wkbPolygon) add_polygon(g->toPolygon());
+    if (type == wkbMultiPolygon) {
+      for (const OGRPolygon* p : *g->toMultiPolygon()) add_polygon(p);
+    }
+  }
+  return polygons;
 }
 
 Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {

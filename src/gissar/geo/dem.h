@@ -127,6 +127,17 @@ Dem ReadDem(const std::filesystem::path& path, const DemReadOptions& options = {
 inline constexpr int kMaxDemOversample = 16;
 Dem RefineDem(const Dem& dem, int factor, int64_t max_posts);
 
+// The lowland of a DEM: the region where the height is at most `level_m`,
+// outlined by the `level_m` contour (GDAL's contour generator: linear
+// interpolation along the edges between posts, so the outline follows the
+// terrain, not the post grid) and closed by the raster's outer edge (half a
+// post beyond the outer posts). One entry per polygon: its shell first, then
+// its holes; points in post coordinates (col, row). Every post counts,
+// no-data posts with the height they hold. Empty when no post is that low.
+// Throws IoError when GDAL cannot stage the grid or trace the contours.
+using PostRing = std::vector<Eigen::Vector2d>;
+std::vector<std::vector<PostRing>> LowlandPolygons(const Dem& dem, double level_m);
+
 // WGS84 longitude/latitude (degrees) and DEM height of the scene centre.
 struct GeoPoint {
   double lon_deg = 0.0;

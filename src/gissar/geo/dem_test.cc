@@ -352,3 +352,53 @@ TEST(DemTest, RefinementKeepsThePostsAndReproducesQuadraticSurfaces) {
 
 }  // namespace
 }  // namespace gissar::geo
+
+namespace gissar::geo {
+namespace {
+
+double ShoelaceArea(const PostRing& ring) {
+  double twice = 0.0;
+  for (size_t i = 0; i + 1 < ring.size(); ++i) {
+    twice += ring[i].x() * ring[i + 1].y() - ring[i + 1].x() * ring[i].y();
+  }
+  return 0.5 * std::abs(twice);
+}
+
+// A ramp rising one metre per post eastwards, and a tilted one: the outline
+// follows the interpolated contour, not the post grid.
+TEST(DemTest, LowlandPolygonsFollowTheContour) {
+  Dem dem;
+  dem.width = 11;
+  dem.height = 11;
+  dem.heights_m.resize(121);
+  for (int r = 0; r < 11; ++r)
+    for (int c = 0; c < 11; ++c) dem.heights_m[size_t(r) * 11 + c] = static_cast<float>(c);
+  // h <= 2.5: columns from the raster edge (-0.5) to 2.5, all 11 rows (-0.5 .. 10.5).
+  auto lowland = LowlandPolygons(dem, 2.5);
+  ASSERT_EQ(lowland.size(), 1u);
+  ASSERT_EQ(lowland[0].size(), 1u);
+  EXPECT_NEAR(ShoelaceArea(lowland[0][0]), 3.0 * 11.0, 1e-4);  // GDAL nudges exact level hits
+  // h = c + 0.5 r <= 4: the line c = 4 - 0.5 r crosses the grid obliquely.
+  for (int r = 0; r < 11; ++r)
+    for (int c = 0; c < 11; ++c) dem.heights_m[size_t(r) * 11 + c] = static_cast<float>(c + 0.5 * r);
+  lowland = LowlandPolygons(dem, 4.0);
+  ASSERT_EQ(lowland.size(), 1u);
+  const PostRing& ring = lowland[0][0];
+  // Every outline point inside the post span lies on the contour c + 0.5 r = 4.
+  int on_contour = 0;
+  for (const auto& p : ring) {
+    if (p.x() > 0.0 && p.x() < 10.0 && p.y() > 0.0 && p.y() < 10.0) {
+      EXPECT_NEAR(p.x() + 0.5 * p.y(), 4.0, 1e-4) << p.transpose();
+      ++on_contour;
+    }
+  }
+  EXPECT_GE(on_contour, 8);
+  // Nothing that low, and everything low.
+  EXPECT_TRUE(LowlandPolygons(dem, -1.0).empty());
+  const auto all = LowlandPolygons(dem, 100.0);
+  ASSERT_EQ(all.size(), 1u);
+  EXPECT_NEAR(ShoelaceArea(all[0][0]), 121.0, 1e-9);
+}
+
+}  // namespace
+}  // namespace gissar::geo

@@ -786,6 +786,41 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       if (land) sea = PolygonalPart(geos, Own(geos, GEOSDifference_r(geos.ctx(), sea.get(), land.get())));
     }
     if (sea) sea = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), sea.get(), extent.get())));
+    // Where a coastline had to be extended beyond the data, the extension is
+    // a guess: its sea is kept only where the DEM is low (the contour at 1 m
+    // above the sea level, interpolated between posts, so the shore follows
+    // the terrain rather than the post grid), except within 2 posts of the
+    // coastline as mapped, which is trusted over the DEM.
+    if (sea && stats.coastline_extended_ends > 0) {
+      std::vector<GeomPtr> keep;
+      for (const auto& polygon : geo::LowlandPolygons(dem, config.sea_level_m + 1.0)) {
+        std::vector<std::vector<Vector2d>> rings;
+        for (const geo::PostRing& ring : polygon) {
+          std::vector<Vector2d> pts;
+          for (const Vector2d& p : ring) pts.push_back(A * p);
+          rings.push_back(std::move(pts));
+        }
+        GeomPtr g = MakePolygon(geos, rings);
+        if (g && GEOSisValid_r(geos.ctx(), g.get()) != 1) {
+          g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
+        }
+        if (g) keep.push_back(std::move(g));
+      }
+      for (const auto& line : coast_lines) {
+        if (GeomPtr l = MakeLine(geos, line)) {
+          keep.push_back(Own(geos, GEOSBuffer_r(geos.ctx(), l.get(), 2.0 * cell_size_m, 8)));
+        }
+      }
+      double before = 0.0, after = 0.0;
+      GEOSArea_r(geos.ctx(), sea.get(), &before);
+      if (GeomPtr allowed = UnionAll(geos, keep)) {
+        sea = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), sea.get(), allowed.get())));
+      } else {
+        sea = nullptr;
+      }
+      if (sea) GEOSArea_r(geos.ctx(), sea.get(), &after);
+      stats.sea_trimmed_m2 = before - after;
+    }
     double area = 0.0;
     if (!IsEmpty(geos, sea.get())) {
       GEOSArea_r(geos.ctx(), sea.get(), &area);
@@ -804,29 +839,6 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     stats.sea_from_dem = std::find(sea_posts.begin(), sea_posts.end(), 1) != sea_posts.end();
     if (!stats.sea_from_dem) sea_posts.clear();
   }
-  // Where a coastline had to be extended beyond the data, the extension is
-  // a guess: sea there is kept only within 2 posts of DEM posts at most 1 m
-  // above the sea level (a cell whose four posts are all farther is land).
-  std::vector<uint8_t> near_low;
-  if (stats.coastline_extended_ends > 0) {
-    const int w = dem.width, h = dem.height;
-    near_low.assign(size_t(w) * h, 0);
-    for (int r = 0; r < h; ++r) {
-      for (int c = 0; c < w; ++c) {
-        if (dem.heights_m[size_t(r) * w + c] > config.sea_level_m + 1.0) continue;
-        for (int rr = std::max(0, r - 2); rr <= std::min(h - 1, r + 2); ++rr) {
-          for (int cc = std::max(0, c - 2); cc <= std::min(w - 1, c + 2); ++cc) near_low[size_t(rr) * w + cc] = 1;
-        }
-      }
-    }
-  }
-  auto cell_is_land = [&](const Vector2d& centroid) {
-    const Vector2d cell = cell_from_planar * centroid;
-    const int c = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
-    const int r = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
-    const size_t i = size_t(r) * dem.width + c;
-    return !near_low[i] && !near_low[i + 1] && !near_low[i + dem.width] && !near_low[i + dem.width + 1];
-  };
   auto cell_is_sea = [&](const Vector2d& centroid) {
     const Vector2d cell = cell_from_planar * centroid;
     const int c = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
@@ -1199,12 +1211,6 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
         cls = kClassSea;
         stats.region_area_m2[kClassDefault] -= area;
         stats.region_area_m2[kClassSea] += area;
-      } else if (cls == kClassSea && !near_low.empty() &&
-                 cell_is_land((planar[g[0]] + planar[g[1]] + planar[g[2]]) / 3.0)) {
-        cls = kClassDefault;
-        ++stats.sea_faces_on_land;
-        stats.region_area_m2[kClassSea] -= area;
-        stats.region_area_m2[kClassDefault] += area;
       }
       stats.mesh_area_m2[cls] += area;
       triangles.emplace_back(g[0], g[1], g[2]);
@@ -1236,6 +1242,51 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
                        roof_vertex(own, b));
       }
     }
+  }
+
+  // The sea surface lies at the sea level: DEM heights over the sea (SRTM's
+  // noise, filled voids, a cliff smoothed over the 90 m posts) are not its
+  // shape, and tilted sea facets would glint. The shore as mapped (the
+  // vertices a sea face shares with the land) is at the sea level too,
+  // except where that would stand a terrain face steeper than 75 degrees (a
+  // DEM post high on a cliff a few metres from the mapped shore): such
+  // vertices keep their DEM height, repeated until no face is that steep
+  // (each round only restores heights, so it ends at worst where it began).
+  {
+    std::vector<uint8_t> lowered(heights.size(), 0);
+    const std::vector<double> dem_heights = heights;
+    for (size_t t = 0; t < triangles.size(); ++t) {
+      if (classes[t] != kClassSea) continue;
+      for (int k = 0; k < 3; ++k) {
+        const size_t v = size_t(triangles[t][k]);
+        if (heights[v] != config.sea_level_m) {
+          heights[v] = config.sea_level_m;
+          lowered[v] = 1;
+        }
+      }
+    }
+    const double tan_max = std::tan(75.0 * M_PI / 180.0);
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (size_t t = 0; t < triangles.size(); ++t) {
+        if (classes[t] == kClassBuilding) continue;
+        const Eigen::Vector3i& tri = triangles[t];
+        if (!lowered[tri[0]] && !lowered[tri[1]] && !lowered[tri[2]]) continue;
+        const Vector2d e1 = planar[tri[1]] - planar[tri[0]], e2 = planar[tri[2]] - planar[tri[0]];
+        const double dh1 = heights[tri[1]] - heights[tri[0]], dh2 = heights[tri[2]] - heights[tri[0]];
+        // Normal (e1, dh1) x (e2, dh2): horizontal part over vertical part = tan(slope).
+        const double nz = e1.x() * e2.y() - e1.y() * e2.x();
+        const Vector2d nxy(e1.y() * dh2 - dh1 * e2.y(), dh1 * e2.x() - e1.x() * dh2);
+        if (nxy.norm() <= tan_max * std::abs(nz)) continue;
+        for (int k = 0; k < 3; ++k) {
+          if (!lowered[tri[k]]) continue;
+          heights[tri[k]] = dem_heights[tri[k]];
+          lowered[tri[k]] = 0;
+          changed = true;
+        }
+      }
+    }
+    stats.sea_level_vertices = std::count(lowered.begin(), lowered.end(), 1);
   }
 
   // 3-D positions: cell -> map -> WGS84 -> ENU at the vertex height.

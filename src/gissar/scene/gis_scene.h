@@ -32,7 +32,8 @@ struct GisSceneStats {
   int64_t buildings = 0;
   int64_t coastline_features = 0;     // coastline ways and island polygons read
   int64_t coastline_extended_ends = 0;  // chain ends inside the extent, extended to its edge
-  int64_t sea_faces_on_land = 0;      // faces beyond an extension that the DEM says are land
+  double sea_trimmed_m2 = 0.0;        // sea beyond an extension that the DEM says is land, removed
+  int64_t sea_level_vertices = 0;     // vertices of sea faces moved to the sea level
   bool sea_from_dem = false;         // the --sea auto fallback (no coastline) was applied
   int64_t outside_posts = 0;          // border-connected no-data posts left out of the scene
   int64_t dropped_faces = 0;          // triangles outside the valid area (and needles)

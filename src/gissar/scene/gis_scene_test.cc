@@ -744,22 +744,82 @@ TEST(GisSceneTest, CoastlinesClosedAgainstTheExtentGiveTheSeaSide) {
   }
   {
     // Ends at the origin, inside: extended along (6, 1) to the east border.
-    // The DEM (0 m south of the line, 10 m north) agrees with the guess.
+    // The DEM (0 m south of the line, 10 m north) agrees with the guess to
+    // within a post: beyond 20 m of the mapped coast the shore is the DEM's
+    // 1 m contour, which runs 1 m north of the last 0 m post, so up to one
+    // post (10 m) short of the line along the extension's 500 m.
     const GisScene scene = sea_scene({{{-600, -100}, {-300, -50}, {0, 0}}}, "dangling.geojson");
     EXPECT_EQ(scene.stats.coastline_extended_ends, 1);
-    EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 500000.0, 500.0);
+    EXPECT_LE(PlanArea(scene.mesh, kClassSea), 500000.0 + 500.0);
+    EXPECT_GE(PlanArea(scene.mesh, kClassSea), 500000.0 - 500.0 * 10.0);
     EXPECT_TRUE(sea_at(scene, {300, -300}));
   }
   {
-    // The same coast on a DEM that is 10 m high east of x = 200 (the real
-    // coast turned south there): beyond 2 posts from the low ground, the
-    // extension's sea is land. Sea: the 0 m ground south of the line up to
-    // x = 200, plus the cells within 2 posts (20 m) east of it.
-    dem_path = DemOf(dir / "turn.tif", [](double x, double y) { return x < 200 && y < x / 6.0 ? 0.0 : 10.0; });
+    // The same coast on a DEM whose shore turns south-east of the origin:
+    // the sea floor is 0 m west of the line x + 0.4 y = 200 and rises 0.1 m
+    // per metre east of it, so the 1 m contour is the oblique line
+    // x + 0.4 y = 210. Beyond 2 posts (20 m) of the mapped coast, the
+    // extension's sea stops on that contour: 6 m (0.6 post) either side of it
+    // is sea and land. (The former rule, sea within 2 posts of a post at most
+    // 1 m high, drew a staircase of cells reaching up to 20 m inland.)
+    dem_path = DemOf(dir / "turn.tif", [](double x, double y) {
+      return y < x / 6.0 ? 0.1 * std::max(0.0, x + 0.4 * y - 200.0) : 10.0;
+    });
     const GisScene scene = sea_scene({{{-600, -100}, {-300, -50}, {0, 0}}}, "dangling2.geojson");
+    for (const double y : {-450.0, -400.0, -333.0, -300.0, -250.0, -200.0}) {
+      const double shore_x = 210.0 - 0.4 * y;
+      EXPECT_TRUE(sea_at(scene, {shore_x - 6.0, y})) << y;
+      EXPECT_FALSE(sea_at(scene, {shore_x + 6.0, y})) << y;
+    }
     EXPECT_TRUE(sea_at(scene, {100, -300}));
     EXPECT_FALSE(sea_at(scene, {400, -300}));
-    EXPECT_GT(scene.stats.sea_faces_on_land, 0);
+    EXPECT_GT(scene.stats.sea_trimmed_m2, 50000.0);
+    ExpectAreasMatch(scene);
+  }
+  {
+    // A flat sea: the DEM says 5 m over the sea (noise, a smoothed cliff);
+    // every vertex of a sea face is at the sea level (0 m, ENU z within the
+    // Earth's curvature over 700 m: 4 cm), the shore included, except shore
+    // vertices a few metres from a 10 m land post (a face steeper than 75
+    // degrees: those keep their DEM height); the land away from the shore
+    // stays at 10 m.
+    dem_path = DemOf(dir / "noisy.tif", [](double x, double y) { return y < x / 6.0 ? 5.0 : 10.0; });
+    const GisScene scene = sea_scene({{{-600, -100}, {0, 0}}, {{0, 0}, {600, 100}}}, "straight2.geojson");
+    EXPECT_GT(scene.stats.sea_level_vertices, 0);
+    std::set<int> sea_vertices, land_vertices;
+    for (size_t t = 0; t < scene.mesh.triangle_count(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        (scene.mesh.classes[t] == kClassSea ? sea_vertices : land_vertices).insert(scene.mesh.triangles[t][k]);
+      }
+    }
+    ASSERT_FALSE(sea_vertices.empty());
+    int shore = 0, shore_at_sea_level = 0;
+    for (int v : sea_vertices) {
+      const float z = scene.mesh.vertices[v].z();
+      if (!land_vertices.count(v)) {
+        EXPECT_NEAR(z, 0.0, 0.05) << v;
+        continue;
+      }
+      ++shore;
+      if (std::abs(z) < 0.05) ++shore_at_sea_level;
+    }
+    EXPECT_GT(shore, 50);
+    EXPECT_GE(shore_at_sea_level, 0.5 * shore);
+    // And no terrain face is steeper than 75 degrees.
+    for (size_t t = 0; t < scene.mesh.triangle_count(); ++t) {
+      const auto& tri = scene.mesh.triangles[t];
+      const Eigen::Vector3d a = scene.mesh.vertices[tri[0]].cast<double>();
+      const Eigen::Vector3d n = (scene.mesh.vertices[tri[1]].cast<double>() - a)
+                                    .cross(scene.mesh.vertices[tri[2]].cast<double>() - a);
+      EXPECT_GE(n.z(), std::cos(75.5 * M_PI / 180.0) * n.norm()) << t;
+    }
+    for (size_t v = 0; v < scene.mesh.vertices.size(); ++v) {
+      const Eigen::Vector3f p = scene.mesh.vertices[v];
+      if (p.y() > p.x() / 6.0 + 30.0) {
+        EXPECT_NEAR(p.z(), 10.0, 0.05) << v;
+      }
+    }
+    EXPECT_NEAR(PlanArea(scene.mesh, kClassSea), 500000.0, 500.0);
   }
 }
 
