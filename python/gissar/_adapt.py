@@ -205,23 +205,31 @@ def run(function, args, kwargs, progress):
         return True
 
     outcome = {}
+    # Completion is our own event: a Thread.join interrupted by KeyboardInterrupt can leave the thread looking
+    # stopped while it still runs (CPython gh-90882).
+    finished = threading.Event()
 
     def work():
         try:
             outcome["value"] = function(*args, progress=hook, **kwargs)
         except BaseException as e:  # noqa: B902 (handed to the calling thread)
             outcome["error"] = e
+        finally:
+            finished.set()
 
     worker = threading.Thread(target=work, name="gissar", daemon=True)
     worker.start()
     try:
         try:
-            while worker.is_alive():
-                worker.join(0.05)
+            while not finished.wait(0.05):
+                pass
         except KeyboardInterrupt:
-            interrupted.set()
-            while worker.is_alive():
-                worker.join(0.05)
+            interrupted.set()  # the core stops at its next progress report
+            while not finished.is_set():
+                try:
+                    finished.wait(0.05)
+                except KeyboardInterrupt:
+                    pass  # already stopping
             raise
     finally:
         if hasattr(user, "close"):
