@@ -133,6 +133,10 @@ def _scene_simulate(self, **kwargs):
     return simulate(scene=self.path, **kwargs)
 
 
+_scene_simulate.__signature__ = _inspect.Signature(
+    [_inspect.Parameter("self", _inspect.Parameter.POSITIONAL_ONLY)]
+    + [p for name, p in _inspect.signature(simulate).parameters.items()
+       if name not in ("dem", "scene", "transform", "crs", "nodata")])
 Scene.build = staticmethod(_scene_build)
 Scene.simulate = _scene_simulate
 

@@ -262,8 +262,9 @@ def _bands(raw):
 
 def _intensity_attrs(options):
     radiometry = options.get("radiometry", "sigma0")
-    return {"long_name": f"SAR intensity ({radiometry}, linear)", "units": "1", "radiometry": radiometry,
-            "scale": "linear"}
+    scale = "dB" if options.get("db") else "linear"
+    return {"long_name": f"SAR intensity ({radiometry}, {scale})", "units": "dB" if scale == "dB" else "1",
+            "radiometry": radiometry, "scale": scale}
 
 
 def simulated_dataarray(raw):
