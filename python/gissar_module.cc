@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/pipeline/geocode.h"
 #include "gissar/pipeline/locate.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
@@ -49,6 +50,7 @@
 #include "gissar/util/reporter.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
+#include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
 #include <opencv2/imgproc.hpp>
@@ -273,13 +275,30 @@ py::dict Simulate(py::kwargs kwargs) {
   render::SarImage image;
   std::optional<sensor::SarGeometry> geometry;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  // With out_prefix: also the command line's files (GeoTIFF, mask, quicklooks,
+  // sidecar, STAC Item), reserved first and written from the same image.
+  const bool write_files = options.out_prefix != "(python)";
+  std::vector<std::string> written;
   {
     py::gil_scoped_release release;
     options.Check();
+    const Stopwatch total;
+    std::unique_ptr<pipeline::SimulationOutputs> outputs;
+    if (write_files) {
+      outputs = std::make_unique<pipeline::SimulationOutputs>();
+      pipeline::ReserveSimulationOutputs(options, *outputs);
+    }
     pipeline::SimulatedImage simulated = pipeline::SimulateImage(options, reporter);
-    image = std::move(simulated.image);
     geometry = simulated.geometry;
     centre = simulated.terrain.centre_enu;
+    if (write_files) {
+      image = simulated.image;
+      const pipeline::SimulateResult r =
+          pipeline::WriteSimulation(options, simulated, "python: gissar.simulate", *outputs, total);
+      for (const auto& p : r.outputs) written.push_back(p.string());
+    } else {
+      image = std::move(simulated.image);
+    }
   }
   py::array_t<float> bands({render::kBounceLayers, image.height, image.width});
   for (int b = 0; b < render::kBounceLayers; ++b) {
@@ -302,6 +321,7 @@ py::dict Simulate(py::kwargs kwargs) {
   out["metadata"] = geometry->ToMetadata();
   out["centre_enu_m"] = std::array<double, 3>{centre.x(), centre.y(), centre.z()};
   out["options"] = JsonToPython(options.ToJson());
+  if (write_files) out["outputs"] = written;
   return out;
 }
 
@@ -802,6 +822,35 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "'bounces': (4, rows, cols), 'mask': uint8, 'lon_deg'/'lat_deg'/'height_m': per-pixel ground point "
         "(WGS84 degrees, ellipsoidal m; NaN where none), 'real_amplitude': |SLC|, 'zero_doppler_time_s', "
         "'slant_range_m', 'wavelength_m', 'look_side', 'options'}. Same as `gissar simulate --product`.");
+
+  m.def("geocode", [](const std::string& image, const std::string& out_prefix, const std::string& dem,
+                      const std::string& vertical_datum, const std::string& crs, double pixel_size_m,
+                      const std::string& resampling) {
+        pipeline::GeocodeRequest o;
+        o.image = image;
+        o.out_prefix = out_prefix;
+        o.dem = dem;
+        o.vertical_datum = vertical_datum;
+        o.crs = crs;
+        o.pixel_size_m = pixel_size_m;
+        o.resampling = resampling;
+        pipeline::GeocodeResult r;
+        PyReporter reporter{py::none()};
+        {
+          py::gil_scoped_release release;
+          o.Check();
+          r = pipeline::RunGeocode(o, "python: gissar.geocode", reporter);
+        }
+        std::vector<std::string> paths;
+        for (const auto& p : r.outputs) paths.push_back(p.string());
+        return py::dict(py::arg("outputs") = paths, py::arg("width") = r.width, py::arg("height") = r.height,
+                        py::arg("geotransform") = r.geotransform, py::arg("crs") = r.crs,
+                        py::arg("valid_pixels") = r.valid_pixels);
+      }, py::arg("image"), py::arg("out_prefix"), py::arg("dem") = "", py::arg("vertical_datum") = "",
+      py::arg("crs") = "", py::arg("pixel_size_m") = 0.0, py::arg("resampling") = "bilinear",
+      "`gissar geocode` (docs/georeferencing.md): a simulation's PREFIX.tif (with its sidecar and mask beside "
+      "it) to map geometry: out_prefix.tif (the image's bands, local_incidence, layover_shadow), .json, "
+      "_stac.json. Returns {'outputs', 'width', 'height', 'geotransform', 'crs', 'valid_pixels'}.");
 
   m.def("load_scene", [](const std::string& path) {
         const scene::SceneFile s = scene::ReadScene(path);

@@ -7,6 +7,7 @@ Keyword names are the request field names of docs/conventions.md (``heading_deg`
 the same names as the options-file keys and the sidecar keys of the command line.
 """
 import inspect as _inspect
+import json as _json
 import os as _os
 
 from . import _core
@@ -60,6 +61,10 @@ def _simulate_raw(dem=None, *, transform=None, crs=None, nodata=None, progress=N
 
 
 def simulate(dem=None, **kwargs):
+    if kwargs.get("out_prefix") is None:
+        kwargs.pop("out_prefix", None)
+    else:
+        kwargs["out_prefix"] = _os.fspath(kwargs["out_prefix"])
     return _adapt.simulated_dataarray(_simulate_raw(dem, **kwargs))
 
 
@@ -100,14 +105,44 @@ and the GISSAR_* geometry metadata of the GeoTIFF. `da.gissar.geometry` is its S
 `da.gissar.image` the total band. Values identical to `gissar simulate`'s GeoTIFF bands.
 transform: GDAL's six coefficients or affine.Affine; crs: EPSG code, WKT/'EPSG:n' or pyproj CRS; nodata: the
 array's no-data value. progress: callable(stage, done, total) (return False to stop: gissar.Cancelled), True
-for a tqdm bar, or None. Ctrl-C stops the run (KeyboardInterrupt). gissar.raw.simulate returns the dict."""
+for a tqdm bar, or None. Ctrl-C stops the run (KeyboardInterrupt). out_prefix: also write the command line's
+files (PREFIX.tif, _mask.tif, .png, _quicklook.png, .json, _stac.json; attrs['outputs'] lists them), e.g. for
+gissar.geocode; nothing is written without it. gissar.raw.simulate returns the dict."""
 
 _with_request_signature(
     simulate, _core.simulate_request_defaults(),
     leading=[("dem", None)],
-    trailing=[("transform", None), ("crs", None), ("nodata", None), ("progress", None)],
+    trailing=[("transform", None), ("crs", None), ("nodata", None), ("progress", None), ("out_prefix", None)],
     summary=_SIMULATE_SUMMARY)
 simulate.__module__ = "gissar"
+
+
+def geocode(image, out_prefix, *, dem=None, vertical_datum="", crs=None, pixel_size_m=0.0, resampling="bilinear"):
+    """`gissar geocode` (docs/georeferencing.md): a simulation to map geometry by exact back-geocoding.
+
+    image: the PREFIX.tif a simulation wrote (str/Path), or a DataArray returned by simulate(...,
+    out_prefix=...). out_prefix: where the map product goes (out_prefix.tif, .json, _stac.json). dem: optional
+    DEM replacing the simulation's terrain (path, GDAL dataset or rioxarray DataArray). crs: the output CRS (EPSG
+    code, 'EPSG:n', WKT or pyproj CRS; projected, metres; None = the UTM zone of the scene centre);
+    pixel_size_m: output pixel size (0 = the image's larger spacing); resampling: 'bilinear' or 'average'.
+
+    Returns an xarray.DataArray 'intensity' (band, y, x): bands as the image's, x/y in metres of the CRS,
+    .rio.crs set (rioxarray), 2-D coordinates local_incidence_deg and layover_shadow (flag_values 0 1 2 3:
+    none layover shadow layover_and_shadow; NaN where not imaged); attrs['outputs'] the written files.
+    `da.rio.to_raster(path)` writes it as a GeoTIFF."""
+    if _adapt._is_dataarray(image):
+        try:
+            image = _json.loads(image.attrs["options"])["out_prefix"] + ".tif"
+        except KeyError:
+            raise ConfigError("a DataArray image must come from simulate(..., out_prefix=...) (image)") from None
+        if image == "(python).tif":
+            raise ConfigError("the simulation wrote no files: give simulate(..., out_prefix=...) (image)")
+    crs_text = "" if crs is None else _adapt._crs_text(crs, "crs")
+    with _adapt.raster_path(dem, None, None, None, "dem") as dem_path:
+        r = _core.geocode(_os.fspath(image), _os.fspath(out_prefix), dem=dem_path or "",
+                          vertical_datum=vertical_datum, crs=crs_text, pixel_size_m=pixel_size_m,
+                          resampling=resampling)
+    return _adapt.map_dataarray(_os.fspath(out_prefix) + ".tif", r["outputs"])
 
 
 # ---------------------------------------------------------------- Scene

@@ -290,6 +290,8 @@ def simulated_dataarray(raw):
     attrs.update(_provenance(raw["options"]))
     attrs.update(raw["metadata"])
     attrs["centre_enu_m"] = list(raw["centre_enu_m"])
+    if "outputs" in raw:
+        attrs["outputs"] = list(raw["outputs"])
     return xr.DataArray(_bands(raw), dims=("band",) + dims, coords=coords, attrs=attrs, name="intensity")
 
 
@@ -355,3 +357,28 @@ def register_accessor():
             return json.loads(self._da.attrs["options"])
 
     return GissarAccessor
+
+
+def map_dataarray(path, outputs):
+    """A geocoded GeoTIFF (pipeline/geocode.h) as an xarray.DataArray (band, y, x) with .rio.crs: the image
+    bands by name; local_incidence and layover_shadow as 2-D coordinates."""
+    import rioxarray
+    with rioxarray.open_rasterio(path, mask_and_scale=False) as src:
+        da = src.load()
+    names = da.attrs.pop("long_name", None)
+    names = [names] if isinstance(names, str) else list(names)
+    da = da.assign_coords(band=names)
+    incidence = da.sel(band="local_incidence", drop=True).values
+    codes = da.sel(band="layover_shadow", drop=True).values
+    image = da.sel(band=[n for n in names if n not in ("local_incidence", "layover_shadow")])
+    spatial = ("y", "x")
+    image = image.assign_coords(
+        local_incidence_deg=(spatial, incidence, {"units": "degrees", "long_name": "local incidence angle"}),
+        layover_shadow=(spatial, codes, {"long_name": "layover/shadow mask", "flag_values": np.array([0, 1, 2, 3]),
+                                         "flag_meanings": "none layover shadow layover_and_shadow"}))
+    db = "(dB)" in str(image.attrs.get("GISSAR_UNITS", ""))
+    image.attrs.update({"units": "dB" if db else "1", "long_name": "SAR intensity (map geometry)",
+                        "outputs": list(outputs),
+                        "gissar_version": _core.version().split()[1]})
+    image.name = "intensity"
+    return image

@@ -114,19 +114,29 @@ def test_a_scene_builds_from_an_array_and_a_dataarray_is_an_image(tmp_path):
     assert np.array_equal(grey, gissar.quicklook(sim.sel(band="total").values)[0])
 
 
-def test_map_geometry_dataarray_round_trips_through_rio_to_raster(tmp_path):
-    """A DEM as a rioxarray DataArray out (x/y in metres, CRS set) -> to_raster -> GDAL reads the CRS back."""
-    import rioxarray  # noqa: F401
-    import xarray as xr
+def test_map_geometry_result_round_trips_through_rio_to_raster(tmp_path):
+    """simulate(out_prefix=) writes the CLI's files; geocode makes the map product: a DataArray with x/y in
+    metres and .rio.crs, which rio.to_raster writes and GDAL reads back with the same CRS and values."""
     from osgeo import gdal
-    x = 400000.0 + 100.0 * np.arange(4)
-    y = 4700000.0 - 100.0 * np.arange(3)
-    da = xr.DataArray(np.arange(12, dtype=np.float32).reshape(3, 4), dims=("y", "x"), coords={"x": x, "y": y})
-    da = da.rio.write_crs(32631)
-    da.rio.to_raster(str(tmp_path / "m.tif"))
-    ds = gdal.Open(str(tmp_path / "m.tif"))
-    assert ds.GetSpatialRef().GetAuthorityCode(None) == "32631"
-    assert ds.GetGeoTransform()[0] == pytest.approx(399950.0)
+    sim = gissar.simulate(DEM, out_prefix=tmp_path / "s", **COARSE)
+    assert sim.attrs["outputs"] and all(os.path.exists(p) for p in sim.attrs["outputs"])
+    tif = gdal.Open(str(tmp_path / "s.tif"))
+    assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), sim.sel(band="total").values, equal_nan=True)
+    assert np.array_equal(sim.values, gissar.simulate(DEM, **COARSE).values, equal_nan=True)
+    m = gissar.geocode(sim, tmp_path / "m", crs=32631, pixel_size_m=250)
+    assert m.dims == ("band", "y", "x") and list(m["band"].values)[0] == "total"
+    assert m.rio.crs.to_epsg() == 32631
+    np.testing.assert_allclose(np.diff(m.x.values), 250.0)
+    np.testing.assert_allclose(np.diff(m.y.values), -250.0)
+    assert m["layover_shadow"].attrs["flag_meanings"].startswith("none layover")
+    inc = m["local_incidence_deg"].values  # > 90 deg: slopes facing away from the radar (shadow)
+    assert 0 <= np.nanmin(inc) and np.nanmax(inc) <= 180 and np.nanmedian(inc) < 90
+    assert np.isfinite(m.sel(band="total").values).mean() > 0.3
+    m.rio.to_raster(str(tmp_path / "round.tif"))
+    back = gdal.Open(str(tmp_path / "round.tif"))
+    assert back.GetSpatialRef().GetAuthorityCode(None) == "32631"
+    assert back.GetGeoTransform() == pytest.approx(gdal.Open(str(tmp_path / "m.tif")).GetGeoTransform())
+    assert np.array_equal(back.GetRasterBand(1).ReadAsArray(), m.sel(band="total").values, equal_nan=True)
 
 
 # ---------------------------------------------------------------- pickling

@@ -17,8 +17,9 @@ def image_of(dem: Path) -> npt.NDArray[np.float32]:
 
 
 def from_array(heights: npt.NDArray[np.float32]) -> xr.DataArray:
-    return gissar.simulate(heights, transform=(400000.0, 30.0, 0.0, 4700000.0, 0.0, -30.0), crs=32631,
-                           heading_deg=0.0, depression_deg=40.0, nodata=-9999.0)
+    sim = gissar.simulate(heights, transform=(400000.0, 30.0, 0.0, 4700000.0, 0.0, -30.0), crs=32631,
+                          heading_deg=0.0, depression_deg=40.0, nodata=-9999.0, out_prefix=Path("out/s"))
+    return gissar.geocode(sim, "out/m", crs=32631, pixel_size_m=30.0)
 
 
 def scene_pose(prefix: str) -> Dict[str, Any]:
