@@ -81,14 +81,14 @@ def run(out):
         sim = scene.simulate(heading_deg=heading, depression_deg=DEPRESSION_DEG, slant_range_m=SLANT_RANGE_M,
                              range_spacing_m=SPACING_M, azimuth_spacing_m=SPACING_M, width=SIZE_PX,
                              height=SIZE_PX, speckle_looks=4, seed=k + 1)
-        g = sim["geometry"]
+        g = sim.gissar.geometry  # sim: xarray.DataArray (band, along_track_m, slant_range_m)
         save(f"sar_h{heading:03.0f}_quicklook.png",
-             gissar.annotated_quicklook(sim["image"], g.range_spacing_m, g.azimuth_spacing_m,
+             gissar.annotated_quicklook(sim, g.range_spacing_m, g.azimuth_spacing_m,
                                         f"Andorra, heading {heading:.0f} deg, depression {DEPRESSION_DEG:.0f} deg",
                                         near_range_m=g.slant_range_m - g.u0 * g.range_spacing_m,
                                         azimuth_origin_m=-g.v0 * g.azimuth_spacing_m))
-        say(f"image at heading {heading:.0f} deg: {sim['image'].shape[1]} x {sim['image'].shape[0]} px, "
-            f"layover {sim['layover'].mean():.1%}, shadow {sim['shadow'].mean():.1%}")
+        say(f"image at heading {heading:.0f} deg: {sim.sizes['slant_range_m']} x {sim.sizes['along_track_m']} px, "
+            f"layover {float(sim['layover'].mean()):.1%}, shadow {float(sim['shadow'].mean()):.1%}")
         sims.append(sim)
     # The sensor flying round the scene centre from heading 0 to 30 deg, as an animated GIF.
     paths = gissar.sequence(os.path.join(out, "sequence"), HEADINGS_DEG[0], HEADINGS_DEG[1], frames=4,
@@ -101,7 +101,7 @@ def run(out):
     # 3. Matches. The INS predicts where a pixel of image 1 lands in image 2 (plane through the scene
     #    centre, reported heading 31.5 deg): image 2 is resampled onto image 1 with that affine map and
     #    matched by dense NCC of log intensities; the residual shifts are the relief parallax.
-    g1, g2 = sims[0]["geometry"], sims[1]["geometry"]
+    g1, g2 = sims[0].gissar.geometry, sims[1].gissar.geometry
     ins2 = gissar.SarGeometry(heading_deg=HEADINGS_DEG[1] + INS_HEADING_ERROR_DEG, depression_deg=DEPRESSION_DEG,
                               range_spacing_m=SPACING_M, azimuth_spacing_m=SPACING_M,
                               slant_range_m=SLANT_RANGE_M, scene_centre_enu_m=g2.scene_centre_enu_m,
@@ -109,7 +109,7 @@ def run(out):
     plane = np.array(g1.scene_centre_enu_m) + np.array([[0.0, 0, 0], [1000, 0, 0], [0, 1000, 0]])
     p1, p2 = g1.project(plane), ins2.project(plane)
     predicted = np.linalg.solve(np.column_stack([p1, np.ones(3)]), p2).T  # (2, 3): pixel 1 -> pixel 2
-    m = gissar.match_images(sims[0]["image"], sims[1]["image"], warp=predicted, search_px=16, step_px=10)
+    m = gissar.match_images(sims[0], sims[1], warp=predicted, search_px=16, step_px=10)
     x1, x2 = m["x_reference"], m["x_observed"]
     # Saved for the command line (`gissar fmatrix --matches`, `gissar register --points`).
     np.savetxt(os.path.join(out, "matches.csv"), np.column_stack([x1, x2]), delimiter=",", fmt="%.4f",
@@ -129,12 +129,12 @@ def run(out):
     inlier = np.zeros(len(x1), bool)
     inlier[f["inliers"]] = True
     save("matches_epipolar.png",
-         gissar.epipolar_plot(sims[0]["image"], sims[1]["image"], x1[every], x2[every], f["F"],
+         gissar.epipolar_plot(sims[0], sims[1], x1[every], x2[every], f["F"],
                               inliers=list(np.flatnonzero(inlier[every]))))
     # Registration: image 2 warped onto image 1 by the affine map of the matches. Flat ground lines up
     # (grey); relief that the plane map cannot follow shows as green/magenta fringes.
-    reg = gissar.register_images(sims[0]["image"], sims[1]["image"], x1, x2, transform="affine")
-    save("registration_composite.png", gissar.composite(sims[0]["image"], reg["warped"]))
+    reg = gissar.register_images(sims[0], sims[1], x1, x2, transform="affine")
+    save("registration_composite.png", gissar.composite(sims[0], reg["warped"]))
     say(f"registration: affine RMS {reg['rms_px']:.2f} px over {len(reg['inliers'])} inliers (relief parallax)")
 
     # 5. Pose fix of pass 2 from its image and the scene, starting at the drifted INS pose.
@@ -143,7 +143,7 @@ def run(out):
              "sensor_enu_m": list(truth + INS_POSITION_ERROR_M)}
     with open(os.path.join(out, "prior.json"), "w") as f_prior:  # for `gissar locate --prior`
         json.dump(prior, f_prior)
-    fix = gissar.locate(scene, sims[1]["image"], prior, range_spacing_m=SPACING_M, azimuth_spacing_m=SPACING_M)
+    fix = gissar.locate(scene, sims[1], prior, range_spacing_m=SPACING_M, azimuth_spacing_m=SPACING_M)
     pose = fix["pose"]
     prior_error = np.linalg.norm(np.array(fix["prior"]["sensor_enu_m"]) - truth)
     fix_error = np.linalg.norm(np.array(pose["sensor_enu_m"]) - truth)
@@ -154,8 +154,8 @@ def run(out):
     # Real (here: the observed image) vs simulated, at the prior and at the fix.
     # Green: the observed image; magenta: the simulation. Grey where they agree.
     save("locate_composite.png", gissar.side_by_side(
-        [gissar.composite(sims[1]["image"], fix["reference_at_prior"]),
-         gissar.composite(sims[1]["image"], fix["reference_at_fix"])],
+        [gissar.composite(sims[1], fix["reference_at_prior"]),
+         gissar.composite(sims[1], fix["reference_at_fix"])],
         [f"INS prior: {prior_error:.0f} m off", f"pose fix: {fix_error:.0f} m off"]))
 
     # The figures docs/tutorial.md quotes (`make docs-numbers` writes them into it; the docs test

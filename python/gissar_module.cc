@@ -8,6 +8,7 @@
 #include <cctype>
 #include <map>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 
 #include <pybind11/eval.h>
@@ -17,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/pipeline/geocode.h"
 #include "gissar/pipeline/locate.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
@@ -48,6 +50,7 @@
 #include "gissar/util/reporter.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
+#include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
 #include <opencv2/imgproc.hpp>
@@ -139,24 +142,30 @@ std::string PythonMessage(const Error& e) {
     }
     return m;
   }();
-  std::string where = e.where();
-  std::string out;
-  size_t i = 0;
-  while (i < where.size()) {
-    const size_t start = where.find("--", i);
-    if (start == std::string::npos) {
-      out += where.substr(i);
-      break;
+  // Every "--flag" of a request field in `text` becomes its Python name
+  // (+ `suffix`), in the message ("use fill_nodata to ...") as in the place.
+  const auto python_names = [](const std::string& text, const std::string& suffix) {
+    std::string out;
+    size_t i = 0;
+    while (i < text.size()) {
+      const size_t start = text.find("--", i);
+      if (start == std::string::npos) {
+        out += text.substr(i);
+        break;
+      }
+      size_t end = start + 2;
+      while (end < text.size() && (std::isalnum(static_cast<unsigned char>(text[end])) || text[end] == '-')) ++end;
+      out += text.substr(i, start - i);
+      const std::string flag = text.substr(start, end - start);
+      const auto it = parameter_of_flag.find(flag);
+      out += it != parameter_of_flag.end() ? it->second + suffix : flag;
+      i = end;
     }
-    size_t end = start + 2;
-    while (end < where.size() && (std::isalnum(static_cast<unsigned char>(where[end])) || where[end] == '-')) ++end;
-    out += where.substr(i, start - i);
-    const std::string flag = where.substr(start, end - start);
-    const auto it = parameter_of_flag.find(flag);
-    out += it != parameter_of_flag.end() ? it->second : flag;
-    i = end;
-  }
-  return where.empty() ? e.message() : e.message() + " (" + out + ")";
+    return out;
+  };
+  const std::string where = e.where();
+  const std::string message = python_names(e.message(), "");
+  return where.empty() ? message : message + " (" + python_names(where, "") + ")";
 }
 
 // The Python door's Reporter (util/reporter.h): warnings become Python
@@ -266,13 +275,30 @@ py::dict Simulate(py::kwargs kwargs) {
   render::SarImage image;
   std::optional<sensor::SarGeometry> geometry;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  // With out_prefix: also the command line's files (GeoTIFF, mask, quicklooks,
+  // sidecar, STAC Item), reserved first and written from the same image.
+  const bool write_files = options.out_prefix != "(python)";
+  std::vector<std::string> written;
   {
     py::gil_scoped_release release;
     options.Check();
+    const Stopwatch total;
+    std::unique_ptr<pipeline::SimulationOutputs> outputs;
+    if (write_files) {
+      outputs = std::make_unique<pipeline::SimulationOutputs>();
+      pipeline::ReserveSimulationOutputs(options, *outputs);
+    }
     pipeline::SimulatedImage simulated = pipeline::SimulateImage(options, reporter);
-    image = std::move(simulated.image);
     geometry = simulated.geometry;
     centre = simulated.terrain.centre_enu;
+    if (write_files) {
+      image = simulated.image;
+      const pipeline::SimulateResult r =
+          pipeline::WriteSimulation(options, simulated, "python: gissar.simulate", *outputs, total);
+      for (const auto& p : r.outputs) written.push_back(p.string());
+    } else {
+      image = std::move(simulated.image);
+    }
   }
   py::array_t<float> bands({render::kBounceLayers, image.height, image.width});
   for (int b = 0; b < render::kBounceLayers; ++b) {
@@ -295,6 +321,7 @@ py::dict Simulate(py::kwargs kwargs) {
   out["metadata"] = geometry->ToMetadata();
   out["centre_enu_m"] = std::array<double, 3>{centre.x(), centre.y(), centre.z()};
   out["options"] = JsonToPython(options.ToJson());
+  if (write_files) out["outputs"] = written;
   return out;
 }
 
@@ -380,7 +407,21 @@ struct PyScene {
   std::string path;
   scene::SceneFile file;
   py::object summary = py::none();  // the build summary when built here
+  std::string sha256;               // of the file, computed when first pickled
 };
+
+// SHA-256 (hex) of a file's contents (Python's hashlib).
+std::string FileSha256(const std::string& path) {
+  py::object h = py::module_::import("hashlib").attr("sha256")();
+  py::object f = py::module_::import("builtins").attr("open")(path, "rb");
+  while (true) {
+    py::bytes chunk = f.attr("read")(1 << 22);
+    if (PyBytes_Size(chunk.ptr()) == 0) break;
+    h.attr("update")(chunk);
+  }
+  f.attr("close")();
+  return h.attr("hexdigest")().cast<std::string>();
+}
 
 PyScene LoadPyScene(const std::string& path) {
   PyScene s;
@@ -732,6 +773,30 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         return std::array<double, 3>{p.x(), p.y(), p.z()};
       }, py::arg("along_track_m") = 0.0, "Sensor position (ENU m) at an along-track distance (m) from the centre.")
       .def("metadata", &sensor::SarGeometry::ToMetadata, "The GISSAR_* metadata of the GeoTIFFs.")
+      // By value: the constructor's arguments, doubles exact.
+      .def(py::pickle(
+          [](const sensor::SarGeometry& g) {
+            const sensor::SarGeometryOptions& o = g.options();
+            return py::make_tuple(o.heading_deg, o.depression_deg, o.range_spacing_m, o.azimuth_spacing_m,
+                                  sensor::ToString(o.look_side),
+                                  g.mode() == sensor::ProjectionMode::kAffine ? "affine" : "exact", o.slant_range_m,
+                                  std::array<double, 3>{g.scene_centre().x(), g.scene_centre().y(), g.scene_centre().z()},
+                                  g.u0(), g.v0(), g.width(), g.height());
+          },
+          [](const py::tuple& t) {
+            if (t.size() != 12) throw InputError("not a pickled SarGeometry", "gissar.SarGeometry");
+            sensor::SarGeometryOptions o;
+            o.heading_deg = t[0].cast<double>();
+            o.depression_deg = t[1].cast<double>();
+            o.range_spacing_m = t[2].cast<double>();
+            o.azimuth_spacing_m = t[3].cast<double>();
+            o.look_side = sensor::ParseLookSide(t[4].cast<std::string>());
+            o.mode = sensor::ParseProjectionMode(t[5].cast<std::string>());
+            o.slant_range_m = t[6].cast<double>();
+            const auto c = t[7].cast<std::array<double, 3>>();
+            return sensor::SarGeometry(o, Eigen::Vector3d(c[0], c[1], c[2]), t[8].cast<double>(), t[9].cast<double>(),
+                                       t[10].cast<int>(), t[11].cast<int>());
+          }))
       .def("__repr__", [](const sensor::SarGeometry& g) {
         return "<gissar.SarGeometry heading " + std::to_string(g.options().heading_deg) + " deg, depression " +
                std::to_string(g.options().depression_deg) + " deg, " + std::to_string(g.width()) + " x " +
@@ -757,6 +822,35 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "'bounces': (4, rows, cols), 'mask': uint8, 'lon_deg'/'lat_deg'/'height_m': per-pixel ground point "
         "(WGS84 degrees, ellipsoidal m; NaN where none), 'real_amplitude': |SLC|, 'zero_doppler_time_s', "
         "'slant_range_m', 'wavelength_m', 'look_side', 'options'}. Same as `gissar simulate --product`.");
+
+  m.def("geocode", [](const std::string& image, const std::string& out_prefix, const std::string& dem,
+                      const std::string& vertical_datum, const std::string& crs, double pixel_size_m,
+                      const std::string& resampling) {
+        pipeline::GeocodeRequest o;
+        o.image = image;
+        o.out_prefix = out_prefix;
+        o.dem = dem;
+        o.vertical_datum = vertical_datum;
+        o.crs = crs;
+        o.pixel_size_m = pixel_size_m;
+        o.resampling = resampling;
+        pipeline::GeocodeResult r;
+        PyReporter reporter{py::none()};
+        {
+          py::gil_scoped_release release;
+          o.Check();
+          r = pipeline::RunGeocode(o, "python: gissar.geocode", reporter);
+        }
+        std::vector<std::string> paths;
+        for (const auto& p : r.outputs) paths.push_back(p.string());
+        return py::dict(py::arg("outputs") = paths, py::arg("width") = r.width, py::arg("height") = r.height,
+                        py::arg("geotransform") = r.geotransform, py::arg("crs") = r.crs,
+                        py::arg("valid_pixels") = r.valid_pixels);
+      }, py::arg("image"), py::arg("out_prefix"), py::arg("dem") = "", py::arg("vertical_datum") = "",
+      py::arg("crs") = "", py::arg("pixel_size_m") = 0.0, py::arg("resampling") = "bilinear",
+      "`gissar geocode` (docs/georeferencing.md): a simulation's PREFIX.tif (with its sidecar and mask beside "
+      "it) to map geometry: out_prefix.tif (the image's bands, local_incidence, layover_shadow), .json, "
+      "_stac.json. Returns {'outputs', 'width', 'height', 'geotransform', 'crs', 'valid_pixels'}.");
 
   m.def("load_scene", [](const std::string& path) {
         const scene::SceneFile s = scene::ReadScene(path);
@@ -973,6 +1067,34 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
                         image::ClassColourList());
         outputs.Commit();
       }, py::arg("path"), "Wavefront OBJ + MTL beside it (class colours), ENU metres, for any 3-D viewer.")
+      // By path + content hash (a scene can be gigabytes): the unpickling
+      // process reads the same file and refuses a missing or changed one.
+      .def(py::pickle(
+          [](PyScene& s) {
+            if (s.sha256.empty()) s.sha256 = FileSha256(s.path);
+            return py::make_tuple(std::filesystem::absolute(s.path).string(), s.sha256, s.summary);
+          },
+          [](const py::tuple& t) {
+            if (t.size() != 3) throw InputError("not a pickled Scene", "gissar.Scene");
+            const std::string path = t[0].cast<std::string>();
+            const std::string sha256 = t[1].cast<std::string>();
+            std::error_code ec;
+            if (!std::filesystem::exists(path, ec)) {
+              throw InputError("scene file does not exist here (a pickled Scene refers to its file: make it "
+                               "visible to this process at the same path)", path);
+            }
+            if (FileSha256(path) != sha256) {
+              throw InputError("scene file changed since the Scene was pickled (content hash differs)", path);
+            }
+            PyScene s = LoadPyScene(path);
+            s.sha256 = sha256;
+            s.summary = t[2];
+            return s;
+          }))
+      .def_property_readonly("sha256", [](PyScene& s) {
+        if (s.sha256.empty()) s.sha256 = FileSha256(s.path);
+        return s.sha256;
+      }, "SHA-256 of the .gscene file (what a pickled Scene checks on loading).")
       .def("__repr__", [](const PyScene& s) {
         return "<gissar.Scene '" + s.path + "', " + std::to_string(s.file.mesh.triangle_count()) + " triangles>";
       });

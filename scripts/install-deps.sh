@@ -22,6 +22,8 @@ PACKAGES=(
   python3-venv python3-pip python3-setuptools          # pip install . (make install-python)
   pybind11-dev python3-dev python3-numpy python3-pytest python3-gdal  # Python API
   python3-jsonschema                                   # STAC Items against the published schemas (tests/stac_test.py)
+  python3-xarray python3-rioxarray python3-tqdm       # Python results as xarray (rioxarray: CRS), progress bars
+  python3-mypy                                         # type stubs checked in the tests
 )
 
 missing=()

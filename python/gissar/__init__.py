@@ -7,11 +7,14 @@ Keyword names are the request field names of docs/conventions.md (``heading_deg`
 the same names as the options-file keys and the sidecar keys of the command line.
 """
 import inspect as _inspect
+import json as _json
+import os as _os
 
 from . import _core
 from ._core import *  # noqa: F401,F403  (the compiled API)
 from ._core import (Cancelled, ConfigError, Error, GissarWarning, InputError, IoError,  # noqa: F401
-                    MissingFileError)
+                    MissingFileError, SarGeometry, Scene)
+from . import _adapt
 
 #: The library version, as ``gissar --version`` prints it (``gissar 0.1.0 (describe)``: the middle word).
 __version__ = _core.version().split()[1]
@@ -44,13 +47,197 @@ def _with_request_signature(function, defaults, leading, trailing, summary):
     return function
 
 
-def simulate(dem=None, **kwargs):
-    return _core.simulate(**({"dem": dem} if dem is not None else {}), **kwargs)
+def _scene_path(scene):
+    return scene.path if isinstance(scene, _core.Scene) else scene
 
+
+def _simulate_raw(dem=None, *, transform=None, crs=None, nodata=None, progress=None, **kwargs):
+    if "scene" in kwargs:
+        kwargs["scene"] = _scene_path(kwargs["scene"])
+    with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
+        if path is not None:
+            kwargs["dem"] = path
+        return _adapt.run(_core.simulate, (), kwargs, progress)
+
+
+def simulate(dem=None, **kwargs):
+    if kwargs.get("out_prefix") is None:
+        kwargs.pop("out_prefix", None)
+    else:
+        kwargs["out_prefix"] = _os.fspath(kwargs["out_prefix"])
+    return _adapt.simulated_dataarray(_simulate_raw(dem, **kwargs))
+
+
+def _simulate_product_raw(product, *, dem=None, transform=None, crs=None, nodata=None, progress=None, **kwargs):
+    if "scene" in kwargs:
+        kwargs["scene"] = _scene_path(kwargs["scene"])
+    with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
+        if path is not None:
+            kwargs["dem"] = path
+        return _adapt.run(_core.simulate_product, (_os.fspath(product),), kwargs, progress)
+
+
+def simulate_product(product, **kwargs):
+    """Simulate a real product's radar grid (NISAR RSLC HDF5, e.g. the UAVSAR chips): keywords as for
+    simulate (dem or scene, fill_nodata, dem_oversample, vertical_datum, rays_per_cell, bounces, seed, ...; no
+    heading/depression/spacings: the product fixes them); dem as for simulate (path, GDAL dataset, array with
+    transform= and crs=, rioxarray DataArray); progress as for simulate.
+
+    Returns an xarray.DataArray 'intensity' (band, zero_doppler_time_s, slant_range_m): bands total, single,
+    double, triple, four_or_more (linear, units '1'), coordinates the product's line times (s) and bin slant
+    ranges (m); 2-D coordinates mask (flag_values/flag_meanings), lon_deg, lat_deg, height_m (per-pixel ground
+    point, NaN where none) and real_amplitude (|SLC|); attrs wavelength_m, look_side, options (JSON),
+    gissar_version. Same values as `gissar simulate --product` (gissar.raw.simulate_product: the dict)."""
+    return _adapt.product_dataarray(_simulate_product_raw(product, **kwargs))
+
+
+simulate_product.__module__ = "gissar"
+
+_SIMULATE_SUMMARY = """Simulate a SAR image of a DEM (path, GDAL dataset, NumPy array with transform= and crs=, or a
+rioxarray DataArray; nothing is written to disk) or a scene (scene=path or gissar.Scene).
+
+Returns an xarray.DataArray 'intensity' with dims (band, along_track_m, slant_range_m): bands total, single,
+double, triple, four_or_more (linear intensity in the request's radiometry, sigma0 by default; units '1'),
+along_track_m = metres along track from the scene centre's row, slant_range_m = slant range (m) of each
+column; 2-D coordinates mask (uint8, flag_values 0 1 2 3 255 = none layover shadow layover_and_shadow
+outside_footprint; NaN outside), layover, shadow (bool); attrs: units, radiometry, options (JSON), gissar_version
+and the GISSAR_* geometry metadata of the GeoTIFF. `da.gissar.geometry` is its SarGeometry,
+`da.gissar.image` the total band. Values identical to `gissar simulate`'s GeoTIFF bands.
+transform: GDAL's six coefficients or affine.Affine; crs: EPSG code, WKT/'EPSG:n' or pyproj CRS; nodata: the
+array's no-data value. progress: callable(stage, done, total) (return False to stop: gissar.Cancelled), True
+for a tqdm bar, or None. Ctrl-C stops the run (KeyboardInterrupt). out_prefix: also write the command line's
+files (PREFIX.tif, _mask.tif, .png, _quicklook.png, .json, _stac.json; attrs['outputs'] lists them), e.g. for
+gissar.geocode; nothing is written without it. gissar.raw.simulate returns the dict."""
 
 _with_request_signature(
     simulate, _core.simulate_request_defaults(),
     leading=[("dem", None)],
-    trailing=[("transform", None), ("crs", None), ("nodata", None), ("progress", None)],
-    summary="\n".join((_core.simulate.__doc__ or "").strip().splitlines()[1:]).strip())
+    trailing=[("transform", None), ("crs", None), ("nodata", None), ("progress", None), ("out_prefix", None)],
+    summary=_SIMULATE_SUMMARY)
 simulate.__module__ = "gissar"
+
+
+def geocode(image, out_prefix, *, dem=None, vertical_datum="", crs=None, pixel_size_m=0.0, resampling="bilinear"):
+    """`gissar geocode` (docs/georeferencing.md): a simulation to map geometry by exact back-geocoding.
+
+    image: the PREFIX.tif a simulation wrote (str/Path), or a DataArray returned by simulate(...,
+    out_prefix=...). out_prefix: where the map product goes (out_prefix.tif, .json, _stac.json). dem: optional
+    DEM replacing the simulation's terrain (path, GDAL dataset or rioxarray DataArray). crs: the output CRS (EPSG
+    code, 'EPSG:n', WKT or pyproj CRS; projected, metres; None = the UTM zone of the scene centre);
+    pixel_size_m: output pixel size (0 = the image's larger spacing); resampling: 'bilinear' or 'average'.
+
+    Returns an xarray.DataArray 'intensity' (band, y, x): bands as the image's, x/y in metres of the CRS,
+    .rio.crs set (rioxarray), 2-D coordinates local_incidence_deg and layover_shadow (flag_values 0 1 2 3:
+    none layover shadow layover_and_shadow; NaN where not imaged); attrs['outputs'] the written files.
+    `da.rio.to_raster(path)` writes it as a GeoTIFF."""
+    if _adapt._is_dataarray(image):
+        try:
+            image = _json.loads(image.attrs["options"])["out_prefix"] + ".tif"
+        except KeyError:
+            raise ConfigError("a DataArray image must come from simulate(..., out_prefix=...) (image)") from None
+        if image == "(python).tif":
+            raise ConfigError("the simulation wrote no files: give simulate(..., out_prefix=...) (image)")
+    crs_text = "" if crs is None else _adapt._crs_text(crs, "crs")
+    with _adapt.raster_path(dem, None, None, None, "dem") as dem_path:
+        r = _core.geocode(_os.fspath(image), _os.fspath(out_prefix), dem=dem_path or "",
+                          vertical_datum=vertical_datum, crs=crs_text, pixel_size_m=pixel_size_m,
+                          resampling=resampling)
+    return _adapt.map_dataarray(_os.fspath(out_prefix) + ".tif", r["outputs"])
+
+
+# ---------------------------------------------------------------- Scene
+
+_core_scene_build = _core.Scene.build
+
+
+def _scene_build(dem, out_prefix, vectors=(), osm="", config="", fill_nodata=False, window=None, export_obj=False,
+                 vertical_datum="", *, transform=None, crs=None, nodata=None):
+    with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
+        return _core_scene_build(path, _os.fspath(out_prefix), [_os.fspath(v) for v in vectors],
+                                 _os.fspath(osm), _os.fspath(config), fill_nodata, window, export_obj, vertical_datum)
+
+
+_scene_build.__doc__ = (_core_scene_build.__doc__ or "").split("\n\n")[-1].strip() + (
+    " dem: a path, GDAL dataset, NumPy array with transform=/crs= (nodata=) or a rioxarray DataArray.")
+
+
+def _scene_simulate(self, **kwargs):
+    """gissar.simulate(scene=self, ...): same keywords and result (an xarray.DataArray)."""
+    if "scene" in kwargs or "dem" in kwargs:
+        raise ConfigError("the scene is given (Scene.simulate)")
+    return simulate(scene=self.path, **kwargs)
+
+
+_scene_simulate.__signature__ = _inspect.Signature(
+    [_inspect.Parameter("self", _inspect.Parameter.POSITIONAL_ONLY)]
+    + [p for name, p in _inspect.signature(simulate).parameters.items()
+       if name not in ("dem", "scene", "transform", "crs", "nodata")])
+Scene.build = staticmethod(_scene_build)
+Scene.simulate = _scene_simulate
+
+
+def build_scene(dem, out_prefix, vectors=(), osm="", config="", fill_nodata=False, vertical_datum="", *,
+                transform=None, crs=None, nodata=None):
+    """`gissar scene build`: writes PREFIX.gscene/.ply/_classes.png/.json, returns the summary (dict). dem as
+    for Scene.build."""
+    return _scene_build(dem, out_prefix, vectors, osm, config, fill_nodata, None, False, vertical_datum,
+                        transform=transform, crs=crs, nodata=nodata).summary
+
+
+def sequence(out_prefix, heading_from_deg, heading_to_deg, frames=7, frame_delay_cs=50, *, dem=None,
+             transform=None, crs=None, nodata=None, **kwargs):
+    """`gissar sequence`: frames at evenly spaced headings (degrees) around the scene centre, one dB stretch:
+    PREFIX_fNN.tif/.png, PREFIX_contact.png, PREFIX.gif, PREFIX.json. Other keywords as gissar.simulate (dem in
+    any of its forms). Returns the written paths."""
+    if "scene" in kwargs:
+        kwargs["scene"] = _scene_path(kwargs["scene"])
+    with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
+        if path is not None:
+            kwargs["dem"] = path
+        return _core.sequence(_os.fspath(out_prefix), heading_from_deg, heading_to_deg, frames, frame_delay_cs,
+                              **kwargs)
+
+
+# ---------------------------------------------------------------- images in
+
+def _images_in(core, names, module_doc_extra=" Images: NumPy arrays, xarray DataArrays (their 'total' band), "
+                                              "paths or GDAL datasets (band 1)."):
+    """Wraps a core function so that its image arguments (by position or keyword) take any image form."""
+    positions = {name: i for i, name in enumerate(names)}
+
+    def wrapper(*args, **kwargs):
+        args = list(args)
+        for name, i in positions.items():
+            if i < len(args):
+                args[i] = _adapt.image_array(args[i], name)
+            elif name in kwargs:
+                kwargs[name] = _adapt.image_array(kwargs[name], name)
+        return core(*args, **kwargs)
+
+    wrapper.__name__ = wrapper.__qualname__ = core.__name__
+    wrapper.__doc__ = (core.__doc__ or "") + module_doc_extra
+    wrapper.__module__ = "gissar"
+    return wrapper
+
+
+match_images = _images_in(_core.match_images, ["reference", "observed"])
+register_images = _images_in(_core.register_images, ["fixed", "moving"])
+quicklook = _images_in(_core.quicklook, ["intensity"])
+annotated_quicklook = _images_in(_core.annotated_quicklook, ["intensity"])
+composite = _images_in(_core.composite, ["green", "magenta"])
+epipolar_plot = _images_in(_core.epipolar_plot, ["image1", "image2"])
+
+
+def locate(scene, image, prior, range_spacing_m, azimuth_spacing_m, **kwargs):
+    """`gissar locate` (docs/navigation.md): pose fix of one observed SAR image against a scene (gissar.Scene or
+    the path of a .gscene). image: NumPy array, DataArray (its total band), path or GDAL dataset. Keywords:
+    look_side, matcher, search_px, step_px, polish_evaluations, bounces, rays_per_cell, references (as
+    gissar._core.locate). Returns the fix as a dict (see help(gissar._core.locate))."""
+    if not isinstance(scene, _core.Scene):
+        scene = Scene(_os.fspath(scene))
+    return _core.locate(scene, _adapt.image_array(image, "image"), prior, range_spacing_m, azimuth_spacing_m,
+                        **kwargs)
+
+
+_adapt.register_accessor()
+from . import raw  # noqa: E402  (the dict results)

@@ -67,9 +67,10 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
     options = dict(dem=DEM, heading_deg=30.0, depression_deg=40.0, range_spacing_m=250.0,
                    azimuth_spacing_m=250.0, speckle_looks=4.0, seed=9)
     result = gissar.simulate(**options)
-    image = result["image"]
+    image = result.sel(band="total").values
     assert image.dtype == np.float32 and image.ndim == 2
-    assert result["bounces"].shape == (4,) + image.shape
+    assert result.shape == (5,) + image.shape and list(result["band"].values)[1:] == ["single", "double", "triple",
+                                                                                      "four_or_more"]
     assert result["mask"].dtype == np.uint8
     prefix = str(tmp_path / "sim")
     subprocess.run([os.environ["GISSAR_CLI"], "simulate", "--dem", DEM, "--heading", "30", "--depression", "40",
@@ -77,13 +78,20 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
                     "--out", prefix, "--quiet"], check=True, stdout=subprocess.DEVNULL)
     tif = gdal.Open(prefix + ".tif")  # keep the dataset alive while reading its bands
     assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), image, equal_nan=True)
-    assert np.array_equal(tif.GetRasterBand(3).ReadAsArray(), result["bounces"][1], equal_nan=True)
+    assert np.array_equal(tif.GetRasterBand(3).ReadAsArray(), result.sel(band="double").values, equal_nan=True)
+    # The DataArray's bands are the GeoTIFF's bands, by name.
+    for b in range(1, 6):
+        name = tif.GetRasterBand(b).GetDescription()
+        assert np.array_equal(tif.GetRasterBand(b).ReadAsArray(), result.sel(band=name).values, equal_nan=True), name
     # No-data (NaN, declared) exactly where the mask says "outside the footprint" (255).
     assert np.isnan(tif.GetRasterBand(1).GetNoDataValue())
-    assert np.array_equal(np.isnan(image), result["mask"] == 255)
+    assert np.array_equal(np.isnan(image), result["mask"].values == 255)
     assert 0 < np.isnan(image).sum() < image.size
     mask_ds = gdal.Open(prefix + "_mask.tif")
-    assert np.array_equal(mask_ds.GetRasterBand(1).ReadAsArray(), result["mask"])
+    assert np.array_equal(mask_ds.GetRasterBand(1).ReadAsArray(), result["mask"].values)
+    # The dict of the 0.1 API, through gissar.raw.
+    raw = gissar.raw.simulate(**options)
+    assert np.array_equal(raw["image"], image, equal_nan=True)
 
 
 def test_errors_become_python_exceptions():
@@ -158,21 +166,22 @@ def test_scene_class_arrays_pictures_and_obj(small_scene, tmp_path):
 
 def test_scene_simulate_returns_geometry_and_masks(small_scene):
     sim = small_scene.simulate(heading_deg=20, depression_deg=35, range_spacing_m=60, azimuth_spacing_m=60)
-    g = sim["geometry"]
+    g = sim.gissar.geometry
     assert isinstance(g, gissar.SarGeometry)
-    assert (g.height, g.width) == sim["image"].shape
+    assert (g.height, g.width) == sim.gissar.image.shape
     assert g.heading_deg == 20 and g.depression_deg == 35 and g.range_spacing_m == 60
-    assert sim["metadata"]["GISSAR_HEADING_DEG"] == "20"
-    inside = sim["mask"] != 255  # 255: outside the imaged footprint
-    assert np.array_equal(sim["layover"], ((sim["mask"] & 1) == 1) & inside)
-    assert np.array_equal(sim["shadow"], ((sim["mask"] & 2) == 2) & inside)
+    assert sim.attrs["GISSAR_HEADING_DEG"] == "20"
+    mask = sim["mask"].values
+    inside = mask != 255  # 255: outside the imaged footprint
+    assert np.array_equal(sim["layover"].values, ((mask & 1) == 1) & inside)
+    assert np.array_equal(sim["shadow"].values, ((mask & 2) == 2) & inside)
     # The scene centre projects to (u0, v0) and the sensor is R away along the line of sight.
     c = np.array(g.scene_centre_enu_m)
     np.testing.assert_allclose(g.project(c[None, :])[0], [g.u0, g.v0], atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(np.array(g.sensor_position()) - c), g.slant_range_m, rtol=1e-12)
     same = gissar.simulate(scene=small_scene.path, heading_deg=20, depression_deg=35, range_spacing_m=60,
                            azimuth_spacing_m=60)
-    assert np.array_equal(same["image"], sim["image"], equal_nan=True)
+    assert np.array_equal(same.values, sim.values, equal_nan=True)
     with pytest.raises(gissar.ConfigError):
         small_scene.simulate(dem=DEM, heading_deg=0, depression_deg=40)
 
@@ -270,16 +279,17 @@ def test_pictures_as_arrays_and_files(tmp_path):
 def test_locate_fixes_a_drifted_prior(small_scene):
     sim = small_scene.simulate(heading_deg=30, depression_deg=40, slant_range_m=10000, range_spacing_m=30,
                                azimuth_spacing_m=30, width=160, height=160, speckle_looks=4, seed=3)
-    truth = np.array(sim["geometry"].sensor_position())
+    truth = np.array(sim.gissar.geometry.sensor_position())
     prior = {"heading_deg": 31.5, "slant_range_m": 10000.0, "sensor_enu_m": list(truth + [120.0, -90.0, 30.0])}
-    fix = gissar.locate(small_scene, sim["image"], prior, range_spacing_m=30, azimuth_spacing_m=30)
+    fix = gissar.locate(small_scene, sim, prior, range_spacing_m=30, azimuth_spacing_m=30)  # a DataArray image
     assert fix["converged"]
     assert abs(fix["pose"]["heading_deg"] - 30.0) < 0.2
     error = np.linalg.norm(np.array(fix["pose"]["sensor_enu_m"]) - truth)
     assert error < 3 * 30.0, error  # within 3 resolution cells (docs/navigation.md's success criterion)
-    assert fix["reference_at_fix"].shape == sim["image"].shape
+    assert fix["reference_at_fix"].shape == sim.gissar.image.shape
     with pytest.raises(gissar.ConfigError, match="headng_deg"):
-        gissar.locate(small_scene, sim["image"], {"headng_deg": 3}, range_spacing_m=30, azimuth_spacing_m=30)
+        gissar.locate(small_scene.path, sim.gissar.image.values, {"headng_deg": 3}, range_spacing_m=30,
+                      azimuth_spacing_m=30)
 
 
 def test_simulation_releases_the_gil():
@@ -317,11 +327,14 @@ def test_simulate_product_matches_the_cli_and_the_reference_geolocation(tmp_path
     product = os.path.join(ROOT, "data", "uavsar", "winnipeg.h5")
     dem = os.path.join(ROOT, "data", "uavsar", "winnipeg_dem.tif")
     result = gissar.simulate_product(product, dem=dem, seed=3)
-    image = result["image"]
+    image = result.sel(band="total").values
     rows, cols = len(result["zero_doppler_time_s"]), len(result["slant_range_m"])
     assert image.shape == (rows, cols)
+    assert result.dims == ("band", "zero_doppler_time_s", "slant_range_m")
+    assert result["slant_range_m"].attrs["units"] == "m" and np.all(np.diff(result["slant_range_m"].values) > 0)
     assert result["real_amplitude"].shape == (rows, cols)
-    assert result["look_side"] in ("left", "right") and result["wavelength_m"] > 0.1  # L band
+    assert result.attrs["look_side"] in ("left", "right") and result.attrs["wavelength_m"] > 0.1  # L band
+    result = {name: result.coords[name].values for name in ("lon_deg", "lat_deg")}
     prefix = str(tmp_path / "w")
     subprocess.run([os.environ["GISSAR_CLI"], "simulate", "--product", product, "--dem", dem, "--seed", "3",
                     "--out", prefix, "--quiet"], check=True, stdout=subprocess.DEVNULL)
@@ -350,7 +363,7 @@ def test_simulate_takes_a_dem_array_with_transform_and_crs(tmp_path):
     common = dict(heading_deg=30.0, depression_deg=40.0, range_spacing_m=250.0, azimuth_spacing_m=250.0)
     from_file = gissar.simulate(dem=DEM, **common)
     from_array = gissar.simulate(dem=heights, transform=ds.GetGeoTransform(), crs=ds.GetProjection(), **common)
-    assert np.array_equal(from_file["image"], from_array["image"], equal_nan=True)
+    assert np.array_equal(from_file.values, from_array.values, equal_nan=True)
     with pytest.raises(gissar.ConfigError, match="needs transform= and crs="):
         gissar.simulate(dem=heights, **common)
     with pytest.raises(gissar.ConfigError, match="not a CRS"):

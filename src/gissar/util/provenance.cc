@@ -44,6 +44,7 @@ std::string Sha256OfFile(const fs::path& path) {
 }
 
 nlohmann::json InputFileRecord(const fs::path& path) {
+  if (path.string().rfind("/vsimem/", 0) == 0) return {{"path", path.string()}, {"in_memory", true}};
   std::error_code ec;
   const auto bytes = fs::file_size(path, ec);
   if (ec) throw IoError("cannot stat input file", path.string());

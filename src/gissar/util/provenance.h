@@ -17,7 +17,8 @@ std::string VersionString();
 std::string Sha256OfFile(const std::filesystem::path& path);
 
 // {"path": absolute path, "bytes": size, "sha256": hex}. Throws IoError when
-// the file cannot be read.
+// the file cannot be read. A GDAL in-memory raster (/vsimem/..., the Python
+// door's arrays, geo/memory_raster.h) has no file: {"path", "in_memory": true}.
 nlohmann::json InputFileRecord(const std::filesystem::path& path);
 
 // Writes `value` pretty-printed to `path` (a plain write: callers route it

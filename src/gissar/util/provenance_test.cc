@@ -20,6 +20,13 @@ TEST(ProvenanceTest, Sha256MatchesKnownVector) {
   EXPECT_EQ(record["bytes"], 3);
 }
 
+TEST(ProvenanceTest, InMemoryRasterIsRecordedWithoutBytesOrHash) {
+  const auto record = InputFileRecord("/vsimem/gissar_dem.tif");
+  EXPECT_EQ(record["path"], "/vsimem/gissar_dem.tif");
+  EXPECT_EQ(record["in_memory"], true);
+  EXPECT_FALSE(record.contains("sha256"));
+}
+
 TEST(ProvenanceTest, MissingFileIsAnIoError) {
   EXPECT_THROW(Sha256OfFile("/nonexistent/gissar/file"), IoError);
 }

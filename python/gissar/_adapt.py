@@ -1,0 +1,384 @@
+"""The Python door's adaptation layer: rasters in (paths, GDAL datasets, NumPy arrays with a transform and a
+CRS, rioxarray DataArrays) and xarray out (coordinates in metres, band names, units, provenance, masks with
+flag names), progress (callable or tqdm) and Ctrl-C. No pipeline logic: the compiled core computes, this
+module only converts arguments and results.
+"""
+import contextlib
+import json
+import os
+import threading
+import uuid
+
+import numpy as np
+
+from . import _core
+
+#: The bands of an image result, as the GeoTIFF band descriptions of `gissar simulate`.
+BAND_NAMES = ("total", "single", "double", "triple", "four_or_more")
+#: The mask's categories (docs/geometry.md): bit 1 layover, bit 2 shadow, 255 outside the imaged footprint.
+MASK_FLAG_VALUES = (0, 1, 2, 3, 255)
+MASK_FLAG_MEANINGS = "none layover shadow layover_and_shadow outside_footprint"
+
+
+# ---------------------------------------------------------------- rasters in
+
+def _crs_text(crs, what):
+    if crs is None:
+        return None
+    if isinstance(crs, (int, np.integer)) and not isinstance(crs, bool):
+        return f"EPSG:{int(crs)}"
+    if hasattr(crs, "to_wkt"):  # pyproj.CRS, rasterio CRS
+        return crs.to_wkt()
+    if isinstance(crs, str):
+        return crs
+    raise _core.ConfigError(f"must be an EPSG code, a WKT/'EPSG:n' string or a pyproj CRS, got "
+                            f"{type(crs).__name__} ({what})")
+
+
+def _transform_coefficients(transform, what):
+    if hasattr(transform, "to_gdal"):  # affine.Affine
+        transform = transform.to_gdal()
+    try:
+        gt = [float(v) for v in transform]
+    except TypeError:
+        gt = []
+    if len(gt) != 6:
+        raise _core.ConfigError(f"needs GDAL's six coefficients (x0, dx, rx, y0, ry, dy) or an affine.Affine "
+                                f"({what})")
+    return gt
+
+
+def _is_dataarray(value):
+    return type(value).__name__ == "DataArray" and hasattr(value, "dims")
+
+
+def _is_gdal_dataset(value):
+    return type(value).__name__ == "Dataset" and hasattr(value, "GetRasterBand")
+
+
+def _array_from_dataarray(da, what):
+    """(values, transform, crs, nodata) of a rioxarray-georeferenced DataArray (a single band)."""
+    if "band" in da.dims:
+        if da.sizes["band"] != 1:
+            raise _core.ConfigError(f"a DataArray with {da.sizes['band']} bands: select one ({what})")
+        da = da.squeeze("band", drop=True)
+    try:
+        transform = da.rio.transform(recalc=False)
+        crs = da.rio.crs
+        nodata = da.rio.nodata if da.rio.nodata is not None else da.rio.encoded_nodata
+    except AttributeError:
+        raise _core.ConfigError(f"a DataArray needs rioxarray georeferencing (import rioxarray; .rio.crs) "
+                                f"({what})") from None
+    if crs is None:
+        raise _core.ConfigError(f"the DataArray has no CRS (.rio.write_crs) ({what})")
+    return np.asarray(da.values), transform, crs, nodata
+
+
+def _array_from_gdal(ds):
+    band = ds.GetRasterBand(1)
+    srs = ds.GetSpatialRef()
+    return band.ReadAsArray(), ds.GetGeoTransform(), srs.ExportToWkt() if srs is not None else None, \
+        band.GetNoDataValue()
+
+
+@contextlib.contextmanager
+def raster_path(value, transform=None, crs=None, nodata=None, what="dem"):
+    """A path the core reads for a raster given as a path (str, os.PathLike), an open GDAL dataset, a NumPy
+    array with `transform` and `crs`, or a rioxarray DataArray. In-memory rasters live under GDAL's /vsimem/
+    (nothing is written to disk) for the duration of the `with` block. None stays None."""
+    if value is None or isinstance(value, (str, os.PathLike)):
+        if transform is not None or crs is not None:
+            raise _core.ConfigError(f"transform and crs go with a raster given as an array ({what})")
+        yield None if value is None else os.fspath(value)
+        return
+    if _is_dataarray(value):
+        if transform is not None or crs is not None:
+            raise _core.ConfigError(f"a DataArray carries its own transform and crs ({what})")
+        values, transform, crs, da_nodata = _array_from_dataarray(value, what)
+        nodata = nodata if nodata is not None else da_nodata
+    elif _is_gdal_dataset(value):
+        values, transform, crs, ds_nodata = _array_from_gdal(value)
+        nodata = nodata if nodata is not None else ds_nodata
+        if crs is None:
+            raise _core.ConfigError(f"the GDAL dataset has no CRS ({what})")
+    elif isinstance(value, np.ndarray) or hasattr(value, "__array__"):
+        values = np.asarray(value)
+        if transform is None or crs is None:
+            raise _core.ConfigError(f"a DEM given as an array needs transform= and crs= ({what})")
+    else:
+        raise _core.ConfigError(f"must be a path, a GDAL dataset, a NumPy array or an xarray DataArray, got "
+                                f"{type(value).__name__} ({what})")
+    values = np.ascontiguousarray(values, dtype=np.float32)
+    if values.ndim != 2 or values.size == 0:
+        raise _core.ConfigError(f"must be a non-empty 2-D array of heights ({what})")
+    gt = _transform_coefficients(transform, "transform")
+    crs_text = _crs_text(crs, "crs")
+    from osgeo import gdal, osr
+    srs = osr.SpatialReference()
+    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    try:
+        failed = srs.SetFromUserInput(crs_text) != 0
+    except RuntimeError:
+        failed = True
+    if failed:
+        raise _core.ConfigError(f"not a CRS: {crs_text[:80]!r} (crs)")
+    path = f"/vsimem/gissar_{uuid.uuid4().hex}.tif"
+    ds = gdal.GetDriverByName("GTiff").Create(path, values.shape[1], values.shape[0], 1, gdal.GDT_Float32)
+    try:
+        ds.SetGeoTransform(gt)
+        ds.SetSpatialRef(srs)
+        band = ds.GetRasterBand(1)
+        if nodata is not None and np.isfinite(nodata):
+            band.SetNoDataValue(float(nodata))
+        band.WriteArray(values)
+        ds = None
+        yield path
+    finally:
+        ds = None
+        gdal.Unlink(path)
+
+
+def image_array(value, what):
+    """A 2-D image as NumPy from an array, a DataArray (its 'total' band when it has bands), a path or a GDAL
+    dataset (band 1)."""
+    if _is_dataarray(value):
+        if "band" in value.dims:
+            value = value.sel(band="total") if "total" in list(value["band"].values) else value.isel(band=0)
+        return np.asarray(value.values)
+    if isinstance(value, (str, os.PathLike)):
+        from osgeo import gdal
+        path = os.fspath(value)
+        if not os.path.exists(path) and not path.startswith("/vsi"):
+            raise _core.MissingFileError(f"image file does not exist ({what}: {path})")
+        ds = gdal.Open(path)
+        return ds.GetRasterBand(1).ReadAsArray()
+    if _is_gdal_dataset(value):
+        return value.GetRasterBand(1).ReadAsArray()
+    return value
+
+
+# ---------------------------------------------------------------- progress and Ctrl-C
+
+def _tqdm_progress():
+    from tqdm.auto import tqdm
+    bars = {}
+
+    def report(stage, done, total):
+        bar = bars.get(stage)
+        if bar is None:
+            for other in bars.values():
+                other.close()
+            bar = bars[stage] = tqdm(total=total, desc=stage, unit="", leave=False)
+        bar.total = total
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+        return None
+
+    report.close = lambda: [b.close() for b in bars.values()]
+    return report
+
+
+def run(function, args, kwargs, progress):
+    """Calls the core `function` on a worker thread with a progress hook, so that the calling (main) thread
+    stays responsive: Ctrl-C (KeyboardInterrupt) cancels the run through the hook and is re-raised once the
+    core has stopped. `progress`: None, a callable(stage, done, total) (return False to stop: gissar.Cancelled)
+    or True (a tqdm bar)."""
+    if progress is True:
+        user = _tqdm_progress()
+    elif progress is None or progress is False:
+        user = None
+    elif callable(progress):
+        user = progress
+    else:
+        raise _core.ConfigError("progress must be a callable(stage, done, total), True (a tqdm bar) or None "
+                                "(progress)")
+    interrupted = threading.Event()
+
+    def hook(stage, done, total):
+        if interrupted.is_set():
+            return False
+        if user is not None:
+            answer = user(stage, done, total)
+            if answer is not None and not answer:
+                return False
+        return True
+
+    outcome = {}
+    # Completion is our own event: a Thread.join interrupted by KeyboardInterrupt can leave the thread looking
+    # stopped while it still runs (CPython gh-90882).
+    finished = threading.Event()
+
+    def work():
+        try:
+            outcome["value"] = function(*args, progress=hook, **kwargs)
+        except BaseException as e:  # noqa: B902 (handed to the calling thread)
+            outcome["error"] = e
+        finally:
+            finished.set()
+
+    worker = threading.Thread(target=work, name="gissar", daemon=True)
+    worker.start()
+    try:
+        try:
+            while not finished.wait(0.05):
+                pass
+        except KeyboardInterrupt:
+            interrupted.set()  # the core stops at its next progress report
+            while not finished.is_set():
+                try:
+                    finished.wait(0.05)
+                except KeyboardInterrupt:
+                    pass  # already stopping
+            raise
+    finally:
+        if hasattr(user, "close"):
+            user.close()
+    if "error" in outcome:
+        error = outcome.pop("error")
+        try:
+            raise error
+        finally:
+            error = None
+    return outcome["value"]
+
+
+# ---------------------------------------------------------------- xarray out
+
+def _provenance(options):
+    return {"gissar_version": _core.version().split()[1], "options": json.dumps(options, sort_keys=True)}
+
+
+def _mask_coord(mask, dims):
+    import xarray as xr
+    return xr.Variable(dims, mask, attrs={
+        "long_name": "layover/shadow mask", "flag_values": np.array(MASK_FLAG_VALUES, np.uint8),
+        "flag_meanings": MASK_FLAG_MEANINGS})
+
+
+def _bands(raw):
+    return np.concatenate([raw["image"][None], raw["bounces"]], axis=0)
+
+
+def _intensity_attrs(options):
+    radiometry = options.get("radiometry", "sigma0")
+    scale = "dB" if options.get("db") else "linear"
+    return {"long_name": f"SAR intensity ({radiometry}, {scale})", "units": "dB" if scale == "dB" else "1",
+            "radiometry": radiometry, "scale": scale}
+
+
+def simulated_dataarray(raw):
+    """The core's simulate result (a dict) as an xarray.DataArray (band, along_track_m, slant_range_m)."""
+    import xarray as xr
+    g = raw["geometry"]
+    rows, cols = raw["image"].shape
+    along_track_m = (np.arange(rows) - g.v0) * g.azimuth_spacing_m
+    slant_range_m = g.slant_range_m + (np.arange(cols) - g.u0) * g.range_spacing_m
+    dims = ("along_track_m", "slant_range_m")
+    coords = {
+        "band": ("band", list(BAND_NAMES), {"long_name": "contribution (bounce count)"}),
+        "along_track_m": ("along_track_m", along_track_m,
+                          {"units": "m", "long_name": "along-track distance from the scene centre's row"}),
+        "slant_range_m": ("slant_range_m", slant_range_m,
+                          {"units": "m", "long_name": "slant range"
+                           + (" (affine mode: linear in the column)" if g.mode == "affine" else "")}),
+        "mask": _mask_coord(raw["mask"], dims),
+        "layover": (dims, raw["layover"], {"long_name": "layover"}),
+        "shadow": (dims, raw["shadow"], {"long_name": "shadow"}),
+    }
+    attrs = _intensity_attrs(raw["options"])
+    attrs.update(_provenance(raw["options"]))
+    attrs.update(raw["metadata"])
+    attrs["centre_enu_m"] = list(raw["centre_enu_m"])
+    if "outputs" in raw:
+        attrs["outputs"] = list(raw["outputs"])
+    return xr.DataArray(_bands(raw), dims=("band",) + dims, coords=coords, attrs=attrs, name="intensity")
+
+
+def product_dataarray(raw):
+    """The core's simulate_product result as an xarray.DataArray (band, zero_doppler_time_s, slant_range_m)."""
+    import xarray as xr
+    dims = ("zero_doppler_time_s", "slant_range_m")
+    coords = {
+        "band": ("band", list(BAND_NAMES), {"long_name": "contribution (bounce count)"}),
+        "zero_doppler_time_s": ("zero_doppler_time_s", np.asarray(raw["zero_doppler_time_s"]),
+                                {"units": "s", "long_name": "zero-Doppler azimuth time of the product's lines"}),
+        "slant_range_m": ("slant_range_m", np.asarray(raw["slant_range_m"]),
+                          {"units": "m", "long_name": "slant range of the product's bins"}),
+        "mask": _mask_coord(raw["mask"], dims),
+        "lon_deg": (dims, raw["lon_deg"], {"units": "degrees_east", "long_name": "ground point longitude (WGS84)"}),
+        "lat_deg": (dims, raw["lat_deg"], {"units": "degrees_north", "long_name": "ground point latitude (WGS84)"}),
+        "height_m": (dims, raw["height_m"], {"units": "m", "long_name": "ground point ellipsoidal height"}),
+    }
+    if "real_amplitude" in raw:
+        coords["real_amplitude"] = (dims, raw["real_amplitude"], {"units": "1", "long_name": "|SLC| of the product"})
+    attrs = _intensity_attrs(raw["options"])
+    attrs.update(_provenance(raw["options"]))
+    attrs.update({"wavelength_m": raw["wavelength_m"], "look_side": raw["look_side"]})
+    return xr.DataArray(_bands(raw), dims=("band",) + dims, coords=coords, attrs=attrs, name="intensity")
+
+
+def geometry_from_attrs(attrs, shape):
+    """The SarGeometry of a simulated DataArray, from its GISSAR_* attributes (17 significant digits: exact)."""
+    try:
+        centre = [float(v) for v in attrs["GISSAR_SCENE_CENTRE_ENU"].split(",")]
+        return _core.SarGeometry(
+            heading_deg=float(attrs["GISSAR_HEADING_DEG"]), depression_deg=float(attrs["GISSAR_DEPRESSION_DEG"]),
+            range_spacing_m=float(attrs["GISSAR_RANGE_SPACING_M"]),
+            azimuth_spacing_m=float(attrs["GISSAR_AZIMUTH_SPACING_M"]), look_side=attrs["GISSAR_LOOK_SIDE"],
+            mode=attrs["GISSAR_PROJECTION_MODE"], slant_range_m=float(attrs["GISSAR_SLANT_RANGE_M"]),
+            scene_centre_enu_m=centre, u0=float(attrs["GISSAR_U0"]), v0=float(attrs["GISSAR_V0"]),
+            width=int(shape[1]), height=int(shape[0]))
+    except KeyError as e:
+        raise AttributeError(f"no SAR geometry in the attributes (missing {e.args[0]})") from None
+
+
+def register_accessor():
+    """`da.gissar`: .geometry (SarGeometry), .image (the total band, 2-D), .options (dict)."""
+    import xarray as xr
+
+    @xr.register_dataarray_accessor("gissar")
+    class GissarAccessor:
+        def __init__(self, da):
+            self._da = da
+
+        @property
+        def image(self):
+            da = self._da
+            return da.sel(band="total", drop=True) if "band" in da.dims else da
+
+        @property
+        def geometry(self):
+            shape = self.image.shape
+            return geometry_from_attrs(self._da.attrs, shape)
+
+        @property
+        def options(self):
+            return json.loads(self._da.attrs["options"])
+
+    return GissarAccessor
+
+
+def map_dataarray(path, outputs):
+    """A geocoded GeoTIFF (pipeline/geocode.h) as an xarray.DataArray (band, y, x) with .rio.crs: the image
+    bands by name; local_incidence and layover_shadow as 2-D coordinates."""
+    import rioxarray
+    with rioxarray.open_rasterio(path, mask_and_scale=False) as src:
+        da = src.load()
+    names = da.attrs.pop("long_name", None)
+    names = [names] if isinstance(names, str) else list(names)
+    da = da.assign_coords(band=names)
+    incidence = da.sel(band="local_incidence", drop=True).values
+    codes = da.sel(band="layover_shadow", drop=True).values
+    image = da.sel(band=[n for n in names if n not in ("local_incidence", "layover_shadow")])
+    spatial = ("y", "x")
+    image = image.assign_coords(
+        local_incidence_deg=(spatial, incidence, {"units": "degrees", "long_name": "local incidence angle"}),
+        layover_shadow=(spatial, codes, {"long_name": "layover/shadow mask", "flag_values": np.array([0, 1, 2, 3]),
+                                         "flag_meanings": "none layover shadow layover_and_shadow"}))
+    db = "(dB)" in str(image.attrs.get("GISSAR_UNITS", ""))
+    image.attrs.update({"units": "dB" if db else "1", "long_name": "SAR intensity (map geometry)",
+                        "outputs": list(outputs),
+                        "gissar_version": _core.version().split()[1]})
+    image.name = "intensity"
+    return image

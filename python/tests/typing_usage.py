@@ -1,0 +1,46 @@
+"""A small typed use of the gissar package: `mypy --strict` checks it against the stubs (ctest python_typing).
+Not run: only type-checked."""
+from pathlib import Path
+from typing import Any, Dict, List
+
+import numpy as np
+import numpy.typing as npt
+import xarray as xr
+
+import gissar
+
+
+def image_of(dem: Path) -> npt.NDArray[np.float32]:
+    da: xr.DataArray = gissar.simulate(dem, heading_deg=30.0, depression_deg=40.0, range_spacing_m=30.0,
+                                       azimuth_spacing_m=30.0, progress=True)
+    return np.asarray(da.sel(band="total").values, dtype=np.float32)
+
+
+def from_array(heights: npt.NDArray[np.float32]) -> xr.DataArray:
+    sim = gissar.simulate(heights, transform=(400000.0, 30.0, 0.0, 4700000.0, 0.0, -30.0), crs=32631,
+                          heading_deg=0.0, depression_deg=40.0, nodata=-9999.0, out_prefix=Path("out/s"))
+    return gissar.geocode(sim, "out/m", crs=32631, pixel_size_m=30.0)
+
+
+def scene_pose(prefix: str) -> Dict[str, Any]:
+    scene: gissar.Scene = gissar.Scene.build("dem.tif", prefix, window=(0, 0, 10, 10))
+    sim = scene.simulate(heading_deg=0.0, depression_deg=40.0)
+    g: gissar.SarGeometry = gissar.SarGeometry(heading_deg=0.0, depression_deg=40.0)
+    pixels: npt.NDArray[np.float64] = g.project(np.zeros((1, 3)))
+    centre: List[float] = g.scene_centre_enu_m
+    prior = {"heading_deg": 1.0, "slant_range_m": 1e4, "sensor_enu_m": centre}
+    fix = gissar.locate(scene, sim, prior, range_spacing_m=30.0, azimuth_spacing_m=30.0, matcher="ncc")
+    grey, (low_db, high_db) = gissar.quicklook(sim)
+    assert pixels.shape == (1, 2) and grey.dtype == np.uint8 and low_db < high_db
+    return fix
+
+
+def errors() -> str:
+    try:
+        gissar.simulate("missing.tif", heading_deg=0.0, depression_deg=40.0)
+    except gissar.MissingFileError as e:
+        return str(e)
+    except ValueError as e:
+        return str(e)
+    raw: Dict[str, Any] = gissar.raw.simulate("dem.tif")
+    return gissar.__version__ + str(len(raw))
