@@ -278,6 +278,22 @@ TEST(CommonFlagsTest, DeprecatedSpellingWorksWithAWarning) {
   EXPECT_EQ(FirstBand(dir / "new.tif"), FirstBand(dir / "old.tif"));
 }
 
+// evaluate's prior errors are spelled as in docs/conventions.md; the old
+// spellings warn, naming the new flag (before the request's own check).
+TEST(CommonFlagsTest, OldEvaluatePriorSpellingsWarn) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  const Outcome o = RunBinary("evaluate --dem " + dem + " --trials 0 --prior-vertical 10 --prior-heading=2 --out " +
+                                  (dir / "e").string(),
+                              dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("gissar: warning: --prior-vertical is deprecated and will be removed; use "
+                       "--prior-error-vertical"),
+            std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("use --prior-error-heading"), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("gissar: error: must be in [1, 100000] (--trials)"), std::string::npos) << o.err;
+}
+
 // fmatrix --res1 R1,A1 --res2 R2,A2 = --range-spacing R1,R2 --azimuth-spacing
 // A1,A2 (case 3: 1 m pixels in view 1, 0.75 m in view 2), resect
 // --scene-centre = --center-enu; the old spellings warn, naming the new flags.

@@ -23,6 +23,9 @@ constexpr DeprecatedFlag kDeprecatedFlags[] = {
     {"--range", "--slant-range"},
     {"--json", "--out"},  // fmatrix, resect: --out PREFIX writes PREFIX.json
     {"--scene-centre", "--center-enu"},  // resect
+    {"--prior-horizontal", "--prior-error-horizontal"},  // evaluate
+    {"--prior-vertical", "--prior-error-vertical"},
+    {"--prior-heading", "--prior-error-heading"},
     // fmatrix --res1/--res2 regroup their values: hidden options of fmatrix
     // (cli/mvg_command.cc) warn with DeprecationWarning.
 };

@@ -57,10 +57,11 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--nesz", o->nesz_db, "Thermal noise of the observed image, dB")->capture_default_str();
     cmd->add_option("--material-db", o->material_db, "Material mismatch, +- dB per class")->capture_default_str();
     cmd->add_option("--dem-smoothing", o->dem_smoothing, "Laplacian weight of the observed terrain heights")->capture_default_str();
-    cmd->add_option("--prior-horizontal", o->prior_horizontal_m, "INS drift, +- m per horizontal axis")->capture_default_str();
-    cmd->add_option("--prior-vertical", o->prior_vertical_m, "INS drift, +- m vertical")->capture_default_str();
-    cmd->add_option("--prior-heading", o->prior_heading_deg, "INS heading drift, +- deg")->capture_default_str();
-    cmd->add_option("--success-cells", o->success_cells, "Success: position error below this many cells")->capture_default_str();
+    cmd->add_option("--prior-error-horizontal", o->prior_error_horizontal_m, "INS drift, +- m per horizontal axis")->capture_default_str();
+    cmd->add_option("--prior-error-vertical", o->prior_error_vertical_m, "INS drift, +- m vertical")->capture_default_str();
+    cmd->add_option("--prior-error-heading", o->prior_error_heading_deg, "INS heading drift, +- deg")->capture_default_str();
+    cmd->add_option("--success-cells", o->success_cells, "Success: position error at most this many cells")->capture_default_str();
+    cmd->add_option("--success-heading-deg", o->success_heading_deg, "Success: and heading error at most this, deg")->capture_default_str();
     cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features")->capture_default_str();
     cmd->add_flag("--no-compare", *no_compare, "Skip the per-trial matcher comparison");
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (0 = from the prior errors)")->capture_default_str();

@@ -7,6 +7,7 @@ std::string FlagOfField(const std::string& field) {
   if (field == "out_prefix") return "--out";
   if (field == "center_lonlat") return "--center";
   if (field == "look_side") return "--look";
+  if (field == "success_heading_deg") return "--success-heading-deg";
   std::string name = field;
   for (const char* unit : {"_deg", "_m", "_db", "_bytes", "_px", "_s"}) {
     const std::string suffix = unit;

@@ -348,6 +348,10 @@ void EvaluateRequest::Check() const {
   if (!(material_db >= 0)) throw ConfigError("must be >= 0", "--material-db");
   if (!(dem_smoothing >= 0 && dem_smoothing <= 1)) throw ConfigError("must be in [0, 1]", "--dem-smoothing");
   if (!(success_cells > 0)) throw ConfigError("must be > 0", "--success-cells");
+  if (!(success_heading_deg > 0)) throw ConfigError("must be > 0", "--success-heading-deg");
+  if (!(prior_error_horizontal_m >= 0 && prior_error_vertical_m >= 0 && prior_error_heading_deg >= 0)) {
+    throw ConfigError("must be >= 0", "--prior-error-horizontal/--prior-error-vertical/--prior-error-heading");
+  }
   nav::ParseMatcher(matcher, "--matcher");
   if (search_px != 0 && (search_px < 5 || search_px > kMaxSearchPx)) {
     throw ConfigError("must be 0 (automatic) or in [5, 2048] px", "--search");
@@ -381,9 +385,9 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
   lo.polish_evaluations = options.polish_evaluations;
   lo.initial_search_px = options.search_px > 0
       ? options.search_px
-      : static_cast<int>(std::ceil((std::sqrt(2.0) * options.prior_horizontal_m +
-                                    options.slant_range_m * std::sin(options.prior_heading_deg * M_PI / 180.0) +
-                                    options.prior_vertical_m / std::tan(options.depression_min_deg * M_PI / 180.0)) /
+      : static_cast<int>(std::ceil((std::sqrt(2.0) * options.prior_error_horizontal_m +
+                                    options.slant_range_m * std::sin(options.prior_error_heading_deg * M_PI / 180.0) +
+                                    options.prior_error_vertical_m / std::tan(options.depression_min_deg * M_PI / 180.0)) /
                                    options.spacing_m)) + 4;
   lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
   lo.step_px = options.step_px;
@@ -398,8 +402,8 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
   const Eigen::AlignedBox3d box = terrain.mesh.Bounds();
   const double extent = 0.5 * options.size_px * options.spacing_m /
                             std::cos(options.depression_max_deg * M_PI / 180.0) * std::sqrt(2.0) +
-                        options.slant_range_m * std::sin(options.prior_heading_deg * M_PI / 180.0) +
-                        options.prior_horizontal_m + 100.0;
+                        options.slant_range_m * std::sin(options.prior_error_heading_deg * M_PI / 180.0) +
+                        options.prior_error_horizontal_m + 100.0;
   const Eigen::Vector2d lo_xy(box.min().x() + extent, box.min().y() + extent);
   const Eigen::Vector2d hi_xy(box.max().x() - extent, box.max().y() - extent);
   if (!(lo_xy.x() < hi_xy.x() && lo_xy.y() < hi_xy.y())) {
@@ -458,10 +462,10 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
     if (std::isfinite(options.nesz_db)) image::AddThermalNoise(obs.intensity, options.nesz_db, options.seed * 104729 + trial);
     // INS prior after drift.
     const Eigen::Vector3d sensor_true = truth.SensorPosition(look);
-    const Eigen::Vector3d sensor_prior = sensor_true + Eigen::Vector3d(uni(-1, 1) * options.prior_horizontal_m,
-                                                                       uni(-1, 1) * options.prior_horizontal_m,
-                                                                       uni(-1, 1) * options.prior_vertical_m);
-    const double heading_prior = truth.heading_deg + uni(-1, 1) * options.prior_heading_deg;
+    const Eigen::Vector3d sensor_prior = sensor_true + Eigen::Vector3d(uni(-1, 1) * options.prior_error_horizontal_m,
+                                                                       uni(-1, 1) * options.prior_error_horizontal_m,
+                                                                       uni(-1, 1) * options.prior_error_vertical_m);
+    const double heading_prior = truth.heading_deg + uni(-1, 1) * options.prior_error_heading_deg;
     const auto prior = nav::PoseFromSensor(scene, sensor_prior, heading_prior, truth.slant_range_m, truth.depression_deg, look);
     if (!prior) throw InputError("prior beam leaves the scene (trial " + std::to_string(trial) + ")", options.scene);
 
@@ -494,7 +498,8 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
     const double e_heading = std::abs(std::remainder(r.pose.heading_deg - truth.heading_deg, 360.0));
     const double e_dep = r.pose.depression_deg - truth.depression_deg;
     const double cells = e3 / options.spacing_m;
-    const bool success = r.converged && cells < options.success_cells;
+    const bool success = r.converged && cells <= options.success_cells &&
+                         e_heading <= options.success_heading_deg;
     successes += success;
     converged += r.converged;
     pos_err.push_back(e3);
@@ -548,7 +553,10 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
       {"created_utc", UtcTimestamp()},
       {"trials", options.trials},
       {"seed", options.seed},
-      {"success_definition", "converged and 3-D sensor position error < " + std::to_string(options.success_cells) + " resolution cells"},
+      {"success_definition", "converged, 3-D sensor position error <= success_cells resolution cells and "
+                             "heading error <= success_heading_deg"},
+      {"success_cells", options.success_cells},
+      {"success_heading_deg", options.success_heading_deg},
       {"resolution_cell_m", options.spacing_m},
       {"success_rate", double(successes) / options.trials},
       {"converged_rate", double(converged) / options.trials},
@@ -563,8 +571,8 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
                    {"depression_range_deg", {options.depression_min_deg, options.depression_max_deg}},
                    {"speckle_looks", options.speckle_looks}, {"nesz_db", options.nesz_db},
                    {"material_db", options.material_db}, {"dem_smoothing", options.dem_smoothing},
-                   {"prior_horizontal_m", options.prior_horizontal_m}, {"prior_vertical_m", options.prior_vertical_m},
-                   {"prior_heading_deg", options.prior_heading_deg}, {"matcher", options.matcher},
+                   {"prior_error_horizontal_m", options.prior_error_horizontal_m}, {"prior_error_vertical_m", options.prior_error_vertical_m},
+                   {"prior_error_heading_deg", options.prior_error_heading_deg}, {"matcher", options.matcher},
                    {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", lo.step_px}, {"bounces", options.bounces},
                    {"reference_floor", lo.reference_floor},
                    {"rays_per_cell", options.rays_per_cell}}},

@@ -83,8 +83,12 @@ struct EvaluateRequest {
   double nesz_db = -25.0;
   double material_db = 3.0;     // +- per class diffuse/specular scale of the observed scene
   double dem_smoothing = 0.5;   // Laplacian weight on terrain vertex heights of the observed scene
-  double prior_horizontal_m = 200.0, prior_vertical_m = 50.0, prior_heading_deg = 3.0;
-  double success_cells = 3.0;
+  // INS prior errors, uniform +-: per horizontal axis, vertical, heading.
+  double prior_error_horizontal_m = 200.0, prior_error_vertical_m = 50.0, prior_error_heading_deg = 3.0;
+  // Success (docs/conventions.md): converged, 3-D position error <= success_cells x cell and heading
+  // error <= success_heading_deg.
+  double success_cells = 2.0;
+  double success_heading_deg = 0.2;
   std::string matcher = "ncc";
   bool compare_matchers = true;
   // First-iteration search radius in pixels; 0 = from the prior errors:
