@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """`pip install --no-build-isolation --no-index .` works offline into a fresh virtual environment made with
 --system-site-packages, reusing the CMake build tree; then, from a directory outside the repository,
-`import gissar` works and `gissar.__version__` equals the version `gissar --version` prints.
+`import gissar` works and `gissar.__version__` equals the version `gissar --version` prints; and the
+Python test suite (python/tests) passes against the installed package (run from outside the repository,
+without PYTHONPATH).
 
   check_install.py SOURCE_DIR BUILD_DIR GISSAR_BINARY
 """
@@ -35,6 +37,11 @@ def main():
             problems.append(f"imported {out[1]}, not the installed package in {venv}")
         if not out[2].startswith("dem True"):
             problems.append(f"signature of gissar.simulate starts {out[2]}")
+        suite = subprocess.run([python, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                                os.path.join(source, "python", "tests")],
+                               env=dict(env, GISSAR_CLI=binary, GISSAR_SOURCE_DIR=source), cwd=elsewhere)
+        if suite.returncode != 0:
+            problems.append(f"the test suite fails against the installed package (pytest exit {suite.returncode})")
         for p in problems:
             print("check_install:", p, file=sys.stderr)
         print(f"check_install: gissar {out[0]} installed and imported from {out[1]}")
