@@ -4,7 +4,8 @@
 // analytically to (slant range, azimuth) and returns its share of power at
 // once; shadow comes from a sweep along each azimuth (zero-Doppler) line
 // that keeps the highest elevation seen so far, layover from the surfaces
-// whose slant range decreases with ground range. Single bounce only.
+// whose slant range decreases with ground range. Single bounce only;
+// canonical reflectors through GridHeightfield and ReflectorReturns below.
 //
 // It renders the same image as RenderSar on a single-bounce scene of the
 // same mesh (docs/performance.md, "DEM-raster engine"): the tracer's rays
