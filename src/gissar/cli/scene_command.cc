@@ -37,6 +37,9 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
   build->add_option("--vertical-datum", options->vertical_datum, kVerticalDatumHelp);
   build->add_option("--dem-oversample", options->dem_oversample, "Refine the DEM N times (cubic) before meshing (default 1)");
   build->add_flag("--flat-shading", options->flat_shading, "No smooth per-vertex shading normals on the terrain");
+  build->add_option("--reflectors", options->reflectors,
+                    "Canonical reflectors CSV (type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,"
+                    "boresight_elevation_deg): placed on the scene's surface and stored in the scene");
   auto max_memory = std::make_shared<std::string>();
   build->add_option("--max-memory", *max_memory,
                     "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early");

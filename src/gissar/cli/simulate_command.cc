@@ -50,7 +50,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--height", options->geometry.height,
                   "Image rows (azimuth); default: cover the scene");
   cmd->add_option("--engine", options->engine,
-                  "Image formation: trace (ray tracing) or raster (DEM-raster, single bounce, DEMs only)")
+                  "Image formation: trace (ray tracing) or raster (DEM-raster, single bounce and reflectors, DEMs only)")
       ->capture_default_str();
   cmd->add_option("--rays-per-cell", options->rays_per_cell,
                   "Rays per resolution cell on flat ground")

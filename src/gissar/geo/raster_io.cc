@@ -296,30 +296,78 @@ void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, in
 
 void WriteComplexGeoTiff(const fs::path& path, const std::vector<float>& real, const std::vector<float>& imag,
                          int width, int height, const Metadata& metadata, const std::string& band_unit) {
-  if (real.size() != size_t(width) * height || imag.size() != real.size()) {
-    throw IoError("complex planes do not match the image size", path.string());
-  }
-  std::vector<float> interleaved(2 * real.size());
-  for (size_t k = 0; k < real.size(); ++k) {
-    interleaved[2 * k] = real[k];
-    interleaved[2 * k + 1] = imag[k];
+  WriteComplexGeoTiff(path, {ComplexBand{&real, &imag, "slc"}}, width, height, metadata, band_unit);
+}
+
+void WriteComplexGeoTiff(const fs::path& path, const std::vector<ComplexBand>& bands, int width, int height,
+                         const Metadata& metadata, const std::string& band_unit, const Georeference& georeference,
+                         bool nodata_nan) {
+  if (bands.empty()) throw IoError("a complex raster needs at least one band", path.string());
+  const size_t n = size_t(width) * height;
+  std::vector<std::vector<float>> interleaved(bands.size());
+  std::vector<const void*> planes;
+  for (size_t b = 0; b < bands.size(); ++b) {
+    const ComplexBand& band = bands[b];
+    if (band.real == nullptr || band.imag == nullptr || band.real->size() != n || band.imag->size() != n) {
+      throw IoError("complex planes do not match the image size", path.string());
+    }
+    interleaved[b].resize(2 * n);
+    for (size_t k = 0; k < n; ++k) {
+      interleaved[b][2 * k] = (*band.real)[k];
+      interleaved[b][2 * k + 1] = (*band.imag)[k];
+    }
+    planes.push_back(interleaved[b].data());
   }
   const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
-  DatasetPtr ds = CreateStaged(path, width, height, GDT_CFloat32, {interleaved.data()}, options);
+  DatasetPtr ds = CreateStaged(path, width, height, GDT_CFloat32, planes, options);
   SetMetadata(ds.get(), metadata);
-  GDALRasterBand* band = ds->GetRasterBand(1);
-  band->SetDescription("slc");
-  if (!band_unit.empty()) band->SetUnitType(band_unit.c_str());
-  if (!IsCog(width, height) &&
-      band->RasterIO(GF_Write, 0, 0, width, height, interleaved.data(), width, height, GDT_CFloat32, 0, 0,
-                     nullptr) != CE_None) {
-    throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
+  SetGeoreference(ds.get(), georeference, path);
+  for (size_t b = 0; b < bands.size(); ++b) {
+    GDALRasterBand* band = ds->GetRasterBand(int(b) + 1);
+    band->SetDescription(bands[b].name.c_str());
+    if (!band_unit.empty()) band->SetUnitType(band_unit.c_str());
+    if (nodata_nan) band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
+    if (!IsCog(width, height) &&
+        band->RasterIO(GF_Write, 0, 0, width, height, interleaved[b].data(), width, height, GDT_CFloat32, 0, 0,
+                       nullptr) != CE_None) {
+      throw IoError("cannot write GeoTIFF: " + LastGdalMessage(), path.string());
+    }
   }
   // NEAREST: each overview sample is a true SLC sample (phase kept, mean
   // intensity unbiased). AVERAGE would sum random speckle phasors coherently
   // and darken distributed scatterers by the decimation factor, point
   // targets not.
-  FinishGeoTiff(std::move(ds), path, "NEAREST");
+  FinishGeoTiff(std::move(ds), path, "NEAREST", georeference.geolocation);
+}
+
+ComplexRaster ReadComplexRaster(const fs::path& path) {
+  DatasetPtr ds = OpenForReading(path);
+  ComplexRaster raster;
+  raster.width = ds->GetRasterXSize();
+  raster.height = ds->GetRasterYSize();
+  for (int b = 1; b <= ds->GetRasterCount(); ++b) {
+    GDALRasterBand* band = ds->GetRasterBand(b);
+    std::vector<float> values(2 * size_t(raster.width) * raster.height);
+    if (band->RasterIO(GF_Read, 0, 0, raster.width, raster.height, values.data(), raster.width, raster.height,
+                       GDT_CFloat32, 0, 0, nullptr) != CE_None) {
+      throw InputError("cannot read raster band: " + LastGdalMessage(), path.string());
+    }
+    raster.bands.push_back(std::move(values));
+    raster.band_names.emplace_back(band->GetDescription());
+    raster.band_units.emplace_back(band->GetUnitType());
+    int has_nodata = 0;
+    const double nodata = band->GetNoDataValue(&has_nodata);
+    if (b == 1) raster.nodata_nan = has_nodata != 0 && std::isnan(nodata);
+  }
+  if (char** items = ds->GetMetadata()) {
+    for (char** item = items; *item != nullptr; ++item) {
+      char* key = nullptr;
+      const char* value = CPLParseNameValue(*item, &key);
+      if (key != nullptr && value != nullptr) raster.metadata[key] = value;
+      CPLFree(key);
+    }
+  }
+  return raster;
 }
 
 void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,

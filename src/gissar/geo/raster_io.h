@@ -100,6 +100,35 @@ void WriteComplexGeoTiff(const std::filesystem::path& path, const std::vector<fl
                          const std::vector<float>& imag, int width, int height, const Metadata& metadata,
                          const std::string& band_unit = "");
 
+// One band of a complex raster: row-major real and imaginary planes and the
+// band's description.
+struct ComplexBand {
+  const std::vector<float>* real = nullptr;
+  const std::vector<float>* imag = nullptr;
+  std::string name;
+};
+// Writes a multi-band CFloat32 GeoTIFF (e.g. a single-look complex image and
+// its per-bounce complex parts), every band with `band_unit`, the
+// georeference (GCPs/RPCs, may be empty) and, with nodata_nan, NaN declared
+// as every band's no-data value. Throws IoError when a plane does not match
+// the size or there is no band.
+void WriteComplexGeoTiff(const std::filesystem::path& path, const std::vector<ComplexBand>& bands, int width,
+                         int height, const Metadata& metadata, const std::string& band_unit = "",
+                         const Georeference& georeference = {}, bool nodata_nan = false);
+
+// A complex raster as read: per band, interleaved (real, imaginary) row-major
+// float pairs, the band descriptions, units and dataset metadata.
+struct ComplexRaster {
+  int width = 0, height = 0;
+  std::vector<std::vector<float>> bands;  // 2 * width * height floats each
+  std::vector<std::string> band_names, band_units;
+  Metadata metadata;
+  bool nodata_nan = false;  // band 1 declares NaN no-data
+};
+// Reads every band of a raster as CFloat32. Throws InputError when missing
+// or unreadable.
+ComplexRaster ReadComplexRaster(const std::filesystem::path& path);
+
 // Writes an 8-bit PNG with 1 (grey), 3 (RGB) or 4 (RGBA) channels,
 // interleaved row-major.
 void WritePng(const std::filesystem::path& path, const std::vector<uint8_t>& data, int width,

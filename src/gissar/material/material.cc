@@ -130,6 +130,39 @@ double FresnelReflectivity(std::complex<double> eps, double cos_incidence, Polar
   }
 }
 
+double VerticalTeShare(const Eigen::Vector3d& dir, const Eigen::Vector3d& normal) {
+  Eigen::Vector3d s = dir.cross(normal);
+  const double s_norm = s.norm();
+  if (!(s_norm > 1e-9)) return 0.5;  // normal incidence: TE and TM reflect alike
+  s /= s_norm;
+  Eigen::Vector3d h = dir.cross(Eigen::Vector3d::UnitZ());
+  if (!(h.norm() > 1e-9)) h = dir.cross(Eigen::Vector3d::UnitX());
+  h.normalize();
+  const double hs = h.dot(s);
+  return std::clamp(1.0 - hs * hs, 0.0, 1.0);
+}
+
+double OrientedFresnelReflectivity(std::complex<double> eps, double cos_incidence, const Eigen::Vector3d& dir_in,
+                                   const Eigen::Vector3d& dir_out, const Eigen::Vector3d& normal, Polarization pol) {
+  if (!(cos_incidence > 0.0)) return 0.0;
+  const double theta = std::acos(std::min(1.0, cos_incidence));
+  const auto [gh, gv] = Fresnel(eps, theta);  // |Gamma_TE|^2, |Gamma_TM|^2
+  const double t = 0.5 * (VerticalTeShare(dir_in, normal) + VerticalTeShare(dir_out, normal));
+  switch (pol) {
+    case Polarization::kHH: return gh * (1.0 - t) + gv * t;
+    case Polarization::kVV: return gh * t + gv * (1.0 - t);
+    default: return 0.5 * (gh + gv);
+  }
+}
+
+double Material::MirrorReflectivity(double cos_incidence, const Eigen::Vector3d& dir_in,
+                                    const Eigen::Vector3d& dir_out, const Eigen::Vector3d& normal,
+                                    double wavelength_m, Polarization pol) const {
+  if (!(mirror > 0.0)) return 0.0;
+  return mirror * OrientedFresnelReflectivity(EffectivePermittivity(wavelength_m), cos_incidence, dir_in, dir_out,
+                                              normal, pol);
+}
+
 std::complex<double> Material::EffectivePermittivity(double wavelength_m) const {
   return model == ScatteringModel::kBragg ? WaterPermittivity(wavelength_m, salinity_psu) : permittivity;
 }
@@ -169,7 +202,7 @@ double PathRcsPerArea(const std::vector<PathVertex>& vertices, int scatter, cons
       // Incidence: half the angle between the two directions (exact for a
       // mirror geometry, where back . on = cos(2 theta)).
       const double cos_half = std::sqrt(std::max(0.0, 0.5 * (1.0 + back.dot(on))));
-      value *= v.material->MirrorReflectivity(cos_half, wavelength_m, pol);
+      value *= v.material->MirrorReflectivity(cos_half, -back, on, v.normal, wavelength_m, pol);
     }
   }
   return value;

@@ -61,6 +61,29 @@ double ElfouhailyCurvature(double k_rad_m, double u10_m_s);
 // along a multi-bounce path is not modelled). 0 for cos_incidence <= 0.
 double FresnelReflectivity(std::complex<double> eps, double cos_incidence, Polarization pol);
 
+// Share of the power of the radar's vertically polarised field on a ray of
+// unit direction `dir` that is perpendicular (TE) to the plane of incidence
+// of a surface of unit normal `normal`: 1 - (H . s)^2, with H = dir x z
+// normalised (the radar's horizontal polarisation; a vertical ray takes x
+// for z) and s = dir x normal normalised (the TE direction). 0 on
+// horizontal surfaces (V is TM: the plane of incidence is vertical) and on
+// walls seen broadside; on a vertical wall at horizontal aspect phi from the
+// ray, seen at depression delta: sin^2 phi / (sin^2 delta + cos^2 delta
+// sin^2 phi). The share of H is 1 minus it. At normal incidence (no plane of
+// incidence) 0.5. Either sign of `dir` or `normal` gives the same value.
+double VerticalTeShare(const Eigen::Vector3d& dir, const Eigen::Vector3d& normal);
+
+// Fresnel power reflectivity of a smooth half-space for the radar's
+// polarisation `pol` carried by a ray of unit direction `dir_in` that leaves
+// as `dir_out` (propagation directions), the H/V basis projected on the
+// surface's TE/TM directions: |Gamma_TE|^2 t + |Gamma_TM|^2 (1 - t) for V,
+// the complement for H (t: VerticalTeShare, averaged over `dir_in` and the
+// reversed outgoing ray -dir_out so that a path and its reverse get the same
+// value; the two agree on horizontal and vertical surfaces), the mean of H
+// and V for HV/VH. Gamma at cos(incidence) `cos_incidence`.
+double OrientedFresnelReflectivity(std::complex<double> eps, double cos_incidence, const Eigen::Vector3d& dir_in,
+                                   const Eigen::Vector3d& dir_out, const Eigen::Vector3d& normal, Polarization pol);
+
 struct Material {
   std::string name = "default";
   // Bistatic (later-bounce) terms and the legacy single-bounce law.
@@ -115,6 +138,11 @@ struct Material {
   // `cos_incidence`: mirror * FresnelReflectivity(EffectivePermittivity,
   // cos_incidence, pol) (the same for either direction of travel).
   double MirrorReflectivity(double cos_incidence, double wavelength_m, Polarization pol) const;
+  // The same with the polarisation basis projected on the surface's plane
+  // of incidence (OrientedFresnelReflectivity): what the renderers use.
+  // Equal to the above on horizontal surfaces and broadside walls.
+  double MirrorReflectivity(double cos_incidence, const Eigen::Vector3d& dir_in, const Eigen::Vector3d& dir_out,
+                            const Eigen::Vector3d& normal, double wavelength_m, Polarization pol) const;
 
   // Bistatic scattering coefficient (m^2 of RCS per m^2 of surface) from an
   // incident direction at cos(incidence) `cos_in` into a scattered direction
@@ -181,7 +209,8 @@ struct PathVertex {
 // vertices[0] towards the source), meets vertices[0], ..., vertices[n-1] in
 // order and leaves vertices[n-1] towards `to_receiver` (unit). Vertex
 // `scatter` scatters with its BistaticSigma0; every other vertex is a mirror
-// with its MirrorReflectivity at the half angle between its incoming and
+// with its oriented MirrorReflectivity (the polarisation basis projected on
+// its plane of incidence) at the half angle between its incoming and
 // outgoing directions (its incidence for an exact mirror geometry). 0 when a
 // direction meets a vertex from behind. Reciprocal: the reversed path
 // (vertices reversed, scatter -> n-1-scatter, to_source and to_receiver

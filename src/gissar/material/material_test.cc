@@ -350,6 +350,50 @@ TEST(BistaticTest, SymmetricAndMonostaticLimit) {
   EXPECT_EQ(m.BistaticSigma0(0.0, 0.5, 1.0), 0.0);
 }
 
+// The radar's H/V basis on a surface's plane of incidence: on horizontal
+// ground and on a wall seen broadside V is TM (TE share 0); on a vertical
+// wall at horizontal aspect phi, seen at depression delta, the TE share of V
+// is sin^2 phi / (sin^2 delta + cos^2 delta sin^2 phi) (hand-derived: V =
+// (sin d cos p, sin d sin p, cos d) in the wall's frame, TE direction along
+// dir x n). The oriented mirror reflectivity mixes |Gamma_h|^2 and
+// |Gamma_v|^2 with it, for H the complement.
+TEST(FresnelTest, PolarisationBasisProjectedOnThePlaneOfIncidence) {
+  using Eigen::Vector3d;
+  const double d = 40 * kDeg;
+  auto ray = [&](double aspect) {  // towards +x (the wall's normal is -x), rotated by `aspect`
+    return Vector3d(std::cos(d) * std::cos(aspect), std::cos(d) * std::sin(aspect), -std::sin(d));
+  };
+  const Vector3d ground(0, 0, 1), wall(-1, 0, 0);
+  EXPECT_NEAR(VerticalTeShare(ray(0.3), ground), 0.0, 1e-12);
+  EXPECT_NEAR(VerticalTeShare(ray(0.0), wall), 0.0, 1e-12);
+  for (double phi_deg : {15.0, 30.0, 45.0, 60.0}) {
+    const double p = phi_deg * kDeg;
+    const double expected = std::pow(std::sin(p), 2) / (std::pow(std::sin(d), 2) + std::pow(std::cos(d) * std::sin(p), 2));
+    EXPECT_NEAR(VerticalTeShare(ray(p), wall), expected, 1e-12) << phi_deg;
+    EXPECT_NEAR(VerticalTeShare(-ray(p), -wall), expected, 1e-12) << phi_deg;
+  }
+  // 45 deg aspect: 0.5 / (0.4132 + 0.2934) = 0.7077 of V is TE on the wall.
+  EXPECT_NEAR(VerticalTeShare(ray(45 * kDeg), wall), 0.7077, 1e-4);
+  const std::complex<double> eps(6.0, -0.5);
+  const Vector3d in = ray(45 * kDeg);
+  const double cos_wall = -in.dot(wall);  // cos 40 cos 45 = 0.5417
+  const Vector3d out = in - 2.0 * in.dot(wall) * wall;
+  const double t = VerticalTeShare(in, wall);
+  const double gh = FresnelReflectivity(eps, cos_wall, Polarization::kHH);
+  const double gv = FresnelReflectivity(eps, cos_wall, Polarization::kVV);
+  EXPECT_NEAR(OrientedFresnelReflectivity(eps, cos_wall, in, out, wall, Polarization::kVV), t * gh + (1 - t) * gv, 1e-12);
+  EXPECT_NEAR(OrientedFresnelReflectivity(eps, cos_wall, in, out, wall, Polarization::kHH), (1 - t) * gh + t * gv, 1e-12);
+  EXPECT_NEAR(OrientedFresnelReflectivity(eps, cos_wall, in, out, wall, Polarization::kHV), 0.5 * (gh + gv), 1e-12);
+  std::printf("wall at 45 deg aspect, 40 deg depression, eps 6-0.5j: |G_h|^2 %.4f |G_v|^2 %.4f, VV mirror %.4f\n", gh,
+              gv, t * gh + (1 - t) * gv);
+  // On the ground the oriented value is the plain one.
+  const Vector3d g_out = in - 2.0 * in.dot(ground) * ground;
+  for (const Polarization pol : {Polarization::kHH, Polarization::kVV}) {
+    EXPECT_NEAR(OrientedFresnelReflectivity(eps, std::sin(d), in, g_out, ground, pol),
+                FresnelReflectivity(eps, std::sin(d), pol), 1e-12);
+  }
+}
+
 // Reciprocity: a two- and a three-bounce path and the same paths reversed
 // (source and receiver swapped, bistatic) carry the same power.
 TEST(BistaticTest, ReversedPathsCarryEqualPower) {

@@ -32,6 +32,14 @@ std::string ToString(ReflectorType type) {
   }
 }
 
+ReflectorType ParseReflectorType(const std::string& name, const std::string& where) {
+  if (name == "trihedral") return ReflectorType::kTrihedral;
+  if (name == "trihedral_square") return ReflectorType::kTrihedralSquare;
+  if (name == "dihedral") return ReflectorType::kDihedral;
+  if (name == "plate") return ReflectorType::kPlate;
+  throw InputError("unknown reflector type '" + name + "' (trihedral, trihedral_square, dihedral, plate)", where);
+}
+
 std::vector<ReflectorSpec> ReadReflectorsCsv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw IoError("cannot read reflectors file", path);
@@ -59,11 +67,7 @@ std::vector<ReflectorSpec> ReadReflectorsCsv(const std::string& path) {
     }
     ReflectorSpec r;
     r.row = row;
-    if (fields[0] == "trihedral") r.type = ReflectorType::kTrihedral;
-    else if (fields[0] == "trihedral_square") r.type = ReflectorType::kTrihedralSquare;
-    else if (fields[0] == "dihedral") r.type = ReflectorType::kDihedral;
-    else if (fields[0] == "plate") r.type = ReflectorType::kPlate;
-    else throw InputError("unknown reflector type '" + fields[0] + "' (trihedral, trihedral_square, dihedral, plate)", where);
+    r.type = ParseReflectorType(fields[0], where);
     double v[6];
     const char* names[6] = {"lon", "lat", "apex_height_m", "size_m", "boresight_azimuth_deg", "boresight_elevation_deg"};
     for (int k = 0; k < 6; ++k) {

@@ -13,6 +13,9 @@ namespace gissar::material {
 
 enum class ReflectorType { kTrihedral, kTrihedralSquare, kDihedral, kPlate };
 std::string ToString(ReflectorType type);
+// The type named `name` (trihedral, trihedral_square, dihedral, plate).
+// Throws InputError naming `where` for any other name.
+ReflectorType ParseReflectorType(const std::string& name, const std::string& where);
 
 // One row of a reflectors CSV:
 // type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg

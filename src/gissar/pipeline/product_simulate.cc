@@ -69,7 +69,9 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   const render::EmbreeScene embree(terrain.mesh);
   render::RenderOptions ro = RenderOptionsOf(options, &reporter);
   ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
-  ro.reflectors = PlaceReflectors(options, terrain, embree);
+  ro.reflectors = terrain.reflectors;  // a scene's own
+  const auto placed = PlaceReflectors(options, terrain, embree);
+  ro.reflectors.insert(ro.reflectors.end(), placed.begin(), placed.end());
   sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
   sim.ground_speed_mps = sim.image.tracing_geometry.azimuth_spacing_m / sim.grid.dt_s;
   say(std::to_string(sim.image.geolocated) + " pixels geolocated, " + std::to_string(sim.image.contributions) +

@@ -13,6 +13,8 @@
 #include "gissar/image/mesh_view.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/material/material.h"
+#include "gissar/material/reflector.h"
+#include "gissar/render/embree_scene.h"
 #include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_config.h"
 #include "gissar/scene/scene_io.h"
@@ -101,7 +103,7 @@ void SceneBuildRequest::Check() const {
                           std::to_string(dem_oversample),
                       "--dem-oversample");
   }
-  std::vector<std::string> inputs = {dem, osm, config};
+  std::vector<std::string> inputs = {dem, osm, config, reflectors};
   inputs.insert(inputs.end(), vectors.begin(), vectors.end());
   std::vector<fs::path> outs;
   for (const char* suffix : {".gscene", ".ply", "_classes.png", "_3d.png", ".json", "_mesh.json", ".obj", ".mtl"}) {
@@ -126,6 +128,7 @@ json SceneBuildRequest::ToJson() const {
           {"vertical_units", vertical_units},
           {"vertical_datum", vertical_datum},
           {"flat_shading", flat_shading},
+          {"reflectors", reflectors},
           {"max_memory_bytes", max_memory_bytes}};
 }
 
@@ -157,6 +160,10 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
   config.sea_auto = options.sea == "auto";
   config.sea_level_m = options.sea_level_m;
   const material::MaterialTable materials = material::SceneMaterials(config.materials, config.source);
+  // Reflector rows: a bad row fails before the DEM is read.
+  const std::vector<material::ReflectorSpec> reflector_rows =
+      options.reflectors.empty() ? std::vector<material::ReflectorSpec>{}
+                                 : material::ReadReflectorsCsv(options.reflectors);
 
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
@@ -220,6 +227,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
            {"sliver_faces", built.stats.sliver_faces},
            {"steep_slivers", built.stats.steep_slivers},
            {"shading_normals", !options.flat_shading},
+           {"reflectors", reflector_rows.size()},
            {"build_seconds", built.stats.seconds}};
 
   json inputs = json::array({InputFileRecord(options.dem)});
@@ -230,10 +238,33 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
     if (fs::is_regular_file(l.source.path)) inputs.push_back(InputFileRecord(l.source.path));
   }
   if (!options.config.empty()) inputs.push_back(InputFileRecord(options.config));
+  if (!options.reflectors.empty()) inputs.push_back(InputFileRecord(options.reflectors));
 
   scene::SceneFile file;
   file.mesh = std::move(built.mesh);
   if (!options.flat_shading) file.mesh.SmoothShadingNormals(scene::kClassBuilding);
+  if (!reflector_rows.empty()) {
+    // On the scene's surface (roofs included), found as simulate finds it.
+    const render::EmbreeScene embree(file.mesh);
+    const std::vector<render::SceneReflector> placed =
+        PlaceReflectorRows(reflector_rows, options.reflectors, frame,
+                           EmbreeSurface(embree, file.mesh.Bounds().max().z() + 100.0));
+    for (size_t k = 0; k < placed.size(); ++k) {
+      const material::ReflectorSpec& row = reflector_rows[k];
+      scene::StoredReflector r;
+      r.type = material::ToString(row.type);
+      r.lon_deg = row.lon_deg;
+      r.lat_deg = row.lat_deg;
+      r.apex_height_m = row.apex_height_m;
+      r.size_m = row.size_m;
+      r.boresight_azimuth_deg = row.boresight_azimuth_deg;
+      r.boresight_elevation_deg = row.boresight_elevation_deg;
+      r.apex_enu = placed[k].apex_enu;
+      r.source = fs::path(options.reflectors).filename().string();
+      r.row = row.row;
+      file.reflectors.push_back(r);
+    }
+  }
   file.origin_lon_deg = frame.origin_lon_deg();
   file.origin_lat_deg = frame.origin_lat_deg();
   file.centre_enu = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
@@ -322,6 +353,17 @@ void PrintSceneInfo(const std::string& scene_path, std::ostream& out) {
   for (size_t c = 0; c < file.class_names.size(); ++c) {
     out << std::left << std::setw(12) << file.class_names[c] << std::right << std::setw(11) << triangles[c]
         << std::setprecision(4) << std::setw(13) << plan[c] / 1e6 << std::setw(13) << area[c] / 1e6 << "\n";
+  }
+  out << "reflectors " << file.reflectors.size() << "\n";
+  if (!file.reflectors.empty()) {
+    out << "  type              size_m   lon_deg      lat_deg     apex_enu_m (x, y, z)        boresight az/el deg  source\n";
+    for (const scene::StoredReflector& r : file.reflectors) {
+      char line[320];
+      std::snprintf(line, sizeof(line), "  %-16s %7.3f %11.6f %11.6f  %9.2f %9.2f %8.2f  %7.1f %6.1f  %s row %d\n",
+                    r.type.c_str(), r.size_m, r.lon_deg, r.lat_deg, r.apex_enu.x(), r.apex_enu.y(), r.apex_enu.z(),
+                    r.boresight_azimuth_deg, r.boresight_elevation_deg, r.source.c_str(), r.row);
+      out << line;
+    }
   }
 }
 

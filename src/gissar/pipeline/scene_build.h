@@ -45,6 +45,11 @@ struct SceneBuildRequest {
   std::string vertical_datum;
   // --flat-shading: no per-vertex shading normals (smooth terrain) in the scene.
   bool flat_shading = false;
+  // Canonical reflectors (--reflectors FILE.csv, material/reflector.h):
+  // placed on the scene's surface (apex = surface height at lon, lat +
+  // apex_height_m, as `simulate --reflectors`) and stored in the .gscene,
+  // so that `simulate --scene` renders them.
+  std::string reflectors;
   // Memory budget (--max-memory), bytes: the DEM (window) is checked against
   // it before it is read.
   int64_t max_memory_bytes = DefaultMemoryLimitBytes();
@@ -74,8 +79,8 @@ nlohmann::json MeshCrsRecord(double origin_lon_deg, double origin_lat_deg);
 
 SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
-// Prints counts per class, extent, triangle count and memory of a scene
-// file. Throws InputError for unreadable or invalid files.
+// Prints counts per class, extent, triangle count, memory and the stored
+// reflectors of a scene file. Throws InputError for unreadable or invalid files.
 void PrintSceneInfo(const std::string& scene_path, std::ostream& out);
 
 // Parses "C,R,W,H" (integers); throws ConfigError naming `option`.

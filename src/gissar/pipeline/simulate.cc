@@ -108,9 +108,6 @@ void SimulateRequest::Check() const {
   if (!(wavelength_m >= 1e-3 && wavelength_m <= 100.0)) {
     throw ConfigError("wavelength must be in [0.001, 100] m", "--wavelength");
   }
-  if (!reflectors.empty() && engine == "raster") {
-    throw ConfigError("the raster engine renders no reflectors (use --engine trace)", "--engine/--reflectors");
-  }
   material::ParsePolarization(polarization, "--polarization");
   if (coherent && speckle_looks > 0.0) {
     throw ConfigError("coherent mode forms its own speckle; do not add simulated speckle",
@@ -383,6 +380,8 @@ Terrain TerrainFromScene(const SimulateRequest& options) {
                    {"triangles", file.mesh.triangle_count()},
                    {"class_names", file.class_names},
                    {"scene_provenance", file.provenance}};
+  t.reflectors = StoredReflectors(file.reflectors, options.scene);
+  t.description["reflectors"] = file.reflectors.size();
   t.mesh = std::move(file.mesh);
   return t;
 }
@@ -439,25 +438,68 @@ void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const
                     terrain.frame.GeodeticFromEnu(terrain.centre_enu).z()};
 }
 
-std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
-                                                    const render::EmbreeScene& embree) {
-  std::vector<render::SceneReflector> out;
-  if (options.reflectors.empty()) return out;
-  const double top = terrain.mesh.Bounds().max().z() + 100.0;
-  for (const material::ReflectorSpec& spec : material::ReadReflectorsCsv(options.reflectors)) {
-    const Eigen::Vector3d above = terrain.frame.EnuFromGeodetic(spec.lon_deg, spec.lat_deg, top);
-    const auto hit = embree.Intersect(above.cast<float>(), Eigen::Vector3f(0, 0, -1), 0.0f,
-                                      std::numeric_limits<float>::infinity());
-    if (!hit) {
-      throw InputError("reflector lies outside the terrain", options.reflectors + " row " + std::to_string(spec.row));
+SurfaceHeightAt EmbreeSurface(const render::EmbreeScene& embree, double top_z_m) {
+  return [&embree, top_z_m](double x, double y) -> std::optional<double> {
+    // A vertical ray exactly through a mesh vertex or edge may slip between
+    // its triangles (Embree's fast, non-watertight test): then a few
+    // millimetres beside it.
+    constexpr double kNudge[5][2] = {{0, 0}, {2e-3, 1e-3}, {-1e-3, 2e-3}, {-2e-3, -1e-3}, {1e-3, -2e-3}};
+    for (const auto& d : kNudge) {
+      const auto hit = embree.Intersect(Eigen::Vector3f(float(x + d[0]), float(y + d[1]), float(top_z_m)),
+                                        Eigen::Vector3f(0, 0, -1), 0.0f, std::numeric_limits<float>::infinity());
+      if (hit) return top_z_m - hit->t;
     }
-    const Eigen::Vector3d ground = above - Eigen::Vector3d(0, 0, hit->t);
+    return std::nullopt;
+  };
+}
+
+std::vector<render::SceneReflector> PlaceReflectorRows(const std::vector<material::ReflectorSpec>& rows,
+                                                       const std::string& source, const geo::LocalFrame& frame,
+                                                       const SurfaceHeightAt& surface) {
+  std::vector<render::SceneReflector> out;
+  for (const material::ReflectorSpec& spec : rows) {
+    // The ground point of (lon, lat): on the ellipsoid normal there, at the
+    // surface's height (ENU verticals lean from it away from the origin:
+    // the plan position is taken at the height found, then the surface
+    // read again there).
+    const std::string where = source + " row " + std::to_string(spec.row);
+    Eigen::Vector3d at = frame.EnuFromGeodetic(spec.lon_deg, spec.lat_deg, 0.0);
+    std::optional<double> z = surface(at.x(), at.y());
+    if (z) {
+      const double h = frame.GeodeticFromEnu(Eigen::Vector3d(at.x(), at.y(), *z)).z();
+      at = frame.EnuFromGeodetic(spec.lon_deg, spec.lat_deg, h);
+      z = surface(at.x(), at.y());
+    }
+    if (!z) throw InputError("reflector lies outside the terrain", where);
     render::SceneReflector r;
     r.type = spec.type;
     r.size_m = spec.size_m;
-    r.apex_enu = ground + Eigen::Vector3d(0, 0, spec.apex_height_m);
+    r.apex_enu = Eigen::Vector3d(at.x(), at.y(), *z + spec.apex_height_m);
     r.boresight_enu = material::BoresightVector(spec.boresight_azimuth_deg, spec.boresight_elevation_deg);
     r.row = spec.row;
+    out.push_back(r);
+  }
+  return out;
+}
+
+std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
+                                                    const render::EmbreeScene& embree) {
+  if (options.reflectors.empty()) return {};
+  return PlaceReflectorRows(material::ReadReflectorsCsv(options.reflectors), options.reflectors, terrain.frame,
+                            EmbreeSurface(embree, terrain.mesh.Bounds().max().z() + 100.0));
+}
+
+std::vector<render::SceneReflector> StoredReflectors(const std::vector<scene::StoredReflector>& stored,
+                                                     const std::string& scene_path) {
+  std::vector<render::SceneReflector> out;
+  for (size_t k = 0; k < stored.size(); ++k) {
+    const scene::StoredReflector& s = stored[k];
+    render::SceneReflector r;
+    r.type = material::ParseReflectorType(s.type, scene_path + " reflector " + std::to_string(k + 1));
+    r.size_m = s.size_m;
+    r.apex_enu = s.apex_enu;
+    r.boresight_enu = material::BoresightVector(s.boresight_azimuth_deg, s.boresight_elevation_deg);
+    r.row = s.row;
     out.push_back(r);
   }
   return out;
@@ -634,16 +676,30 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
         (raster_engine ? std::to_string(int64_t(terrain.grid_width - 1) * (terrain.grid_height - 1)) + " DEM cells"
                        : std::to_string(mesh.triangle_count()) + " triangles"));
   }
-  out.image = raster_engine ? render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height,
-                                                      terrain.materials, geometry, terrain.grid_classes,
-                                                      options.wavelength_m,
-                                                      material::ParsePolarization(options.polarization,
-                                                                                  "--polarization"))
-                            : [&] {
-                                render::RenderOptions ro = RenderOptionsOf(options, &reporter);
-                                ro.reflectors = PlaceReflectors(options, terrain, *embree);
-                                return render::RenderSar(*embree, mesh, terrain.materials, geometry, ro);
-                              }();
+  if (raster_engine) {
+    out.image = render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height, terrain.materials,
+                                        geometry, terrain.grid_classes, options.wavelength_m,
+                                        material::ParsePolarization(options.polarization, "--polarization"));
+    // Reflectors: the tracer's closed-form returns, hidden by the DEM grid's
+    // triangles (a height field: no BVH).
+    if (!options.reflectors.empty() || !terrain.reflectors.empty()) {
+      const render::GridHeightfield heightfield(mesh.vertices, terrain.grid_width, terrain.grid_height);
+      std::vector<render::SceneReflector> reflectors = terrain.reflectors;
+      if (!options.reflectors.empty()) {
+        const auto placed = PlaceReflectorRows(
+            material::ReadReflectorsCsv(options.reflectors), options.reflectors, terrain.frame,
+            [&](double x, double y) { return heightfield.SurfaceHeight(x, y); });
+        reflectors.insert(reflectors.end(), placed.begin(), placed.end());
+      }
+      out.image.points = render::ReflectorReturns(heightfield, reflectors, geometry, options.wavelength_m);
+    }
+  } else {
+    render::RenderOptions ro = RenderOptionsOf(options, &reporter);
+    ro.reflectors = terrain.reflectors;
+    const auto placed = PlaceReflectors(options, terrain, *embree);
+    ro.reflectors.insert(ro.reflectors.end(), placed.begin(), placed.end());
+    out.image = render::RenderSar(*embree, mesh, terrain.materials, geometry, ro);
+  }
   // Sensor effects: impulse response, speckle, thermal noise (in this order).
   step = Stopwatch();
   ApplySensorEffects(out.image, options, geometry);
@@ -743,8 +799,16 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   if (options.coherent) {
     geo::Metadata slc_metadata = metadata;
     slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
-    geo::WriteComplexGeoTiff(slc_tif, image.real, image.imag, image.width, image.height, slc_metadata,
-                             "sqrt(m2/m2)");
+    // The complex total, then the complex image of each bounce count: they
+    // add up to the total (before thermal noise).
+    slc_metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
+                                   "2-5 add up to band 1 before thermal noise)";
+    std::vector<geo::ComplexBand> slc_bands = {{&image.real, &image.imag, "total"}};
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      slc_bands.push_back({&image.bounce_real[layer], &image.bounce_imag[layer], layer_names[layer]});
+    }
+    geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
+                             raster.georeference, /*nodata_nan=*/true);
   }
   if (!reserved.layers_tif.empty()) {
     const Stopwatch layers_watch;

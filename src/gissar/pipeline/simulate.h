@@ -19,8 +19,10 @@
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/material/material.h"
+#include "gissar/material/reflector.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
+#include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
 #include "gissar/util/atomic_output.h"
@@ -163,13 +165,31 @@ struct Terrain {
   std::string vertical_datum = "ellipsoid";
   std::string vertical_datum_source = "assumed";
   nlohmann::json description;  // for provenance
+  // Canonical reflectors stored in a scene (`scene build --reflectors`),
+  // placed when it was built.
+  std::vector<render::SceneReflector> reflectors;
 };
 
-// The reflectors of options.reflectors placed on the terrain surface in
+// The reflectors of options.reflectors (CSV) placed on the terrain surface in
 // `embree` (apex = surface height at lon, lat + apex_height_m), ENU.
 // Throws InputError naming the file and row for a reflector off the terrain.
 std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
                                                     const render::EmbreeScene& embree);
+
+// The surface height below ENU (x, y) (nullopt: off the terrain).
+using SurfaceHeightAt = std::function<std::optional<double>(double x_m, double y_m)>;
+// The surface of a mesh in `embree`: a vertical ray from above `top_z_m`.
+SurfaceHeightAt EmbreeSurface(const render::EmbreeScene& embree, double top_z_m);
+// Reflector rows placed on a surface (apex = surface height at lon, lat +
+// apex_height_m, ENU of `frame`). Throws InputError naming `source` and the
+// row for a reflector off the terrain.
+std::vector<render::SceneReflector> PlaceReflectorRows(const std::vector<material::ReflectorSpec>& rows,
+                                                       const std::string& source, const geo::LocalFrame& frame,
+                                                       const SurfaceHeightAt& surface);
+// A scene's stored reflectors as the renderers take them. Throws InputError
+// naming `scene_path` for an unknown type.
+std::vector<render::SceneReflector> StoredReflectors(const std::vector<scene::StoredReflector>& stored,
+                                                     const std::string& scene_path);
 
 // Loads options.dem or options.scene; the centre follows --center /
 // --center-map for DEMs. With engine "raster" a DEM's mesh holds only its

@@ -98,6 +98,11 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
                         std::to_string(height) + " pixels",
                     "use fewer --frames, coarser --range-spacing/--azimuth-spacing");
   render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
+  // A scene's stored reflectors and any --reflectors rows, as simulate renders them.
+  render_options.reflectors = terrain.reflectors;
+  for (const render::SceneReflector& r : PlaceReflectors(options.base, terrain, embree)) {
+    render_options.reflectors.push_back(r);
+  }
   std::vector<std::vector<uint8_t>> grey_frames;
   std::vector<std::string> captions;
   image::DbStretch stretch;
@@ -207,7 +212,11 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
   const render::OrthoImage los = render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kLineOfSight, colour);
   const render::OrthoImage gperp =
       render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kSlantRangeNormal, colour);
-  const render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
+  render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
+  render_options.reflectors = terrain.reflectors;
+  for (const render::SceneReflector& r : PlaceReflectors(options.base, terrain, embree)) {
+    render_options.reflectors.push_back(r);
+  }
   render::SarImage sar = render::RenderSar(embree, terrain.mesh, terrain.materials, geometry, render_options);
   ApplySensorEffects(sar, options.base, geometry);
   const image::RgbImage sar_rgb = image::GreyToRgb(image::DbQuicklook(sar.intensity, 2.0, 98.0), sar.width, sar.height);

@@ -740,4 +740,153 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
   return image;
 }
 
+GridHeightfield::GridHeightfield(const std::vector<Eigen::Vector3f>& posts, int width, int height)
+    : posts_(posts.data()), width_(width), height_(height) {
+  GISSAR_CHECK(width >= 2 && height >= 2);
+  GISSAR_CHECK(posts.size() == size_t(width) * height);
+  top_z_ = -std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3f& p : posts) {
+    if (std::isfinite(p.z())) top_z_ = std::max(top_z_, double(p.z()));
+  }
+  // A quarter of the smallest horizontal post spacing at the corners and
+  // the centre.
+  double spacing = std::numeric_limits<double>::infinity();
+  for (int r : {0, height / 2, height - 2}) {
+    for (int c : {0, width / 2, width - 2}) {
+      const Eigen::Vector3d p = Post(c, r);
+      spacing = std::min({spacing, (Post(c + 1, r) - p).head<2>().norm(), (Post(c, r + 1) - p).head<2>().norm()});
+    }
+  }
+  step_m_ = std::isfinite(spacing) && spacing > 0.0 ? 0.25 * spacing : 1.0;
+}
+
+Eigen::Vector2d GridHeightfield::GridCoordinates(double x, double y) const {
+  const Eigen::Vector2d q(x, y);
+  // Start from the affine grid through three corners, then invert the local
+  // affine map of the cell found until the cell no longer changes.
+  auto solve = [&](int c0, int r0, int dc, int dr) {
+    const Eigen::Vector2d p0 = Post(c0, r0).head<2>();
+    Eigen::Matrix2d m;
+    m.col(0) = (Post(c0 + dc, r0).head<2>() - p0) / dc;
+    m.col(1) = (Post(c0, r0 + dr).head<2>() - p0) / dr;
+    const double det = m.determinant();
+    if (!(std::abs(det) > 0.0)) return Eigen::Vector2d(std::numeric_limits<double>::quiet_NaN(), 0.0);
+    return Eigen::Vector2d(Eigen::Vector2d(c0, r0) + m.inverse() * (q - p0));
+  };
+  Eigen::Vector2d g = solve(0, 0, width_ - 1, height_ - 1);
+  for (int iteration = 0; iteration < 12 && g.allFinite(); ++iteration) {
+    const int c0 = std::clamp(static_cast<int>(std::floor(std::clamp(g.x(), -1e9, 1e9))), 0, width_ - 2);
+    const int r0 = std::clamp(static_cast<int>(std::floor(std::clamp(g.y(), -1e9, 1e9))), 0, height_ - 2);
+    const Eigen::Vector2d next = solve(c0, r0, 1, 1);
+    const bool same_cell = std::clamp(static_cast<int>(std::floor(std::clamp(next.x(), -1e9, 1e9))), 0, width_ - 2) == c0 &&
+                           std::clamp(static_cast<int>(std::floor(std::clamp(next.y(), -1e9, 1e9))), 0, height_ - 2) == r0;
+    g = next;
+    if (same_cell) break;
+  }
+  return g;
+}
+
+std::optional<double> GridHeightfield::SurfaceHeight(double x, double y) const {
+  const Eigen::Vector2d g = GridCoordinates(x, y);
+  constexpr double kTol = 1e-6;
+  if (!g.allFinite() || g.x() < -kTol || g.y() < -kTol || g.x() > width_ - 1 + kTol || g.y() > height_ - 1 + kTol) {
+    return std::nullopt;
+  }
+  const int c = std::clamp(static_cast<int>(std::floor(g.x())), 0, width_ - 2);
+  const int r = std::clamp(static_cast<int>(std::floor(g.y())), 0, height_ - 2);
+  // MeshFromGrid's triangles (a, b, d) and (b, e, d): a = (c, r),
+  // b = (c + 1, r), d = (c, r + 1), e = (c + 1, r + 1).
+  const Eigen::Vector3d a = Post(c, r), b = Post(c + 1, r), d = Post(c, r + 1), e = Post(c + 1, r + 1);
+  auto height_in = [&](const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
+                       double* out) {
+    const Eigen::Vector2d u = (p1 - p0).head<2>(), v = (p2 - p0).head<2>(), w = Eigen::Vector2d(x, y) - p0.head<2>();
+    const double det = u.x() * v.y() - u.y() * v.x();
+    if (!(std::abs(det) > 0.0)) return false;
+    const double s = (w.x() * v.y() - w.y() * v.x()) / det, t = (u.x() * w.y() - u.y() * w.x()) / det;
+    *out = p0.z() + s * (p1.z() - p0.z()) + t * (p2.z() - p0.z());
+    return s >= -1e-9 && t >= -1e-9 && s + t <= 1.0 + 1e-9;
+  };
+  double z = 0.0;
+  if (height_in(a, b, d, &z)) return z;
+  height_in(b, e, d, &z);  // the other half (or, at the grid's border, its extension)
+  return std::isfinite(z) ? std::optional<double>(z) : std::nullopt;
+}
+
+double GridHeightfield::HitCell(int c, int r, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                double t_near, double t_far) const {
+  const Eigen::Vector3d a = Post(c, r), b = Post(c + 1, r), d = Post(c, r + 1), e = Post(c + 1, r + 1);
+  double best = std::numeric_limits<double>::infinity();
+  // Moller-Trumbore, both faces.
+  auto triangle = [&](const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2) {
+    const Eigen::Vector3d e1 = p1 - p0, e2 = p2 - p0;
+    const Eigen::Vector3d pv = dir.cross(e2);
+    const double det = e1.dot(pv);
+    if (!(std::abs(det) > 1e-300)) return;
+    const double inv = 1.0 / det;
+    const Eigen::Vector3d tv = origin - p0;
+    const double u = tv.dot(pv) * inv;
+    if (u < 0.0 || u > 1.0) return;
+    const Eigen::Vector3d qv = tv.cross(e1);
+    const double v = dir.dot(qv) * inv;
+    if (v < 0.0 || u + v > 1.0) return;
+    const double t = e2.dot(qv) * inv;
+    if (t >= t_near && t <= t_far) best = std::min(best, t);
+  };
+  triangle(a, b, d);
+  triangle(b, e, d);
+  return best;
+}
+
+bool GridHeightfield::Occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_near,
+                               double t_far) const {
+  if (!(t_far >= t_near)) return false;
+  // Beyond the highest post a rising segment meets nothing.
+  double t_end = t_far;
+  if (dir.z() > 0.0) t_end = std::min(t_end, (top_z_ - origin.z()) / dir.z() + 1e-6);
+  if (dir.z() >= 0.0 && origin.z() + t_near * dir.z() > top_z_) return false;
+  const double horizontal = std::hypot(dir.x(), dir.y());
+  const double dt = horizontal > 1e-12 ? step_m_ / horizontal : std::max(t_end - t_near, 1e-3);
+  // Cells already tested (the 3 x 3 neighbourhoods of successive steps overlap).
+  std::array<int64_t, 64> tested;
+  tested.fill(-1);
+  size_t next = 0;
+  int outside_steps = 0;
+  for (double t = t_near; t <= t_end + dt; t += dt) {
+    const Eigen::Vector3d p = origin + std::min(t, t_end) * dir;
+    const Eigen::Vector2d g = GridCoordinates(p.x(), p.y());
+    if (!g.allFinite()) return false;
+    const int ci = static_cast<int>(std::floor(std::clamp(g.x(), -1e9, 1e9)));
+    const int ri = static_cast<int>(std::floor(std::clamp(g.y(), -1e9, 1e9)));
+    // Far outside the grid the segment cannot come back (the grid's plan is
+    // convex to within its curvature).
+    if (ci < -2 || ri < -2 || ci > width_ || ri > height_) {
+      if (++outside_steps > 8) return false;
+      continue;
+    }
+    outside_steps = 0;
+    for (int dr = -1; dr <= 1; ++dr) {
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int c = ci + dc, r = ri + dr;
+        if (c < 0 || r < 0 || c > width_ - 2 || r > height_ - 2) continue;
+        const int64_t id = int64_t(r) * width_ + c;
+        if (std::find(tested.begin(), tested.end(), id) != tested.end()) continue;
+        tested[next] = id;
+        next = (next + 1) % tested.size();
+        if (HitCell(c, r, origin, dir, t_near, t_far) < std::numeric_limits<double>::infinity()) return true;
+      }
+    }
+    if (t >= t_end) break;
+  }
+  return false;
+}
+
+std::vector<PointReturn> ReflectorReturns(const GridHeightfield& terrain, const std::vector<SceneReflector>& reflectors,
+                                          const sensor::SarGeometry& geometry, double wavelength_m) {
+  return ReflectorReturns(
+      [&](const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_near, double t_far) {
+        return terrain.Occluded(origin, dir, t_near, t_far);
+      },
+      reflectors, geometry, wavelength_m);
+}
+
 }  // namespace gissar::render

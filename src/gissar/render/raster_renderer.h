@@ -4,7 +4,8 @@
 // analytically to (slant range, azimuth) and returns its share of power at
 // once; shadow comes from a sweep along each azimuth (zero-Doppler) line
 // that keeps the highest elevation seen so far, layover from the surfaces
-// whose slant range decreases with ground range. Single bounce only.
+// whose slant range decreases with ground range. Single bounce only;
+// canonical reflectors through GridHeightfield and ReflectorReturns below.
 //
 // It renders the same image as RenderSar on a single-bounce scene of the
 // same mesh (docs/performance.md, "DEM-raster engine"): the tracer's rays
@@ -16,6 +17,7 @@
 // projection.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -74,5 +76,45 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
                          double wavelength_m = 0.031,
                          material::Polarization polarization = material::Polarization::kVV,
                          const std::vector<Eigen::Vector3f>& post_normals = {});
+
+// The grid mesh of RenderSarRaster (scene::MeshFromGrid's triangles of a
+// row-major grid of ENU posts) as a height field, without a BVH: the surface
+// below a point and line-of-sight tests, for canonical reflectors in the
+// raster engine. Cells are found by local affine inversion of the grid
+// (posts on a map grid need not be evenly spaced in ENU); a line of sight
+// is marched at a quarter of the smallest post spacing, testing the two
+// triangles of every cell around each step exactly (the tracer's triangles,
+// so both engines agree on what hides a reflector).
+class GridHeightfield {
+ public:
+  // CHECKs at least 2 x 2 posts and posts.size() == width * height. Keeps a
+  // pointer to `posts`, which must outlive it.
+  GridHeightfield(const std::vector<Eigen::Vector3f>& posts, int width, int height);
+  // Height of the surface at ENU (x, y): the grid triangle whose plan
+  // contains it; nullopt outside the grid.
+  std::optional<double> SurfaceHeight(double x, double y) const;
+  // Whether the segment origin + t dir, t in [t_near, t_far], meets a
+  // triangle of the grid (dir a unit vector).
+  bool Occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_near, double t_far) const;
+
+ private:
+  // Continuous grid coordinates (column, row) of ENU (x, y).
+  Eigen::Vector2d GridCoordinates(double x, double y) const;
+  // Ray parameter of the first hit of the segment with the two triangles of
+  // cell (c, r) in [t_near, t_far], or +inf.
+  double HitCell(int c, int r, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_near,
+                 double t_far) const;
+  Eigen::Vector3d Post(int c, int r) const { return posts_[size_t(r) * width_ + c].cast<double>(); }
+  const Eigen::Vector3f* posts_;
+  int width_, height_;
+  double top_z_ = 0.0;       // highest post
+  double step_m_ = 1.0;      // march step (horizontal metres)
+};
+
+// Returns of `reflectors` in the raster engine: render::ReflectorReturns
+// with the height field's line of sight (the same RCS, pattern, pixel and
+// phase as the tracer's).
+std::vector<PointReturn> ReflectorReturns(const GridHeightfield& terrain, const std::vector<SceneReflector>& reflectors,
+                                          const sensor::SarGeometry& geometry, double wavelength_m);
 
 }  // namespace gissar::render

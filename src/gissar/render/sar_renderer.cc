@@ -661,7 +661,10 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             }
             // Continue as the mirror ray, with the class's Fresnel mirror
             // reflectivity at this incidence.
-            share *= m.MirrorReflectivity(cos_in, options.wavelength_m, options.polarization);
+            // The radar's H/V basis is projected on this surface's plane of
+            // incidence (walls seen obliquely reflect part of V as TE).
+            share *= m.MirrorReflectivity(cos_in, dir, mirror.normalized(), normal, options.wavelength_m,
+                                          options.polarization);
             if (share < 1e-9) break;
             origin = p;
             dir = mirror.normalized();
@@ -748,6 +751,16 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
 
 std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::vector<SceneReflector>& reflectors,
                                           const sensor::SarGeometry& geometry, double wavelength_m) {
+  return ReflectorReturns(
+      [&](const Vector3d& origin, const Vector3d& dir, double t_near, double t_far) {
+        return embree.Occluded(origin.cast<float>(), dir.cast<float>(), static_cast<float>(t_near),
+                               static_cast<float>(t_far));
+      },
+      reflectors, geometry, wavelength_m);
+}
+
+std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const std::vector<SceneReflector>& reflectors,
+                                          const sensor::SarGeometry& geometry, double wavelength_m) {
   std::vector<PointReturn> out;
   const double inv_pixel_area = 1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m());
   for (const SceneReflector& r : reflectors) {
@@ -759,7 +772,7 @@ std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::
     const double far = geometry.mode() == sensor::ProjectionMode::kAffine
                            ? geometry.slant_range_m() * 2.0
                            : (geometry.SensorPosition(geometry.AlongTrack(r.apex_enu)) - r.apex_enu).norm();
-    if (embree.Occluded(r.apex_enu.cast<float>(), to_sensor.cast<float>(), 0.05f, static_cast<float>(far))) continue;
+    if (occluded(r.apex_enu, to_sensor, 0.05, far)) continue;
     PointReturn p;
     const Eigen::Vector2d px = geometry.Project(r.apex_enu);
     p.col = px.x();

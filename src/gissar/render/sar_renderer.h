@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "gissar/material/material.h"
@@ -198,6 +199,17 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
 // material::ReflectorRcs towards the sensor, none where the way from the
 // apex to the sensor is occluded or the RCS is zero.
 std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::vector<SceneReflector>& reflectors,
+                                          const sensor::SarGeometry& geometry, double wavelength_m);
+
+// Whether the segment origin + t dir, t in [t_near, t_far] (dir a unit
+// vector, metres), meets the scene.
+using OcclusionTest = std::function<bool(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_near,
+                                         double t_far)>;
+// The same with any occlusion test (the raster engine's height field,
+// raster_renderer.h): the visibility ray leaves the apex towards the sensor
+// from t = 5 cm (clear of the reflector's own ground) to the sensor (affine
+// mode: twice the slant range).
+std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const std::vector<SceneReflector>& reflectors,
                                           const sensor::SarGeometry& geometry, double wavelength_m);
 
 // Only the layover/shadow mask (see RenderSar). `lit` (optional): 1 where a

@@ -60,6 +60,22 @@ void WriteScene(const fs::path& path, const SceneFile& scene) {
       {"class_names", scene.class_names},
       {"materials", scene.materials},
       {"provenance", scene.provenance}};
+  if (!scene.reflectors.empty()) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const StoredReflector& r : scene.reflectors) {
+      list.push_back({{"type", r.type},
+                      {"lon_deg", r.lon_deg},
+                      {"lat_deg", r.lat_deg},
+                      {"apex_height_m", r.apex_height_m},
+                      {"size_m", r.size_m},
+                      {"boresight_azimuth_deg", r.boresight_azimuth_deg},
+                      {"boresight_elevation_deg", r.boresight_elevation_deg},
+                      {"apex_enu", {r.apex_enu.x(), r.apex_enu.y(), r.apex_enu.z()}},
+                      {"source", r.source},
+                      {"row", r.row}});
+    }
+    header["reflectors"] = list;
+  }
   const std::string text = header.dump();
   out.write(kMagic, sizeof(kMagic));
   Put(out, kSceneFileVersion);
@@ -123,6 +139,31 @@ SceneFile ReadScene(const fs::path& path) {
     scene.class_names = header.at("class_names").get<std::vector<std::string>>();
     scene.materials = header.at("materials");
     scene.provenance = header.at("provenance");
+    if (header.contains("reflectors")) {
+      for (const nlohmann::json& item : header.at("reflectors")) {
+        StoredReflector r;
+        r.type = item.at("type").get<std::string>();
+        r.lon_deg = item.at("lon_deg");
+        r.lat_deg = item.at("lat_deg");
+        r.apex_height_m = item.at("apex_height_m");
+        r.size_m = item.at("size_m");
+        r.boresight_azimuth_deg = item.at("boresight_azimuth_deg");
+        r.boresight_elevation_deg = item.at("boresight_elevation_deg");
+        const auto& a = item.at("apex_enu");
+        r.apex_enu = Eigen::Vector3d(a.at(0), a.at(1), a.at(2));
+        r.source = item.at("source").get<std::string>();
+        r.row = item.at("row");
+        const bool finite = std::isfinite(r.lon_deg) && std::isfinite(r.lat_deg) && std::isfinite(r.apex_height_m) &&
+                            std::isfinite(r.boresight_azimuth_deg) && std::isfinite(r.boresight_elevation_deg) &&
+                            r.apex_enu.allFinite();
+        if (r.type.empty() || !finite || !(r.size_m > 0.0) || !std::isfinite(r.size_m)) {
+          throw InputError("scene header is corrupt: reflector " + std::to_string(scene.reflectors.size() + 1) +
+                               " has no type, a non-finite field or size <= 0",
+                           path.string());
+        }
+        scene.reflectors.push_back(r);
+      }
+    }
   } catch (const nlohmann::json::exception& e) {
     throw InputError(std::string("scene header is corrupt: ") + e.what(), path.string());
   }

@@ -7,7 +7,9 @@
 // float32[3 n] ENU vertices, int32[3 m] triangles, uint8[m] classes,
 // uint8 shading-normal flag (0/1) and, when 1, float32[3 n] per-vertex unit
 // shading normals (zero = flat), magic "GSCNEND1". Version 1 (no normals)
-// is refused with a message to rebuild the scene.
+// is refused with a message to rebuild the scene. The header's optional key
+// "reflectors" (absent in scenes built before it: none) lists the canonical
+// reflectors placed by `scene build --reflectors` (StoredReflector).
 #pragma once
 
 #include <array>
@@ -25,6 +27,21 @@ namespace gissar::scene {
 
 inline constexpr uint32_t kSceneFileVersion = 2;
 
+// A canonical reflector stored in a scene (docs/scene.md): its CSV row as
+// read (material/reflector.h: the scene module keeps the type as its name)
+// and its phase centre placed on the scene's surface, ENU metres.
+struct StoredReflector {
+  std::string type;  // trihedral, trihedral_square, dihedral, plate (checked by the reader of the scene)
+  double lon_deg = 0.0, lat_deg = 0.0;
+  double apex_height_m = 0.0;
+  double size_m = 1.0;
+  double boresight_azimuth_deg = 0.0;
+  double boresight_elevation_deg = 0.0;
+  Eigen::Vector3d apex_enu = Eigen::Vector3d::Zero();  // surface below (lon, lat) + apex_height_m
+  std::string source;  // the CSV it came from (file name)
+  int row = 0;         // its data row there
+};
+
 struct SceneFile {
   TriangleMesh mesh;              // ENU metres
   double origin_lon_deg = 0.0;    // ENU frame origin (WGS84, height 0)
@@ -34,6 +51,7 @@ struct SceneFile {
   std::vector<std::string> class_names;  // index = ClassId
   nlohmann::json materials = nlohmann::json::object();  // overrides from the config
   nlohmann::json provenance = nlohmann::json::object();
+  std::vector<StoredReflector> reflectors;
 };
 
 // Writes the binary scene. Throws IoError on failure.
@@ -44,7 +62,8 @@ void WriteScene(const std::filesystem::path& path, const SceneFile& scene);
 // checked against the file's length before anything is allocated), or
 // corrupt: a header that is not the expected JSON, a non-finite or invalid
 // frame origin or centre, no class names, out-of-range vertex indices or
-// class ids, non-finite vertices or shading normals, a bad end marker.
+// class ids, non-finite vertices or shading normals, a bad end marker, a
+// reflector with a non-finite field, size <= 0 or no type name.
 SceneFile ReadScene(const std::filesystem::path& path);
 
 // Binary little-endian PLY with vertex x,y,z (float, ENU metres) and faces

@@ -37,6 +37,52 @@ TEST(SceneIoTest, RoundTrips) {
   EXPECT_EQ(back.materials["water"]["diffuse"], 0.01);
 }
 
+// Stored reflectors survive the round trip (a scene without the key reads
+// as none); a stored reflector of size 0 or without a type is a corrupt
+// header naming the file.
+TEST(SceneIoTest, ReflectorsRoundTripAndAreChecked) {
+  const fs::path path = testing::MakeTempDir() / "r.gscene";
+  WriteScene(path, Sample());
+  EXPECT_TRUE(ReadScene(path).reflectors.empty());
+  SceneFile s = Sample();
+  StoredReflector r;
+  r.type = "dihedral";
+  r.lon_deg = 1.601;
+  r.lat_deg = 42.499;
+  r.apex_height_m = 0.5;
+  r.size_m = 0.8;
+  r.boresight_azimuth_deg = 285.0;
+  r.boresight_elevation_deg = 35.0;
+  r.apex_enu = {81.9, -111.2, 2.5};
+  r.source = "cr.csv";
+  r.row = 3;
+  s.reflectors = {r};
+  WriteScene(path, s);
+  const SceneFile back = ReadScene(path);
+  ASSERT_EQ(back.reflectors.size(), 1u);
+  const StoredReflector& b = back.reflectors[0];
+  EXPECT_EQ(b.type, "dihedral");
+  EXPECT_EQ(b.lon_deg, 1.601);
+  EXPECT_EQ(b.size_m, 0.8);
+  EXPECT_EQ(b.boresight_azimuth_deg, 285.0);
+  EXPECT_EQ(b.apex_enu, Eigen::Vector3d(81.9, -111.2, 2.5));
+  EXPECT_EQ(b.source, "cr.csv");
+  EXPECT_EQ(b.row, 3);
+  for (int k = 0; k < 2; ++k) {
+    SceneFile bad = s;
+    if (k == 0) bad.reflectors[0].size_m = 0.0;
+    else bad.reflectors[0].type = "";
+    WriteScene(path, bad);
+    try {
+      ReadScene(path);
+      FAIL() << k;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("reflector 1"), std::string::npos) << e.what();
+      EXPECT_EQ(e.where(), path.string());
+    }
+  }
+}
+
 // Shading normals: the plane z = x / 10 + 3 y / 10 (posts 10 m apart)
 // has the unit normal (-0.1, -0.3, 1) / |(-0.1, -0.3, 1)| at every vertex; they
 // survive the round trip.
