@@ -450,12 +450,14 @@ TEST(SceneBuildTest, VerticalDatumFromTheFileRaisesTheSceneAndIsKept) {
   const scene::SceneFile file = scene::ReadScene(dir / "egm96.gscene");
   EXPECT_EQ(file.provenance["vertical_datum"], "egm96");
   EXPECT_NEAR(file.centre_height_m, 100.0 + kN, 0.01);
-  // Every vertex lies at its orthometric height + N (-5 + N or 100 + N).
+  // Every vertex lies at its orthometric height + N: 100 + N on land, and
+  // the sea (the -5 m posts, whose surface is flattened to the 0 m sea
+  // level) at 0 + N.
   const geo::LocalFrame frame(file.origin_lon_deg, file.origin_lat_deg, 0.0);
   int sea_level = 0, land = 0;
   for (const Eigen::Vector3f& v : file.mesh.vertices) {
     const double h = frame.GeodeticFromEnu(v.cast<double>()).z();
-    if (std::abs(h - (-5.0 + kN)) < 0.05) ++sea_level;
+    if (std::abs(h - (0.0 + kN)) < 0.05) ++sea_level;
     else if (std::abs(h - (100.0 + kN)) < 0.05) ++land;
   }
   EXPECT_EQ(sea_level, 5 * 21);
