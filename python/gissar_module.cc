@@ -130,10 +130,10 @@ py::array_t<uint8_t> RgbArray(const image::RgbImage& img) {
   return out;
 }
 
-// An error's text for Python: "<what> (<where>)", where a command-line flag
-// ("--heading", "--range-spacing/--azimuth-spacing") is replaced by the
-// Python parameter of the same request field ("heading_deg").
-std::string PythonMessage(const Error& e) {
+// `text` with every command-line flag of a request field ("--heading",
+// "--range-spacing/--azimuth-spacing", "give --vertical-datum ...") replaced
+// by the Python parameter of the same field ("heading_deg").
+std::string PythonNames(const std::string& text) {
   static const std::map<std::string, std::string> parameter_of_flag = [] {
     std::map<std::string, std::string> m;
     const nlohmann::json fields = pipeline::SimulateRequest().ToJson();
@@ -142,30 +142,30 @@ std::string PythonMessage(const Error& e) {
     }
     return m;
   }();
-  // Every "--flag" of a request field in `text` becomes its Python name
-  // (+ `suffix`), in the message ("use fill_nodata to ...") as in the place.
-  const auto python_names = [](const std::string& text, const std::string& suffix) {
-    std::string out;
-    size_t i = 0;
-    while (i < text.size()) {
-      const size_t start = text.find("--", i);
-      if (start == std::string::npos) {
-        out += text.substr(i);
-        break;
-      }
-      size_t end = start + 2;
-      while (end < text.size() && (std::isalnum(static_cast<unsigned char>(text[end])) || text[end] == '-')) ++end;
-      out += text.substr(i, start - i);
-      const std::string flag = text.substr(start, end - start);
-      const auto it = parameter_of_flag.find(flag);
-      out += it != parameter_of_flag.end() ? it->second + suffix : flag;
-      i = end;
+  std::string out;
+  size_t i = 0;
+  while (i < text.size()) {
+    const size_t start = text.find("--", i);
+    if (start == std::string::npos) {
+      out += text.substr(i);
+      break;
     }
-    return out;
-  };
+    size_t end = start + 2;
+    while (end < text.size() && (std::isalnum(static_cast<unsigned char>(text[end])) || text[end] == '-')) ++end;
+    out += text.substr(i, start - i);
+    const std::string flag = text.substr(start, end - start);
+    const auto it = parameter_of_flag.find(flag);
+    out += it != parameter_of_flag.end() ? it->second : flag;
+    i = end;
+  }
+  return out;
+}
+
+// An error's text for Python: "<what> (<where>)" with Python parameter names.
+std::string PythonMessage(const Error& e) {
   const std::string where = e.where();
-  const std::string message = python_names(e.message(), "");
-  return where.empty() ? message : message + " (" + python_names(where, "") + ")";
+  const std::string message = PythonNames(e.message());
+  return where.empty() ? message : message + " (" + PythonNames(where) + ")";
 }
 
 // The Python door's Reporter (util/reporter.h): warnings become Python
@@ -194,7 +194,7 @@ class PyReporter : public Reporter {
   }
   void Warn(const std::string& line) override {
     py::gil_scoped_acquire gil;
-    if (PyErr_WarnEx(WarningType(), line.c_str(), 1) != 0) {
+    if (PyErr_WarnEx(WarningType(), PythonNames(line).c_str(), 1) != 0) {
       // Warnings turned into errors (-W error): stop the run with it.
       cancelled_ = true;
       PyErr_Clear();

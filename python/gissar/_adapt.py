@@ -6,8 +6,10 @@ module only converts arguments and results.
 import contextlib
 import json
 import os
+import sys
 import threading
 import uuid
+import warnings
 
 import numpy as np
 
@@ -179,6 +181,15 @@ def _tqdm_progress():
     return report
 
 
+def _user_stacklevel():
+    """The warnings.warn stacklevel of the first caller outside the gissar package."""
+    package = os.path.dirname(os.path.abspath(__file__))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.dirname(os.path.abspath(frame.f_code.co_filename)) == package:
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 def run(function, args, kwargs, progress):
     """Calls the core `function` on a worker thread with a progress hook, so that the calling (main) thread
     stays responsive: Ctrl-C (KeyboardInterrupt) cancels the run through the hook and is re-raised once the
@@ -211,7 +222,14 @@ def run(function, args, kwargs, progress):
 
     def work():
         try:
-            outcome["value"] = function(*args, progress=hook, **kwargs)
+            # The core's warnings are recorded here and issued again from the calling thread (below), so
+            # that they point at the user's line, and -W error / filters apply there.
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    outcome["value"] = function(*args, progress=hook, **kwargs)
+                finally:
+                    outcome["warnings"] = list(caught)
         except BaseException as e:  # noqa: B902 (handed to the calling thread)
             outcome["error"] = e
         finally:
@@ -234,6 +252,8 @@ def run(function, args, kwargs, progress):
     finally:
         if hasattr(user, "close"):
             user.close()
+    for record in outcome.pop("warnings", []):
+        warnings.warn(record.message, record.category, stacklevel=_user_stacklevel())
     if "error" in outcome:
         error = outcome.pop("error")
         try:

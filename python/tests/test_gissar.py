@@ -1,6 +1,7 @@
 """pytest suite of the gissar Python module (run by `make test`)."""
 import json
 import os
+import warnings
 import subprocess
 
 import numpy as np
@@ -385,6 +386,20 @@ def test_library_warnings_are_python_warnings(tmp_path):
     with pytest.warns(gissar.GissarWarning, match="outside the DEM"):
         gissar.Scene.build(dem=DEM, vectors=[os.path.join(ROOT, "data", "andorra", "andorra_osm.gpkg")],
                            window=(150, 70, 60, 60), out_prefix=str(tmp_path / "w"))
+
+
+def test_warnings_name_python_parameters_and_point_at_the_caller():
+    """A DEM without a vertical datum warns once: the text names `vertical_datum` (not the command line's
+    --vertical-datum) and the warning is attributed to this file, not to gissar's own modules."""
+    dem = np.full((48, 48), 100.0, np.float32)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        gissar.simulate(dem, transform=(400000.0, 30.0, 0.0, 4700000.0, 0.0, -30.0), crs=32631, heading_deg=0,
+                        depression_deg=40)
+    datum = [w for w in caught if issubclass(w.category, gissar.GissarWarning) and "vertical datum" in str(w.message)]
+    assert len(datum) == 1, [str(w.message) for w in caught]
+    assert "vertical_datum" in str(datum[0].message) and "--vertical-datum" not in str(datum[0].message)
+    assert os.path.abspath(datum[0].filename) == os.path.abspath(__file__)
 
 
 def test_errors_are_python_errors_naming_python_parameters():
