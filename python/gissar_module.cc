@@ -435,7 +435,8 @@ PyScene LoadPyScene(const std::string& path) {
 
 PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
                      const std::string& osm, const std::string& config, bool fill_nodata,
-                     std::optional<std::array<int, 4>> window, bool export_obj, const std::string& vertical_datum) {
+                     std::optional<std::array<int, 4>> window, bool export_obj, const std::string& vertical_datum,
+                     py::object progress) {
   pipeline::SceneBuildRequest o;
   o.dem = dem;
   o.vertical_datum = vertical_datum;
@@ -447,7 +448,10 @@ PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, cons
   o.window = window;
   o.export_obj = export_obj;
   pipeline::SceneBuildResult r;
-  PyReporter reporter{py::none()};
+  if (!progress.is_none() && !PyCallable_Check(progress.ptr())) {
+    throw ConfigError("progress must be a callable(stage, done, total) or None", "gissar keyword 'progress'");
+  }
+  PyReporter reporter{progress};
   {
     py::gil_scoped_release release;
     r = pipeline::RunSceneBuild(o, "python: gissar.Scene.build", reporter);
@@ -872,7 +876,8 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
   m.def("build_scene", [](const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
                           const std::string& osm, const std::string& config, bool fill_nodata,
                           const std::string& vertical_datum) {
-        return BuildPyScene(dem, out_prefix, vectors, osm, config, fill_nodata, std::nullopt, false, vertical_datum).summary;
+        return BuildPyScene(dem, out_prefix, vectors, osm, config, fill_nodata, std::nullopt, false, vertical_datum,
+                            py::none()).summary;
       }, py::arg("dem"), py::arg("out_prefix"), py::arg("vectors") = std::vector<std::string>{},
       py::arg("osm") = "", py::arg("config") = "", py::arg("fill_nodata") = false, py::arg("vertical_datum") = "",
       "`gissar scene build`: writes PREFIX.gscene/.ply/_classes.png/.json, returns the summary.");
@@ -998,7 +1003,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
       .def_static("build", &BuildPyScene, py::arg("dem"), py::arg("out_prefix"),
                   py::arg("vectors") = std::vector<std::string>{}, py::arg("osm") = "", py::arg("config") = "",
                   py::arg("fill_nodata") = false, py::arg("window") = py::none(), py::arg("export_obj") = false,
-                  py::arg("vertical_datum") = "",
+                  py::arg("vertical_datum") = "", py::arg("progress") = py::none(),
                   "`gissar scene build`: DEM (+ vector layers / OSM / config) -> PREFIX.gscene, .ply, "
                   "_classes.png (class map), _3d.png (3-D view), .json (and .obj/.mtl with export_obj). "
                   "window = (col, row, cols, rows) of the DEM; vertical_datum as --vertical-datum (\"\" = from the file). Returns the loaded Scene (its .summary holds "
@@ -1167,7 +1172,8 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "sigmas, 'seconds'} and with references=True the simulated images at the prior and at the fix.");
 
   m.def("sequence", [](const std::string& out_prefix, double heading_from_deg, double heading_to_deg, int frames,
-                       int frame_delay_cs, const py::kwargs& kwargs) {
+                       int frame_delay_cs, py::kwargs kwargs) {
+        PyReporter reporter(TakeProgress(kwargs));
         pipeline::SequenceRequest o;
         o.base = SimulateOptionsFrom(kwargs);
         o.base.out_prefix = out_prefix;
@@ -1179,7 +1185,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         {
           py::gil_scoped_release release;
           o.Check();
-          r = pipeline::RunSequence(o, "python: gissar.sequence");
+          r = pipeline::RunSequence(o, "python: gissar.sequence", reporter);
         }
         std::vector<std::string> paths;
         for (const auto& p : r.outputs) paths.push_back(p.string());

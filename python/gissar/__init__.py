@@ -151,14 +151,17 @@ _core_scene_build = _core.Scene.build
 
 
 def _scene_build(dem, out_prefix, vectors=(), osm="", config="", fill_nodata=False, window=None, export_obj=False,
-                 vertical_datum="", *, transform=None, crs=None, nodata=None):
+                 vertical_datum="", *, transform=None, crs=None, nodata=None, progress=None):
     with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
-        return _core_scene_build(path, _os.fspath(out_prefix), [_os.fspath(v) for v in vectors],
-                                 _os.fspath(osm), _os.fspath(config), fill_nodata, window, export_obj, vertical_datum)
+        return _adapt.run(_core_scene_build, (path, _os.fspath(out_prefix), [_os.fspath(v) for v in vectors],
+                                              _os.fspath(osm), _os.fspath(config), fill_nodata, window, export_obj,
+                                              vertical_datum), {}, progress)
 
 
 _scene_build.__doc__ = (_core_scene_build.__doc__ or "").split("\n\n")[-1].strip() + (
-    " dem: a path, GDAL dataset, NumPy array with transform=/crs= (nodata=) or a rioxarray DataArray.")
+    " dem: a path, GDAL dataset, NumPy array with transform=/crs= (nodata=) or a rioxarray DataArray. progress: "
+    "None, a callable(stage, done, total) (return False to stop) or True (a tqdm bar); Ctrl-C stops the build "
+    "at its next step.")
 
 
 def _scene_simulate(self, **kwargs):
@@ -177,25 +180,26 @@ Scene.simulate = _scene_simulate
 
 
 def build_scene(dem, out_prefix, vectors=(), osm="", config="", fill_nodata=False, vertical_datum="", *,
-                transform=None, crs=None, nodata=None):
+                transform=None, crs=None, nodata=None, progress=None):
     """`gissar scene build`: writes PREFIX.gscene/.ply/_classes.png/.json, returns the summary (dict). dem as
     for Scene.build."""
     return _scene_build(dem, out_prefix, vectors, osm, config, fill_nodata, None, False, vertical_datum,
-                        transform=transform, crs=crs, nodata=nodata).summary
+                        transform=transform, crs=crs, nodata=nodata, progress=progress).summary
 
 
 def sequence(out_prefix, heading_from_deg, heading_to_deg, frames=7, frame_delay_cs=50, *, dem=None,
-             transform=None, crs=None, nodata=None, **kwargs):
+             transform=None, crs=None, nodata=None, progress=None, **kwargs):
     """`gissar sequence`: frames at evenly spaced headings (degrees) around the scene centre, one dB stretch:
     PREFIX_fNN.tif/.png, PREFIX_contact.png, PREFIX.gif, PREFIX.json. Other keywords as gissar.simulate (dem in
-    any of its forms). Returns the written paths."""
+    any of its forms); progress and Ctrl-C as gissar.simulate (Ctrl-C stops before the next frame). Returns the
+    written paths."""
     if "scene" in kwargs:
         kwargs["scene"] = _scene_path(kwargs["scene"])
     with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
         if path is not None:
             kwargs["dem"] = path
-        return _core.sequence(_os.fspath(out_prefix), heading_from_deg, heading_to_deg, frames, frame_delay_cs,
-                              **kwargs)
+        return _adapt.run(_core.sequence, (_os.fspath(out_prefix), heading_from_deg, heading_to_deg, frames,
+                                           frame_delay_cs), kwargs, progress)
 
 
 # ---------------------------------------------------------------- images in

@@ -227,6 +227,47 @@ def test_ctrl_c_interrupts_a_long_simulation():
     assert stopped - started["t"] < 5.0, (stopped - started["t"], stopped - t0)
 
 
+def test_scene_build_and_sequence_report_progress_and_stop_on_request(tmp_path):
+    """Scene.build reports its steps as stage "scene build" (the last with done == total); a progress callback
+    returning False (what Ctrl-C does through the same hook) stops it with gissar.Cancelled, and so does a
+    sequence, before its first frame is written."""
+    osm = os.path.join(ROOT, "data", "andorra", "andorra_osm.gpkg")
+    seen = []
+    gissar.Scene.build(DEM, tmp_path / "s", vectors=[osm], window=WINDOW,
+                       progress=lambda stage, done, total: seen.append((stage, done, total)))
+    steps = [(d, t) for stage, d, t in seen if stage == "scene build"]
+    assert steps and steps[-1][0] == steps[-1][1] and all(0 < d <= t for d, t in steps), seen
+    with pytest.raises(gissar.Cancelled):
+        gissar.Scene.build(DEM, tmp_path / "c", vectors=[osm], window=WINDOW,
+                           progress=lambda stage, done, total: False)
+    assert not (tmp_path / "c.gscene").exists()
+    with pytest.raises(gissar.Cancelled):
+        gissar.sequence(tmp_path / "q", 0, 60, frames=3, dem=DEM, depression_deg=40, range_spacing_m=250,
+                        azimuth_spacing_m=250, progress=lambda stage, done, total: False)
+    assert not list(tmp_path.glob("q_f*.tif"))
+
+
+def test_ctrl_c_interrupts_a_sequence():
+    main = threading.get_ident()
+    started = {}
+
+    def interrupt():
+        time.sleep(1.0)
+        started["t"] = time.perf_counter()
+        signal.pthread_kill(main, signal.SIGINT)
+
+    timer = threading.Thread(target=interrupt)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        # Minutes of tracing per frame at this size: stopped within seconds of Ctrl-C.
+        gissar.sequence(os.path.join(os.environ.get("TMPDIR", "/tmp"), f"gissar_seq_{os.getpid()}"), 0, 90,
+                        frames=4, dem=DEM, depression_deg=40, range_spacing_m=10, azimuth_spacing_m=10,
+                        rays_per_cell=16)
+    stopped = time.perf_counter()
+    timer.join()
+    assert stopped - started["t"] < 5.0
+
+
 def test_progress_true_draws_a_tqdm_bar(monkeypatch):
     import tqdm.auto
     bars = []

@@ -546,6 +546,14 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
                        const SceneConfig& config, Reporter& reporter) {
   Stopwatch watch;
   auto say = [&](const std::string& line) { reporter.Info("scene: " + line); };
+  // Progress over the build's steps (stage "scene build": each vector layer,
+  // the sea, the posts' triangulation, the constraints, the classes); a run
+  // cancelled through the reporter (Python's Ctrl-C) stops at the next step.
+  Progress progress("scene build", static_cast<int64_t>(config.layers.size()) + 5, reporter);
+  auto step = [&] {
+    progress.Advance(1);
+    ThrowIfCancelled(reporter, "scene build");
+  };
   GisScene scene;
   GisSceneStats& stats = scene.stats;
   const Geos geos;
@@ -772,6 +780,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       scene.warnings.push_back(std::to_string(outside) + " features outside the DEM dropped from " + name);
     }
     say(name + ": " + std::to_string(used) + " features");
+    step();
   }
   stats.buildings = static_cast<int64_t>(buildings.size());
 
@@ -833,6 +842,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     say("coastline: " + std::to_string(stats.coastline_features) + " features, sea " +
         std::to_string(area / 1e6) + " km2");
   }
+  step();
   std::vector<uint8_t> sea_posts;
   if (config.sea_auto && coast_lines.empty() && islands.empty() && parts[kClassSea].empty()) {
     sea_posts = dem_sea;
@@ -945,6 +955,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     cdt.insert(posts.begin(), posts.end());
     stats.dem_posts = static_cast<int64_t>(posts.size());
   }
+  step();
   {
     // Boundaries come as chains (a segment starts where the previous one
     // ended): each end is located from the previous vertex's face, so the
@@ -963,6 +974,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     }
   }
 
+  step();
   // Regions: faces connected without crossing a constraint share a class.
   for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = -1;
   struct Region {
@@ -1058,6 +1070,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     }
   }
 
+  step();
   // Vertices: ground vertices with DEM heights; roof copies per building.
   std::unordered_map<Cdt::Vertex_handle, int> ground_index;
   std::vector<Vector2d> planar;
@@ -1337,6 +1350,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   scene.planar = std::move(planar);
   for (ClassId c : mesh.classes) ++stats.triangles[c];
   stats.seconds = watch.ElapsedSeconds();
+  progress.Done();
   say("built " + std::to_string(mesh.triangle_count()) + " triangles in " +
       std::to_string(stats.seconds) + " s");
   return scene;
