@@ -1,4 +1,4 @@
-# Type stubs of the gissar package (checked by mypy in the tests: python/tests/typing_usage.py).
+# Type hints (PEP 484 .pyi) of the gissar package (checked by mypy in the tests: python/tests/typing_usage.py).
 import os
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 

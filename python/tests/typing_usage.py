@@ -1,4 +1,4 @@
-"""A small typed use of the gissar package: `mypy --strict` checks it against the stubs (ctest python_typing).
+"""A small typed use of the gissar package: `mypy --strict` checks it against the type hints (.pyi) (ctest python_typing).
 Not run: only type-checked."""
 from pathlib import Path
 from typing import Any, Dict, List
