@@ -68,23 +68,26 @@ def simulate(dem=None, **kwargs):
     return _adapt.simulated_dataarray(_simulate_raw(dem, **kwargs))
 
 
-def _simulate_product_raw(product, *, dem=None, transform=None, crs=None, nodata=None, progress=None, **kwargs):
+def _simulate_product_raw(product=None, *, dem=None, transform=None, crs=None, nodata=None, progress=None, **kwargs):
     if "scene" in kwargs:
         kwargs["scene"] = _scene_path(kwargs["scene"])
     with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
         if path is not None:
             kwargs["dem"] = path
-        return _adapt.run(_core.simulate_product, (_os.fspath(product),), kwargs, progress)
+        return _adapt.run(_core.simulate_product, ("" if product is None else _os.fspath(product),), kwargs,
+                          progress)
 
 
-def simulate_product(product, **kwargs):
-    """Simulate a real product's radar grid (NISAR RSLC HDF5, e.g. the UAVSAR chips): keywords as for
+def simulate_product(product=None, **kwargs):
+    """Simulate a real product's radar grid (NISAR RSLC HDF5, e.g. the UAVSAR chips), or any sensor's track with
+    orbit= (state vectors: CSV, JSON or an ESA .EOF file) and radar_grid= (JSON) instead of a product: keywords as for
     simulate (dem or scene, fill_nodata, dem_oversample, vertical_datum, rays_per_cell, bounces, seed, ...; no
     heading/depression/spacings: the product fixes them); dem as for simulate (path, GDAL dataset, array with
     transform= and crs=, rioxarray DataArray); progress as for simulate.
 
     Returns an xarray.DataArray 'intensity' (band, zero_doppler_time_s, slant_range_m): bands total, single,
-    double, triple, four_or_more (linear, units '1'), coordinates the product's line times (s) and bin slant
+    double, triple, four_or_more (the request's radiometry, sigma0 by default, each pixel at its own ellipsoid
+    incidence; units '1'), coordinates the product's line times (s) and bin slant
     ranges (m); 2-D coordinates mask (flag_values/flag_meanings), lon_deg, lat_deg, height_m (per-pixel ground
     point, NaN where none) and real_amplitude (|SLC|); attrs wavelength_m, look_side, options (JSON),
     gissar_version. Same values as `gissar simulate --product` (gissar.raw.simulate_product: the dict)."""

@@ -206,6 +206,10 @@ def test_scene_attributes_are_read_only(scene):
 
 # ---------------------------------------------------------------- Ctrl-C and progress
 
+# A stop within this many seconds of Ctrl-C, where finishing would take minutes.
+CTRL_C_STOP_S = 15.0
+
+
 def _seconds_from_ctrl_c_to_stop(call):
     """Runs `call` on this (main) thread, sends it SIGINT after 1 s from a timer thread, checks that it ends
     with KeyboardInterrupt and returns the seconds from the signal to that end."""
@@ -227,10 +231,11 @@ def _seconds_from_ctrl_c_to_stop(call):
 
 
 def test_ctrl_c_interrupts_a_long_simulation():
-    # Minutes of tracing at this size: stopped within a few seconds of Ctrl-C.
+    # Minutes of tracing at this size: stopped within seconds of Ctrl-C (the bound leaves room for a loaded
+    # machine: the stages before tracing check for cancellation between steps, not inside them).
     assert _seconds_from_ctrl_c_to_stop(
         lambda: gissar.simulate(DEM, heading_deg=0, depression_deg=40, range_spacing_m=10, azimuth_spacing_m=10,
-                                rays_per_cell=16)) < 5.0
+                                rays_per_cell=16)) < CTRL_C_STOP_S
 
 
 def test_scene_build_and_sequence_report_progress_and_stop_on_request(tmp_path):
@@ -257,7 +262,7 @@ def test_ctrl_c_interrupts_a_sequence(tmp_path):
     # Minutes of tracing per frame at this size: stopped within seconds of Ctrl-C.
     assert _seconds_from_ctrl_c_to_stop(
         lambda: gissar.sequence(tmp_path / "seq", 0, 90, frames=4, dem=DEM, depression_deg=40, range_spacing_m=10,
-                                azimuth_spacing_m=10, rays_per_cell=16)) < 5.0
+                                azimuth_spacing_m=10, rays_per_cell=16)) < CTRL_C_STOP_S
 
 
 def test_progress_true_draws_a_tqdm_bar(monkeypatch):

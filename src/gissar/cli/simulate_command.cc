@@ -19,6 +19,12 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--scene", options->scene, "Scene file from `gissar scene build` (instead of --dem)");
   cmd->add_option("--product", options->product,
                   "Real product (NISAR RSLC HDF5): render on its radar grid with its orbit (no --heading/--depression)");
+  cmd->add_option("--orbit", options->orbit,
+                  "Any sensor's track: state vectors (CSV or JSON of UTC time, ECEF position and velocity, or an ESA "
+                  ".EOF orbit file); with --radar-grid, instead of --heading/--depression");
+  cmd->add_option("--radar-grid", options->radar_grid,
+                  "Radar grid JSON (starting_range_m, range_spacing_m, sensing_start_utc, azimuth_time_interval_s, "
+                  "width, length, look_side, wavelength_m) to render on with --orbit");
   cmd->add_option("--dem-oversample", options->dem_oversample,
                   "Refine the DEM this many times (cubic convolution) before meshing; for posts coarser than the pixels")
       ->capture_default_str();
@@ -30,9 +36,9 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_flag("--fill-nodata", options->fill_nodata,
                 "Fill DEM no-data cells (GDAL FillNodata) instead of failing");
   cmd->add_option("--heading", options->geometry.heading_deg,
-                  "Flight heading, degrees clockwise from north (required without --product)");
+                  "Flight heading, degrees clockwise from north (required without --product/--orbit)");
   cmd->add_option("--depression", options->geometry.depression_deg,
-                  "Depression angle at the scene centre, degrees in (0, 90) (required without --product)");
+                  "Depression angle at the scene centre, degrees in (0, 90) (required without --product/--orbit)");
   cmd->add_option("--look", *look, "Look side: right or left")->capture_default_str();
   cmd->add_option("--center", *center, "Scene centre LON,LAT in degrees (default: DEM centre)");
   cmd->add_option("--center-map", *center_map, "Scene centre X,Y in the DEM's CRS");
@@ -97,9 +103,10 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   registry.Add(cmd, [=](const CommandContext& context) {
     SimulateRequest resolved = *options;
     for (const char* flag : {"--heading", "--depression"}) {
-      if (resolved.product.empty() && cmd->count(flag) == 0) throw ConfigError("is required", flag);
-      if (!resolved.product.empty() && cmd->count(flag) > 0) {
-        throw ConfigError("the product fixes the geometry", std::string("--product/") + flag);
+      if (!resolved.UsesProductGeometry() && cmd->count(flag) == 0) throw ConfigError("is required", flag);
+      if (resolved.UsesProductGeometry() && cmd->count(flag) > 0) {
+        const std::string by = resolved.product.empty() ? "the orbit" : "the product";
+        throw ConfigError(by + " fixes the geometry", std::string(resolved.product.empty() ? "--orbit/" : "--product/") + flag);
       }
     }
     RequirePositiveIfGiven(*cmd, "--range-spacing", resolved.geometry.range_spacing_m);

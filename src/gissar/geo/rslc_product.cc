@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "gissar/util/error.h"
+#include "gissar/util/utc_time.h"
 #include "gissar/util/memory_limit.h"
 
 namespace gissar::geo {
@@ -182,16 +183,6 @@ class Reader {
   int64_t max_bytes_ = 0;
 };
 
-// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
-int64_t DaysFromCivil(int64_t y, unsigned m, unsigned d) {
-  y -= m <= 2;
-  const int64_t era = (y >= 0 ? y : y - 399) / 400;
-  const unsigned yoe = static_cast<unsigned>(y - era * 400);
-  const unsigned doy = (153 * (m + (m > 2 ? -3 : 9)) + 2) / 5 + d - 1;
-  const unsigned doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-  return era * 146097 + static_cast<int64_t>(doe) - 719468;
-}
-
 // Seconds since the Unix epoch of the "seconds since YYYY-MM-DD[ T]hh:mm:ss[.f]"
 // units of a time dataset, and the epoch text.
 double EpochSeconds(const std::string& units, const std::string& where, std::string* epoch_text) {
@@ -199,18 +190,18 @@ double EpochSeconds(const std::string& units, const std::string& where, std::str
   if (units.rfind(prefix, 0) != 0) {
     throw InputError("time units must read 'seconds since <UTC date>', got '" + units + "'", where);
   }
-  std::string text = units.substr(prefix.size());
-  for (char& c : text) {
-    if (c == 'T') c = ' ';
-  }
-  int y = 0, mo = 0, d = 0, h = 0, mi = 0;
-  double s = 0.0;
-  if (std::sscanf(text.c_str(), "%d-%d-%d %d:%d:%lf", &y, &mo, &d, &h, &mi, &s) != 6 || mo < 1 || mo > 12 ||
-      d < 1 || d > 31 || h < 0 || h > 23 || mi < 0 || mi > 59 || s < 0.0 || s >= 61.0) {
+  const std::string text = units.substr(prefix.size());
+  double seconds = 0.0;
+  try {
+    seconds = ParseUtcSeconds(text, where);
+  } catch (const InputError&) {
     throw InputError("cannot parse the epoch of time units '" + units + "'", where);
   }
-  if (epoch_text != nullptr) *epoch_text = text;
-  return double(DaysFromCivil(y, unsigned(mo), unsigned(d))) * 86400.0 + h * 3600.0 + mi * 60.0 + s;
+  if (epoch_text != nullptr) {
+    *epoch_text = text;
+    if (epoch_text->size() > 10 && (*epoch_text)[10] == 'T') (*epoch_text)[10] = ' ';
+  }
+  return seconds;
 }
 
 void CheckUniformIncreasing(const std::vector<double>& v, const std::string& name, const std::string& where) {

@@ -215,4 +215,32 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
   }
 }
 
+void ConvertPixelRadiometry(render::SarImage& image, const std::vector<float>& incidence_deg, Radiometry radiometry,
+                            double nesz_db, uint64_t seed, bool db) {
+  GISSAR_CHECK(incidence_deg.size() == image.intensity.size());
+  GISSAR_CHECK(image.real.empty());
+  std::vector<std::vector<float>*> bands = {&image.intensity};
+  for (auto& layer : image.bounce_layers) {
+    if (layer.size() == image.intensity.size()) bands.push_back(&layer);
+  }
+  auto scale = [&](auto factor_of) {
+    for (size_t k = 0; k < incidence_deg.size(); ++k) {
+      if (std::isnan(incidence_deg[k])) continue;
+      const float factor = static_cast<float>(factor_of(incidence_deg[k]));
+      for (auto* band : bands) (*band)[k] *= factor;
+    }
+  };
+  scale([](double incidence) { return FactorFromBeta0(Radiometry::kSigma0, incidence); });
+  if (!std::isnan(nesz_db)) AddThermalNoise(image.intensity, nesz_db, seed);
+  if (radiometry != Radiometry::kSigma0) {
+    scale([&](double incidence) {
+      const double to_sigma0 = FactorFromBeta0(Radiometry::kSigma0, incidence);
+      return to_sigma0 > 0.0 ? FactorFromBeta0(radiometry, incidence) / to_sigma0 : 0.0;
+    });
+  }
+  if (db) {
+    for (auto* band : bands) ToDecibels(*band);
+  }
+}
+
 }  // namespace gissar::image

@@ -79,4 +79,14 @@ void AddPointIntensities(render::SarImage& image, const SensorEffects& effects);
 void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
                         const std::vector<double>& incidence_deg);
 
+// The end of the chain for incoherent images whose incidence varies from
+// pixel to pixel (real radar grids, where range and terrain height both move
+// it): beta0 -> sigma0 with incidence_deg[k] of pixel k on every band,
+// thermal noise of mean power nesz_db (dB sigma0; NaN = off) on the total,
+// conversion to `radiometry` and, with `db`, decibels. Pixels whose incidence
+// is NaN (no ground point) are left as they are (the caller marks them
+// outside the footprint). CHECKs the sizes and that the image is incoherent.
+void ConvertPixelRadiometry(render::SarImage& image, const std::vector<float>& incidence_deg, Radiometry radiometry,
+                            double nesz_db, uint64_t seed, bool db);
+
 }  // namespace gissar::image

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "gissar/geo/local_frame.h"
+#include "gissar/geo/orbit_file.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/reference_geolocation.h"
 #include "gissar/image/impulse_response.h"
@@ -25,21 +26,55 @@ namespace gissar::pipeline {
 namespace fs = std::filesystem;
 
 void CheckProductOptions(const SimulateRequest& o) {
-  if (o.engine != "trace") throw ConfigError("product geometry needs the trace engine", "--product/--engine");
-  if (o.coherent) throw ConfigError("product geometry renders incoherently only", "--product/--coherent");
+  if (!o.product.empty() && (!o.orbit.empty() || !o.radar_grid.empty())) {
+    throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
+  }
+  if (o.product.empty() && (o.orbit.empty() || o.radar_grid.empty())) {
+    throw ConfigError("an orbit needs a radar grid and a radar grid an orbit", "--orbit/--radar-grid");
+  }
+  // The option that fixes the geometry, for the messages below.
+  const std::string fixed_by = o.product.empty() ? "--orbit" : "--product";
+  if (o.engine != "trace") throw ConfigError("the radar grid needs the trace engine", fixed_by + "/--engine");
+  if (o.coherent) throw ConfigError("the radar grid renders incoherently only", fixed_by + "/--coherent");
   if (!o.contributions.empty()) {
-    throw ConfigError("contributions are not recorded in product geometry", "--product/--contributions");
+    throw ConfigError("contributions are not recorded on a radar grid", fixed_by + "/--contributions");
   }
   if (o.center_lonlat || o.center_map) {
-    throw ConfigError("the product fixes the scene centre", "--product/--center");
+    throw ConfigError("the radar grid fixes the scene centre", fixed_by + "/--center");
   }
   if (o.geometry.width != 0 || o.geometry.height != 0) {
-    throw ConfigError("the product fixes the image size", "--product/--width/--height");
+    throw ConfigError("the radar grid fixes the image size", fixed_by + "/--width/--height");
   }
   if (o.geometry.range_spacing_m != 0.0 || o.geometry.azimuth_spacing_m != 0.0) {
-    throw ConfigError("the product fixes the pixel spacing", "--product/--range-spacing/--azimuth-spacing");
+    throw ConfigError("the radar grid fixes the pixel spacing", fixed_by + "/--range-spacing/--azimuth-spacing");
   }
 }
+
+namespace {
+
+// Incidence on the ellipsoid of every pixel's ground point: the angle between
+// the geodetic normal there and the line of sight to the sensor at the pixel's
+// zero-Doppler time (degrees; NaN without a ground point).
+std::vector<float> EllipsoidIncidenceDeg(const render::ProductImage& image, const sensor::Orbit& orbit,
+                                         const sensor::RadarGrid& grid) {
+  std::vector<float> incidence(size_t(grid.rows) * grid.cols, std::numeric_limits<float>::quiet_NaN());
+  for (int row = 0; row < grid.rows; ++row) {
+    const Eigen::Vector3d sensor_ecef = orbit.Interpolate(grid.TimeOfRow(row)).position_m;
+    for (int col = 0; col < grid.cols; ++col) {
+      const size_t k = size_t(row) * grid.cols + col;
+      if (!std::isfinite(image.height_m[k])) continue;
+      const double lon = image.lon_deg_exact[k] * M_PI / 180.0, lat = image.lat_deg_exact[k] * M_PI / 180.0;
+      const Eigen::Vector3d ground =
+          geo::LocalFrame::EcefFromGeodetic(image.lon_deg_exact[k], image.lat_deg_exact[k], image.height_m[k]);
+      const Eigen::Vector3d up(std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat));
+      const double cos_incidence = std::clamp(up.dot((sensor_ecef - ground).normalized()), -1.0, 1.0);
+      incidence[k] = static_cast<float>(std::acos(cos_incidence) * 180.0 / M_PI);
+    }
+  }
+  return incidence;
+}
+
+}  // namespace
 
 ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
   auto say = [&](const std::string& line) { reporter.Info("simulate: " + line); };
@@ -48,7 +83,15 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   read.read_amplitude = read_amplitude;
   read.max_bytes = options.max_memory_bytes;  // checked from the shapes, before reading
   read.bytes_per_pixel = 400.0;
-  sim.product = geo::ReadRslcProduct(options.product, read);
+  if (!options.product.empty()) {
+    sim.product = geo::ReadRslcProduct(options.product, read);
+  } else {
+    const geo::StateVectors vectors = geo::ReadStateVectors(options.orbit);
+    sim.product = geo::ProductFromOrbit(vectors, options.orbit, geo::ReadRadarGrid(options.radar_grid),
+                                        options.radar_grid);
+    sim.product.polarization = options.polarization;
+    say("orbit: " + std::to_string(vectors.utc_s.size()) + " state vectors (" + vectors.format + ")");
+  }
   const geo::RslcProduct& p = sim.product;
   const sensor::Orbit orbit(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
   sim.grid.t0_s = p.zero_doppler_time_s.front();
@@ -90,7 +133,10 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   point_response.azimuth_resolution_px = options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m;
   point_response.window = image::ParseSpectralWindow(options.psf_window, "--psf-window");
   image::AddPointIntensities(image, point_response);
-  if (!std::isnan(options.nesz_db)) image::AddThermalNoise(image.intensity, options.nesz_db, options.seed);
+  // beta0 so far: sigma0 / gamma0 need each pixel's own ellipsoid incidence.
+  image::ConvertPixelRadiometry(image, EllipsoidIncidenceDeg(sim.image, orbit, sim.grid),
+                                image::ParseRadiometry(options.radiometry, "--radiometry"), options.nesz_db,
+                                options.seed, options.db);
   sim.terrain = terrain.description;
   sim.frame = {{"origin_lon_deg", terrain.frame.origin_lon_deg()},
                {"origin_lat_deg", terrain.frame.origin_lat_deg()},
@@ -132,7 +178,12 @@ nlohmann::json ProductJson(const ProductSimulation& sim) {
 geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateRequest& options) {
   geo::Metadata m;
   m["GISSAR_GEOMETRY"] = "product radar grid: row = zero-Doppler azimuth line, column = slant-range bin";
-  m["GISSAR_PRODUCT"] = fs::absolute(options.product).string();
+  if (!options.product.empty()) {
+    m["GISSAR_PRODUCT"] = fs::absolute(options.product).string();
+  } else {
+    m["GISSAR_ORBIT"] = fs::absolute(options.orbit).string();
+    m["GISSAR_RADAR_GRID"] = fs::absolute(options.radar_grid).string();
+  }
   m["GISSAR_EPOCH_UTC"] = sim.product.epoch_utc;
   char buffer[256];
   std::snprintf(buffer, sizeof buffer, "%.9f", sim.grid.t0_s);
@@ -147,6 +198,8 @@ geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateReques
   const std::string datum = sim.frame.value("vertical_datum", std::string("ellipsoid"));
   m["GISSAR_VERTICAL_DATUM"] = datum != "ellipsoid" ? "DEM " + datum + " heights + geoid undulation"
                                                     : "DEM heights used as WGS84 ellipsoidal";
+  m["GISSAR_UNITS"] = options.radiometry + (options.db ? " (dB)" : " (linear, m2/m2)");
+  m["GISSAR_RADIOMETRY"] = options.radiometry;
   m["GISSAR_VERSION"] = VersionString();
   return m;
 }
@@ -182,8 +235,11 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   raster.band_names.push_back("lat_deg");
   raster.bands.push_back(sim.image.height_m);
   raster.band_names.push_back("height_m");
+  const std::string unit = image::RadiometryUnit(options.db);
+  raster.band_units = {unit, unit, unit, unit, unit, "deg", "deg", "m"};
   raster.metadata["GISSAR_BANDS"] =
-      "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (linear intensity); 6 longitude, 7 latitude "
+      "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (" + options.radiometry +
+      (options.db ? ", dB" : ", linear") + "); 6 longitude, 7 latitude "
       "(WGS84 degrees, float32: ~1 m), 8 ellipsoidal height (m) of each pixel's ground point (NaN: none)";
   // GDAL geolocation arrays: gdalwarp -geoloc places the image from bands 6 and 7.
   raster.georeference.geolocation = geo::LonLatGeolocation(6, 7);
@@ -195,12 +251,24 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   geo::WriteByteGeoTiff(mask_tif, mask, image.width, image.height, mask_metadata, {}, MaskCategories());
 
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
-  provenance["inputs"] = nlohmann::json::array(
-      {InputFileRecord(options.product), InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
+  provenance["inputs"] = nlohmann::json::array();
+  for (const std::string& input : {options.product, options.orbit, options.radar_grid}) {
+    if (!input.empty()) provenance["inputs"].push_back(InputFileRecord(input));
+  }
+  provenance["inputs"].push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
   provenance["product"] = ProductJson(sim);
   provenance["terrain"] = sim.terrain;
   provenance["frame"] = sim.frame;
   provenance["vertical_datum"] = {{"datum", sim.frame["vertical_datum"]}, {"source", sim.frame["vertical_datum_source"]}};
+  provenance["radiometry"] = {
+      {"quantity", options.radiometry},
+      {"scale", options.db ? "dB" : "linear"},
+      {"unit", image::RadiometryUnit(options.db)},
+      {"polarization", options.polarization},
+      {"wavelength_m", sim.product.wavelength_m},
+      {"nesz_db", std::isnan(options.nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(options.nesz_db)},
+      {"incidence_reference", "per pixel: WGS84 ellipsoid normal at the pixel's ground point vs the line of sight "
+                              "at its zero-Doppler time"}};
   provenance["stats"] = {{"rays", image.stats.rays},
                          {"hits", image.stats.hits},
                          {"returns_reprojected", sim.image.contributions},
@@ -315,7 +383,11 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
     reference = std::make_unique<geo::ReferenceGeolocation>(geo::ReadReferenceGeolocation(options.reference_geolocation));
   }
 
-  const ProductSimulation sim = SimulateProduct(options.simulate, true, reporter);
+  // An RSLC's |s|^2 is beta0 (NISAR's calibration): compare like with like.
+  SimulateRequest beta0 = options.simulate;
+  beta0.radiometry = "beta0";
+  beta0.db = false;
+  const ProductSimulation sim = SimulateProduct(beta0, true, reporter);
   const int width = sim.grid.cols, height = sim.grid.rows;
   const size_t n = size_t(width) * height;
   const render::SarImage& image = sim.image.image;

@@ -2,20 +2,26 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/geo/local_frame.h"
+#include "gissar/geo/orbit_file.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/warp.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
+#include "gissar/util/utc_time.h"
 
 namespace gissar::pipeline {
 namespace {
 
 using testing::DataPath;
 using testing::MakeTempDir;
+namespace fs = std::filesystem;
 
 TEST(MultilookPearsonTest, HandComputedCases) {
   // 4 x 2 image, 2 x 2 blocks: block means a = (2.5, 4.5), b = (5, 9)
@@ -133,6 +139,7 @@ TEST(ValidateTest, SanAndreasProductSimulationAndCorrelation) {
 TEST(ValidateTest, ReflectorOnTheProductGridHasItsClosedFormRcs) {
   const auto dir = MakeTempDir();
   SimulateRequest s;
+  s.radiometry = "beta0";  // RCS = sum of beta0 x pixel area (docs/conventions.md)
   s.product = DataPath("uavsar/SanAnd_129.h5").string();
   s.dem = DataPath("uavsar/SanAnd_dem.tif").string();
   s.out_prefix = (dir / "plain").string();
@@ -195,6 +202,158 @@ TEST(ValidateTest, RejectsBadOptions) {
   o.simulate.dem_oversample = 2;
   o.simulate.coherent = true;
   EXPECT_THROW(o.Check(), ConfigError);
+}
+
+// Issue 23: an orbit given as state vectors with a radar grid renders on that
+// grid. A straight, level flight line at 100 m/s is exactly the geometry of
+// `--heading 30 --depression 35 --mode exact` (range = distance to the line,
+// azimuth = position along it), so the two images of a hill must agree: the
+// grid is placed so that row v, column u is the straight-line image's pixel
+// (r0 = R - u0 dr, line time = (v - v0) da / speed), the state vectors are the
+// straight line's sensor positions in ECEF (the same local frame), and the
+// product renderer's tracing geometry reads back the heading and depression.
+TEST(OrbitSimulateTest, StraightLineOrbitReproducesHeadingDepressionGeometry) {
+  const fs::path dir = MakeTempDir();
+  const char* tm = "+proj=tmerc +lat_0=43.7 +lon_0=7.4 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+  constexpr int kN = 161;
+  std::vector<float> heights(size_t(kN) * kN);
+  for (int r = 0; r < kN; ++r) {
+    for (int c = 0; c < kN; ++c) {
+      const double x = -800.0 + 10.0 * c, y = 800.0 - 10.0 * r;
+      heights[size_t(r) * kN + c] = float(200.0 + 0.05 * x + 90.0 * std::exp(-(x * x + (y - 100) * (y - 100)) / (2 * 180.0 * 180.0)) +
+                                          40.0 * std::exp(-((x + 350) * (x + 350) + (y + 300) * (y + 300)) / (2 * 90.0 * 90.0)));
+    }
+  }
+  const fs::path dem = dir / "hills.tif";
+  geo::WriteDemGeoTiff(dem, heights, kN, kN, {-805.0, 10.0, 0.0, 805.0, 0.0, -10.0}, tm);
+
+  SimulateRequest line;
+  line.dem = dem.string();
+  line.vertical_datum = "ellipsoid";
+  line.bounces = 1;
+  line.rays_per_cell = 16;
+  // beta0: the geometry alone (sigma0 divides by an incidence that the
+  // straight-line image takes per column, the radar grid per pixel).
+  line.radiometry = "beta0";
+  line.geometry.heading_deg = 30.0;
+  line.geometry.depression_deg = 35.0;
+  line.geometry.slant_range_m = 4000.0;
+  line.geometry.mode = sensor::ProjectionMode::kExact;
+  line.geometry.range_spacing_m = line.geometry.azimuth_spacing_m = 8.0;
+  line.out_prefix = (dir / "line").string();
+  RunSimulate(line, "test");
+  const geo::FloatRaster a = geo::ReadFloatRaster(dir / "line.tif");
+  std::ifstream side_in(dir / "line.json");
+  const nlohmann::json side = nlohmann::json::parse(side_in);
+  const double u0 = std::stod(a.metadata.at("GISSAR_U0")), v0 = std::stod(a.metadata.at("GISSAR_V0"));
+  const geo::LocalFrame frame(side["frame"]["origin_lon_deg"].get<double>(), side["frame"]["origin_lat_deg"].get<double>(),
+                              0.0);
+  sensor::SarGeometryOptions g = line.geometry;
+  Eigen::Vector3d xc;
+  {
+    std::stringstream text(a.metadata.at("GISSAR_SCENE_CENTRE_ENU"));
+    char comma = 0;
+    text >> xc.x() >> comma >> xc.y() >> comma >> xc.z();
+  }
+  const sensor::SarGeometry geometry(g, xc, u0, v0, a.width, a.height);
+
+  // State vectors every 2 s, 10 s beyond both ends of the image.
+  constexpr double kSpeed = 100.0;
+  const double centre_utc = ParseUtcSeconds("2025-03-01T12:00:00", "t");
+  const double half_span_s = (std::max(v0, a.height - v0) * g.azimuth_spacing_m) / kSpeed + 10.0;
+  geo::StateVectors vectors;
+  vectors.format = "csv";
+  auto ecef = [&](const Eigen::Vector3d& enu) {
+    const Eigen::Vector3d lonlath = frame.GeodeticFromEnu(enu);
+    return geo::LocalFrame::EcefFromGeodetic(lonlath.x(), lonlath.y(), lonlath.z());
+  };
+  for (double t = -half_span_s; t <= half_span_s; t += 2.0) {
+    const Eigen::Vector3d enu = geometry.SensorPosition(kSpeed * t);
+    vectors.utc_s.push_back(centre_utc + t);
+    vectors.position_m.push_back(ecef(enu));
+    vectors.velocity_mps.push_back((ecef(enu + geometry.flight_direction()) - ecef(enu)) * kSpeed);
+  }
+  geo::WriteStateVectorsCsv(dir / "track.csv", vectors);
+  const double dt = g.azimuth_spacing_m / kSpeed;
+  {
+    nlohmann::json grid = {{"starting_range_m", g.slant_range_m - u0 * g.range_spacing_m},
+                           {"range_spacing_m", g.range_spacing_m},
+                           {"sensing_start_utc", FormatUtc(centre_utc - v0 * dt)},
+                           {"azimuth_time_interval_s", dt},
+                           {"width", a.width},
+                           {"length", a.height},
+                           {"look_side", "right"},
+                           {"wavelength_m", 0.031}};
+    std::ofstream(dir / "grid.json") << grid.dump(2);
+  }
+  SimulateRequest orbit = line;
+  orbit.geometry = sensor::SarGeometryOptions{};
+  orbit.orbit = (dir / "track.csv").string();
+  orbit.radar_grid = (dir / "grid.json").string();
+  orbit.out_prefix = (dir / "orbit").string();
+  RunSimulate(orbit, "test");
+  const geo::FloatRaster b = geo::ReadFloatRaster(dir / "orbit.tif");
+  ASSERT_EQ(b.width, a.width);
+  ASSERT_EQ(b.height, a.height);
+  std::ifstream orbit_side_in(dir / "orbit.json");
+  const nlohmann::json orbit_side = nlohmann::json::parse(orbit_side_in);
+  const nlohmann::json& tracing = orbit_side["product"]["tracing_geometry"];
+  EXPECT_NEAR(tracing["heading_deg"].get<double>(), 30.0, 0.05);
+  EXPECT_EQ(orbit_side["product"]["orbit_type"], "state vectors (csv)");
+
+  // Pixel by pixel: the same image (3 x 3 looks, dB), the same level.
+  std::vector<uint8_t> valid(a.bands[0].size());
+  double sum_a = 0, sum_b = 0;
+  int64_t both = 0;
+  for (size_t i = 0; i < valid.size(); ++i) {
+    valid[i] = std::isfinite(a.bands[0][i]) && std::isfinite(b.bands[0][i]) && a.bands[0][i] > 0 && b.bands[0][i] > 0;
+    if (valid[i]) {
+      sum_a += a.bands[0][i];
+      sum_b += b.bands[0][i];
+      ++both;
+    }
+  }
+  int64_t in_a = 0, in_b = 0;
+  for (size_t i = 0; i < valid.size(); ++i) {
+    in_a += std::isfinite(a.bands[0][i]) && a.bands[0][i] > 0;
+    in_b += std::isfinite(b.bands[0][i]) && b.bands[0][i] > 0;
+  }
+  std::printf("[ measured ] footprint pixels: line %lld, orbit %lld, both %lld\n", static_cast<long long>(in_a),
+              static_cast<long long>(in_b), static_cast<long long>(both));
+  EXPECT_EQ(both, in_b);  // the grid's footprint lies inside the straight line's
+  EXPECT_GT(both, in_a * 97 / 100);
+  const double level_db = 10 * std::log10(sum_b / sum_a);
+  int64_t blocks = 0;
+  const double r = MultilookPearson(a.bands[0], b.bands[0], a.width, a.height, 3, true, true, valid, &blocks);
+  std::printf("[ measured ] straight-line orbit vs --mode exact: %lld pixels, level %+.3f dB, r(3x3 dB) = %.4f over %lld blocks\n",
+              static_cast<long long>(both), level_db, r, static_cast<long long>(blocks));
+  EXPECT_NEAR(level_db, 0.0, 0.1);
+  EXPECT_GE(r, 0.98);
+}
+
+// A bad track is a clear error before anything is rendered.
+TEST(OrbitSimulateTest, OrbitOptionsAreCheckedTogether) {
+  SimulateRequest o;
+  o.dem = "d.tif";
+  o.out_prefix = "/tmp/x";
+  o.orbit = "track.csv";
+  try {
+    o.Check();
+    ADD_FAILURE() << "an orbit without a radar grid was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.where(), "--orbit/--radar-grid");
+  }
+  o.radar_grid = "grid.json";
+  o.product = "p.h5";
+  EXPECT_THROW(o.Check(), ConfigError);
+  o.product.clear();
+  o.geometry.width = 100;
+  try {
+    o.Check();
+    ADD_FAILURE() << "--width with an orbit was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.where(), "--orbit/--width/--height");
+  }
 }
 
 }  // namespace

@@ -69,7 +69,7 @@ void SimulateRequest::Check() const {
   if (dem_oversample != 1 && !scene.empty()) {
     throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
   }
-  if (!product.empty()) CheckProductOptions(*this);
+  if (UsesProductGeometry()) CheckProductOptions(*this);
   if (engine != "trace" && engine != "raster") {
     throw ConfigError("engine must be 'trace' or 'raster', got '" + engine + "'", "--engine");
   }
@@ -117,7 +117,7 @@ void SimulateRequest::Check() const {
   std::vector<fs::path> outs = {fs::path(contributions)};
   for (const char* suffix : {".tif", ".png", "_quicklook.png", "_mask.tif", ".json"}) outs.push_back(out_prefix + suffix);
   if (coherent) outs.push_back(out_prefix + "_slc.tif");
-  CheckOutputsAreNotInputs(outs, {dem, scene, product, materials, reflectors});
+  CheckOutputsAreNotInputs(outs, {dem, scene, product, orbit, radar_grid, materials, reflectors});
 }
 
 nlohmann::json SimulateRequest::ToJson() const {
@@ -125,6 +125,8 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["dem"] = dem;
   j["scene"] = scene;
   j["product"] = product;
+  j["orbit"] = orbit;
+  j["radar_grid"] = radar_grid;
   j["vertical_datum"] = vertical_datum;
   j["vertical_units"] = vertical_units;
   j["dem_oversample"] = dem_oversample;
@@ -198,6 +200,8 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     if (key == "dem") set(dem);
     else if (key == "scene") set(scene);
     else if (key == "product") set(product);
+    else if (key == "orbit") set(orbit);
+    else if (key == "radar_grid") set(radar_grid);
     else if (key == "vertical_datum") set(vertical_datum);
     else if (key == "vertical_units") set(vertical_units);
     else if (key == "dem_oversample") set(dem_oversample);
@@ -629,6 +633,10 @@ render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* 
 }
 
 SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter) {
+  if (options.UsesProductGeometry()) {
+    throw ConfigError("a radar grid is rendered by SimulateProduct (Python: gissar.simulate_product)",
+                      options.product.empty() ? "--orbit" : "--product");
+  }
   SimulatedImage out;
   Stopwatch step;
   // The terrain: a DEM (bare terrain, unit Lambertian class 0) or a GIS
@@ -723,7 +731,7 @@ void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs&
 
 SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
-  if (!options.product.empty()) return RunProductSimulate(options, command_line, reporter);
+  if (options.UsesProductGeometry()) return RunProductSimulate(options, command_line, reporter);
   Stopwatch total;
   // Reserve every output first: a missing or read-only directory fails now.
   SimulationOutputs outputs;

@@ -53,6 +53,15 @@ struct SimulateRequest {
   // A real product (NISAR RSLC HDF5): render on its radar grid with its
   // orbit instead of the idealised geometry (product_simulate.h).
   std::string product;
+  // Or any sensor's track: state vectors (--orbit: CSV or JSON of UTC time,
+  // ECEF position and velocity, or an ESA Earth Explorer .EOF such as
+  // Sentinel-1's) and the radar grid to render on (--radar-grid JSON), read by
+  // geo/orbit_file.h; both or neither, not with `product`. Renders exactly as
+  // `product` does, on that grid.
+  std::string orbit;
+  std::string radar_grid;
+  // True when the image is rendered on a real radar grid (product or orbit).
+  bool UsesProductGeometry() const { return !product.empty() || !orbit.empty() || !radar_grid.empty(); }
   // Vertical datum of the DEM heights (--vertical-datum): "" = from the
   // file's vertical CRS, else ellipsoid with a warning; "ellipsoid" (WGS84
   // ellipsoidal heights, used as given), "egm96" (orthometric, as SRTM),
