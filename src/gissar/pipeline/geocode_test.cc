@@ -143,10 +143,6 @@ TEST_P(GeocodeTest, FeaturesLandOnTheirMapPosition) {
   const auto& mask = map.bands[6];
   auto centre_x = [&](int c) { return gt[0] + (c + 0.5) * gt[1]; };
   auto centre_y = [&](int r) { return gt[3] + (r + 0.5) * gt[5]; };
-  // The threshold between the classes' sigma0 on level ground (incidence 50 deg).
-  const double cos_inc = std::sin(40 * M_PI / 180);
-  const double ground = material::DefaultMaterial(scene::kClassDefault).Sigma0(cos_inc, 0.031, material::Polarization::kVV);
-  const double water = material::DefaultMaterial(scene::kClassWater).Sigma0(cos_inc, 0.031, material::Polarization::kVV);
 
   int64_t nan_pixels = 0;
   for (float v : total) nan_pixels += std::isnan(v);
