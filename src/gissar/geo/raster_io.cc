@@ -153,6 +153,7 @@ void PatchGeolocation(const fs::path& path, const Metadata& geolocation) {
 // temporary overview file goes to /vsimem, never next to `path`).
 void FinishGeoTiff(DatasetPtr ds, const fs::path& path, const char* resampling,
                    const Metadata& geolocation = {}) {
+  const bool float_bands = ds->GetRasterCount() > 0 && ds->GetRasterBand(1)->GetRasterDataType() == GDT_Float32;
   if (!IsCog(ds->GetRasterXSize(), ds->GetRasterYSize())) {
     CloseChecked(std::move(ds), path);
     return;
@@ -162,8 +163,8 @@ void FinishGeoTiff(DatasetPtr ds, const fs::path& path, const char* resampling,
                         std::string(GeolocationXml(geolocation).size(), 'x').c_str());
   }
   const std::string resampling_option = std::string("RESAMPLING=") + resampling;
-  const char* options[] = {"COMPRESS=DEFLATE", "BLOCKSIZE=512",
-                           resampling_option.c_str(), "NUM_THREADS=ALL_CPUS", nullptr};
+  const char* options[] = {"COMPRESS=ZSTD", "LEVEL=1", "BLOCKSIZE=512", resampling_option.c_str(),
+                           "NUM_THREADS=ALL_CPUS", float_bands ? "PREDICTOR=FLOATING_POINT" : nullptr, nullptr};
   const std::string old_tmpdir = CPLGetThreadLocalConfigOption("CPL_TMPDIR", "");
   CPLSetThreadLocalConfigOption("CPL_TMPDIR", "/vsimem");
   CPLErrorReset();
@@ -209,7 +210,8 @@ Metadata LonLatGeolocation(int lon_band, int lat_band) {
 void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   const int nbands = static_cast<int>(raster.bands.size());
   if (nbands == 0) throw IoError("no band to write", path.string());
-  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "PREDICTOR=1", "NUM_THREADS=ALL_CPUS", nullptr};
+  const char* options[] = {"COMPRESS=ZSTD", "ZSTD_LEVEL=1", "TILED=YES", "PREDICTOR=3", "NUM_THREADS=ALL_CPUS",
+                           nullptr};
   std::vector<const void*> planes;
   for (const std::vector<float>& b : raster.bands) {
     if (b.size() != size_t(raster.width) * raster.height) throw IoError("band size does not match the raster", path.string());
@@ -254,7 +256,7 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
 void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width,
                       int height, const Metadata& metadata, const Georeference& georeference,
                       const ByteCategories& categories) {
-  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
+  const char* options[] = {"COMPRESS=ZSTD", "ZSTD_LEVEL=1", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
   if (data.size() != size_t(width) * height) throw IoError("data size does not match the raster", path.string());
   DatasetPtr ds = CreateStaged(path, width, height, GDT_Byte, {data.data()}, options);
   SetMetadata(ds.get(), metadata);
@@ -318,7 +320,7 @@ void WriteComplexGeoTiff(const fs::path& path, const std::vector<ComplexBand>& b
     }
     planes.push_back(interleaved[b].data());
   }
-  const char* options[] = {"COMPRESS=DEFLATE", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
+  const char* options[] = {"COMPRESS=ZSTD", "ZSTD_LEVEL=1", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
   DatasetPtr ds = CreateStaged(path, width, height, GDT_CFloat32, planes, options);
   SetMetadata(ds.get(), metadata);
   SetGeoreference(ds.get(), georeference, path);

@@ -61,7 +61,8 @@ struct FloatRaster {
   bool nodata_nan = false;
 };
 
-// Every GeoTIFF writer below writes a DEFLATE-compressed, tiled GeoTIFF.
+// Every GeoTIFF writer below writes a ZSTD-compressed (level 1), tiled GeoTIFF;
+// float32 bands with the floating-point predictor (PREDICTOR=3).
 // A raster with either side over kCogMinSidePx pixels is written as a
 // Cloud-Optimized GeoTIFF (GDAL COG driver, 512-pixel tiles) with internal
 // overviews halving down to 512 pixels or less: AVERAGE for float bands
@@ -70,7 +71,7 @@ struct FloatRaster {
 // colour table and geotransform/CRS are the same in both layouts.
 inline constexpr int kCogMinSidePx = 1024;
 
-// Writes a DEFLATE-compressed, tiled float32 GeoTIFF. Map-geometry rasters
+// Writes a ZSTD-compressed, tiled float32 GeoTIFF (floating-point predictor). Map-geometry rasters
 // carry raster.geotransform and raster.crs (an unparsable CRS is an IoError).
 // Radar-geometry images
 // carry no geotransform: their geometry is in `metadata`, and their
