@@ -7,7 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <cstdio>
 #include <sstream>
 
@@ -459,6 +461,31 @@ void ApplyMaterialsFile(material::MaterialTable& table, const SimulateRequest& o
   }
 }
 
+// geo::ReadDemInfo, remembered per process for a file (path, size,
+// modification time, vertical units): a worker rendering many poses of one
+// DEM streams its heights once.
+geo::DemInfo CachedDemInfo(const std::string& path, const geo::DemReadOptions& read_options) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  const bool on_disk = !ec;
+  const auto mtime = on_disk ? fs::last_write_time(path, ec) : fs::file_time_type();
+  if (!on_disk || ec) return geo::ReadDemInfo(path, read_options);
+  const std::string key = fs::absolute(path).string() + "|" + std::to_string(size) + "|" +
+                          std::to_string(mtime.time_since_epoch().count()) + "|" + read_options.vertical_units;
+  static std::mutex mutex;
+  static std::map<std::string, geo::DemInfo> cache;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    const auto found = cache.find(key);
+    if (found != cache.end()) return found->second;
+  }
+  geo::DemInfo info = geo::ReadDemInfo(path, read_options);
+  std::lock_guard<std::mutex> lock(mutex);
+  if (cache.size() > 64) cache.clear();
+  cache[key] = info;
+  return info;
+}
+
 // The ground point (ENU) of image pixel (col, row) at ENU height z: in
 // exact mode the point of the pixel's range circle (in its zero-Doppler
 // plane) nearest the look direction. nullopt when the range circle does not
@@ -530,7 +557,7 @@ DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) 
     return plan;
   }
   const geo::DemReadOptions read_options = DemReadOptionsOf(options);
-  const geo::DemInfo info = geo::ReadDemInfo(options.dem, read_options);
+  const geo::DemInfo info = CachedDemInfo(options.dem, read_options);
   if (!info.any_valid) {
     plan.reason = "the DEM has no valid height";
     return plan;
