@@ -103,6 +103,27 @@ pipeline::SimulateRequest SimulateOptionsFrom(const py::kwargs& kwargs) {
   return o;
 }
 
+// An EvaluateRequest from a dict of its fields (EvaluateRequest::ToJson keys).
+pipeline::EvaluateRequest EvaluateOptionsFrom(const py::dict& values, const std::string& where) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [key_handle, value] : values) {
+    const std::string key = key_handle.cast<std::string>();
+    j[key] = JsonOf(value, key);
+  }
+  pipeline::EvaluateRequest o;
+  o.ApplyJson(j, where);
+  if (o.out_prefix.empty()) o.out_prefix = "(python)";
+  return o;
+}
+
+// Trial records from Python (dicts, as evaluate_trials returns them).
+std::vector<nlohmann::json> RecordsFrom(const py::iterable& records) {
+  std::vector<nlohmann::json> out;
+  const py::object dumps = py::module_::import("json").attr("dumps");
+  for (const py::handle r : records) out.push_back(nlohmann::json::parse(dumps(r).cast<std::string>()));
+  return out;
+}
+
 // A float image (H, W) from a NumPy array (any real dtype, C order after
 // conversion); `what` names the argument in errors. No-data (NaN, e.g.
 // outside a simulation's footprint) counts as no return: 0, as the file
@@ -723,6 +744,32 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
   m.def("simulate_request_defaults", [] { return JsonToPython(pipeline::SimulateRequest().ToJson()); },
         "The keywords of simulate with their defaults (the request fields, docs/conventions.md).");
 
+  m.def("evaluate_request_defaults", [] { return JsonToPython(pipeline::EvaluateRequest().ToJson()); },
+        "The evaluate request's fields and their defaults (the keywords of gissar.evaluate).");
+  m.def("evaluate_trials", [](const py::dict& options) {
+          const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.evaluate_trials");
+          std::vector<nlohmann::json> records;
+          {
+            py::gil_scoped_release release;
+            records = pipeline::EvaluateTrials(o);
+          }
+          py::list out;
+          for (const nlohmann::json& r : records) out.append(JsonToPython(r));
+          return out;
+        }, py::arg("options"),
+        "Run trials trial_first .. trial_first + trial_count - 1 (trial_count -1: the rest) of an evaluate request "
+        "(a dict of its fields) and return their records (list of dicts); trial k depends only on (seed, k).");
+  m.def("summarise_trials", [](const py::dict& options, const py::iterable& records) {
+          const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.summarise_trials");
+          return JsonToPython(pipeline::SummariseTrials(o, RecordsFrom(records)));
+        }, py::arg("options"), py::arg("records"),
+        "Summary statistics (success_rate, position_error_m median/p95, ...) of trial records in any order: "
+        "the serial evaluate's table.");
+  m.def("write_evaluation", [](const py::dict& options, const py::iterable& records, double seconds) {
+          const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.write_evaluation");
+          return JsonToPython(pipeline::WriteEvaluation(o, RecordsFrom(records), "gissar (python)", seconds));
+        }, py::arg("options"), py::arg("records"), py::arg("seconds") = 0.0,
+        "Write PREFIX.json, PREFIX_trials.csv and PREFIX_hist.png of trial records (options['out_prefix']).");
   m.def("version", &VersionString, "Version string of the library.");
 
   py::class_<sensor::SarGeometry>(m, "SarGeometry", "SAR acquisition geometry (docs/geometry.md).")

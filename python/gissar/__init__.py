@@ -246,5 +246,30 @@ def locate(scene, image, prior, range_spacing_m, azimuth_spacing_m, **kwargs):
                         **kwargs)
 
 
+def _evaluate_options(kwargs):
+    return {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix") and v is not None else v) for k, v in kwargs.items()}
+
+
+def evaluate_trials(**kwargs):
+    """Trial records (list of dicts) of trials trial_first .. trial_first + trial_count - 1 of `gissar evaluate`
+    (keywords: the fields of gissar._core.evaluate_request_defaults()); trial k depends only on (seed, k)."""
+    return _core.evaluate_trials(_evaluate_options(kwargs))
+
+
+def summarise_trials(records, **kwargs):
+    """The summary dict of `gissar evaluate` (success_rate, position_error_m, ...) of trial records, any order."""
+    return _core.summarise_trials(_evaluate_options(kwargs), list(records))
+
+
+def evaluate(**kwargs):
+    """`gissar evaluate` in this process: every trial, then the summary dict (with out_prefix, also writes
+    PREFIX.json, PREFIX_trials.csv and PREFIX_hist.png). gissar.distributed_evaluate.evaluate spreads the trials."""
+    options = _evaluate_options({**kwargs, "trial_first": 0, "trial_count": -1})
+    records = _core.evaluate_trials(options)
+    if options.get("out_prefix"):
+        return _core.write_evaluation(options, records)
+    return _core.summarise_trials(options, records)
+
+
 _adapt.register_accessor()
 from . import raw  # noqa: E402  (the dict results)

@@ -8,6 +8,7 @@ import numpy.typing as npt
 import xarray as xr
 
 import gissar
+import gissar.distributed_evaluate
 
 
 def image_of(dem: Path) -> npt.NDArray[np.float32]:
@@ -44,3 +45,12 @@ def errors() -> str:
         return str(e)
     raw: Dict[str, Any] = gissar.raw.simulate("dem.tif")
     return gissar.__version__ + str(len(raw))
+
+
+def evaluation(dem: str) -> float:
+    records: List[Dict[str, Any]] = gissar.evaluate_trials(dem=dem, trials=4, trial_first=2, trial_count=2)
+    part = gissar.summarise_trials(records, dem=dem, trials=4)
+    serial = gissar.evaluate(dem=dem, trials=4, seed=3)
+    spread = gissar.distributed_evaluate.evaluate(dem=dem, trials=4, seed=3, workers=2, chunk_trials=1)
+    chunks = gissar.distributed_evaluate.trial_chunks(10, 3)
+    return float(serial["success_rate"]) + float(spread["success_rate"]) + float(part["success_rate"]) + len(chunks)

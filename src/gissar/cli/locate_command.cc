@@ -47,6 +47,9 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
     cmd->add_option("--trials", o->trials, "Trials")->capture_default_str();
     cmd->add_option("--seed", o->seed, "Seed")->capture_default_str();
+    cmd->add_option("--trial-first", o->trial_first,
+                    "Run trials from this index (trial k depends only on the seed and k)")->capture_default_str();
+    cmd->add_option("--trial-count", o->trial_count, "Run this many trials (-1: the rest)")->capture_default_str();
     cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.json, PREFIX_trials.csv, PREFIX_hist.png")->required();
     cmd->add_option("--spacing", o->spacing_m, "Pixel spacing (range = azimuth), m: the resolution cell")->capture_default_str();
     cmd->add_option("--size", o->size_px, "Image side, pixels")->capture_default_str();

@@ -32,6 +32,9 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
                   "Unit of the DEM heights: m, ft or us-ft (default: the file's band unit or vertical CRS, else m)");
   cmd->add_option("--vertical-datum", options->vertical_datum, kVerticalDatumHelp);
   cmd->add_option("--sea", options->sea, "DEM sea: auto (heights <= --sea-level connected to the border are class sea) or off")->capture_default_str();
+  cmd->add_option("--dem-window", options->dem_window,
+                  "auto: with --width/--height read only the DEM window the image needs (same image); off: read the whole DEM")
+      ->capture_default_str();
   cmd->add_option("--sea-level", options->sea_level_m, "Sea level for --sea auto, metres in the DEM's heights")->capture_default_str();
   cmd->add_flag("--fill-nodata", options->fill_nodata,
                 "Fill DEM no-data cells (GDAL FillNodata) instead of failing");

@@ -62,9 +62,13 @@ void FillVoids(std::vector<float>& heights, int width, int height, float nodata,
 void CheckGeographicExtent(const Dem& dem, const OGRSpatialReference& srs) {
   const double to_deg = srs.GetAngularUnits(nullptr) * 180.0 / M_PI;
   double lon_min = 1e300, lon_max = -1e300, lat_max = 0.0;
-  for (const auto& [c, r] : {std::pair{0, 0}, {dem.width - 1, 0}, {0, dem.height - 1},
-                             {dem.width - 1, dem.height - 1}}) {
-    const Eigen::Vector2d m = dem.MapFromPost(c, r) * to_deg;
+  // The whole raster's corner posts (also when only a window is read).
+  Dem whole;
+  whole.geotransform = dem.HasLattice() ? dem.source_geotransform : dem.geotransform;
+  const int w = dem.HasLattice() ? dem.source_width : dem.width;
+  const int h = dem.HasLattice() ? dem.source_height : dem.height;
+  for (const auto& [c, r] : {std::pair{0, 0}, {w - 1, 0}, {0, h - 1}, {w - 1, h - 1}}) {
+    const Eigen::Vector2d m = whole.MapFromPost(c, r) * to_deg;
     lon_min = std::min(lon_min, m.x());
     lon_max = std::max(lon_max, m.x());
     lat_max = std::max(lat_max, std::abs(m.y()));
@@ -89,22 +93,79 @@ void CheckGeographicExtent(const Dem& dem, const OGRSpatialReference& srs) {
   throw InputError(text.str(), dem.source);
 }
 
+// The vertical unit of a DEM band: `option` (--vertical-units), else the
+// band's unit type, else the vertical axis of a compound CRS, else metres.
+// Returns metres per unit and where it came from; InputError for an
+// unknown unit.
+std::pair<double, std::string> ResolveVerticalUnit(GDALRasterBand& band, const OGRSpatialReference& srs,
+                                                   const std::string& option, const std::string& where) {
+  std::string unit_name = option;
+  std::string source = "--vertical-units";
+  if (unit_name.empty()) {
+    const char* band_unit = band.GetUnitType();
+    if (band_unit != nullptr && band_unit[0] != '\0') {
+      unit_name = band_unit;
+      source = "band unit type";
+    }
+  }
+  if (unit_name.empty() && srs.IsCompound()) {
+    const char* crs_unit = nullptr;
+    srs.GetTargetLinearUnits("VERT_CS", &crs_unit);
+    if (crs_unit != nullptr && crs_unit[0] != '\0') {
+      unit_name = crs_unit;
+      source = "vertical CRS";
+    }
+  }
+  if (unit_name.empty()) {
+    unit_name = "m";
+    source = "default (the file names no unit)";
+  }
+  const std::optional<double> metres = MetresPerVerticalUnit(unit_name);
+  if (!metres) {
+    throw InputError("DEM heights are in an unknown unit '" + unit_name + "' (" + source +
+                         "); give --vertical-units m, ft or us-ft",
+                     where);
+  }
+  return {*metres, source};
+}
+
 }  // namespace
 
 Eigen::Vector2d Dem::MapFromPost(double col, double row) const {
+  if (HasLattice()) {
+    // Source post (lattice index / factor): the lattice index is an exact
+    // integer for every post, whatever the window.
+    const double c = (double(lattice_col0) + col) / lattice_factor + 0.5;
+    const double r = (double(lattice_row0) + row) / lattice_factor + 0.5;
+    const auto& g = source_geotransform;
+    return {g[0] + c * g[1] + r * g[2], g[3] + c * g[4] + r * g[5]};
+  }
   const double c = col + 0.5, r = row + 0.5;
   const auto& g = geotransform;
   return {g[0] + c * g[1] + r * g[2], g[3] + c * g[4] + r * g[5]};
 }
 
 bool Dem::PostFromMap(double x, double y, double* col, double* row) const {
-  const auto& g = geotransform;
+  const auto& g = HasLattice() ? source_geotransform : geotransform;
   const double det = g[1] * g[5] - g[2] * g[4];
   if (det == 0.0) return false;
   const double dx = x - g[0], dy = y - g[3];
   *col = (g[5] * dx - g[2] * dy) / det - 0.5;
   *row = (-g[4] * dx + g[1] * dy) / det - 0.5;
+  if (HasLattice()) {
+    // Subtracting the integer offset is exact: the same fractional part as
+    // in the whole raster.
+    *col = *col * lattice_factor - double(lattice_col0);
+    *row = *row * lattice_factor - double(lattice_row0);
+  }
   return true;
+}
+
+Eigen::Vector2d Dem::SourceCentrePost() const {
+  if (!HasLattice()) return {(width - 1) / 2.0, (height - 1) / 2.0};
+  const double w = double(source_width - 1) * lattice_factor + 1.0;
+  const double h = double(source_height - 1) * lattice_factor + 1.0;
+  return {(w - 1.0) / 2.0 - double(lattice_col0), (h - 1.0) / 2.0 - double(lattice_row0)};
 }
 
 std::optional<double> Dem::InterpolateHeight(double col, double row) const {
@@ -193,6 +254,12 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
       throw InputError("raster geotransform is singular or not finite", where);
     }
   }
+  dem.source_geotransform = dem.geotransform;
+  dem.source_width = ds->GetRasterXSize();
+  dem.source_height = ds->GetRasterYSize();
+  dem.lattice_col0 = col0;
+  dem.lattice_row0 = row0;
+  dem.lattice_factor = 1;
   {
     auto& g = dem.geotransform;
     const double x0 = g[0] + col0 * g[1] + row0 * g[2];
@@ -242,37 +309,13 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   // axis of a compound CRS, else metres. Heights become metres here, before
   // the range check (a DEM in feet is not silently read as metres).
   {
-    std::string unit_name = options.vertical_units;
-    dem.vertical_unit_source = "--vertical-units";
-    if (unit_name.empty()) {
-      const char* band_unit = band->GetUnitType();
-      if (band_unit != nullptr && band_unit[0] != '\0') {
-        unit_name = band_unit;
-        dem.vertical_unit_source = "band unit type";
-      }
-    }
-    if (unit_name.empty() && srs->IsCompound()) {
-      const char* crs_unit = nullptr;
-      srs->GetTargetLinearUnits("VERT_CS", &crs_unit);
-      if (crs_unit != nullptr && crs_unit[0] != '\0') {
-        unit_name = crs_unit;
-        dem.vertical_unit_source = "vertical CRS";
-      }
-    }
-    if (unit_name.empty()) {
-      unit_name = "m";
-      dem.vertical_unit_source = "default (the file names no unit)";
-    }
-    const std::optional<double> metres = MetresPerVerticalUnit(unit_name);
-    if (!metres) {
-      throw InputError("DEM heights are in an unknown unit '" + unit_name + "' (" + dem.vertical_unit_source +
-                           "); give --vertical-units m, ft or us-ft",
-                       where);
-    }
-    dem.vertical_unit_m = *metres;
-    if (*metres != 1.0) {
+    const auto [metres, unit_source] = ResolveVerticalUnit(*band, *srs, options.vertical_units, where);
+    dem.vertical_unit_source = unit_source;
+    const std::optional<double> unit_metres = metres;
+    dem.vertical_unit_m = *unit_metres;
+    if (*unit_metres != 1.0) {
       for (double& v : raw) {
-        if (!IsVoid(v, nodata_marked, nodata)) v *= *metres;
+        if (!IsVoid(v, nodata_marked, nodata)) v *= *unit_metres;
         else v = std::numeric_limits<double>::quiet_NaN();
       }
       nodata_marked = false;  // voids are NaN now (a converted height may equal the no-data value)
@@ -448,9 +491,11 @@ std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& f
   return enu;
 }
 
-Eigen::Vector2d DemPostSpacingMetres(const Dem& dem, const LocalFrame& frame) {
+Eigen::Vector2d DemPostSpacingMetres(const Dem& dem, const LocalFrame& frame, bool at_source_centre) {
   CrsTransform crs(dem.crs_wkt);
-  const double c = (dem.width - 1) / 2.0, r = (dem.height - 1) / 2.0;
+  const Eigen::Vector2d centre =
+      at_source_centre ? dem.SourceCentrePost() : Eigen::Vector2d((dem.width - 1) / 2.0, (dem.height - 1) / 2.0);
+  const double c = centre.x(), r = centre.y();
   std::vector<double> x, y;
   for (const auto& [dc, dr] : {std::pair{0.0, 0.0}, {1.0, 0.0}, {0.0, 1.0}}) {
     const Eigen::Vector2d m = dem.MapFromPost(c + dc, r + dr);
@@ -624,7 +669,59 @@ Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
   g[2] = g0[2] / factor;
   g[4] = g0[4] / factor;
   g[5] = g0[5] / factor;
+  if (dem.HasLattice()) {
+    out.lattice_col0 = dem.lattice_col0 * factor;
+    out.lattice_row0 = dem.lattice_row0 * factor;
+    out.lattice_factor = dem.lattice_factor * factor;
+  }
   return out;
+}
+
+}  // namespace gissar::geo
+
+namespace gissar::geo {
+
+DemInfo ReadDemInfo(const fs::path& path, const DemReadOptions& options) {
+  EnsureGdal();
+  const std::string where = path.string();
+  std::error_code ec;
+  const bool virtual_path = where.rfind("/vsi", 0) == 0;
+  if (!virtual_path && !fs::exists(path, ec)) throw InputError("DEM file does not exist", where);
+  DatasetPtr ds(GDALDataset::Open(where.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) throw InputError("not a raster GDAL can read", where);
+  if (options.band < 1 || options.band > ds->GetRasterCount()) {
+    throw InputError("raster has no band " + std::to_string(options.band), where);
+  }
+  DemInfo info;
+  info.width = ds->GetRasterXSize();
+  info.height = ds->GetRasterYSize();
+  if (ds->GetGeoTransform(info.geotransform.data()) != CE_None) {
+    throw InputError("raster has no geotransform (not georeferenced)", where);
+  }
+  const OGRSpatialReference* srs = ds->GetSpatialRef();
+  if (srs == nullptr) throw InputError("raster has no coordinate reference system", where);
+  char* wkt = nullptr;
+  srs->exportToWkt(&wkt);
+  info.crs_wkt = wkt != nullptr ? wkt : "";
+  CPLFree(wkt);
+  info.file_vertical_datum =
+      VerticalDatumOfCrs(info.crs_wkt, ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "");
+  GDALRasterBand* band = ds->GetRasterBand(options.band);
+  info.vertical_unit_m = ResolveVerticalUnit(*band, *srs, options.vertical_units, where).first;
+  double min_max[2] = {0.0, 0.0};
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  const CPLErr err = band->ComputeRasterMinMax(FALSE, min_max);  // exact: every block, streamed
+  CPLPopErrorHandler();
+  if (err != CE_None || !std::isfinite(min_max[0]) || !std::isfinite(min_max[1])) return info;
+  int has_scale = 0, has_offset = 0;
+  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
+  const double s = has_scale ? scale : 1.0, o = has_offset ? offset : 0.0;
+  double a = min_max[0] * s + o, b = min_max[1] * s + o;
+  if (a > b) std::swap(a, b);
+  info.min_height_m = a * info.vertical_unit_m;
+  info.max_height_m = b * info.vertical_unit_m;
+  info.any_valid = true;
+  return info;
 }
 
 }  // namespace gissar::geo

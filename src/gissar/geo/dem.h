@@ -39,6 +39,8 @@ struct DemReadOptions {
   int64_t bytes_per_post = 12;
   // Optional window (first column, first row, columns, rows) in raster
   // cells: only that part is read, so large DEMs need not be loaded whole.
+  // Posts keep the map coordinates of the whole raster (Dem::lattice_*),
+  // and a geographic DEM is checked over the whole raster's extent.
   std::optional<std::array<int, 4>> window;
   // Unit of the stored heights (--vertical-units): "" = from the file (the
   // band's unit type, else the vertical axis of a compound CRS, else metres),
@@ -79,6 +81,22 @@ struct Dem {
   // 1 where the raster had no data (the height there was filled), row-major
   // like heights_m; empty when the raster had no no-data cell.
   std::vector<uint8_t> nodata_mask;
+  // Where this grid lies in the source raster's post lattice, so that a
+  // window (DemReadOptions::window) and a refined grid (RefineDem) place
+  // every post at exactly the map coordinates (bit for bit) the whole
+  // raster read the same way gives it: post (c, r) is source post
+  // ((lattice_col0 + c) / lattice_factor, (lattice_row0 + r) / lattice_factor)
+  // of source_geotransform. ReadDem sets it; a Dem built by hand leaves
+  // lattice_factor 0 and MapFromPost uses `geotransform`.
+  std::array<double, 6> source_geotransform{};
+  int64_t lattice_col0 = 0, lattice_row0 = 0;
+  int lattice_factor = 0;
+  int source_width = 0, source_height = 0;  // the whole raster, posts
+
+  bool HasLattice() const { return lattice_factor > 0; }
+  // Post coordinates, in this grid, of the centre of the whole source
+  // raster (refined like this grid); the grid's own centre without a lattice.
+  Eigen::Vector2d SourceCentrePost() const;
 
   bool IsNodata(int col, int row) const {
     return !nodata_mask.empty() && nodata_mask[size_t(row) * width + col] != 0;
@@ -93,6 +111,26 @@ struct Dem {
   // Bilinear height at a fractional post position; nullopt outside the grid.
   std::optional<double> InterpolateHeight(double col, double row) const;
 };
+
+// What a DEM's header and one streamed pass over its heights tell without
+// loading it: size, geotransform, CRS, the vertical datum the file names,
+// and the lowest and highest valid height in metres (band scale/offset and
+// vertical unit applied as ReadDem applies them; no-data, NaN excluded).
+// The heights are exact bounds: GDAL's exact min/max (GDALComputeRasterMinMax
+// without approximation, one block at a time: memory of a block, time of a
+// full read), not overview or stored statistics, which need not bound.
+struct DemInfo {
+  int width = 0, height = 0;
+  std::array<double, 6> geotransform{};
+  std::string crs_wkt;
+  std::string file_vertical_datum;
+  double vertical_unit_m = 1.0;
+  double min_height_m = 0.0, max_height_m = 0.0;
+  bool any_valid = false;  // false: every cell is no-data (min/max meaningless)
+};
+// Throws InputError like ReadDem for a missing or unreadable raster, no
+// band, no geotransform/CRS or an unknown vertical unit.
+DemInfo ReadDemInfo(const std::filesystem::path& path, const DemReadOptions& options = {});
 
 // Reads band `options.band` of a raster as a DEM. `path` may be a GDAL
 // virtual file (/vsimem/..., /vsizip/archive.zip/file.hgt). Throws InputError naming
@@ -166,7 +204,8 @@ void WriteDemGeoTiff(const std::filesystem::path& path, const std::vector<float>
 std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& frame);
 
 // Mean post spacing in metres along columns and rows, measured in `frame`
-// at the DEM centre.
-Eigen::Vector2d DemPostSpacingMetres(const Dem& dem, const LocalFrame& frame);
+// at the DEM centre (with `at_source_centre`, at the centre of the whole
+// source raster, Dem::SourceCentrePost: the same for every window of it).
+Eigen::Vector2d DemPostSpacingMetres(const Dem& dem, const LocalFrame& frame, bool at_source_centre = false);
 
 }  // namespace gissar::geo

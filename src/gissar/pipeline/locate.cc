@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
+#include <memory>
+#include <type_traits>
 #include <random>
 #include <set>
 
@@ -358,29 +361,105 @@ void EvaluateRequest::Check() const {
   }
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
+  if (trial_first < 0 || trial_first >= trials) throw ConfigError("must be in [0, trials)", "--trial-first");
+  if (!(trial_count == -1 || (trial_count >= 1 && int64_t{trial_first} + trial_count <= trials))) {
+    throw ConfigError("must be -1 (the rest) or in [1, trials - trial_first]", "--trial-count");
+  }
 }
 
-nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
-  options.Check();
-  Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
-  const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
-  const fs::path png_path = outputs.Add(options.out_prefix + "_hist.png");
-  CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
-                           {options.scene, options.dem});
+nlohmann::json EvaluateRequest::ToJson() const {
+  return {{"scene", scene}, {"dem", dem}, {"vertical_datum", vertical_datum}, {"trials", trials}, {"seed", seed},
+          {"out_prefix", out_prefix}, {"spacing_m", spacing_m}, {"size_px", size_px},
+          {"slant_range_m", slant_range_m}, {"depression_min_deg", depression_min_deg},
+          {"depression_max_deg", depression_max_deg}, {"speckle_looks", speckle_looks},
+          {"nesz_db", std::isnan(nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(nesz_db)},
+          {"material_db", material_db}, {"dem_smoothing", dem_smoothing},
+          {"prior_error_horizontal_m", prior_error_horizontal_m}, {"prior_error_vertical_m", prior_error_vertical_m},
+          {"prior_error_heading_deg", prior_error_heading_deg}, {"success_cells", success_cells},
+          {"success_heading_deg", success_heading_deg}, {"matcher", matcher}, {"compare_matchers", compare_matchers},
+          {"search_px", search_px}, {"step_px", step_px}, {"polish_evaluations", polish_evaluations},
+          {"bounces", bounces}, {"rays_per_cell", rays_per_cell}, {"reference_floor", reference_floor},
+          {"trial_first", trial_first}, {"trial_count", trial_count}};
+}
 
-  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum), reporter);
-  const render::EmbreeScene embree(terrain.mesh);
-  const scene::TriangleMesh observed_mesh = SmoothedTerrain(terrain.mesh, options.dem_smoothing);
-  const render::EmbreeScene observed_embree(observed_mesh);
-  const sensor::LookSide look = sensor::LookSide::kRight;
-  nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
+void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
+  for (const auto& [key, value] : values.items()) {
+    auto set = [&](auto& field) {
+      try {
+        field = value.get<std::remove_reference_t<decltype(field)>>();
+      } catch (const nlohmann::json::exception&) {
+        throw ConfigError("key '" + key + "' has a value of the wrong type: " + value.dump(), source);
+      }
+    };
+    if (value.is_null() && key != "nesz_db") continue;  // null keeps the default
+    if (key == "scene") set(scene);
+    else if (key == "dem") set(dem);
+    else if (key == "vertical_datum") set(vertical_datum);
+    else if (key == "trials") set(trials);
+    else if (key == "seed") set(seed);
+    else if (key == "out_prefix") set(out_prefix);
+    else if (key == "spacing_m") set(spacing_m);
+    else if (key == "size_px") set(size_px);
+    else if (key == "slant_range_m") set(slant_range_m);
+    else if (key == "depression_min_deg") set(depression_min_deg);
+    else if (key == "depression_max_deg") set(depression_max_deg);
+    else if (key == "speckle_looks") set(speckle_looks);
+    else if (key == "nesz_db") {
+      if (value.is_null()) nesz_db = std::numeric_limits<double>::quiet_NaN();
+      else set(nesz_db);
+    } else if (key == "material_db") set(material_db);
+    else if (key == "dem_smoothing") set(dem_smoothing);
+    else if (key == "prior_error_horizontal_m") set(prior_error_horizontal_m);
+    else if (key == "prior_error_vertical_m") set(prior_error_vertical_m);
+    else if (key == "prior_error_heading_deg") set(prior_error_heading_deg);
+    else if (key == "success_cells") set(success_cells);
+    else if (key == "success_heading_deg") set(success_heading_deg);
+    else if (key == "matcher") set(matcher);
+    else if (key == "compare_matchers") set(compare_matchers);
+    else if (key == "search_px") set(search_px);
+    else if (key == "step_px") set(step_px);
+    else if (key == "polish_evaluations") set(polish_evaluations);
+    else if (key == "bounces") set(bounces);
+    else if (key == "rays_per_cell") set(rays_per_cell);
+    else if (key == "reference_floor") set(reference_floor);
+    else if (key == "trial_first") set(trial_first);
+    else if (key == "trial_count") set(trial_count);
+    else throw ConfigError("unknown key '" + key + "'", source);
+  }
+}
+
+namespace {
+
+// What every trial of an evaluation shares: the terrain, its BVH, the
+// observed (smoothed) terrain, the sensor model, the locate options and the
+// region true centres are drawn from.
+struct EvaluateSetup {
+  Terrain terrain;
+  std::unique_ptr<render::EmbreeScene> embree;
+  scene::TriangleMesh observed_mesh;
+  std::unique_ptr<render::EmbreeScene> observed_embree;
   nav::SensorModel model;
-  model.range_spacing_m = model.azimuth_spacing_m = options.spacing_m;
-  model.width = model.height = options.size_px;
-  model.look_side = look;
   nav::LocateOptions lo;
+  Eigen::Vector2d lo_xy, hi_xy;
+};
+
+const std::vector<nav::Matcher>& ComparedMatchers() {
+  static const std::vector<nav::Matcher> matchers = {nav::Matcher::kNcc, nav::Matcher::kChamfer,
+                                                     nav::Matcher::kFeatures};
+  return matchers;
+}
+
+EvaluateSetup PrepareEvaluation(const EvaluateRequest& options, Reporter& reporter) {
+  EvaluateSetup s;
+  s.terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum), reporter);
+  s.embree = std::make_unique<render::EmbreeScene>(s.terrain.mesh);
+  s.observed_mesh = SmoothedTerrain(s.terrain.mesh, options.dem_smoothing);
+  s.observed_embree = std::make_unique<render::EmbreeScene>(s.observed_mesh);
+  s.model.range_spacing_m = s.model.azimuth_spacing_m = options.spacing_m;
+  s.model.width = s.model.height = options.size_px;
+  s.model.look_side = sensor::LookSide::kRight;
+  nav::LocateOptions& lo = s.lo;
   lo.matcher = nav::ParseMatcher(options.matcher, "--matcher");
   lo.polish_evaluations = options.polish_evaluations;
   lo.initial_search_px = options.search_px > 0
@@ -396,145 +475,208 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
   if (std::isfinite(options.nesz_db) && options.reference_floor) {
     lo.reference_floor = std::max(lo.reference_floor, std::pow(10.0, options.nesz_db / 10.0));
   }
-
   // True image centres are drawn where the whole image (and the prior's)
   // stays on the scene.
-  const Eigen::AlignedBox3d box = terrain.mesh.Bounds();
+  const Eigen::AlignedBox3d box = s.terrain.mesh.Bounds();
   const double extent = 0.5 * options.size_px * options.spacing_m /
                             std::cos(options.depression_max_deg * M_PI / 180.0) * std::sqrt(2.0) +
                         options.slant_range_m * std::sin(options.prior_error_heading_deg * M_PI / 180.0) +
                         options.prior_error_horizontal_m + 100.0;
-  const Eigen::Vector2d lo_xy(box.min().x() + extent, box.min().y() + extent);
-  const Eigen::Vector2d hi_xy(box.max().x() - extent, box.max().y() - extent);
-  if (!(lo_xy.x() < hi_xy.x() && lo_xy.y() < hi_xy.y())) {
+  s.lo_xy = Eigen::Vector2d(box.min().x() + extent, box.min().y() + extent);
+  s.hi_xy = Eigen::Vector2d(box.max().x() - extent, box.max().y() - extent);
+  if (!(s.lo_xy.x() < s.hi_xy.x() && s.lo_xy.y() < s.hi_xy.y())) {
     throw ConfigError("the scene is too small for images of this size and the prior errors", "--size/--spacing");
   }
+  return s;
+}
 
-  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
-  if (csv == nullptr) throw IoError("cannot write", csv_path.string());
-  std::fprintf(csv,
-               "trial,heading_deg,depression_deg,centre_x_m,centre_y_m,sensor_x_m,sensor_y_m,sensor_z_m,"
-               "prior_position_error_m,prior_heading_error_deg,converged,iterations,inliers,rms_px,"
-               "position_error_m,horizontal_error_m,vertical_error_m,position_error_cells,heading_error_deg,"
-               "depression_error_deg,sigma_heading_deg,similarity,prior_similarity,seconds,success,matches,"
-               "sigma_depression_deg,prior_east_m,prior_north_m,prior_up_m");
-  const std::vector<nav::Matcher> matchers = {nav::Matcher::kNcc, nav::Matcher::kChamfer, nav::Matcher::kFeatures};
+nlohmann::json NumberOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+double NumberOf(const nlohmann::json& v) {
+  return v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN();
+}
+
+// One Monte-Carlo trial: its randomness depends on (options.seed, trial)
+// only (the true pose, materials, prior: std::mt19937_64 seeded with
+// seed * 1000003 + trial; render, speckle and noise seeds from seed and
+// trial), so any subset of trials, in any order or process, gives the same
+// records.
+nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, int trial, Reporter& reporter) {
+  const sensor::LookSide look = s.model.look_side;
+  nav::NavScene scene{&s.terrain.mesh, s.embree.get(), &s.terrain.materials, options.rays_per_cell, options.bounces};
+  const nav::LocateOptions& lo = s.lo;
+  const nav::SensorModel& model = s.model;
+  std::mt19937_64 rng(options.seed * 1000003ULL + trial);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  auto uni = [&](double a, double b) { return a + (b - a) * u01(rng); };
+  // True pose.
+  nav::NavPose truth;
+  bool ok = false;
+  for (int attempt = 0; attempt < 100 && !ok; ++attempt) {
+    truth.heading_deg = uni(0.0, 360.0);
+    truth.depression_deg = uni(options.depression_min_deg, options.depression_max_deg);
+    truth.slant_range_m = options.slant_range_m;
+    const auto g = nav::SurfaceBelow(*s.embree, s.terrain.mesh, uni(s.lo_xy.x(), s.hi_xy.x()), uni(s.lo_xy.y(), s.hi_xy.y()));
+    if (g) { truth.centre_enu = *g; ok = true; }
+  }
+  if (!ok) throw InputError("no true pose found on the scene surface", options.scene);
+  // Observed image: smoothed terrain, materials off by +-material_db per class, speckle, noise.
+  material::MaterialTable materials = s.terrain.materials;
+  for (int c = 0; c < std::max<int>(scene::kClassCount, int(s.terrain.materials.size())); ++c) {
+    material::Material m = s.terrain.materials.Get(static_cast<scene::ClassId>(c));
+    m.gain_db += uni(-options.material_db, options.material_db);
+    materials.Set(static_cast<scene::ClassId>(c), m);
+  }
+  render::RenderOptions ro;
+  ro.rays_per_cell = options.rays_per_cell;
+  ro.max_bounces = options.bounces;
+  ro.seed = options.seed + trial;
+  render::SarImage obs = render::RenderSar(*s.observed_embree, s.observed_mesh, materials, nav::GeometryOf(truth, model), ro);
+  if (options.speckle_looks >= 1) image::ApplyMultiplicativeSpeckle(obs.intensity, options.speckle_looks, options.seed * 7919 + trial);
+  if (std::isfinite(options.nesz_db)) image::AddThermalNoise(obs.intensity, options.nesz_db, options.seed * 104729 + trial);
+  // INS prior after drift.
+  const Eigen::Vector3d sensor_true = truth.SensorPosition(look);
+  const Eigen::Vector3d sensor_prior = sensor_true + Eigen::Vector3d(uni(-1, 1) * options.prior_error_horizontal_m,
+                                                                     uni(-1, 1) * options.prior_error_horizontal_m,
+                                                                     uni(-1, 1) * options.prior_error_vertical_m);
+  const double heading_prior = truth.heading_deg + uni(-1, 1) * options.prior_error_heading_deg;
+  const auto prior = nav::PoseFromSensor(scene, sensor_prior, heading_prior, truth.slant_range_m, truth.depression_deg, look);
+  if (!prior) throw InputError("prior beam leaves the scene (trial " + std::to_string(trial) + ")", options.scene);
+
+  nlohmann::json matcher_rows = nlohmann::json::array();
+  std::vector<std::array<double, 4>> mrow;
   if (options.compare_matchers) {
-    for (nav::Matcher m : matchers) {
-      const std::string n = nav::ToString(m);
-      std::fprintf(csv, ",%s_raw,%s_inliers,%s_good,%s_median_err_px", n.c_str(), n.c_str(), n.c_str(), n.c_str());
+    const nav::Reference ref = nav::RenderReference(scene, *prior, model);
+    const cv::Mat obs_log = nav::LogIntensity(obs.intensity, model.width, model.height, lo.filter_px);
+    const sensor::SarGeometry true_geometry = nav::GeometryOf(truth, model);
+    nav::MatchOptions mo;
+    mo.patch_px = lo.patch_px;
+    mo.step_px = lo.step_px;
+    mo.search_px = lo.initial_search_px;
+    for (const nav::Matcher matcher : ComparedMatchers()) {
+      const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matcher, mo, lo.filter_px, lo.ransac_threshold_px,
+                                                         lo.reference_floor);
+      std::vector<double> errs;
+      for (size_t i = 0; i < cm.world.size(); ++i) errs.push_back((cm.observed[i] - true_geometry.Project(cm.world[i])).norm());
+      const double good = double(std::count_if(errs.begin(), errs.end(), [](double e) { return e < 1.0; }));
+      const double med = Percentile(errs, 0.5);
+      mrow.push_back({double(cm.raw), double(cm.world.size()), good, med});
+      matcher_rows.push_back({{"matcher", nav::ToString(matcher)},
+                              {"raw", cm.raw},
+                              {"inliers", cm.world.size()},
+                              {"good", good},
+                              {"median_error_px", NumberOrNull(med)}});
     }
   }
-  std::fprintf(csv, "\n");
+  const nav::LocateResult r = nav::Locate(scene, model, obs.intensity, *prior, lo);
+  const Eigen::Vector3d d = r.sensor_enu - sensor_true;
+  const double e3 = d.norm(), eh = d.head<2>().norm();
+  const double e_heading = std::abs(std::remainder(r.pose.heading_deg - truth.heading_deg, 360.0));
+  const double e_dep = r.pose.depression_deg - truth.depression_deg;
+  const double cells = e3 / options.spacing_m;
+  const bool success = r.converged && cells <= options.success_cells && e_heading <= options.success_heading_deg;
+  char row[1024];
+  int n = std::snprintf(row, sizeof(row), "%d,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.4f,%d,%d,%d,%.4f,%.3f,%.3f,%.3f,%.4f,%.5f,%.5f,%.5f,%.4f,%.4f,%.3f,%d",
+               trial, truth.heading_deg, truth.depression_deg, truth.centre_enu.x(), truth.centre_enu.y(),
+               sensor_true.x(), sensor_true.y(), sensor_true.z(), (prior->SensorPosition(look) - sensor_true).norm(),
+               std::remainder(heading_prior - truth.heading_deg, 360.0), r.converged ? 1 : 0, r.iterations, r.inliers,
+               r.rms_px, e3, eh, d.z(), cells, e_heading, e_dep, r.heading_sigma_deg, r.similarity, r.prior_similarity,
+               r.seconds, success ? 1 : 0);
+  const Eigen::Vector3d prior_offset = prior->SensorPosition(look) - sensor_true;
+  n += std::snprintf(row + n, sizeof(row) - n, ",%d,%.5f,%.2f,%.2f,%.2f", r.matches, r.depression_sigma_deg,
+                     prior_offset.x(), prior_offset.y(), prior_offset.z());
+  for (const auto& m : mrow) {
+    n += std::snprintf(row + n, sizeof(row) - n, ",%.0f,%.0f,%.0f,%.4f", m[0], m[1], m[2], m[3]);
+  }
+  {
+    char line[320];
+    std::snprintf(line, sizeof(line),
+                  "evaluate: trial %d/%d: prior offset %.0f m; %d matches, %d inliers, rms %.2f px; position error "
+                  "%.1f m (%.2f cells), heading %.3f deg, depression %+.3f deg, %s, %.2f s",
+                  trial + 1, options.trials, prior_offset.norm(), r.matches, r.inliers, r.rms_px, e3, cells, e_heading,
+                  e_dep, success ? "ok" : "FAIL", r.seconds);
+    reporter.Info(line);
+    ThrowIfCancelled(reporter, "evaluate");
+  }
+  return {{"trial", trial},
+          {"success", success},
+          {"converged", r.converged},
+          {"position_error_m", NumberOrNull(e3)},
+          {"position_error_cells", NumberOrNull(cells)},
+          {"horizontal_error_m", NumberOrNull(eh)},
+          {"heading_error_deg", NumberOrNull(e_heading)},
+          {"depression_error_deg", NumberOrNull(std::abs(e_dep))},
+          {"seconds", r.seconds},
+          {"matchers", matcher_rows},
+          {"csv_row", std::string(row)}};
+}
 
+std::string TrialsCsvHeader(const EvaluateRequest& options) {
+  std::string h =
+      "trial,heading_deg,depression_deg,centre_x_m,centre_y_m,sensor_x_m,sensor_y_m,sensor_z_m,"
+      "prior_position_error_m,prior_heading_error_deg,converged,iterations,inliers,rms_px,"
+      "position_error_m,horizontal_error_m,vertical_error_m,position_error_cells,heading_error_deg,"
+      "depression_error_deg,sigma_heading_deg,similarity,prior_similarity,seconds,success,matches,"
+      "sigma_depression_deg,prior_east_m,prior_north_m,prior_up_m";
+  if (options.compare_matchers) {
+    for (nav::Matcher m : ComparedMatchers()) {
+      const std::string n = nav::ToString(m);
+      h += "," + n + "_raw," + n + "_inliers," + n + "_good," + n + "_median_err_px";
+    }
+  }
+  return h;
+}
+
+// Records sorted by trial; ConfigError for a repeated trial.
+std::vector<nlohmann::json> SortedRecords(const std::vector<nlohmann::json>& records) {
+  std::vector<nlohmann::json> sorted = records;
+  std::sort(sorted.begin(), sorted.end(),
+            [](const nlohmann::json& a, const nlohmann::json& b) { return a.at("trial").get<int>() < b.at("trial").get<int>(); });
+  for (size_t i = 1; i < sorted.size(); ++i) {
+    if (sorted[i]["trial"] == sorted[i - 1]["trial"]) {
+      throw ConfigError("trial " + sorted[i]["trial"].dump() + " appears twice", "evaluate trial records");
+    }
+  }
+  return sorted;
+}
+
+}  // namespace
+
+std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& options, Reporter& reporter) {
+  options.Check();
+  const EvaluateSetup setup = PrepareEvaluation(options, reporter);
+  std::vector<nlohmann::json> records;
+  const int last = options.trial_count < 0 ? options.trials : options.trial_first + options.trial_count;
+  for (int trial = options.trial_first; trial < last; ++trial) records.push_back(RunTrial(setup, options, trial, reporter));
+  return records;
+}
+
+nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector<nlohmann::json>& unsorted) {
+  const std::vector<nlohmann::json> records = SortedRecords(unsorted);
+  if (records.empty()) throw ConfigError("no trial records to summarise", "evaluate trial records");
   std::vector<double> pos_err, pos_cells, horiz_err, head_err, dep_err, seconds;
   int successes = 0, converged = 0;
   struct MatcherStats { std::vector<double> raw, inliers, good, median; };
+  const auto& matchers = ComparedMatchers();
   std::vector<MatcherStats> mstats(matchers.size());
-  for (int trial = 0; trial < options.trials; ++trial) {
-    std::mt19937_64 rng(options.seed * 1000003ULL + trial);
-    std::uniform_real_distribution<double> u01(0.0, 1.0);
-    auto uni = [&](double a, double b) { return a + (b - a) * u01(rng); };
-    // True pose.
-    nav::NavPose truth;
-    bool ok = false;
-    for (int attempt = 0; attempt < 100 && !ok; ++attempt) {
-      truth.heading_deg = uni(0.0, 360.0);
-      truth.depression_deg = uni(options.depression_min_deg, options.depression_max_deg);
-      truth.slant_range_m = options.slant_range_m;
-      const auto g = nav::SurfaceBelow(embree, terrain.mesh, uni(lo_xy.x(), hi_xy.x()), uni(lo_xy.y(), hi_xy.y()));
-      if (g) { truth.centre_enu = *g; ok = true; }
-    }
-    if (!ok) throw InputError("no true pose found on the scene surface", options.scene);
-    // Observed image: smoothed terrain, materials off by +-material_db per class, speckle, noise.
-    material::MaterialTable materials = terrain.materials;
-    for (int c = 0; c < std::max<int>(scene::kClassCount, int(terrain.materials.size())); ++c) {
-      material::Material m = terrain.materials.Get(static_cast<scene::ClassId>(c));
-      m.gain_db += uni(-options.material_db, options.material_db);
-      materials.Set(static_cast<scene::ClassId>(c), m);
-    }
-    render::RenderOptions ro;
-    ro.rays_per_cell = options.rays_per_cell;
-    ro.max_bounces = options.bounces;
-    ro.seed = options.seed + trial;
-    render::SarImage obs = render::RenderSar(observed_embree, observed_mesh, materials, nav::GeometryOf(truth, model), ro);
-    if (options.speckle_looks >= 1) image::ApplyMultiplicativeSpeckle(obs.intensity, options.speckle_looks, options.seed * 7919 + trial);
-    if (std::isfinite(options.nesz_db)) image::AddThermalNoise(obs.intensity, options.nesz_db, options.seed * 104729 + trial);
-    // INS prior after drift.
-    const Eigen::Vector3d sensor_true = truth.SensorPosition(look);
-    const Eigen::Vector3d sensor_prior = sensor_true + Eigen::Vector3d(uni(-1, 1) * options.prior_error_horizontal_m,
-                                                                       uni(-1, 1) * options.prior_error_horizontal_m,
-                                                                       uni(-1, 1) * options.prior_error_vertical_m);
-    const double heading_prior = truth.heading_deg + uni(-1, 1) * options.prior_error_heading_deg;
-    const auto prior = nav::PoseFromSensor(scene, sensor_prior, heading_prior, truth.slant_range_m, truth.depression_deg, look);
-    if (!prior) throw InputError("prior beam leaves the scene (trial " + std::to_string(trial) + ")", options.scene);
-
-    std::vector<std::array<double, 4>> mrow;
-    if (options.compare_matchers) {
-      const nav::Reference ref = nav::RenderReference(scene, *prior, model);
-      const cv::Mat obs_log = nav::LogIntensity(obs.intensity, model.width, model.height, lo.filter_px);
-      const sensor::SarGeometry true_geometry = nav::GeometryOf(truth, model);
-      nav::MatchOptions mo;
-      mo.patch_px = lo.patch_px;
-      mo.step_px = lo.step_px;
-      mo.search_px = lo.initial_search_px;
-      for (size_t k = 0; k < matchers.size(); ++k) {
-        const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matchers[k], mo, lo.filter_px, lo.ransac_threshold_px,
-                                                                lo.reference_floor);
-        std::vector<double> errs;
-        for (size_t i = 0; i < cm.world.size(); ++i) errs.push_back((cm.observed[i] - true_geometry.Project(cm.world[i])).norm());
-        const double good = double(std::count_if(errs.begin(), errs.end(), [](double e) { return e < 1.0; }));
-        const double med = Percentile(errs, 0.5);
-        mrow.push_back({double(cm.raw), double(cm.world.size()), good, med});
-        mstats[k].raw.push_back(cm.raw);
-        mstats[k].inliers.push_back(double(cm.world.size()));
-        mstats[k].good.push_back(good);
-        if (std::isfinite(med)) mstats[k].median.push_back(med);
-      }
-    }
-    const nav::LocateResult r = nav::Locate(scene, model, obs.intensity, *prior, lo);
-    const Eigen::Vector3d d = r.sensor_enu - sensor_true;
-    const double e3 = d.norm(), eh = d.head<2>().norm();
-    const double e_heading = std::abs(std::remainder(r.pose.heading_deg - truth.heading_deg, 360.0));
-    const double e_dep = r.pose.depression_deg - truth.depression_deg;
-    const double cells = e3 / options.spacing_m;
-    const bool success = r.converged && cells <= options.success_cells &&
-                         e_heading <= options.success_heading_deg;
-    successes += success;
-    converged += r.converged;
-    pos_err.push_back(e3);
-    pos_cells.push_back(cells);
-    horiz_err.push_back(eh);
-    head_err.push_back(e_heading);
-    dep_err.push_back(std::abs(e_dep));
-    seconds.push_back(r.seconds);
-    std::fprintf(csv, "%d,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.4f,%d,%d,%d,%.4f,%.3f,%.3f,%.3f,%.4f,%.5f,%.5f,%.5f,%.4f,%.4f,%.3f,%d",
-                 trial, truth.heading_deg, truth.depression_deg, truth.centre_enu.x(), truth.centre_enu.y(),
-                 sensor_true.x(), sensor_true.y(), sensor_true.z(), (prior->SensorPosition(look) - sensor_true).norm(),
-                 std::remainder(heading_prior - truth.heading_deg, 360.0), r.converged ? 1 : 0, r.iterations, r.inliers,
-                 r.rms_px, e3, eh, d.z(), cells, e_heading, e_dep, r.heading_sigma_deg, r.similarity, r.prior_similarity,
-                 r.seconds, success ? 1 : 0);
-    const Eigen::Vector3d prior_offset = prior->SensorPosition(look) - sensor_true;
-    std::fprintf(csv, ",%d,%.5f,%.2f,%.2f,%.2f", r.matches, r.depression_sigma_deg, prior_offset.x(),
-                 prior_offset.y(), prior_offset.z());
-    for (const auto& m : mrow) std::fprintf(csv, ",%.0f,%.0f,%.0f,%.4f", m[0], m[1], m[2], m[3]);
-    std::fprintf(csv, "\n");
-    {
-      char line[320];
-      std::snprintf(line, sizeof(line),
-                    "evaluate: trial %d/%d: prior offset %.0f m; %d matches, %d inliers, rms %.2f px; position error "
-                    "%.1f m (%.2f cells), heading %.3f deg, depression %+.3f deg, %s, %.2f s",
-                    trial + 1, options.trials, (prior->SensorPosition(look) - sensor_true).norm(), r.matches,
-                    r.inliers, r.rms_px, e3, cells, e_heading, e_dep, success ? "ok" : "FAIL", r.seconds);
-      reporter.Info(line);
-      ThrowIfCancelled(reporter, "evaluate");
+  for (const nlohmann::json& r : records) {
+    successes += r.at("success").get<bool>();
+    converged += r.at("converged").get<bool>();
+    pos_err.push_back(NumberOf(r.at("position_error_m")));
+    pos_cells.push_back(NumberOf(r.at("position_error_cells")));
+    horiz_err.push_back(NumberOf(r.at("horizontal_error_m")));
+    head_err.push_back(NumberOf(r.at("heading_error_deg")));
+    dep_err.push_back(NumberOf(r.at("depression_error_deg")));
+    seconds.push_back(NumberOf(r.at("seconds")));
+    const nlohmann::json& rows = r.at("matchers");
+    for (size_t k = 0; k < rows.size() && k < matchers.size(); ++k) {
+      mstats[k].raw.push_back(NumberOf(rows[k].at("raw")));
+      mstats[k].inliers.push_back(NumberOf(rows[k].at("inliers")));
+      mstats[k].good.push_back(NumberOf(rows[k].at("good")));
+      const double med = NumberOf(rows[k].at("median_error_px"));
+      if (std::isfinite(med)) mstats[k].median.push_back(med);
     }
   }
-  if (std::fclose(csv) != 0) throw IoError("failed writing", csv_path.string());
-
-  const std::string title = fs::path(options.scene.empty() ? options.dem : options.scene).stem().string() + ": " +
-                            std::to_string(options.trials) + " trials, " + std::to_string(successes) + " successes";
-  WriteHistogram(png_path, pos_cells, options.success_cells, title);
+  const int n = static_cast<int>(records.size());
   nlohmann::json matcher_json = nlohmann::json::object();
   if (options.compare_matchers) {
     for (size_t k = 0; k < matchers.size(); ++k) {
@@ -546,42 +688,98 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
           {"trials_with_8_or_more_good", std::count_if(mstats[k].good.begin(), mstats[k].good.end(), [](double g) { return g >= 8; })}};
     }
   }
-  nlohmann::json summary = {
-      {"command", "evaluate"},
-      {"command_line", command_line},
-      {"version", VersionString()},
-      {"created_utc", UtcTimestamp()},
-      {"trials", options.trials},
-      {"seed", options.seed},
-      {"success_definition", "converged, 3-D sensor position error <= success_cells resolution cells and "
-                             "heading error <= success_heading_deg"},
-      {"success_cells", options.success_cells},
-      {"success_heading_deg", options.success_heading_deg},
-      {"resolution_cell_m", options.spacing_m},
-      {"success_rate", double(successes) / options.trials},
-      {"converged_rate", double(converged) / options.trials},
-      {"position_error_m", {{"median", Percentile(pos_err, 0.5)}, {"p95", Percentile(pos_err, 0.95)}}},
-      {"position_error_cells", {{"median", Percentile(pos_cells, 0.5)}, {"p95", Percentile(pos_cells, 0.95)}}},
-      {"horizontal_error_m", {{"median", Percentile(horiz_err, 0.5)}, {"p95", Percentile(horiz_err, 0.95)}}},
-      {"heading_error_deg", {{"median", Percentile(head_err, 0.5)}, {"p95", Percentile(head_err, 0.95)}}},
-      {"depression_error_deg", {{"median", Percentile(dep_err, 0.5)}, {"p95", Percentile(dep_err, 0.95)}}},
-      {"seconds_per_fix", {{"median", Percentile(seconds, 0.5)}, {"p95", Percentile(seconds, 0.95)}}},
-      {"matcher_comparison_first_iteration", matcher_json},
-      {"options", {{"spacing_m", options.spacing_m}, {"size_px", options.size_px}, {"slant_range_m", options.slant_range_m},
-                   {"depression_range_deg", {options.depression_min_deg, options.depression_max_deg}},
-                   {"speckle_looks", options.speckle_looks}, {"nesz_db", options.nesz_db},
-                   {"material_db", options.material_db}, {"dem_smoothing", options.dem_smoothing},
-                   {"prior_error_horizontal_m", options.prior_error_horizontal_m}, {"prior_error_vertical_m", options.prior_error_vertical_m},
-                   {"prior_error_heading_deg", options.prior_error_heading_deg}, {"matcher", options.matcher},
-                   {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", lo.step_px}, {"bounces", options.bounces},
-                   {"reference_floor", lo.reference_floor},
-                   {"rays_per_cell", options.rays_per_cell}}},
-      {"vertical_datum", VerticalDatumRecord(terrain)},
-      {"inputs", {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
-      {"seconds", total.ElapsedSeconds()}};
+  return {{"trials", n},
+          {"seed", options.seed},
+          {"success_definition", "converged, 3-D sensor position error <= success_cells resolution cells and "
+                                 "heading error <= success_heading_deg"},
+          {"success_cells", options.success_cells},
+          {"success_heading_deg", options.success_heading_deg},
+          {"resolution_cell_m", options.spacing_m},
+          {"success_rate", double(successes) / n},
+          {"converged_rate", double(converged) / n},
+          {"position_error_m", {{"median", Percentile(pos_err, 0.5)}, {"p95", Percentile(pos_err, 0.95)}}},
+          {"position_error_cells", {{"median", Percentile(pos_cells, 0.5)}, {"p95", Percentile(pos_cells, 0.95)}}},
+          {"horizontal_error_m", {{"median", Percentile(horiz_err, 0.5)}, {"p95", Percentile(horiz_err, 0.95)}}},
+          {"heading_error_deg", {{"median", Percentile(head_err, 0.5)}, {"p95", Percentile(head_err, 0.95)}}},
+          {"depression_error_deg", {{"median", Percentile(dep_err, 0.5)}, {"p95", Percentile(dep_err, 0.95)}}},
+          {"seconds_per_fix", {{"median", Percentile(seconds, 0.5)}, {"p95", Percentile(seconds, 0.95)}}},
+          {"matcher_comparison_first_iteration", matcher_json}};
+}
+
+nlohmann::json WriteEvaluation(const EvaluateRequest& options, const std::vector<nlohmann::json>& unsorted,
+                               const std::string& command_line, double seconds, const nlohmann::json& vertical_datum) {
+  options.Check();
+  AtomicOutputs outputs;
+  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
+  const fs::path png_path = outputs.Add(options.out_prefix + "_hist.png");
+  CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
+                           {options.scene, options.dem});
+  const std::vector<nlohmann::json> records = SortedRecords(unsorted);
+  nlohmann::json stats = SummariseTrials(options, records);
+  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
+  if (csv == nullptr) throw IoError("cannot write", csv_path.string());
+  std::fprintf(csv, "%s\n", TrialsCsvHeader(options).c_str());
+  std::vector<double> pos_cells;
+  int successes = 0;
+  for (const nlohmann::json& r : records) {
+    std::fprintf(csv, "%s\n", r.at("csv_row").get<std::string>().c_str());
+    pos_cells.push_back(NumberOf(r.at("position_error_cells")));
+    successes += r.at("success").get<bool>();
+  }
+  if (std::fclose(csv) != 0) throw IoError("failed writing", csv_path.string());
+  const std::string title = fs::path(options.scene.empty() ? options.dem : options.scene).stem().string() + ": " +
+                            std::to_string(records.size()) + " trials, " + std::to_string(successes) + " successes";
+  WriteHistogram(png_path, pos_cells, options.success_cells, title);
+  // The options as the serial run records them (search_px and the floor as resolved).
+  nav::LocateOptions lo;
+  lo.initial_search_px = options.search_px > 0
+      ? options.search_px
+      : static_cast<int>(std::ceil((std::sqrt(2.0) * options.prior_error_horizontal_m +
+                                    options.slant_range_m * std::sin(options.prior_error_heading_deg * M_PI / 180.0) +
+                                    options.prior_error_vertical_m / std::tan(options.depression_min_deg * M_PI / 180.0)) /
+                                   options.spacing_m)) + 4;
+  lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
+  if (std::isfinite(options.nesz_db) && options.reference_floor) {
+    lo.reference_floor = std::max(lo.reference_floor, std::pow(10.0, options.nesz_db / 10.0));
+  }
+  nlohmann::json summary = {{"command", "evaluate"},
+                            {"command_line", command_line},
+                            {"version", VersionString()},
+                            {"created_utc", UtcTimestamp()}};
+  for (auto& [key, value] : stats.items()) summary[key] = value;
+  summary["options"] = {{"spacing_m", options.spacing_m}, {"size_px", options.size_px}, {"slant_range_m", options.slant_range_m},
+                        {"depression_range_deg", {options.depression_min_deg, options.depression_max_deg}},
+                        {"speckle_looks", options.speckle_looks}, {"nesz_db", options.nesz_db},
+                        {"material_db", options.material_db}, {"dem_smoothing", options.dem_smoothing},
+                        {"prior_error_horizontal_m", options.prior_error_horizontal_m}, {"prior_error_vertical_m", options.prior_error_vertical_m},
+                        {"prior_error_heading_deg", options.prior_error_heading_deg}, {"matcher", options.matcher},
+                        {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", options.step_px}, {"bounces", options.bounces},
+                        {"reference_floor", lo.reference_floor},
+                        {"rays_per_cell", options.rays_per_cell}};
+  summary["vertical_datum"] = vertical_datum.is_null()
+                                  ? nlohmann::json{{"datum", geo::CanonicalVerticalDatum(options.vertical_datum)}}
+                                  : vertical_datum;
+  summary["inputs"] = {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}};
+  summary["seconds"] = seconds;
   WriteJsonFile(summary, json_path);
   outputs.Commit();
   return summary;
+}
+
+nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
+  options.Check();
+  Stopwatch total;
+  {
+    // Fail on a missing or read-only output directory before any trial.
+    AtomicOutputs probe;
+    probe.Add(options.out_prefix + ".json");
+  }
+  const EvaluateSetup setup = PrepareEvaluation(options, reporter);
+  std::vector<nlohmann::json> records;
+  const int last = options.trial_count < 0 ? options.trials : options.trial_first + options.trial_count;
+  for (int trial = options.trial_first; trial < last; ++trial) records.push_back(RunTrial(setup, options, trial, reporter));
+  return WriteEvaluation(options, records, command_line, total.ElapsedSeconds(), VerticalDatumRecord(setup.terrain));
 }
 
 void MatchPairRequest::Check() const {

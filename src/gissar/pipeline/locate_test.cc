@@ -37,6 +37,52 @@ TEST(Evaluate, SmallMonteCarloOnAndorraDem) {
   EXPECT_TRUE(std::filesystem::exists(dir / "eval_hist.png"));
 }
 
+// Trial k depends only on (seed, k): subsets of the trials, summarised in
+// any order, give the table of all of them (but for the time per fix).
+TEST(Evaluate, TrialSubsetsSummariseToTheWholeRun) {
+  EvaluateRequest o;
+  o.dem = gissar::testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  o.trials = 3;
+  o.seed = 5;
+  o.spacing_m = 60.0;
+  o.size_px = 64;
+  o.compare_matchers = false;
+  o.prior_error_horizontal_m = 100.0;
+  o.prior_error_vertical_m = 20.0;
+  o.prior_error_heading_deg = 1.0;
+  o.out_prefix = "(test)";
+  const std::vector<nlohmann::json> all = EvaluateTrials(o);
+  ASSERT_EQ(all.size(), 3u);
+  EvaluateRequest last = o;
+  last.trial_first = 2;
+  last.trial_count = 1;
+  EvaluateRequest first = o;
+  first.trial_count = 2;
+  std::vector<nlohmann::json> parts = EvaluateTrials(last);
+  for (const nlohmann::json& r : EvaluateTrials(first)) parts.push_back(r);
+  ASSERT_EQ(parts.size(), 3u);
+  EXPECT_EQ(parts[0]["trial"], 2);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(parts[(k + 1) % 3]["csv_row"].get<std::string>().substr(0, 60), all[k]["csv_row"].get<std::string>().substr(0, 60));
+    EXPECT_EQ(parts[(k + 1) % 3]["position_error_m"], all[k]["position_error_m"]);
+  }
+  nlohmann::json a = SummariseTrials(o, all), b = SummariseTrials(o, parts);
+  a.erase("seconds_per_fix");
+  b.erase("seconds_per_fix");
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(a["trials"], 3);
+  EXPECT_THROW(SummariseTrials(o, {all[0], all[0]}), ConfigError);
+  EvaluateRequest bad = o;
+  bad.trial_first = 3;
+  EXPECT_THROW(bad.Check(), ConfigError);
+  bad.trial_first = 1;
+  bad.trial_count = 3;
+  EXPECT_THROW(bad.Check(), ConfigError);
+  EvaluateRequest round;
+  round.ApplyJson(o.ToJson(), "test");
+  EXPECT_EQ(round.ToJson(), o.ToJson());
+}
+
 // `gissar simulate` an image of the Andorra DEM, then `locate` it from a
 // prior 200 m and 2.5 deg off.
 TEST(Locate, FixesASimulatedImageFromADriftedPrior) {

@@ -7,7 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <cstdio>
 #include <sstream>
 
@@ -65,6 +67,9 @@ void SimulateRequest::Check() const {
                       "--dem-oversample");
   }
   if (sea != "auto" && sea != "off") throw ConfigError("expected auto or off, got '" + sea + "'", "--sea");
+  if (dem_window != "auto" && dem_window != "off") {
+    throw ConfigError("expected auto or off, got '" + dem_window + "'", "--dem-window");
+  }
   if (!std::isfinite(sea_level_m)) throw ConfigError("sea level must be finite", "--sea-level");
   if (dem_oversample != 1 && !scene.empty()) {
     throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
@@ -132,6 +137,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["dem_oversample"] = dem_oversample;
   j["sea"] = sea;
   j["sea_level_m"] = sea_level_m;
+  j["dem_window"] = dem_window;
   j["fill_nodata"] = fill_nodata;
   j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
                                      : nlohmann::json(nullptr);
@@ -207,6 +213,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "dem_oversample") set(dem_oversample);
     else if (key == "sea") set(sea);
     else if (key == "sea_level_m") set(sea_level_m);
+    else if (key == "dem_window") set(dem_window);
     else if (key == "fill_nodata") set(fill_nodata);
     else if (key == "center_lonlat") center_lonlat = PairOrNull(value, key, source);
     else if (key == "center_map") center_map = PairOrNull(value, key, source);
@@ -264,13 +271,34 @@ constexpr double kBytesPerSceneFileByte = 5.0;
 // accumulation bands (as much again), mask, quicklook and writing buffers.
 constexpr double kBytesPerImagePixel = 64.0;
 
-Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
+geo::DemReadOptions DemReadOptionsOf(const SimulateRequest& options) {
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
   read_options.max_bytes = options.max_memory_bytes;
   read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
   read_options.vertical_units = options.vertical_units;
+  return read_options;
+}
+
+Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
+  geo::DemReadOptions read_options = DemReadOptionsOf(options);
+  DemWindowPlan plan = PlanDemWindow(options, reporter);
+  if (plan.read_window) read_options.window = plan.window;
   geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  if (plan.read_window && dem.filled_nodata_cells > 0) {
+    // GDAL's filling draws on valid cells up to its search distance away:
+    // the whole DEM's voids are filled from the whole DEM.
+    plan.read_window = false;
+    plan.reason = "--fill-nodata with voids in the window (filled from the whole DEM)";
+    read_options.window.reset();
+    dem = geo::ReadDem(options.dem, read_options);
+  }
+  if (plan.applies) {
+    reporter.Info("simulate: DEM window " + std::to_string(plan.window[2]) + " x " + std::to_string(plan.window[3]) +
+                  " posts at " + std::to_string(plan.window[0]) + "," + std::to_string(plan.window[1]) + " of " +
+                  std::to_string(plan.source_width) + " x " + std::to_string(plan.source_height) +
+                  (plan.read_window ? "" : "; reading the whole DEM: " + plan.reason));
+  }
   const int source_width = dem.width, source_height = dem.height;
   dem = geo::RefineDem(dem, options.dem_oversample,
                        static_cast<int64_t>(double(options.max_memory_bytes) / kBytesPerDemPost));
@@ -288,7 +316,13 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   Terrain t;
   t.vertical_datum = datum.datum;
   t.vertical_datum_source = datum.source;
-  t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, options.center_map);
+  // The default centre is the whole raster's, also when a window was read.
+  std::optional<Eigen::Vector2d> centre_map = options.center_map;
+  if (!options.center_lonlat && !centre_map) {
+    const Eigen::Vector2d post = dem.SourceCentrePost();
+    centre_map = dem.MapFromPost(post.x(), post.y());
+  }
+  t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, centre_map);
   t.frame = geo::LocalFrame(t.centre.lon_deg, t.centre.lat_deg, 0.0);
   t.centre_enu = t.frame.EnuFromGeodetic(t.centre.lon_deg, t.centre.lat_deg, t.centre.height_m);
   if (options.engine == "raster") {
@@ -322,7 +356,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   if (sea_triangles > 0) t.materials.Set(scene::kClassSea, material::DefaultMaterial(scene::kClassSea));
   t.grid_width = dem.width;
   t.grid_height = dem.height;
-  const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame);
+  const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, t.frame, /*at_source_centre=*/true);
   // The default pixel spacing stays the source DEM's post spacing.
   t.post_spacing_m = 0.5 * (spacing.x() + spacing.y()) * options.dem_oversample;
   t.description = {{"type", "DEM"},
@@ -339,6 +373,8 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
                    {"sea_triangles", sea_triangles},
                    {"post_spacing_m", {spacing.x(), spacing.y()}},
                    {"crs_wkt", dem.crs_wkt}};
+  if (plan.applies) t.ray_box = plan.ray_box;
+  t.dem_window = plan.ToJson();
   return t;
 }
 
@@ -409,23 +445,329 @@ nlohmann::json VerticalDatumRecord(const Terrain& terrain) {
   return {{"datum", terrain.vertical_datum}, {"source", terrain.vertical_datum_source}};
 }
 
+namespace {
+
+// options.materials applied over `table` (the --materials rule).
+void ApplyMaterialsFile(material::MaterialTable& table, const SimulateRequest& options) {
+  if (options.materials.empty()) return;
+  const nlohmann::json file = material::ReadMaterialsFile(options.materials);
+  for (const auto& [name, fields] : file.items()) {
+    const auto id = scene::ClassIdFromName(name);
+    if (!id || (options.scene.empty() && *id != scene::kClassDefault)) {
+      throw ConfigError("unknown class '" + name + "'" +
+                            (options.scene.empty() ? " (a DEM has the single class 'default')" : ""),
+                        options.materials);
+    }
+    material::Material m = table.Get(*id);
+    m.name = name;
+    material::ApplyOverrides(m, fields, name, options.materials);
+    table.Set(*id, m);
+  }
+}
+
+// geo::ReadDemInfo, remembered per process for a file (path, size,
+// modification time, vertical units): a worker rendering many poses of one
+// DEM streams its heights once.
+geo::DemInfo CachedDemInfo(const std::string& path, const geo::DemReadOptions& read_options) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  const bool on_disk = !ec;
+  const auto mtime = on_disk ? fs::last_write_time(path, ec) : fs::file_time_type();
+  if (!on_disk || ec) return geo::ReadDemInfo(path, read_options);
+  const std::string key = fs::absolute(path).string() + "|" + std::to_string(size) + "|" +
+                          std::to_string(mtime.time_since_epoch().count()) + "|" + read_options.vertical_units;
+  static std::mutex mutex;
+  static std::map<std::string, geo::DemInfo> cache;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    const auto found = cache.find(key);
+    if (found != cache.end()) return found->second;
+  }
+  geo::DemInfo info = geo::ReadDemInfo(path, read_options);
+  std::lock_guard<std::mutex> lock(mutex);
+  if (cache.size() > 64) cache.clear();
+  cache[key] = info;
+  return info;
+}
+
+// The ground point (ENU) of image pixel (col, row) at ENU height z: in
+// exact mode the point of the pixel's range circle (in its zero-Doppler
+// plane) nearest the look direction. nullopt when the range circle does not
+// reach that height.
+std::optional<Eigen::Vector3d> PixelAtHeight(const sensor::SarGeometry& g, double col, double row, double z) {
+  const Eigen::Vector3d& l = g.look_direction();
+  const Eigen::Vector3d& n = g.range_plane_normal();
+  const Eigen::Vector3d& h = g.flight_direction();
+  const double a = (row - g.v0()) * g.azimuth_spacing_m();
+  const double range = g.slant_range_m() + (col - g.u0()) * g.range_spacing_m();
+  if (g.mode() == sensor::ProjectionMode::kAffine) {
+    const double s = range - g.slant_range_m();
+    const Eigen::Vector3d base = g.scene_centre() + s * l + a * h;
+    if (std::abs(n.z()) < 1e-12) return std::nullopt;
+    return Eigen::Vector3d(base + (z - base.z()) / n.z() * n);
+  }
+  if (!(range > 0.0)) return std::nullopt;
+  const Eigen::Vector3d sensor = g.SensorPosition(a);
+  const double A = range * l.z(), B = range * n.z(), C = z - sensor.z();
+  const double m = std::hypot(A, B);
+  if (!(m > 0.0) || std::abs(C) > m) return std::nullopt;
+  const double phi = std::atan2(B, A), delta = std::acos(C / m);
+  auto wrap = [](double t) { return std::remainder(t, 2.0 * M_PI); };
+  const double t1 = wrap(phi + delta), t2 = wrap(phi - delta);
+  const double theta = std::abs(t1) <= std::abs(t2) ? t1 : t2;
+  return Eigen::Vector3d(sensor + range * (std::cos(theta) * l + std::sin(theta) * n));
+}
+
+// Where the line of sight from `p` towards the sensor reaches height z_top
+// (the farthest terrain that can shadow p); p itself when it does not rise.
+Eigen::Vector3d ShadowReach(const sensor::SarGeometry& g, const Eigen::Vector3d& p, double z_top) {
+  const Eigen::Vector3d up_sight = -g.RayDirectionTo(p);
+  if (!(up_sight.z() > 1e-9) || !(z_top > p.z())) return p;
+  return p + (z_top - p.z()) / up_sight.z() * up_sight;
+}
+
+}  // namespace
+
+nlohmann::json DemWindowPlan::ToJson() const {
+  if (!applies) return {{"read", "whole"}, {"reason", reason}};
+  return {{"read", read_window ? "window" : "whole"},
+          {"col", window[0]},
+          {"row", window[1]},
+          {"cols", window[2]},
+          {"rows", window[3]},
+          {"source_width", source_width},
+          {"source_height", source_height},
+          {"reason", read_window ? std::string() : reason},
+          {"halo_heights_m", {z_low_m, z_high_m}},
+          {"margin_px", kDemWindowMarginPx},
+          {"margin_posts", kDemWindowMarginPosts},
+          {"ray_box_enu_m",
+           {ray_box.min().x(), ray_box.min().y(), ray_box.min().z(), ray_box.max().x(), ray_box.max().y(),
+            ray_box.max().z()}}};
+}
+
+DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) {
+  DemWindowPlan plan;
+  if (options.dem.empty() || !options.product.empty()) {
+    plan.reason = "not a DEM";
+    return plan;
+  }
+  if (options.geometry.width <= 0 || options.geometry.height <= 0) {
+    plan.reason = "no --width/--height: the image covers the whole DEM";
+    return plan;
+  }
+  if (options.engine != "trace") {
+    plan.reason = "the raster engine spaces its horizon lines from the whole grid";
+    return plan;
+  }
+  const geo::DemReadOptions read_options = DemReadOptionsOf(options);
+  const geo::DemInfo info = CachedDemInfo(options.dem, read_options);
+  if (!info.any_valid) {
+    plan.reason = "the DEM has no valid height";
+    return plan;
+  }
+  plan.source_width = info.width;
+  plan.source_height = info.height;
+  const geo::VerticalDatumChoice datum =
+      geo::ResolveVerticalDatum(geo::CanonicalVerticalDatum(options.vertical_datum), info.file_vertical_datum);
+  // Height bounds: exact for the stored heights; cubic refinement may
+  // overshoot (by less than the height span: Keys' kernel and its boundary
+  // rule); a geoid adds its undulation (EGM96/EGM2008 lie within -107..+86 m).
+  double lo = info.min_height_m, hi = info.max_height_m;
+  if (options.dem_oversample > 1) {
+    const double span = hi - lo;
+    lo -= span;
+    hi += span;
+  }
+  const double sea_low = lo;
+  if (datum.datum != "ellipsoid") {
+    lo -= 110.0;
+    hi += 90.0;
+  }
+  lo -= 1.0;
+  hi += 1.0;
+
+  // The scene centre, frame and geometry exactly as the whole DEM gives
+  // them: the centre's height from the posts around it.
+  geo::Dem lattice;  // header only: map coordinates of source posts
+  lattice.geotransform = info.geotransform;
+  lattice.source_geotransform = info.geotransform;
+  lattice.lattice_factor = 1;
+  lattice.width = lattice.source_width = info.width;
+  lattice.height = lattice.source_height = info.height;
+  const geo::CrsTransform crs(info.crs_wkt);
+  Eigen::Vector2d centre_map;
+  if (options.center_lonlat) {
+    std::vector<double> x{options.center_lonlat->x()}, y{options.center_lonlat->y()};
+    if (!std::isfinite(x[0]) || !std::isfinite(y[0]) || std::abs(y[0]) > 90.0) {
+      throw ConfigError("scene centre is not a valid longitude,latitude", "--center");
+    }
+    crs.FromLonLat(x, y);
+    centre_map = {x[0], y[0]};
+  } else if (options.center_map) {
+    centre_map = *options.center_map;
+  } else {
+    centre_map = lattice.MapFromPost((info.width - 1) / 2.0, (info.height - 1) / 2.0);
+  }
+  double centre_col = 0.0, centre_row = 0.0;
+  lattice.PostFromMap(centre_map.x(), centre_map.y(), &centre_col, &centre_row);
+  if (!(centre_col >= 0.0 && centre_row >= 0.0 && centre_col <= info.width - 1 && centre_row <= info.height - 1)) {
+    throw ConfigError("scene centre lies outside the DEM", options.center_map ? "--center-map" : "--center");
+  }
+  {
+    const int c = static_cast<int>(std::floor(centre_col)), r = static_cast<int>(std::floor(centre_row));
+    const int c0 = std::max(0, c - 3), r0 = std::max(0, r - 3);
+    const int c1 = std::min(info.width - 1, c + 4), r1 = std::min(info.height - 1, r + 4);
+    geo::DemReadOptions small_options = read_options;
+    small_options.window = std::array<int, 4>{c0, r0, c1 - c0 + 1, r1 - r0 + 1};
+    geo::Dem small = geo::ReadDem(options.dem, small_options);
+    if (small.filled_nodata_cells > 0) {
+      plan.reason = "--fill-nodata with voids next to the scene centre (filled from the whole DEM)";
+      return plan;
+    }
+    small = geo::RefineDem(small, options.dem_oversample, int64_t{1} << 40);
+    geo::ToEllipsoidalHeights(small, datum.datum);
+    std::optional<Eigen::Vector2d> small_map = options.center_map;
+    if (!options.center_lonlat && !small_map) {
+      const Eigen::Vector2d post = small.SourceCentrePost();
+      small_map = small.MapFromPost(post.x(), post.y());
+    }
+    const geo::GeoPoint centre = geo::ResolveSceneCentre(small, options.center_lonlat, small_map);
+    const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
+    const Eigen::Vector3d xc = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
+    sensor::SarGeometryOptions g = options.geometry;
+    const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(small, frame, /*at_source_centre=*/true);
+    const double post_spacing_m = 0.5 * (spacing.x() + spacing.y()) * options.dem_oversample;
+    if (g.range_spacing_m == 0.0) g.range_spacing_m = post_spacing_m;
+    if (g.azimuth_spacing_m == 0.0) g.azimuth_spacing_m = post_spacing_m;
+    const sensor::SarGeometry geometry = sensor::SarGeometry::Covering(g, xc, {});
+
+    // The image's border (plus the margin) on the ground at the lowest and
+    // highest ENU heights, and where its lines of sight reach the highest.
+    // ENU heights drop with distance d from the origin (about d^2 / 2R):
+    // the lowest bound is lowered by the drop at the farthest point found.
+    const double m = kDemWindowMarginPx;
+    const double c_lo = -m, c_hi = geometry.width() - 1 + m, r_lo = -m, r_hi = geometry.height() - 1 + m;
+    std::vector<Eigen::Vector2d> border;
+    const int steps = 64;
+    for (int k = 0; k <= steps; ++k) {
+      const double f = double(k) / steps;
+      border.emplace_back(c_lo + f * (c_hi - c_lo), r_lo);
+      border.emplace_back(c_lo + f * (c_hi - c_lo), r_hi);
+      border.emplace_back(c_lo, r_lo + f * (r_hi - r_lo));
+      border.emplace_back(c_hi, r_lo + f * (r_hi - r_lo));
+    }
+    std::vector<Eigen::Vector3d> points;
+    double z_low = lo;
+    for (int pass = 0; pass < 2; ++pass) {
+      points.clear();
+      double farthest = 0.0;
+      for (const Eigen::Vector2d& px : border) {
+        for (const double z : {z_low, hi}) {
+          const auto p = PixelAtHeight(geometry, px.x(), px.y(), z);
+          if (!p) continue;
+          points.push_back(*p);
+          points.push_back(ShadowReach(geometry, *p, hi));
+          farthest = std::max({farthest, p->head<2>().norm(), points.back().head<2>().norm()});
+        }
+      }
+      const double drop = 1.2 * farthest * farthest / (2.0 * 6.35e6) + 1.0;
+      if (lo - drop >= z_low) break;
+      z_low = lo - drop;
+    }
+    if (points.empty()) {
+      plan.reason = "the image's lines of sight do not reach the DEM's heights";
+      return plan;
+    }
+    plan.z_low_m = z_low;
+    plan.z_high_m = hi;
+    // Source posts of those points.
+    std::vector<double> x, y;
+    for (const Eigen::Vector3d& p : points) {
+      const Eigen::Vector3d geodetic = frame.GeodeticFromEnu(p);
+      x.push_back(geodetic.x());
+      y.push_back(geodetic.y());
+    }
+    crs.FromLonLat(x, y);
+    double col_min = 1e300, col_max = -1e300, row_min = 1e300, row_max = -1e300;
+    for (size_t i = 0; i < x.size(); ++i) {
+      double c = 0.0, r = 0.0;
+      lattice.PostFromMap(x[i], y[i], &c, &r);
+      if (!std::isfinite(c) || !std::isfinite(r)) continue;
+      col_min = std::min(col_min, c);
+      col_max = std::max(col_max, c);
+      row_min = std::min(row_min, r);
+      row_max = std::max(row_max, r);
+    }
+    auto clamp_post = [](double v, int size) {
+      return static_cast<int>(std::clamp(v, 0.0, double(size - 1)));
+    };
+    const int wc0 = clamp_post(std::floor(col_min) - kDemWindowMarginPosts, info.width);
+    const int wc1 = clamp_post(std::ceil(col_max) + kDemWindowMarginPosts, info.width);
+    const int wr0 = clamp_post(std::floor(row_min) - kDemWindowMarginPosts, info.height);
+    const int wr1 = clamp_post(std::ceil(row_max) + kDemWindowMarginPosts, info.height);
+    if (wc1 - wc0 < 1 || wr1 - wr0 < 1) {
+      plan.reason = "the image's footprint lies outside the DEM";
+      return plan;
+    }
+    plan.window = {wc0, wr0, wc1 - wc0 + 1, wr1 - wr0 + 1};
+    // The ray box: the window's posts at both height bounds (its border,
+    // densely, and its centre; ENU heights are lowest at the border).
+    std::vector<double> bx, by;
+    for (int k = 0; k <= steps; ++k) {
+      const double f = double(k) / steps;
+      const double cc = wc0 + f * (wc1 - wc0), rr = wr0 + f * (wr1 - wr0);
+      for (const auto& [pc, pr] : {std::pair{cc, double(wr0)}, {cc, double(wr1)}, {double(wc0), rr}, {double(wc1), rr}}) {
+        const Eigen::Vector2d mp = lattice.MapFromPost(pc, pr);
+        bx.push_back(mp.x());
+        by.push_back(mp.y());
+      }
+    }
+    const Eigen::Vector2d mid = lattice.MapFromPost(0.5 * (wc0 + wc1), 0.5 * (wr0 + wr1));
+    bx.push_back(mid.x());
+    by.push_back(mid.y());
+    crs.ToLonLat(bx, by);
+    Eigen::AlignedBox3d box;
+    for (size_t i = 0; i < bx.size(); ++i) {
+      for (const double z : {lo, hi}) box.extend(frame.EnuFromGeodetic(bx[i], by[i], z));
+    }
+    box.extend(xc);
+    // A post of slack (the window's plan is curved in ENU) and the ENU drop.
+    const double slack = 2.0 * post_spacing_m + 1.0;
+    box.min() -= Eigen::Vector3d(slack, slack, slack + (z_low < lo ? lo - z_low : 0.0));
+    box.max() += Eigen::Vector3d(slack, slack, slack);
+    plan.ray_box = box;
+  }
+  plan.applies = true;
+
+  // When the whole DEM is read anyway.
+  material::MaterialTable materials;
+  ApplyMaterialsFile(materials, options);
+  const bool mirror_paths = options.bounces > 1 && materials.Get(scene::kClassDefault).mirror > 0.0;
+  const double window_posts = double(plan.window[2]) * plan.window[3];
+  if (options.dem_window == "off") {
+    plan.reason = "--dem-window off";
+  } else if (options.sea == "auto" && sea_low <= options.sea_level_m) {
+    plan.reason = "--sea auto on a DEM reaching the sea level (the sea is what connects to the whole DEM's border; "
+                  "--sea off reads a window)";
+  } else if (mirror_paths) {
+    plan.reason = "mirror paths (--materials with a mirror share and --bounces > 1) may reach any terrain";
+  } else if (!options.reflectors.empty()) {
+    plan.reason = "--reflectors may lie anywhere on the DEM";
+  } else if (!options.contributions.empty()) {
+    plan.reason = "--contributions records returns from anywhere on the DEM";
+  } else if (window_posts >= 0.8 * double(info.width) * double(info.height)) {
+    plan.reason = "the window is most of the DEM";
+  } else {
+    plan.read_window = true;
+  }
+  (void)reporter;
+  return plan;
+}
+
 Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter) {
   Terrain t = options.scene.empty() ? TerrainFromDem(options, reporter) : TerrainFromScene(options);
-  if (!options.materials.empty()) {
-    const nlohmann::json file = material::ReadMaterialsFile(options.materials);
-    for (const auto& [name, fields] : file.items()) {
-      const auto id = scene::ClassIdFromName(name);
-      if (!id || (options.scene.empty() && *id != scene::kClassDefault)) {
-        throw ConfigError("unknown class '" + name + "'" +
-                              (options.scene.empty() ? " (a DEM has the single class 'default')" : ""),
-                          options.materials);
-      }
-      material::Material m = t.materials.Get(*id);
-      m.name = name;
-      material::ApplyOverrides(m, fields, name, options.materials);
-      t.materials.Set(*id, m);
-    }
-  }
+  ApplyMaterialsFile(t.materials, options);
   return t;
 }
 
@@ -703,6 +1045,7 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
     }
   } else {
     render::RenderOptions ro = RenderOptionsOf(options, &reporter);
+    ro.ray_box = terrain.ray_box;
     ro.reflectors = terrain.reflectors;
     const auto placed = PlaceReflectors(options, terrain, *embree);
     ro.reflectors.insert(ro.reflectors.end(), placed.begin(), placed.end());
@@ -871,6 +1214,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   provenance["terrain"] = terrain.description;
   provenance["materials"] = terrain.materials.ToJson();
   provenance["vertical_datum"] = VerticalDatumRecord(terrain);
+  if (!terrain.dem_window.is_null()) provenance["dem_window"] = terrain.dem_window;
   provenance["frame"] = {{"type", terrain.vertical_datum != "ellipsoid"
                                       ? "ENU tangent frame, WGS84; DEM heights " + terrain.vertical_datum +
                                             " + undulation = ellipsoidal"

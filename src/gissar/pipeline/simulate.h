@@ -3,6 +3,7 @@
 // config files and Python.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <limits>
@@ -84,6 +85,13 @@ struct SimulateRequest {
   // without coastline).
   std::string sea = "auto";
   double sea_level_m = 0.0;
+  // DEM window (--dem-window auto|off): with auto, a fixed-size image
+  // (width and height set) of a DEM with the trace engine reads only the DEM
+  // window its footprint needs (the image's ground footprint at the DEM's
+  // lowest and highest heights, the terrain that can shadow it, and a
+  // margin), and renders exactly the image the whole DEM gives
+  // (PlanDemWindow, docs/performance.md); off reads the whole DEM.
+  std::string dem_window = "auto";
   std::optional<Eigen::Vector2d> center_lonlat;  // scene centre, WGS84 degrees
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".
@@ -177,7 +185,47 @@ struct Terrain {
   // Canonical reflectors stored in a scene (`scene build --reflectors`),
   // placed when it was built.
   std::vector<render::SceneReflector> reflectors;
+  // The tracer's ray box (render::RenderOptions::ray_box) of a fixed-size
+  // image of a DEM: the same whether the window or the whole DEM was read.
+  std::optional<Eigen::AlignedBox3d> ray_box;
+  // The sidecar's `dem_window` record: what was read and why.
+  nlohmann::json dem_window = nullptr;
 };
+
+// The DEM window a fixed-size simulation of a DEM needs (PlanDemWindow).
+struct DemWindowPlan {
+  // A window was computed (width and height set, a DEM, the trace engine):
+  // the ray box below is used whatever is read.
+  bool applies = false;
+  // The window, in the source raster's cells (first column, first row,
+  // columns, rows), and whether it is read instead of the whole DEM (else
+  // `reason` says why not).
+  std::array<int, 4> window{0, 0, 0, 0};
+  bool read_window = false;
+  std::string reason;
+  Eigen::AlignedBox3d ray_box;
+  // Bounds used for the halo: ellipsoidal heights (metres) and the image
+  // margin (pixels) and post margin.
+  double z_low_m = 0.0, z_high_m = 0.0;
+  int source_width = 0, source_height = 0;
+  nlohmann::json ToJson() const;
+};
+// Plans the DEM window of a simulation (options.dem must be set; Check()ed).
+// Not `applies` without --width/--height, for the raster engine or a scene.
+// The window holds every DEM post whose ENU position can project within
+// kDemWindowMarginPx pixels of the image at any height between the DEM's
+// bounds (geo::ReadDemInfo: exact lowest and highest heights, widened for
+// the vertical datum and DEM refinement), every post that can shadow such
+// a point (the line of sight towards the sensor up to the highest height),
+// plus kDemWindowMarginPosts posts. The whole DEM is read instead (reason
+// given) for --dem-window off, --sea auto on a DEM reaching the sea level
+// (the sea is connected to the whole DEM's border), mirror paths (a material
+// with a mirror share and --bounces > 1: a mirror ray may reach any
+// terrain), reflectors and contributions (both may lie anywhere on the DEM),
+// or a window that would be most of the DEM anyway.
+inline constexpr int kDemWindowMarginPx = 4;
+inline constexpr int kDemWindowMarginPosts = 4;
+DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter = NullReporter());
 
 // The reflectors of options.reflectors (CSV) placed on the terrain surface in
 // `embree` (apex = surface height at lon, lat + apex_height_m), ENU.

@@ -453,5 +453,158 @@ TEST(SimulateRequestTest, JsonRoundTripCoversEveryField) {
   EXPECT_THROW(defaults.ApplyJson(nlohmann::json{{"heading_deg", "north"}}, "test"), ConfigError);
 }
 
+
+// --- DEM windows (PlanDemWindow): a fixed-size image reads only the DEM it
+// needs and equals the image of the whole DEM.
+
+// A 512 x 512 UTM DEM (30 m posts) of smooth hills from 100 to ~1300 m.
+fs::path WriteHillsDem(const fs::path& dir) {
+  const int n = 512;
+  std::vector<float> h(size_t(n) * n);
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      h[size_t(r) * n + c] = static_cast<float>(700.0 + 300.0 * std::sin(c * 0.031) * std::cos(r * 0.023) +
+                                                250.0 * std::sin((c + 2 * r) * 0.011) + 40.0 * std::cos(c * 0.17 + r * 0.05));
+    }
+  }
+  const fs::path path = dir / "hills.tif";
+  geo::WriteDemGeoTiff(path, h, n, n, {400000.0, 30.0, 0.0, 4700000.0, 0.0, -30.0}, "EPSG:32631");
+  return path;
+}
+
+SimulateRequest HillsWindowRequest(const fs::path& dem, const fs::path& out) {
+  SimulateRequest o;
+  o.dem = dem.string();
+  o.sea = "off";
+  o.geometry.heading_deg = 20.0;
+  o.geometry.depression_deg = 35.0;
+  o.geometry.range_spacing_m = 20.0;
+  o.geometry.azimuth_spacing_m = 20.0;
+  o.geometry.width = 64;
+  o.geometry.height = 64;
+  // Off the DEM centre (lon, lat of UTM 31N (404000, 4694000)).
+  o.center_map = Eigen::Vector2d(404000.0, 4694000.0);
+  o.out_prefix = out.string();
+  return o;
+}
+
+void ExpectSameBands(const SimulatedImage& a, const SimulatedImage& b) {
+  ASSERT_EQ(a.image.width, b.image.width);
+  ASSERT_EQ(a.image.height, b.image.height);
+  const size_t n = a.image.intensity.size();
+  ASSERT_EQ(b.image.intensity.size(), n);
+  EXPECT_EQ(std::memcmp(a.image.intensity.data(), b.image.intensity.data(), n * sizeof(float)), 0);
+  EXPECT_EQ(a.image.mask, b.image.mask);
+  EXPECT_EQ(a.image.footprint, b.image.footprint);
+  int differing = 0, lit = 0;
+  for (size_t i = 0; i < n; ++i) lit += a.image.intensity[i] > 0.0f;
+  EXPECT_GT(lit, int(n) / 2);  // terrain fills the image
+  for (size_t i = 0; i < n; ++i) {
+    const float x = a.image.intensity[i], y = b.image.intensity[i];
+    if (!(x == y || (std::isnan(x) && std::isnan(y)))) ++differing;
+  }
+  EXPECT_EQ(differing, 0);
+}
+
+TEST(SimulateTest, DemWindowEqualsTheWholeDem) {
+  const fs::path dir = testing::MakeTempDir();
+  const fs::path dem = WriteHillsDem(dir);
+  for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    SimulateRequest o = HillsWindowRequest(dem, dir / "w");
+    o.geometry.mode = mode;
+    o.range_resolution_m = 30.0;  // PSF and speckle too: they act on the image only
+    o.azimuth_resolution_m = 30.0;
+    o.speckle_looks = 4.0;
+    const DemWindowPlan plan = PlanDemWindow(o);
+    ASSERT_TRUE(plan.applies);
+    ASSERT_TRUE(plan.read_window) << plan.reason;
+    // 64 x 64 pixels of 20 m: about 45 x 60 posts on the ground, plus the
+    // layover/shadow halo of 1200 m of relief at 35 deg (~1.7 km = 57
+    // posts) and margins: far smaller than the 512 x 512 DEM.
+    EXPECT_LT(double(plan.window[2]) * plan.window[3], 0.1 * 512 * 512);
+    EXPECT_GT(plan.window[2], 45);
+    const SimulatedImage windowed = SimulateImage(o);
+    EXPECT_EQ(windowed.terrain.dem_window["read"], "window");
+    EXPECT_EQ(windowed.terrain.grid_width, plan.window[2]);
+    o.dem_window = "off";
+    const SimulatedImage whole = SimulateImage(o);
+    EXPECT_EQ(whole.terrain.dem_window["read"], "whole");
+    EXPECT_EQ(whole.terrain.grid_width, 512);
+    EXPECT_EQ(windowed.terrain.centre_enu, whole.terrain.centre_enu);
+    EXPECT_EQ(windowed.terrain.post_spacing_m, whole.terrain.post_spacing_m);
+    ExpectSameBands(windowed, whole);
+  }
+}
+
+TEST(SimulateTest, DemWindowFitsAMemoryBudgetTheWholeDemDoesNot) {
+  const fs::path dir = testing::MakeTempDir();
+  const fs::path dem = WriteHillsDem(dir);
+  SimulateRequest o = HillsWindowRequest(dem, dir / "m");
+  // 512^2 posts at 256 B each need 64 MiB; the window about a tenth.
+  o.max_memory_bytes = int64_t{24} << 20;
+  const SimulateResult result = RunSimulate(o, "test");
+  EXPECT_EQ(result.width, 64);
+  nlohmann::json sidecar;
+  std::ifstream(o.out_prefix + ".json") >> sidecar;
+  EXPECT_EQ(sidecar["dem_window"]["read"], "window");
+  EXPECT_GT(sidecar["dem_window"]["cols"].get<int>(), 0);
+  EXPECT_EQ(sidecar["options"]["dem_window"], "auto");
+  o.dem_window = "off";
+  o.out_prefix = (dir / "m_off").string();
+  try {
+    RunSimulate(o, "test");
+    FAIL() << "the whole DEM fits the budget";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--max-memory"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SimulateTest, DemWindowFallsBackToTheWholeDemWithAReason) {
+  const fs::path dir = testing::MakeTempDir();
+  const fs::path dem = WriteHillsDem(dir);
+  SimulateRequest o = HillsWindowRequest(dem, dir / "s");
+  o.sea = "auto";
+  o.sea_level_m = 400.0;  // the hills reach below it: the sea needs the whole border
+  DemWindowPlan plan = PlanDemWindow(o);
+  EXPECT_TRUE(plan.applies);
+  EXPECT_FALSE(plan.read_window);
+  EXPECT_NE(plan.reason.find("--sea"), std::string::npos);
+  o.sea_level_m = 0.0;  // no post that low: windowed
+  EXPECT_TRUE(PlanDemWindow(o).read_window);
+  o.geometry.width = 0;  // the image covers the DEM
+  plan = PlanDemWindow(o);
+  EXPECT_FALSE(plan.applies);
+  EXPECT_NE(plan.reason.find("--width"), std::string::npos);
+  o.geometry.width = 64;
+  o.engine = "raster";
+  EXPECT_FALSE(PlanDemWindow(o).applies);
+  SimulateRequest bad = o;
+  bad.dem_window = "sometimes";
+  EXPECT_THROW(bad.Check(), ConfigError);
+}
+
+TEST(SimulateTest, DemWindowOfAGeographicDemEqualsTheWholeDem) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest o;
+  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  o.geometry.heading_deg = 200.0;
+  o.geometry.depression_deg = 40.0;
+  o.geometry.range_spacing_m = 60.0;
+  o.geometry.azimuth_spacing_m = 60.0;
+  o.geometry.width = 48;
+  o.geometry.height = 40;
+  o.center_lonlat = Eigen::Vector2d(1.50, 42.52);
+  o.out_prefix = (dir / "a").string();
+  const DemWindowPlan plan = PlanDemWindow(o);
+  ASSERT_TRUE(plan.read_window) << plan.reason;
+  EXPECT_LT(plan.window[2], plan.source_width);
+  EXPECT_LT(plan.window[3], plan.source_height);
+  const SimulatedImage windowed = SimulateImage(o);
+  o.dem_window = "off";
+  const SimulatedImage whole = SimulateImage(o);
+  EXPECT_EQ(windowed.terrain.centre_enu, whole.terrain.centre_enu);
+  ExpectSameBands(windowed, whole);
+}
+
 }  // namespace
 }  // namespace gissar::pipeline

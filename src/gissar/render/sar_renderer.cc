@@ -254,11 +254,11 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
                                              int64_t* shadow_rays, std::vector<uint8_t>* lit,
-                                             std::vector<uint8_t>* covered) {
+                                             std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box) {
   const int width = geometry.width(), height = geometry.height();
   std::vector<std::atomic<uint8_t>> flags(size_t(width) * height);
   for (auto& f : flags) f.store(0, std::memory_order_relaxed);
-  const Eigen::AlignedBox3d box = mesh.Bounds();
+  const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
   const float eps = RayEpsilon(box);
   const double far_affine = geometry.slant_range_m() + box.diagonal().norm();
   std::atomic<int64_t> rays{0};
@@ -357,7 +357,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   image.width = geometry.width();
   image.height = geometry.height();
   const int width = image.width, height = image.height;
-  const Eigen::AlignedBox3d box = mesh.Bounds();
+  const Eigen::AlignedBox3d box = options.ray_box ? *options.ray_box : mesh.Bounds();
   const RayGrid grid = MakeRayGrid(geometry, box, options.rays_per_cell);
   const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
   const Vector3d& l = geometry.look_direction();
@@ -739,7 +739,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   Stopwatch mask_watch;
   image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m);
   std::vector<uint8_t> lit;
-  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit, &image.footprint);
+  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit, &image.footprint,
+                                       options.ray_box ? &*options.ray_box : nullptr);
   for (size_t q = 0; q < lit.size(); ++q) {
     if (!lit[q]) continue;
     ++image.stats.footprint_pixels;

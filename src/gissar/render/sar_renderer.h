@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "gissar/material/material.h"
@@ -76,6 +77,13 @@ struct RenderOptions {
   // Where tracing progress goes, and who may cancel it (nullptr: nowhere,
   // never). Not owned; must outlive the render.
   Reporter* reporter = nullptr;
+  // The box (ENU) the primary rays are laid out over and start in, and
+  // whose size sets the rays' offsets and the mask's far limit; default the
+  // mesh's bounds. A box that does not depend on how much terrain was loaded
+  // (pipeline::SimulateImage: the image's footprint and halo) makes the image
+  // of a DEM window equal to that of the whole DEM: the same rays, starting
+  // at the same points. It must hold every surface that can reach the image.
+  std::optional<Eigen::AlignedBox3d> ray_box;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;
@@ -221,6 +229,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const sensor::SarGeometry& geometry,
                                              int64_t* shadow_rays = nullptr,
                                              std::vector<uint8_t>* lit = nullptr,
-                                             std::vector<uint8_t>* covered = nullptr);
+                                             std::vector<uint8_t>* covered = nullptr,
+                                             const Eigen::AlignedBox3d* ray_box = nullptr);
 
 }  // namespace gissar::render

@@ -1,0 +1,69 @@
+"""`gissar evaluate` with its Monte-Carlo trials spread over Dask workers.
+
+Trial k of an evaluation depends only on (seed, k) (gissar.evaluate_trials), so the trials are cut into chunks
+of consecutive indices, each chunk runs on a worker (one process, one thread by default: the C++ core already
+uses every core it is given), and the records are summarised as the serial run summarises them
+(gissar.summarise_trials): the same table for the same seed, except seconds_per_fix (time).
+
+The cluster: `client` (a dask.distributed.Client you manage), else `scheduler` (the address of a running
+scheduler, e.g. "tcp://host:8786"), else an embedded LocalCluster of `workers` processes (default: one per
+core) that lives for this call.
+"""
+
+import os as _os
+import time as _time
+
+from . import _core
+
+
+def _run_chunk(options, first, count):
+    """Worker side: the records of trials first .. first + count - 1."""
+    return _core.evaluate_trials({**options, "trial_first": first, "trial_count": count})
+
+
+def trial_chunks(trials, chunk_trials):
+    """(first, count) pairs covering trials 0 .. trials - 1 in chunks of at most chunk_trials."""
+    if trials < 1 or chunk_trials < 1:
+        raise ValueError("trials and chunk_trials must be >= 1")
+    return [(first, min(chunk_trials, trials - first)) for first in range(0, trials, chunk_trials)]
+
+
+def evaluate(*, client=None, scheduler=None, workers=None, chunk_trials=None, threads_per_worker=1, **kwargs):
+    """Run `gissar evaluate` (keywords: the fields of gissar.evaluate_request_defaults(), e.g. dem, trials, seed,
+    size_px, spacing_m) on Dask and return the summary dict of the serial gissar.evaluate. chunk_trials: trials per
+    task (default: trials spread evenly, about four tasks per worker). With out_prefix, writes PREFIX.json,
+    PREFIX_trials.csv and PREFIX_hist.png like the serial run."""
+    from dask.distributed import Client, LocalCluster
+
+    options = {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix") and v is not None else v)
+               for k, v in kwargs.items()}
+    options.pop("trial_first", None)
+    options.pop("trial_count", None)
+    defaults = _core.evaluate_request_defaults()
+    trials = int(options.get("trials", defaults["trials"]))
+    started = _time.monotonic()
+    owned = []
+    try:
+        if client is None:
+            if scheduler is not None:
+                client = Client(scheduler)
+                owned.append(client)
+            else:
+                n = workers or _os.cpu_count() or 1
+                cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True,
+                                       dashboard_address=":0")
+                owned.append(cluster)
+                client = Client(cluster)
+                owned.insert(0, client)
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
+        chunk = chunk_trials or max(1, -(-trials // (4 * n_workers)))
+        chunks = trial_chunks(trials, chunk)
+        futures = client.map(_run_chunk, [options] * len(chunks), [c[0] for c in chunks], [c[1] for c in chunks],
+                             pure=False)
+        records = [record for part in client.gather(futures) for record in part]
+    finally:
+        for resource in owned:
+            resource.close()
+    if options.get("out_prefix"):
+        return _core.write_evaluation(options, records, _time.monotonic() - started)
+    return _core.summarise_trials(options, records)
