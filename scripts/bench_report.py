@@ -285,6 +285,35 @@ w("Target: ≥ 5× faster than POV-Ray. Reached here: whole process %s (%s); ren
     ", ".join("%.1f×" % r for r in render_ratios), verdict(min(render_ratios) >= 5.0)))
 w("")
 
+# ---------------------------------------------------------------- corridor
+if os.path.exists(os.path.join(R, "corridor.json")):
+    c = load("corridor.json")
+    w("## Reference-image corridor on Dask (`gissar corridor`), 1 and 2 workers")
+    w("")
+    im = c["image"]
+    w("`gissar.distributed.build_corridor` on an embedded LocalCluster (worker processes, one task thread")
+    w("each, every simulation capped at one thread): %d poses %g m apart on Andorra (SRTM 3\"), heading 90," % (
+        c["poses"], c["pose_step_m"]))
+    w("%d × %d px at %g m, %g rays per cell, 3 bounces. Poses/s over the simulation phase (first task" % (
+        im["width"], im["height"], im["range_spacing_m"], im["rays_per_cell"]))
+    w("submitted to the catalogue written); cluster start-up apart. Peak worker RSS: the largest ru_maxrss")
+    w("of the worker processes. Load average when it ended: %s." % ", ".join("%.2f" % x for x in c["load_average"]))
+    w("")
+    w("| workers | poses/s | s per pose per worker | speed-up | simulation phase s | cluster start s | peak worker RSS |")
+    w("|---|---|---|---|---|---|---|")
+    base = c["results"][0]["poses_per_s"]
+    for r in c["results"]:
+        w("| %d | %.3f | %.2f | %.2f× | %.1f | %.1f | %.0f MiB |" % (
+            r["workers"], r["poses_per_s"], r["workers"] / r["poses_per_s"], r["poses_per_s"] / base,
+            r["simulate_s"], r["startup_s"], r["peak_worker_rss_bytes"] / MIB))
+    w("")
+    w("Command: `PYTHONPATH=build/python python3 " + re.sub(r" --json \S+", "", commands["corridor"].split(" ", 1)[1])
+      + "` (docs/distributed.md).")
+    w("")
+    speedup = c["results"][-1]["poses_per_s"] / base
+    w("Target: ≥ 1.7× with 2 workers. Reached here: %.2f× (%s)." % (speedup, verdict(speedup >= 1.7)))
+    w("")
+
 # ---------------------------------------------------------------- profiles
 notes = os.path.join(ROOT, "bench", "PROFILES.md")
 if os.path.exists(notes):

@@ -195,6 +195,7 @@ TEST(CorridorDoorTest, FindsThePackageBesideTheExecutableAndPassesTheArguments) 
   const fs::path dir = testing::MakeTempDir();
   fs::create_directories(dir / "build" / "bin");
   EXPECT_FALSE(PythonPackageDir(dir / "build" / "bin" / "gissar").has_value());
+  fs::create_directories(dir / "prefix" / "bin");
   fs::create_directories(dir / "prefix" / "lib" / "python3" / "dist-packages" / "gissar");
   std::ofstream(dir / "prefix" / "lib" / "python3" / "dist-packages" / "gissar" / "corridor.py") << "\n";
   EXPECT_EQ(PythonPackageDir(dir / "prefix" / "bin" / "gissar"),
