@@ -59,6 +59,7 @@ def run(workers, poses, directory, image):
     per_pose = [p for p in catalog["gissar:poses"]]
     return {"workers": workers, "poses": s["simulated"], "startup_s": t1 - t0, "simulate_s": t2 - t1,
             "poses_per_s": s["simulated"] / (t2 - t1), "wall_s": t2 - t0, "peak_worker_rss_bytes": rss,
+            "task_s_per_pose": s["task_seconds"] / poses, "cpu_s_per_pose": s["task_cpu_seconds"] / poses,
             "ids": [p["id"] for p in per_pose]}
 
 
@@ -90,11 +91,14 @@ def main():
     print(f"corridor: {args.poses} poses, {args.width}x{args.width} px at {args.spacing:g} m, "
           f"{args.rays_per_cell:g} rays/cell, --threads 1 per simulation")
     print("")
-    print("| workers | poses/s | speed-up | simulate phase (s) | cluster start (s) | peak worker RSS (MiB) |")
-    print("|---|---|---|---|---|---|")
+    print("| workers | poses/s | speed-up | simulate phase (s) | cluster start (s) | task s/pose | CPU s/pose "
+          "| peak worker RSS (MiB) |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in results:
         print(f"| {r['workers']} | {r['poses_per_s']:.3f} | {r['poses_per_s'] / base:.2f}x | {r['simulate_s']:.1f} | "
-              f"{r['startup_s']:.1f} | {r['peak_worker_rss_bytes'] / 2**20:.0f} |")
+              f"{r['startup_s']:.1f} | {r['task_s_per_pose']:.2f} | {r['cpu_s_per_pose']:.2f} | "
+              f"{r['peak_worker_rss_bytes'] / 2**20:.0f} |")
+    print(f"load average at the end: {os.getloadavg()}")
     if args.json:
         for r in results:
             r.pop("ids", None)

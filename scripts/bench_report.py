@@ -297,15 +297,17 @@ if os.path.exists(os.path.join(R, "corridor.json")):
     w("%d × %d px at %g m, %g rays per cell, 3 bounces. Poses/s over the simulation phase (first task" % (
         im["width"], im["height"], im["range_spacing_m"], im["rays_per_cell"]))
     w("submitted to the catalogue written); cluster start-up apart. Peak worker RSS: the largest ru_maxrss")
-    w("of the worker processes. Load average when it ended: %s." % ", ".join("%.2f" % x for x in c["load_average"]))
+    w("of the worker processes. Task s per pose: wall time inside a task; task CPU s: the worker's user +")
+    w("system time during it (below the wall time when other jobs share the cores). Load average when it")
+    w("ended: %s (%d cores)." % (", ".join("%.2f" % x for x in c["load_average"]), c["cores"]))
     w("")
-    w("| workers | poses/s | s per pose per worker | speed-up | simulation phase s | cluster start s | peak worker RSS |")
-    w("|---|---|---|---|---|---|---|")
+    w("| workers | poses/s | speed-up | simulation phase s | cluster start s | task s per pose | task CPU s per pose | peak worker RSS |")
+    w("|---|---|---|---|---|---|---|---|")
     base = c["results"][0]["poses_per_s"]
     for r in c["results"]:
-        w("| %d | %.3f | %.2f | %.2f× | %.1f | %.1f | %.0f MiB |" % (
-            r["workers"], r["poses_per_s"], r["workers"] / r["poses_per_s"], r["poses_per_s"] / base,
-            r["simulate_s"], r["startup_s"], r["peak_worker_rss_bytes"] / MIB))
+        w("| %d | %.3f | %.2f× | %.1f | %.1f | %.2f | %.2f | %.0f MiB |" % (
+            r["workers"], r["poses_per_s"], r["poses_per_s"] / base, r["simulate_s"], r["startup_s"],
+            r["task_s_per_pose"], r["cpu_s_per_pose"], r["peak_worker_rss_bytes"] / MIB))
     w("")
     w("Command: `PYTHONPATH=build/python python3 " + re.sub(r" --json \S+", "", commands["corridor"].split(" ", 1)[1])
       + "` (docs/distributed.md).")

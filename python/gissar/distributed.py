@@ -317,6 +317,12 @@ class _SceneExtent:
         return None
 
 
+def _absolute(path):
+    """A local file's absolute path (workers may run in another directory); GDAL names and URLs as given."""
+    return path if path.startswith(("/vsi", "http://", "https://")) or ":" in path.split("/")[0] \
+        else os.path.abspath(path)
+
+
 def _wkt_polygon(ring):
     return "POLYGON ((" + ", ".join(f"{lon:.7f} {lat:.7f}" for lon, lat in ring) + "))"
 
@@ -351,7 +357,7 @@ def _pose_key(request, inputs, hash_inputs):
     gissar version. With hash_inputs='sha256' the inputs are their contents (moving the files keeps the key);
     with 'stat' their absolute path, size and mtime."""
     record = {"gissar_version": gissar.__version__,
-              "request": {k: v for k, v in request.items() if k not in _INPUT_FILES},
+              "request": {k: v for k, v in request.items() if k not in _INPUT_FILES + ("max_memory_bytes",)},
               "inputs": {k: ({kk: vv for kk, vv in inputs[k].items() if hash_inputs == "stat" or kk != "path"})
                          for k in sorted(inputs)}}
     return hashlib.sha256(json.dumps(record, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
@@ -436,6 +442,11 @@ def limit_threads(threads):
     return int(active(0))
 
 
+def _cpu_seconds():
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
 def _peak_rss_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: kilobytes
 
@@ -444,7 +455,7 @@ def _simulate_pose(task):
     """One pose on a worker: simulate, join the Item to the collection, write the done-marker last. Returns a
     small dict (status, files, item, seconds, peak_rss_bytes, worker). A gissar error (bad input) is a failed
     pose, not a Dask error (no retry: it would fail again)."""
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), _cpu_seconds()
     limit_threads(task["threads"])
     prefix = task["out_prefix"]
     try:
@@ -455,8 +466,8 @@ def _simulate_pose(task):
     try:
         da = gissar.simulate(**task["request"], out_prefix=prefix, progress=None)
     except gissar.Error as e:
-        return dict(base, status="failed", reason=f"{type(e).__name__}: {e}",
-                    seconds=time.perf_counter() - start, peak_rss_bytes=_peak_rss_bytes())
+        return dict(base, status="failed", reason=f"{type(e).__name__}: {e}", seconds=time.perf_counter() - start,
+                    cpu_seconds=_cpu_seconds() - cpu, peak_rss_bytes=_peak_rss_bytes())
     outputs = [os.fspath(p) for p in da.attrs.get("outputs", [])]
     del da
     stac_path = prefix + "_stac.json"
@@ -470,7 +481,7 @@ def _simulate_pose(task):
               "seconds": seconds, "worker": base["worker"], "created_utc": _utc_now()}
     _write_atomic(_marker_path(prefix), json.dumps(marker, indent=2) + "\n")
     return dict(base, status="done", files=files + [os.path.basename(_marker_path(prefix))], item=item,
-                seconds=seconds, peak_rss_bytes=_peak_rss_bytes())
+                seconds=seconds, cpu_seconds=_cpu_seconds() - cpu, peak_rss_bytes=_peak_rss_bytes())
 
 
 def _join_item(item, task):
@@ -613,7 +624,7 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
         raise ConfigError("give dem or scene, not both and not neither (dem/scene)")
     if out_prefix is None or os.fspath(out_prefix) == "":
         raise ConfigError("is required (out_prefix)")
-    out_prefix = os.fspath(out_prefix)
+    out_prefix = os.path.abspath(os.fspath(out_prefix))  # workers may run elsewhere, in another directory
     if hash_inputs not in _HASH_INPUTS:
         raise ConfigError(f"must be sha256 or stat, got {hash_inputs!r} (hash_inputs)")
     if not (isinstance(retries, int) and retries >= 0):
@@ -628,11 +639,14 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
     kw = dict(simulate_keywords)
     if scene is not None:
         scene = scene.path if isinstance(scene, gissar.Scene) else os.fspath(scene)
-        terrain = {"scene": scene}
+        terrain = {"scene": _absolute(scene)}
     else:
         if not isinstance(dem, (str, os.PathLike)):
             raise ConfigError("a corridor's DEM is a path (or GDAL name) every worker can open (dem)")
-        terrain = {"dem": os.fspath(dem)}
+        terrain = {"dem": _absolute(os.fspath(dem))}
+    for name in ("materials", "reflectors"):
+        if kw.get(name):
+            kw[name] = _absolute(os.fspath(kw[name]))
     depression_deg = float(kw.get("depression_deg", defaults["depression_deg"]))
     slant_range_m = float(kw.get("slant_range_m", defaults["slant_range_m"]))
     look_side = kw.get("look_side", defaults["look_side"])
@@ -686,6 +700,7 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
 
     worker_count = 0
     peak_rss = 0
+    cpu_seconds = task_seconds = 0.0
     if tasks:
         from distributed import as_completed
         client, cluster, owned = _start_client(client, scheduler, workers, threads_per_worker)
@@ -717,6 +732,8 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
                                   files=result.get("files", []), item=result.get("item"),
                                   seconds=result.get("seconds"), worker=result.get("worker"), cached=False)
                     peak_rss = max(peak_rss, int(result.get("peak_rss_bytes") or 0))
+                    cpu_seconds += float(result.get("cpu_seconds") or 0.0)
+                    task_seconds += float(result.get("seconds") or 0.0)
                     done += 1
                     report(done)
             finally:
@@ -734,7 +751,8 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
                          pose_step_m=pose_step_m, headings_deg=headings_deg, width=width, height=height,
                          keywords=kw, terrain=terrain, inputs=inputs, hash_inputs=hash_inputs,
                          wall_seconds=wall_seconds, workers=worker_count, peak_rss=peak_rss,
-                         simulated=len(tasks), index_path=index_path)
+                         simulated=len(tasks), index_path=index_path, cpu_seconds=cpu_seconds,
+                         task_seconds=task_seconds)
     failures = [r for r in records if r["status"] == "failed"]
     bad_input = ("ConfigError", "InputError", "MissingFileError")
     if failures and len(failures) == len(tasks) and all(r["reason"].startswith(bad_input) for r in failures):
@@ -763,7 +781,8 @@ def _index_csv(records):
 
 
 def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, headings_deg, width, height, keywords,
-               terrain, inputs, hash_inputs, wall_seconds, workers, peak_rss, simulated, index_path):
+               terrain, inputs, hash_inputs, wall_seconds, workers, peak_rss, simulated, index_path, cpu_seconds,
+               task_seconds):
     """The STAC Collection: links to every simulated pose's Item, every pose with its status, the summary."""
     done = [r for r in records if r["status"] == "done"]
     lons, lats, times = [], [], []
@@ -803,6 +822,7 @@ def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, head
                "skipped": sum(1 for r in records if r["status"] == "skipped"),
                "failed": sum(1 for r in records if r["status"] == "failed"),
                "wall_seconds": wall_seconds, "workers": workers, "tasks_submitted": simulated,
+               "task_seconds": task_seconds, "task_cpu_seconds": cpu_seconds,
                "peak_worker_rss_bytes": peak_rss or None, "finished_utc": now}
     route_text = os.fspath(route) if isinstance(route, (str, os.PathLike)) else "(python)"
     return {
