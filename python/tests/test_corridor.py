@@ -365,3 +365,22 @@ def test_command_line_embedded_cluster_geojson_route_and_options_file(tmp_path):
     run = cli("--route", str(route), "--dem", DEM, "--pose-step", "5000", "--headings", "0", "--options", str(bad),
               "--out", str(tmp_path / "e"))
     assert run.returncode == 2 and "unknown key 'headin_deg'" in run.stderr and run.stderr.count("\n") == 1
+
+
+def test_scene_corridor_skips_poses_outside_the_scene(client, tmp_path):
+    # A scene of DEM columns 150..270, rows 70..170: lon 1.5246..1.6246, lat 42.5288..42.6121.
+    gissar.Scene.build(DEM, str(tmp_path / "s"), window=(150, 70, 120, 100))
+    catalog = gd.build_corridor([(1.50, 42.62), (1.60, 42.62)], scene=str(tmp_path / "s.gscene"), pose_step_m=2000,
+                                headings_deg=[90], out_prefix=str(tmp_path / "c"), width=32, height=32,
+                                range_spacing_m=60.0, azimuth_spacing_m=60.0, rays_per_cell=1.0, client=client,
+                                threads=1, progress=None)
+    status = {p["id"]: p["status"] for p in catalog["gissar:poses"]}
+    # Poses every 2 km from 1.50 E (0.0244 deg); footprints 1.9 km along track (+-0.0117 deg): the first two
+    # reach west of the scene's 1.5249 E.
+    assert status == {"p0000_h090": "skipped", "p0001_h090": "skipped", "p0002_h090": "done",
+                      "p0003_h090": "done", "p0004_h090": "done"}, status
+    reason = next(p["reason"] for p in catalog["gissar:poses"] if p["id"] == "p0000_h090")
+    assert reason.startswith("footprint leaves the scene"), reason
+    with pytest.raises(gissar.ConfigError, match="pixel spacings of a scene corridor"):
+        gd.build_corridor([(1.50, 42.62), (1.56, 42.62)], scene=str(tmp_path / "s.gscene"), pose_step_m=1000,
+                          headings_deg=[90], out_prefix=str(tmp_path / "d"), client=client)
