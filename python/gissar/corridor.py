@@ -4,7 +4,7 @@ The C++ command line runs this module for `gissar corridor ARGS` (docs/distribut
 terrain, pose spacing, headings and cluster, then the sensor flags of `gissar simulate` (the kebab-case of the
 simulate request fields without their unit suffix, docs/conventions.md) and the common flags. Exit statuses:
 0 done; 2 bad input or usage (one `gissar: error:` line); 1 some poses failed (listed in the catalogue);
-130 after Ctrl-C (finished poses are kept: a re-run resumes).
+130 after Ctrl-C, 128 + N after SIGTERM/SIGHUP (finished poses are kept: a re-run resumes).
 """
 import argparse
 import difflib
@@ -12,6 +12,7 @@ import json
 import math
 import os
 import re
+import signal
 import sys
 
 import gissar
@@ -225,6 +226,18 @@ def run(argv):
     return 0
 
 
+class _Signal(BaseException):
+    """SIGTERM/SIGHUP: stop like Ctrl-C (the cluster is closed, finished poses are kept), exit 128 + N."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_signal(signum, frame):
+    raise _Signal(signum)
+
+
 def _one_line(text):
     return " ".join(str(text).split())
 
@@ -233,6 +246,8 @@ def main(argv=None):
     """Entry point: maps gissar's errors (ValueError/OSError subclasses) and usage errors to one
     `gissar: error: ...` line and exit status 2."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, _raise_signal)
     try:
         return run(argv)
     except _Usage as e:
@@ -244,6 +259,10 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("gissar: interrupted (finished poses are kept; run again to resume)", file=sys.stderr)
         return 130
+    except _Signal as e:
+        print(f"gissar: stopped by signal {e.signum} (finished poses are kept; run again to resume)",
+              file=sys.stderr)
+        return 128 + e.signum
 
 
 if __name__ == "__main__":
