@@ -9,7 +9,8 @@
 # coherent packets on the same scene in the same process; BVH build time and
 # memory; the DEM-raster engine's cells/s on 4096^2 and a STREAM triad from
 # the same process; scene build (CDT) time and memory; raster/tracer agreement
-# on Andorra; POV-Ray side by side on a 1000 x 1000 heightfield. Runs in a few
+# on Andorra; POV-Ray side by side on a 1000 x 1000 heightfield; poses/s of
+# `gissar corridor` on Dask with 1 and 2 workers (bench/corridor_bench.py). Runs in a few
 # minutes on 2 cores; the machine may be shared, so the load average is
 # recorded and ratios are always taken within one run.
 set -euo pipefail
@@ -122,6 +123,11 @@ EOF
     --slant-range 20000 --rays-per-cell "$RPC" --bounces "$levels" --quiet --out "ours_pov_$levels"
   cp "ours_pov_$levels.json" "$R/"
 done
+
+say "corridor on Dask: 50 poses with 1 and 2 workers, --threads 1"
+# The Python the module was built for (Debian's, with python3-distributed).
+PY=$(sed -n 's/^Python_EXECUTABLE:FILEPATH=//p' "$B/CMakeCache.txt")
+PYTHONPATH="$B/python" run corridor "${PY:-python3}" "$ROOT/bench/corridor_bench.py" --json "$R/corridor.json"
 
 uptime > "$R/load_end.txt"
 END=$(date +%s)

@@ -285,6 +285,49 @@ w("Target: ≥ 5× faster than POV-Ray. Reached here: whole process %s (%s); ren
     ", ".join("%.1f×" % r for r in render_ratios), verdict(min(render_ratios) >= 5.0)))
 w("")
 
+# ---------------------------------------------------------------- corridor
+if os.path.exists(os.path.join(R, "corridor.json")):
+    c = load("corridor.json")
+    w("## Reference-image corridor on Dask (`gissar corridor`), 1 and 2 workers")
+    w("")
+    im = c["image"]
+    w("`gissar.distributed.build_corridor` on an embedded LocalCluster (worker processes, one task thread")
+    w("each, every simulation capped at one thread): %d poses %g m apart on Andorra (SRTM 3\"), heading 90," % (
+        c["poses"], c["pose_step_m"]))
+    w("%d × %d px at %g m, %g rays per cell, 3 bounces. Poses/s over the simulation phase (first task" % (
+        im["width"], im["height"], im["range_spacing_m"], im["rays_per_cell"]))
+    w("submitted to the catalogue written); cluster start-up apart. Peak worker RSS: the largest ru_maxrss")
+    w("of the worker processes. Task s per pose: wall time inside a task; task CPU s: the worker's user +")
+    w("system time during it (below the wall time when other jobs share the cores). Load average when it")
+    w("ended: %s (%d cores)." % (", ".join("%.2f" % x for x in c["load_average"]), c["cores"]))
+    w("")
+    w("| workers | poses/s | speed-up | simulation phase s | cluster start s | task s per pose | task CPU s per pose | peak worker RSS |")
+    w("|---|---|---|---|---|---|---|---|")
+    base = c["results"][0]["poses_per_s"]
+    for r in c["results"]:
+        w("| %d | %.3f | %.2f× | %.1f | %.1f | %.2f | %.2f | %.0f MiB |" % (
+            r["workers"], r["poses_per_s"], r["poses_per_s"] / base, r["simulate_s"], r["startup_s"],
+            r["task_s_per_pose"], r["cpu_s_per_pose"], r["peak_worker_rss_bytes"] / MIB))
+    w("")
+    # Load-independent view: the share of the phase the workers spent inside tasks (the rest is Dask's
+    # scheduling and the submitting process), and the poses/s if every task had had a core to itself.
+    est = []
+    for r in c["results"]:
+        busy = r["task_s_per_pose"] * r["poses"] / (r["workers"] * r["simulate_s"])
+        est.append(r["workers"] * busy / r["cpu_s_per_pose"])
+        w("- %d worker(s): busy in tasks %.1f %% of the phase; CPU share of a task %.0f %%; poses/s at one free "
+          "core per worker %.3f." % (r["workers"], 100 * busy, 100 * r["cpu_s_per_pose"] / r["task_s_per_pose"],
+                                    est[-1]))
+    w("- speed-up at one free core per worker: %.2f×." % (est[-1] / est[0]))
+    w("")
+    w("Command: `PYTHONPATH=build/python python3 " + re.sub(r" --json \S+", "", commands["corridor"].split(" ", 1)[1])
+      + "` (docs/distributed.md).")
+    w("")
+    speedup = c["results"][-1]["poses_per_s"] / base
+    w("Target: ≥ 1.7× with 2 workers. Reached here: %.2f× measured (%s), %.2f× at one free core per worker." % (
+        speedup, verdict(speedup >= 1.7), est[-1] / est[0]))
+    w("")
+
 # ---------------------------------------------------------------- profiles
 notes = os.path.join(ROOT, "bench", "PROFILES.md")
 if os.path.exists(notes):

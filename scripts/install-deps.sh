@@ -24,6 +24,7 @@ PACKAGES=(
   python3-jsonschema                                   # STAC Items against the published schemas (tests/stac_test.py)
   python3-xarray python3-rioxarray python3-tqdm       # Python results as xarray (rioxarray: CRS), progress bars
   python3-mypy                                         # type stubs checked in the tests
+  python3-dask python3-distributed python3-pyproj     # gissar corridor: Dask workers, geodesic pose spacing
 )
 
 missing=()

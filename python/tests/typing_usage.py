@@ -54,3 +54,15 @@ def evaluation(dem: str) -> float:
     spread = gissar.distributed_evaluate.evaluate(dem=dem, trials=4, seed=3, workers=2, chunk_trials=1)
     chunks = gissar.distributed_evaluate.trial_chunks(10, 3)
     return float(serial["success_rate"]) + float(spread["success_rate"]) + float(part["success_rate"]) + len(chunks)
+
+
+def corridor(route: Path) -> int:
+    from gissar import corridor as cli
+    from gissar import distributed as gd
+    poses: List[Dict[str, Any]] = gd.corridor_poses(route, pose_step_m=500.0, headings_deg=[0.0, 90.0])
+    catalog: Dict[str, Any] = gd.build_corridor([(1.5, 42.5), (1.6, 42.5)], dem="dem.tif", pose_step_m=500.0,
+                                                headings_deg=90.0, out_prefix=Path("out/c"), width=64, height=64,
+                                                workers=2, threads=1, progress=None, rays_per_cell=1.0)
+    summary: Dict[str, Any] = catalog["gissar:summary"]
+    assert gd.pose_id(7, 90.0) == "p0007_h090" and cli.flag_of_field("heading_deg") == "--heading"
+    return len(poses) + int(summary["done"]) + cli.main(["--help"])

@@ -92,6 +92,9 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddNavCommands(app, registry);
   AddProductCommands(app, registry);
   AddGeocodeCommand(app, registry);
+  // After the commands: a subcommand inherits the footer of its parent at creation.
+  app.footer("Also: corridor, a reference-image database along a route on Dask (the Python package: "
+             "gissar corridor --help; docs/distributed.md).");
   CommonFlags common;
   AddCommonFlags(app, common);
 

@@ -14,6 +14,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/cli/command.h"
+#include "gissar/cli/corridor_command.h"
 #include "gissar/util/testing.h"
 
 namespace gissar::cli {
@@ -185,6 +186,36 @@ Outcome RunBinary(const std::string& arguments, const fs::path& dir) {
   fs::remove(dir / "stdout.txt");
   fs::remove(dir / "stderr.txt");
   return o;
+}
+
+// `gissar corridor` is the Python package's command: the package is found
+// beside the executable (build tree, then installed prefix), the arguments
+// pass through unchanged, and the real binary answers --help through Python.
+TEST(CorridorDoorTest, FindsThePackageBesideTheExecutableAndPassesTheArguments) {
+  const fs::path dir = testing::MakeTempDir();
+  fs::create_directories(dir / "build" / "bin");
+  EXPECT_FALSE(PythonPackageDir(dir / "build" / "bin" / "gissar").has_value());
+  fs::create_directories(dir / "prefix" / "bin");
+  fs::create_directories(dir / "prefix" / "lib" / "python3" / "dist-packages" / "gissar");
+  std::ofstream(dir / "prefix" / "lib" / "python3" / "dist-packages" / "gissar" / "corridor.py") << "\n";
+  EXPECT_EQ(PythonPackageDir(dir / "prefix" / "bin" / "gissar"),
+            fs::weakly_canonical(dir / "prefix" / "lib" / "python3" / "dist-packages"));
+  fs::create_directories(dir / "build" / "python" / "gissar");
+  std::ofstream(dir / "build" / "python" / "gissar" / "corridor.py") << "\n";
+  EXPECT_EQ(PythonPackageDir(dir / "build" / "bin" / "gissar"), fs::weakly_canonical(dir / "build" / "python"));
+  const char* argv[] = {"gissar", "corridor", "--route", "r.csv", "--help"};
+  EXPECT_TRUE(IsCorridorCommand(5, argv));
+  EXPECT_FALSE(IsCorridorCommand(1, argv));
+  EXPECT_EQ(CorridorArguments("py", 5, argv),
+            (std::vector<std::string>{"py", "-m", "gissar.corridor", "--route", "r.csv", "--help"}));
+  EXPECT_NE(RunGissar({"--help"}).out.find("corridor"), std::string::npos);
+  const Outcome help = RunBinary("corridor --help", dir);
+  EXPECT_EQ(help.status, 0) << help.err;
+  EXPECT_NE(help.out.find("--pose-step"), std::string::npos) << help.out;
+  const Outcome bad = RunBinary("corridor --pose-stepp 100", dir);
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_EQ(bad.err.rfind("gissar: error: ", 0), 0u) << bad.err;
+  EXPECT_EQ(CountLines(bad.err), 1u) << bad.err;
 }
 
 // `--out sim` (a prefix with no directory) writes in the working directory;

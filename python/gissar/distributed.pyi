@@ -1,0 +1,32 @@
+# Type hints (PEP 484 .pyi) of gissar.distributed (checked by mypy in the tests: python/tests/typing_usage.py).
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
+
+from . import PathLike, Scene
+
+#: A route: a GeoJSON/CSV path or (lon_deg, lat_deg) pairs.
+Route = Union[PathLike, Sequence[Sequence[float]]]
+#: Progress of a corridor: True (a tqdm bar on stderr), a callable(stage, done, total) or None.
+CorridorProgress = Union[None, bool, Callable[[str, int, int], Optional[bool]]]
+
+STAC_VERSION: str
+
+def read_route(route: Route) -> List[Tuple[float, float]]: ...
+def resample_route(points: Sequence[Tuple[float, float]],
+                   pose_step_m: float) -> List[Tuple[float, float, float, float]]: ...
+def pose_id(index: int, heading_deg: float, digits: int = ...) -> str: ...
+def corridor_poses(route: Route, *, pose_step_m: float, headings_deg: Union[float, Sequence[float]],
+                   slant_range_m: float = ..., depression_deg: float = ...,
+                   look_side: str = ...) -> List[Dict[str, Any]]: ...
+def predicted_footprint(pose: Dict[str, Any], width: int, height: int, range_spacing_m: float,
+                        azimuth_spacing_m: float, depression_deg: float,
+                        look_side: str) -> List[Tuple[float, float]]: ...
+def limit_threads(threads: Optional[int]) -> int: ...
+def build_corridor(route: Route, *, pose_step_m: float, headings_deg: Union[float, Sequence[float]],
+                   out_prefix: PathLike, dem: Optional[PathLike] = ..., scene: Union[None, PathLike, Scene] = ...,
+                   width: int = ..., height: int = ..., client: Any = ..., scheduler: Optional[str] = ...,
+                   workers: Optional[int] = ..., threads_per_worker: int = ..., threads: Optional[int] = ...,
+                   retries: int = ..., hash_inputs: str = ..., progress: CorridorProgress = ...,
+                   log: Optional[Callable[[str], Any]] = ..., depression_deg: float = ..., slant_range_m: float = ...,
+                   range_spacing_m: float = ..., azimuth_spacing_m: float = ..., look_side: str = ...,
+                   rays_per_cell: float = ..., bounces: int = ..., speckle_looks: float = ..., seed: int = ...,
+                   **simulate_keywords: Any) -> Dict[str, Any]: ...
