@@ -11,12 +11,15 @@
 #include <filesystem>
 #include <memory>
 
+#include <optional>
+
 #include <pybind11/eval.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
 
 #include "gissar/pipeline/geocode.h"
 #include "gissar/pipeline/locate.h"
@@ -771,6 +774,20 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         }, py::arg("options"), py::arg("records"), py::arg("seconds") = 0.0,
         "Write PREFIX.json, PREFIX_trials.csv and PREFIX_hist.png of trial records (options['out_prefix']).");
   m.def("version", &VersionString, "Version string of the library.");
+  m.def(
+      "set_threads",
+      [](int threads) {
+        // One process-wide cap, as the command line's --threads: replaced by
+        // each call; 0 removes it.
+        static std::optional<tbb::global_control> limit;
+        if (threads < 0) throw ConfigError("must be 0 (all cores) or a positive count", "gissar keyword 'threads'");
+        limit.reset();
+        if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(threads));
+        return static_cast<int>(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+      },
+      py::arg("threads"),
+      "Caps the threads every later gissar call of this process uses (TBB max_allowed_parallelism, as the "
+      "command line's --threads); 0 removes the cap. Returns the active limit.");
 
   py::class_<sensor::SarGeometry>(m, "SarGeometry", "SAR acquisition geometry (docs/geometry.md).")
       .def(py::init([](double heading_deg, double depression_deg, double range_spacing_m, double azimuth_spacing_m,

@@ -17,7 +17,6 @@ request and the gissar version) and whose files all exist is not simulated again
 is replaced (the nanny restarts it) and Dask runs the task again (``retries``).
 """
 import csv
-import ctypes
 import hashlib
 import io
 import json
@@ -407,39 +406,13 @@ def _marker_matches(prefix, key):
 
 # ---------------------------------------------------------------- worker side
 
-_THREAD_LIMIT = {}
-
-
 def limit_threads(threads):
-    """Caps the simulations of this process at `threads` threads (TBB's max_allowed_parallelism, as the
-    command line's --threads). None or 0 leaves the default (all cores). Returns the active cap (0 when
-    unknown)."""
+    """Caps the simulations of this process at `threads` threads (gissar._core.set_threads: TBB's
+    max_allowed_parallelism, as the command line's --threads). None or 0 leaves the default (all cores).
+    Returns the active cap (0 when none was set)."""
     if not threads:
         return 0
-    core = getattr(gissar._core, "set_threads", None)
-    if core is not None:  # the compiled core's own control, when it has one
-        core(int(threads))
-        return int(threads)
-    if _THREAD_LIMIT.get("threads") == threads:
-        return threads
-    try:
-        tbb = ctypes.CDLL("libtbb.so.12")
-        create = tbb._ZN3tbb6detail2r16createERNS0_2d114global_controlE
-        destroy = tbb._ZN3tbb6detail2r17destroyERNS0_2d114global_controlE
-        active = tbb._ZN3tbb6detail2r127global_control_active_valueEi
-    except (OSError, AttributeError):
-        return 0
-
-    class GlobalControl(ctypes.Structure):  # oneTBB's d1::global_control (value, reserved, parameter)
-        _fields_ = [("value", ctypes.c_size_t), ("reserved", ctypes.c_ssize_t), ("param", ctypes.c_int)]
-
-    control = GlobalControl(int(threads), 0, 0)  # parameter 0 = max_allowed_parallelism
-    create(ctypes.byref(control))
-    if "control" in _THREAD_LIMIT:
-        destroy(ctypes.byref(_THREAD_LIMIT["control"]))
-    _THREAD_LIMIT.update(threads=threads, control=control)
-    active.restype = ctypes.c_size_t
-    return int(active(0))
+    return int(gissar._core.set_threads(int(threads)))
 
 
 def _cpu_seconds():
