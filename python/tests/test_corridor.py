@@ -384,3 +384,54 @@ def test_scene_corridor_skips_poses_outside_the_scene(client, tmp_path):
     with pytest.raises(gissar.ConfigError, match="pixel spacings of a scene corridor"):
         gd.build_corridor([(1.50, 42.62), (1.56, 42.62)], scene=str(tmp_path / "s.gscene"), pose_step_m=1000,
                           headings_deg=[90], out_prefix=str(tmp_path / "d"), client=client)
+
+
+def test_large_dem_corridor_runs_on_workers_with_less_memory_than_one_whole_dem_simulation(tmp_path):
+    """Issue 21: a 4096 x 4096 DEM (30 m posts, 123 km square) that one simulation of the whole DEM could not
+    hold in 1 GiB. The whole-DEM run (--dem-window off) is refused by the 1 GiB memory budget before it reads
+    anything; the corridor's workers, limited to 1 GiB by Dask (the nanny restarts a worker above it) and by the
+    same budget, read only the window under each 128 x 128 px image and finish every pose."""
+    from distributed import Client, LocalCluster
+    from osgeo import gdal, osr
+    n = 4096
+    y, x = np.mgrid[0:n, 0:n].astype(np.float32)
+    heights = (300.0 + 200.0 * np.sin(x / 300.0) * np.cos(y / 410.0) + 0.02 * x).astype(np.float32)
+    path = str(tmp_path / "big.tif")
+    ds = gdal.GetDriverByName("GTiff").Create(path, n, n, 1, gdal.GDT_Float32, ["TILED=YES"])
+    ds.SetGeoTransform([400000.0, 30.0, 0.0, 4800000.0, 0.0, -30.0])
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(32631)
+    ds.SetProjection(srs.ExportToWkt())
+    ds.GetRasterBand(1).WriteArray(heights)
+    ds = None
+    del heights, x, y
+    budget = 1 << 30
+    # The route crosses the middle of the DEM (lon/lat of its centre row, 20 km apart).
+    from pyproj import Transformer
+    to_lonlat = Transformer.from_crs(32631, 4326, always_xy=True)
+    route = [to_lonlat.transform(400000.0 + 30.0 * n * f, 4800000.0 - 15.0 * n) for f in (0.4, 0.56)]
+    image = dict(width=128, height=128, range_spacing_m=30.0, azimuth_spacing_m=30.0, rays_per_cell=1.0,
+                 depression_deg=40.0, slant_range_m=10000.0, vertical_datum="ellipsoid", max_memory_bytes=budget)
+    whole = dict(image, dem_window="off", center_lonlat=route[0], heading_deg=0.0)
+    with pytest.raises((gissar.ConfigError, gissar.InputError), match="over the memory limit"):
+        gissar.simulate(path, **whole)
+    cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None, memory_limit=budget)
+    try:
+        with Client(cluster) as c:
+            catalog = gd.build_corridor(route, dem=path, pose_step_m=5000.0, headings_deg=[0.0],
+                                        out_prefix=str(tmp_path / "big"), client=c, threads=1, progress=None,
+                                        **image)
+            peak = max(c.run(lambda: __import__("resource").getrusage(0).ru_maxrss * 1024).values())
+    finally:
+        cluster.close()
+    s = catalog["gissar:summary"]
+    assert s["done"] >= 4 and s["failed"] == 0 and s["skipped"] == 0, s
+    assert peak < budget, peak
+    print(f"[ measured ] 4096^2 DEM corridor: {s['done']} poses on a 1 GiB worker, peak worker RSS "
+          f"{peak / 2 ** 20:.0f} MiB")
+    for pose in done_ids(catalog):
+        with open(str(tmp_path / f"big_{pose}.json")) as f:
+            record = json.load(f)["dem_window"]
+        assert record["read"] == "window", record
+        assert record["cols"] * record["rows"] < n * n / 20, record
