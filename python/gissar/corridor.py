@@ -20,8 +20,8 @@ from gissar import ConfigError
 from gissar import distributed as _distributed
 
 #: Simulate request fields the corridor sets itself or does not offer (per-pose or single-file outputs).
-_NOT_FLAGS = ("dem", "scene", "product", "center_lonlat", "center_map", "heading_deg", "out_prefix",
-              "contributions", "max_memory_bytes", "width", "height")
+_NOT_FLAGS = ("dem", "scene", "product", "orbit", "radar_grid", "center_lonlat", "center_map", "heading_deg",
+              "out_prefix", "contributions", "max_memory_bytes", "width", "height")
 _UNITS = ("_deg", "_m", "_db", "_bytes", "_px", "_s")
 _SPECIAL_FLAGS = {"look_side": "--look", "out_prefix": "--out", "center_lonlat": "--center"}
 _HELP = {

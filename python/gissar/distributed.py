@@ -34,7 +34,8 @@ from gissar import ConfigError, InputError, IoError
 #: STAC version of the catalogue and the Items.
 STAC_VERSION = "1.0.0"
 #: Simulate keywords the corridor sets itself per pose (or that would name one file for every pose).
-_PER_POSE = ("center_lonlat", "center_map", "heading_deg", "out_prefix", "product", "contributions")
+_PER_POSE = ("center_lonlat", "center_map", "heading_deg", "out_prefix", "product", "orbit", "radar_grid",
+             "contributions")
 _INPUT_FILES = ("dem", "scene", "materials", "reflectors")
 _HASH_INPUTS = ("sha256", "stat")
 
