@@ -431,6 +431,25 @@ void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string&
 
 namespace {
 
+// The locate options an evaluation derives from its request: the first
+// search radius (from the prior errors when --search is 0: sqrt(2)
+// horizontal + R sin(heading) + vertical / tan(min depression), over the
+// spacing, + 4 px; never below the refinement radius) and the reference's
+// noise floor (the observed image's NESZ, a property of the sensor: shadow
+// and calm sea then read the same in both).
+void ResolveSearchAndFloor(const EvaluateRequest& options, nav::LocateOptions& lo) {
+  lo.initial_search_px = options.search_px > 0
+      ? options.search_px
+      : static_cast<int>(std::ceil((std::sqrt(2.0) * options.prior_error_horizontal_m +
+                                    options.slant_range_m * std::sin(options.prior_error_heading_deg * M_PI / 180.0) +
+                                    options.prior_error_vertical_m / std::tan(options.depression_min_deg * M_PI / 180.0)) /
+                                   options.spacing_m)) + 4;
+  lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
+  if (std::isfinite(options.nesz_db) && options.reference_floor) {
+    lo.reference_floor = std::max(lo.reference_floor, std::pow(10.0, options.nesz_db / 10.0));
+  }
+}
+
 // What every trial of an evaluation shares: the terrain, its BVH, the
 // observed (smoothed) terrain, the sensor model, the locate options and the
 // region true centres are drawn from.
@@ -462,19 +481,8 @@ EvaluateSetup PrepareEvaluation(const EvaluateRequest& options, Reporter& report
   nav::LocateOptions& lo = s.lo;
   lo.matcher = nav::ParseMatcher(options.matcher, "--matcher");
   lo.polish_evaluations = options.polish_evaluations;
-  lo.initial_search_px = options.search_px > 0
-      ? options.search_px
-      : static_cast<int>(std::ceil((std::sqrt(2.0) * options.prior_error_horizontal_m +
-                                    options.slant_range_m * std::sin(options.prior_error_heading_deg * M_PI / 180.0) +
-                                    options.prior_error_vertical_m / std::tan(options.depression_min_deg * M_PI / 180.0)) /
-                                   options.spacing_m)) + 4;
-  lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
+  ResolveSearchAndFloor(options, lo);
   lo.step_px = options.step_px;
-  // The reference carries the observed image's noise floor (its NESZ, a
-  // property of the sensor): shadow and calm sea then read the same in both.
-  if (std::isfinite(options.nesz_db) && options.reference_floor) {
-    lo.reference_floor = std::max(lo.reference_floor, std::pow(10.0, options.nesz_db / 10.0));
-  }
   // True image centres are drawn where the whole image (and the prior's)
   // stays on the scene.
   const Eigen::AlignedBox3d box = s.terrain.mesh.Bounds();
@@ -733,16 +741,7 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& options, const std::vector
   WriteHistogram(png_path, pos_cells, options.success_cells, title);
   // The options as the serial run records them (search_px and the floor as resolved).
   nav::LocateOptions lo;
-  lo.initial_search_px = options.search_px > 0
-      ? options.search_px
-      : static_cast<int>(std::ceil((std::sqrt(2.0) * options.prior_error_horizontal_m +
-                                    options.slant_range_m * std::sin(options.prior_error_heading_deg * M_PI / 180.0) +
-                                    options.prior_error_vertical_m / std::tan(options.depression_min_deg * M_PI / 180.0)) /
-                                   options.spacing_m)) + 4;
-  lo.initial_search_px = std::max(lo.initial_search_px, lo.refine_search_px);
-  if (std::isfinite(options.nesz_db) && options.reference_floor) {
-    lo.reference_floor = std::max(lo.reference_floor, std::pow(10.0, options.nesz_db / 10.0));
-  }
+  ResolveSearchAndFloor(options, lo);
   nlohmann::json summary = {{"command", "evaluate"},
                             {"command_line", command_line},
                             {"version", VersionString()},
