@@ -4,6 +4,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstring>
 #include <limits>
@@ -49,6 +50,41 @@ bool PairsIntoQuads(const scene::TriangleMesh& mesh) {
   return true;
 }
 
+// A hit this close (in barycentric or quad parameter units) to a border of
+// its primitive may be a tie: a ray through an edge or vertex shared by
+// several primitives meets each of them at (nearly) the same distance, and
+// which one Embree reports depends on the order its BVH visits them, which
+// differs between two BVHs of the same terrain (a DEM window and the whole
+// DEM). Such hits are resolved again by ResolveTie. Rounding puts a true tie
+// within about 1e-6 of the border; 2^-14 leaves a wide margin and re-traces
+// a few rays in ten thousand.
+constexpr float kBorderParameter = 1.0f / 16384.0f;
+
+// Candidates are collected within this distance (metres; relative, per km,
+// beyond 1 km) of the first hit: the float distances of a tie differ by a
+// few units in the last place (2 mm at 20 km).
+constexpr float kTieSlab = 0.05f;
+
+// One ray query over [t_near, t_far], no hit yet.
+RTCRayHit Query(const float org[3], const float dir[3], float t_near, float t_far) {
+  RTCRayHit query;
+  query.ray.org_x = org[0];
+  query.ray.org_y = org[1];
+  query.ray.org_z = org[2];
+  query.ray.dir_x = dir[0];
+  query.ray.dir_y = dir[1];
+  query.ray.dir_z = dir[2];
+  query.ray.tnear = t_near;
+  query.ray.tfar = t_far;
+  query.ray.time = 0.0f;
+  query.ray.mask = std::numeric_limits<unsigned>::max();
+  query.ray.id = 0;
+  query.ray.flags = 0;
+  query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  query.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return query;
+}
+
 }  // namespace
 
 struct EmbreeScene::Impl {
@@ -57,14 +93,97 @@ struct EmbreeScene::Impl {
   // The mesh went in as quads (PairsIntoQuads): Embree's primitive q is
   // triangles 2q (hit barycentrics u + v <= 1) and 2q + 1.
   bool quads = false;
+  // Embree's copies of the vertices (x, y, z floats) and the primitives'
+  // corner indices (4 for quads, 3 for triangles); owned by the scene.
+  const float* vertices = nullptr;
+  const unsigned* indices = nullptr;
   uint32_t Triangle(uint32_t primitive, float u, float v) const {
     return quads ? 2 * primitive + (u + v > 1.0f ? 1u : 0u) : primitive;
   }
+  bool NearBorder(float u, float v) const {
+    const float m = quads ? std::min(std::min(u, v), std::min(1.0f - u, 1.0f - v))
+                          : std::min(std::min(u, v), 1.0f - u - v);
+    return m < kBorderParameter;
+  }
+  // Strict order of two primitives by their corners' coordinates, which do
+  // not depend on the primitives' indices (a window's mesh numbers the same
+  // terrain differently).
+  bool CornersBefore(uint32_t a, uint32_t b) const {
+    const int corners = quads ? 4 : 3;
+    for (int c = 0; c < corners; ++c) {
+      const float* pa = vertices + 3 * size_t(indices[size_t(corners) * a + c]);
+      const float* pb = vertices + 3 * size_t(indices[size_t(corners) * b + c]);
+      for (int axis = 0; axis < 3; ++axis) {
+        if (pa[axis] != pb[axis]) return pa[axis] < pb[axis];
+      }
+    }
+    return false;
+  }
+  // The first hit of a ray whose first hit found by the BVH (at `t`) lies on
+  // a primitive's border, chosen independently of the BVH: every primitive
+  // the ray meets within kTieSlab of t is collected and the nearest wins,
+  // exact ties going to the primitive (then the triangle of a quad) first in
+  // CornersBefore order. Each primitive's intersection is a function of the
+  // ray and its corners only, so the choice is the same for any BVH holding
+  // the primitives. False (outputs untouched) when nothing is collected.
+  bool ResolveTie(const float org[3], const float dir[3], float t_near, float t, float* t_out,
+                  uint32_t* triangle_out) const;
+  struct TieCollector;
+  static void CollectTie(const RTCFilterFunctionNArguments* args);
   ~Impl() {
     if (scene != nullptr) rtcReleaseScene(scene);
     if (device != nullptr) rtcReleaseDevice(device);
   }
 };
+
+// The intersect context of ResolveTie's query: Embree hands the context to
+// the filter, which records the best candidate and rejects every hit, so the
+// traversal goes on to the next.
+struct EmbreeScene::Impl::TieCollector {
+  RTCIntersectContext context;  // first member: the filter casts back
+  const EmbreeScene::Impl* impl = nullptr;
+  bool found = false;
+  float t = 0.0f;
+  uint32_t primitive = 0, triangle = 0;
+};
+
+void EmbreeScene::Impl::CollectTie(const RTCFilterFunctionNArguments* args) {
+  auto* collector = reinterpret_cast<TieCollector*>(const_cast<RTCIntersectContext*>(args->context));
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    args->valid[i] = 0;
+    const float t = RTCRayN_tfar(args->ray, args->N, i);
+    const uint32_t primitive = RTCHitN_primID(args->hit, args->N, i);
+    const uint32_t triangle =
+        collector->impl->Triangle(primitive, RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i));
+    bool better = !collector->found || t < collector->t;
+    if (collector->found && t == collector->t) {
+      better = primitive == collector->primitive ? triangle < collector->triangle
+                                                 : collector->impl->CornersBefore(primitive, collector->primitive);
+    }
+    if (better) {
+      collector->found = true;
+      collector->t = t;
+      collector->primitive = primitive;
+      collector->triangle = triangle;
+    }
+  }
+}
+
+bool EmbreeScene::Impl::ResolveTie(const float org[3], const float dir[3], float t_near, float t, float* t_out,
+                                   uint32_t* triangle_out) const {
+  TieCollector collector;
+  rtcInitIntersectContext(&collector.context);
+  collector.context.filter = CollectTie;
+  collector.impl = this;
+  const float slab = kTieSlab * std::max(1.0f, t / 1000.0f);
+  RTCRayHit query = Query(org, dir, std::max(t_near, t - slab), t + slab);
+  rtcIntersect1(scene, &collector.context, &query);
+  if (!collector.found) return false;
+  *t_out = collector.t;
+  *triangle_out = collector.triangle;
+  return true;
+}
 
 // RayPacket16 is Embree's RTCRayHit16, field by field.
 static_assert(sizeof(RayPacket16) == sizeof(RTCRayHit16));
@@ -95,7 +214,13 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
                                       : quality == BvhQuality::kHigh ? RTC_BUILD_QUALITY_HIGH
                                                                      : RTC_BUILD_QUALITY_MEDIUM;
   rtcSetSceneBuildQuality(impl_->scene, rtc_quality);
-  if (quality == BvhQuality::kLow) rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_COMPACT);
+  // Robust: watertight edges (without it 15 % of rays aimed exactly at
+  // shared edges and posts slipped through the terrain, embree_scene_test;
+  // it costs about 10 % of the raw primary-ray time, docs/performance.md).
+  // The context filter lets ResolveTie collect a ray's candidates; other
+  // queries pass none.
+  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST |
+                                     (quality == BvhQuality::kLow ? RTC_SCENE_FLAG_COMPACT : RTC_SCENE_FLAG_NONE));
   impl_->quads = quads;
   RTCGeometry geometry =
       rtcNewGeometry(impl_->device, impl_->quads ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -129,6 +254,8 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
   } else {
     std::memcpy(indices, mesh.triangles.data(), mesh.triangles.size() * 3 * sizeof(unsigned));
   }
+  impl_->vertices = vertices;
+  impl_->indices = indices;
   rtcCommitGeometry(geometry);
   rtcAttachGeometry(impl_->scene, geometry);
   rtcReleaseGeometry(geometry);
@@ -144,24 +271,14 @@ std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,
                                              float t_far) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
-  RTCRayHit query;
-  query.ray.org_x = origin.x();
-  query.ray.org_y = origin.y();
-  query.ray.org_z = origin.z();
-  query.ray.dir_x = direction.x();
-  query.ray.dir_y = direction.y();
-  query.ray.dir_z = direction.z();
-  query.ray.tnear = t_near;
-  query.ray.tfar = t_far;
-  query.ray.time = 0.0f;
-  query.ray.mask = std::numeric_limits<unsigned>::max();
-  query.ray.id = 0;
-  query.ray.flags = 0;
-  query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  query.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  const float org[3] = {origin.x(), origin.y(), origin.z()};
+  const float dir[3] = {direction.x(), direction.y(), direction.z()};
+  RTCRayHit query = Query(org, dir, t_near, t_far);
   rtcIntersect1(impl_->scene, &context, &query);
   if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-  return RayHit{query.ray.tfar, impl_->Triangle(query.hit.primID, query.hit.u, query.hit.v)};
+  RayHit hit{query.ray.tfar, impl_->Triangle(query.hit.primID, query.hit.u, query.hit.v)};
+  if (impl_->NearBorder(query.hit.u, query.hit.v)) impl_->ResolveTie(org, dir, t_near, hit.t, &hit.t, &hit.triangle);
+  return hit;
 }
 
 void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const {
@@ -181,9 +298,16 @@ void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coh
   }
   rtcIntersect16(valid, impl_->scene, &context, reinterpret_cast<RTCRayHit16*>(&packet));
   for (int k = 0; k < 16; ++k) {
-    packet.triangle[k] = packet.geometry[k] == RTC_INVALID_GEOMETRY_ID
-                             ? RayPacket16::kNoHit
-                             : impl_->Triangle(packet.triangle[k], packet.u[k], packet.v[k]);
+    if (packet.geometry[k] == RTC_INVALID_GEOMETRY_ID) {
+      packet.triangle[k] = RayPacket16::kNoHit;
+      continue;
+    }
+    packet.triangle[k] = impl_->Triangle(packet.triangle[k], packet.u[k], packet.v[k]);
+    if (impl_->NearBorder(packet.u[k], packet.v[k])) {
+      const float org[3] = {packet.org_x[k], packet.org_y[k], packet.org_z[k]};
+      const float dir[3] = {packet.dir_x[k], packet.dir_y[k], packet.dir_z[k]};
+      impl_->ResolveTie(org, dir, packet.tnear[k], packet.tfar[k], &packet.tfar[k], &packet.triangle[k]);
+    }
   }
 }
 

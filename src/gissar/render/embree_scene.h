@@ -69,7 +69,12 @@ class EmbreeScene {
 
   // First hit of the ray origin + t * direction, t in [t_near, t_far];
   // `direction` must be unit length. nullopt when the ray misses.
-  // Thread-safe.
+  // Thread-safe. Hits are watertight along shared edges (Embree's robust
+  // mode) and do not depend on the BVH: a ray through an edge or post shared
+  // by several primitives gets the nearest of them, exact ties going to the
+  // primitive first by its corners' coordinates, so two meshes holding the
+  // same primitives in any order (a DEM window and the whole DEM) give
+  // bitwise the same hit (embree_scene_test).
   std::optional<RayHit> Intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                                   float t_near, float t_far) const;
 
@@ -81,7 +86,8 @@ class EmbreeScene {
   // left alone), one rtcIntersect16 call; `coherent` tells Embree the rays
   // are coherent (neighbouring origins, near-parallel directions).
   // Embree requires `valid` and `packet` to be 64-byte aligned
-  // (alignas(64)); a misaligned argument fails a CHECK. Thread-safe.
+  // (alignas(64)); a misaligned argument fails a CHECK. Thread-safe. Ties
+  // are resolved as in Intersect.
   void Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const;
 
   // The quality the BVH was built with (never kAuto).
