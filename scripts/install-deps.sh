@@ -16,6 +16,9 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev   # tests and benchmarks
   libopencv-dev                                # image processing, features
   libfftw3-dev                                 # FFT
+  libopenblas0-serial                          # BLAS behind GDAL's thin-plate splines (GCP refinement):
+                                               # 2.3x faster product writing than the reference BLAS; serial,
+                                               # so it adds no threads to TBB's or a Dask worker's
   libgif-dev                                   # animated GIF (heading sequences)
   povray                                       # benchmarks: POV-Ray side by side (make bench)
   libssl-dev python3
