@@ -1115,13 +1115,24 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   metadata["GISSAR_RADIOMETRY"] = options.radiometry;
   metadata["GISSAR_TERRAIN"] = fs::absolute(options.scene.empty() ? options.dem : options.scene).string();
   metadata["GISSAR_VERSION"] = VersionString();
-  geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
+  // The bands are moved into the raster for the write and back afterwards
+  // (the caller may still read the image): no copies of full-size planes.
+  geo::FloatRaster raster{image.width, image.height, {}, {"total"}, metadata};
+  raster.bands.push_back(std::move(image.intensity));
   raster.band_unit = image::RadiometryUnit(options.db);
   const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
   for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-    raster.bands.push_back(image.bounce_layers[layer]);
+    raster.bands.push_back(std::move(image.bounce_layers[layer]));
     raster.band_names.push_back(layer_names[layer]);
   }
+  auto give_back_bands = [&] {
+    if (raster.bands.empty()) return;
+    image.intensity = std::move(raster.bands[0]);
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      image.bounce_layers[layer] = std::move(raster.bands[1 + layer]);
+    }
+    raster.bands.clear();
+  };
   raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
   raster.band_units.assign(raster.bands.size(), raster.band_unit);
   // NaN outside the imaged footprint (ApplySensorEffects), declared.
@@ -1146,7 +1157,13 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     georeference_record = {{"gcps", 0}, {"reason", e.what()}};
   }
   if (!contributions_csv.empty()) WriteContributions(contributions_csv, image.contributions, geometry);
-  geo::WriteFloatGeoTiff(tif, raster);
+  try {
+    geo::WriteFloatGeoTiff(tif, raster);
+  } catch (...) {
+    give_back_bands();
+    throw;
+  }
+  give_back_bands();
   if (options.coherent) {
     geo::Metadata slc_metadata = metadata;
     slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
