@@ -65,7 +65,8 @@ constexpr float kBorderParameter = 1.0f / 16384.0f;
 // few units in the last place (2 mm at 20 km).
 constexpr float kTieSlab = 0.05f;
 
-// One ray query over [t_near, t_far], no hit yet.
+// One ray query over [t_near, t_far], no hit yet (its .ray alone for
+// occlusion queries).
 RTCRayHit Query(const float org[3], const float dir[3], float t_near, float t_far) {
   RTCRayHit query;
   query.ray.org_x = org[0];
@@ -125,8 +126,8 @@ struct EmbreeScene::Impl {
   // exact ties going to the primitive (then the triangle of a quad) first in
   // CornersBefore order. Each primitive's intersection is a function of the
   // ray and its corners only, so the choice is the same for any BVH holding
-  // the primitives. False (outputs untouched) when nothing is collected.
-  bool ResolveTie(const float org[3], const float dir[3], float t_near, float t, float* t_out,
+  // the primitives. Outputs untouched when nothing is collected.
+  void ResolveTie(const float org[3], const float dir[3], float t_near, float t, float* t_out,
                   uint32_t* triangle_out) const;
   struct TieCollector;
   static void CollectTie(const RTCFilterFunctionNArguments* args);
@@ -170,7 +171,7 @@ void EmbreeScene::Impl::CollectTie(const RTCFilterFunctionNArguments* args) {
   }
 }
 
-bool EmbreeScene::Impl::ResolveTie(const float org[3], const float dir[3], float t_near, float t, float* t_out,
+void EmbreeScene::Impl::ResolveTie(const float org[3], const float dir[3], float t_near, float t, float* t_out,
                                    uint32_t* triangle_out) const {
   TieCollector collector;
   rtcInitIntersectContext(&collector.context);
@@ -179,10 +180,9 @@ bool EmbreeScene::Impl::ResolveTie(const float org[3], const float dir[3], float
   const float slab = kTieSlab * std::max(1.0f, t / 1000.0f);
   RTCRayHit query = Query(org, dir, std::max(t_near, t - slab), t + slab);
   rtcIntersect1(scene, &collector.context, &query);
-  if (!collector.found) return false;
+  if (!collector.found) return;
   *t_out = collector.t;
   *triangle_out = collector.triangle;
-  return true;
 }
 
 // RayPacket16 is Embree's RTCRayHit16, field by field.
@@ -315,19 +315,9 @@ bool EmbreeScene::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f&
                            float t_near, float t_far) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
-  RTCRay ray;
-  ray.org_x = origin.x();
-  ray.org_y = origin.y();
-  ray.org_z = origin.z();
-  ray.dir_x = direction.x();
-  ray.dir_y = direction.y();
-  ray.dir_z = direction.z();
-  ray.tnear = t_near;
-  ray.tfar = t_far;
-  ray.time = 0.0f;
-  ray.mask = std::numeric_limits<unsigned>::max();
-  ray.id = 0;
-  ray.flags = 0;
+  const float org[3] = {origin.x(), origin.y(), origin.z()};
+  const float dir[3] = {direction.x(), direction.y(), direction.z()};
+  RTCRay ray = Query(org, dir, t_near, t_far).ray;
   rtcOccluded1(impl_->scene, &context, &ray);
   return ray.tfar == -std::numeric_limits<float>::infinity();
 }
