@@ -12,18 +12,36 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     auto o = std::make_shared<LocateRequest>();
     CLI::App* cmd = root.add_subcommand(
         "locate", "Pose fix from one SAR image: match to simulated SAR at the INS prior, resect, iterate.");
-    cmd->add_option("--image", o->image, "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)")->required();
+    cmd->add_option("--image", o->image, "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)");
+    cmd->add_option("--product", o->product,
+                    "Or a real RSLC product (HDF5): fix its own track from a displaced prior (docs/navigation.md)");
+    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
+    cmd->add_option("--polarization", o->polarization, "Product layer (HH, HV, VH, VV)")->capture_default_str();
+    cmd->add_option("--prior-offset-track", o->prior_offset_track,
+                    "With --product: prior = annotated track moved ALONG,CROSS,UP metres (mid-scene velocity frame)")
+        ->delimiter(',')->expected(3)->capture_default_str();
+    cmd->add_option("--prior-heading-offset", o->prior_heading_offset_deg,
+                    "With --product: and turned by this many degrees (clockwise)")->capture_default_str();
+    cmd->add_option("--prior-sigma-horizontal", o->prior_sigma_horizontal_m,
+                    "With --product: INS one-sigma horizontal error, m")->capture_default_str();
+    cmd->add_option("--prior-sigma-vertical", o->prior_sigma_vertical_m,
+                    "With --product: INS one-sigma vertical error, m")->capture_default_str();
+    cmd->add_option("--prior-sigma-heading", o->prior_sigma_heading_deg,
+                    "With --product: INS one-sigma track-angle error, deg")->capture_default_str();
+    cmd->add_option("--looks-range", o->looks_range, "With --product: range looks of the multilook")->capture_default_str();
+    cmd->add_option("--looks-azimuth", o->looks_azimuth, "With --product: azimuth looks of the multilook")->capture_default_str();
+    cmd->add_option("--dem-oversample", o->dem_oversample, "Refine the DEM N x by cubic interpolation")->capture_default_str();
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
     cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
-    cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md)")->required();
+    cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md; with --image)");
     cmd->add_option("--out", o->out, "Output prefix: PREFIX.json (the fix)")->required();
     cmd->add_option("--composite", o->composite_png,
                     "PNG: observed (green) over simulated (magenta) at the prior and at the fix");
     cmd->add_option("--range-spacing", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
     cmd->add_option("--azimuth-spacing", o->azimuth_spacing_m, "Azimuth pixel spacing, m (default: image metadata)");
     cmd->add_option("--look", o->look, "right or left (default: image metadata, else right)");
-    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features")->capture_default_str();
+    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features (--product: ncc, gradient, phase or mi)")->capture_default_str();
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (prior uncertainty)")->capture_default_str();
     cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
@@ -45,6 +63,13 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
     cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
+    cmd->add_option("--product", o->product,
+                    "A real RSLC product (HDF5): trials displace its annotated track (docs/navigation.md)");
+    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
+    cmd->add_option("--polarization", o->polarization, "Product layer (HH, HV, VH, VV)")->capture_default_str();
+    cmd->add_option("--looks-range", o->looks_range, "With --product: range looks of the multilook")->capture_default_str();
+    cmd->add_option("--looks-azimuth", o->looks_azimuth, "With --product: azimuth looks of the multilook")->capture_default_str();
+    cmd->add_option("--dem-oversample", o->dem_oversample, "Refine the DEM N x by cubic interpolation")->capture_default_str();
     cmd->add_option("--trials", o->trials, "Trials")->capture_default_str();
     cmd->add_option("--seed", o->seed, "Seed")->capture_default_str();
     cmd->add_option("--trial-first", o->trial_first,
@@ -60,12 +85,12 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--nesz", o->nesz_db, "Thermal noise of the observed image, dB")->capture_default_str();
     cmd->add_option("--material-db", o->material_db, "Material mismatch, +- dB per class")->capture_default_str();
     cmd->add_option("--dem-smoothing", o->dem_smoothing, "Laplacian weight of the observed terrain heights")->capture_default_str();
-    cmd->add_option("--prior-error-horizontal", o->prior_error_horizontal_m, "INS drift, +- m per horizontal axis")->capture_default_str();
-    cmd->add_option("--prior-error-vertical", o->prior_error_vertical_m, "INS drift, +- m vertical")->capture_default_str();
-    cmd->add_option("--prior-error-heading", o->prior_error_heading_deg, "INS heading drift, +- deg")->capture_default_str();
+    cmd->add_option("--prior-error-horizontal", o->prior_error_horizontal_m, "INS drift, +- m per horizontal axis (negative: 200, or the product footprint / 8)")->capture_default_str();
+    cmd->add_option("--prior-error-vertical", o->prior_error_vertical_m, "INS drift, +- m vertical (negative: 50, or the horizontal / 8)")->capture_default_str();
+    cmd->add_option("--prior-error-heading", o->prior_error_heading_deg, "INS heading drift, +- deg (negative: 3, or 0.05 on a product)")->capture_default_str();
     cmd->add_option("--success-cells", o->success_cells, "Success: position error at most this many cells")->capture_default_str();
     cmd->add_option("--success-heading-deg", o->success_heading_deg, "Success: and heading error at most this, deg")->capture_default_str();
-    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features")->capture_default_str();
+    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features (--product: ncc, gradient, phase or mi)")->capture_default_str();
     cmd->add_flag("--no-compare", *no_compare, "Skip the per-trial matcher comparison");
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (0 = from the prior errors)")->capture_default_str();
     cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
@@ -80,7 +105,8 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
       r.compare_matchers = !*no_compare;
       r.reference_floor = !*no_floor;
       RunEvaluate(r, context.command_line, context.reporter);
-      context.out << r.out_prefix << ".json\n" << r.out_prefix << "_trials.csv\n" << r.out_prefix << "_hist.png\n";
+      context.out << r.out_prefix << ".json\n" << r.out_prefix << "_trials.csv\n";
+      if (r.product.empty()) context.out << r.out_prefix << "_hist.png\n";
     });
   }
   {

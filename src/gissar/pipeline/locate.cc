@@ -1,4 +1,6 @@
 #include "gissar/pipeline/locate.h"
+#include "gissar/nav/product_locate.h"
+#include "gissar/pipeline/product_locate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -106,6 +108,15 @@ void CheckSceneOrDem(const std::string& scene, const std::string& dem, const std
   geo::CanonicalVerticalDatum(vertical_datum, "--vertical-datum");
 }
 
+// The options of a product fix (LocateRequest/EvaluateRequest::product).
+void CheckProductOptions(const std::string& frequency, int looks_range, int looks_azimuth, int dem_oversample) {
+  if (frequency != "A" && frequency != "B") throw ConfigError("must be A or B", "--frequency");
+  if (looks_range < 1 || looks_range > 64 || looks_azimuth < 1 || looks_azimuth > 64) {
+    throw ConfigError("must be in [1, 64]", "--looks-range/--looks-azimuth");
+  }
+  if (dem_oversample < 1 || dem_oversample > 16) throw ConfigError("must be in [1, 16]", "--dem-oversample");
+}
+
 // Error histogram (position error in resolution cells) as an RGB PNG.
 void WriteHistogram(const fs::path& path, const std::vector<double>& cells, double success_cells,
                     const std::string& title) {
@@ -201,6 +212,29 @@ double MetadataNumber(const std::string& text, const std::string& key, const std
 
 void LocateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
+  if (!product.empty()) {
+    if (!image.empty()) throw ConfigError("give --product or --image, not both", "--product/--image");
+    if (!prior.empty()) {
+      throw ConfigError("a product's prior is its own track moved by --prior-offset-track and --prior-heading-offset",
+                        "--product/--prior");
+    }
+    CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample);
+    if (prior_offset_track.size() != 3 ||
+        !std::all_of(prior_offset_track.begin(), prior_offset_track.end(), [](double v) { return std::isfinite(v); })) {
+      throw ConfigError("needs ALONG,CROSS,UP in metres", "--prior-offset-track");
+    }
+    if (!std::isfinite(prior_heading_offset_deg) || std::abs(prior_heading_offset_deg) > 30.0) {
+      throw ConfigError("must be in [-30, 30] deg", "--prior-heading-offset");
+    }
+    if (!(prior_sigma_horizontal_m > 0 && prior_sigma_vertical_m > 0 && prior_sigma_heading_deg > 0)) {
+      throw ConfigError("must be > 0", "--prior-sigma-horizontal/--prior-sigma-vertical/--prior-sigma-heading");
+    }
+    if (out.empty()) throw ConfigError("required", "--out");
+    nav::ParseShiftMatcher(matcher, "--matcher");
+    if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
+    CheckOutputsAreNotInputs({out, composite_png}, {product, scene, dem});
+    return;
+  }
   if (image.empty()) throw ConfigError("required", "--image");
   if (prior.empty()) throw ConfigError("required", "--prior");
   if (out.empty()) throw ConfigError("required", "--out");
@@ -214,6 +248,7 @@ void LocateRequest::Check() const {
 }
 
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
+  if (!options.product.empty()) return RunProductLocate(options, command_line, reporter);
   options.Check();
   Stopwatch total;
   AtomicOutputs outputs;
@@ -352,10 +387,18 @@ void EvaluateRequest::Check() const {
   if (!(dem_smoothing >= 0 && dem_smoothing <= 1)) throw ConfigError("must be in [0, 1]", "--dem-smoothing");
   if (!(success_cells > 0)) throw ConfigError("must be > 0", "--success-cells");
   if (!(success_heading_deg > 0)) throw ConfigError("must be > 0", "--success-heading-deg");
-  if (!(prior_error_horizontal_m >= 0 && prior_error_vertical_m >= 0 && prior_error_heading_deg >= 0)) {
-    throw ConfigError("must be >= 0", "--prior-error-horizontal/--prior-error-vertical/--prior-error-heading");
+  for (double v : {prior_error_horizontal_m, prior_error_vertical_m, prior_error_heading_deg}) {
+    if (!std::isfinite(v)) {
+      throw ConfigError("must be finite (negative: automatic)",
+                        "--prior-error-horizontal/--prior-error-vertical/--prior-error-heading");
+    }
   }
-  nav::ParseMatcher(matcher, "--matcher");
+  if (!product.empty()) {
+    CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample);
+    nav::ParseShiftMatcher(matcher, "--matcher");
+  } else {
+    nav::ParseMatcher(matcher, "--matcher");
+  }
   if (search_px != 0 && (search_px < 5 || search_px > kMaxSearchPx)) {
     throw ConfigError("must be 0 (automatic) or in [5, 2048] px", "--search");
   }
@@ -379,7 +422,18 @@ nlohmann::json EvaluateRequest::ToJson() const {
           {"success_heading_deg", success_heading_deg}, {"matcher", matcher}, {"compare_matchers", compare_matchers},
           {"search_px", search_px}, {"step_px", step_px}, {"polish_evaluations", polish_evaluations},
           {"bounces", bounces}, {"rays_per_cell", rays_per_cell}, {"reference_floor", reference_floor},
-          {"trial_first", trial_first}, {"trial_count", trial_count}};
+          {"trial_first", trial_first}, {"trial_count", trial_count}, {"product", product},
+          {"frequency", frequency}, {"polarization", polarization}, {"looks_range", looks_range},
+          {"looks_azimuth", looks_azimuth}, {"dem_oversample", dem_oversample}};
+}
+
+EvaluateRequest EvaluateRequest::Resolved() const {
+  EvaluateRequest r = *this;
+  if (!product.empty()) return r;
+  if (r.prior_error_horizontal_m < 0) r.prior_error_horizontal_m = 200.0;
+  if (r.prior_error_vertical_m < 0) r.prior_error_vertical_m = 50.0;
+  if (r.prior_error_heading_deg < 0) r.prior_error_heading_deg = 3.0;
+  return r;
 }
 
 void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
@@ -425,6 +479,12 @@ void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "reference_floor") set(reference_floor);
     else if (key == "trial_first") set(trial_first);
     else if (key == "trial_count") set(trial_count);
+    else if (key == "product") set(product);
+    else if (key == "frequency") set(frequency);
+    else if (key == "polarization") set(polarization);
+    else if (key == "looks_range") set(looks_range);
+    else if (key == "looks_azimuth") set(looks_azimuth);
+    else if (key == "dem_oversample") set(dem_oversample);
     else throw ConfigError("unknown key '" + key + "'", source);
   }
 }
@@ -649,8 +709,12 @@ std::vector<nlohmann::json> SortedRecords(const std::vector<nlohmann::json>& rec
 
 }  // namespace
 
-std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& options, Reporter& reporter) {
-  options.Check();
+std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& requested, Reporter& reporter) {
+  requested.Check();
+  if (!requested.product.empty()) {
+    throw ConfigError("a product's trials run in one process (gissar evaluate --product)", "--product");
+  }
+  const EvaluateRequest options = requested.Resolved();
   const EvaluateSetup setup = PrepareEvaluation(options, reporter);
   std::vector<nlohmann::json> records;
   const int last = options.trial_count < 0 ? options.trials : options.trial_first + options.trial_count;
@@ -714,9 +778,10 @@ nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector
           {"matcher_comparison_first_iteration", matcher_json}};
 }
 
-nlohmann::json WriteEvaluation(const EvaluateRequest& options, const std::vector<nlohmann::json>& unsorted,
+nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vector<nlohmann::json>& unsorted,
                                const std::string& command_line, double seconds, const nlohmann::json& vertical_datum) {
-  options.Check();
+  requested.Check();
+  const EvaluateRequest options = requested.Resolved();
   AtomicOutputs outputs;
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");
   const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
@@ -767,6 +832,7 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& options, const std::vector
 }
 
 nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
+  if (!options.product.empty()) return RunProductEvaluate(options, command_line, reporter);
   options.Check();
   Stopwatch total;
   {

@@ -61,6 +61,25 @@ struct LocateRequest {
   int polish_evaluations = 0;
   int bounces = 1;
   double rays_per_cell = 4.0;
+  // A real product instead of --image/--prior (issue 23, docs/navigation.md
+  // "Real images"): the observed image is the RSLC's detected layer
+  // (frequency, polarization), multilooked looks_azimuth x looks_range; the
+  // prior is the product's own track moved by prior_offset_track (along,
+  // cross, up; metres, in the frame of the mid-scene velocity) and
+  // prior_heading_offset_deg; the references are simulated on the product's
+  // zero-Doppler grid; the fix is the track offset (nav/product_locate.h).
+  // prior_sigma_*: the INS's one-sigma errors (regularisation and search).
+  std::string product;
+  std::string frequency = "A";
+  std::string polarization = "HH";
+  std::vector<double> prior_offset_track = {0.0, 0.0, 0.0};
+  double prior_heading_offset_deg = 0.0;
+  double prior_sigma_horizontal_m = 60.0;
+  double prior_sigma_vertical_m = 10.0;
+  double prior_sigma_heading_deg = 0.05;
+  int looks_range = 3;
+  int looks_azimuth = 3;
+  int dem_oversample = 1;
   void Check() const;
 };
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
@@ -84,7 +103,9 @@ struct EvaluateRequest {
   double material_db = 3.0;     // +- per class diffuse/specular scale of the observed scene
   double dem_smoothing = 0.5;   // Laplacian weight on terrain vertex heights of the observed scene
   // INS prior errors, uniform +-: per horizontal axis, vertical, heading.
-  double prior_error_horizontal_m = 200.0, prior_error_vertical_m = 50.0, prior_error_heading_deg = 3.0;
+  // Negative = automatic: 200 m, 50 m, 3 deg on a scene; on a product
+  // (FootprintPriorErrors, product_locate.h) scaled to its footprint.
+  double prior_error_horizontal_m = -1.0, prior_error_vertical_m = -1.0, prior_error_heading_deg = -1.0;
   // Success (docs/conventions.md): converged, 3-D position error <= success_cells x cell and heading
   // error <= success_heading_deg.
   double success_cells = 2.0;
@@ -106,7 +127,22 @@ struct EvaluateRequest {
   // `trials`; trial_count -1 = the rest (by default: all of them).
   int trial_first = 0;
   int trial_count = -1;
+  // A real product instead of simulated observations (LocateRequest's
+  // product fields): each trial displaces the product's annotated track by a
+  // seeded prior error and fixes it (RunProductEvaluate). The image-shape
+  // options (spacing, size, slant range, depression, looks, nesz, material,
+  // smoothing) do not apply.
+  std::string product;
+  std::string frequency = "A";
+  std::string polarization = "HH";
+  int looks_range = 3;
+  int looks_azimuth = 3;
+  int dem_oversample = 1;
   void Check() const;
+  // The request with automatic (negative) prior errors replaced by the
+  // scene defaults (200 m, 50 m, 3 deg); product requests are returned as
+  // they are (RunProductEvaluate resolves them from the footprint).
+  EvaluateRequest Resolved() const;
   // {snake_case field: value} and back (the Python keywords; unknown key or
   // wrong type: ConfigError naming `source`). ApplyJson(ToJson()) is the identity.
   nlohmann::json ToJson() const;

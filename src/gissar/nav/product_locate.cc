@@ -1,0 +1,524 @@
+#include "gissar/nav/product_locate.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
+
+#include "gissar/mvg/registration.h"
+#include "gissar/render/product_renderer.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+
+namespace gissar::nav {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+// Side lobes: the best correlation further than this from the peak (pixels).
+constexpr int kPeakExclusionPx = 3;
+// Resection residuals below 3 x this (multilooked pixels) are never outliers.
+constexpr double kOutlierFloorPx = 0.5;
+// At a fix the NCC of the image with the last reference peaks within this
+// many multilooked pixels of zero shift (whatever the matcher).
+constexpr double kMaxNccShiftAtFixPx = 1.0;
+
+// Geodetic up at an ECEF point.
+Eigen::Vector3d GeodeticUp(const Eigen::Vector3d& ecef) {
+  const Eigen::Vector3d llh = geo::LocalFrame::GeodeticFromEcef(ecef);
+  const double lon = llh[0] * kDeg, lat = llh[1] * kDeg;
+  return {std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat)};
+}
+
+// One control point: a ground point (ECEF) and the zero-Doppler time and
+// slant range at which the observed image shows it.
+struct ControlPoint {
+  Eigen::Vector3d ground_ecef;
+  double time_s = 0.0;
+  double range_m = 0.0;
+};
+
+// The MAP resection of the track offset from control points (see the header).
+struct Resection {
+  Eigen::Vector4d theta = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
+  std::vector<int> used;  // indices of the control points kept
+  double rms_px = 0.0;
+};
+
+class TrackResection {
+ public:
+  TrackResection(const TrackVectors& prior, const TrackFrame& frame, const sensor::RadarGrid& grid,
+                 const std::vector<ControlPoint>& points, const ProductLocateOptions& options, double point_sigma_px)
+      : prior_(prior), frame_(frame), grid_(grid), points_(points), options_(options), point_sigma_px_(point_sigma_px) {}
+
+  // Residuals (time, range) in multilooked pixels of the points in `used`;
+  // nullopt when geo2rdr fails for one of them.
+  std::optional<Eigen::VectorXd> Residuals(const Eigen::Vector4d& theta, const std::vector<int>& used) const {
+    const sensor::Orbit orbit = DisplaceTrack(prior_, frame_, TrackOffset::FromVector(theta)).ToOrbit();
+    Eigen::VectorXd r(2 * used.size());
+    for (size_t k = 0; k < used.size(); ++k) {
+      const ControlPoint& p = points_[used[k]];
+      const auto rc = sensor::Geo2Rdr(orbit, p.ground_ecef, p.time_s);
+      if (!rc) return std::nullopt;
+      r[2 * k] = (rc->time_s - p.time_s) / grid_.dt_s;
+      r[2 * k + 1] = (rc->range_m - p.range_m) / grid_.dr_m;
+    }
+    return r;
+  }
+
+  std::optional<Resection> Solve(const Eigen::Vector4d& start) const {
+    Resection out;
+    out.theta = start;
+    for (int i = 0; i < static_cast<int>(points_.size()); ++i) out.used.push_back(i);
+    const Eigen::Vector4d sigma = options_.prior_sigma.AsVector();
+    const Eigen::Vector4d step(0.5, 0.5, 0.5, 0.002);
+    const double w = 1.0 / point_sigma_px_;
+    Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
+    for (int round = 0; round < 3; ++round) {
+      for (int gn = 0; gn < 8; ++gn) {
+        const auto r0 = Residuals(out.theta, out.used);
+        if (!r0) return std::nullopt;
+        Eigen::MatrixXd jac(r0->size(), 4);
+        for (int k = 0; k < 4; ++k) {
+          Eigen::Vector4d t = out.theta;
+          t[k] += step[k];
+          const auto rk = Residuals(t, out.used);
+          if (!rk) return std::nullopt;
+          jac.col(k) = (*rk - *r0) / step[k];
+        }
+        normal = w * w * jac.transpose() * jac;
+        Eigen::Vector4d rhs = -w * w * jac.transpose() * *r0;
+        for (int k = 0; k < 4; ++k) {
+          normal(k, k) += 1.0 / (sigma[k] * sigma[k]);
+          rhs[k] -= out.theta[k] / (sigma[k] * sigma[k]);
+        }
+        const Eigen::Vector4d delta = normal.ldlt().solve(rhs);
+        out.theta += delta;
+        if (std::abs(delta[0]) + std::abs(delta[1]) + std::abs(delta[2]) < 1e-3 && std::abs(delta[3]) < 1e-6) break;
+      }
+      // Drop points whose residual exceeds 3 x max(match sigma, RMS) and solve again.
+      const auto r = Residuals(out.theta, out.used);
+      if (!r) return std::nullopt;
+      double sum = 0.0;
+      for (size_t k = 0; k < out.used.size(); ++k) sum += (*r)[2 * k] * (*r)[2 * k] + (*r)[2 * k + 1] * (*r)[2 * k + 1];
+      out.rms_px = std::sqrt(sum / std::max<size_t>(1, out.used.size()));
+      const double limit = 3.0 * std::max(kOutlierFloorPx, out.rms_px);
+      std::vector<int> kept;
+      for (size_t k = 0; k < out.used.size(); ++k) {
+        if (std::hypot((*r)[2 * k], (*r)[2 * k + 1]) <= limit) kept.push_back(out.used[k]);
+      }
+      if (kept.size() == out.used.size() || kept.size() < 4) break;
+      out.used = kept;
+    }
+    // Covariance: the inverse normal matrix, with the match sigma raised to
+    // the residual RMS when the matches scatter more than assumed.
+    const double scale = 1.0;  // the points share one shift measurement: its sigma is the error model
+    Eigen::Matrix4d data = normal;
+    const Eigen::Vector4d sigma2 = sigma.cwiseProduct(sigma);
+    for (int k = 0; k < 4; ++k) data(k, k) -= 1.0 / sigma2[k];
+    Eigen::Matrix4d scaled = data / scale;
+    for (int k = 0; k < 4; ++k) scaled(k, k) += 1.0 / sigma2[k];
+    out.covariance = scaled.inverse();
+    return out;
+  }
+
+ private:
+  const TrackVectors& prior_;
+  const TrackFrame& frame_;
+  const sensor::RadarGrid& grid_;
+  const std::vector<ControlPoint>& points_;
+  const ProductLocateOptions& options_;
+  double point_sigma_px_;
+};
+
+// Parabolic sub-pixel offset of a peak from its two neighbours.
+double ParabolicOffset(double left, double centre, double right) {
+  const double denominator = left - 2.0 * centre + right;
+  if (!(std::abs(denominator) > 1e-12)) return 0.0;
+  return std::clamp(0.5 * (left - right) / denominator, -0.5, 0.5);
+}
+
+cv::Mat GradientMagnitude(const cv::Mat& log_image) {
+  cv::Mat smooth, gx, gy, magnitude;
+  cv::GaussianBlur(log_image, smooth, cv::Size(3, 3), 0.0);
+  cv::Sobel(smooth, gx, CV_32F, 1, 0);
+  cv::Sobel(smooth, gy, CV_32F, 0, 1);
+  cv::magnitude(gx, gy, magnitude);
+  return magnitude;
+}
+
+// Quantises an image to `levels` equally populated levels (CV_8U).
+cv::Mat Quantise(const cv::Mat& image, int levels) {
+  std::vector<float> values(image.begin<float>(), image.end<float>());
+  std::sort(values.begin(), values.end());
+  std::vector<float> edges;
+  for (int k = 1; k < levels; ++k) edges.push_back(values[values.size() * k / levels]);
+  cv::Mat out(image.size(), CV_8U);
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      const float v = image.at<float>(y, x);
+      out.at<uint8_t>(y, x) = static_cast<uint8_t>(std::upper_bound(edges.begin(), edges.end(), v) - edges.begin());
+    }
+  return out;
+}
+
+cv::Mat MutualInformationScores(const cv::Mat& reference, const cv::Mat& observed) {
+  constexpr int kLevels = 16;
+  const cv::Mat ref_q = Quantise(reference, kLevels), obs_q = Quantise(observed, kLevels);
+  cv::Mat scores(reference.rows - observed.rows + 1, reference.cols - observed.cols + 1, CV_32F);
+  const double n = double(observed.rows) * observed.cols;
+  for (int v = 0; v < scores.rows; ++v)
+    for (int u = 0; u < scores.cols; ++u) {
+      std::array<double, kLevels * kLevels> joint{};
+      std::array<double, kLevels> pr{}, po{};
+      for (int y = 0; y < observed.rows; ++y) {
+        const uint8_t* o = obs_q.ptr<uint8_t>(y);
+        const uint8_t* r = ref_q.ptr<uint8_t>(y + v) + u;
+        for (int x = 0; x < observed.cols; ++x) joint[r[x] * kLevels + o[x]] += 1.0;
+      }
+      for (int a = 0; a < kLevels; ++a)
+        for (int b = 0; b < kLevels; ++b) pr[a] += joint[a * kLevels + b], po[b] += joint[a * kLevels + b];
+      double mi = 0.0;
+      for (int a = 0; a < kLevels; ++a)
+        for (int b = 0; b < kLevels; ++b) {
+          const double p = joint[a * kLevels + b];
+          if (p > 0) mi += p / n * std::log(p * n / (pr[a] * po[b]));
+        }
+      scores.at<float>(v, u) = static_cast<float>(mi);
+    }
+  return scores;
+}
+
+cv::Mat PhaseCorrelationScores(const cv::Mat& reference, const cv::Mat& observed) {
+  const int h = cv::getOptimalDFTSize(reference.rows + observed.rows);
+  const int w = cv::getOptimalDFTSize(reference.cols + observed.cols);
+  cv::Mat ref_pad(h, w, CV_32F, cv::Scalar(0)), obs_pad(h, w, CV_32F, cv::Scalar(0));
+  cv::Mat(reference - cv::mean(reference)[0]).copyTo(ref_pad(cv::Rect(0, 0, reference.cols, reference.rows)));
+  cv::Mat(observed - cv::mean(observed)[0]).copyTo(obs_pad(cv::Rect(0, 0, observed.cols, observed.rows)));
+  cv::Mat fr, fo, cross;
+  cv::dft(ref_pad, fr, cv::DFT_COMPLEX_OUTPUT);
+  cv::dft(obs_pad, fo, cv::DFT_COMPLEX_OUTPUT);
+  cv::mulSpectrums(fr, fo, cross, 0, /*conjB=*/true);
+  std::vector<cv::Mat> planes;
+  cv::split(cross, planes);
+  cv::Mat magnitude;
+  cv::magnitude(planes[0], planes[1], magnitude);
+  magnitude += 1e-12f;
+  planes[0] /= magnitude;
+  planes[1] /= magnitude;
+  cv::merge(planes, cross);
+  cv::Mat correlation;
+  cv::idft(cross, correlation, cv::DFT_REAL_OUTPUT | cv::DFT_SCALE);
+  return correlation(cv::Rect(0, 0, reference.cols - observed.cols + 1, reference.rows - observed.rows + 1)).clone();
+}
+
+}  // namespace
+
+ShiftMatcher ParseShiftMatcher(const std::string& text, const std::string& option) {
+  if (text == "ncc") return ShiftMatcher::kNcc;
+  if (text == "gradient") return ShiftMatcher::kGradient;
+  if (text == "phase") return ShiftMatcher::kPhase;
+  if (text == "mi") return ShiftMatcher::kMutualInformation;
+  throw ConfigError("unknown matcher '" + text + "' for a product (ncc, gradient, phase, mi)", option);
+}
+
+std::string ToString(ShiftMatcher matcher) {
+  switch (matcher) {
+    case ShiftMatcher::kNcc: return "ncc";
+    case ShiftMatcher::kGradient: return "gradient";
+    case ShiftMatcher::kPhase: return "phase";
+    case ShiftMatcher::kMutualInformation: return "mi";
+  }
+  return "ncc";
+}
+
+cv::Mat ShiftScores(ShiftMatcher matcher, const cv::Mat& reference, const cv::Mat& observed) {
+  if (reference.type() != CV_32F || observed.type() != CV_32F || reference.rows < observed.rows ||
+      reference.cols < observed.cols) {
+    throw InputError("the reference must be a CV_32F image at least as large as the observed one", "nav::ShiftScores");
+  }
+  cv::Mat scores;
+  switch (matcher) {
+    case ShiftMatcher::kNcc:
+      cv::matchTemplate(reference, observed, scores, cv::TM_CCOEFF_NORMED);
+      return scores;
+    case ShiftMatcher::kGradient:
+      cv::matchTemplate(GradientMagnitude(reference), GradientMagnitude(observed), scores, cv::TM_CCOEFF_NORMED);
+      return scores;
+    case ShiftMatcher::kPhase: return PhaseCorrelationScores(reference, observed);
+    case ShiftMatcher::kMutualInformation: return MutualInformationScores(reference, observed);
+  }
+  return scores;
+}
+
+void ProductLocateOptions::Check() const {
+  auto need = [](bool ok, const char* field) {
+    if (!ok) throw ConfigError("out of range", std::string("ProductLocateOptions::") + field);
+  };
+  need(looks_range >= 1 && looks_range <= 64, "looks_range");
+  need(looks_azimuth >= 1 && looks_azimuth <= 64, "looks_azimuth");
+  need(filter_px >= 1 && filter_px <= 15, "filter_px");
+  const Eigen::Vector4d s = prior_sigma.AsVector();
+  need(s.minCoeff() > 0.0 && s.allFinite(), "prior_sigma");
+  need(search_sigmas > 0.0 && search_sigmas <= 10.0, "search_sigmas");
+  need(refine_search_px >= 1 && refine_search_px <= 32, "refine_search_px");
+  need(max_iterations >= 1 && max_iterations <= 20, "max_iterations");
+  need(max_rms_px > 0.0, "max_rms_px");
+  need(shift_sigma_px > 0.0, "shift_sigma_px");
+  need(min_peak_margin >= 0.0, "min_peak_margin");
+  need(min_peak_ncc >= 0.0 && min_peak_ncc < 1.0, "min_peak_ncc");
+  need(reference_floor > 0.0, "reference_floor");
+}
+
+TrackFrame TrackFrameAt(const sensor::Orbit& orbit, double time_s) {
+  const sensor::OrbitState s = orbit.Interpolate(time_s);
+  TrackFrame f;
+  f.time_s = time_s;
+  f.origin_ecef = s.position_m;
+  f.up = GeodeticUp(s.position_m);
+  f.along = (s.velocity_mps - s.velocity_mps.dot(f.up) * f.up).normalized();
+  f.cross = f.along.cross(f.up);
+  return f;
+}
+
+TrackVectors DisplaceTrack(const TrackVectors& track, const TrackFrame& frame, const TrackOffset& offset) {
+  const Eigen::Matrix3d rot = Eigen::AngleAxisd(-offset.heading_deg * kDeg, frame.up).toRotationMatrix();
+  const Eigen::Vector3d shift = offset.along_m * frame.along + offset.cross_m * frame.cross + offset.up_m * frame.up;
+  TrackVectors out;
+  out.time_s = track.time_s;
+  out.position_m.reserve(track.position_m.size());
+  out.velocity_mps.reserve(track.velocity_mps.size());
+  for (size_t i = 0; i < track.time_s.size(); ++i) {
+    out.position_m.push_back(frame.origin_ecef + rot * (track.position_m[i] - frame.origin_ecef) + shift);
+    out.velocity_mps.push_back(rot * track.velocity_mps[i]);
+  }
+  return out;
+}
+
+double TrackAngleDeg(const sensor::Orbit& orbit, double time_s) {
+  const sensor::OrbitState s = orbit.Interpolate(time_s);
+  const Eigen::Vector3d llh = geo::LocalFrame::GeodeticFromEcef(s.position_m);
+  const double lon = llh[0] * kDeg, lat = llh[1] * kDeg;
+  const Eigen::Vector3d east(-std::sin(lon), std::cos(lon), 0.0);
+  const Eigen::Vector3d north(-std::sin(lat) * std::cos(lon), -std::sin(lat) * std::sin(lon), std::cos(lat));
+  double bearing = std::atan2(s.velocity_mps.dot(east), s.velocity_mps.dot(north)) / kDeg;
+  return bearing < 0.0 ? bearing + 360.0 : bearing;
+}
+
+std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols, int la, int lr) {
+  const int out_rows = rows / la, out_cols = cols / lr;
+  std::vector<float> out(size_t(out_rows) * out_cols, std::numeric_limits<float>::quiet_NaN());
+  for (int r = 0; r < out_rows; ++r)
+    for (int c = 0; c < out_cols; ++c) {
+      double sum = 0.0;
+      int n = 0;
+      for (int i = 0; i < la; ++i)
+        for (int j = 0; j < lr; ++j) {
+          const float v = image[size_t(r * la + i) * cols + (c * lr + j)];
+          if (std::isfinite(v)) sum += v, ++n;
+        }
+      if (n > 0) out[size_t(r) * out_cols + c] = static_cast<float>(sum / n);
+    }
+  return out;
+}
+
+sensor::RadarGrid MultilookGrid(const sensor::RadarGrid& grid, int la, int lr) {
+  sensor::RadarGrid g = grid;
+  g.t0_s = grid.t0_s + 0.5 * (la - 1) * grid.dt_s;
+  g.dt_s = grid.dt_s * la;
+  g.rows = grid.rows / la;
+  g.r0_m = grid.r0_m + 0.5 * (lr - 1) * grid.dr_m;
+  g.dr_m = grid.dr_m * lr;
+  g.cols = grid.cols / lr;
+  return g;
+}
+
+ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& frame,
+                                  const ProductObservation& observed, const TrackVectors& prior_track,
+                                  const ProductLocateOptions& options) {
+  options.Check();
+  const sensor::RadarGrid& full = observed.grid;
+  if (observed.intensity.size() != size_t(full.rows) * size_t(full.cols)) {
+    throw InputError("observed image is not rows x cols of its grid", "nav::LocateProduct");
+  }
+  const int la = options.looks_azimuth, lr = options.looks_range;
+  const sensor::RadarGrid grid = MultilookGrid(full, la, lr);
+  if (grid.rows < 12 || grid.cols < 12) {
+    throw ConfigError("the multilooked image has fewer than 12 lines or bins", "--looks");
+  }
+  Stopwatch clock;
+  ProductLocateResult result;
+  const int width = grid.cols, height = grid.rows;
+  std::vector<float> observed_ml = Multilook(observed.intensity, full.rows, full.cols, la, lr);
+  for (float& v : observed_ml) {
+    if (!std::isfinite(v)) v = 0.0f;
+  }
+  const cv::Mat observed_log = LogIntensity(observed_ml, width, height, options.filter_px);
+
+  const sensor::Orbit prior_orbit = prior_track.ToOrbit();
+  result.fix_time_s = grid.TimeOfRow(0.5 * (height - 1));
+  const TrackFrame track_frame = TrackFrameAt(prior_orbit, result.fix_time_s);
+  const sensor::OrbitState centre_state = prior_orbit.Interpolate(result.fix_time_s);
+  const double centre_range_m = grid.RangeOfCol(0.5 * (width - 1));
+  // Azimuth pixel on the ground (m): the velocity scaled to the ground's
+  // distance from the Earth's centre (about the aircraft speed; 0.88 x for a
+  // satellite in low orbit).
+  const double sensor_radius = centre_state.position_m.norm();
+  const double ground_radius = sensor_radius - centre_range_m * std::sin(30.0 * kDeg);
+  const double azimuth_m = grid.dt_s * centre_state.velocity_mps.norm() * ground_radius / sensor_radius;
+  result.cell_m = std::max(azimuth_m, grid.dr_m);
+
+  const Eigen::Vector4d sigma = options.prior_sigma.AsVector();
+  const double k = options.search_sigmas;
+  const int search_rows = static_cast<int>(
+      std::ceil(k * std::hypot(sigma[0], centre_range_m * sigma[3] * kDeg) / azimuth_m) + 3);
+  const int search_cols = static_cast<int>(std::ceil(k * std::hypot(sigma[1], sigma[2]) / grid.dr_m) + 3);
+
+  render::RenderOptions ro;
+  ro.rays_per_cell = scene.rays_per_cell;
+  ro.max_bounces = scene.bounces;
+  ro.wavelength_m = grid.wavelength_m;
+
+  Eigen::Vector4d theta = Eigen::Vector4d::Zero();
+  double last_update_px = std::numeric_limits<double>::infinity();
+  auto fail = [&](const std::string& why) {
+    result.converged = false;
+    result.failure_reason = why;
+  };
+  bool failed = false;
+  for (int it = 0; it < options.max_iterations && !failed; ++it) {
+    const TrackVectors track = DisplaceTrack(prior_track, track_frame, TrackOffset::FromVector(theta));
+    const sensor::Orbit orbit = track.ToOrbit();
+    const int pad_rows = it == 0 ? search_rows : options.refine_search_px;
+    const int pad_cols = it == 0 ? search_cols : options.refine_search_px;
+    sensor::RadarGrid ref_grid = grid;
+    ref_grid.t0_s -= pad_rows * grid.dt_s;
+    ref_grid.rows += 2 * pad_rows;
+    ref_grid.r0_m -= pad_cols * grid.dr_m;
+    ref_grid.cols += 2 * pad_cols;
+    if (ref_grid.r0_m <= 0.0) {
+      fail("the prior's search range reaches the sensor (prior sigmas too large for this image)");
+      break;
+    }
+    std::optional<render::ProductImage> ref;
+    try {
+      ref = render::RenderProduct(*scene.embree, *scene.mesh, *scene.materials, frame, orbit, ref_grid, ro);
+    } catch (const InputError& e) {
+      fail(std::string("no reference at this track: ") + e.what());
+      break;
+    }
+    ++result.renders;
+    result.iterations = it + 1;
+    const int rw = ref_grid.cols, rh = ref_grid.rows;
+    const cv::Mat ref_log = LogIntensity(ref->image.intensity, rw, rh, options.filter_px, options.reference_floor);
+    // Whole-image shift: the observed image slid over the padded reference;
+    // ncc(v, u) scores the observed pixel (x, y) on reference pixel (x + u, y + v).
+    cv::Mat ncc;
+    cv::matchTemplate(ref_log, observed_log, ncc, cv::TM_CCOEFF_NORMED);
+    // The shift: the peak of the chosen matcher's scores (sub-pixel by parabolas).
+    const cv::Mat scores = options.matcher == ShiftMatcher::kNcc ? ncc : ShiftScores(options.matcher, ref_log, observed_log);
+    cv::Point best;
+    double best_score = 0.0;
+    cv::minMaxLoc(scores, nullptr, &best_score, nullptr, &best);
+    auto at = [&](int y, int x) {
+      return double(scores.at<float>(std::clamp(y, 0, scores.rows - 1), std::clamp(x, 0, scores.cols - 1)));
+    };
+    const double u = best.x + ParabolicOffset(at(best.y, best.x - 1), best_score, at(best.y, best.x + 1));
+    const double v = best.y + ParabolicOffset(at(best.y - 1, best.x), best_score, at(best.y + 1, best.x));
+    // Whether the images correlate at all, from the NCC map: its peak, and
+    // the peak's margin over the side lobes.
+    cv::Point ncc_best;
+    double peak = 0.0;
+    cv::minMaxLoc(ncc, nullptr, &peak, nullptr, &ncc_best);
+    // The best score away from the peak (beyond the exclusion radius): a
+    // peak that does not stand out of its side lobes is no fix.
+    double second = -1.0;
+    for (int y = 0; y < ncc.rows; ++y)
+      for (int x = 0; x < ncc.cols; ++x) {
+        if (std::abs(x - ncc_best.x) <= kPeakExclusionPx && std::abs(y - ncc_best.y) <= kPeakExclusionPx) continue;
+        second = std::max(second, double(ncc.at<float>(y, x)));
+      }
+    const float zero_shift = ncc.at<float>(pad_rows, pad_cols);
+    if (it == 0) {
+      result.prior_similarity = zero_shift;
+      result.peak_ncc = peak;
+      result.peak_margin = second > -1.0 ? peak - second : std::numeric_limits<double>::quiet_NaN();
+      result.first_shift_px = {u - pad_cols, v - pad_rows};
+      if (peak < options.min_peak_ncc) {
+        fail("the real image does not correlate with the simulation (whole-image NCC peak " + std::to_string(peak) +
+             " < " + std::to_string(options.min_peak_ncc) + ")");
+        break;
+      }
+      if (second > -1.0 && peak - second < options.min_peak_margin) {
+        fail("the correlation peak is ambiguous (NCC " + std::to_string(peak) + ", best elsewhere " +
+             std::to_string(second) + ": the scene has too little relief or structure to match)");
+        break;
+      }
+    }
+    result.similarity = zero_shift;
+    result.ncc_shift_px = {double(ncc_best.x - pad_cols), double(ncc_best.y - pad_rows)};
+    // Control points: a grid of reference pixels with a ground point, where
+    // the shift puts them in the observed image. They carry one shift
+    // measurement together (their sigma is shift_sigma_px x sqrt(n)).
+    std::vector<ControlPoint> points;
+    const int grid_step = std::max(1, std::min(width, height) / 8);
+    for (int yo = grid_step / 2; yo < height; yo += grid_step)
+      for (int xo = grid_step / 2; xo < width; xo += grid_step) {
+        const int xr = xo + best.x, yr = yo + best.y;
+        const size_t p = size_t(yr) * rw + xr;
+        if (!std::isfinite(ref->height_m[p]) || (ref->image.mask[p] & render::kMaskLayover) != 0) continue;
+        ControlPoint cp;
+        cp.ground_ecef =
+            geo::LocalFrame::EcefFromGeodetic(ref->lon_deg_exact[p], ref->lat_deg_exact[p], ref->height_m[p]);
+        cp.time_s = grid.TimeOfRow(yr - v);
+        cp.range_m = grid.RangeOfCol(xr - u);
+        points.push_back(cp);
+      }
+    if (static_cast<int>(points.size()) < 4) {
+      fail("the reference has no ground points where the image matched");
+      break;
+    }
+    const TrackResection resection(prior_track, track_frame, grid, points, options,
+                                    options.shift_sigma_px * std::sqrt(double(points.size())));
+    const auto solved = resection.Solve(theta);
+    if (!solved) {
+      fail("geo2rdr failed for a matched ground point (it lies outside the orbit's span)");
+      break;
+    }
+    result.control_points = static_cast<int>(solved->used.size());
+    result.rms_px = solved->rms_px;
+    result.covariance = solved->covariance;
+    // The update in pixels: how far it moves the matched points' images.
+    const auto before = resection.Residuals(theta, solved->used);
+    const auto after = resection.Residuals(solved->theta, solved->used);
+    last_update_px = (before && after) ? std::sqrt((*after - *before).squaredNorm() / solved->used.size())
+                                       : std::numeric_limits<double>::infinity();
+    theta = solved->theta;
+    if (last_update_px < 0.1 && it > 0) break;
+  }
+  result.correction = TrackOffset::FromVector(theta);
+  result.track = DisplaceTrack(prior_track, track_frame, result.correction);
+  result.sensor_ecef = result.track.ToOrbit().Interpolate(result.fix_time_s).position_m;
+  if (result.failure_reason.empty()) {
+    if (result.rms_px > options.max_rms_px) {
+      fail("the image shift is not a track offset (resection RMS " + std::to_string(result.rms_px) + " px > " +
+           std::to_string(options.max_rms_px) + ")");
+    } else if (result.ncc_shift_px.cwiseAbs().maxCoeff() > kMaxNccShiftAtFixPx) {
+      fail("the fix does not explain the image: at the fix the whole-image NCC still peaks " +
+           std::to_string(result.ncc_shift_px.norm()) + " px away");
+    } else if (!(last_update_px < 0.5)) {
+      fail("the fix did not settle (last update " + std::to_string(last_update_px) + " px)");
+    } else {
+      result.converged = true;
+    }
+  }
+  result.seconds = clock.ElapsedSeconds();
+  return result;
+}
+
+}  // namespace gissar::nav

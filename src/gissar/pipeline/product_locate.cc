@@ -1,0 +1,367 @@
+#include "gissar/pipeline/product_locate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "gissar/geo/raster_io.h"
+#include "gissar/geo/rslc_product.h"
+#include "gissar/image/composite.h"
+#include "gissar/image/contact_sheet.h"
+#include "gissar/nav/product_locate.h"
+#include "gissar/pipeline/simulate.h"
+#include "gissar/render/embree_scene.h"
+#include "gissar/render/product_renderer.h"
+#include "gissar/util/atomic_output.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+#include "gissar/util/provenance.h"
+#include "gissar/util/utc_time.h"
+
+namespace gissar::pipeline {
+namespace fs = std::filesystem;
+namespace {
+
+// Everything a product fix needs, loaded once per command.
+struct ProductFix {
+  geo::RslcProduct product;
+  nav::ProductObservation observation;
+  nav::TrackVectors truth;  // the product's annotated track
+  Terrain terrain;
+  std::unique_ptr<render::EmbreeScene> embree;
+  nav::NavScene scene;
+};
+
+struct ProductInputs {
+  std::string product, frequency, polarization, scene, dem, vertical_datum;
+  int dem_oversample = 1;
+  double rays_per_cell = 4.0;
+  int bounces = 1;
+};
+
+std::unique_ptr<ProductFix> LoadProductFix(const ProductInputs& in, Reporter& reporter) {
+  auto fix = std::make_unique<ProductFix>();
+  geo::RslcReadOptions read;
+  read.frequency = in.frequency;
+  read.polarization = in.polarization;
+  read.read_amplitude = true;
+  fix->product = geo::ReadRslcProduct(in.product, read);
+  const geo::RslcProduct& p = fix->product;
+  sensor::RadarGrid& grid = fix->observation.grid;
+  grid.t0_s = p.zero_doppler_time_s.front();
+  grid.dt_s = p.azimuth_spacing_s();
+  grid.rows = p.rows();
+  grid.r0_m = p.slant_range_m.front();
+  grid.dr_m = p.range_spacing_m();
+  grid.cols = p.cols();
+  grid.look_side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
+  grid.wavelength_m = p.wavelength_m;
+  fix->observation.intensity.resize(p.amplitude.size());
+  for (size_t i = 0; i < p.amplitude.size(); ++i) fix->observation.intensity[i] = p.amplitude[i] * p.amplitude[i];
+  fix->truth = {p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps};
+  reporter.Info("locate: product " + std::to_string(p.rows()) + " lines x " + std::to_string(p.cols()) + " bins, " +
+                p.frequency + " " + p.polarization);
+  SimulateRequest terrain_options;
+  terrain_options.scene = in.scene;
+  terrain_options.dem = in.dem;
+  terrain_options.vertical_datum = in.vertical_datum;
+  terrain_options.dem_oversample = in.dem_oversample;
+  terrain_options.fill_nodata = true;
+  fix->terrain = LoadTerrain(terrain_options, reporter);
+  fix->embree = std::make_unique<render::EmbreeScene>(fix->terrain.mesh);
+  fix->scene = {&fix->terrain.mesh, fix->embree.get(), &fix->terrain.materials, in.rays_per_cell, in.bounces};
+  return fix;
+}
+
+nav::ProductLocateOptions LocateOptionsOf(const std::string& matcher, int looks_range, int looks_azimuth,
+                                          double sigma_horizontal_m, double sigma_vertical_m,
+                                          double sigma_heading_deg) {
+  nav::ProductLocateOptions o;
+  o.matcher = nav::ParseShiftMatcher(matcher, "--matcher");
+  o.looks_range = looks_range;
+  o.looks_azimuth = looks_azimuth;
+  o.prior_sigma = {sigma_horizontal_m, sigma_horizontal_m, sigma_vertical_m, sigma_heading_deg};
+  return o;
+}
+
+nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+// The fix's record: the fixed sensor position (ECEF, geodetic, ENU of the
+// scene frame) at the fix time, the correction and covariance, and its
+// error against the annotated track.
+nlohmann::json FixJson(const ProductFix& fix, const nav::ProductLocateResult& r, const nav::TrackVectors& prior) {
+  const double epoch = ParseUtcSeconds(fix.product.epoch_utc, fix.product.path + ": epoch");
+  const sensor::Orbit truth = fix.truth.ToOrbit();
+  const sensor::Orbit prior_orbit = prior.ToOrbit();
+  const sensor::Orbit fixed = r.track.ToOrbit();
+  const double t = r.fix_time_s;
+  const Eigen::Vector3d true_ecef = truth.Interpolate(t).position_m;
+  const Eigen::Vector3d prior_ecef = prior_orbit.Interpolate(t).position_m;
+  const nav::TrackFrame frame = nav::TrackFrameAt(truth, t);
+  const Eigen::Vector3d llh = geo::LocalFrame::GeodeticFromEcef(r.sensor_ecef);
+  const Eigen::Vector3d error = r.sensor_ecef - true_ecef;
+  const Eigen::Vector3d prior_error = prior_ecef - true_ecef;
+  auto heading_error = [&](const sensor::Orbit& o) {
+    double d = nav::TrackAngleDeg(o, t) - nav::TrackAngleDeg(truth, t);
+    return std::remainder(d, 360.0);
+  };
+  nlohmann::json covariance = nlohmann::json::array();
+  for (int i = 0; i < 4; ++i) {
+    covariance.push_back({r.covariance(i, 0), r.covariance(i, 1), r.covariance(i, 2), r.covariance(i, 3)});
+  }
+  return {
+      {"time_utc", FormatUtc(epoch + t)},
+      {"frame", {{"sensor_ecef_m", Vec(r.sensor_ecef)},
+                 {"sensor_lon_lat_height", Vec(llh)},
+                 {"sensor_enu_m", Vec(fix.terrain.frame.EnuFromGeodetic(llh[0], llh[1], llh[2]))},
+                 {"enu_origin_lon_lat_height", {fix.terrain.frame.origin_lon_deg(), fix.terrain.frame.origin_lat_deg(),
+                                                fix.terrain.frame.origin_height_m()}},
+                 {"track_angle_deg", nav::TrackAngleDeg(fixed, t)}}},
+      {"correction", {{"along_m", r.correction.along_m}, {"cross_m", r.correction.cross_m},
+                      {"up_m", r.correction.up_m}, {"heading_deg", r.correction.heading_deg}}},
+      {"covariance_along_cross_up_heading", covariance},
+      {"sigma_along_cross_up_heading", {std::sqrt(r.covariance(0, 0)), std::sqrt(r.covariance(1, 1)),
+                                        std::sqrt(r.covariance(2, 2)), std::sqrt(r.covariance(3, 3))}},
+      {"error_against_annotated_track",
+       {{"position_error_m", error.norm()},
+        {"along_cross_up_m", Vec(frame.Components(error))},
+        {"track_angle_error_deg", heading_error(fixed)},
+        {"prior_position_error_m", prior_error.norm()},
+        {"prior_along_cross_up_m", Vec(frame.Components(prior_error))},
+        {"prior_track_angle_error_deg", heading_error(prior_orbit)}}}};
+}
+
+nlohmann::json ResultJson(const nav::ProductLocateResult& r) {
+  return {{"converged", r.converged},
+          {"reason", r.converged ? nlohmann::json(nullptr) : nlohmann::json(r.failure_reason)},
+          {"iterations", r.iterations},
+          {"renders", r.renders},
+          {"control_points", r.control_points},
+          {"peak_margin", std::isfinite(r.peak_margin) ? nlohmann::json(r.peak_margin) : nlohmann::json(nullptr)},
+          {"resection_rms_px", r.rms_px},
+          {"peak_ncc", r.peak_ncc},
+          {"first_shift_range_azimuth_px", {r.first_shift_px.x(), r.first_shift_px.y()}},
+          {"ncc_shift_at_fix_range_azimuth_px", {r.ncc_shift_px.x(), r.ncc_shift_px.y()}},
+          {"similarity_ncc", r.similarity},
+          {"prior_similarity_ncc", r.prior_similarity},
+          {"cell_m", r.cell_m},
+          {"locate_seconds", r.seconds}};
+}
+
+// The prior track: the annotated track moved by the offset in its frame at
+// the image's centre time.
+nav::TrackVectors PriorTrack(const ProductFix& fix, const nav::TrackOffset& offset) {
+  const double t = fix.observation.grid.TimeOfRow(0.5 * (fix.observation.grid.rows - 1));
+  return nav::DisplaceTrack(fix.truth, nav::TrackFrameAt(fix.truth.ToOrbit(), t), offset);
+}
+
+std::vector<float> ReferenceIntensity(const ProductFix& fix, const nav::TrackVectors& track,
+                                      const sensor::RadarGrid& grid) {
+  render::RenderOptions ro;
+  ro.rays_per_cell = fix.scene.rays_per_cell;
+  ro.max_bounces = fix.scene.bounces;
+  ro.wavelength_m = grid.wavelength_m;
+  return render::RenderProduct(*fix.embree, fix.terrain.mesh, fix.terrain.materials, fix.terrain.frame,
+                               track.ToOrbit(), grid, ro)
+      .image.intensity;
+}
+
+}  // namespace
+
+PriorErrors FootprintPriorErrors(double along_m, double range_m) {
+  const double horizontal = std::min(along_m, range_m) / 8.0;
+  return {horizontal, horizontal / 8.0, 0.05};
+}
+
+nlohmann::json RunProductLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path out = outputs.Add(options.out);
+  const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
+  const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
+                                   options.dem, options.vertical_datum, options.dem_oversample,
+                                   options.rays_per_cell, options.bounces},
+                                  reporter);
+  const nav::TrackOffset offset{options.prior_offset_track[0], options.prior_offset_track[1],
+                                options.prior_offset_track[2], options.prior_heading_offset_deg};
+  const nav::TrackVectors prior = PriorTrack(*fix, offset);
+  const nav::ProductLocateOptions lo =
+      LocateOptionsOf(options.matcher, options.looks_range, options.looks_azimuth, options.prior_sigma_horizontal_m,
+                      options.prior_sigma_vertical_m, options.prior_sigma_heading_deg);
+  const nav::ProductLocateResult r = nav::LocateProduct(fix->scene, fix->terrain.frame, fix->observation, prior, lo);
+  reporter.Info(std::string("locate: ") + (r.converged ? "fix" : "no fix (" + r.failure_reason + ")") + ", " +
+                std::to_string(r.control_points) + " control points, " + std::to_string(r.renders) + " renders");
+  nlohmann::json report = {{"command", "locate"},
+                           {"command_line", command_line},
+                           {"version", VersionString()},
+                           {"created_utc", UtcTimestamp()},
+                           {"mode", "product"},
+                           {"fix", FixJson(*fix, r, prior)},
+                           {"prior_offset_track", {{"along_m", offset.along_m}, {"cross_m", offset.cross_m},
+                                                   {"up_m", offset.up_m}, {"heading_deg", offset.heading_deg}}},
+                           {"prior_sigma", {{"horizontal_m", options.prior_sigma_horizontal_m},
+                                            {"vertical_m", options.prior_sigma_vertical_m},
+                                            {"heading_deg", options.prior_sigma_heading_deg}}},
+                           {"looks_range", options.looks_range},
+                           {"looks_azimuth", options.looks_azimuth},
+                           {"frequency", fix->product.frequency},
+                           {"matcher", options.matcher},
+                           {"polarization", fix->product.polarization},
+                           {"seconds", total.ElapsedSeconds()},
+                           {"vertical_datum", VerticalDatumRecord(fix->terrain)},
+                           {"inputs", {{"product", InputFileRecord(options.product)},
+                                       {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}}};
+  report.update(ResultJson(r));
+  if (!composite.empty()) {
+    // Full-resolution grid; the real image box-filtered by the looks (speckle).
+    const sensor::RadarGrid& grid = fix->observation.grid;
+    cv::Mat observed_mat(grid.rows, grid.cols, CV_32F, const_cast<float*>(fix->observation.intensity.data()));
+    cv::Mat smoothed;
+    cv::blur(observed_mat, smoothed, cv::Size(options.looks_range, options.looks_azimuth));
+    const std::vector<float> observed(smoothed.begin<float>(), smoothed.end<float>());
+    const image::RgbImage picture = image::SideBySide(
+        {image::IntensityComposite(observed, ReferenceIntensity(*fix, prior, grid), grid.cols, grid.rows),
+         image::IntensityComposite(observed, ReferenceIntensity(*fix, r.track, grid), grid.cols, grid.rows)},
+        {"at the prior", "at the fix"});  // real green, simulated magenta
+    geo::WritePng(composite, picture.rgb, picture.width, picture.height, 3);
+    report["pictures"] = {options.composite_png};
+  }
+  WriteJsonFile(report, out);
+  outputs.Commit();
+  return report;
+}
+
+nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
+  const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
+                                   options.dem, options.vertical_datum, options.dem_oversample,
+                                   options.rays_per_cell, options.bounces},
+                                  reporter);
+  // Prior errors: given, or from the footprint of the multilooked image.
+  const sensor::RadarGrid& g = fix->observation.grid;
+  const sensor::Orbit truth = fix->truth.ToOrbit();
+  const double t_mid = g.TimeOfRow(0.5 * (g.rows - 1));
+  const double along_m = g.rows * g.dt_s * truth.Interpolate(t_mid).velocity_mps.norm();
+  const PriorErrors footprint = FootprintPriorErrors(along_m, g.cols * g.dr_m);
+  const double err_h = options.prior_error_horizontal_m >= 0 ? options.prior_error_horizontal_m : footprint.horizontal_m;
+  const double err_v = options.prior_error_vertical_m >= 0 ? options.prior_error_vertical_m : footprint.vertical_m;
+  const double err_psi = options.prior_error_heading_deg >= 0 ? options.prior_error_heading_deg : footprint.heading_deg;
+  // The fix's prior sigmas: those of a uniform +- bound (bound / sqrt 3), never below 1 m / 0.001 deg.
+  const nav::ProductLocateOptions lo = LocateOptionsOf(
+      options.matcher, options.looks_range, options.looks_azimuth, std::max(1.0, err_h / std::sqrt(3.0)),
+      std::max(1.0, err_v / std::sqrt(3.0)), std::max(1e-3, err_psi / std::sqrt(3.0)));
+
+  const int first = options.trial_first;
+  const int count = options.trial_count < 0 ? options.trials - first : options.trial_count;
+  std::vector<nlohmann::json> records;
+  std::vector<double> errors_m, errors_cells, seconds;
+  int successes = 0, converged = 0;
+  std::string csv = "trial,success,converged,position_error_m,position_error_cells,along_error_m,cross_error_m,"
+                    "up_error_m,track_angle_error_deg,prior_along_m,prior_cross_m,prior_up_m,prior_heading_deg,"
+                    "rms_px,peak_ncc,peak_margin,seconds,reason\n";
+  double cell_m = 0.0;
+  for (int k = first; k < first + count; ++k) {
+    std::mt19937_64 rng(options.seed * 1000003ULL + static_cast<uint64_t>(k));
+    std::uniform_real_distribution<double> uni(-1.0, 1.0);
+    const nav::TrackOffset offset{uni(rng) * err_h, uni(rng) * err_h, uni(rng) * err_v, uni(rng) * err_psi};
+    const nav::TrackVectors prior = PriorTrack(*fix, offset);
+    const nav::ProductLocateResult r = nav::LocateProduct(fix->scene, fix->terrain.frame, fix->observation, prior, lo);
+    const nlohmann::json fj = FixJson(*fix, r, prior);
+    const nlohmann::json& e = fj.at("error_against_annotated_track");
+    const double error_m = e.at("position_error_m").get<double>();
+    cell_m = r.cell_m;
+    const double cells = error_m / r.cell_m;
+    const bool success = r.converged && cells <= options.success_cells;
+    successes += success;
+    converged += r.converged;
+    errors_m.push_back(error_m);
+    errors_cells.push_back(cells);
+    seconds.push_back(r.seconds);
+    const auto acu = e.at("along_cross_up_m");
+    char row[512];
+    std::snprintf(row, sizeof row, "%d,%d,%d,%.3f,%.4f,%.3f,%.3f,%.3f,%.5f,%.3f,%.3f,%.3f,%.5f,%.4f,%.4f,%.4f,%.3f,", k,
+                  int(success), int(r.converged), error_m, cells, acu[0].get<double>(), acu[1].get<double>(),
+                  acu[2].get<double>(), e.at("track_angle_error_deg").get<double>(), offset.along_m, offset.cross_m,
+                  offset.up_m, offset.heading_deg, r.rms_px, r.peak_ncc, r.peak_margin, r.seconds);
+    csv += row + std::string("\"") + r.failure_reason + "\"\n";
+    reporter.Info("evaluate: trial " + std::to_string(k) + (success ? " success" : " failure") + ", error " +
+                  std::to_string(error_m) + " m (" + std::to_string(cells) + " cells)" +
+                  (r.converged ? "" : ", no fix: " + r.failure_reason));
+    nlohmann::json record = {{"trial", k}, {"success", success}, {"position_error_cells", cells}};
+    record.update(ResultJson(r));
+    record["fix"] = fj;
+    records.push_back(record);
+  }
+  auto percentile = [](std::vector<double> v, double q) {
+    if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, static_cast<size_t>(std::floor(q * (v.size() - 1) + 0.5)))];
+  };
+  const int n = static_cast<int>(records.size());
+  // The covariance checked against the Monte-Carlo spread (converged fixes):
+  // per axis the median one-sigma the fix states, the standard deviation of
+  // the errors and their RMS about the truth (which includes any bias).
+  nlohmann::json spread = nlohmann::json::object();
+  const char* axes[] = {"along_m", "cross_m", "up_m"};
+  for (int a = 0; a < 3; ++a) {
+    std::vector<double> sigmas, errors;
+    for (const nlohmann::json& r : records) {
+      if (!r.at("converged").get<bool>()) continue;
+      sigmas.push_back(r.at("fix").at("sigma_along_cross_up_heading")[a].get<double>());
+      errors.push_back(r.at("fix").at("error_against_annotated_track").at("along_cross_up_m")[a].get<double>());
+    }
+    double mean = 0.0, rms = 0.0, var = 0.0;
+    for (double e : errors) mean += e / std::max<size_t>(1, errors.size()), rms += e * e / std::max<size_t>(1, errors.size());
+    for (double e : errors) var += (e - mean) * (e - mean) / std::max<size_t>(1, errors.size());
+    spread[axes[a]] = {{"stated_sigma_median", percentile(sigmas, 0.5)}, {"error_mean", mean},
+                       {"error_sd", std::sqrt(var)}, {"error_rms", std::sqrt(rms)}};
+  }
+  nlohmann::json summary = {
+      {"command", "evaluate"},
+      {"mode", "product"},
+      {"command_line", command_line},
+      {"version", VersionString()},
+      {"created_utc", UtcTimestamp()},
+      {"trials", n},
+      {"seed", options.seed},
+      {"success_definition", "converged and 3-D sensor position error at the fix time <= success_cells cells "
+                             "(cell = the larger pixel spacing after multilook; zero-Doppler product: position only)"},
+      {"success_cells", options.success_cells},
+      {"resolution_cell_m", cell_m},
+      {"success_rate", n > 0 ? double(successes) / n : 0.0},
+      {"converged_rate", n > 0 ? double(converged) / n : 0.0},
+      {"position_error_m", {{"median", percentile(errors_m, 0.5)}, {"p95", percentile(errors_m, 0.95)}}},
+      {"position_error_cells", {{"median", percentile(errors_cells, 0.5)}, {"p95", percentile(errors_cells, 0.95)}}},
+      {"seconds_per_fix", {{"median", percentile(seconds, 0.5)}, {"p95", percentile(seconds, 0.95)}}},
+      {"covariance_check", spread},
+      {"prior_errors", {{"horizontal_m", err_h}, {"vertical_m", err_v}, {"heading_deg", err_psi},
+                        {"source", options.prior_error_horizontal_m >= 0 ? "options" : "footprint"}}},
+      {"looks_range", options.looks_range},
+      {"looks_azimuth", options.looks_azimuth},
+      {"matcher", options.matcher},
+      {"frequency", fix->product.frequency},
+      {"polarization", fix->product.polarization},
+      {"seconds", total.ElapsedSeconds()},
+      {"vertical_datum", VerticalDatumRecord(fix->terrain)},
+      {"inputs", {{"product", InputFileRecord(options.product)},
+                  {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
+      {"trial_records", records}};
+  WriteJsonFile(summary, json_path);
+  std::FILE* f = std::fopen(csv_path.c_str(), "w");
+  if (f == nullptr) throw IoError("cannot write", csv_path.string());
+  const bool ok = std::fputs(csv.c_str(), f) >= 0;
+  if (std::fclose(f) != 0 || !ok) throw IoError("cannot write", csv_path.string());
+  outputs.Commit();
+  return summary;
+}
+
+}  // namespace gissar::pipeline
