@@ -15,6 +15,9 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--image", o->image, "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)");
     cmd->add_option("--product", o->product,
                     "Or a real RSLC product (HDF5): fix its own track from a displaced prior (docs/navigation.md)");
+    cmd->add_option("--orbit", o->orbit,
+                    "Or any sensor's state vectors (CSV, JSON, ESA .EOF) of the --image, fixed like a product");
+    cmd->add_option("--radar-grid", o->radar_grid, "Radar grid JSON of the --image (with --orbit)");
     cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
     cmd->add_option("--polarization", o->polarization, "Product layer (HH, HV, VH, VV)")->capture_default_str();
     cmd->add_option("--prior-offset-track", o->prior_offset_track,

@@ -212,8 +212,17 @@ double MetadataNumber(const std::string& text, const std::string& key, const std
 
 void LocateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
-  if (!product.empty()) {
-    if (!image.empty()) throw ConfigError("give --product or --image, not both", "--product/--image");
+  if (UsesTrack()) {
+    if (!product.empty() && (!orbit.empty() || !radar_grid.empty())) {
+      throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
+    }
+    if (product.empty() && (orbit.empty() || radar_grid.empty())) {
+      throw ConfigError("an orbit needs a radar grid and a radar grid an orbit", "--orbit/--radar-grid");
+    }
+    if (!product.empty() && !image.empty()) throw ConfigError("give --product or --image, not both", "--product/--image");
+    if (!orbit.empty() && image.empty()) {
+      throw ConfigError("the observed image on the radar grid is required with --orbit", "--image");
+    }
     if (!prior.empty()) {
       throw ConfigError("a product's prior is its own track moved by --prior-offset-track and --prior-heading-offset",
                         "--product/--prior");
@@ -232,7 +241,7 @@ void LocateRequest::Check() const {
     if (out.empty()) throw ConfigError("required", "--out");
     nav::ParseShiftMatcher(matcher, "--matcher");
     if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
-    CheckOutputsAreNotInputs({out, composite_png}, {product, scene, dem});
+    CheckOutputsAreNotInputs({out, composite_png}, {product, orbit, radar_grid, image, scene, dem});
     return;
   }
   if (image.empty()) throw ConfigError("required", "--image");
@@ -248,7 +257,7 @@ void LocateRequest::Check() const {
 }
 
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
-  if (!options.product.empty()) return RunProductLocate(options, command_line, reporter);
+  if (options.UsesTrack()) return RunProductLocate(options, command_line, reporter);
   options.Check();
   Stopwatch total;
   AtomicOutputs outputs;

@@ -70,6 +70,12 @@ struct LocateRequest {
   // zero-Doppler grid; the fix is the track offset (nav/product_locate.h).
   // prior_sigma_*: the INS's one-sigma errors (regularisation and search).
   std::string product;
+  // Or any sensor's track (geo/orbit_file.h): state vectors (--orbit) and the
+  // radar grid (--radar-grid) of the observed detected image given as
+  // --image (band 1 linear intensity, exactly width x length of the grid);
+  // fixed like a product (the state vectors are the annotated truth).
+  std::string orbit;
+  std::string radar_grid;
   std::string frequency = "A";
   std::string polarization = "HH";
   std::vector<double> prior_offset_track = {0.0, 0.0, 0.0};
@@ -80,6 +86,7 @@ struct LocateRequest {
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;
+  bool UsesTrack() const { return !product.empty() || !orbit.empty() || !radar_grid.empty(); }
   void Check() const;
 };
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());

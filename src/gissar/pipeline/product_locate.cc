@@ -8,6 +8,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "gissar/geo/orbit_file.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/rslc_product.h"
 #include "gissar/image/composite.h"
@@ -38,6 +39,7 @@ struct ProductFix {
 
 struct ProductInputs {
   std::string product, frequency, polarization, scene, dem, vertical_datum;
+  std::string orbit, radar_grid, image;  // instead of the product (LocateRequest::orbit)
   int dem_oversample = 1;
   double rays_per_cell = 4.0;
   int bounces = 1;
@@ -49,7 +51,24 @@ std::unique_ptr<ProductFix> LoadProductFix(const ProductInputs& in, Reporter& re
   read.frequency = in.frequency;
   read.polarization = in.polarization;
   read.read_amplitude = true;
-  fix->product = geo::ReadRslcProduct(in.product, read);
+  if (!in.product.empty()) {
+    fix->product = geo::ReadRslcProduct(in.product, read);
+  } else {
+    fix->product = geo::ProductFromOrbit(geo::ReadStateVectors(in.orbit), in.orbit, geo::ReadRadarGrid(in.radar_grid),
+                                         in.radar_grid);
+    const geo::FloatRaster image = geo::ReadFloatRaster(in.image);
+    if (image.width != fix->product.cols() || image.height != fix->product.rows()) {
+      throw InputError("the image is " + std::to_string(image.width) + " x " + std::to_string(image.height) +
+                           ", the radar grid " + std::to_string(fix->product.cols()) + " x " +
+                           std::to_string(fix->product.rows()) + " (width x length)",
+                       in.image);
+    }
+    fix->product.amplitude.resize(image.bands.at(0).size());
+    for (size_t i = 0; i < image.bands[0].size(); ++i) {
+      const float v = image.bands[0][i];
+      fix->product.amplitude[i] = std::isfinite(v) && v > 0.0f ? std::sqrt(v) : 0.0f;
+    }
+  }
   const geo::RslcProduct& p = fix->product;
   sensor::RadarGrid& grid = fix->observation.grid;
   grid.t0_s = p.zero_doppler_time_s.front();
@@ -184,8 +203,8 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
   const fs::path out = outputs.Add(options.out);
   const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
-                                   options.dem, options.vertical_datum, options.dem_oversample,
-                                   options.rays_per_cell, options.bounces},
+                                   options.dem, options.vertical_datum, options.orbit, options.radar_grid,
+                                   options.image, options.dem_oversample, options.rays_per_cell, options.bounces},
                                   reporter);
   const nav::TrackOffset offset{options.prior_offset_track[0], options.prior_offset_track[1],
                                 options.prior_offset_track[2], options.prior_heading_offset_deg};
@@ -214,8 +233,14 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
                            {"polarization", fix->product.polarization},
                            {"seconds", total.ElapsedSeconds()},
                            {"vertical_datum", VerticalDatumRecord(fix->terrain)},
-                           {"inputs", {{"product", InputFileRecord(options.product)},
-                                       {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}}};
+                           {"inputs", {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}}};
+  if (!options.product.empty()) {
+    report["inputs"]["product"] = InputFileRecord(options.product);
+  } else {
+    report["inputs"]["orbit"] = InputFileRecord(options.orbit);
+    report["inputs"]["radar_grid"] = InputFileRecord(options.radar_grid);
+    report["inputs"]["image"] = InputFileRecord(options.image);
+  }
   report.update(ResultJson(r));
   if (!composite.empty()) {
     // Full-resolution grid; the real image box-filtered by the looks (speckle).
@@ -243,7 +268,7 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");
   const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
-                                   options.dem, options.vertical_datum, options.dem_oversample,
+                                   options.dem, options.vertical_datum, "", "", "", options.dem_oversample,
                                    options.rays_per_cell, options.bounces},
                                   reporter);
   // Prior errors: given, or from the footprint of the multilooked image.
@@ -320,8 +345,12 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
       errors.push_back(r.at("fix").at("error_against_annotated_track").at("along_cross_up_m")[a].get<double>());
     }
     double mean = 0.0, rms = 0.0, var = 0.0;
-    for (double e : errors) mean += e / std::max<size_t>(1, errors.size()), rms += e * e / std::max<size_t>(1, errors.size());
-    for (double e : errors) var += (e - mean) * (e - mean) / std::max<size_t>(1, errors.size());
+    for (double e : errors) mean += e / errors.size(), rms += e * e / errors.size();
+    for (double e : errors) var += (e - mean) * (e - mean) / errors.size();
+    if (errors.empty()) {
+      spread[axes[a]] = nullptr;  // no converged fix
+      continue;
+    }
     spread[axes[a]] = {{"stated_sigma_median", percentile(sigmas, 0.5)}, {"error_mean", mean},
                        {"error_sd", std::sqrt(var)}, {"error_rms", std::sqrt(rms)}};
   }
