@@ -92,14 +92,20 @@ nlohmann::json JsonOf(const py::handle& value, const std::string& key) {
   throw ConfigError("keyword '" + key + "' has an unsupported type", "gissar");
 }
 
-// A SimulateRequest from keyword arguments named like its fields (the keys
-// of SimulateRequest::ToJson; docs/conventions.md).
-pipeline::SimulateRequest SimulateOptionsFrom(const py::kwargs& kwargs) {
+// {key: value} of a dict of request fields (or keyword arguments).
+nlohmann::json JsonOfFields(const py::dict& fields) {
   nlohmann::json values = nlohmann::json::object();
-  for (const auto& [key_handle, value] : kwargs) {
+  for (const auto& [key_handle, value] : fields) {
     const std::string key = key_handle.cast<std::string>();
     values[key] = JsonOf(value, key);
   }
+  return values;
+}
+
+// A SimulateRequest from keyword arguments named like its fields (the keys
+// of SimulateRequest::ToJson; docs/conventions.md).
+pipeline::SimulateRequest SimulateOptionsFrom(const py::kwargs& kwargs) {
+  const nlohmann::json values = JsonOfFields(kwargs);
   pipeline::SimulateRequest o;
   o.ApplyJson(values, "gissar.simulate keyword");
   if (o.out_prefix.empty()) o.out_prefix = "(python)";
@@ -108,14 +114,9 @@ pipeline::SimulateRequest SimulateOptionsFrom(const py::kwargs& kwargs) {
 
 // An EvaluateRequest from a dict of its fields (EvaluateRequest::ToJson keys).
 pipeline::EvaluateRequest EvaluateOptionsFrom(const py::dict& values, const std::string& where) {
-  nlohmann::json j = nlohmann::json::object();
-  for (const auto& [key_handle, value] : values) {
-    const std::string key = key_handle.cast<std::string>();
-    j[key] = JsonOf(value, key);
-  }
   pipeline::EvaluateRequest o;
-  o.ApplyJson(j, where);
-  if (o.out_prefix.empty()) o.out_prefix = "(python)";
+  o.ApplyJson(JsonOfFields(values), where);
+  if (o.out_prefix.empty() && o.product.empty()) o.out_prefix = "(python)";
   return o;
 }
 
@@ -762,6 +763,31 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         }, py::arg("options"),
         "Run trials trial_first .. trial_first + trial_count - 1 (trial_count -1: the rest) of an evaluate request "
         "(a dict of its fields) and return their records (list of dicts); trial k depends only on (seed, k).");
+  m.def("locate_product", [](const py::dict& options) {
+          pipeline::LocateRequest o;
+          o.ApplyJson(JsonOfFields(options), "gissar.locate_product keyword");
+          if (!o.UsesTrack()) throw ConfigError("give product, or orbit with radar_grid and image", "gissar.locate_product");
+          nlohmann::json report;
+          {
+            py::gil_scoped_release release;
+            report = pipeline::RunLocate(o, "gissar.locate_product (python)");
+          }
+          return JsonToPython(report);
+        }, py::arg("options"),
+        "Pose fix of a real product (or an orbit, radar grid and image) from a displaced prior: the locate "
+        "request's fields as a dict (docs/navigation.md, 'Real images'). Returns the fix dict; no fix is "
+        "converged=False with a reason.");
+  m.def("evaluate_product", [](const py::dict& options) {
+          const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.evaluate keyword");
+          nlohmann::json summary;
+          {
+            py::gil_scoped_release release;
+            summary = pipeline::RunEvaluate(o, "gissar.evaluate (python)");
+          }
+          return JsonToPython(summary);
+        }, py::arg("options"),
+        "evaluate --product: seeded prior offsets of the product's track, one fix each; the summary dict with "
+        "every trial's record (files only with out_prefix).");
   m.def("summarise_trials", [](const py::dict& options, const py::iterable& records) {
           const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.summarise_trials");
           return JsonToPython(pipeline::SummariseTrials(o, RecordsFrom(records)));

@@ -246,8 +246,24 @@ def locate(scene, image, prior, range_spacing_m, azimuth_spacing_m, **kwargs):
                         **kwargs)
 
 
+def locate_product(**kwargs):
+    """`gissar locate --product` (docs/navigation.md, "Real images"): pose fix of a real zero-Doppler product
+    (product=path) or of an image on any sensor's track (orbit=, radar_grid=, image= paths), against dem= or
+    scene=, from the annotated track moved by prior_offset_track=(along, cross, up) metres and
+    prior_heading_offset_deg. Other keywords: prior_sigma_horizontal_m, prior_sigma_vertical_m,
+    prior_sigma_heading_deg, looks_range, looks_azimuth, dem_oversample, matcher (ncc, gradient, phase, mi),
+    frequency, polarization, vertical_datum, bounces, rays_per_cell, out and composite_png (files, optional).
+    Returns the fix dict (converged, reason, fix.error_against_annotated_track, ...)."""
+    paths = ("product", "orbit", "radar_grid", "image", "scene", "dem", "out", "composite_png")
+    options = {k: (_os.fspath(v) if k in paths and v is not None else v) for k, v in kwargs.items()}
+    if "prior_offset_track" in options and options["prior_offset_track"] is not None:
+        options["prior_offset_track"] = [float(v) for v in options["prior_offset_track"]]
+    return _core.locate_product(options)
+
+
 def _evaluate_options(kwargs):
-    return {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix") and v is not None else v) for k, v in kwargs.items()}
+    return {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix", "product") and v is not None else v)
+            for k, v in kwargs.items()}
 
 
 def evaluate_trials(**kwargs):
@@ -265,6 +281,8 @@ def evaluate(**kwargs):
     """`gissar evaluate` in this process: every trial, then the summary dict (with out_prefix, also writes
     PREFIX.json, PREFIX_trials.csv and PREFIX_hist.png). gissar.distributed_evaluate.evaluate spreads the trials."""
     options = _evaluate_options({**kwargs, "trial_first": 0, "trial_count": -1})
+    if options.get("product"):
+        return _core.evaluate_product(options)  # a real product's trials (docs/navigation.md, "Real images")
     records = _core.evaluate_trials(options)
     if options.get("out_prefix"):
         return _core.write_evaluation(options, records)

@@ -293,6 +293,24 @@ def test_locate_fixes_a_drifted_prior(small_scene):
                       azimuth_spacing_m=30)
 
 
+def test_locate_product_fixes_a_real_chip_and_evaluates(tmp_path):
+    sanand = os.path.join(ROOT, "data", "uavsar", "SanAnd_129.h5")
+    dem = os.path.join(ROOT, "data", "uavsar", "SanAnd_dem.tif")
+    fix = gissar.locate_product(product=sanand, dem=dem, dem_oversample=4, prior_offset_track=(-60, 30, 0))
+    assert fix["converged"], fix["reason"]
+    error = fix["fix"]["error_against_annotated_track"]
+    assert error["prior_position_error_m"] > 60.0
+    assert error["position_error_m"] <= 2 * fix["cell_m"]  # docs/conventions.md's success rule
+    assert not list(tmp_path.iterdir())  # nothing written without out
+    summary = gissar.evaluate(product=sanand, dem=dem, dem_oversample=4, trials=2, seed=1)
+    assert summary["trials"] == 2 and len(summary["trial_records"]) == 2
+    assert "position_error_cells" in summary
+    with pytest.raises(gissar.ConfigError, match="prior_ofset_track"):
+        gissar.locate_product(product=sanand, dem=dem, prior_ofset_track=(0, 0, 0))
+    with pytest.raises(gissar.ConfigError, match="--image"):
+        gissar.locate_product(orbit="track.csv", radar_grid="grid.json", dem=dem)
+
+
 def test_simulation_releases_the_gil():
     # While a simulation runs in another thread, this thread keeps running: the longest pause between two
     # of its loop iterations stays far below the simulation's duration (it would be the whole duration if

@@ -238,7 +238,6 @@ void LocateRequest::Check() const {
     if (!(prior_sigma_horizontal_m > 0 && prior_sigma_vertical_m > 0 && prior_sigma_heading_deg > 0)) {
       throw ConfigError("must be > 0", "--prior-sigma-horizontal/--prior-sigma-vertical/--prior-sigma-heading");
     }
-    if (out.empty()) throw ConfigError("required", "--out");
     nav::ParseShiftMatcher(matcher, "--matcher");
     if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
     CheckOutputsAreNotInputs({out, composite_png}, {product, orbit, radar_grid, image, scene, dem});
@@ -254,6 +253,43 @@ void LocateRequest::Check() const {
   if (search_px < 5 || search_px > kMaxSearchPx) throw ConfigError("must be in [5, 2048] px", "--search");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
   CheckOutputsAreNotInputs({out, composite_png}, {image, scene, dem, prior});
+}
+
+void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
+  for (const auto& [key, value] : values.items()) {
+    auto set = [&](auto& field) {
+      try {
+        field = value.get<std::remove_reference_t<decltype(field)>>();
+      } catch (const nlohmann::json::exception&) {
+        throw ConfigError("key '" + key + "' has a value of the wrong type: " + value.dump(), source);
+      }
+    };
+    if (value.is_null()) continue;  // null keeps the default
+    if (key == "image") set(image);
+    else if (key == "scene") set(scene);
+    else if (key == "dem") set(dem);
+    else if (key == "vertical_datum") set(vertical_datum);
+    else if (key == "out") set(out);
+    else if (key == "composite_png") set(composite_png);
+    else if (key == "matcher") set(matcher);
+    else if (key == "bounces") set(bounces);
+    else if (key == "rays_per_cell") set(rays_per_cell);
+    else if (key == "product") set(product);
+    else if (key == "orbit") set(orbit);
+    else if (key == "radar_grid") set(radar_grid);
+    else if (key == "frequency") set(frequency);
+    else if (key == "polarization") set(polarization);
+    else if (key == "prior_offset_track") set(prior_offset_track);
+    else if (key == "prior_heading_offset_deg") set(prior_heading_offset_deg);
+    else if (key == "prior_sigma_horizontal_m") set(prior_sigma_horizontal_m);
+    else if (key == "prior_sigma_vertical_m") set(prior_sigma_vertical_m);
+    else if (key == "prior_sigma_heading_deg") set(prior_sigma_heading_deg);
+    else if (key == "looks_range") set(looks_range);
+    else if (key == "looks_azimuth") set(looks_azimuth);
+    else if (key == "dem_oversample") set(dem_oversample);
+    else throw ConfigError("unknown key '" + key + "'", source);
+  }
 }
 
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
@@ -380,7 +416,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
 void EvaluateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
   if (trials < 1 || trials > kMaxTrials) throw ConfigError("must be in [1, 100000]", "--trials");
-  if (out_prefix.empty()) throw ConfigError("required", "--out");
+  if (out_prefix.empty() && product.empty()) throw ConfigError("required", "--out");
   if (!(spacing_m > 0)) throw ConfigError("must be > 0", "--spacing");
   if (size_px < 48) throw ConfigError("must be >= 48", "--size");
   if (!(slant_range_m > 0)) throw ConfigError("must be > 0", "--slant-range");

@@ -88,6 +88,10 @@ struct LocateRequest {
   int dem_oversample = 1;
   bool UsesTrack() const { return !product.empty() || !orbit.empty() || !radar_grid.empty(); }
   void Check() const;
+  // Sets the fields named by `values` ({snake_case field: value}: the Python
+  // keywords of gissar.locate_product; null keeps the default); an unknown key
+  // or a wrong type is a ConfigError naming `source`.
+  void ApplyJson(const nlohmann::json& values, const std::string& source);
 };
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 

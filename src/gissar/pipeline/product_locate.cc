@@ -199,8 +199,8 @@ PriorErrors FootprintPriorErrors(double along_m, double range_m) {
 nlohmann::json RunProductLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path out = outputs.Add(options.out);
+  AtomicOutputs outputs;  // nothing written without options.out (Python)
+  const fs::path out = options.out.empty() ? fs::path() : outputs.Add(options.out);
   const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
                                    options.dem, options.vertical_datum, options.orbit, options.radar_grid,
@@ -256,7 +256,7 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
     geo::WritePng(composite, picture.rgb, picture.width, picture.height, 3);
     report["pictures"] = {options.composite_png};
   }
-  WriteJsonFile(report, out);
+  if (!out.empty()) WriteJsonFile(report, out);
   outputs.Commit();
   return report;
 }
@@ -264,9 +264,10 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
 nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
-  const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
+  AtomicOutputs outputs;  // nothing written without options.out_prefix (Python)
+  const bool write = !options.out_prefix.empty();
+  const fs::path json_path = write ? outputs.Add(options.out_prefix + ".json") : fs::path();
+  const fs::path csv_path = write ? outputs.Add(options.out_prefix + "_trials.csv") : fs::path();
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
                                    options.dem, options.vertical_datum, "", "", "", options.dem_oversample,
                                    options.rays_per_cell, options.bounces},
@@ -384,6 +385,7 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
       {"inputs", {{"product", InputFileRecord(options.product)},
                   {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
       {"trial_records", records}};
+  if (!write) return summary;
   WriteJsonFile(summary, json_path);
   std::FILE* f = std::fopen(csv_path.c_str(), "w");
   if (f == nullptr) throw IoError("cannot write", csv_path.string());

@@ -16,16 +16,18 @@
 
 namespace gissar::pipeline {
 
-// LocateRequest with `product` set: writes options.out (the fix JSON: fix,
-// correction, covariance, error against the annotated track, matches, time)
-// and the composite picture when asked. Returns the JSON.
+// LocateRequest with `product` (or `orbit`) set: writes options.out (the fix
+// JSON: fix, correction, covariance, error against the annotated track,
+// matches, time) and the composite picture when asked; with an empty `out`
+// (Python) nothing is written. Returns the JSON.
 nlohmann::json RunProductLocate(const LocateRequest& options, const std::string& command_line,
                                 Reporter& reporter = NullReporter());
 
 // EvaluateRequest with `product` set: `trials` seeded prior offsets (uniform
 // +- the prior errors; trial k depends only on (seed, k)), one fix each.
 // Writes PREFIX.json (success_rate, position_error_m, position_error_cells,
-// ...) and PREFIX_trials.csv. Returns the summary.
+// ...) and PREFIX_trials.csv (nothing with an empty out_prefix: Python).
+// Returns the summary (with every trial's record).
 nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::string& command_line,
                                   Reporter& reporter = NullReporter());
 

@@ -63,6 +63,30 @@ TEST(ProductLocateTest, RealChipFixedFromAKnownOffset) {
   EXPECT_EQ(nlohmann::json::parse(in).at("fix").at("time_utc"), fix.at("time_utc"));
 }
 
+// The example: 30 m cross-track and a 1 deg heading error, with an
+// INS that admits 0.6 deg (one sigma). A heading error moves the scene's
+// zero-Doppler time like an along-track shift (12 km x 1 deg = 210 m); only
+// the shear across the 0.9 km chip separates them, so the stated tolerance
+// is 3 cells of position and 0.25 deg of track angle (docs/navigation.md).
+TEST(ProductLocateTest, RealChipFixedFromAOneDegreeHeadingError) {
+  const fs::path dir = MakeTempDir();
+  LocateRequest o = SanAndreas(dir);
+  o.dem_oversample = 1;
+  o.prior_offset_track = {0.0, 30.0, 0.0};
+  o.prior_heading_offset_deg = 1.0;
+  o.prior_sigma_heading_deg = 0.6;
+  const nlohmann::json r = RunLocate(o, "test");
+  ASSERT_TRUE(r.at("converged").get<bool>()) << r.at("reason");
+  const nlohmann::json& e = r.at("fix").at("error_against_annotated_track");
+  std::printf("[ measured ] SanAnd, 1 deg: prior %.1f m / %.3f deg -> fix %.1f m / %.3f deg (correction %.3f deg)\n",
+              e.at("prior_position_error_m").get<double>(), e.at("prior_track_angle_error_deg").get<double>(),
+              e.at("position_error_m").get<double>(), e.at("track_angle_error_deg").get<double>(),
+              r.at("fix").at("correction").at("heading_deg").get<double>());
+  EXPECT_NEAR(e.at("prior_track_angle_error_deg").get<double>(), 1.0, 1e-3);
+  EXPECT_LE(e.at("position_error_m").get<double>(), 3.0 * r.at("cell_m").get<double>());
+  EXPECT_LE(std::abs(e.at("track_angle_error_deg").get<double>()), 0.25);
+}
+
 // Flat farmland: nothing a DEM-only simulation can match; the result says
 // so (no fix, a reason), never a confident wrong fix.
 TEST(ProductLocateTest, FlatFarmlandIsReportedAsNoFix) {
