@@ -366,10 +366,10 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
   const sensor::OrbitState centre_state = prior_orbit.Interpolate(result.fix_time_s);
   const double centre_range_m = grid.RangeOfCol(0.5 * (width - 1));
   // Azimuth pixel on the ground (m): the velocity scaled to the ground's
-  // distance from the Earth's centre (about the aircraft speed; 0.88 x for a
-  // satellite in low orbit).
+  // distance from the Earth's centre (the sensor's radius less its height
+  // above the ellipsoid): about the aircraft speed, 0.9 x for a satellite.
   const double sensor_radius = centre_state.position_m.norm();
-  const double ground_radius = sensor_radius - centre_range_m * std::sin(30.0 * kDeg);
+  const double ground_radius = sensor_radius - geo::LocalFrame::GeodeticFromEcef(centre_state.position_m)[2];
   const double azimuth_m = grid.dt_s * centre_state.velocity_mps.norm() * ground_radius / sensor_radius;
   result.cell_m = std::max(azimuth_m, grid.dr_m);
 
@@ -390,8 +390,7 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
     result.converged = false;
     result.failure_reason = why;
   };
-  bool failed = false;
-  for (int it = 0; it < options.max_iterations && !failed; ++it) {
+  for (int it = 0; it < options.max_iterations; ++it) {
     const TrackVectors track = DisplaceTrack(prior_track, track_frame, TrackOffset::FromVector(theta));
     const sensor::Orbit orbit = track.ToOrbit();
     const int pad_rows = it == 0 ? search_rows : options.refine_search_px;
