@@ -55,6 +55,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
       resolved.out = PrefixedOutput(o->out, ".json");
       const auto report = RunLocate(resolved, context.command_line, context.reporter);
       context.out << resolved.out << "\n";
+      if (!resolved.composite_png.empty()) context.out << resolved.composite_png << "\n";
       if (!report.at("converged").get<bool>()) context.no_result = report.at("reason").get<std::string>();
     });
   }
