@@ -777,17 +777,6 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "Pose fix of a real product (or an orbit, radar grid and image) from a displaced prior: the locate "
         "request's fields as a dict (docs/navigation.md, 'Real images'). Returns the fix dict; no fix is "
         "converged=False with a reason.");
-  m.def("evaluate_product", [](const py::dict& options) {
-          const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.evaluate keyword");
-          nlohmann::json summary;
-          {
-            py::gil_scoped_release release;
-            summary = pipeline::RunEvaluate(o, "gissar.evaluate (python)");
-          }
-          return JsonToPython(summary);
-        }, py::arg("options"),
-        "evaluate --product: seeded prior offsets of the product's track, one fix each; the summary dict with "
-        "every trial's record (files only with out_prefix).");
   m.def("summarise_trials", [](const py::dict& options, const py::iterable& records) {
           const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.summarise_trials");
           return JsonToPython(pipeline::SummariseTrials(o, RecordsFrom(records)));

@@ -281,8 +281,6 @@ def evaluate(**kwargs):
     """`gissar evaluate` in this process: every trial, then the summary dict (with out_prefix, also writes
     PREFIX.json, PREFIX_trials.csv and PREFIX_hist.png). gissar.distributed_evaluate.evaluate spreads the trials."""
     options = _evaluate_options({**kwargs, "trial_first": 0, "trial_count": -1})
-    if options.get("product"):
-        return _core.evaluate_product(options)  # a real product's trials (docs/navigation.md, "Real images")
     records = _core.evaluate_trials(options)
     if options.get("out_prefix"):
         return _core.write_evaluation(options, records)

@@ -35,7 +35,7 @@ def evaluate(*, client=None, scheduler=None, workers=None, chunk_trials=None, th
     PREFIX_trials.csv and PREFIX_hist.png like the serial run."""
     from dask.distributed import Client, LocalCluster
 
-    options = {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix") and v is not None else v)
+    options = {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix", "product") and v is not None else v)
                for k, v in kwargs.items()}
     options.pop("trial_first", None)
     options.pop("trial_count", None)

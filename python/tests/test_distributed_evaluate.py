@@ -53,3 +53,16 @@ def test_distributed_equals_serial_on_two_workers(tmp_path):
     rows = (tmp_path / "spread_trials.csv").read_text().splitlines()
     assert len(rows) == 5 and rows[1].startswith("0,") and rows[4].startswith("3,")
     assert (tmp_path / "spread_hist.png").exists()
+
+
+def test_product_trials_spread_over_workers(tmp_path):
+    # evaluate --product (a real UAVSAR chip) through the same trial records: two workers, one trial a task.
+    product = dict(product=str(SOURCE / "data" / "uavsar" / "SanAnd_129.h5"),
+                   dem=str(SOURCE / "data" / "uavsar" / "SanAnd_dem.tif"), trials=3, seed=2)
+    serial = gissar.evaluate(**product)
+    spread = de.evaluate(**product, workers=2, chunk_trials=1, out_prefix=tmp_path / "product")
+    for key in ("success_rate", "converged_rate", "position_error_m", "position_error_cells", "covariance_check",
+                "prior_errors", "resolution_cell_m"):
+        assert spread[key] == serial[key], key
+    rows = (tmp_path / "product_trials.csv").read_text().splitlines()
+    assert len(rows) == 4 and rows[1].startswith("0,") and rows[3].startswith("2,")

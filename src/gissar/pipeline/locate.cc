@@ -756,9 +756,7 @@ std::vector<nlohmann::json> SortedRecords(const std::vector<nlohmann::json>& rec
 
 std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& requested, Reporter& reporter) {
   requested.Check();
-  if (!requested.product.empty()) {
-    throw ConfigError("a product's trials run in one process (gissar evaluate --product)", "--product");
-  }
+  if (!requested.product.empty()) return ProductEvaluateTrials(requested, reporter);
   const EvaluateRequest options = requested.Resolved();
   const EvaluateSetup setup = PrepareEvaluation(options, reporter);
   std::vector<nlohmann::json> records;
@@ -768,6 +766,7 @@ std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& requested, Rep
 }
 
 nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector<nlohmann::json>& unsorted) {
+  if (!options.product.empty()) return ProductSummariseTrials(options, unsorted);
   const std::vector<nlohmann::json> records = SortedRecords(unsorted);
   if (records.empty()) throw ConfigError("no trial records to summarise", "evaluate trial records");
   std::vector<double> pos_err, pos_cells, horiz_err, head_err, dep_err, seconds;
@@ -826,6 +825,7 @@ nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector
 nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vector<nlohmann::json>& unsorted,
                                const std::string& command_line, double seconds, const nlohmann::json& vertical_datum) {
   requested.Check();
+  if (!requested.product.empty()) return WriteProductEvaluation(requested, unsorted, command_line, seconds);
   const EvaluateRequest options = requested.Resolved();
   AtomicOutputs outputs;
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");

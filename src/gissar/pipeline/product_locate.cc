@@ -261,13 +261,8 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
   return report;
 }
 
-nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
+std::vector<nlohmann::json> ProductEvaluateTrials(const EvaluateRequest& options, Reporter& reporter) {
   options.Check();
-  Stopwatch total;
-  AtomicOutputs outputs;  // nothing written without options.out_prefix (Python)
-  const bool write = !options.out_prefix.empty();
-  const fs::path json_path = write ? outputs.Add(options.out_prefix + ".json") : fs::path();
-  const fs::path csv_path = write ? outputs.Add(options.out_prefix + "_trials.csv") : fs::path();
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
                                    options.dem, options.vertical_datum, "", "", "", options.dem_oversample,
                                    options.rays_per_cell, options.bounces},
@@ -281,6 +276,8 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
   const double err_h = options.prior_error_horizontal_m >= 0 ? options.prior_error_horizontal_m : footprint.horizontal_m;
   const double err_v = options.prior_error_vertical_m >= 0 ? options.prior_error_vertical_m : footprint.vertical_m;
   const double err_psi = options.prior_error_heading_deg >= 0 ? options.prior_error_heading_deg : footprint.heading_deg;
+  const nlohmann::json prior_errors = {{"horizontal_m", err_h}, {"vertical_m", err_v}, {"heading_deg", err_psi},
+                                       {"source", options.prior_error_horizontal_m >= 0 ? "options" : "footprint"}};
   // The fix's prior sigmas: those of a uniform +- bound (bound / sqrt 3), never below 1 m / 0.001 deg.
   const nav::ProductLocateOptions lo = LocateOptionsOf(
       options.matcher, options.looks_range, options.looks_azimuth, std::max(1.0, err_h / std::sqrt(3.0)),
@@ -289,12 +286,6 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
   const int first = options.trial_first;
   const int count = options.trial_count < 0 ? options.trials - first : options.trial_count;
   std::vector<nlohmann::json> records;
-  std::vector<double> errors_m, errors_cells, seconds;
-  int successes = 0, converged = 0;
-  std::string csv = "trial,success,converged,position_error_m,position_error_cells,along_error_m,cross_error_m,"
-                    "up_error_m,track_angle_error_deg,prior_along_m,prior_cross_m,prior_up_m,prior_heading_deg,"
-                    "rms_px,peak_ncc,peak_margin,seconds,reason\n";
-  double cell_m = 0.0;
   for (int k = first; k < first + count; ++k) {
     std::mt19937_64 rng(options.seed * 1000003ULL + static_cast<uint64_t>(k));
     std::uniform_real_distribution<double> uni(-1.0, 1.0);
@@ -304,28 +295,49 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
     const nlohmann::json fj = FixJson(*fix, r, prior);
     const nlohmann::json& e = fj.at("error_against_annotated_track");
     const double error_m = e.at("position_error_m").get<double>();
-    cell_m = r.cell_m;
     const double cells = error_m / r.cell_m;
     const bool success = r.converged && cells <= options.success_cells;
-    successes += success;
-    converged += r.converged;
-    errors_m.push_back(error_m);
-    errors_cells.push_back(cells);
-    seconds.push_back(r.seconds);
     const auto acu = e.at("along_cross_up_m");
     char row[512];
     std::snprintf(row, sizeof row, "%d,%d,%d,%.3f,%.4f,%.3f,%.3f,%.3f,%.5f,%.3f,%.3f,%.3f,%.5f,%.4f,%.4f,%.4f,%.3f,", k,
                   int(success), int(r.converged), error_m, cells, acu[0].get<double>(), acu[1].get<double>(),
                   acu[2].get<double>(), e.at("track_angle_error_deg").get<double>(), offset.along_m, offset.cross_m,
                   offset.up_m, offset.heading_deg, r.rms_px, r.peak_ncc, r.peak_margin, r.seconds);
-    csv += row + std::string("\"") + r.failure_reason + "\"\n";
     reporter.Info("evaluate: trial " + std::to_string(k) + (success ? " success" : " failure") + ", error " +
                   std::to_string(error_m) + " m (" + std::to_string(cells) + " cells)" +
                   (r.converged ? "" : ", no fix: " + r.failure_reason));
-    nlohmann::json record = {{"trial", k}, {"success", success}, {"position_error_cells", cells}};
+    nlohmann::json record = {{"trial", k},
+                             {"success", success},
+                             {"position_error_m", error_m},
+                             {"position_error_cells", cells},
+                             {"seconds", r.seconds},
+                             {"prior_errors", prior_errors},
+                             {"vertical_datum", VerticalDatumRecord(fix->terrain)},
+                             {"csv_row", row + std::string("\"") + r.failure_reason + "\""}};
     record.update(ResultJson(r));
     record["fix"] = fj;
     records.push_back(record);
+  }
+  return records;
+}
+
+nlohmann::json ProductSummariseTrials(const EvaluateRequest& options, std::vector<nlohmann::json> records) {
+  if (records.empty()) throw ConfigError("no trial records to summarise", "evaluate trial records");
+  std::sort(records.begin(), records.end(),
+            [](const nlohmann::json& a, const nlohmann::json& b) { return a.at("trial").get<int>() < b.at("trial").get<int>(); });
+  for (size_t i = 1; i < records.size(); ++i) {
+    if (records[i].at("trial") == records[i - 1].at("trial")) {
+      throw ConfigError("trial " + records[i].at("trial").dump() + " appears twice", "evaluate trial records");
+    }
+  }
+  std::vector<double> errors_m, errors_cells, seconds;
+  int successes = 0, converged = 0;
+  for (const nlohmann::json& r : records) {
+    successes += r.at("success").get<bool>();
+    converged += r.at("converged").get<bool>();
+    errors_m.push_back(r.at("position_error_m").get<double>());
+    errors_cells.push_back(r.at("position_error_cells").get<double>());
+    seconds.push_back(r.at("seconds").get<double>());
   }
   auto percentile = [](std::vector<double> v, double q) {
     if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -355,37 +367,49 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
     spread[axes[a]] = {{"stated_sigma_median", percentile(sigmas, 0.5)}, {"error_mean", mean},
                        {"error_sd", std::sqrt(var)}, {"error_rms", std::sqrt(rms)}};
   }
-  nlohmann::json summary = {
-      {"command", "evaluate"},
-      {"mode", "product"},
-      {"command_line", command_line},
-      {"version", VersionString()},
-      {"created_utc", UtcTimestamp()},
-      {"trials", n},
-      {"seed", options.seed},
-      {"success_definition", "converged and 3-D sensor position error at the fix time <= success_cells cells "
-                             "(cell = the larger pixel spacing after multilook; zero-Doppler product: position only)"},
-      {"success_cells", options.success_cells},
-      {"resolution_cell_m", cell_m},
-      {"success_rate", n > 0 ? double(successes) / n : 0.0},
-      {"converged_rate", n > 0 ? double(converged) / n : 0.0},
-      {"position_error_m", {{"median", percentile(errors_m, 0.5)}, {"p95", percentile(errors_m, 0.95)}}},
-      {"position_error_cells", {{"median", percentile(errors_cells, 0.5)}, {"p95", percentile(errors_cells, 0.95)}}},
-      {"seconds_per_fix", {{"median", percentile(seconds, 0.5)}, {"p95", percentile(seconds, 0.95)}}},
-      {"covariance_check", spread},
-      {"prior_errors", {{"horizontal_m", err_h}, {"vertical_m", err_v}, {"heading_deg", err_psi},
-                        {"source", options.prior_error_horizontal_m >= 0 ? "options" : "footprint"}}},
-      {"looks_range", options.looks_range},
-      {"looks_azimuth", options.looks_azimuth},
-      {"matcher", options.matcher},
-      {"frequency", fix->product.frequency},
-      {"polarization", fix->product.polarization},
-      {"seconds", total.ElapsedSeconds()},
-      {"vertical_datum", VerticalDatumRecord(fix->terrain)},
-      {"inputs", {{"product", InputFileRecord(options.product)},
-                  {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}},
-      {"trial_records", records}};
-  if (!write) return summary;
+  return {{"mode", "product"},
+          {"trials", n},
+          {"seed", options.seed},
+          {"success_definition", "converged and 3-D sensor position error at the fix time <= success_cells cells "
+                                 "(cell = the larger pixel spacing after multilook; zero-Doppler product: position only)"},
+          {"success_cells", options.success_cells},
+          {"resolution_cell_m", records.front().at("cell_m")},
+          {"success_rate", double(successes) / n},
+          {"converged_rate", double(converged) / n},
+          {"position_error_m", {{"median", percentile(errors_m, 0.5)}, {"p95", percentile(errors_m, 0.95)}}},
+          {"position_error_cells", {{"median", percentile(errors_cells, 0.5)}, {"p95", percentile(errors_cells, 0.95)}}},
+          {"seconds_per_fix", {{"median", percentile(seconds, 0.5)}, {"p95", percentile(seconds, 0.95)}}},
+          {"covariance_check", spread},
+          {"prior_errors", records.front().at("prior_errors")},
+          {"looks_range", options.looks_range},
+          {"looks_azimuth", options.looks_azimuth},
+          {"matcher", options.matcher},
+          {"frequency", options.frequency},
+          {"polarization", options.polarization},
+          {"trial_records", records}};
+}
+
+nlohmann::json WriteProductEvaluation(const EvaluateRequest& options, const std::vector<nlohmann::json>& records,
+                                      const std::string& command_line, double seconds) {
+  options.Check();
+  if (options.out_prefix.empty()) throw ConfigError("required", "--out");
+  AtomicOutputs outputs;
+  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
+  const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
+  nlohmann::json summary = ProductSummariseTrials(options, records);
+  summary["command"] = "evaluate";
+  summary["command_line"] = command_line;
+  summary["version"] = VersionString();
+  summary["created_utc"] = UtcTimestamp();
+  summary["seconds"] = seconds;
+  summary["inputs"] = {{"product", InputFileRecord(options.product)},
+                       {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}};
+  summary["options"] = options.ToJson();
+  summary["vertical_datum"] = records.front().at("vertical_datum");
+  std::string csv = "trial,success,converged,position_error_m,position_error_cells,along_error_m,cross_error_m,"
+                    "up_error_m,track_angle_error_deg,prior_along_m,prior_cross_m,prior_up_m,prior_heading_deg,"
+                    "rms_px,peak_ncc,peak_margin,seconds,reason\n";
+  for (const nlohmann::json& r : summary.at("trial_records")) csv += r.at("csv_row").get<std::string>() + "\n";
   WriteJsonFile(summary, json_path);
   std::FILE* f = std::fopen(csv_path.c_str(), "w");
   if (f == nullptr) throw IoError("cannot write", csv_path.string());
@@ -393,6 +417,18 @@ nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::str
   if (std::fclose(f) != 0 || !ok) throw IoError("cannot write", csv_path.string());
   outputs.Commit();
   return summary;
+}
+
+nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
+  options.Check();
+  Stopwatch total;
+  if (!options.out_prefix.empty()) {
+    AtomicOutputs probe;  // a missing or read-only output directory fails before any trial
+    probe.Add(options.out_prefix + ".json");
+  }
+  const std::vector<nlohmann::json> records = ProductEvaluateTrials(options, reporter);
+  if (options.out_prefix.empty()) return ProductSummariseTrials(options, records);
+  return WriteProductEvaluation(options, records, command_line, total.ElapsedSeconds());
 }
 
 }  // namespace gissar::pipeline

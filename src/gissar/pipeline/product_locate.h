@@ -24,10 +24,18 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
                                 Reporter& reporter = NullReporter());
 
 // EvaluateRequest with `product` set: `trials` seeded prior offsets (uniform
-// +- the prior errors; trial k depends only on (seed, k)), one fix each.
-// Writes PREFIX.json (success_rate, position_error_m, position_error_cells,
-// ...) and PREFIX_trials.csv (nothing with an empty out_prefix: Python).
-// Returns the summary (with every trial's record).
+// +- the prior errors; trial k depends only on (seed, k), so any split of the
+// trials over processes gives the serial run's records), one fix each.
+// RunProductEvaluate = ProductEvaluateTrials, then WriteProductEvaluation
+// (PREFIX.json: success_rate, position_error_m, position_error_cells, ...,
+// every record; PREFIX_trials.csv), or only ProductSummariseTrials without
+// an out_prefix (Python). EvaluateTrials, SummariseTrials and
+// WriteEvaluation (locate.h) dispatch here for a product.
+std::vector<nlohmann::json> ProductEvaluateTrials(const EvaluateRequest& options, Reporter& reporter = NullReporter());
+// The summary of records in any order (a repeated trial: ConfigError).
+nlohmann::json ProductSummariseTrials(const EvaluateRequest& options, std::vector<nlohmann::json> records);
+nlohmann::json WriteProductEvaluation(const EvaluateRequest& options, const std::vector<nlohmann::json>& records,
+                                      const std::string& command_line, double seconds);
 nlohmann::json RunProductEvaluate(const EvaluateRequest& options, const std::string& command_line,
                                   Reporter& reporter = NullReporter());
 
