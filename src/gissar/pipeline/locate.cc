@@ -1,6 +1,4 @@
 #include "gissar/pipeline/locate.h"
-#include "gissar/nav/product_locate.h"
-#include "gissar/pipeline/product_locate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -23,6 +21,8 @@
 #include "gissar/image/impulse_response.h"
 #include "gissar/mvg/registration.h"
 #include "gissar/nav/matching.h"
+#include "gissar/nav/product_locate.h"
+#include "gissar/pipeline/product_locate.h"
 #include "gissar/scene/scene_config.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"

@@ -393,6 +393,8 @@ nlohmann::json WriteProductEvaluation(const EvaluateRequest& options, const std:
                                       const std::string& command_line, double seconds) {
   options.Check();
   if (options.out_prefix.empty()) throw ConfigError("required", "--out");
+  CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
+                           {options.product, options.scene, options.dem});
   AtomicOutputs outputs;
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");
   const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
