@@ -5,36 +5,13 @@
 #include <gtest/gtest.h>
 
 #include "gissar/image/impulse_response.h"
+#include "gissar/nav/nav_testing.h"
 #include "gissar/util/error.h"
 
 namespace gissar::nav {
 namespace {
 
-// 8 km x 8 km of hills on a 50 m grid (relief ~300 m): enough structure
-// for matching and non-coplanar control points.
-scene::TriangleMesh Hills() {
-  scene::TriangleMesh mesh;
-  const int n = 161;
-  const double step = 50.0, half = 4000.0;
-  auto z = [](double x, double y) {
-    return 150.0 * std::sin(x / 700.0) * std::cos(y / 530.0) + 80.0 * std::sin((x + 2 * y) / 310.0) +
-           40.0 * std::cos((3 * x - y) / 170.0);
-  };
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const double x = -half + i * step, y = -half + j * step;
-      mesh.vertices.emplace_back(float(x), float(y), float(z(x, y)));
-    }
-  for (int j = 0; j + 1 < n; ++j)
-    for (int i = 0; i + 1 < n; ++i) {
-      const int a = j * n + i, b = a + 1, c = a + n, d = c + 1;
-      mesh.triangles.emplace_back(a, b, d);
-      mesh.triangles.emplace_back(a, d, c);
-      mesh.classes.push_back(0);
-      mesh.classes.push_back(0);
-    }
-  return mesh;
-}
+using testing::Hills;
 
 TEST(Locate, RecoversPoseFromDriftedPrior) {
   const scene::TriangleMesh mesh = Hills();

@@ -10,7 +10,6 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
-#include "gissar/mvg/registration.h"
 #include "gissar/render/product_renderer.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gissar/image/impulse_response.h"
+#include "gissar/nav/nav_testing.h"
 #include "gissar/render/product_renderer.h"
 #include "gissar/util/error.h"
 
@@ -121,29 +122,30 @@ TEST(ShiftScoresTest, EveryMatcherPeaksAtTheKnownShift) {
   EXPECT_THROW(ParseShiftMatcher("chamfer", "--matcher"), ConfigError);
 }
 
-// 8 km x 8 km of hills on a 50 m grid (relief ~300 m), ENU metres.
-scene::TriangleMesh Hills() {
-  scene::TriangleMesh mesh;
-  const int n = 161;
-  const double step = 50.0, half = 4000.0;
-  auto z = [](double x, double y) {
-    return 150.0 * std::sin(x / 700.0) * std::cos(y / 530.0) + 80.0 * std::sin((x + 2 * y) / 310.0) +
-           40.0 * std::cos((3 * x - y) / 170.0);
-  };
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const double x = -half + i * step, y = -half + j * step;
-      mesh.vertices.emplace_back(float(x), float(y), float(z(x, y)));
-    }
-  for (int j = 0; j + 1 < n; ++j)
-    for (int i = 0; i + 1 < n; ++i) {
-      const int a = j * n + i, b = a + 1, c = a + n, d = c + 1;
-      mesh.triangles.emplace_back(a, b, d);
-      mesh.triangles.emplace_back(a, d, c);
-      mesh.classes.push_back(0);
-      mesh.classes.push_back(0);
-    }
-  return mesh;
+using testing::Hills;
+
+// The geometry of the LocateProductTests: a straight track (heading 30,
+// 150 m/s, 6 km up, right-looking, the scene centre 6 km to its right) and a
+// side x side zero-Doppler grid of 10 m lines and 10 m bins centred on the
+// scene centre at time 0.
+struct StraightTrackProduct {
+  TrackVectors truth;
+  ProductObservation observed;
+};
+StraightTrackProduct StraightTrackGeometry(const geo::LocalFrame& frame, int side) {
+  StraightTrackProduct p;
+  const Eigen::Vector3d right(std::cos(30.0 * kDeg), -std::sin(30.0 * kDeg), 0.0);
+  p.truth = StraightTrack(frame, -6000.0 * right + Eigen::Vector3d(0, 0, 6000.0), 30.0, 150.0, 40.0);
+  sensor::RadarGrid& g = p.observed.grid;
+  g.dt_s = 10.0 / 150.0;
+  g.rows = side;
+  g.t0_s = -0.5 * side * g.dt_s;
+  g.dr_m = 10.0;
+  g.cols = side;
+  g.r0_m = std::hypot(6000.0, 6000.0) - 0.5 * side * g.dr_m;
+  g.look_side = sensor::LookSide::kRight;
+  g.wavelength_m = 0.031;
+  return p;
 }
 
 // A known track recovered: the observed image is simulated (with 4-look
@@ -157,19 +159,8 @@ TEST(LocateProductTest, RecoversAKnownTrackOffset) {
   const render::EmbreeScene embree(mesh);
   const material::MaterialTable materials;
   const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
-  // Heading 30, right-looking; the scene centre 6 km to the right, 6 km below.
-  const Eigen::Vector3d right(std::cos(30.0 * kDeg), -std::sin(30.0 * kDeg), 0.0);
-  const TrackVectors truth = StraightTrack(frame, -6000.0 * right + Eigen::Vector3d(0, 0, 6000.0), 30.0, 150.0, 40.0);
-  ProductObservation observed;
-  sensor::RadarGrid& g = observed.grid;
-  g.dt_s = 10.0 / 150.0;  // 10 m lines
-  g.rows = 120;
-  g.t0_s = -60.0 * g.dt_s;
-  g.dr_m = 10.0;
-  g.cols = 120;
-  g.r0_m = std::hypot(6000.0, 6000.0) - 60.0 * g.dr_m;
-  g.look_side = sensor::LookSide::kRight;
-  g.wavelength_m = 0.031;
+  auto [truth, observed] = StraightTrackGeometry(frame, 120);
+  const sensor::RadarGrid& g = observed.grid;
   render::RenderOptions ro;
   ro.rays_per_cell = 4.0;
   ro.max_bounces = 1;
@@ -218,17 +209,8 @@ TEST(LocateProductTest, FlatTerrainGivesNoFix) {
   const render::EmbreeScene embree(mesh);
   const material::MaterialTable materials;
   const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
-  const Eigen::Vector3d right(std::cos(30.0 * kDeg), -std::sin(30.0 * kDeg), 0.0);
-  const TrackVectors truth = StraightTrack(frame, -6000.0 * right + Eigen::Vector3d(0, 0, 6000.0), 30.0, 150.0, 40.0);
-  ProductObservation observed;
-  sensor::RadarGrid& g = observed.grid;
-  g.dt_s = 10.0 / 150.0;
-  g.rows = 80;
-  g.t0_s = -40.0 * g.dt_s;
-  g.dr_m = 10.0;
-  g.cols = 80;
-  g.r0_m = std::hypot(6000.0, 6000.0) - 40.0 * g.dr_m;
-  g.wavelength_m = 0.031;
+  auto [truth, observed] = StraightTrackGeometry(frame, 80);
+  const sensor::RadarGrid& g = observed.grid;
   observed.intensity.assign(size_t(g.rows) * g.cols, 1.0f);
   image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 2);
   const ProductLocateResult r = LocateProduct(scene, frame, observed, truth, ProductLocateOptions());

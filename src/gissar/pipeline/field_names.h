@@ -5,6 +5,10 @@
 
 #include <string>
 
+#include <nlohmann/json.hpp>
+
+#include "gissar/util/error.h"
+
 namespace gissar::pipeline {
 
 // The flag of a request field: kebab case of the snake_case name without
@@ -12,5 +16,16 @@ namespace gissar::pipeline {
 // the exceptions are out_prefix (--out), center_lonlat (--center) and
 // look_side (--look).
 std::string FlagOfField(const std::string& field);
+
+// Reads `value` into the request field `field` (ApplyJson of every request);
+// ConfigError naming `key` and `source` when the JSON type does not fit.
+template <class T>
+void AssignField(T& field, const nlohmann::json& value, const std::string& key, const std::string& source) {
+  try {
+    field = value.get<T>();
+  } catch (const nlohmann::json::exception&) {
+    throw ConfigError("key '" + key + "' has a value of the wrong type: " + value.dump(), source);
+  }
+}
 
 }  // namespace gissar::pipeline

@@ -22,6 +22,7 @@
 #include "gissar/mvg/registration.h"
 #include "gissar/nav/matching.h"
 #include "gissar/nav/product_locate.h"
+#include "gissar/pipeline/field_names.h"
 #include "gissar/pipeline/product_locate.h"
 #include "gissar/scene/scene_config.h"
 #include "gissar/util/atomic_output.h"
@@ -258,13 +259,7 @@ void LocateRequest::Check() const {
 void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
   if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
   for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) {
-      try {
-        field = value.get<std::remove_reference_t<decltype(field)>>();
-      } catch (const nlohmann::json::exception&) {
-        throw ConfigError("key '" + key + "' has a value of the wrong type: " + value.dump(), source);
-      }
-    };
+    auto set = [&](auto& field) { AssignField(field, value, key, source); };
     if (value.is_null()) continue;  // null keeps the default
     if (key == "image") set(image);
     else if (key == "scene") set(scene);
@@ -484,13 +479,7 @@ EvaluateRequest EvaluateRequest::Resolved() const {
 void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
   if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
   for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) {
-      try {
-        field = value.get<std::remove_reference_t<decltype(field)>>();
-      } catch (const nlohmann::json::exception&) {
-        throw ConfigError("key '" + key + "' has a value of the wrong type: " + value.dump(), source);
-      }
-    };
+    auto set = [&](auto& field) { AssignField(field, value, key, source); };
     if (value.is_null() && key != "nesz_db") continue;  // null keeps the default
     if (key == "scene") set(scene);
     else if (key == "dem") set(dem);

@@ -1,4 +1,5 @@
 #include "gissar/pipeline/simulate.h"
+#include "gissar/pipeline/field_names.h"
 
 #include "gissar/pipeline/georeferencing.h"
 #include "gissar/pipeline/stac.h"
@@ -177,22 +178,11 @@ nlohmann::json SimulateRequest::ToJson() const {
 
 namespace {
 
-// Reads `value` into `field`; ConfigError naming `key` and `source` when the
-// JSON type does not fit.
-template <class T>
-void Assign(T& field, const nlohmann::json& value, const std::string& key, const std::string& source) {
-  try {
-    field = value.get<T>();
-  } catch (const nlohmann::json::exception&) {
-    throw ConfigError("key '" + key + "' has a value of the wrong type: " + value.dump(), source);
-  }
-}
-
 std::optional<Eigen::Vector2d> PairOrNull(const nlohmann::json& value, const std::string& key,
                                           const std::string& source) {
   if (value.is_null()) return std::nullopt;
   std::vector<double> v;
-  Assign(v, value, key, source);
+  AssignField(v, value, key, source);
   if (v.size() != 2) throw ConfigError("key '" + key + "' needs two numbers", source);
   return Eigen::Vector2d(v[0], v[1]);
 }
@@ -202,7 +192,7 @@ std::optional<Eigen::Vector2d> PairOrNull(const nlohmann::json& value, const std
 void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
   if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
   for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) { Assign(field, value, key, source); };
+    auto set = [&](auto& field) { AssignField(field, value, key, source); };
     if (key == "dem") set(dem);
     else if (key == "scene") set(scene);
     else if (key == "product") set(product);
