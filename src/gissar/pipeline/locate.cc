@@ -865,9 +865,10 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
   return summary;
 }
 
-nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter) {
-  if (!options.product.empty()) return RunProductEvaluate(options, command_line, reporter);
-  options.Check();
+nlohmann::json RunEvaluate(const EvaluateRequest& requested, const std::string& command_line, Reporter& reporter) {
+  if (!requested.product.empty()) return RunProductEvaluate(requested, command_line, reporter);
+  requested.Check();
+  const EvaluateRequest options = requested.Resolved();
   Stopwatch total;
   {
     // Fail on a missing or read-only output directory before any trial.

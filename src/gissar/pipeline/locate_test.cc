@@ -4,9 +4,12 @@
 // and the real Sentinel-1 warp recovery.
 #include "gissar/pipeline/locate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <sstream>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -28,13 +31,31 @@ TEST(Evaluate, SmallMonteCarloOnAndorraDem) {
   o.compare_matchers = false;
   o.out_prefix = (dir / "eval").string();
   const nlohmann::json s = RunEvaluate(o, "test");
-  // Measured (seed 3): 5/5 successes, median 0.89 cells (p95 1.30),
-  // median heading error 0.063 deg.
+  // Measured (seed 3, 2026-11-27): 5/5 successes, median 0.28 cells (p95
+  // 0.71), median heading error 0.049 deg.
   EXPECT_GE(s["success_rate"].get<double>(), 0.8);
   EXPECT_LT(s["position_error_cells"]["median"].get<double>(), 1.2);
   EXPECT_LT(s["heading_error_deg"]["median"].get<double>(), 0.15);
   EXPECT_TRUE(std::filesystem::exists(dir / "eval_trials.csv"));
   EXPECT_TRUE(std::filesystem::exists(dir / "eval_hist.png"));
+  // The automatic prior errors (negative defaults) are the ones the trials
+  // draw from: +-200 m per horizontal axis, +-50 m vertical, +-3 deg.
+  EXPECT_EQ(s["options"]["prior_error_horizontal_m"].get<double>(), 200.0);
+  std::ifstream csv(dir / "eval_trials.csv");
+  std::string line;
+  std::getline(csv, line);
+  const std::string column = "prior_position_error_m";
+  const size_t at = line.find(column);
+  ASSERT_NE(at, std::string::npos);
+  const long index = std::count(line.begin(), line.begin() + static_cast<long>(at), ',');
+  double largest = 0.0;
+  while (std::getline(csv, line)) {
+    std::stringstream fields(line);
+    std::string field;
+    for (long k = 0; k <= index; ++k) std::getline(fields, field, ',');
+    largest = std::max(largest, std::stod(field));
+  }
+  EXPECT_GT(largest, 50.0);
 }
 
 // Trial k depends only on (seed, k): subsets of the trials, summarised in
