@@ -287,6 +287,22 @@ TEST(CommonFlagsTest, SidecarOptionsAreAnOptionsFile) {
   EXPECT_EQ(FirstBand(dir / "first.tif"), FirstBand(dir / "second.tif"));
 }
 
+// A switch that is on by default (overviews) is turned off by `false` in an
+// options file (its --no- form) and back on by its flag on the command line.
+TEST(CommonFlagsTest, OptionsFileTurnsOffADefaultOnSwitch) {
+  const fs::path dir = testing::MakeTempDir();
+  std::ofstream(dir / "switch.json") << R"({"overviews": false})";
+  auto overviews = [&](const std::string& extra, const std::string& name) {
+    const Outcome o = RunBinary(kSmallSimulate + " --options " + (dir / "switch.json").string() + extra +
+                                    " --quiet --out " + (dir / name).string(), dir);
+    EXPECT_EQ(o.status, 0) << o.err;
+    std::ifstream sidecar(dir / (name + ".json"));
+    return nlohmann::json::parse(sidecar)["options"]["overviews"].get<bool>();
+  };
+  EXPECT_FALSE(overviews("", "off"));
+  EXPECT_TRUE(overviews(" --overviews", "on"));
+}
+
 TEST(CommonFlagsTest, UnknownOptionsKeyNamesKeyAndFile) {
   const fs::path dir = testing::MakeTempDir();
   std::ofstream(dir / "bad.json") << "{\"heading_deg\": 0, \"headin_deg\": 3}";

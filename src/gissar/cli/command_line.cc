@@ -122,9 +122,12 @@ void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
     const std::string flag = pipeline::FlagOfField(key);
     const CLI::Option* option = command->get_option_no_throw(flag);
     if (option == nullptr || key == "options") throw ConfigError("unknown key '" + key + "'", file);
-    if (HasFlag(args, flag) || value.is_null()) continue;
+    // A switch that is on by default has a negated form (--no-NAME).
+    const std::string negated = "--no-" + flag.substr(2);
+    if (HasFlag(args, flag) || HasFlag(args, negated) || value.is_null()) continue;
     if (value.is_boolean()) {
       if (value.get<bool>()) expanded.push_back(flag);
+      else if (command->get_option_no_throw(negated) != nullptr) expanded.push_back(negated);
       continue;
     }
     std::string text;

@@ -79,6 +79,9 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_flag("--db", options->db, "Write decibels (10 log10) instead of linear m2/m2 (no return: NaN)");
   cmd->add_flag("--layers", options->layers,
                 "Also write PREFIX_layers.tif: local incidence (deg) and projected terrain area (m2) per pixel");
+  cmd->add_flag("--overviews,!--no-overviews", options->overviews,
+                "Rasters over 1024 px a side: COGs with internal overviews (default), or without them "
+                "(--no-overviews: faster, a third smaller)");
   cmd->add_option("--materials", options->materials,
                   "Materials file (JSON, class -> sigma0 law); with --dem it sets the class 'default'");
   cmd->add_option("--reflectors", options->reflectors,

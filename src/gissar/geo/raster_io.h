@@ -59,6 +59,9 @@ struct FloatRaster {
   std::string crs = {};
   // Declares NaN as every band's no-data value (pixels outside the footprint).
   bool nodata_nan = false;
+  // A COG (either side over kCogMinSidePx) gets its internal overviews;
+  // false: the COG layout without overviews (a third less to write).
+  bool overviews = true;
 };
 
 // Every GeoTIFF writer below writes a ZSTD-compressed (level 1), tiled GeoTIFF;
@@ -66,7 +69,9 @@ struct FloatRaster {
 // A raster with either side over kCogMinSidePx pixels is written as a
 // Cloud-Optimized GeoTIFF (GDAL COG driver, 512-pixel tiles) with internal
 // overviews halving down to 512 pixels or less: AVERAGE for float bands
-// (NaN no-data skipped), NEAREST for uint8 masks/class maps and CFloat32.
+// (NaN no-data skipped), NEAREST for uint8 masks/class maps and CFloat32;
+// `overviews` false (FloatRaster::overviews, the writers' last argument)
+// leaves them out.
 // Metadata, GCPs, RPC and GEOLOCATION domains, units, band names, no-data,
 // colour table and geotransform/CRS are the same in both layouts.
 inline constexpr int kCogMinSidePx = 1024;
@@ -89,7 +94,8 @@ struct ByteCategories {
 
 void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8_t>& data,
                       int width, int height, const Metadata& metadata,
-                      const Georeference& georeference = {}, const ByteCategories& categories = {});
+                      const Georeference& georeference = {}, const ByteCategories& categories = {},
+                      bool overviews = true);
 
 // Reads the GCPs (as stored, in their own CRS) and the RPC domain of a raster.
 // Throws InputError when missing or unreadable.
@@ -115,7 +121,7 @@ struct ComplexBand {
 // the size or there is no band.
 void WriteComplexGeoTiff(const std::filesystem::path& path, const std::vector<ComplexBand>& bands, int width,
                          int height, const Metadata& metadata, const std::string& band_unit = "",
-                         const Georeference& georeference = {}, bool nodata_nan = false);
+                         const Georeference& georeference = {}, bool nodata_nan = false, bool overviews = true);
 
 // A complex raster as read: per band, interleaved (real, imaginary) row-major
 // float pairs, the band descriptions, units and dataset metadata.

@@ -175,6 +175,53 @@ TEST(RasterIoTest, LargeFloatRasterIsACogWithOverviewsAndKeepsEverything) {
   EXPECT_TRUE(back.geotransform.empty());
 }
 
+// Overviews of an odd-sized COG: every level's pixel is the mean of the
+// finite base pixels of its block (not the mean of the means below it), and
+// the last, partial blocks average what they cover.
+TEST(RasterIoTest, CogFloatOverviewsAreMeansOfTheFiniteBasePixels) {
+  const auto dir = testing::MakeTempDir();
+  constexpr int kW = 1101, kH = 1030;  // -> 551 x 515 -> 276 x 258
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  FloatRaster raster;
+  raster.width = kW;
+  raster.height = kH;
+  raster.bands = {std::vector<float>(size_t(kW) * kH, 1.0f)};
+  std::vector<float>& v = raster.bands[0];
+  // Top-left 4 x 4 block: 1 .. 16 row by row, with 1, 2 and 5 NaN: the
+  // factor-4 pixel is (136 - 8) / 13, the factor-2 pixel of its first 2 x 2
+  // block is 6.
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) v[size_t(r) * kW + c] = float(4 * r + c + 1);
+  }
+  v[0] = v[1] = v[kW] = nan;
+  // Last column (1100): the factor-2 pixel (0, 550) covers (0, 1100) = 8 and
+  // (1, 1100) = NaN only.
+  v[1100] = 8.0f;
+  v[size_t(kW) + 1100] = nan;
+  raster.nodata_nan = true;
+  WriteFloatGeoTiff(dir / "odd.tif", raster);
+  GDALDataset* ds = GDALDataset::Open((dir / "odd.tif").c_str());
+  ASSERT_NE(ds, nullptr);
+  EXPECT_EQ(Layout(ds), "COG");
+  GDALRasterBand* b = ds->GetRasterBand(1);
+  ASSERT_EQ(b->GetOverviewCount(), 2);
+  EXPECT_EQ(b->GetOverview(0)->GetXSize(), 551);
+  EXPECT_EQ(b->GetOverview(0)->GetYSize(), 515);
+  EXPECT_EQ(b->GetOverview(1)->GetXSize(), 276);
+  EXPECT_EQ(b->GetOverview(1)->GetYSize(), 258);
+  auto pixel = [&](int level, int x, int y) {
+    float value = 0.0f;
+    EXPECT_EQ(b->GetOverview(level)->RasterIO(GF_Read, x, y, 1, 1, &value, 1, 1, GDT_Float32, 0, 0, nullptr), CE_None);
+    return value;
+  };
+  EXPECT_FLOAT_EQ(pixel(0, 0, 0), 6.0f);
+  EXPECT_FLOAT_EQ(pixel(1, 0, 0), 128.0f / 13.0f);
+  EXPECT_FLOAT_EQ(pixel(0, 550, 0), 8.0f);
+  EXPECT_FLOAT_EQ(pixel(0, 100, 100), 1.0f);
+  EXPECT_FLOAT_EQ(pixel(1, 275, 257), 1.0f);
+  GDALClose(ds);
+}
+
 TEST(RasterIoTest, LargeMapRasterKeepsGeotransformAndCrs) {
   const auto dir = testing::MakeTempDir();
   FloatRaster raster{1100, 40, {std::vector<float>(1100 * 40, 0.5f)}, {"gamma0"}, {}};

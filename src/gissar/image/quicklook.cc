@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "gissar/util/check.h"
 
@@ -44,6 +45,26 @@ std::vector<uint8_t> DbQuicklookWithStretch(const std::vector<float>& intensity,
     grey[i] = static_cast<uint8_t>(1 + std::lround(254.0 * std::clamp(t, 0.0, 1.0)));
   }
   return grey;
+}
+
+std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols, int la, int lr) {
+  GISSAR_CHECK(la >= 1 && lr >= 1 && rows >= 0 && cols >= 0 && image.size() == size_t(rows) * cols);
+  const int out_rows = rows / la, out_cols = cols / lr;
+  std::vector<float> out(size_t(out_rows) * out_cols, std::numeric_limits<float>::quiet_NaN());
+  for (int r = 0; r < out_rows; ++r) {
+    for (int c = 0; c < out_cols; ++c) {
+      double sum = 0.0;
+      int n = 0;
+      for (int i = 0; i < la; ++i) {
+        const float* row = image.data() + size_t(r * la + i) * cols + size_t(c) * lr;
+        for (int j = 0; j < lr; ++j) {
+          if (std::isfinite(row[j])) sum += row[j], ++n;
+        }
+      }
+      if (n > 0) out[size_t(r) * out_cols + c] = static_cast<float>(sum / n);
+    }
+  }
+  return out;
 }
 
 }  // namespace gissar::image

@@ -23,4 +23,11 @@ std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low
 // sequence shares one grey scale).
 std::vector<uint8_t> DbQuicklookWithStretch(const std::vector<float>& intensity, const DbStretch& stretch);
 
+// Block average (multilook) of a rows x cols row-major image by la rows x lr
+// columns (la, lr >= 1): output (rows / la) x (cols / lr), partial blocks at
+// the end dropped, NaN pixels skipped; a block without a finite pixel is NaN.
+// Output pixel (r, c) sits at input position (r la + (la - 1) / 2,
+// c lr + (lr - 1) / 2).
+std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols, int la, int lr);
+
 }  // namespace gissar::image

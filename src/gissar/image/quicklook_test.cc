@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 namespace gissar::image {
 namespace {
@@ -35,6 +36,22 @@ TEST(QuicklookTest, ClipsOutsideThePercentiles) {
 TEST(QuicklookTest, AllDarkImageIsBlack) {
   const auto grey = DbQuicklook(std::vector<float>(10, 0.0f), 2.0, 98.0);
   for (uint8_t g : grey) EXPECT_EQ(g, 0);
+}
+
+TEST(MultilookTest, BlockMeansSkipNaNAndDropPartialBlocks) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  // 5 rows x 7 cols; 2 x 3 looks -> 2 x 2 (the last row and column dropped).
+  std::vector<float> image = {1, 2, 3, 4, 5, 6, 100,   //
+                              4, 5, 6, 7, nan, 9, 100,  //
+                              0, 0, 0, nan, nan, nan, 100,  //
+                              6, 6, 6, nan, nan, nan, 100,  //
+                              100, 100, 100, 100, 100, 100, 100};
+  const std::vector<float> out = Multilook(image, 5, 7, 2, 3);
+  ASSERT_EQ(out.size(), 4u);
+  EXPECT_FLOAT_EQ(out[0], 21.0f / 6.0f);
+  EXPECT_FLOAT_EQ(out[1], 31.0f / 5.0f);
+  EXPECT_FLOAT_EQ(out[2], 3.0f);
+  EXPECT_TRUE(std::isnan(out[3]));
 }
 
 }  // namespace

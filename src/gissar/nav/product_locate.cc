@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "gissar/image/quicklook.h"
 #include "gissar/render/product_renderer.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
@@ -309,23 +310,6 @@ double TrackAngleDeg(const sensor::Orbit& orbit, double time_s) {
   return bearing < 0.0 ? bearing + 360.0 : bearing;
 }
 
-std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols, int la, int lr) {
-  const int out_rows = rows / la, out_cols = cols / lr;
-  std::vector<float> out(size_t(out_rows) * out_cols, std::numeric_limits<float>::quiet_NaN());
-  for (int r = 0; r < out_rows; ++r)
-    for (int c = 0; c < out_cols; ++c) {
-      double sum = 0.0;
-      int n = 0;
-      for (int i = 0; i < la; ++i)
-        for (int j = 0; j < lr; ++j) {
-          const float v = image[size_t(r * la + i) * cols + (c * lr + j)];
-          if (std::isfinite(v)) sum += v, ++n;
-        }
-      if (n > 0) out[size_t(r) * out_cols + c] = static_cast<float>(sum / n);
-    }
-  return out;
-}
-
 sensor::RadarGrid MultilookGrid(const sensor::RadarGrid& grid, int la, int lr) {
   sensor::RadarGrid g = grid;
   g.t0_s = grid.t0_s + 0.5 * (la - 1) * grid.dt_s;
@@ -353,7 +337,7 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
   Stopwatch clock;
   ProductLocateResult result;
   const int width = grid.cols, height = grid.rows;
-  std::vector<float> observed_ml = Multilook(observed.intensity, full.rows, full.cols, la, lr);
+  std::vector<float> observed_ml = image::Multilook(observed.intensity, full.rows, full.cols, la, lr);
   for (float& v : observed_ml) {
     if (!std::isfinite(v)) v = 0.0f;
   }

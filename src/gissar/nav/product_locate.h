@@ -154,10 +154,9 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
                                   const ProductObservation& observed, const TrackVectors& prior_track,
                                   const ProductLocateOptions& options);
 
-// Block average of a rows x cols image by la x lr (partial blocks dropped,
-// NaN pixels skipped; a block without a finite pixel is NaN), and the grid
-// of the result.
-std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols, int la, int lr);
+// The grid of an image multilooked by la lines x lr range bins
+// (image::Multilook): partial blocks dropped, each output pixel at the
+// centre of its block.
 sensor::RadarGrid MultilookGrid(const sensor::RadarGrid& grid, int la, int lr);
 
 }  // namespace gissar::nav

@@ -70,20 +70,7 @@ TEST(TrackOffsetTest, DisplacementHasTheGivenComponentsAndTurnsTheTrack) {
               2.0, 1e-9);
 }
 
-TEST(MultilookTest, BlockMeansSkipNaNAndDropPartialBlocks) {
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  // 5 rows x 7 cols; 2 x 3 looks -> 2 x 2 (the last row and column dropped).
-  std::vector<float> image = {1, 2, 3, 4, 5, 6, 100,   //
-                              4, 5, 6, 7, nan, 9, 100,  //
-                              0, 0, 0, nan, nan, nan, 100,  //
-                              6, 6, 6, nan, nan, nan, 100,  //
-                              100, 100, 100, 100, 100, 100, 100};
-  const std::vector<float> out = Multilook(image, 5, 7, 2, 3);
-  ASSERT_EQ(out.size(), 4u);
-  EXPECT_FLOAT_EQ(out[0], 21.0f / 6.0f);
-  EXPECT_FLOAT_EQ(out[1], 31.0f / 5.0f);
-  EXPECT_FLOAT_EQ(out[2], 3.0f);
-  EXPECT_TRUE(std::isnan(out[3]));
+TEST(MultilookTest, GridPixelsSitAtTheBlockCentres) {
   sensor::RadarGrid g;
   g.t0_s = 10.0;
   g.dt_s = 0.5;

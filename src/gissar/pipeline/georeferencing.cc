@@ -10,6 +10,22 @@
 namespace gissar::pipeline {
 
 TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.vertices) {
+  const size_t cells = terrain.grid_width > 1 && terrain.grid_height > 1
+                           ? size_t(terrain.grid_width - 1) * (terrain.grid_height - 1)
+                           : 0;
+  const bool plain_grid = cells > 0 && vertices_.size() == size_t(terrain.grid_width) * terrain.grid_height &&
+                          (terrain.mesh.triangles.empty() || terrain.mesh.triangles.size() == 2 * cells) &&
+                          std::all_of(vertices_.begin(), vertices_.end(), [](const Eigen::Vector3f& v) { return v.allFinite(); });
+  if (plain_grid) {
+    grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height);
+    z_min_ = 1e300;
+    z_max_ = -1e300;
+    for (const auto& v : vertices_) {
+      z_min_ = std::min<double>(z_min_, v.z());
+      z_max_ = std::max<double>(z_max_, v.z());
+    }
+    return;
+  }
   if (!terrain.mesh.triangles.empty()) {
     triangles_ = &terrain.mesh.triangles;
     triangle_count_ = terrain.mesh.triangles.size();
@@ -72,6 +88,7 @@ Eigen::Vector3i TerrainSurface::Triangle(size_t t) const {
 
 double TerrainSurface::operator()(double x, double y) const {
   const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (grid_) return grid_->SurfaceHeight(x, y).value_or(nan);
   if (nx_ == 0) return nan;
   const int i = int(std::floor((x - x0_) / cell_)), j = int(std::floor((y - y0_) / cell_));
   if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return nan;

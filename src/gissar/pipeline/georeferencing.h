@@ -2,20 +2,24 @@
 // as a height function for sensor::SlantRangeGeoreference.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/render/raster_renderer.h"
 #include "gissar/sensor/georeference.h"
 
 namespace gissar::pipeline {
 
-// Height of the highest triangle of a mesh above ENU (x, y), by binning the
-// triangles on a regular grid of about 4 triangles per cell. A DEM's grid of
-// posts without triangles (grid_width x grid_height vertices, row-major) is
-// triangulated on the fly. NaN outside every triangle.
+// Height of the highest triangle of a mesh above ENU (x, y). A DEM's grid of
+// posts (grid_width x grid_height finite vertices, row-major, with no
+// triangles or exactly MeshFromGrid's) is searched as a grid
+// (render::GridHeightfield: no index, O(1) memory); any other mesh by
+// binning its triangles on a regular grid of about 4 triangles per cell.
+// NaN outside every triangle.
 class TerrainSurface {
  public:
   explicit TerrainSurface(const Terrain& terrain);
@@ -26,6 +30,7 @@ class TerrainSurface {
  private:
   Eigen::Vector3i Triangle(size_t t) const;
   const std::vector<Eigen::Vector3f>& vertices_;
+  std::optional<render::GridHeightfield> grid_;  // a plain DEM grid
   const std::vector<Eigen::Vector3i>* triangles_ = nullptr;
   int grid_width_ = 0, grid_height_ = 0;
   size_t triangle_count_ = 0;

@@ -6,17 +6,63 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
+#include <random>
 
 #include <nlohmann/json.hpp>
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/warp.h"
+#include "gissar/scene/triangle_mesh.h"
 #include "gissar/util/progress.h"
 #include "gissar/util/testing.h"
 
 namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
+
+// A plain DEM grid (searched as a grid) and the same surface as a general
+// mesh (binned triangles) give the height of a tilted plane, exactly, on a
+// sheared and rotated grid of posts; NaN off the grid. A post that is not
+// finite sends the grid to the binned path, which skips its triangles.
+TEST(TerrainSurfaceTest, GridAndBinnedMeshGiveThePlaneHeight) {
+  auto plane = [](double x, double y) { return 0.1 * x - 0.05 * y + 100.0; };
+  Terrain grid;
+  grid.grid_width = 41;
+  grid.grid_height = 31;
+  for (int r = 0; r < grid.grid_height; ++r) {
+    for (int c = 0; c < grid.grid_width; ++c) {
+      const double x = 30.0 * c + 4.0 * r + 0.02 * c * r, y = -3.0 * c + 30.0 * r;
+      grid.mesh.vertices.emplace_back(float(x), float(y), float(plane(double(float(x)), double(float(y)))));
+    }
+  }
+  Terrain mesh = grid;
+  mesh.mesh = scene::MeshFromGrid(grid.mesh.vertices, grid.grid_width, grid.grid_height);
+  mesh.grid_width = mesh.grid_height = 0;  // a general mesh
+  Terrain grid_with_triangles = mesh;
+  grid_with_triangles.grid_width = grid.grid_width;
+  grid_with_triangles.grid_height = grid.grid_height;
+  const TerrainSurface a(grid), b(mesh), c(grid_with_triangles);
+  EXPECT_NEAR(a.z_min_m(), b.z_min_m(), 1e-9);
+  EXPECT_NEAR(a.z_max_m(), b.z_max_m(), 1e-9);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.05, 0.95);
+  for (int k = 0; k < 500; ++k) {
+    // A point inside the grid: bilinear in the grid's parameters.
+    const double gc = u(rng) * (grid.grid_width - 1), gr = u(rng) * (grid.grid_height - 1);
+    const double x = 30.0 * gc + 4.0 * gr + 0.02 * gc * gr, y = -3.0 * gc + 30.0 * gr;
+    for (const TerrainSurface* s : {&a, &b, &c}) ASSERT_NEAR((*s)(x, y), plane(x, y), 2e-3) << k;
+  }
+  for (const TerrainSurface* s : {&a, &b, &c}) {
+    EXPECT_TRUE(std::isnan((*s)(-50.0, -50.0)));
+    EXPECT_TRUE(std::isnan((*s)(5000.0, 100.0)));
+  }
+  Terrain holed = grid;
+  holed.mesh.vertices[0].z() = std::numeric_limits<float>::quiet_NaN();
+  const TerrainSurface h(holed);
+  EXPECT_TRUE(std::isnan(h(1.0, 1.0)));  // the corner cell's first triangle has the NaN post
+  EXPECT_NEAR(h(600.0, 450.0), plane(600.0, 450.0), 2e-3);
+}
 
 // Andorra's relief (SRTM, 150 m pixels, heading 30, depression 40): the
 // image's GCPs and RPCs, read back through GDAL's own transformers

@@ -14,6 +14,8 @@
 #include <cstdio>
 #include <sstream>
 
+#include <tbb/task_group.h>
+
 #include "gissar/geo/dem.h"
 #include "gissar/geo/geoid.h"
 #include "gissar/geo/vertical_datum.h"
@@ -162,6 +164,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["radiometry"] = radiometry;
   j["db"] = db;
   j["layers"] = layers;
+  j["overviews"] = overviews;
   j["materials"] = materials;
   j["reflectors"] = reflectors;
   j["contributions"] = contributions;
@@ -231,6 +234,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "radiometry") set(radiometry);
     else if (key == "db") set(db);
     else if (key == "layers") set(layers);
+    else if (key == "overviews") set(overviews);
     else if (key == "materials") set(materials);
     else if (key == "reflectors") set(reflectors);
     else if (key == "contributions") set(contributions);
@@ -1105,6 +1109,41 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   metadata["GISSAR_RADIOMETRY"] = options.radiometry;
   metadata["GISSAR_TERRAIN"] = fs::absolute(options.scene.empty() ? options.dem : options.scene).string();
   metadata["GISSAR_VERSION"] = VersionString();
+  // Quicklooks from the linear values, drawn on another thread (PNG encoding
+  // is single-threaded) while the georeferencing and the GeoTIFFs are
+  // computed and written; on an exception the task group's destructor waits.
+  std::vector<float> linear = image.intensity;
+  for (float& v : linear) {
+    if (std::isnan(v)) v = 0.0f;  // no-data: black
+    else if (options.db) v = static_cast<float>(std::pow(10.0, v / 10.0));
+  }
+  image::DbStretch stretch;
+  double quicklook_seconds = 0.0;
+  tbb::task_group pictures;
+  pictures.run([&] {
+    const Stopwatch watch;
+    geo::WritePng(png, image::DbQuicklook(linear, 2.0, 98.0, &stretch), image.width, image.height, 1);
+    char title[160];
+    std::snprintf(title, sizeof(title), "heading %.1f deg, depression %.1f deg, %.3g x %.3g m pixels",
+                  geometry_options.heading_deg, geometry_options.depression_deg, geometry.range_spacing_m(),
+                  geometry.azimuth_spacing_m());
+    // The annotated quicklook is a picture for people: above
+    // kQuicklookMaxSidePx a side, it shows the image multilooked by an
+    // integer factor (linear power averaged), its axes at the block centres.
+    const int side = std::max(image.width, image.height);
+    const int looks = (side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx;
+    const std::vector<float> shown = looks > 1 ? image::Multilook(linear, image.height, image.width, looks, looks)
+                                               : std::vector<float>();
+    const double dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
+    const double half_block = 0.5 * (looks - 1);
+    const image::RgbImage annotated = image::AnnotatedQuicklook(
+        looks > 1 ? shown : linear, image.width / looks, image.height / looks,
+        {geometry.slant_range_m() + (half_block - geometry.u0()) * dr, dr * looks,
+         (half_block - geometry.v0()) * da, da * looks},
+        title);
+    geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
+    quicklook_seconds = watch.ElapsedSeconds();
+  });
   // The bands are moved into the raster for the write and back afterwards
   // (the caller may still read the image): no copies of full-size planes.
   geo::FloatRaster raster{image.width, image.height, {}, {"total"}, metadata};
@@ -1127,8 +1166,16 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   raster.band_units.assign(raster.bands.size(), raster.band_unit);
   // NaN outside the imaged footprint (ApplySensorEffects), declared.
   raster.nodata_nan = true;
+  raster.overviews = options.overviews;
   // WGS84 GCPs on the terrain and RPCs fitted to the geometry (docs/georeferencing.md).
   nlohmann::json georeference_record;
+  // Where the write phase's time goes (sidecar timings_s.write_detail).
+  nlohmann::json write_detail = nlohmann::json::object();
+  Stopwatch part;
+  auto lap = [&](const char* name) {
+    write_detail[name] = part.ElapsedSeconds();
+    part = Stopwatch();
+  };
   try {
     sensor::GeoreferenceReport georeference_report;
     TpsRefinement tps;
@@ -1146,6 +1193,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   } catch (const ConfigError& e) {
     georeference_record = {{"gcps", 0}, {"reason", e.what()}};
   }
+  lap("georeference");
   if (!contributions_csv.empty()) WriteContributions(contributions_csv, image.contributions, geometry);
   try {
     geo::WriteFloatGeoTiff(tif, raster);
@@ -1154,6 +1202,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     throw;
   }
   give_back_bands();
+  lap("image");
   if (options.coherent) {
     geo::Metadata slc_metadata = metadata;
     slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
@@ -1166,7 +1215,8 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
       slc_bands.push_back({&image.bounce_real[layer], &image.bounce_imag[layer], layer_names[layer]});
     }
     geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
-                             raster.georeference, /*nodata_nan=*/true);
+                             raster.georeference, /*nodata_nan=*/true, options.overviews);
+    lap("slc");
   }
   if (!reserved.layers_tif.empty()) {
     const Stopwatch layers_watch;
@@ -1178,6 +1228,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                          {"local_incidence", "projected_area"}, metadata};
     out.band_units = {"deg", "m2"};
     out.nodata_nan = true;
+    out.overviews = options.overviews;
     out.georeference = raster.georeference;
     out.metadata["GISSAR_BANDS"] =
         "1 local incidence (deg, area-weighted over the surfaces facing the radar), 2 projected area (m2 of "
@@ -1187,32 +1238,17 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     }
     geo::WriteFloatGeoTiff(reserved.layers_tif, out);
     timings["layers"] = layers_watch.ElapsedSeconds();
+    part = Stopwatch();
   }
-  // Quicklooks from the linear values.
-  std::vector<float> linear = image.intensity;
-  for (float& v : linear) {
-    if (std::isnan(v)) v = 0.0f;  // no-data: black
-    else if (options.db) v = static_cast<float>(std::pow(10.0, v / 10.0));
-  }
-  image::DbStretch stretch;
-  geo::WritePng(png, image::DbQuicklook(linear, 2.0, 98.0, &stretch), image.width,
-                image.height, 1);
-  {
-    char title[160];
-    std::snprintf(title, sizeof(title), "heading %.1f deg, depression %.1f deg, %.3g x %.3g m pixels",
-                  geometry_options.heading_deg, geometry_options.depression_deg, geometry.range_spacing_m(),
-                  geometry.azimuth_spacing_m());
-    const image::RgbImage annotated = image::AnnotatedQuicklook(
-        linear, image.width, image.height,
-        {geometry.slant_range_m() - geometry.u0() * geometry.range_spacing_m(), geometry.range_spacing_m(),
-         -geometry.v0() * geometry.azimuth_spacing_m(), geometry.azimuth_spacing_m()},
-        title);
-    geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
-  }
+  // The quicklooks were drawn meanwhile.
+  pictures.wait();
+  write_detail["quicklooks"] = quicklook_seconds;
+  lap("quicklooks_wait");
   geo::Metadata mask_metadata = metadata;
   mask_metadata["GISSAR_MASK_CODES"] = kMaskCodesText;
   geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata, raster.georeference,
-                        MaskCategories());
+                        MaskCategories(), options.overviews);
+  lap("mask");
 
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array(
@@ -1318,7 +1354,9 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     }
     WriteJsonFile(StacItem(p, fs::path(options.out_prefix).parent_path()), reserved.stac_json);
   }
+  lap("sidecars");
   timings["write"] = step.ElapsedSeconds();
+  timings["write_detail"] = write_detail;
   timings["total"] = total.ElapsedSeconds();
   provenance["timings_s"] = timings;
   return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());

@@ -39,6 +39,10 @@ constexpr double kMaxNeszDb = 60.0;
 // Widest impulse response, in pixels of the image spacing: the PSF kernel
 // grows with it (a 1e9 m resolution would never finish).
 constexpr double kMaxImpulseResponsePx = 1024.0;
+// PREFIX_quicklook.png (the annotated picture) shows images larger than this
+// on either side multilooked by the smallest integer factor that brings
+// both sides to at most this many pixels; PREFIX.png keeps every pixel.
+inline constexpr int kQuicklookMaxSidePx = 2048;
 
 // Throws ConfigError naming --range-resolution / --azimuth-resolution when
 // the impulse response is wider than kMaxImpulseResponsePx pixels.
@@ -120,6 +124,10 @@ struct SimulateRequest {
   // band 1 local_incidence (deg), band 2 projected_area (m2 of terrain per
   // pixel), render::ComputeTerrainLayers; NaN outside the footprint.
   bool layers = false;
+  // Rasters over geo::kCogMinSidePx a side are Cloud-Optimized GeoTIFFs
+  // with internal overviews; false leaves the overviews out (the COG layout
+  // stays).
+  bool overviews = true;
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
   // spectral window ("none", "hamming", "taylor").
   double range_resolution_m = 0.0;

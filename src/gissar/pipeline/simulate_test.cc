@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <iomanip>
@@ -93,6 +94,36 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   EXPECT_EQ(provenance["stats"]["mask_pixels"]["outside"].get<int>(), outside);
   EXPECT_TRUE(provenance["timings_s"].contains("trace"));
   EXPECT_NE(provenance["version"].get<std::string>().find("gissar"), std::string::npos);
+}
+
+// An image wider than kQuicklookMaxSidePx: PREFIX.png keeps every pixel, the
+// annotated quicklook shows it multilooked by the smallest integer factor
+// that fits; the sidecar says where the write phase's time went.
+TEST(SimulateTest, LargeImagesGetAMultilookedAnnotatedQuicklook) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest options = AndorraOptions(dir, 0.0);
+  options.engine = "raster";
+  options.geometry.range_spacing_m = 12.0;
+  options.geometry.azimuth_spacing_m = 12.0;
+  const SimulateResult result = RunSimulate(options, "gissar simulate (test)");
+  const int side = std::max(result.width, result.height);
+  ASSERT_GT(side, kQuicklookMaxSidePx);
+  const int looks = (side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx;
+  EXPECT_LE(std::max(result.width, result.height) / looks, kQuicklookMaxSidePx);
+  int qw = 0, qh = 0, pw = 0, ph = 0;
+  geo::ReadByteRaster(options.out_prefix + "_quicklook.png", &qw, &qh);
+  EXPECT_EQ(qw, result.width / looks + 180);
+  EXPECT_EQ(qh, result.height / looks + 94);
+  geo::ReadByteRaster(options.out_prefix + ".png", &pw, &ph);
+  EXPECT_EQ(pw, result.width);
+  EXPECT_EQ(ph, result.height);
+  nlohmann::json provenance;
+  std::ifstream(options.out_prefix + ".json") >> provenance;
+  const nlohmann::json& detail = provenance["timings_s"]["write_detail"];
+  for (const char* part : {"georeference", "image", "quicklooks", "mask", "sidecars"}) {
+    ASSERT_TRUE(detail.contains(part)) << part;
+    EXPECT_GE(detail[part].get<double>(), 0.0);
+  }
 }
 
 TEST(SimulateTest, SameInputsGiveIdenticalImages) {

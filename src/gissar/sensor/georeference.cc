@@ -5,9 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <string>
 
 #include <Eigen/Dense>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "gissar/util/error.h"
 
@@ -56,9 +59,12 @@ geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo:
   Eigen::Vector3d r_h(l.x(), l.y(), 0.0);
   r_h.normalize();
 
-  geo::Georeference out;
-  for (int j = 0; j < grid; ++j) {
-    for (int i = 0; i < grid; ++i) {
+  // Lattice nodes in parallel (the surface is read-only), kept in lattice
+  // order: the GCPs are the same whatever the thread count.
+  std::vector<std::optional<geo::GroundControlPoint>> found(size_t(grid) * grid);
+  tbb::parallel_for(tbb::blocked_range<int>(0, grid * grid, 8), [&](const tbb::blocked_range<int>& nodes) {
+    for (int node = nodes.begin(); node < nodes.end(); ++node) {
+      const int j = node / grid, i = node % grid;
       const double col = (geometry.width() - 1) * double(i) / (grid - 1);
       const double row = (geometry.height() - 1) * double(j) / (grid - 1);
       const double along = (row - geometry.v0()) * geometry.azimuth_spacing_m();
@@ -108,7 +114,7 @@ geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo:
           const Eigen::Vector3d p = point(0.5 * (a + b));
           const Eigen::Vector3d g = frame.GeodeticFromEnu(p);
           const Eigen::Vector2d px = geometry.Project(p);
-          out.gcps.push_back({px.x() + 0.5, px.y() + 0.5, g.x(), g.y(), g.z()});
+          found[size_t(node)] = geo::GroundControlPoint{px.x() + 0.5, px.y() + 0.5, g.x(), g.y(), g.z()};
           break;
         }
         prev_s = s;
@@ -116,6 +122,10 @@ geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo:
         prev_valid = valid;
       }
     }
+  });
+  geo::Georeference out;
+  for (const auto& gcp : found) {
+    if (gcp) out.gcps.push_back(*gcp);
   }
   if (out.gcps.size() < 3) {
     throw ConfigError("fewer than 3 image pixels see the terrain; no georeferencing possible",
