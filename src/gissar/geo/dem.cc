@@ -4,6 +4,8 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cctype>
@@ -468,26 +470,34 @@ GeoPoint ResolveSceneCentre(const Dem& dem, const std::optional<Eigen::Vector2d>
 }
 
 std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& frame) {
-  CrsTransform crs(dem.crs_wkt);
+  const CrsTransform probe(dem.crs_wkt);  // throws here, on the calling thread, for a bad CRS
   const size_t n = size_t(dem.width) * dem.height;
-  std::vector<double> x(n), y(n);
-  for (int r = 0; r < dem.height; ++r) {
-    for (int c = 0; c < dem.width; ++c) {
-      const Eigen::Vector2d m = dem.MapFromPost(c, r);
-      x[size_t(r) * dem.width + c] = m.x();
-      y[size_t(r) * dem.width + c] = m.y();
-    }
-  }
-  try {
-    crs.ToLonLat(x, y);
-  } catch (const InputError& e) {
-    throw InputError("DEM posts cannot be transformed to WGS84: " + e.message() + " " + e.where(),
-                     dem.source);
-  }
   std::vector<Eigen::Vector3f> enu(n);
-  for (size_t i = 0; i < n; ++i) {
-    enu[i] = frame.EnuFromGeodetic(x[i], y[i], dem.heights_m[i]).cast<float>();
-  }
+  // Blocks of rows in parallel, each with its own transformation (PROJ's
+  // objects are not shared between threads) and row-sized buffers only.
+  const int grain = std::max(1, dem.height / 64);
+  tbb::parallel_for(tbb::blocked_range<int>(0, dem.height, grain), [&](const tbb::blocked_range<int>& rows) {
+    const CrsTransform crs(dem.crs_wkt);
+    const size_t count = size_t(rows.size()) * dem.width;
+    std::vector<double> x(count), y(count);
+    for (int r = rows.begin(); r < rows.end(); ++r) {
+      for (int c = 0; c < dem.width; ++c) {
+        const Eigen::Vector2d m = dem.MapFromPost(c, r);
+        const size_t k = size_t(r - rows.begin()) * dem.width + c;
+        x[k] = m.x();
+        y[k] = m.y();
+      }
+    }
+    try {
+      crs.ToLonLat(x, y);
+    } catch (const InputError& e) {
+      throw InputError("DEM posts cannot be transformed to WGS84: " + e.message() + " " + e.where(), dem.source);
+    }
+    const size_t first = size_t(rows.begin()) * dem.width;
+    for (size_t k = 0; k < count; ++k) {
+      enu[first + k] = frame.EnuFromGeodetic(x[k], y[k], dem.heights_m[first + k]).cast<float>();
+    }
+  });
   return enu;
 }
 

@@ -1,5 +1,8 @@
 #include "gissar/scene/triangle_mesh.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "gissar/util/check.h"
 
 namespace gissar::scene {
@@ -91,27 +94,36 @@ size_t TriangleMesh::MemoryBytes() const {
 }
 
 TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height) {
+  return MeshFromGrid(std::vector<Eigen::Vector3f>(posts), width, height);
+}
+
+TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts_taken, int width, int height) {
   GISSAR_CHECK(width >= 2 && height >= 2);
-  GISSAR_CHECK(posts.size() == size_t(width) * height);
+  GISSAR_CHECK(posts_taken.size() == size_t(width) * height);
   TriangleMesh mesh;
-  mesh.vertices = posts;
-  mesh.triangles.reserve(size_t(width - 1) * (height - 1) * 2);
+  mesh.vertices = std::move(posts_taken);
+  const std::vector<Eigen::Vector3f>& posts = mesh.vertices;
+  mesh.triangles.resize(size_t(width - 1) * (height - 1) * 2);
   // Orientation of the grid: does (next column) x (next row) point up?
   const Eigen::Vector3f du = posts[1] - posts[0];
   const Eigen::Vector3f dv = posts[width] - posts[0];
   const bool column_cross_row_up = du.cross(dv).z() > 0.0f;
-  for (int r = 0; r + 1 < height; ++r) {
-    for (int c = 0; c + 1 < width; ++c) {
-      const int a = r * width + c, b = a + 1, d = a + width, e = d + 1;
-      if (column_cross_row_up) {
-        mesh.triangles.emplace_back(a, b, d);
-        mesh.triangles.emplace_back(b, e, d);
-      } else {
-        mesh.triangles.emplace_back(a, d, b);
-        mesh.triangles.emplace_back(b, d, e);
+  // Rows of cells in parallel; triangle 2k and 2k + 1 belong to cell k.
+  tbb::parallel_for(tbb::blocked_range<int>(0, height - 1, 64), [&](const tbb::blocked_range<int>& rows) {
+    for (int r = rows.begin(); r < rows.end(); ++r) {
+      Eigen::Vector3i* out = mesh.triangles.data() + size_t(r) * (width - 1) * 2;
+      for (int c = 0; c + 1 < width; ++c) {
+        const int a = r * width + c, b = a + 1, d = a + width, e = d + 1;
+        if (column_cross_row_up) {
+          *out++ = Eigen::Vector3i(a, b, d);
+          *out++ = Eigen::Vector3i(b, e, d);
+        } else {
+          *out++ = Eigen::Vector3i(a, d, b);
+          *out++ = Eigen::Vector3i(b, d, e);
+        }
       }
     }
-  }
+  });
   mesh.classes.assign(mesh.triangles.size(), kDefaultClass);
   return mesh;
 }

@@ -64,6 +64,8 @@ struct TriangleMesh {
 // DEM posts in ENU): two triangles per cell, normals pointing up (+z), class
 // kDefaultClass. CHECKs that the grid has at least 2x2 posts.
 TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height);
+// The same, taking the posts over (no copy of the vertex array).
+TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts, int width, int height);
 
 // Terrain mesh of a regular height grid in the ENU frame: post (c, r) at
 // x = x0 + c * spacing_m, y = y0 + r * spacing_m, z = heights[r * width + c].
