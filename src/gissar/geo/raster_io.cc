@@ -204,7 +204,7 @@ void ReduceLevel(const float* values, const uint32_t* counts, int sw, int sh, fl
 }
 
 // The float overviews of a staged COG, computed here instead of by GDAL 3.6's
-// AVERAGE resampler (single-threaded; 3.8 s of a 24 Mpx x 5 band write):
+// AVERAGE resampler (single-threaded; 2.5-3 s of a 24 Mpx x 5 band write):
 // overview factors 2, 4, ... until both sides are at most kCogBlockPx (the
 // COG driver's own rule), each pixel the mean of the finite base pixels of
 // its block (GDAL's AVERAGE with NaN no-data), NaN where none is finite.

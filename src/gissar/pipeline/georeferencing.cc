@@ -10,41 +10,40 @@
 namespace gissar::pipeline {
 
 TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.vertices) {
-  const size_t cells = terrain.grid_width > 1 && terrain.grid_height > 1
-                           ? size_t(terrain.grid_width - 1) * (terrain.grid_height - 1)
-                           : 0;
-  const bool plain_grid = cells > 0 && vertices_.size() == size_t(terrain.grid_width) * terrain.grid_height &&
-                          (terrain.mesh.triangles.empty() || terrain.mesh.triangles.size() == 2 * cells) &&
-                          std::all_of(vertices_.begin(), vertices_.end(), [](const Eigen::Vector3f& v) { return v.allFinite(); });
-  if (plain_grid) {
-    grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height);
-    z_min_ = 1e300;
-    z_max_ = -1e300;
-    for (const auto& v : vertices_) {
-      z_min_ = std::min<double>(z_min_, v.z());
-      z_max_ = std::max<double>(z_max_, v.z());
-    }
-    return;
-  }
-  if (!terrain.mesh.triangles.empty()) {
-    triangles_ = &terrain.mesh.triangles;
-    triangle_count_ = terrain.mesh.triangles.size();
-  } else if (terrain.grid_width > 1 && terrain.grid_height > 1) {
-    grid_width_ = terrain.grid_width;
-    grid_height_ = terrain.grid_height;
-    triangle_count_ = size_t(grid_width_ - 1) * (grid_height_ - 1) * 2;
-  }
+  // One pass for the bounds of the finite vertices (both paths need the
+  // height range) and whether every vertex is finite.
   double x_min = 1e300, x_max = -1e300, y_min = 1e300, y_max = -1e300;
   z_min_ = 1e300;
   z_max_ = -1e300;
+  bool all_finite = true;
   for (const auto& v : vertices_) {
-    if (!v.allFinite()) continue;
+    if (!v.allFinite()) {
+      all_finite = false;
+      continue;
+    }
     x_min = std::min<double>(x_min, v.x());
     x_max = std::max<double>(x_max, v.x());
     y_min = std::min<double>(y_min, v.y());
     y_max = std::max<double>(y_max, v.y());
     z_min_ = std::min<double>(z_min_, v.z());
     z_max_ = std::max<double>(z_max_, v.z());
+  }
+  const size_t cells = terrain.grid_width > 1 && terrain.grid_height > 1
+                           ? size_t(terrain.grid_width - 1) * (terrain.grid_height - 1)
+                           : 0;
+  const bool plain_grid = cells > 0 && all_finite && vertices_.size() == size_t(terrain.grid_width) * terrain.grid_height &&
+                          (terrain.mesh.triangles.empty() || terrain.mesh.triangles.size() == 2 * cells);
+  if (plain_grid) {
+    grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height);
+    return;
+  }
+  if (!terrain.mesh.triangles.empty()) {
+    triangles_ = &terrain.mesh.triangles;
+    triangle_count_ = terrain.mesh.triangles.size();
+  } else if (cells > 0) {
+    grid_width_ = terrain.grid_width;
+    grid_height_ = terrain.grid_height;
+    triangle_count_ = 2 * cells;
   }
   if (triangle_count_ == 0 || x_min > x_max) {
     nx_ = ny_ = 0;
