@@ -7,7 +7,11 @@
 //   BM_TracerPrimary: RenderSar with one bounce, timed over its tracing
 //     phase (ray generation, intersection, shading, splatting, merging the
 //     image bands; not the layover/shadow mask, which is not primary rays);
-//   BM_BvhBuild: the BVH at low and medium quality, time and memory.
+//   BM_BvhBuild: the BVH at low and medium quality, time and memory;
+// the two throughput benchmarks run with argument 0 on Embree's BVH over
+// the DEM's triangles and with 1 on the height field (render/heightfield.h,
+// no BVH over the terrain; `bvh_build_s` and `bvh_added_MiB` are then the
+// height field's).
 // $GISSAR_BENCH_BVH (low, medium, high; default automatic) sets the quality
 // of the BVH the two throughput benchmarks use.
 // Both report rays_per_s; scripts/bench.sh takes their ratio. The BVH is
@@ -31,10 +35,14 @@ using namespace gissar;
 struct Scene {
   pipeline::Terrain terrain;
   std::unique_ptr<render::EmbreeScene> embree;
+  std::unique_ptr<render::EmbreeScene> heightfield;
   std::unique_ptr<sensor::SarGeometry> geometry;
   double rays_per_cell = 4.0;
   double bvh_seconds = 0.0;    // build of `embree`
   double bvh_added_bytes = 0;  // resident memory it added
+  double heightfield_seconds = 0.0;    // build of `heightfield`
+  double heightfield_added_bytes = 0;  // resident memory it added
+  const render::EmbreeScene& Traced(int64_t heightfield_arg) const { return heightfield_arg ? *heightfield : *embree; }
 };
 
 double ResidentBytes();
@@ -60,6 +68,11 @@ const Scene& LoadedScene() {
     s.embree = std::make_unique<render::EmbreeScene>(s.terrain.mesh, quality);
     s.bvh_added_bytes = ResidentBytes() - before;
     s.bvh_seconds = s.embree->build_seconds();
+    const double before_heightfield = ResidentBytes();
+    s.heightfield = std::make_unique<render::EmbreeScene>(
+        s.terrain.mesh, render::TerrainGrid{s.terrain.grid_width, s.terrain.grid_height}, quality);
+    s.heightfield_added_bytes = ResidentBytes() - before_heightfield;
+    s.heightfield_seconds = s.heightfield->build_seconds();
     s.geometry = std::make_unique<sensor::SarGeometry>(sensor::SarGeometry::Covering(
         pipeline::ResolvedGeometry(o, s.terrain), s.terrain.centre_enu, s.terrain.mesh.vertices));
     return s;
@@ -71,7 +84,7 @@ void BM_RawEmbreeStream(benchmark::State& state) {
   const Scene& s = LoadedScene();
   int64_t rays = 0, hits = 0;
   for (auto _ : state) {
-    rays = render::IntersectPrimaryRaysOnly(*s.embree, s.terrain.mesh, *s.geometry, s.rays_per_cell, &hits);
+    rays = render::IntersectPrimaryRaysOnly(s.Traced(state.range(0)), s.terrain.mesh, *s.geometry, s.rays_per_cell, &hits);
     benchmark::DoNotOptimize(hits);
   }
   state.counters["rays"] = double(rays);
@@ -79,11 +92,12 @@ void BM_RawEmbreeStream(benchmark::State& state) {
   state.counters["rays_per_s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsIterationInvariantRate);
   // The BVH both throughput benchmarks use (automatic quality unless
   // $GISSAR_BENCH_BVH): its build time and memory.
-  state.counters["bvh_build_s"] = s.bvh_seconds;
-  state.counters["bvh_added_MiB"] = s.bvh_added_bytes / 1048576.0;
+  state.counters["bvh_build_s"] = state.range(0) ? s.heightfield_seconds : s.bvh_seconds;
+  state.counters["bvh_added_MiB"] = (state.range(0) ? s.heightfield_added_bytes : s.bvh_added_bytes) / 1048576.0;
   state.counters["triangles"] = double(s.terrain.mesh.triangle_count());
   const render::BvhQuality q = s.embree->quality();
-  state.SetLabel(q == render::BvhQuality::kLow ? "low" : q == render::BvhQuality::kHigh ? "high" : "medium");
+  state.SetLabel(state.range(0) ? "heightfield"
+                 : q == render::BvhQuality::kLow ? "low" : q == render::BvhQuality::kHigh ? "high" : "medium");
 }
 
 void BM_TracerPrimary(benchmark::State& state) {
@@ -93,7 +107,7 @@ void BM_TracerPrimary(benchmark::State& state) {
   o.max_bounces = 1;
   int64_t rays = 0, hits = 0;
   for (auto _ : state) {
-    const render::SarImage image = render::RenderSar(*s.embree, s.terrain.mesh, s.terrain.materials, *s.geometry, o);
+    const render::SarImage image = render::RenderSar(s.Traced(state.range(0)), s.terrain.mesh, s.terrain.materials, *s.geometry, o);
     state.SetIterationTime(image.stats.trace_seconds);
     rays = image.stats.rays;
     hits = image.stats.hits;
@@ -102,6 +116,7 @@ void BM_TracerPrimary(benchmark::State& state) {
   state.counters["hits"] = double(hits);
   state.counters["rays_per_s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsIterationInvariantRate);
   state.counters["triangles"] = double(s.terrain.mesh.triangle_count());
+  state.SetLabel(state.range(0) ? "heightfield" : "bvh");
 }
 
 // Resident memory now (bytes), from /proc/self/statm.
@@ -138,8 +153,8 @@ BENCHMARK(BM_BvhBuild)
     ->Iterations(1);
 
 // Alternating, so that both see the same load on a shared machine.
-BENCHMARK(BM_RawEmbreeStream)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
-BENCHMARK(BM_TracerPrimary)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(2);
+BENCHMARK(BM_RawEmbreeStream)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK(BM_TracerPrimary)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(2);
 
 }  // namespace
 

@@ -136,6 +136,49 @@ w("(idle machine) and ≤ 1.5 GiB peak. Reached here: **%.1f s** wall (%s), **%.
     wall, verdict(wall <= 8.0), rss / GIB, verdict(rss <= 1.5 * GIB)))
 w("")
 
+# ---------------------------------------------------------------- height field
+w("### Terrain as a height field against Embree's BVH (4096², 3 bounces)")
+w("")
+w("`simulate` traces a DEM's terrain as a height field by default (`render/heightfield.h`: a quadtree")
+w("of 3-D bounds over the grid's cells whose 8 × 8-cell tiles are an Embree user geometry, triangles")
+w("intersected on the fly, watertight, in double precision); `--no-heightfield` builds Embree's BVH")
+w("over the DEM's quads instead. Same DEM, same command otherwise, back to back:")
+w("")
+w("| terrain | wall s | peak RSS | index build s | trace s | mask s |")
+w("|---|---|---|---|---|---|")
+wall_b, rss_b = wall_rss("sim_4096_b3_bvh")
+jb = load("sim_4096_b3_bvh.json")
+wall_h, rss_h, jh = sims[(4096, 3)]
+for label, wall_x, rss_x, jx in (("height field (default)", wall_h, rss_h, jh), ("Embree BVH (`--no-heightfield`)", wall_b, rss_b, jb)):
+    t = jx["timings_s"]
+    w("| %s | %.1f | %.2f GiB | %.2f | %.1f | %.1f |" % (label, wall_x, rss_x / GIB, t.get("bvh", 0.0), t["trace"], t.get("mask", 0.0)))
+w("")
+w("Height field / BVH: wall %.2f×, peak memory %.2f×, index build %.2f×, trace %.2f×. Command: %s." % (
+    wall_h / wall_b, rss_h / rss_b, jh["timings_s"]["bvh"] / jb["timings_s"]["bvh"],
+    jh["timings_s"]["trace"] / jb["timings_s"]["trace"], cmd("sim_4096_b3_bvh")))
+w("")
+
+# ---------------------------------------------------------------- scale
+w("### Scale (1 bounce)")
+w("")
+w("The same command on 1024² … 8192² posts (8192²: 5 m posts over the ground of the 4096² DEM, so the")
+w("viewing geometry is the same and the cells, primary rays and pixels are 4× those of 4096²):")
+w("")
+w("| posts | primary rays | image | wall s | peak RSS | µs per primary ray (wall) | wall / wall at 4096² |")
+w("|---|---|---|---|---|---|---|")
+scale = {n: sims[(n, 1)] for n in (1024, 2048, 4096)}
+wall8, rss8 = wall_rss("sim_8192_b1")
+scale[8192] = (wall8, rss8, load("sim_8192_b1.json"))
+for n, (wall_x, rss_x, jx) in scale.items():
+    w("| %d² | %.1f M | %d × %d | %.1f | %.2f GiB | %.2f | %.2f |" % (
+        n, jx["stats"]["rays"] / 1e6, jx["geometry"]["width"], jx["geometry"]["height"], wall_x, rss_x / GIB,
+        wall_x / jx["stats"]["rays"] * 1e6, wall_x / scale[4096][0]))
+w("")
+ratio8 = wall8 / scale[4096][0]
+w("Target (issue 18): 8192² within 24 GiB in ≈ 4× the 4096² time (± 30 %%). Reached here: %.2f× (%s), %.2f GiB (%s). Commands: %s, %s." % (
+    ratio8, verdict(2.8 <= ratio8 <= 5.2), rss8 / GIB, verdict(rss8 < 24 * GIB), cmd("dem_8192"), cmd("sim_8192_b1")))
+w("")
+
 # ---------------------------------------------------------------- writing
 w("## Writing the product")
 w("")
@@ -179,17 +222,23 @@ w("flag, and does nothing else. `BM_TracerPrimary` is `RenderSar` with one bounc
 w("tracing phase (ray generation, intersection, shading, splatting, merging the bands). Same")
 w("process, same BVH (automatic quality), run back to back, 2 iterations each.")
 w("")
-w("| posts | rays | raw Embree rays/s | tracer rays/s | tracer / raw |")
-w("|---|---|---|---|---|")
+w("| posts | rays | raw Embree rays/s | tracer rays/s | tracer / raw | raw height field rays/s | tracer on the height field rays/s |")
+w("|---|---|---|---|---|---|---|")
 ratios = {}
 for n in (1024, 2048, 4096):
     bm = benchmarks("trace_%d.json" % n)
-    raw = bm["BM_RawEmbreeStream/iterations:2/real_time"]
-    ours = bm["BM_TracerPrimary/iterations:2/manual_time"]
+    raw = bm["BM_RawEmbreeStream/0/iterations:2/real_time"]
+    ours = bm["BM_TracerPrimary/0/iterations:2/manual_time"]
+    raw_h = bm["BM_RawEmbreeStream/1/iterations:2/real_time"]
+    ours_h = bm["BM_TracerPrimary/1/iterations:2/manual_time"]
     ratio = ours["rays_per_s"] / raw["rays_per_s"]
     ratios[n] = ratio
-    w("| %d² | %.1f M | %.2f M | %.2f M | %.0f %% |" % (n, raw["rays"] / 1e6, raw["rays_per_s"] / 1e6,
-                                                   ours["rays_per_s"] / 1e6, 100 * ratio))
+    w("| %d² | %.1f M | %.2f M | %.2f M | %.0f %% | %.2f M | %.2f M |" % (
+        n, raw["rays"] / 1e6, raw["rays_per_s"] / 1e6, ours["rays_per_s"] / 1e6, 100 * ratio,
+        raw_h["rays_per_s"] / 1e6, ours_h["rays_per_s"] / 1e6))
+w("")
+w("The last two columns: the same rays through the height field (`/1` in the benchmark names) instead")
+w("of Embree's BVH over the quads (`/0`).")
 w("")
 w("Commands: " + ", ".join(cmd("trace_%d" % n) + " with `GISSAR_BENCH_DEM=fractal_%d.tif`" % n
                             for n in (1024, 2048, 4096)) + ".")
@@ -218,10 +267,12 @@ for n in (1024, 2048, 4096):
         seconds = b["real_time"] / 1e3
         w("| %d² | %.1f M | %s | %.2f | %.1f M | %.0f MiB |" % (
             n, b["triangles"] / 1e6, b["label"], seconds, b["triangles"] / seconds / 1e6, b["added_MiB"]))
-    raw = bm["BM_RawEmbreeStream/iterations:2/real_time"]
-    w("| %d² | %.1f M | %s (automatic: the BVH of the throughput runs) | %.2f | %.1f M | %.0f MiB |" % (
-        n, raw["triangles"] / 1e6, raw["label"], raw["bvh_build_s"], raw["triangles"] / raw["bvh_build_s"] / 1e6,
-        raw["bvh_added_MiB"]))
+    for arg in (0, 1):
+        raw = bm["BM_RawEmbreeStream/%d/iterations:2/real_time" % arg]
+        label = "height field (no BVH over the terrain)" if arg else raw["label"] + " (automatic: the BVH of the throughput runs)"
+        w("| %d² | %.1f M | %s | %.2f | %.1f M | %.0f MiB |" % (
+            n, raw["triangles"] / 1e6, label, raw["bvh_build_s"], raw["triangles"] / raw["bvh_build_s"] / 1e6,
+            raw["bvh_added_MiB"]))
 w("")
 w("CDT (`scene_build_bench`: DEM window plus 5,000 random water/forest/urban polygons, read,")
 w("triangulated with CGAL, classes assigned; one iteration each; peak RSS of the process so far):")

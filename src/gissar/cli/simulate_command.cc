@@ -82,6 +82,9 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_flag("--overviews,!--no-overviews", options->overviews,
                 "Rasters over 1024 px a side: COGs with internal overviews (default), or without them "
                 "(--no-overviews: faster, a third smaller)");
+  cmd->add_flag("--heightfield,!--no-heightfield", options->heightfield,
+                "Trace a DEM's terrain as a height field (default: a quadtree over its cells, no BVH), or "
+                "(--no-heightfield) through Embree's BVH over its triangles");
   cmd->add_option("--materials", options->materials,
                   "Materials file (JSON, class -> sigma0 law); with --dem it sets the class 'default'");
   cmd->add_option("--reflectors", options->reflectors,

@@ -109,7 +109,7 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
       (p.look_left ? "left" : "right") + "-looking, wavelength " + std::to_string(p.wavelength_m) + " m");
 
   Terrain terrain = LoadTerrain(options, reporter);
-  const render::EmbreeScene embree(terrain.mesh);
+  const render::EmbreeScene embree(terrain.mesh, TracedGrid(terrain, options));
   render::RenderOptions ro = RenderOptionsOf(options, &reporter);
   ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
   ro.reflectors = terrain.reflectors;  // a scene's own

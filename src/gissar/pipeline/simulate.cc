@@ -165,6 +165,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["db"] = db;
   j["layers"] = layers;
   j["overviews"] = overviews;
+  j["heightfield"] = heightfield;
   j["materials"] = materials;
   j["reflectors"] = reflectors;
   j["contributions"] = contributions;
@@ -235,6 +236,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "db") set(db);
     else if (key == "layers") set(layers);
     else if (key == "overviews") set(overviews);
+    else if (key == "heightfield") set(heightfield);
     else if (key == "materials") set(materials);
     else if (key == "reflectors") set(reflectors);
     else if (key == "contributions") set(contributions);
@@ -765,6 +767,12 @@ Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter) {
   return t;
 }
 
+render::TerrainGrid TracedGrid(const Terrain& terrain, const SimulateRequest& options) {
+  // A DEM's posts and MeshFromGrid's triangles are the mesh (LoadTerrain).
+  if (!options.heightfield || terrain.grid_width < 2 || terrain.grid_height < 2) return {};
+  return render::TerrainGrid{terrain.grid_width, terrain.grid_height};
+}
+
 void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const SimulateRequest& options) {
   if (options.scene.empty() || !(options.center_lonlat || options.center_map)) return;
   if (options.center_map) throw ConfigError("a scene's centre is given as --center LON,LAT", "--center-map");
@@ -988,7 +996,7 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   const bool raster_engine = options.engine == "raster";
   std::unique_ptr<render::EmbreeScene> embree;
   if (!raster_engine) {
-    embree = std::make_unique<render::EmbreeScene>(mesh);
+    embree = std::make_unique<render::EmbreeScene>(mesh, TracedGrid(terrain, options));
     out.timings_s["bvh"] = step.ElapsedSeconds();
     PlaceSceneCentre(terrain, *embree, options);
   }

@@ -128,6 +128,11 @@ struct SimulateRequest {
   // with internal overviews; false leaves the overviews out (the COG layout
   // stays).
   bool overviews = true;
+  // Trace engine: a DEM's terrain is traced as a height field (a quadtree of
+  // bounds over its cells, render/heightfield.h: no BVH over its triangles,
+  // a fraction of the memory); false builds Embree's BVH over the triangles
+  // (the same hits to rounding; GIS scenes always use it).
+  bool heightfield = true;
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
   // spectral window ("none", "hamming", "taylor").
   double range_resolution_m = 0.0;
@@ -245,6 +250,11 @@ std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& optio
 using SurfaceHeightAt = std::function<std::optional<double>(double x_m, double y_m)>;
 // The surface of a mesh in `embree`: a vertical ray from above `top_z_m`.
 SurfaceHeightAt EmbreeSurface(const render::EmbreeScene& embree, double top_z_m);
+
+// The terrain grid the trace engine traces as a height field
+// (render::EmbreeScene's TerrainGrid): a DEM's grid when
+// options.heightfield, none for GIS scenes or --no-heightfield.
+render::TerrainGrid TracedGrid(const Terrain& terrain, const SimulateRequest& options);
 // Reflector rows placed on a surface (apex = surface height at lon, lat +
 // apex_height_m, ENU of `frame`). Throws InputError naming `source` and the
 // row for a reflector off the terrain.

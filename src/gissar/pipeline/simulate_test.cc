@@ -639,3 +639,56 @@ TEST(SimulateTest, DemWindowOfAGeographicDemEqualsTheWholeDem) {
 
 }  // namespace
 }  // namespace gissar::pipeline
+
+namespace gissar::pipeline {
+namespace {
+
+// The height field against Embree's BVH over the same triangles, on the
+// geographic Andorra DEM (EPSG:4326 posts: curved rows in ENU) with three
+// bounces: the images agree (issue 18: r >= 0.999 of dB, mean difference
+// <= 0.05 dB; measured r = 0.9999999, mean difference 1e-5 dB; distances
+// differ in their last bits, and a ridge grazed in float by Embree may be
+// hit or passed in double by the height field).
+TEST(SimulateTest, HeightfieldAndBvhImagesAgreeOnAGeographicDem) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest o = AndorraOptions(dir, 135.0);
+  o.bounces = 3;
+  o.rays_per_cell = 4;
+  const SimulatedImage heightfield = SimulateImage(o);
+  o.heightfield = false;
+  const SimulatedImage bvh = SimulateImage(o);
+  ASSERT_EQ(heightfield.image.width, bvh.image.width);
+  ASSERT_EQ(heightfield.image.intensity.size(), bvh.image.intensity.size());
+  double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (size_t k = 0; k < bvh.image.intensity.size(); ++k) {
+    const double a = heightfield.image.intensity[k], b = bvh.image.intensity[k];
+    if (!(a > 0.0 && b > 0.0)) {
+      EXPECT_EQ(a > 0.0, b > 0.0) << "pixel " << k;
+      continue;
+    }
+    const double x = 10.0 * std::log10(a), y = 10.0 * std::log10(b);
+    n += 1;
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    syy += y * y;
+    sxy += x * y;
+  }
+  ASSERT_GT(n, 10000);
+  const double r = (n * sxy - sx * sy) / std::sqrt((n * sxx - sx * sx) * (n * syy - sy * sy));
+  EXPECT_GE(r, 0.999);
+  EXPECT_LE(std::abs(sx / n - sy / n), 0.05);
+  // The same triangles: distances differ in their last bits, pixels by far
+  // less than 0.1 dB almost everywhere.
+  std::vector<double> diff;
+  for (size_t k = 0; k < bvh.image.intensity.size(); ++k) {
+    const double a = heightfield.image.intensity[k], b = bvh.image.intensity[k];
+    if (a > 0.0 && b > 0.0) diff.push_back(std::abs(10.0 * std::log10(a / b)));
+  }
+  std::sort(diff.begin(), diff.end());
+  // Measured: 99 % of the pixels within 0.0002 dB, 99.9 % within 0.003 dB.
+  EXPECT_LE(diff[diff.size() * 99 / 100], 0.01);
+}
+
+}  // namespace
+}  // namespace gissar::pipeline

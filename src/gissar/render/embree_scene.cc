@@ -4,12 +4,18 @@
 
 #include <embree3/rtcore.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <limits>
 #include <string>
 
+#include "gissar/render/heightfield.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
 
@@ -48,6 +54,35 @@ bool PairsIntoQuads(const scene::TriangleMesh& mesh) {
     if (w == t0[0] || w == t0[1] || w == t0[2]) return false;
   }
   return true;
+}
+
+// Whether the mesh starts with scene::MeshFromGrid's triangles of a
+// grid.width x grid.height grid of its first vertices (either orientation).
+bool IsTerrainGrid(const scene::TriangleMesh& mesh, TerrainGrid grid) {
+  if (grid.width < 2 || grid.height < 2) return false;
+  const size_t w = size_t(grid.width), h = size_t(grid.height);
+  if (mesh.vertices.size() < w * h || mesh.triangles.size() < (w - 1) * (h - 1) * 2) return false;
+  const Eigen::Vector3f du = mesh.vertices[1] - mesh.vertices[0];
+  const Eigen::Vector3f dv = mesh.vertices[w] - mesh.vertices[0];
+  const bool up = du.cross(dv).z() > 0.0f;
+  std::atomic<bool> same{true};
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, h - 1, 64), [&](const tbb::blocked_range<size_t>& rows) {
+    for (size_t r = rows.begin(); r < rows.end() && same.load(std::memory_order_relaxed); ++r) {
+      for (size_t c = 0; c + 1 < w; ++c) {
+        const int a = int(r * w + c), b = a + 1, d = a + int(w), e = d + 1;
+        const size_t cell = r * (w - 1) + c;
+        const Eigen::Vector3i& t0 = mesh.triangles[2 * cell];
+        const Eigen::Vector3i& t1 = mesh.triangles[2 * cell + 1];
+        const bool ok = up ? t0 == Eigen::Vector3i(a, b, d) && t1 == Eigen::Vector3i(b, e, d)
+                           : t0 == Eigen::Vector3i(a, d, b) && t1 == Eigen::Vector3i(b, d, e);
+        if (!ok) {
+          same = false;
+          return;
+        }
+      }
+    }
+  });
+  return same;
 }
 
 // A hit this close (in barycentric or quad parameter units) to a border of
@@ -91,34 +126,56 @@ RTCRayHit Query(const float org[3], const float dir[3], float t_near, float t_fa
 struct EmbreeScene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  // The mesh went in as quads (PairsIntoQuads): Embree's primitive q is
-  // triangles 2q (hit barycentrics u + v <= 1) and 2q + 1.
+  // The terrain grid as a height field (a user geometry whose primitives are
+  // its tiles; a hit's primitive is the mesh triangle), or none.
+  std::unique_ptr<HeightfieldTree> heightfield;
+  unsigned heightfield_geometry = RTC_INVALID_GEOMETRY_ID;
+  // The mesh's other triangles (all of them without a height field), from
+  // mesh triangle `mesh_first_triangle` on.
+  unsigned mesh_geometry = RTC_INVALID_GEOMETRY_ID;
+  uint32_t mesh_first_triangle = 0;
+  // The mesh geometry went in as quads (PairsIntoQuads): Embree's primitive
+  // q is triangles 2q (hit barycentrics u + v <= 1) and 2q + 1.
   bool quads = false;
   // Embree's copies of the vertices (x, y, z floats) and the primitives'
   // corner indices (4 for quads, 3 for triangles); owned by the scene.
   const float* vertices = nullptr;
   const unsigned* indices = nullptr;
-  uint32_t Triangle(uint32_t primitive, float u, float v) const {
-    return quads ? 2 * primitive + (u + v > 1.0f ? 1u : 0u) : primitive;
+  bool IsHeightfield(unsigned geometry) const { return geometry == heightfield_geometry; }
+  uint32_t Triangle(unsigned geometry, uint32_t primitive, float u, float v) const {
+    if (IsHeightfield(geometry)) return primitive;
+    return mesh_first_triangle + (quads ? 2 * primitive + (u + v > 1.0f ? 1u : 0u) : primitive);
   }
-  bool NearBorder(float u, float v) const {
-    const float m = quads ? std::min(std::min(u, v), std::min(1.0f - u, 1.0f - v))
-                          : std::min(std::min(u, v), 1.0f - u - v);
+  bool NearBorder(unsigned geometry, float u, float v) const {
+    const float m = quads && !IsHeightfield(geometry) ? std::min(std::min(u, v), std::min(1.0f - u, 1.0f - v))
+                                                       : std::min(std::min(u, v), 1.0f - u - v);
     return m < kBorderParameter;
+  }
+  // Corner coordinates of a primitive (3 or 4 corners); returns the count.
+  int Corners(unsigned geometry, uint32_t primitive, const float* out[4]) const {
+    if (IsHeightfield(geometry)) {
+      const Eigen::Vector3f* corners[3];
+      heightfield->TriangleCorners(primitive, corners);
+      for (int c = 0; c < 3; ++c) out[c] = corners[c]->data();
+      return 3;
+    }
+    const int corners = quads ? 4 : 3;
+    for (int c = 0; c < corners; ++c) out[c] = vertices + 3 * size_t(indices[size_t(corners) * primitive + c]);
+    return corners;
   }
   // Strict order of two primitives by their corners' coordinates, which do
   // not depend on the primitives' indices (a window's mesh numbers the same
   // terrain differently).
-  bool CornersBefore(uint32_t a, uint32_t b) const {
-    const int corners = quads ? 4 : 3;
-    for (int c = 0; c < corners; ++c) {
-      const float* pa = vertices + 3 * size_t(indices[size_t(corners) * a + c]);
-      const float* pb = vertices + 3 * size_t(indices[size_t(corners) * b + c]);
+  bool CornersBefore(unsigned geometry_a, uint32_t a, unsigned geometry_b, uint32_t b) const {
+    const float* pa[4];
+    const float* pb[4];
+    const int na = Corners(geometry_a, a, pa), nb = Corners(geometry_b, b, pb);
+    for (int c = 0; c < std::min(na, nb); ++c) {
       for (int axis = 0; axis < 3; ++axis) {
-        if (pa[axis] != pb[axis]) return pa[axis] < pb[axis];
+        if (pa[c][axis] != pb[c][axis]) return pa[c][axis] < pb[c][axis];
       }
     }
-    return false;
+    return na < nb;
   }
   // The first hit of a ray whose first hit found by the BVH (at `t`) lies on
   // a primitive's border, chosen independently of the BVH: every primitive
@@ -131,6 +188,10 @@ struct EmbreeScene::Impl {
                   uint32_t* triangle_out) const;
   struct TieCollector;
   static void CollectTie(const RTCFilterFunctionNArguments* args);
+  // Embree callbacks of the height field's user geometry.
+  static void HeightfieldBounds(const RTCBoundsFunctionArguments* args);
+  static void HeightfieldIntersect(const RTCIntersectFunctionNArguments* args);
+  static void HeightfieldOccluded(const RTCOccludedFunctionNArguments* args);
   ~Impl() {
     if (scene != nullptr) rtcReleaseScene(scene);
     if (device != nullptr) rtcReleaseDevice(device);
@@ -139,13 +200,30 @@ struct EmbreeScene::Impl {
 
 // The intersect context of ResolveTie's query: Embree hands the context to
 // the filter, which records the best candidate and rejects every hit, so the
-// traversal goes on to the next.
+// traversal goes on to the next. The height field offers its candidates
+// directly.
 struct EmbreeScene::Impl::TieCollector {
   RTCIntersectContext context;  // first member: the filter casts back
   const EmbreeScene::Impl* impl = nullptr;
   bool found = false;
   float t = 0.0f;
+  unsigned geometry = RTC_INVALID_GEOMETRY_ID;
   uint32_t primitive = 0, triangle = 0;
+  void Offer(float t_hit, unsigned geometry_hit, uint32_t primitive_hit, uint32_t triangle_hit) {
+    bool better = !found || t_hit < t;
+    if (found && t_hit == t) {
+      better = geometry_hit == geometry && primitive_hit == primitive
+                   ? triangle_hit < triangle
+                   : impl->CornersBefore(geometry_hit, primitive_hit, geometry, primitive);
+    }
+    if (better) {
+      found = true;
+      t = t_hit;
+      geometry = geometry_hit;
+      primitive = primitive_hit;
+      triangle = triangle_hit;
+    }
+  }
 };
 
 void EmbreeScene::Impl::CollectTie(const RTCFilterFunctionNArguments* args) {
@@ -153,21 +231,89 @@ void EmbreeScene::Impl::CollectTie(const RTCFilterFunctionNArguments* args) {
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     args->valid[i] = 0;
-    const float t = RTCRayN_tfar(args->ray, args->N, i);
+    const unsigned geometry = RTCHitN_geomID(args->hit, args->N, i);
     const uint32_t primitive = RTCHitN_primID(args->hit, args->N, i);
-    const uint32_t triangle =
-        collector->impl->Triangle(primitive, RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i));
-    bool better = !collector->found || t < collector->t;
-    if (collector->found && t == collector->t) {
-      better = primitive == collector->primitive ? triangle < collector->triangle
-                                                 : collector->impl->CornersBefore(primitive, collector->primitive);
-    }
-    if (better) {
-      collector->found = true;
-      collector->t = t;
-      collector->primitive = primitive;
-      collector->triangle = triangle;
-    }
+    collector->Offer(RTCRayN_tfar(args->ray, args->N, i), geometry, primitive,
+                     collector->impl->Triangle(geometry, primitive, RTCHitN_u(args->hit, args->N, i),
+                                               RTCHitN_v(args->hit, args->N, i)));
+  }
+}
+
+void EmbreeScene::Impl::HeightfieldBounds(const RTCBoundsFunctionArguments* args) {
+  const auto* impl = static_cast<const Impl*>(args->geometryUserPtr);
+  float lower[3], upper[3];
+  impl->heightfield->TileBounds(args->primID, lower, upper);
+  // Padded: Embree's box test rounds in float and a hit on a tile's border
+  // (computed in double) may lie a few ulps beyond it.
+  for (int a = 0; a < 3; ++a) {
+    const float pad = 1e-3f + 1e-6f * std::max(std::abs(lower[a]), std::abs(upper[a]));
+    lower[a] -= pad;
+    upper[a] += pad;
+  }
+  args->bounds_o->lower_x = lower[0];
+  args->bounds_o->lower_y = lower[1];
+  args->bounds_o->lower_z = lower[2];
+  args->bounds_o->upper_x = upper[0];
+  args->bounds_o->upper_y = upper[1];
+  args->bounds_o->upper_z = upper[2];
+}
+
+void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* impl = static_cast<const Impl*>(args->geometryUserPtr);
+  const unsigned n = args->N;
+  RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, n);
+  RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, n);
+  // ResolveTie's query: every candidate goes to the collector, none is kept.
+  TieCollector* collector = args->context->filter == &Impl::CollectTie
+                                ? reinterpret_cast<TieCollector*>(args->context)
+                                : nullptr;
+  for (unsigned k = 0; k < n; ++k) {
+    if (args->valid[k] != -1) continue;
+    const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
+    const float dir[3] = {RTCRayN_dir_x(rays, n, k), RTCRayN_dir_y(rays, n, k), RTCRayN_dir_z(rays, n, k)};
+    const HeightfieldRay ray(org, dir);
+    float t_far = RTCRayN_tfar(rays, n, k);
+    impl->heightfield->Intersect(args->primID, ray, RTCRayN_tnear(rays, n, k), &t_far,
+                                 [&](const HeightfieldHit& hit) -> float {
+      if (collector != nullptr) {
+        collector->Offer(hit.t, args->geomID, hit.triangle, hit.triangle);
+        return RTCRayN_tfar(rays, n, k);
+      }
+      // Strictly nearer than the hit so far (Embree's rule for its own
+      // primitives; ties are ResolveTie's).
+      if (!(hit.t < RTCRayN_tfar(rays, n, k))) return RTCRayN_tfar(rays, n, k);
+      RTCRayN_tfar(rays, n, k) = hit.t;
+      const Eigen::Vector3f* corners[3];
+      impl->heightfield->TriangleCorners(hit.triangle, corners);
+      const Eigen::Vector3f ng = (*corners[1] - *corners[0]).cross(*corners[2] - *corners[0]);
+      RTCHitN_Ng_x(hits, n, k) = ng.x();
+      RTCHitN_Ng_y(hits, n, k) = ng.y();
+      RTCHitN_Ng_z(hits, n, k) = ng.z();
+      RTCHitN_u(hits, n, k) = hit.u;
+      RTCHitN_v(hits, n, k) = hit.v;
+      RTCHitN_primID(hits, n, k) = hit.triangle;
+      RTCHitN_geomID(hits, n, k) = args->geomID;
+      RTCHitN_instID(hits, n, k, 0) = args->context->instID[0];
+      return hit.t;
+    });
+  }
+}
+
+void EmbreeScene::Impl::HeightfieldOccluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* impl = static_cast<const Impl*>(args->geometryUserPtr);
+  const unsigned n = args->N;
+  RTCRayN* rays = args->ray;
+  for (unsigned k = 0; k < n; ++k) {
+    if (args->valid[k] != -1) continue;
+    const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
+    const float dir[3] = {RTCRayN_dir_x(rays, n, k), RTCRayN_dir_y(rays, n, k), RTCRayN_dir_z(rays, n, k)};
+    const HeightfieldRay ray(org, dir);
+    float t_far = RTCRayN_tfar(rays, n, k);
+    impl->heightfield->Intersect(args->primID, ray, RTCRayN_tnear(rays, n, k), &t_far,
+                                 [&](const HeightfieldHit&) -> float {
+      RTCRayN_tfar(rays, n, k) = -std::numeric_limits<float>::infinity();
+      return -std::numeric_limits<float>::infinity();
+    });
   }
 }
 
@@ -198,18 +344,60 @@ static_assert(RTC_MAX_INSTANCE_LEVEL_COUNT == 1);
 static_assert(RayPacket16::kNoHit == RTC_INVALID_GEOMETRY_ID);
 
 EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
+    : EmbreeScene(mesh, TerrainGrid{}, quality) {}
+
+EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, TerrainGrid grid, BvhQuality quality)
     : impl_(std::make_unique<Impl>()) {
   if (mesh.triangles.empty()) throw InputError("scene has no triangles", "mesh");
   Stopwatch watch;
-  const bool quads = PairsIntoQuads(mesh);
-  if (quality == BvhQuality::kAuto) {
-    quality = !quads && mesh.triangles.size() > kLargeSceneTriangles ? BvhQuality::kLow : BvhQuality::kMedium;
-  }
-  quality_ = quality;
   impl_->device = rtcNewDevice(nullptr);
   if (impl_->device == nullptr) throw Error("cannot create Embree device", "ray tracer");
   rtcSetDeviceErrorFunction(impl_->device, OnEmbreeError, nullptr);
   impl_->scene = rtcNewScene(impl_->device);
+  // The terrain grid as a height field: a user geometry over its tiles.
+  size_t first_mesh_triangle = 0;
+  if (IsTerrainGrid(mesh, grid)) {
+    impl_->heightfield = std::make_unique<HeightfieldTree>(mesh.vertices.data(), grid.width, grid.height);
+    first_mesh_triangle = size_t(grid.width - 1) * (grid.height - 1) * 2;
+    if (impl_->heightfield->tile_count() > 0) {
+      RTCGeometry geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
+      rtcSetGeometryUserPrimitiveCount(geometry, unsigned(impl_->heightfield->tile_count()));
+      rtcSetGeometryUserData(geometry, impl_.get());
+      rtcSetGeometryBoundsFunction(geometry, &Impl::HeightfieldBounds, nullptr);
+      rtcSetGeometryIntersectFunction(geometry, &Impl::HeightfieldIntersect);
+      rtcSetGeometryOccludedFunction(geometry, &Impl::HeightfieldOccluded);
+      rtcCommitGeometry(geometry);
+      impl_->heightfield_geometry = rtcAttachGeometry(impl_->scene, geometry);
+      rtcReleaseGeometry(geometry);
+    }
+  }
+  // The other triangles (buildings, reflectors; all of them without a
+  // height field) as an Embree triangle or quad mesh, with only the
+  // vertices they use.
+  scene::TriangleMesh rest_storage;
+  const scene::TriangleMesh* rest = &mesh;
+  if (first_mesh_triangle > 0) {
+    rest = &rest_storage;
+    std::vector<int> new_index(first_mesh_triangle < mesh.triangles.size() ? mesh.vertices.size() : 0, -1);
+    for (size_t t = first_mesh_triangle; t < mesh.triangles.size(); ++t) {
+      Eigen::Vector3i tri;
+      for (int c = 0; c < 3; ++c) {
+        int& index = new_index[size_t(mesh.triangles[t][c])];
+        if (index < 0) {
+          index = int(rest_storage.vertices.size());
+          rest_storage.vertices.push_back(mesh.vertices[size_t(mesh.triangles[t][c])]);
+        }
+        tri[c] = index;
+      }
+      rest_storage.triangles.push_back(tri);
+    }
+  }
+  impl_->mesh_first_triangle = uint32_t(first_mesh_triangle);
+  const bool quads = PairsIntoQuads(*rest);
+  if (quality == BvhQuality::kAuto) {
+    quality = !quads && rest->triangles.size() > kLargeSceneTriangles ? BvhQuality::kLow : BvhQuality::kMedium;
+  }
+  quality_ = quality;
   const RTCBuildQuality rtc_quality = quality == BvhQuality::kLow    ? RTC_BUILD_QUALITY_LOW
                                       : quality == BvhQuality::kHigh ? RTC_BUILD_QUALITY_HIGH
                                                                      : RTC_BUILD_QUALITY_MEDIUM;
@@ -221,48 +409,51 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
   // queries pass none.
   rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST |
                                      (quality == BvhQuality::kLow ? RTC_SCENE_FLAG_COMPACT : RTC_SCENE_FLAG_NONE));
-  impl_->quads = quads;
-  RTCGeometry geometry =
-      rtcNewGeometry(impl_->device, impl_->quads ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
-  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-      mesh.vertices.size()));
-  const size_t primitives = impl_->quads ? mesh.triangles.size() / 2 : mesh.triangles.size();
-  const int corners = impl_->quads ? 4 : 3;
-  auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_INDEX, 0, impl_->quads ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3,
-      corners * sizeof(unsigned), primitives));
-  if (vertices == nullptr || indices == nullptr) {
-    rtcReleaseGeometry(geometry);
-    ThrowIfError(impl_->device, "allocating geometry buffers");
-    throw Error("Embree could not allocate geometry buffers", "ray tracer");
-  }
-  std::memcpy(vertices, mesh.vertices.data(), mesh.vertices.size() * 3 * sizeof(float));
-  if (impl_->quads) {
-    // Quad (v0, v1, v2, v3) is Embree's triangle pair (v0, v1, v3) and
-    // (v2, v3, v1): triangles 2q and 2q + 1 of the mesh.
-    for (size_t q = 0; q < primitives; ++q) {
-      const Eigen::Vector3i& t0 = mesh.triangles[2 * q];
-      const Eigen::Vector3i& t1 = mesh.triangles[2 * q + 1];
-      const int fourth = t1[0] == t0[1] ? t1[1] : t1[2];
-      unsigned* quad = indices + 4 * q;
-      quad[0] = unsigned(t0[0]);
-      quad[1] = unsigned(t0[1]);
-      quad[2] = unsigned(fourth);
-      quad[3] = unsigned(t0[2]);
+  if (!rest->triangles.empty()) {
+    impl_->quads = quads;
+    RTCGeometry geometry =
+        rtcNewGeometry(impl_->device, impl_->quads ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), rest->vertices.size()));
+    const size_t primitives = impl_->quads ? rest->triangles.size() / 2 : rest->triangles.size();
+    const int corners = impl_->quads ? 4 : 3;
+    auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_INDEX, 0, impl_->quads ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3,
+        corners * sizeof(unsigned), primitives));
+    if (vertices == nullptr || indices == nullptr) {
+      rtcReleaseGeometry(geometry);
+      ThrowIfError(impl_->device, "allocating geometry buffers");
+      throw Error("Embree could not allocate geometry buffers", "ray tracer");
     }
-  } else {
-    std::memcpy(indices, mesh.triangles.data(), mesh.triangles.size() * 3 * sizeof(unsigned));
+    std::memcpy(vertices, rest->vertices.data(), rest->vertices.size() * 3 * sizeof(float));
+    if (impl_->quads) {
+      // Quad (v0, v1, v2, v3) is Embree's triangle pair (v0, v1, v3) and
+      // (v2, v3, v1): triangles 2q and 2q + 1 of the mesh.
+      for (size_t q = 0; q < primitives; ++q) {
+        const Eigen::Vector3i& t0 = rest->triangles[2 * q];
+        const Eigen::Vector3i& t1 = rest->triangles[2 * q + 1];
+        const int fourth = t1[0] == t0[1] ? t1[1] : t1[2];
+        unsigned* quad = indices + 4 * q;
+        quad[0] = unsigned(t0[0]);
+        quad[1] = unsigned(t0[1]);
+        quad[2] = unsigned(fourth);
+        quad[3] = unsigned(t0[2]);
+      }
+    } else {
+      std::memcpy(indices, rest->triangles.data(), rest->triangles.size() * 3 * sizeof(unsigned));
+    }
+    impl_->vertices = vertices;
+    impl_->indices = indices;
+    rtcCommitGeometry(geometry);
+    impl_->mesh_geometry = rtcAttachGeometry(impl_->scene, geometry);
+    rtcReleaseGeometry(geometry);
   }
-  impl_->vertices = vertices;
-  impl_->indices = indices;
-  rtcCommitGeometry(geometry);
-  rtcAttachGeometry(impl_->scene, geometry);
-  rtcReleaseGeometry(geometry);
   rtcCommitScene(impl_->scene);
   ThrowIfError(impl_->device, "building the scene");
   build_seconds_ = watch.ElapsedSeconds();
 }
+
+bool EmbreeScene::heightfield() const { return impl_->heightfield != nullptr; }
 
 EmbreeScene::~EmbreeScene() = default;
 
@@ -276,8 +467,8 @@ std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,
   RTCRayHit query = Query(org, dir, t_near, t_far);
   rtcIntersect1(impl_->scene, &context, &query);
   if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-  RayHit hit{query.ray.tfar, impl_->Triangle(query.hit.primID, query.hit.u, query.hit.v)};
-  if (impl_->NearBorder(query.hit.u, query.hit.v)) impl_->ResolveTie(org, dir, t_near, hit.t, &hit.t, &hit.triangle);
+  RayHit hit{query.ray.tfar, impl_->Triangle(query.hit.geomID, query.hit.primID, query.hit.u, query.hit.v)};
+  if (impl_->NearBorder(query.hit.geomID, query.hit.u, query.hit.v)) impl_->ResolveTie(org, dir, t_near, hit.t, &hit.t, &hit.triangle);
   return hit;
 }
 
@@ -302,8 +493,8 @@ void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coh
       packet.triangle[k] = RayPacket16::kNoHit;
       continue;
     }
-    packet.triangle[k] = impl_->Triangle(packet.triangle[k], packet.u[k], packet.v[k]);
-    if (impl_->NearBorder(packet.u[k], packet.v[k])) {
+    packet.triangle[k] = impl_->Triangle(packet.geometry[k], packet.triangle[k], packet.u[k], packet.v[k]);
+    if (impl_->NearBorder(packet.geometry[k], packet.u[k], packet.v[k])) {
       const float org[3] = {packet.org_x[k], packet.org_y[k], packet.org_z[k]};
       const float dir[3] = {packet.dir_x[k], packet.dir_y[k], packet.dir_z[k]};
       impl_->ResolveTie(org, dir, packet.tnear[k], packet.tfar[k], &packet.tfar[k], &packet.triangle[k]);

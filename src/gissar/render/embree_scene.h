@@ -45,6 +45,14 @@ struct alignas(64) RayPacket16 {
   }
 };
 
+// A grid of terrain posts at the start of a mesh: its first
+// (width - 1) * (height - 1) * 2 triangles are scene::MeshFromGrid's
+// triangles of its first width * height vertices. 0 x 0: no grid.
+struct TerrainGrid {
+  int width = 0;
+  int height = 0;
+};
+
 // BVH build quality: kAuto picks by scene size (EmbreeScene constructor).
 enum class BvhQuality { kAuto, kLow, kMedium, kHigh };
 
@@ -63,6 +71,15 @@ class EmbreeScene {
   // splits) doubles the build time without tracing any faster.
   static constexpr size_t kLargeSceneTriangles = size_t{4} << 20;
   explicit EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality = BvhQuality::kAuto);
+  // The same, with the terrain `grid` at the start of `mesh` traced as a
+  // height field (render/heightfield.h: a quadtree of bounds over the grid's
+  // cells instead of a BVH over its triangles; hits name the same
+  // triangles, equally watertight and BVH-independent). Only the other
+  // triangles go into an Embree mesh, with `quality` chosen for them. The
+  // height field reads the grid's posts in place: `mesh` must outlive the
+  // scene and keep its vertices. When the mesh does not start with such a
+  // grid (checked), every triangle goes into the Embree mesh, as above.
+  EmbreeScene(const scene::TriangleMesh& mesh, TerrainGrid grid, BvhQuality quality = BvhQuality::kAuto);
   ~EmbreeScene();
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
@@ -90,6 +107,8 @@ class EmbreeScene {
   // are resolved as in Intersect.
   void Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const;
 
+  // Whether a terrain grid is traced as a height field.
+  bool heightfield() const;
   // The quality the BVH was built with (never kAuto).
   BvhQuality quality() const { return quality_; }
   // Seconds spent building the BVH.

@@ -1,0 +1,151 @@
+#include "gissar/render/heightfield.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <utility>
+
+#include "gissar/util/check.h"
+
+namespace gissar::render {
+
+HeightfieldRay::HeightfieldRay(const float origin[3], const float direction[3]) {
+  for (int a = 0; a < 3; ++a) {
+    org[a] = origin[a];
+    org_f[a] = origin[a];
+    parallel[a] = direction[a] == 0.0f;
+    inv_dir[a] = parallel[a] ? 0.0f : 1.0f / direction[a];
+  }
+  // The watertight test's frame: z along the direction's largest component,
+  // x and y swapped when it is negative (keeps the winding).
+  kz = 0;
+  for (int a = 1; a < 3; ++a) {
+    if (std::abs(direction[a]) > std::abs(direction[kz])) kz = a;
+  }
+  kx = (kz + 1) % 3;
+  ky = (kx + 1) % 3;
+  if (direction[kz] < 0.0f) std::swap(kx, ky);
+  sx = double(direction[kx]) / double(direction[kz]);
+  sy = double(direction[ky]) / double(direction[kz]);
+  sz = 1.0 / double(direction[kz]);
+}
+
+HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int height)
+    : posts_(posts), width_(width), height_(height) {
+  GISSAR_CHECK(width >= 2 && height >= 2);
+  const Eigen::Vector3f du = posts[1] - posts[0];
+  const Eigen::Vector3f dv = posts[width] - posts[0];
+  column_cross_row_up_ = du.cross(dv).z() > 0.0f;
+  const int cells_x = width - 1, cells_y = height - 1;
+  levels_.resize(kTileLevel);
+  for (int k = 1; k <= kTileLevel; ++k) {
+    Level& level = levels_[k - 1];
+    const int side = 1 << k;
+    level.nx = (cells_x + side - 1) / side;
+    level.ny = (cells_y + side - 1) / side;
+  }
+  auto empty = [](Box& box) {
+    for (int a = 0; a < 3; ++a) {
+      box.lower[a] = std::numeric_limits<float>::infinity();
+      box.upper[a] = -std::numeric_limits<float>::infinity();
+    }
+  };
+  auto grow = [](Box& box, const float lower[3], const float upper[3]) {
+    for (int a = 0; a < 3; ++a) {
+      box.lower[a] = std::min(box.lower[a], lower[a]);
+      box.upper[a] = std::max(box.upper[a], upper[a]);
+    }
+  };
+  // Level 1 from the posts (a node of 2 x 2 cells spans up to 3 x 3 posts).
+  std::vector<Box> below(size_t(levels_[0].nx) * levels_[0].ny);
+  std::atomic<bool> non_finite{false};
+  {
+    const Level& level = levels_[0];
+    tbb::parallel_for(tbb::blocked_range<int>(0, level.ny, 16), [&](const tbb::blocked_range<int>& rows) {
+      for (int j = rows.begin(); j < rows.end(); ++j) {
+        for (int i = 0; i < level.nx; ++i) {
+          Box& box = below[size_t(j) * level.nx + i];
+          empty(box);
+          for (int r = 2 * j; r <= std::min(2 * j + 2, height - 1); ++r) {
+            for (int c = 2 * i; c <= std::min(2 * i + 2, width - 1); ++c) {
+              const Eigen::Vector3f& p = posts[size_t(r) * width + c];
+              if (p.allFinite()) {
+                grow(box, p.data(), p.data());
+              } else {
+                non_finite = true;
+              }
+            }
+          }
+        }
+      }
+    });
+  }
+  all_finite_ = !non_finite;
+  // Each higher level: its nodes' children in groups, and its own boxes.
+  for (int k = 2; k <= kTileLevel; ++k) {
+    const int below_nx = levels_[k - 2].nx, below_ny = levels_[k - 2].ny;
+    Level& level = levels_[k - 1];
+    level.groups.resize(size_t(level.nx) * level.ny);
+    std::vector<Box> boxes(level.groups.size());
+    tbb::parallel_for(tbb::blocked_range<int>(0, level.ny, 16), [&](const tbb::blocked_range<int>& rows) {
+      for (int j = rows.begin(); j < rows.end(); ++j) {
+        for (int i = 0; i < level.nx; ++i) {
+          Group& group = level.groups[size_t(j) * level.nx + i];
+          Box& box = boxes[size_t(j) * level.nx + i];
+          empty(box);
+          for (int q = 0; q < 4; ++q) {
+            const int ci = 2 * i + (q & 1), cj = 2 * j + (q >> 1);
+            Box child;
+            empty(child);
+            if (ci < below_nx && cj < below_ny) child = below[size_t(cj) * below_nx + ci];
+            for (int a = 0; a < 3; ++a) {
+              group.lower[a][q] = child.lower[a];
+              group.upper[a][q] = child.upper[a];
+            }
+            grow(box, child.lower, child.upper);
+          }
+        }
+      }
+    });
+    below = std::move(boxes);
+  }
+  for (size_t k = 0; k < below.size(); ++k) {
+    if (below[k].lower[0] <= below[k].upper[0]) {
+      tiles_.push_back(uint32_t(k));
+      tile_boxes_.push_back(below[k]);
+    }
+  }
+}
+
+void HeightfieldTree::TileBounds(size_t tile, float lower[3], float upper[3]) const {
+  const Box& box = tile_boxes_[tile];
+  for (int a = 0; a < 3; ++a) {
+    lower[a] = box.lower[a];
+    upper[a] = box.upper[a];
+  }
+}
+
+size_t HeightfieldTree::MemoryBytes() const {
+  size_t bytes = tiles_.capacity() * sizeof(uint32_t) + tile_boxes_.capacity() * sizeof(Box);
+  for (const Level& level : levels_) bytes += level.groups.capacity() * sizeof(Group);
+  return bytes;
+}
+
+void HeightfieldTree::TriangleCorners(uint32_t triangle, const Eigen::Vector3f* corners[3]) const {
+  const uint32_t cell = triangle / 2;
+  const int c = int(cell % uint32_t(width_ - 1)), r = int(cell / uint32_t(width_ - 1));
+  const Eigen::Vector3f* a = posts_ + size_t(r) * width_ + c;
+  const Eigen::Vector3f *b = a + 1, *d = a + width_, *e = d + 1;
+  if (triangle % 2 == 0) {
+    corners[0] = a;
+    corners[1] = column_cross_row_up_ ? b : d;
+    corners[2] = column_cross_row_up_ ? d : b;
+  } else {
+    corners[0] = b;
+    corners[1] = column_cross_row_up_ ? e : d;
+    corners[2] = column_cross_row_up_ ? d : e;
+  }
+}
+
+}  // namespace gissar::render
