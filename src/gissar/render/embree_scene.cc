@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <string>
 
 #include "gissar/render/heightfield.h"
@@ -258,6 +259,13 @@ void EmbreeScene::Impl::HeightfieldBounds(const RTCBoundsFunctionArguments* args
   args->bounds_o->upper_z = upper[2];
 }
 
+namespace {
+// Uninitialised room for a HeightfieldRay (constructed in place per lane).
+struct HeightfieldRayStorage {
+  alignas(HeightfieldRay) unsigned char bytes[sizeof(HeightfieldRay)];
+};
+}  // namespace
+
 void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArguments* args) {
   const auto* impl = static_cast<const Impl*>(args->geometryUserPtr);
   const unsigned n = args->N;
@@ -267,6 +275,43 @@ void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArgument
   TieCollector* collector = args->context->filter == &Impl::CollectTie
                                 ? reinterpret_cast<TieCollector*>(args->context)
                                 : nullptr;
+  // Keeps `hit` for lane k when strictly nearer than its hit so far
+  // (Embree's rule for its own primitives; ties are ResolveTie's); returns
+  // the lane's far end.
+  auto keep = [&](unsigned k, const HeightfieldHit& hit) -> float {
+    if (!(hit.t < RTCRayN_tfar(rays, n, k))) return RTCRayN_tfar(rays, n, k);
+    RTCRayN_tfar(rays, n, k) = hit.t;
+    const Eigen::Vector3f* corners[3];
+    impl->heightfield->TriangleCorners(hit.triangle, corners);
+    const Eigen::Vector3f ng = (*corners[1] - *corners[0]).cross(*corners[2] - *corners[0]);
+    RTCHitN_Ng_x(hits, n, k) = ng.x();
+    RTCHitN_Ng_y(hits, n, k) = ng.y();
+    RTCHitN_Ng_z(hits, n, k) = ng.z();
+    RTCHitN_u(hits, n, k) = hit.u;
+    RTCHitN_v(hits, n, k) = hit.v;
+    RTCHitN_primID(hits, n, k) = hit.triangle;
+    RTCHitN_geomID(hits, n, k) = args->geomID;
+    RTCHitN_instID(hits, n, k, 0) = args->context->instID[0];
+    return hit.t;
+  };
+  if (collector == nullptr && n > 1 && n <= 16) {
+    // A packet: one walk of the tile for all its lanes.
+    HeightfieldRayStorage storage[16];
+    float t_near[16], t_far[16];
+    uint32_t lanes = 0;
+    for (unsigned k = 0; k < n; ++k) {
+      if (args->valid[k] != -1) continue;
+      const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
+      const float dir[3] = {RTCRayN_dir_x(rays, n, k), RTCRayN_dir_y(rays, n, k), RTCRayN_dir_z(rays, n, k)};
+      new (&storage[k]) HeightfieldRay(org, dir);
+      t_near[k] = RTCRayN_tnear(rays, n, k);
+      t_far[k] = RTCRayN_tfar(rays, n, k);
+      lanes |= 1u << k;
+    }
+    impl->heightfield->IntersectPacket(args->primID, reinterpret_cast<const HeightfieldRay*>(storage), lanes, t_near,
+                                       t_far, [&](int k, const HeightfieldHit& hit) { return keep(unsigned(k), hit); });
+    return;
+  }
   for (unsigned k = 0; k < n; ++k) {
     if (args->valid[k] != -1) continue;
     const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
@@ -279,22 +324,7 @@ void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArgument
         collector->Offer(hit.t, args->geomID, hit.triangle, hit.triangle);
         return RTCRayN_tfar(rays, n, k);
       }
-      // Strictly nearer than the hit so far (Embree's rule for its own
-      // primitives; ties are ResolveTie's).
-      if (!(hit.t < RTCRayN_tfar(rays, n, k))) return RTCRayN_tfar(rays, n, k);
-      RTCRayN_tfar(rays, n, k) = hit.t;
-      const Eigen::Vector3f* corners[3];
-      impl->heightfield->TriangleCorners(hit.triangle, corners);
-      const Eigen::Vector3f ng = (*corners[1] - *corners[0]).cross(*corners[2] - *corners[0]);
-      RTCHitN_Ng_x(hits, n, k) = ng.x();
-      RTCHitN_Ng_y(hits, n, k) = ng.y();
-      RTCHitN_Ng_z(hits, n, k) = ng.z();
-      RTCHitN_u(hits, n, k) = hit.u;
-      RTCHitN_v(hits, n, k) = hit.v;
-      RTCHitN_primID(hits, n, k) = hit.triangle;
-      RTCHitN_geomID(hits, n, k) = args->geomID;
-      RTCHitN_instID(hits, n, k, 0) = args->context->instID[0];
-      return hit.t;
+      return keep(k, hit);
     });
   }
 }

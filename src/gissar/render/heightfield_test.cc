@@ -177,6 +177,48 @@ TEST(HeightfieldTest, HitsAreTheExactFirstHitsAndEmbreesTriangles) {
   }
 }
 
+// Packets (one walk of a tile for all lanes, HeightfieldTree::
+// IntersectPacket) give each lane the hit a single ray gets, on coherent
+// packets (neighbouring primary rays) and incoherent ones (random rays).
+TEST(HeightfieldTest, PacketHitsEqualSingleRayHits) {
+  constexpr int kPosts = 65;
+  const scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(kPosts, 13), kPosts, kPosts, 20.0);
+  const EmbreeScene scene(mesh, TerrainGrid{kPosts, kPosts});
+  ASSERT_TRUE(scene.heightfield());
+  std::vector<TestRay> rays = RandomRays(mesh, 4000, 5);
+  // Coherent packets: rows of 16 parallel rays over neighbouring posts.
+  const Vector3f look = Vector3f(0.5f, 0.5f, -0.7f).normalized();
+  for (int r = 2; r + 2 < kPosts; ++r) {
+    for (int c = 0; c < 64; ++c) {
+      const Vector3f target = mesh.vertices[size_t(r) * kPosts + (c % kPosts)] + Vector3f(3.1f, 7.3f, 0.0f);
+      rays.push_back({target - 8000.0f * look, look});
+    }
+  }
+  int compared = 0, hits = 0;
+  for (size_t first = 0; first < rays.size(); first += 16) {
+    RayPacket16 packet;
+    alignas(64) int valid[16];
+    for (int k = 0; k < 16; ++k) {
+      // Every fifth lane is off, as at the ends of a row.
+      valid[k] = first + k < rays.size() && k % 5 != 4 ? -1 : 0;
+      if (valid[k] != 0) packet.SetRay(k, rays[first + k].origin, rays[first + k].direction);
+    }
+    scene.Intersect16(valid, packet, true);
+    for (int k = 0; k < 16; ++k) {
+      if (valid[k] == 0) continue;
+      const auto single = scene.Intersect(rays[first + k].origin, rays[first + k].direction, 0.0f, kInf);
+      ++compared;
+      ASSERT_EQ(single.has_value(), packet.triangle[k] != RayPacket16::kNoHit) << "ray " << first + k;
+      if (!single) continue;
+      ++hits;
+      EXPECT_EQ(single->triangle, packet.triangle[k]) << "ray " << first + k;
+      EXPECT_EQ(std::memcmp(&single->t, &packet.tfar[k], sizeof(float)), 0) << single->t << " vs " << packet.tfar[k];
+    }
+  }
+  EXPECT_GT(compared, 5000);
+  EXPECT_GT(hits, compared / 2);
+}
+
 // Watertight: a ray aimed at a post, an edge or a diagonal from above meets
 // the terrain (there or before); it never slips between the triangles
 // sharing the point -- not even at posts, where Embree's robust triangles
