@@ -260,6 +260,13 @@ void EmbreeScene::Impl::HeightfieldBounds(const RTCBoundsFunctionArguments* args
 }
 
 namespace {
+// Lane k of Embree's ray packet `rays` (N = n) as a height-field ray.
+HeightfieldRay LaneRay(RTCRayN* rays, unsigned n, unsigned k) {
+  const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
+  const float dir[3] = {RTCRayN_dir_x(rays, n, k), RTCRayN_dir_y(rays, n, k), RTCRayN_dir_z(rays, n, k)};
+  return HeightfieldRay(org, dir);
+}
+
 // Uninitialised room for a HeightfieldRay (constructed in place per lane).
 struct HeightfieldRayStorage {
   alignas(HeightfieldRay) unsigned char bytes[sizeof(HeightfieldRay)];
@@ -301,9 +308,7 @@ void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArgument
     uint32_t lanes = 0;
     for (unsigned k = 0; k < n; ++k) {
       if (args->valid[k] != -1) continue;
-      const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
-      const float dir[3] = {RTCRayN_dir_x(rays, n, k), RTCRayN_dir_y(rays, n, k), RTCRayN_dir_z(rays, n, k)};
-      new (&storage[k]) HeightfieldRay(org, dir);
+      new (&storage[k]) HeightfieldRay(LaneRay(rays, n, k));
       t_near[k] = RTCRayN_tnear(rays, n, k);
       t_far[k] = RTCRayN_tfar(rays, n, k);
       lanes |= 1u << k;
@@ -314,9 +319,7 @@ void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArgument
   }
   for (unsigned k = 0; k < n; ++k) {
     if (args->valid[k] != -1) continue;
-    const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
-    const float dir[3] = {RTCRayN_dir_x(rays, n, k), RTCRayN_dir_y(rays, n, k), RTCRayN_dir_z(rays, n, k)};
-    const HeightfieldRay ray(org, dir);
+    const HeightfieldRay ray = LaneRay(rays, n, k);
     float t_far = RTCRayN_tfar(rays, n, k);
     impl->heightfield->Intersect(args->primID, ray, RTCRayN_tnear(rays, n, k), &t_far,
                                  [&](const HeightfieldHit& hit) -> float {
@@ -335,9 +338,7 @@ void EmbreeScene::Impl::HeightfieldOccluded(const RTCOccludedFunctionNArguments*
   RTCRayN* rays = args->ray;
   for (unsigned k = 0; k < n; ++k) {
     if (args->valid[k] != -1) continue;
-    const float org[3] = {RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k)};
-    const float dir[3] = {RTCRayN_dir_x(rays, n, k), RTCRayN_dir_y(rays, n, k), RTCRayN_dir_z(rays, n, k)};
-    const HeightfieldRay ray(org, dir);
+    const HeightfieldRay ray = LaneRay(rays, n, k);
     float t_far = RTCRayN_tfar(rays, n, k);
     impl->heightfield->Intersect(args->primID, ray, RTCRayN_tnear(rays, n, k), &t_far,
                                  [&](const HeightfieldHit&) -> float {
