@@ -4,6 +4,9 @@
 #include <gdal_alg.h>
 #include <gdal_utils.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 #include <limits>
 
@@ -77,8 +80,24 @@ std::vector<Eigen::Vector2d> TpsLonLat(const std::vector<GroundControlPoint>& gc
   GdalGcpList list(gcps);
   void* tps = GDALCreateTPSTransformer(static_cast<int>(list.list.size()), list.list.data(), FALSE);
   if (tps == nullptr) throw InputError("cannot build a thin-plate spline: " + LastGdalMessage(), "GCPs");
-  std::vector<Eigen::Vector2d> out = TransformPixels(GDALTPSTransform, tps, pixels);
+  // Evaluated in parallel blocks: the solved spline is only read
+  // (GDALTPSTransform calls VizGeorefSpline2D::get_point, which keeps no
+  // state), and each block transforms its own points.
+  const size_t n = pixels.size();
+  std::vector<double> x(n), y(n), z(n, 0.0);
+  std::vector<int> ok(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    x[i] = pixels[i].x();
+    y[i] = pixels[i].y();
+  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& block) {
+    GDALTPSTransform(tps, FALSE, static_cast<int>(block.size()), x.data() + block.begin(), y.data() + block.begin(),
+                     z.data() + block.begin(), ok.data() + block.begin());
+  });
   GDALDestroyTPSTransformer(tps);
+  std::vector<Eigen::Vector2d> out(n);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (size_t i = 0; i < n; ++i) out[i] = ok[i] ? Eigen::Vector2d(x[i], y[i]) : Eigen::Vector2d(nan, nan);
   return out;
 }
 

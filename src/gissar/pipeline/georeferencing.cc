@@ -4,30 +4,91 @@
 #include <cmath>
 #include <limits>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include "gissar/geo/warp.h"
 #include "gissar/util/error.h"
 
 namespace gissar::pipeline {
+namespace {
+
+// Steepest rise per horizontal metre over MeshFromGrid's two triangles of
+// every cell of a row-major grid of finite ENU posts (+inf with a vertical
+// facet).
+double GridMaxGradient(const std::vector<Eigen::Vector3f>& posts, int width, int height) {
+  return tbb::parallel_reduce(
+      tbb::blocked_range<int>(0, height - 1, 16), 0.0,
+      [&](const tbb::blocked_range<int>& rows, double best) {
+        // Squared, in float (a bound: SlantRangeGeoreference keeps a margin):
+        // |grad z|^2 = (nx^2 + ny^2) / nz^2 of each triangle's normal n.
+        float best2 = 0.0f;
+        auto offer = [&best2](float ux, float uy, float uz, float vx, float vy, float vz) {
+          const float nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+          const float h2 = nx * nx + ny * ny;
+          // A vertical facet (nz = 0) makes the bound infinite.
+          best2 = std::max(best2, nz != 0.0f ? h2 / (nz * nz) : std::numeric_limits<float>::infinity());
+        };
+        for (int r = rows.begin(); r < rows.end(); ++r) {
+          const Eigen::Vector3f* row = posts.data() + size_t(r) * width;
+          for (int c = 0; c + 1 < width; ++c) {
+            const Eigen::Vector3f &a = row[c], &b = row[c + 1], &d = row[c + width], &e = row[c + width + 1];
+            // MeshFromGrid's triangles (a, b, d) and (b, e, d).
+            offer(b.x() - a.x(), b.y() - a.y(), b.z() - a.z(), d.x() - a.x(), d.y() - a.y(), d.z() - a.z());
+            offer(e.x() - b.x(), e.y() - b.y(), e.z() - b.z(), d.x() - b.x(), d.y() - b.y(), d.z() - b.z());
+          }
+        }
+        return std::max(best, 1.001 * std::sqrt(double(best2)));
+      },
+      [](double a, double b) { return std::max(a, b); });
+}
+
+}  // namespace
 
 TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.vertices) {
-  // One pass for the bounds of the finite vertices (both paths need the
-  // height range) and whether every vertex is finite.
-  double x_min = 1e300, x_max = -1e300, y_min = 1e300, y_max = -1e300;
-  z_min_ = 1e300;
-  z_max_ = -1e300;
-  bool all_finite = true;
-  for (const auto& v : vertices_) {
-    if (!v.allFinite()) {
-      all_finite = false;
-      continue;
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  // One parallel pass for the bounds of the finite vertices (both paths need
+  // the height range) and whether every vertex is finite.
+  struct Bounds {
+    float x_min = kInf, x_max = -kInf, y_min = kInf, y_max = -kInf, z_min = kInf, z_max = -kInf;
+    bool all_finite = true;
+    void Join(const Bounds& o) {
+      x_min = std::min(x_min, o.x_min);
+      x_max = std::max(x_max, o.x_max);
+      y_min = std::min(y_min, o.y_min);
+      y_max = std::max(y_max, o.y_max);
+      z_min = std::min(z_min, o.z_min);
+      z_max = std::max(z_max, o.z_max);
+      all_finite = all_finite && o.all_finite;
     }
-    x_min = std::min<double>(x_min, v.x());
-    x_max = std::max<double>(x_max, v.x());
-    y_min = std::min<double>(y_min, v.y());
-    y_max = std::max<double>(y_max, v.y());
-    z_min_ = std::min<double>(z_min_, v.z());
-    z_max_ = std::max<double>(z_max_, v.z());
-  }
+  };
+  const Bounds bounds = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, vertices_.size(), 1 << 16), Bounds{},
+      [&](const tbb::blocked_range<size_t>& range, Bounds b) {
+        for (size_t i = range.begin(); i < range.end(); ++i) {
+          const float x = vertices_[i].x(), y = vertices_[i].y(), z = vertices_[i].z();
+          if (!std::isfinite(x + y + z)) {
+            b.all_finite = false;
+            continue;
+          }
+          b.x_min = std::min(b.x_min, x);
+          b.x_max = std::max(b.x_max, x);
+          b.y_min = std::min(b.y_min, y);
+          b.y_max = std::max(b.y_max, y);
+          b.z_min = std::min(b.z_min, z);
+          b.z_max = std::max(b.z_max, z);
+        }
+        return b;
+      },
+      [](Bounds a, const Bounds& b) {
+        a.Join(b);
+        return a;
+      });
+  const double x_min = bounds.x_min, x_max = bounds.x_max, y_min = bounds.y_min, y_max = bounds.y_max;
+  z_min_ = bounds.x_min <= bounds.x_max ? bounds.z_min : 1e300;
+  z_max_ = bounds.x_min <= bounds.x_max ? bounds.z_max : -1e300;
+  const bool all_finite = bounds.all_finite;
+  if (x_min <= x_max) limits_.plan = Eigen::AlignedBox2d(Eigen::Vector2d(x_min, y_min), Eigen::Vector2d(x_max, y_max));
   const size_t cells = terrain.grid_width > 1 && terrain.grid_height > 1
                            ? size_t(terrain.grid_width - 1) * (terrain.grid_height - 1)
                            : 0;
@@ -35,6 +96,7 @@ TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.
                           (terrain.mesh.triangles.empty() || terrain.mesh.triangles.size() == 2 * cells);
   if (plain_grid) {
     grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height);
+    limits_.max_gradient = GridMaxGradient(vertices_, terrain.grid_width, terrain.grid_height);
     return;
   }
   if (!terrain.mesh.triangles.empty()) {
@@ -120,7 +182,7 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
   geo::Georeference g;
   for (int grid = 12;; grid += 4) {
     g = sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(),
-                                       grid, report);
+                                       grid, report, surface.limits());
     if (g.gcps.size() >= 100 || grid >= 40) break;
   }
   if (refinement != nullptr) *refinement = TpsRefinement{};
@@ -135,7 +197,8 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
   const int w = geometry.width(), h = geometry.height();
   const int dense = std::clamp(std::max(w, h) / 3, 12, kTpsCandidateLattice);
   const std::vector<geo::GroundControlPoint> lattice =
-      sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(), dense)
+      sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(), dense,
+                                     nullptr, surface.limits())
           .gcps;
   std::vector<geo::GroundControlPoint> candidates;
   for (const auto& p : lattice) {

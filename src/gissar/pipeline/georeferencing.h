@@ -2,6 +2,7 @@
 // as a height function for sensor::SlantRangeGeoreference.
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -26,6 +27,10 @@ class TerrainSurface {
   double operator()(double x_m, double y_m) const;
   double z_min_m() const { return z_min_; }
   double z_max_m() const { return z_max_; }
+  // For sensor::SlantRangeGeoreference: the plan box of the finite
+  // vertices, and the steepest triangle's slope of a plain DEM grid (+inf
+  // for any other mesh).
+  const sensor::SurfaceLimits& limits() const { return limits_; }
 
  private:
   Eigen::Vector3i Triangle(size_t t) const;
@@ -39,6 +44,7 @@ class TerrainSurface {
   std::vector<uint32_t> start_;    // CSR offsets, nx*ny + 1
   std::vector<uint32_t> members_;  // triangle indices
   double z_min_ = 0, z_max_ = 0;
+  sensor::SurfaceLimits limits_;
 };
 
 // Limits of the GCP refinement for thin-plate-spline users (gdalwarp -tps).

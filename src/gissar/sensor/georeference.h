@@ -4,6 +4,9 @@
 #pragma once
 
 #include <functional>
+#include <limits>
+
+#include <Eigen/Geometry>
 
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
@@ -14,6 +17,17 @@ namespace gissar::sensor {
 // Height (ENU z, metres) of the terrain's top surface at ENU (x, y) metres,
 // or NaN where there is no terrain.
 using SurfaceHeight = std::function<double(double x_m, double y_m)>;
+
+// What is known of a SurfaceHeight beyond its values, to march faster.
+struct SurfaceLimits {
+  // Bound on the surface's slope (rise per horizontal metre: the tangent of
+  // its steepest facet) where it is defined; +inf: unknown. Lets the march
+  // leap while it is high above the terrain.
+  double max_gradient = std::numeric_limits<double>::infinity();
+  // ENU plan box (x, y metres) outside which the surface is NaN; empty:
+  // unknown. The march skips the part of a locus outside it.
+  Eigen::AlignedBox2d plan;
+};
 
 struct GeoreferenceReport {
   int gcp_count = 0;
@@ -27,6 +41,8 @@ struct GeoreferenceReport {
 // iso-range circle in the zero-Doppler plane), found by marching in steps of
 // a quarter pixel and bisecting. Nodes whose locus misses the terrain are
 // left out. `z_min_m`/`z_max_m` bound the terrain's ENU heights.
+// `limits` (optional) lets the march leap over what cannot hold the first
+// crossing; the GCPs are the same (to 2^-26 of a quarter-pixel step).
 // RPCs: cubic polynomials in normalised (lon, lat, height) with denominator
 // 1, fitted by least squares to geometry.Project() on a 15 x 15 x 7 lattice
 // spanning the GCPs' longitude/latitude box (grown by 10 %) and their
@@ -39,6 +55,7 @@ struct GeoreferenceReport {
 geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo::LocalFrame& frame,
                                          const SurfaceHeight& surface, double z_min_m,
                                          double z_max_m, int grid = 12,
-                                         GeoreferenceReport* report = nullptr);
+                                         GeoreferenceReport* report = nullptr,
+                                         const SurfaceLimits& limits = {});
 
 }  // namespace gissar::sensor
