@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <limits>
@@ -469,8 +470,14 @@ GeoPoint ResolveSceneCentre(const Dem& dem, const std::optional<Eigen::Vector2d>
   return centre;
 }
 
-std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& frame) {
-  const CrsTransform probe(dem.crs_wkt);  // throws here, on the calling thread, for a bad CRS
+namespace {
+
+// Posts at most this far apart (metres) are placed by interpolating between
+// exactly transformed nodes (DemPostsInFrame).
+constexpr double kInterpolationNodeSpacingM = 64.0;
+
+// Every post transformed exactly: map -> WGS84 (PROJ) -> ENU.
+std::vector<Eigen::Vector3f> ExactPostsInFrame(const Dem& dem, const LocalFrame& frame) {
   const size_t n = size_t(dem.width) * dem.height;
   std::vector<Eigen::Vector3f> enu(n);
   // Blocks of rows in parallel, each with its own transformation (PROJ's
@@ -496,6 +503,99 @@ std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& f
     const size_t first = size_t(rows.begin()) * dem.width;
     for (size_t k = 0; k < count; ++k) {
       enu[first + k] = frame.EnuFromGeodetic(x[k], y[k], dem.heights_m[first + k]).cast<float>();
+    }
+  });
+  return enu;
+}
+
+int64_t FloorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+}  // namespace
+
+std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& frame) {
+  const CrsTransform probe(dem.crs_wkt);  // throws here, on the calling thread, for a bad CRS
+  if (dem.width < 2 || dem.height < 2) return ExactPostsInFrame(dem, frame);
+  // A post's ENU position is E0(c, r) + h U(c, r): the ellipsoid point below
+  // it and the ellipsoid's unit normal, both smooth in the post coordinates.
+  // On nodes every S posts (S x spacing <= 64 m) they are computed exactly;
+  // between nodes, interpolated bilinearly: off by at most (64 m)^2 / (8 R)
+  // = 0.08 mm for the Earth's curvature 1/R (map projections bend less),
+  // below a float32 coordinate's rounding (1 mm at 8 km). Nodes sit on the
+  // source raster's lattice (Dem::lattice_col0/row0), so a window places its
+  // posts bit for bit as the whole raster does.
+  const int cm = std::max(0, dem.width / 2 - 1), rm = std::max(0, dem.height / 2 - 1);
+  std::vector<double> px(3), py(3);
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector2d m = dem.MapFromPost(cm + (i == 1), rm + (i == 2));
+    px[i] = m.x();
+    py[i] = m.y();
+  }
+  double spacing_m = 0.0;
+  try {
+    probe.ToLonLat(px, py);
+    const Eigen::Vector3d p0 = frame.EnuFromGeodetic(px[0], py[0], 0.0);
+    spacing_m = std::max((frame.EnuFromGeodetic(px[1], py[1], 0.0) - p0).norm(),
+                         (frame.EnuFromGeodetic(px[2], py[2], 0.0) - p0).norm());
+  } catch (const InputError&) {
+    return ExactPostsInFrame(dem, frame);
+  }
+  const int step = spacing_m > 0.0 ? static_cast<int>(std::floor(kInterpolationNodeSpacingM / spacing_m)) : 1;
+  if (step < 2) return ExactPostsInFrame(dem, frame);
+
+  const int64_t g_col0 = dem.HasLattice() ? dem.lattice_col0 : 0, g_row0 = dem.HasLattice() ? dem.lattice_row0 : 0;
+  const int64_t k_col0 = FloorDiv(g_col0, step), k_row0 = FloorDiv(g_row0, step);
+  const int nodes_x = static_cast<int>(FloorDiv(g_col0 + dem.width - 1, step) - k_col0 + 2);
+  const int nodes_y = static_cast<int>(FloorDiv(g_row0 + dem.height - 1, step) - k_row0 + 2);
+  std::vector<Eigen::Vector3d> ground(size_t(nodes_x) * nodes_y), up(ground.size());
+  std::atomic<bool> failed{false};
+  tbb::parallel_for(tbb::blocked_range<int>(0, nodes_y, 4), [&](const tbb::blocked_range<int>& rows) {
+    const CrsTransform crs(dem.crs_wkt);
+    const size_t count = size_t(rows.size()) * nodes_x;
+    std::vector<double> x(count), y(count);
+    for (int j = rows.begin(); j < rows.end(); ++j) {
+      for (int i = 0; i < nodes_x; ++i) {
+        // Node (i, j) is post ((k_col0 + i) step - g_col0, ...) of this grid.
+        const Eigen::Vector2d m = dem.MapFromPost(double((k_col0 + i) * step - g_col0),
+                                                  double((k_row0 + j) * step - g_row0));
+        const size_t k = size_t(j - rows.begin()) * nodes_x + i;
+        x[k] = m.x();
+        y[k] = m.y();
+      }
+    }
+    try {
+      crs.ToLonLat(x, y);
+    } catch (const InputError&) {
+      failed = true;  // a node beyond the DEM's edge left the projection's domain
+      return;
+    }
+    const size_t first = size_t(rows.begin()) * nodes_x;
+    for (size_t k = 0; k < count; ++k) {
+      ground[first + k] = frame.EnuFromGeodetic(x[k], y[k], 0.0);
+      up[first + k] = frame.EnuFromGeodetic(x[k], y[k], 1.0) - ground[first + k];
+    }
+  });
+  if (failed) return ExactPostsInFrame(dem, frame);
+
+  std::vector<Eigen::Vector3f> enu(size_t(dem.width) * dem.height);
+  const double inv_step = 1.0 / step;
+  tbb::parallel_for(tbb::blocked_range<int>(0, dem.height, 16), [&](const tbb::blocked_range<int>& rows) {
+    for (int r = rows.begin(); r < rows.end(); ++r) {
+      const int64_t gr = g_row0 + r;
+      const int j = static_cast<int>(FloorDiv(gr, step) - k_row0);
+      const double fy = double(gr - (k_row0 + j) * step) * inv_step;
+      for (int c = 0; c < dem.width; ++c) {
+        const int64_t gc = g_col0 + c;
+        const int i = static_cast<int>(FloorDiv(gc, step) - k_col0);
+        const double fx = double(gc - (k_col0 + i) * step) * inv_step;
+        const size_t n00 = size_t(j) * nodes_x + i, n10 = n00 + 1, n01 = n00 + nodes_x, n11 = n01 + 1;
+        auto lerp2 = [&](const std::vector<Eigen::Vector3d>& v) {
+          const Eigen::Vector3d bottom = v[n00] + fx * (v[n10] - v[n00]);
+          const Eigen::Vector3d top = v[n01] + fx * (v[n11] - v[n01]);
+          return Eigen::Vector3d(bottom + fy * (top - bottom));
+        };
+        const size_t post = size_t(r) * dem.width + c;
+        enu[post] = (lerp2(ground) + double(dem.heights_m[post]) * lerp2(up)).cast<float>();
+      }
     }
   });
   return enu;

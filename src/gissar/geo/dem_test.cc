@@ -106,6 +106,64 @@ TEST(DemTest, ProjectedDemIsPlacedThroughProj) {
   EXPECT_NEAR(enu[5].z(), 1000.0, 0.5);
 }
 
+// Posts closer than 64 m are placed by interpolating exactly transformed
+// nodes: against every post transformed through PROJ one by one, within
+// 0.5 mm (the interpolation's bound is 0.08 mm, plus float rounding), and a
+// window off the node lattice places its posts bit for bit as the whole DEM.
+TEST(DemTest, InterpolatedPostsMatchTheExactTransformAndWindowsBitForBit) {
+  const auto dir = testing::MakeTempDir();
+  struct Case {
+    const char* crs;
+    std::array<double, 6> geotransform;
+  };
+  // UTM 31N at 5 m (nodes every 12 posts), and WGS84 at 0.5 arc-second
+  // (about 15 m north-south, 11 m east-west: nodes every 4 posts).
+  const Case cases[] = {{"EPSG:32631", {385000.0, 5.0, 0.0, 4711000.0, 0.0, -5.0}},
+                        {"EPSG:4326", {1.45, 0.5 / 3600.0, 0.0, 42.6, 0.0, -0.5 / 3600.0}}};
+  const int w = 300, h = 200;
+  std::vector<float> heights(size_t(w) * h);
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      heights[size_t(r) * w + c] = float(1000.0 + 800.0 * std::sin(c / 17.0) * std::cos(r / 23.0) + 37.0 * ((c * 7 + r * 13) % 5));
+    }
+  }
+  for (const Case& test : cases) {
+    const auto path = dir / (std::string(test.crs).substr(5) + ".tif");
+    WriteDemGeoTiff(path, heights, w, h, test.geotransform, test.crs);
+    const Dem dem = ReadDem(path);
+    const GeoPoint centre = ResolveSceneCentre(dem, std::nullopt, std::nullopt);
+    const LocalFrame frame(centre.lon_deg, centre.lat_deg);
+    const std::vector<Eigen::Vector3f> enu = DemPostsInFrame(dem, frame);
+    ASSERT_EQ(enu.size(), heights.size());
+    std::vector<double> x, y;
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        const Eigen::Vector2d m = dem.MapFromPost(c, r);
+        x.push_back(m.x());
+        y.push_back(m.y());
+      }
+    }
+    CrsTransform(dem.crs_wkt).ToLonLat(x, y);
+    double worst_m = 0.0;
+    for (size_t k = 0; k < enu.size(); ++k) {
+      const Eigen::Vector3d exact = frame.EnuFromGeodetic(x[k], y[k], heights[k]);
+      worst_m = std::max(worst_m, (enu[k].cast<double>() - exact).norm());
+    }
+    std::printf("[ measured ] %s: largest distance to the exact transform %.2e m\n", test.crs, worst_m);
+    EXPECT_LT(worst_m, 5e-4) << test.crs;
+
+    DemReadOptions options;
+    options.window = std::array<int, 4>{37, 23, 101, 77};
+    const Dem window = ReadDem(path, options);
+    const std::vector<Eigen::Vector3f> window_enu = DemPostsInFrame(window, frame);
+    for (int r = 0; r < 77; ++r) {
+      for (int c = 0; c < 101; ++c) {
+        ASSERT_EQ(window_enu[size_t(r) * 101 + c], enu[size_t(r + 23) * w + c + 37]) << test.crs << " " << c << "," << r;
+      }
+    }
+  }
+}
+
 // The message of the InputError ReadDem throws for `path`, or "" if none.
 std::string ReadDemError(const std::filesystem::path& path, const DemReadOptions& options = {}) {
   try {
