@@ -486,6 +486,10 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, TerrainGrid grid, BvhQ
 
 bool EmbreeScene::heightfield() const { return impl_->heightfield != nullptr; }
 
+bool EmbreeScene::HeightfieldOnly() const {
+  return impl_->heightfield != nullptr && impl_->mesh_geometry == RTC_INVALID_GEOMETRY_ID;
+}
+
 EmbreeScene::~EmbreeScene() = default;
 
 std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,

@@ -109,6 +109,11 @@ class EmbreeScene {
 
   // Whether a terrain grid is traced as a height field.
   bool heightfield() const;
+  // Whether the scene is a terrain grid's height field and nothing else:
+  // every surface is a single-valued function of the plan position (no
+  // walls, no overhangs), so along a vertical plane a ray that meets it
+  // from above has passed over everything before its hit.
+  bool HeightfieldOnly() const;
   // The quality the BVH was built with (never kAuto).
   BvhQuality quality() const { return quality_; }
   // Seconds spent building the BVH.

@@ -225,6 +225,9 @@ constexpr double kSelfHitCos = 0.05;
 // ray (1 / rays per slant-range pixel), and at least this wide (pixels),
 // are split into sub-rays (at most kMaxSubRays).
 constexpr double kMinSplitFootprintPx = 0.25;
+// A primary ray starts this far (metres of ground) before the hit of the
+// ray below it (RenderSar's skip_to_previous_hit): far beyond rounding.
+constexpr double kSkipMarginM = 1.0;
 constexpr int kMaxSubRays = 64;
 
 // Internal flags of the mask pass: a lit surface covers the pixel centre;
@@ -370,6 +373,15 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   const double inv_pixel_area = 1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m());
   const double split_footprint_px = std::max(kMinSplitFootprintPx, 2.0 / grid.k_el);
   const std::vector<material::Sigma0Table> sigma0_tables = materials.Tables(options.wavelength_m, options.polarization);
+  // Primary rays of one azimuth line lie in one plane, ray j + 1 above ray
+  // j when the range-plane normal points up (they share the origin plane,
+  // or exact mode's sensor, and rise with e). Over a height field the first
+  // hit then moves monotonically away from the radar with j: a ray above
+  // one that met the terrain from above passes over everything before that
+  // hit, and starts there (Embree and the height field skip the tiles
+  // before tnear). The hits, and the image, are the same bit for bit.
+  const Vector3d ground_look = Vector3d(l.x(), l.y(), 0.0).normalized();
+  const bool skip_to_previous_hit = options.skip_to_previous_hit && embree.HeightfieldOnly() && n.z() > 0.0;
   auto sigma0_of = [&](scene::ClassId id, double cos_in) {
     return sigma0_tables[id < sigma0_tables.size() ? id : 0](cos_in);
   };
@@ -436,6 +448,10 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       for (int i = i0; i < i1; ++i) {
         const double a = grid.a0 + i * grid.da;
         const Vector3d sensor = geometry.SensorPosition(a);
+        // Ground coordinate (along `ground_look`) of the first hit of the
+        // previous packet's highest ray when it met the terrain from above;
+        // -inf: none (see skip_to_previous_hit).
+        double previous_hit_ground = -std::numeric_limits<double>::infinity();
         for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
           bool any = false;
           for (int k = 0; k < 16; ++k) {
@@ -450,6 +466,14 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             lane_dir[k] = dir;
             lane_travelled[k] = travelled;
             packet.SetRay(k, origin.cast<float>(), dir.cast<float>());
+            if (skip_to_previous_hit && previous_hit_ground > -std::numeric_limits<double>::infinity()) {
+              // This ray passes above the previous packet's highest ray, so
+              // over all the terrain before that ray's hit: start it there
+              // (less kSkipMarginM of ground).
+              const double t_skip =
+                  (previous_hit_ground - kSkipMarginM - origin.dot(ground_look)) / dir.dot(ground_look);
+              if (t_skip > 0.0) packet.tnear[k] = static_cast<float>(t_skip);
+            }
             valid[k] = -1;
             any = true;
           }
@@ -474,6 +498,16 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
             lane_normal[k] = mesh.Normal(packet.triangle[k]);
             lane_class[k] = mesh.classes[packet.triangle[k]];
+          }
+          if (skip_to_previous_hit) {
+            // The highest ray of this packet (lane 15, rays rising with j)
+            // met the terrain from above (a height field's faces point up):
+            // the next packet's rays, all above it, can start at its hit.
+            previous_hit_ground = -std::numeric_limits<double>::infinity();
+            if (valid[15] != 0 && packet.triangle[15] != RayPacket16::kNoHit &&
+                lane_normal[15].cast<double>().dot(lane_dir[15]) < 0.0) {
+              previous_hit_ground = (lane_origin[15] + double(packet.tfar[15]) * lane_dir[15]).dot(ground_look);
+            }
           }
           for (int k = 0; k < 16; ++k) {
           if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
@@ -805,6 +839,10 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
       for (int i = i0; i < i1; ++i) {
         const double a = grid.a0 + i * grid.da;
         const Vector3d sensor = geometry.SensorPosition(a);
+        // Ground coordinate (along `ground_look`) of the first hit of the
+        // previous packet's highest ray when it met the terrain from above;
+        // -inf: none (see skip_to_previous_hit).
+        double previous_hit_ground = -std::numeric_limits<double>::infinity();
         for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
           bool any = false;
           for (int k = 0; k < 16; ++k) {

@@ -84,6 +84,12 @@ struct RenderOptions {
   // of a DEM window equal to that of the whole DEM: the same rays, starting
   // at the same points. It must hold every surface that can reach the image.
   std::optional<Eigen::AlignedBox3d> ray_box;
+  // Over a scene that is only a height field (EmbreeScene::HeightfieldOnly),
+  // each packet of primary rays starts where the highest ray of the packet
+  // below it met the terrain (the hits move monotonically away from the
+  // radar up an azimuth line): the same hits, fewer tiles visited. False
+  // traces every primary ray from its origin (for comparison).
+  bool skip_to_previous_hit = true;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;

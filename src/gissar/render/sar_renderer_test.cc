@@ -1,8 +1,10 @@
 #include "gissar/render/sar_renderer.h"
+#include "gissar/render/embree_scene.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 
 #include "gissar/util/error.h"
 
@@ -295,6 +297,61 @@ TEST(SarRendererTest, RejectsBadRaysPerCell) {
   RenderOptions o;
   o.rays_per_cell = 0.5;
   EXPECT_THROW(o.Check(), ConfigError);
+}
+
+// Over a pure height field each packet of primary rays starts at the hit of
+// the highest ray of the packet below it (RenderOptions::
+// skip_to_previous_hit): on steep terrain with shadow, layover and three
+// bounces the image, its layers and its mask are the same bit for bit as
+// with every ray traced from its origin, in both modes and both look sides
+// (left: the rays fall with j, nothing is skipped). A building makes the
+// scene no longer a height field.
+TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
+  constexpr int kPosts = 90;
+  std::vector<float> heights(size_t(kPosts) * kPosts);
+  for (int r = 0; r < kPosts; ++r) {
+    for (int c = 0; c < kPosts; ++c) {
+      // Ridges steep enough to shadow and lay over at 40 degrees.
+      heights[size_t(r) * kPosts + c] = float(120.0 * std::sin(0.23 * c) * std::cos(0.19 * r) +
+                                              60.0 * std::sin(0.61 * c + 0.37 * r) + 7.0 * ((c * 5 + r * 3) % 4));
+    }
+  }
+  scene::TriangleMesh mesh = scene::MeshFromHeights(heights, kPosts, kPosts, 10.0, -445.0, -445.0);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  ASSERT_TRUE(heightfield.HeightfieldOnly());
+  int64_t shadow = 0, layover = 0;
+  for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    for (const auto side : {sensor::LookSide::kRight, sensor::LookSide::kLeft}) {
+      sensor::SarGeometryOptions o = Options(30.0, 40.0, 5.0);
+      o.mode = mode;
+      o.look_side = side;
+      o.slant_range_m = 5000.0;
+      const auto g = sensor::SarGeometry::Covering(o, Vector3d::Zero(), mesh.vertices);
+      RenderOptions options = Quiet(4.0);
+      options.max_bounces = 3;
+      const SarImage skipping = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+      options.skip_to_previous_hit = false;
+      const SarImage plain = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+      ASSERT_EQ(skipping.intensity.size(), plain.intensity.size());
+      EXPECT_EQ(std::memcmp(skipping.intensity.data(), plain.intensity.data(), plain.intensity.size() * sizeof(float)), 0);
+      ASSERT_EQ(skipping.bounce_layers.size(), plain.bounce_layers.size());
+      for (size_t k = 0; k < plain.bounce_layers.size(); ++k) {
+        EXPECT_EQ(std::memcmp(skipping.bounce_layers[k].data(), plain.bounce_layers[k].data(),
+                              plain.bounce_layers[k].size() * sizeof(float)),
+                  0);
+      }
+      EXPECT_EQ(skipping.mask, plain.mask);
+      EXPECT_EQ(skipping.stats.hits, plain.stats.hits);
+      for (uint8_t m : plain.mask) {
+        shadow += m == kMaskShadow;
+        layover += m == kMaskLayover;
+      }
+    }
+  }
+  EXPECT_GT(shadow, 500);  // the terrain does cast shadows and lay over
+  EXPECT_GT(layover, 500);
+  mesh.AddQuad(Vector3f(0, 0, 0), Vector3f(20, 0, 0), Vector3f(20, 0, 300), Vector3f(0, 0, 300));
+  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{kPosts, kPosts}).HeightfieldOnly());
 }
 
 }  // namespace
