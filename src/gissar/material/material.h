@@ -165,6 +165,10 @@ struct Material {
 // A material's sigma0 sampled every 0.05 deg of local incidence for one
 // wavelength and polarisation (linear interpolation): the renderers' fast
 // lookup.
+// acos(x) for x in [0, 1] (clamped), within 2e-8 rad (a polynomial, no
+// libm call): the angle lookups of Sigma0Table.
+double AcosOfUnitInterval(double x);
+
 class Sigma0Table {
  public:
   Sigma0Table() = default;
