@@ -174,6 +174,18 @@ void SplatFootprint(Band& band, int width, int plane, double col, double row, do
   }
 }
 
+// SplatFootprint of the same value into planes `first` and `second` (their
+// shares computed once).
+void SplatFootprint2(Band& band, int width, int first, int second, double col, double row, double wc, double wr,
+                     float value) {
+  float* const planes[2] = {band.values + size_t(first) * band.rows * width,
+                            band.values + size_t(second) * band.rows * width};
+  if (!SplatBoxPlanes(planes, 2, width, band.row0, band.rows, col, row, wc, wr, value, /*clip=*/false)) {
+    band.overflow->push_back({first, col, row, value, false, wc, wr});
+    band.overflow->push_back({second, col, row, value, false, wc, wr});
+  }
+}
+
 // SplitMix64: a per-scatterer random phase from (seed, ray, bounce).
 double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (ray * 17 + bounce + 1);
@@ -537,7 +549,13 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             // mode the two add in phase.
             const double reciprocal = bounce > 1 ? 2.0 : 1.0;
             value *= reciprocal;
-            deposit(total_planes + layer);
+            if (!options.coherent && box_cols >= 0.0) {
+              // Its bounce layer and the total, from the same shares.
+              SplatFootprint2(band, width, total_planes + layer, 0, col, row, box_cols, box_rows,
+                              static_cast<float>(value));
+            } else {
+              deposit(total_planes + layer);
+            }
             if (options.coherent) {
               // Rough-surface (first-bounce) returns: random micro-phase;
               // mirror paths: deterministic path phase.
@@ -554,7 +572,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                   Splat(band, width, plane + 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
                 }
               }
-            } else {
+            } else if (box_cols < 0.0) {
               deposit(0);
             }
             if (options.record_contributions) {

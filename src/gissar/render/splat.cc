@@ -59,11 +59,8 @@ int FootprintShares(double x, double w, int* first, double* share) {
   return n;
 }
 
-namespace {
-}  // namespace
-
-bool SplatBox(float* plane, int width, int row0, int rows, double col, double row, double wc, double wr,
-              float value, bool clip) {
+bool SplatBoxPlanes(float* const* planes, int count, int width, int row0, int rows, double col, double row,
+                    double wc, double wr, float value, bool clip) {
   double col_share[kMaxShares], row_share[kMaxShares];
   int c_first = 0, r_first = 0;
   const int nc = FootprintShares(col, wc, &c_first, col_share);
@@ -79,14 +76,20 @@ bool SplatBox(float* plane, int width, int row0, int rows, double col, double ro
   for (int i = 0; i < nr; ++i) {
     const int r = r_first + i;
     if (r < row0 || r >= row0 + rows || row_share[i] == 0.0) continue;
-    float* line = plane + size_t(r - row0) * width;
+    const size_t line = size_t(r - row0) * width;
     for (int k = 0; k < nc; ++k) {
       const int c = c_first + k;
       if (c < 0 || c >= width) continue;
-      line[c] += static_cast<float>(value * row_share[i] * col_share[k]);
+      const float v = static_cast<float>(value * row_share[i] * col_share[k]);
+      for (int p = 0; p < count; ++p) planes[p][line + c] += v;
     }
   }
   return true;
+}
+
+bool SplatBox(float* plane, int width, int row0, int rows, double col, double row, double wc, double wr,
+              float value, bool clip) {
+  return SplatBoxPlanes(&plane, 1, width, row0, rows, col, row, wc, wr, value, clip);
 }
 
 }  // namespace gissar::render

@@ -41,4 +41,10 @@ int FootprintShares(double x, double w, int* first, double* share);
 bool SplatBox(float* plane, int width, int row0, int rows, double col, double row, double wc, double wr,
               float value, bool clip);
 
+// SplatBox of the same value into `count` planes at once (each laid out as
+// SplatBox's `plane`): the shares are computed once, and every plane gets
+// exactly the sums SplatBox would give it.
+bool SplatBoxPlanes(float* const* planes, int count, int width, int row0, int rows, double col, double row,
+                    double wc, double wr, float value, bool clip);
+
 }  // namespace gissar::render
