@@ -336,6 +336,26 @@ void EmbreeScene::Impl::HeightfieldOccluded(const RTCOccludedFunctionNArguments*
   const auto* impl = static_cast<const Impl*>(args->geometryUserPtr);
   const unsigned n = args->N;
   RTCRayN* rays = args->ray;
+  if (n > 1 && n <= 16) {
+    // A packet: one walk of the tile for all its lanes; a lane stops at its
+    // first blocker.
+    HeightfieldRayStorage storage[16];
+    float t_near[16], t_far[16];
+    uint32_t lanes = 0;
+    for (unsigned k = 0; k < n; ++k) {
+      if (args->valid[k] != -1) continue;
+      new (&storage[k]) HeightfieldRay(LaneRay(rays, n, k));
+      t_near[k] = RTCRayN_tnear(rays, n, k);
+      t_far[k] = RTCRayN_tfar(rays, n, k);
+      lanes |= 1u << k;
+    }
+    impl->heightfield->IntersectPacket(args->primID, reinterpret_cast<const HeightfieldRay*>(storage), lanes, t_near,
+                                       t_far, [&](int k, const HeightfieldHit&) -> float {
+      RTCRayN_tfar(rays, n, unsigned(k)) = -std::numeric_limits<float>::infinity();
+      return -std::numeric_limits<float>::infinity();
+    });
+    return;
+  }
   for (unsigned k = 0; k < n; ++k) {
     if (args->valid[k] != -1) continue;
     const HeightfieldRay ray = LaneRay(rays, n, k);
@@ -364,6 +384,7 @@ void EmbreeScene::Impl::ResolveTie(const float org[3], const float dir[3], float
 
 // RayPacket16 is Embree's RTCRayHit16, field by field.
 static_assert(sizeof(RayPacket16) == sizeof(RTCRayHit16));
+static_assert(offsetof(RTCRayHit16, ray) == 0);  // Occluded16 passes the packet as an RTCRay16
 static_assert(alignof(RayPacket16) == alignof(RTCRayHit16));
 static_assert(offsetof(RTCRayHit16, ray.tfar) == offsetof(RayPacket16, tfar));
 static_assert(offsetof(RTCRayHit16, ray.flags) == offsetof(RayPacket16, flags));
@@ -534,6 +555,25 @@ void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coh
       const float dir[3] = {packet.dir_x[k], packet.dir_y[k], packet.dir_z[k]};
       impl_->ResolveTie(org, dir, packet.tnear[k], packet.tfar[k], &packet.tfar[k], &packet.triangle[k]);
     }
+  }
+}
+
+void EmbreeScene::Occluded16(const int valid[16], RayPacket16& packet, bool coherent, bool occluded[16]) const {
+  GISSAR_CHECK((reinterpret_cast<uintptr_t>(valid) & 63u) == 0 &&
+               (reinterpret_cast<uintptr_t>(&packet) & 63u) == 0);
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  for (int k = 0; k < 16; ++k) {
+    packet.time[k] = 0.0f;
+    packet.mask[k] = std::numeric_limits<unsigned>::max();
+    packet.id[k] = static_cast<uint32_t>(k);
+    packet.flags[k] = 0;
+  }
+  // RayPacket16 begins with Embree's RTCRay16 (the ray part of RTCRayHit16).
+  rtcOccluded16(valid, impl_->scene, &context, reinterpret_cast<RTCRay16*>(&packet));
+  for (int k = 0; k < 16; ++k) {
+    occluded[k] = valid[k] == -1 && packet.tfar[k] == -std::numeric_limits<float>::infinity();
   }
 }
 

@@ -107,6 +107,12 @@ class EmbreeScene {
   // are resolved as in Intersect.
   void Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const;
 
+  // Occluded for the lanes k of `packet` with valid[k] == -1 (their org,
+  // dir, tnear, tfar), one rtcOccluded16 call: occluded[k] tells whether
+  // anything blocks lane k's segment (false for the other lanes). Alignment
+  // as for Intersect16. Thread-safe.
+  void Occluded16(const int valid[16], RayPacket16& packet, bool coherent, bool occluded[16]) const;
+
   // Whether a terrain grid is traced as a height field.
   bool heightfield() const;
   // Whether the scene is a terrain grid's height field and nothing else:

@@ -219,6 +219,59 @@ TEST(HeightfieldTest, PacketHitsEqualSingleRayHits) {
   EXPECT_GT(hits, compared / 2);
 }
 
+// Occluded16 answers every lane as Occluded does, through the height field
+// (its packet walk) and through Embree's triangles: segments from surface
+// points towards a sensor (the mask's visibility rays), some blocked, some
+// not, and random segments of random lengths.
+TEST(HeightfieldTest, PacketOcclusionEqualsSingleRayOcclusion) {
+  constexpr int kPosts = 65;
+  const scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(kPosts, 17), kPosts, kPosts, 20.0);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts}), triangles(mesh);
+  ASSERT_TRUE(heightfield.heightfield());
+  std::vector<TestRay> rays = RandomRays(mesh, 3000, 9);
+  std::vector<float> t_near(rays.size(), 0.0f), t_far(rays.size());
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> length(1.0f, 2000.0f);
+  for (float& t : t_far) t = length(rng);
+  // From just above the surface at every post towards a low sensor.
+  const Vector3f to_sensor = Vector3f(-0.7f, -0.3f, 0.25f).normalized();
+  for (size_t k = 0; k < mesh.vertices.size(); ++k) {
+    rays.push_back({mesh.vertices[k] + Vector3f(0.0f, 0.0f, 0.05f), to_sensor});
+    t_near.push_back(0.01f);
+    t_far.push_back(kInf);
+  }
+  for (const EmbreeScene* scene : {&heightfield, &triangles}) {
+    int compared = 0, blocked = 0;
+    for (size_t first = 0; first < rays.size(); first += 16) {
+      RayPacket16 packet;
+      alignas(64) int valid[16];
+      bool occluded[16];
+      for (int k = 0; k < 16; ++k) {
+        valid[k] = first + k < rays.size() && k % 7 != 6 ? -1 : 0;
+        if (valid[k] == 0) continue;
+        packet.SetRay(k, rays[first + k].origin, rays[first + k].direction);
+        packet.tnear[k] = t_near[first + k];
+        packet.tfar[k] = t_far[first + k];
+      }
+      scene->Occluded16(valid, packet, true, occluded);
+      for (int k = 0; k < 16; ++k) {
+        if (valid[k] == 0) {
+          EXPECT_FALSE(occluded[k]);
+          continue;
+        }
+        const size_t i = first + k;
+        ++compared;
+        const bool single = scene->Occluded(rays[i].origin, rays[i].direction, t_near[i], t_far[i]);
+        ASSERT_EQ(occluded[k], single) << "ray " << i << (scene == &heightfield ? " (height field)" : " (BVH)");
+        blocked += single;
+      }
+    }
+    EXPECT_GT(compared, 5000);
+    EXPECT_GT(blocked, compared / 10);
+    EXPECT_LT(blocked, compared * 9 / 10);
+  }
+}
+
 // Watertight: a ray aimed at a post, an edge or a diagonal from above meets
 // the terrain (there or before); it never slips between the triangles
 // sharing the point -- not even at posts, where Embree's robust triangles

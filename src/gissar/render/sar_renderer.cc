@@ -281,13 +281,57 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
   tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangle_count(), 4096),
                     [&](const tbb::blocked_range<size_t>& range) {
     int64_t local_rays = 0;
+    // Visibility rays go to Embree 16 at a time (neighbouring pixel
+    // centres, one direction in affine mode: a coherent packet).
+    struct Pending {
+      size_t pixel;
+      Vector3d point, to_radar;
+      float t_near, t_far;
+      double cos_in;
+      size_t triangle;
+      bool flipped;  // the surface faces away from the range plane's upward normal
+    };
+    Pending pending[16];
+    int count = 0;
+    alignas(64) RayPacket16 packet;
+    alignas(64) int valid[16];
+    bool blocked[16];
+    auto settle = [&](const Pending& q, bool occluded) {
+      if (occluded && q.cos_in < kSelfHitCos) {
+        // Seen almost edge-on the surface may still hit itself
+        // beyond t_near by rounding: skip its own triangle once.
+        const auto hit = embree.Intersect(q.point.cast<float>(), q.to_radar.cast<float>(), q.t_near, q.t_far);
+        if (hit && hit->triangle == q.triangle) {
+          ++local_rays;
+          occluded = embree.Occluded(q.point.cast<float>(), q.to_radar.cast<float>(), hit->t + q.t_near, q.t_far);
+        }
+      }
+      uint8_t code = kMaskNone;
+      if (occluded) {
+        code = kMaskShadow;
+      } else {
+        if (lit != nullptr) flags[q.pixel].fetch_or(kLitBit, std::memory_order_relaxed);
+        if (q.flipped) code = kMaskLayover;
+      }
+      flags[q.pixel].fetch_or(code | kCoveredBit, std::memory_order_relaxed);
+    };
+    auto flush = [&] {
+      for (int k = 0; k < 16; ++k) {
+        valid[k] = k < count ? -1 : 0;
+        if (k >= count) continue;
+        packet.SetRay(k, pending[k].point.cast<float>(), pending[k].to_radar.cast<float>());
+        packet.tnear[k] = pending[k].t_near;
+        packet.tfar[k] = pending[k].t_far;
+      }
+      embree.Occluded16(valid, packet, /*coherent=*/true, blocked);
+      for (int k = 0; k < count; ++k) settle(pending[k], blocked[k]);
+      count = 0;
+    };
     for (size_t t = range.begin(); t != range.end(); ++t) {
       const Eigen::Vector3i& tri = mesh.triangles[t];
       const Vector3d v[3] = {mesh.vertices[tri[0]].cast<double>(),
                              mesh.vertices[tri[1]].cast<double>(),
                              mesh.vertices[tri[2]].cast<double>()};
-      const Vector3d normal = mesh.Normal(t).cast<double>();
-      if (normal.isZero()) continue;
       const Eigen::Vector2d p[3] = {geometry.Project(v[0]), geometry.Project(v[1]),
                                     geometry.Project(v[2])};
       const double area2 = (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
@@ -296,6 +340,9 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
       const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max({p[0].x(), p[1].x(), p[2].x()}))));
       const int r_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].y(), p[1].y(), p[2].y()}))));
       const int r_hi = std::min(height - 1, static_cast<int>(std::floor(std::max({p[0].y(), p[1].y(), p[2].y()}))));
+      if (c_lo > c_hi || r_lo > r_hi) continue;  // no pixel centre inside its bounds
+      const Vector3d normal = mesh.Normal(t).cast<double>();
+      if (normal.isZero()) continue;
       for (int r = r_lo; r <= r_hi; ++r) {
         for (int c = c_lo; c <= c_hi; ++c) {
           // Barycentric coordinates of the pixel centre in the projected triangle.
@@ -307,47 +354,29 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
           if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
           const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
           const Vector3d dir = geometry.RayDirectionTo(point);
-          uint8_t code = kMaskNone;
+          const size_t pixel = size_t(r) * width + c;
           if (normal.dot(-dir) <= kMaskEdgeOnCos) {
-            code = kMaskShadow;  // turned away from the radar
-          } else {
-            const double t_far =
-                geometry.mode() == sensor::ProjectionMode::kAffine
-                    ? far_affine
-                    : (geometry.SensorPosition(geometry.AlongTrack(point)) - point).norm();
-            ++local_rays;
-            // Leaving the surface at grazing incidence the ray climbs only
-            // cos(theta) per metre: start it where it has cleared the
-            // rounding of the surface itself (no self-shadowing).
-            const double cos_in = normal.dot(-dir);
-            const float t_near = eps / static_cast<float>(std::max(cos_in, 0.01));
-            bool occluded = embree.Occluded(point.cast<float>(), (-dir).cast<float>(), t_near,
-                                            static_cast<float>(t_far));
-            if (occluded && cos_in < kSelfHitCos) {
-              // Seen almost edge-on the surface may still hit itself
-              // beyond t_near by rounding: skip its own triangle once.
-              const auto hit = embree.Intersect(point.cast<float>(), (-dir).cast<float>(), t_near,
-                                                static_cast<float>(t_far));
-              if (hit && hit->triangle == t) {
-                ++local_rays;
-                occluded = embree.Occluded(point.cast<float>(), (-dir).cast<float>(), hit->t + t_near,
-                                           static_cast<float>(t_far));
-              }
-            }
-            if (occluded) {
-              code = kMaskShadow;
-            } else if (lit != nullptr) {
-              flags[size_t(r) * width + c].fetch_or(kLitBit, std::memory_order_relaxed);
-            }
-            if (occluded) {
-            } else if (normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0) {
-              code = kMaskLayover;
-            }
+            // Turned away from the radar.
+            flags[pixel].fetch_or(kMaskShadow | kCoveredBit, std::memory_order_relaxed);
+            continue;
           }
-          flags[size_t(r) * width + c].fetch_or(code | kCoveredBit, std::memory_order_relaxed);
+          const double t_far =
+              geometry.mode() == sensor::ProjectionMode::kAffine
+                  ? far_affine
+                  : (geometry.SensorPosition(geometry.AlongTrack(point)) - point).norm();
+          ++local_rays;
+          // Leaving the surface at grazing incidence the ray climbs only
+          // cos(theta) per metre: start it where it has cleared the
+          // rounding of the surface itself (no self-shadowing).
+          const double cos_in = normal.dot(-dir);
+          const float t_near = eps / static_cast<float>(std::max(cos_in, 0.01));
+          pending[count++] = Pending{pixel, point, -dir, t_near, static_cast<float>(t_far), cos_in, t,
+                                     normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0};
+          if (count == 16) flush();
         }
       }
     }
+    if (count > 0) flush();
     rays.fetch_add(local_rays, std::memory_order_relaxed);
   });
   if (shadow_rays != nullptr) *shadow_rays = rays.load();
