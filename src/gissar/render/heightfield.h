@@ -295,17 +295,16 @@ void HeightfieldTree::Intersect(size_t tile, const HeightfieldRay& ray, float t_
     const int hits = SlabGroup(level.groups[size_t(e.j) * level.nx + e.i], ray, t_near, *t_far, t0);
     if (hits == 0) continue;
     // Children nearest first: pushed farthest first (insertion sort of at
-    // most 4 by entry distance, descending).
-    Entry children[4];
-    int n = 0;
+    // most 4 by entry distance, descending, in place on the stack: a
+    // separate array copied over cost a memcpy per node).
+    const int base = top;
     for (int q = 0; q < 4; ++q) {
       if (!(hits & (1 << q))) continue;
       const Entry x{t0[q], e.level - 1, 2 * e.i + (q & 1), 2 * e.j + (q >> 1)};
-      int m = n++;
-      for (; m > 0 && children[m - 1].t0 < x.t0; --m) children[m] = children[m - 1];
-      children[m] = x;
+      int m = top++;
+      for (; m > base && stack[m - 1].t0 < x.t0; --m) stack[m] = stack[m - 1];
+      stack[m] = x;
     }
-    for (int k = 0; k < n; ++k) stack[top++] = children[k];
   }
 }
 
@@ -351,16 +350,15 @@ void HeightfieldTree::IntersectPacket(size_t tile, const HeightfieldRay* rays, u
         child_t0[q] = std::min(child_t0[q], t0[q]);
       }
     }
-    Entry children[4];
-    int n = 0;
+    // In place on the stack, farthest first (as in Intersect).
+    const int base = top;
     for (int q = 0; q < 4; ++q) {
       if (child_lanes[q] == 0) continue;
       const Entry x{child_t0[q], e.level - 1, 2 * e.i + (q & 1), 2 * e.j + (q >> 1), child_lanes[q]};
-      int m = n++;
-      for (; m > 0 && children[m - 1].t0 < x.t0; --m) children[m] = children[m - 1];
-      children[m] = x;
+      int m = top++;
+      for (; m > base && stack[m - 1].t0 < x.t0; --m) stack[m] = stack[m - 1];
+      stack[m] = x;
     }
-    for (int k = 0; k < n; ++k) stack[top++] = children[k];
   }
 }
 
