@@ -278,6 +278,20 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
   const double far_affine = geometry.slant_range_m() + box.diagonal().norm();
   std::atomic<int64_t> rays{0};
 
+  // SarGeometry::Project, with affine mode's arithmetic in line (the same
+  // operations in the same order: the same pixel coordinates): three calls
+  // per triangle were a third of the pass.
+  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
+  const Vector3d& xc = geometry.scene_centre();
+  const Vector3d& l = geometry.look_direction();
+  const Vector3d& h = geometry.flight_direction();
+  const double range0 = geometry.slant_range_m(), dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
+  const double u0 = geometry.u0(), v0 = geometry.v0();
+  auto project = [&](const Vector3d& p) -> Eigen::Vector2d {
+    if (!affine) return geometry.Project(p);
+    const double slant = range0 + (p - xc).dot(l);
+    return {(slant - range0) / dr + u0, (p - xc).dot(h) / da + v0};
+  };
   tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangle_count(), 4096),
                     [&](const tbb::blocked_range<size_t>& range) {
     int64_t local_rays = 0;
@@ -332,8 +346,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
       const Vector3d v[3] = {mesh.vertices[tri[0]].cast<double>(),
                              mesh.vertices[tri[1]].cast<double>(),
                              mesh.vertices[tri[2]].cast<double>()};
-      const Eigen::Vector2d p[3] = {geometry.Project(v[0]), geometry.Project(v[1]),
-                                    geometry.Project(v[2])};
+      const Eigen::Vector2d p[3] = {project(v[0]), project(v[1]), project(v[2])};
       const double area2 = (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
       if (std::abs(area2) < 1e-12) continue;  // seen edge-on: covers no pixel centre
       const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].x(), p[1].x(), p[2].x()}))));
@@ -886,10 +899,6 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
       for (int i = i0; i < i1; ++i) {
         const double a = grid.a0 + i * grid.da;
         const Vector3d sensor = geometry.SensorPosition(a);
-        // Ground coordinate (along `ground_look`) of the first hit of the
-        // previous packet's highest ray when it met the terrain from above;
-        // -inf: none (see skip_to_previous_hit).
-        double previous_hit_ground = -std::numeric_limits<double>::infinity();
         for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
           bool any = false;
           for (int k = 0; k < 16; ++k) {
