@@ -10,27 +10,6 @@
 
 namespace gissar::render {
 
-HeightfieldRay::HeightfieldRay(const float origin[3], const float direction[3]) {
-  for (int a = 0; a < 3; ++a) {
-    org[a] = origin[a];
-    org_f[a] = origin[a];
-    parallel[a] = direction[a] == 0.0f;
-    inv_dir[a] = parallel[a] ? 0.0f : 1.0f / direction[a];
-  }
-  // The watertight test's frame: z along the direction's largest component,
-  // x and y swapped when it is negative (keeps the winding).
-  kz = 0;
-  for (int a = 1; a < 3; ++a) {
-    if (std::abs(direction[a]) > std::abs(direction[kz])) kz = a;
-  }
-  kx = (kz + 1) % 3;
-  ky = (kx + 1) % 3;
-  if (direction[kz] < 0.0f) std::swap(kx, ky);
-  sx = double(direction[kx]) / double(direction[kz]);
-  sy = double(direction[ky]) / double(direction[kz]);
-  sz = 1.0 / double(direction[kz]);
-}
-
 HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int height)
     : posts_(posts), width_(width), height_(height) {
   GISSAR_CHECK(width >= 2 && height >= 2);

@@ -135,6 +135,28 @@ class HeightfieldTree {
   std::vector<uint32_t> tiles_;      // their node index (j * nx + i) at level kTileLevel
 };
 
+// In line: it runs for every lane of every tile a packet reaches.
+inline HeightfieldRay::HeightfieldRay(const float origin[3], const float direction[3]) {
+  for (int a = 0; a < 3; ++a) {
+    org[a] = origin[a];
+    org_f[a] = origin[a];
+    parallel[a] = direction[a] == 0.0f;
+    inv_dir[a] = parallel[a] ? 0.0f : 1.0f / direction[a];
+  }
+  // The watertight test's frame: z along the direction's largest component,
+  // x and y swapped when it is negative (keeps the winding).
+  kz = 0;
+  for (int a = 1; a < 3; ++a) {
+    if (std::abs(direction[a]) > std::abs(direction[kz])) kz = a;
+  }
+  kx = (kz + 1) % 3;
+  ky = (kx + 1) % 3;
+  if (direction[kz] < 0.0f) std::swap(kx, ky);
+  sx = double(direction[kx]) / double(direction[kz]);
+  sy = double(direction[ky]) / double(direction[kz]);
+  sz = 1.0 / double(direction[kz]);
+}
+
 inline int HeightfieldTree::SlabGroup(const Group& group, const HeightfieldRay& ray, float t_near, float t_far,
                                       float t0[4]) {
   __m128 lo = _mm_set1_ps(-std::numeric_limits<float>::infinity());
