@@ -17,6 +17,7 @@ request and the gissar version) and whose files all exist is not simulated again
 is replaced (the nanny restarts it) and Dask runs the task again (``retries``).
 """
 import csv
+import glob
 import hashlib
 import io
 import json
@@ -365,10 +366,31 @@ def _pose_key(request, inputs, hash_inputs):
 
 # ---------------------------------------------------------------- files
 
+def _temporary_for(path):
+    """The temporary _write_atomic writes path through: .gs-<name>-<16 hex>.tmp beside it, so that a run
+    killed between writing and renaming leaves a name _sweep_temporaries can find."""
+    directory, name = os.path.split(os.path.abspath(path))
+    tag = uuid.uuid4().hex[:16]
+    if len(name) + 26 > 255:  # no room for the name: an anonymous temporary
+        return os.path.join(directory, f".gs-{tag}.tmp")
+    return os.path.join(directory, f".gs-{name}-{tag}.tmp")
+
+
+def _sweep_temporaries(path):
+    """Removes the temporaries a killed writer of path left (see _temporary_for); only one task writes a
+    pose's files at a time, so none of them is in use."""
+    directory, name = os.path.split(os.path.abspath(path))
+    for leftover in glob.glob(os.path.join(glob.escape(directory), f".gs-{glob.escape(name)}-" + "[0-9a-f]" * 16
+                                           + ".tmp")):
+        try:
+            os.unlink(leftover)
+        except OSError:
+            pass
+
+
 def _write_atomic(path, text):
     """Writes text to path through a temporary in the same directory and a rename."""
-    directory = os.path.dirname(os.path.abspath(path))
-    tmp = os.path.join(directory, f".gs-{uuid.uuid4().hex[:16]}.tmp")
+    tmp = _temporary_for(path)
     try:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
@@ -436,6 +458,10 @@ def _simulate_pose(task):
         os.unlink(_marker_path(prefix))  # the marker exists only beside the outputs it describes
     except FileNotFoundError:
         pass
+    # A worker killed while it wrote this pose's Item or marker left their temporaries (the simulation's own
+    # are swept by gissar itself when it takes the prefix's lock).
+    for path in (prefix + "_stac.json", _marker_path(prefix)):
+        _sweep_temporaries(path)
     base = {"id": task["id"], "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         da = gissar.simulate(**task["request"], out_prefix=prefix, progress=None)

@@ -266,6 +266,24 @@ def test_killed_worker_is_retried_and_the_database_equals_the_undisturbed_one(cl
     client.wait_for_workers(2, timeout=120)  # the nanny restarted the worker
 
 
+def test_a_killed_writers_temporaries_are_swept_for_its_file_only(tmp_path):
+    # What a worker killed between writing a pose's marker and renaming it leaves behind, for this pose and
+    # for another whose name starts the same: the retry of this pose removes its own only.
+    ours = str(tmp_path / "ref_p0001_h080_done.json")
+    other = str(tmp_path / "ref_p0001_h080_x_done.json")
+    for path in (ours, other):
+        leftover = gd._temporary_for(path)
+        assert os.path.basename(leftover).startswith(".gs-" + os.path.basename(path) + "-")
+        with open(leftover, "w") as f:
+            f.write("{")
+    gd._sweep_temporaries(ours)
+    left = sorted(os.listdir(tmp_path))
+    assert len(left) == 1 and left[0].startswith(".gs-ref_p0001_h080_x_done.json-"), left
+    # A completed write leaves only its file.
+    gd._write_atomic(ours, "{}\n")
+    assert sorted(os.listdir(tmp_path)) == sorted(left + ["ref_p0001_h080_done.json"])
+
+
 def test_route_and_keyword_errors(tmp_path):
     one = tmp_path / "one.csv"
     one.write_text("lon,lat\n1.5,42.5\n1.5,42.5\n")
