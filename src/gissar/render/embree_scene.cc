@@ -271,6 +271,25 @@ HeightfieldRay LaneRay(RTCRayN* rays, unsigned n, unsigned k) {
 struct HeightfieldRayStorage {
   alignas(HeightfieldRay) unsigned char bytes[sizeof(HeightfieldRay)];
 };
+
+// One walk of height-field tile `tile` for the valid lanes of an Embree
+// packet of n <= 16 rays (HeightfieldTree::IntersectPacket); accept(k, hit)
+// as there.
+template <class Accept>
+void WalkPacket(const HeightfieldTree& tree, unsigned tile, const int* valid, RTCRayN* rays, unsigned n,
+                Accept&& accept) {
+  HeightfieldRayStorage storage[16];
+  float t_near[16], t_far[16];
+  uint32_t lanes = 0;
+  for (unsigned k = 0; k < n; ++k) {
+    if (valid[k] != -1) continue;
+    new (&storage[k]) HeightfieldRay(LaneRay(rays, n, k));
+    t_near[k] = RTCRayN_tnear(rays, n, k);
+    t_far[k] = RTCRayN_tfar(rays, n, k);
+    lanes |= 1u << k;
+  }
+  tree.IntersectPacket(tile, reinterpret_cast<const HeightfieldRay*>(storage), lanes, t_near, t_far, accept);
+}
 }  // namespace
 
 void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArguments* args) {
@@ -303,18 +322,8 @@ void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArgument
   };
   if (collector == nullptr && n > 1 && n <= 16) {
     // A packet: one walk of the tile for all its lanes.
-    HeightfieldRayStorage storage[16];
-    float t_near[16], t_far[16];
-    uint32_t lanes = 0;
-    for (unsigned k = 0; k < n; ++k) {
-      if (args->valid[k] != -1) continue;
-      new (&storage[k]) HeightfieldRay(LaneRay(rays, n, k));
-      t_near[k] = RTCRayN_tnear(rays, n, k);
-      t_far[k] = RTCRayN_tfar(rays, n, k);
-      lanes |= 1u << k;
-    }
-    impl->heightfield->IntersectPacket(args->primID, reinterpret_cast<const HeightfieldRay*>(storage), lanes, t_near,
-                                       t_far, [&](int k, const HeightfieldHit& hit) { return keep(unsigned(k), hit); });
+    WalkPacket(*impl->heightfield, args->primID, args->valid, rays, n,
+               [&](int k, const HeightfieldHit& hit) { return keep(unsigned(k), hit); });
     return;
   }
   for (unsigned k = 0; k < n; ++k) {
@@ -339,18 +348,7 @@ void EmbreeScene::Impl::HeightfieldOccluded(const RTCOccludedFunctionNArguments*
   if (n > 1 && n <= 16) {
     // A packet: one walk of the tile for all its lanes; a lane stops at its
     // first blocker.
-    HeightfieldRayStorage storage[16];
-    float t_near[16], t_far[16];
-    uint32_t lanes = 0;
-    for (unsigned k = 0; k < n; ++k) {
-      if (args->valid[k] != -1) continue;
-      new (&storage[k]) HeightfieldRay(LaneRay(rays, n, k));
-      t_near[k] = RTCRayN_tnear(rays, n, k);
-      t_far[k] = RTCRayN_tfar(rays, n, k);
-      lanes |= 1u << k;
-    }
-    impl->heightfield->IntersectPacket(args->primID, reinterpret_cast<const HeightfieldRay*>(storage), lanes, t_near,
-                                       t_far, [&](int k, const HeightfieldHit&) -> float {
+    WalkPacket(*impl->heightfield, args->primID, args->valid, rays, n, [&](int k, const HeightfieldHit&) -> float {
       RTCRayN_tfar(rays, n, unsigned(k)) = -std::numeric_limits<float>::infinity();
       return -std::numeric_limits<float>::infinity();
     });
