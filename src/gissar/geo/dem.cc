@@ -523,19 +523,11 @@ std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& f
   // below a float32 coordinate's rounding (1 mm at 8 km). Nodes sit on the
   // source raster's lattice (Dem::lattice_col0/row0), so a window places its
   // posts bit for bit as the whole raster does.
-  const int cm = std::max(0, dem.width / 2 - 1), rm = std::max(0, dem.height / 2 - 1);
-  std::vector<double> px(3), py(3);
-  for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector2d m = dem.MapFromPost(cm + (i == 1), rm + (i == 2));
-    px[i] = m.x();
-    py[i] = m.y();
-  }
+  // The node step from the spacing at the whole source raster's centre: the
+  // same for every window of it.
   double spacing_m = 0.0;
   try {
-    probe.ToLonLat(px, py);
-    const Eigen::Vector3d p0 = frame.EnuFromGeodetic(px[0], py[0], 0.0);
-    spacing_m = std::max((frame.EnuFromGeodetic(px[1], py[1], 0.0) - p0).norm(),
-                         (frame.EnuFromGeodetic(px[2], py[2], 0.0) - p0).norm());
+    spacing_m = DemPostSpacingMetres(dem, frame, /*at_source_centre=*/true).maxCoeff();
   } catch (const InputError&) {
     return ExactPostsInFrame(dem, frame);
   }
