@@ -281,9 +281,20 @@ void WalkPacket(const HeightfieldTree& tree, unsigned tile, const int* valid, RT
   HeightfieldRayStorage storage[16];
   float t_near[16], t_far[16];
   uint32_t lanes = 0;
+  const HeightfieldRay* last = nullptr;  // the last lane set up
   for (unsigned k = 0; k < n; ++k) {
     if (valid[k] != -1) continue;
-    new (&storage[k]) HeightfieldRay(LaneRay(rays, n, k));
+    auto* ray = reinterpret_cast<HeightfieldRay*>(&storage[k]);
+    if (last != nullptr && RTCRayN_dir_x(rays, n, k) == last->dir_f[0] && RTCRayN_dir_y(rays, n, k) == last->dir_f[1] &&
+        RTCRayN_dir_z(rays, n, k) == last->dir_f[2]) {
+      // Parallel to it (every lane of an affine packet): the same shear,
+      // only the origin differs.
+      new (ray) HeightfieldRay(*last);
+      ray->SetOrigin(RTCRayN_org_x(rays, n, k), RTCRayN_org_y(rays, n, k), RTCRayN_org_z(rays, n, k));
+    } else {
+      new (ray) HeightfieldRay(LaneRay(rays, n, k));
+    }
+    last = ray;
     t_near[k] = RTCRayN_tnear(rays, n, k);
     t_far[k] = RTCRayN_tfar(rays, n, k);
     lanes |= 1u << k;

@@ -39,8 +39,15 @@ namespace gissar::render {
 // of the direction's length).
 struct HeightfieldRay {
   HeightfieldRay(const float org[3], const float dir[3]);
+  // Moves the ray to another origin (the direction and shear unchanged).
+  void SetOrigin(float x, float y, float z) {
+    org[0] = org_f[0] = x;
+    org[1] = org_f[1] = y;
+    org[2] = org_f[2] = z;
+  }
   double org[3];
   float org_f[3];
+  float dir_f[3];
   float inv_dir[3];  // 1 / dir (0 where dir is 0)
   bool parallel[3];  // dir has no component along the axis
   int kx = 0, ky = 1, kz = 2;
@@ -140,6 +147,7 @@ inline HeightfieldRay::HeightfieldRay(const float origin[3], const float directi
   for (int a = 0; a < 3; ++a) {
     org[a] = origin[a];
     org_f[a] = origin[a];
+    dir_f[a] = direction[a];
     parallel[a] = direction[a] == 0.0f;
     inv_dir[a] = parallel[a] ? 0.0f : 1.0f / direction[a];
   }

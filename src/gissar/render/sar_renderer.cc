@@ -495,18 +495,29 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       // order, so returns are splatted in the same order as ray by ray.
       RayPacket16 packet;
       alignas(64) int valid[16];  // Embree: the valid mask of rtcIntersect16 is 64-byte aligned
+      std::vector<Vector3d> line_sensor;
+      std::vector<double> line_previous_hit;
       Vector3d lane_origin[16], lane_dir[16];
       Vector3f lane_normal[16];
       scene::ClassId lane_class[16];
       double lane_travelled[16];
-      for (int i = i0; i < i1; ++i) {
-        const double a = grid.a0 + i * grid.da;
-        const Vector3d sensor = geometry.SensorPosition(a);
-        // Ground coordinate (along `ground_look`) of the first hit of the
-        // previous packet's highest ray when it met the terrain from above;
-        // -inf: none (see skip_to_previous_hit).
-        double previous_hit_ground = -std::numeric_limits<double>::infinity();
-        for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
+      // The block's azimuth lines go out interleaved: packet row j0 of
+      // every line, then the next packet row. Neighbouring lines meet the
+      // same terrain cells, so each line finds the posts, the quadtree
+      // nodes and the mesh in cache where the line before it left them
+      // (line after line, a whole line's terrain came between two visits).
+      const int lines = i1 - i0;
+      line_sensor.resize(size_t(lines));
+      for (int i = i0; i < i1; ++i) line_sensor[size_t(i - i0)] = geometry.SensorPosition(grid.a0 + i * grid.da);
+      // Per line: ground coordinate (along `ground_look`) of the first hit
+      // of its previous packet's highest ray when it met the terrain from
+      // above; -inf: none (see skip_to_previous_hit).
+      line_previous_hit.assign(size_t(lines), -std::numeric_limits<double>::infinity());
+      for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
+        for (int i = i0; i < i1; ++i) {
+          const double a = grid.a0 + i * grid.da;
+          const Vector3d& sensor = line_sensor[size_t(i - i0)];
+          double& previous_hit_ground = line_previous_hit[size_t(i - i0)];
           bool any = false;
           for (int k = 0; k < 16; ++k) {
             const int j = j0 + k;

@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include "gissar/util/check.h"
 
@@ -46,9 +47,22 @@ void TriangleMesh::SmoothShadingNormals(ClassId excluded) {
 }
 
 Eigen::AlignedBox3d TriangleMesh::Bounds() const {
-  Eigen::AlignedBox3d box;
-  for (const Eigen::Vector3f& v : vertices) box.extend(v.cast<double>());
-  return box;
+  // In parallel blocks, in float (the bounds of float coordinates are float
+  // coordinates; casting afterwards gives the same box). A non-finite
+  // coordinate never wins a comparison, as in AlignedBox::extend.
+  using Box = Eigen::AlignedBox3f;
+  const Box box = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, vertices.size(), size_t{1} << 16), Box(),
+      [&](const tbb::blocked_range<size_t>& range, Box b) {
+        for (size_t i = range.begin(); i != range.end(); ++i) b.extend(vertices[i]);
+        return b;
+      },
+      [](Box a, const Box& b) {
+        if (!b.isEmpty()) a.extend(b);
+        return a;
+      });
+  if (box.isEmpty()) return Eigen::AlignedBox3d();
+  return Eigen::AlignedBox3d(box.min().cast<double>(), box.max().cast<double>());
 }
 
 void TriangleMesh::Append(const TriangleMesh& other) {
