@@ -544,7 +544,7 @@ double LineWidth(const std::map<std::string, std::string>& tags,
 }
 
 GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
-                       const SceneConfig& config, Reporter& reporter) {
+                       const SceneConfig& config, Reporter& reporter, TerrainTriangulation triangulation) {
   Stopwatch watch;
   auto say = [&](const std::string& line) { reporter.Info("scene: " + line); };
   // Progress over the build's steps (stage "scene build": each vector layer,
@@ -940,24 +940,115 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   }
   stats.constraint_segments = static_cast<int64_t>(scene.boundary_segments.size());
 
-  // Constrained Delaunay triangulation of the DEM posts and the boundaries.
-  say("triangulating " + std::to_string(int64_t{dem.width} * dem.height) + " posts and " +
-      std::to_string(stats.constraint_segments) + " constraint segments");
+  // Triangulation. A cell that no constraint touches lies inside one class
+  // region (every class and building boundary is a constraint): it is
+  // triangulated directly, two triangles along its shorter diagonal in M
+  // (the Delaunay choice). Only the cells that constraints touch go through
+  // CGAL's constrained Delaunay triangulation, with their posts, the
+  // constraints and the border between them and the other cells (also
+  // constrained), so that both parts meet edge to edge. A constraint vertex
+  // that splits such a border edge (a T-junction) sends the cell beyond it
+  // to the CDT as well, and the CDT is rebuilt. On a large DEM constraints
+  // touch a few percent of the cells; the CDT of every post
+  // (TerrainTriangulation::kEveryPost) took 3.9 GB and 30 s at 4096^2.
+  const int W = dem.width, H = dem.height;
+  const int cells_x = W - 1, cells_y = H - 1;
+  auto cell_at = [&](int c, int r) { return size_t(r) * cells_x + c; };
+  std::vector<uint8_t> in_cdt(size_t(cells_x) * cells_y, 0);
+  if (triangulation == TerrainTriangulation::kEveryPost) {
+    for (int r = 0; r < cells_y; ++r) {
+      for (int c = 0; c < cells_x; ++c) in_cdt[cell_at(c, r)] = cell_valid(c, r);
+    }
+  } else {
+    // Every cell whose closure a constraint comes within kTouch of (cell
+    // units; the post snapping moves points by 1e-3 cell at most).
+    constexpr double kTouch = 0.01;
+    auto mark = [&](const Vector2d& cell) {
+      const int c0 = std::max(0, static_cast<int>(std::floor(cell.x() - kTouch)));
+      const int c1 = std::min(cells_x - 1, static_cast<int>(std::floor(cell.x() + kTouch)));
+      const int r0 = std::max(0, static_cast<int>(std::floor(cell.y() - kTouch)));
+      const int r1 = std::min(cells_y - 1, static_cast<int>(std::floor(cell.y() + kTouch)));
+      for (int r = r0; r <= r1; ++r) {
+        for (int c = c0; c <= c1; ++c) {
+          if (cell_valid(c, r)) in_cdt[cell_at(c, r)] = 1;
+        }
+      }
+    };
+    for (const auto& [a, b] : scene.boundary_segments) {
+      const Vector2d ca = cell_from_planar * a, cb = cell_from_planar * b;
+      // Samples at most a quarter of a cell apart (a snapped segment lies in
+      // one cell; this does not rely on it).
+      const int n = 1 + static_cast<int>(std::ceil(4.0 * (cb - ca).lpNorm<Eigen::Infinity>()));
+      for (int k = 0; k <= n; ++k) mark(ca + (double(k) / n) * (cb - ca));
+    }
+  }
+  const int64_t total_cells = int64_t{cells_x} * cells_y;
+
   Cdt cdt;
-  {
+  int64_t cdt_posts = 0;
+  for (int attempt = 0;; ++attempt) {
+    cdt.clear();
+    int64_t cdt_cells = 0;
+    for (uint8_t f : in_cdt) cdt_cells += f;
+    stats.cdt_cells = cdt_cells;
+    say("triangulating " + std::to_string(cdt_cells) + " of " + std::to_string(total_cells) +
+        " cells (those constraints touch) with " + std::to_string(stats.constraint_segments) +
+        " constraint segments; the other cells directly");
+    // Posts of the CDT's cells; their handles by post.
+    std::vector<int32_t> slot(size_t(W) * H, -1);
     std::vector<std::pair<CdtPoint, PostInfo>> posts;
-    posts.reserve(size_t(dem.width) * dem.height);
-    for (int r = 0; r < dem.height; ++r) {
-      for (int c = 0; c < dem.width; ++c) {
-        const Vector2d m = A * Vector2d(c, r);
-        posts.emplace_back(CdtPoint(m.x(), m.y()), PostInfo{int64_t{r} * dem.width + c + 1});
+    for (int r = 0; r < cells_y; ++r) {
+      for (int c = 0; c < cells_x; ++c) {
+        if (!in_cdt[cell_at(c, r)]) continue;
+        for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) slot[size_t(r + dr) * W + c + dc] = 0;
       }
     }
+    for (int r = 0; r < H; ++r) {
+      for (int c = 0; c < W; ++c) {
+        if (slot[size_t(r) * W + c] < 0) continue;
+        const Vector2d m = A * Vector2d(c, r);
+        posts.emplace_back(CdtPoint(m.x(), m.y()), PostInfo{int64_t{r} * W + c + 1});
+      }
+    }
+    cdt_posts = static_cast<int64_t>(posts.size());
     cdt.insert(posts.begin(), posts.end());
-    stats.dem_posts = static_cast<int64_t>(posts.size());
-  }
-  step();
-  {
+    std::vector<Cdt::Vertex_handle> handle(posts.size());
+    {
+      int32_t next = 0;
+      for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) {
+        slot[size_t(v->info().post - 1)] = next;
+        handle[size_t(next++)] = v;
+      }
+    }
+    if (attempt == 0) step();
+    // The CDT's border: cell edges with a cell beyond that is not in the CDT
+    // (a directly triangulated cell, an invalid one, or none: the DEM's edge).
+    struct BorderEdge {
+      int64_t a, b;  // posts
+      int64_t beyond = -1;  // the directly triangulated cell beyond, or -1
+    };
+    std::vector<BorderEdge> border;
+    auto add_border = [&](int ca, int ra, int cb, int rb, int c_beyond, int r_beyond) {
+      BorderEdge e{int64_t{ra} * W + ca, int64_t{rb} * W + cb};
+      if (c_beyond >= 0 && r_beyond >= 0 && c_beyond < cells_x && r_beyond < cells_y) {
+        const size_t beyond = cell_at(c_beyond, r_beyond);
+        if (in_cdt[beyond]) return;
+        if (cell_valid(c_beyond, r_beyond)) e.beyond = static_cast<int64_t>(beyond);
+      }
+      border.push_back(e);
+    };
+    for (int r = 0; r < cells_y; ++r) {
+      for (int c = 0; c < cells_x; ++c) {
+        if (!in_cdt[cell_at(c, r)]) continue;
+        add_border(c, r, c + 1, r, c, r - 1);
+        add_border(c, r + 1, c + 1, r + 1, c, r + 1);
+        add_border(c, r, c, r + 1, c - 1, r);
+        add_border(c + 1, r, c + 1, r + 1, c + 1, r);
+      }
+    }
+    for (const BorderEdge& e : border) {
+      cdt.insert_constraint(handle[size_t(slot[size_t(e.a)])], handle[size_t(slot[size_t(e.b)])]);
+    }
     // Boundaries come as chains (a segment starts where the previous one
     // ended): each end is located from the previous vertex's face, so the
     // point location is a short walk and a polygon of 10^6 vertices
@@ -973,11 +1064,32 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       previous = vb;
       previous_point = b;
     }
+    // Border edges shared with a directly triangulated cell must have stayed
+    // whole.
+    bool split = false;
+    for (const BorderEdge& e : border) {
+      if (e.beyond < 0 || cdt.is_edge(handle[size_t(slot[size_t(e.a)])], handle[size_t(slot[size_t(e.b)])])) continue;
+      in_cdt[size_t(e.beyond)] = 1;
+      split = true;
+    }
+    if (!split) break;
+    ++stats.cdt_rebuilds;
+    if (attempt >= 2) {
+      // Never seen; the CDT of every valid cell has no such border.
+      for (int r = 0; r < cells_y; ++r) {
+        for (int c = 0; c < cells_x; ++c) in_cdt[cell_at(c, r)] = cell_valid(c, r);
+      }
+    }
+  }
+  stats.dem_posts = int64_t{W} * H;
+  stats.cdt_posts = cdt_posts;
+  stats.grid_cells = 0;
+  for (int r = 0; r < cells_y; ++r) {
+    for (int c = 0; c < cells_x; ++c) stats.grid_cells += !in_cdt[cell_at(c, r)] && cell_valid(c, r);
   }
 
   step();
   // Regions: faces connected without crossing a constraint share a class.
-  for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = -1;
   struct Region {
     ClassId cls = kClassDefault;
     int building = -1;
@@ -1017,28 +1129,15 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     }
     return false;
   };
-  for (auto seed = cdt.finite_faces_begin(); seed != cdt.finite_faces_end(); ++seed) {
-    if (seed->info() >= 0) continue;
-    const int id = static_cast<int>(regions.size());
-    if (lattice_degenerate(seed)) {
-      Region needle;
-      needle.outside = true;
-      regions.push_back(needle);
-      seed->info() = id;
-      ++stats.needle_faces;
-      continue;
-    }
-    const auto& p0 = seed->vertex(0)->point();
-    const auto& p1 = seed->vertex(1)->point();
-    const auto& p2 = seed->vertex(2)->point();
-    const Vector2d centroid((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0);
+  // The class region of a point (M): priority order, then the building it is in.
+  auto classify = [&](const Vector2d& point_m) {
     Region region;
     if (!outside.empty()) {
-      const Vector2d cell = cell_from_planar * centroid;
+      const Vector2d cell = cell_from_planar * point_m;
       region.outside = !cell_valid(std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2),
                                    std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2));
     }
-    GeomPtr point = MakePoint(geos, centroid);
+    GeomPtr point = MakePoint(geos, point_m);
     for (int c : order) {
       if (region.outside) break;
       if (c != kClassDefault && prepared[c] &&
@@ -1056,7 +1155,34 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       }
       if (region.building < 0) region.cls = kClassUrban;  // sliver between overlapping footprints
     }
-    regions.push_back(region);
+    return region;
+  };
+  // CDT faces: -1 for a face of the CDT's cells (its centroid in one of
+  // them: a constraint vertex comes no nearer than kTouch to the border of
+  // the CDT's cells, so no centroid of a face on either side lies near it),
+  // -2 for the rest (the directly triangulated cells, the invalid area,
+  // beyond the hull, needles), dropped.
+  for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = -2;
+  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    if (lattice_degenerate(f)) {
+      ++stats.needle_faces;
+      continue;
+    }
+    const auto& p0 = f->vertex(0)->point();
+    const auto& p1 = f->vertex(1)->point();
+    const auto& p2 = f->vertex(2)->point();
+    const Vector2d cell =
+        cell_from_planar * Vector2d((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0);
+    const int c = static_cast<int>(std::floor(cell.x())), r = static_cast<int>(std::floor(cell.y()));
+    if (c >= 0 && r >= 0 && c < cells_x && r < cells_y && in_cdt[cell_at(c, r)]) f->info() = -1;
+  }
+  for (auto seed = cdt.finite_faces_begin(); seed != cdt.finite_faces_end(); ++seed) {
+    if (seed->info() != -1) continue;
+    const int id = static_cast<int>(regions.size());
+    const auto& p0 = seed->vertex(0)->point();
+    const auto& p1 = seed->vertex(1)->point();
+    const auto& p2 = seed->vertex(2)->point();
+    regions.push_back(classify(Vector2d((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0)));
     std::deque<Cdt::Face_handle> queue{seed};
     seed->info() = id;
     while (!queue.empty()) {
@@ -1064,41 +1190,123 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       queue.pop_front();
       for (int i = 0; i < 3; ++i) {
         const Cdt::Face_handle n = f->neighbor(i);
-        if (cdt.is_infinite(n) || n->info() >= 0 || f->is_constrained(i) || lattice_degenerate(n)) continue;
+        if (cdt.is_infinite(n) || n->info() != -1 || f->is_constrained(i)) continue;
         n->info() = id;
         queue.push_back(n);
       }
     }
   }
+  // Directly triangulated cells: connected groups (across cell edges, which
+  // no constraint touches) lie in one region each.
+  std::vector<int32_t> cell_region(size_t(cells_x) * cells_y, -1);
+  {
+    std::vector<std::pair<int, int>> stack;
+    for (int r0 = 0; r0 < cells_y; ++r0) {
+      for (int c0 = 0; c0 < cells_x; ++c0) {
+        if (in_cdt[cell_at(c0, r0)] || cell_region[cell_at(c0, r0)] >= 0 || !cell_valid(c0, r0)) continue;
+        const int id = static_cast<int>(regions.size());
+        regions.push_back(classify(A * Vector2d(c0 + 0.5, r0 + 0.5)));
+        cell_region[cell_at(c0, r0)] = id;
+        stack.assign(1, {c0, r0});
+        while (!stack.empty()) {
+          const auto [c, r] = stack.back();
+          stack.pop_back();
+          for (const auto& [nc, nr] : {std::pair{c - 1, r}, {c + 1, r}, {c, r - 1}, {c, r + 1}}) {
+            if (nc < 0 || nr < 0 || nc >= cells_x || nr >= cells_y) continue;
+            const size_t k = cell_at(nc, nr);
+            if (in_cdt[k] || cell_region[k] >= 0 || !cell_valid(nc, nr)) continue;
+            cell_region[k] = id;
+            stack.push_back({nc, nr});
+          }
+        }
+      }
+    }
+  }
+  // The region across edge i of CDT face f: its neighbour's, or across the
+  // CDT's border that of the directly triangulated cell beyond; -1 for none.
+  auto region_across = [&](Cdt::Face_handle f, int i) -> int {
+    const Cdt::Face_handle n = f->neighbor(i);
+    if (!cdt.is_infinite(n) && n->info() >= 0) return n->info();
+    const int64_t a = f->vertex(Cdt::ccw(i))->info().post - 1, b = f->vertex(Cdt::cw(i))->info().post - 1;
+    if (a < 0 || b < 0) return -1;
+    const int ca = static_cast<int>(a % W), ra = static_cast<int>(a / W);
+    const int cb = static_cast<int>(b % W), rb = static_cast<int>(b / W);
+    if (std::abs(ca - cb) + std::abs(ra - rb) != 1) return -1;
+    const std::array<std::pair<int, int>, 2> beside =
+        ra == rb ? std::array<std::pair<int, int>, 2>{{{std::min(ca, cb), ra - 1}, {std::min(ca, cb), ra}}}
+                 : std::array<std::pair<int, int>, 2>{{{ca - 1, std::min(ra, rb)}, {ca, std::min(ra, rb)}}};
+    for (const auto& [c, r] : beside) {
+      if (c < 0 || r < 0 || c >= cells_x || r >= cells_y || in_cdt[cell_at(c, r)]) continue;
+      if (cell_region[cell_at(c, r)] >= 0) return cell_region[cell_at(c, r)];
+    }
+    return -1;
+  };
 
   step();
   // Vertices: ground vertices with DEM heights; roof copies per building.
-  // Each vertex's index in the ground mesh lives in its info (a hash map of
-  // 17 M vertex handles cost seconds at 4096^2 posts).
+  // Posts first (those of valid cells, row-major), then the vertices the
+  // constraints inserted; each CDT vertex's index lives in its info.
   auto ground_index = [](const Cdt::Vertex_handle& v) { return v->info().ground; };
+  std::vector<int32_t> post_ground(size_t(W) * H, -1);
+  for (int r = 0; r < cells_y; ++r) {
+    for (int c = 0; c < cells_x; ++c) {
+      if (!cell_valid(c, r)) continue;
+      for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) post_ground[size_t(r + dr) * W + c + dc] = 0;
+    }
+  }
   std::vector<Vector2d> planar;
   std::vector<double> heights;
-  for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) {
-    const Vector2d m(v->point().x(), v->point().y());
-    double h;
-    if (v->info().post > 0) {
-      const size_t post = size_t(v->info().post - 1);
-      h = dem.heights_m[post];
+  for (int r = 0; r < H; ++r) {
+    for (int c = 0; c < W; ++c) {
+      const size_t post = size_t(r) * W + c;
+      if (post_ground[post] < 0) continue;
+      double h = dem.heights_m[post];
       // A void that joined the sea lies at sea level.
       if (!dem_sea.empty() && dem_sea[post] && !dem.nodata_mask.empty() && dem.nodata_mask[post]) {
         h = config.sea_level_m;
       }
-    } else {
-      ++stats.inserted_vertices;
-      Vector2d cell = cell_from_planar * m;
-      cell.x() = std::clamp(cell.x(), 0.0, dem.width - 1.0);
-      cell.y() = std::clamp(cell.y(), 0.0, dem.height - 1.0);
-      h = *dem.InterpolateHeight(cell.x(), cell.y());
+      post_ground[post] = static_cast<int32_t>(planar.size());
+      planar.push_back(A * Vector2d(c, r));
+      heights.push_back(h);
     }
+  }
+  for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) {
+    if (v->info().post > 0) {
+      v->info().ground = post_ground[size_t(v->info().post - 1)];
+      GISSAR_CHECK(v->info().ground >= 0);
+      continue;
+    }
+    ++stats.inserted_vertices;
+    const Vector2d m(v->point().x(), v->point().y());
+    Vector2d cell = cell_from_planar * m;
+    cell.x() = std::clamp(cell.x(), 0.0, dem.width - 1.0);
+    cell.y() = std::clamp(cell.y(), 0.0, dem.height - 1.0);
     v->info().ground = static_cast<int>(planar.size());
     planar.push_back(m);
-    heights.push_back(h);
+    heights.push_back(*dem.InterpolateHeight(cell.x(), cell.y()));
   }
+  // The two triangles of directly triangulated cell (c, r) as ground vertex
+  // indices, counter-clockwise in M, split along the shorter diagonal (ties:
+  // post (c + 1, r) to (c, r + 1), as MeshFromGrid).
+  const bool mirrored = A.determinant() < 0.0;  // (col, row) turns clockwise in M
+  const double diagonal_down = (A * Vector2d(1, 1)).squaredNorm();   // (c, r) - (c + 1, r + 1)
+  const double diagonal_up = (A * Vector2d(1, -1)).squaredNorm();    // (c + 1, r) - (c, r + 1)
+  const bool split_down = diagonal_down < diagonal_up;
+  auto cell_triangles = [&](int c, int r, Eigen::Vector3i out[2]) {
+    const int p00 = post_ground[size_t(r) * W + c], p10 = post_ground[size_t(r) * W + c + 1];
+    const int p01 = post_ground[size_t(r + 1) * W + c], p11 = post_ground[size_t(r + 1) * W + c + 1];
+    if (split_down) {
+      out[0] = {p00, p10, p11};
+      out[1] = {p00, p11, p01};
+    } else {
+      out[0] = {p00, p10, p01};
+      out[1] = {p10, p11, p01};
+    }
+    if (mirrored) {
+      for (int k = 0; k < 2; ++k) std::swap(out[k][1], out[k][2]);
+    }
+  };
+  const double cell_triangle_area_m2 = 0.5 * std::abs(A.determinant());
 
   // Building groups: footprints that share a mesh edge and have the same
   // height tag merge into one block (one roof, no walls between them).
@@ -1106,12 +1314,13 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   for (size_t b = 0; b < buildings.size(); ++b) group[b] = static_cast<int>(b);
   std::function<int(int)> find = [&](int b) { return group[b] == b ? b : group[b] = find(group[b]); };
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    if (f->info() < 0) continue;
     const int b = regions[f->info()].building;
     if (b < 0) continue;
     for (int i = 0; i < 3; ++i) {
-      const Cdt::Face_handle n = f->neighbor(i);
-      if (cdt.is_infinite(n)) continue;
-      const int o = regions[n->info()].building;
+      const int across = region_across(f, i);
+      if (across < 0) continue;
+      const int o = regions[across].building;
       if (o < 0 || o == b || buildings[o].height_m != buildings[b].height_m) continue;
       const int ra = find(b), rb = find(o);
       if (ra != rb) group[std::max(ra, rb)] = std::min(ra, rb);
@@ -1126,10 +1335,21 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   // ground).
   std::vector<double> roof_height(buildings.size(), std::numeric_limits<double>::infinity());
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    if (f->info() < 0) continue;
     const Region& region = regions[f->info()];
     if (region.building < 0) continue;
     const int g = group[region.building];
     for (int i = 0; i < 3; ++i) roof_height[g] = std::min(roof_height[g], heights[ground_index(f->vertex(i))]);
+  }
+  for (int r = 0; r < cells_y; ++r) {
+    for (int c = 0; c < cells_x; ++c) {
+      const int32_t id = cell_region[cell_at(c, r)];
+      if (id < 0 || regions[size_t(id)].building < 0) continue;
+      const int g = group[regions[size_t(id)].building];
+      for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) {
+        roof_height[g] = std::min(roof_height[g], heights[size_t(post_ground[size_t(r + dr) * W + c + dc])]);
+      }
+    }
   }
   for (size_t b = 0; b < buildings.size(); ++b) {
     if (group[b] == static_cast<int>(b) && std::isfinite(roof_height[b])) roof_height[b] += buildings[b].height_m;
@@ -1159,6 +1379,11 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   };
   std::vector<Eigen::Vector3i> triangles;
   std::vector<ClassId> classes;
+  {
+    const size_t expected = size_t(2 * stats.grid_cells) + size_t(cdt.number_of_faces()) + size_t(1024);
+    triangles.reserve(expected);
+    classes.reserve(expected);
+  }
   // A wall triangle, ordered so that the horizontal part of its normal
   // (computed in double precision from the plan coordinates and heights)
   // points along `out` (a plan direction), or against it when `facing_out`
@@ -1203,6 +1428,10 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     add_wall(c, bottom_b, top_b, out, hb > 0);
   };
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    if (f->info() < 0) {
+      ++stats.dropped_faces;
+      continue;
+    }
     const Region& region = regions[f->info()];
     if (region.outside) {
       ++stats.dropped_faces;
@@ -1243,10 +1472,8 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       // CGAL faces are counter-clockwise in M (ENU-aligned): edge i runs
       // ccw(i) -> cw(i) with this face on its left.
       const int a = g[Cdt::ccw(i)], b = g[Cdt::cw(i)];
-      const Cdt::Face_handle n = f->neighbor(i);
-      const int other = cdt.is_infinite(n) || regions[n->info()].building < 0
-                            ? -1
-                            : group[regions[n->info()].building];
+      const int across = region_across(f, i);
+      const int other = across < 0 || regions[across].building < 0 ? -1 : group[regions[across].building];
       if (other == own) continue;
       if (other < 0) {
         add_edge_walls(a, b, wall_foot(a), wall_foot(b), roof_vertex(own, a), roof_vertex(own, b));
@@ -1259,6 +1486,44 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       }
     }
   }
+  // The directly triangulated cells: terrain, or a roof (no walls: no
+  // footprint edge touches them).
+  for (int r = 0; r < cells_y; ++r) {
+    for (int c = 0; c < cells_x; ++c) {
+      const int32_t id = cell_region[cell_at(c, r)];
+      if (id < 0) continue;
+      const Region& region = regions[size_t(id)];
+      Eigen::Vector3i tri[2];
+      cell_triangles(c, r, tri);
+      if (region.building >= 0) {
+        const int own = group[region.building];
+        stats.mesh_area_m2[region.cls] += 2.0 * cell_triangle_area_m2;
+        for (const Eigen::Vector3i& t : tri) {
+          triangles.emplace_back(roof_vertex(own, t[0]), roof_vertex(own, t[1]), roof_vertex(own, t[2]));
+          classes.push_back(kClassBuilding);
+        }
+        continue;
+      }
+      ClassId cls = region.cls;
+      if (cls == kClassDefault && !sea_posts.empty() && cell_is_sea(A * Vector2d(c + 0.5, r + 0.5))) {
+        cls = kClassSea;
+        stats.region_area_m2[kClassDefault] -= 2.0 * cell_triangle_area_m2;
+        stats.region_area_m2[kClassSea] += 2.0 * cell_triangle_area_m2;
+      }
+      stats.mesh_area_m2[cls] += 2.0 * cell_triangle_area_m2;
+      for (const Eigen::Vector3i& t : tri) {
+        triangles.push_back(t);
+        classes.push_back(cls);
+      }
+    }
+  }
+
+  // The triangulation and the per-cell tables are done with (memory for the
+  // 3-D positions below).
+  cdt.clear();
+  std::vector<uint8_t>().swap(in_cdt);
+  std::vector<int32_t>().swap(cell_region);
+  std::vector<int32_t>().swap(post_ground);
 
   // The sea surface lies at the sea level: DEM heights over the sea (SRTM's
   // noise, filled voids, a cliff smoothed over the 90 m posts) are not its

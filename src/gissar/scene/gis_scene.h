@@ -46,6 +46,10 @@ struct GisSceneStats {
   int64_t constraint_segments = 0;
   int64_t dem_posts = 0;
   int64_t inserted_vertices = 0;    // vertices that are not DEM posts
+  int64_t cdt_cells = 0;            // DEM cells triangulated by the CDT (those constraints touch)
+  int64_t cdt_posts = 0;            // their posts
+  int64_t grid_cells = 0;           // valid cells triangulated directly (two triangles each)
+  int64_t cdt_rebuilds = 0;         // CDTs rebuilt because a constraint vertex split their border
   // Per class: area of its priority-resolved region (GEOS) and of its mesh
   // triangles, both in M (m^2). Walls have no plan area.
   std::array<double, kClassCount> region_area_m2{};
@@ -65,12 +69,26 @@ struct GisScene {
   GisSceneStats stats;
 };
 
+// How the terrain's DEM cells are triangulated.
+enum class TerrainTriangulation {
+  // Cells that a constraint touches go through the constrained Delaunay
+  // triangulation (CGAL); every other cell lies inside one class region and
+  // is split directly along its shorter diagonal in M (the Delaunay choice),
+  // the two parts meeting edge to edge. Time and memory grow with the
+  // constraints, not with the DEM.
+  kConstrainedCellsOnly,
+  // Every post goes through the CDT (the reference for tests: the same
+  // regions and areas, up to the diagonal CGAL picks in square cells).
+  kEveryPost,
+};
+
 // Builds the scene; stage lines go to `reporter` as Info. Throws
 // InputError for unreadable vector sources or layers (naming file and layer)
 // and ConfigError for invalid widths/heights; an empty layer, features
 // outside the DEM and repaired geometries are warnings.
 GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
-                       const SceneConfig& config, Reporter& reporter = NullReporter());
+                       const SceneConfig& config, Reporter& reporter = NullReporter(),
+                       TerrainTriangulation triangulation = TerrainTriangulation::kConstrainedCellsOnly);
 
 // The --sea auto fallback for a DEM without coastline: 1 for posts whose
 // height (taken as orthometric, the DEM's own datum) is at or below

@@ -880,6 +880,163 @@ TEST(GisSceneTest, AndorraLayersAreConstrainedAndAreasMatch) {
   ExpectBoundariesAreMeshEdges(scene);
 }
 
+// Forest rectangles on the post lattice, free water quadrilaterals, roads
+// (one along a lattice row) and buildings on a tilted plane: the cells the
+// constraints touch go through the CDT, the others are split directly.
+// Against the CDT of every post: the same plan area per class and the same
+// walls, computed from the triangles; and the terrain is closed: an edge
+// that only one terrain triangle uses lies on the DEM's border or at the
+// foot of a wall (a T-junction between the two parts would leave one
+// inside).
+// Both on a map grid (square cells) and on a geographic grid (cells of
+// 0.00012 x 0.00009 deg, sheared in M by the meridians' convergence).
+TEST(GisSceneTest, DirectlyTriangulatedCellsMeetTheCdtEdgeToEdge) {
+  const fs::path dir = testing::MakeTempDir();
+  auto plane = [](double x, double y) { return 200.0 + 0.1 * x - 0.05 * y; };
+  std::string geographic = (dir / "geographic.tif").string();
+  {
+    // 101 x 101 posts over the same square kilometre, heights of the plane
+    // at each post's local TM coordinates.
+    const double lon0 = 1.6 - 0.00612, lat0 = 42.5 + 0.0045, dlon = 0.0001224, dlat = 0.00009;
+    std::vector<double> lon, lat;
+    for (int r = 0; r < 101; ++r)
+      for (int c = 0; c < 101; ++c) {
+        lon.push_back(lon0 + dlon * c);
+        lat.push_back(lat0 - dlat * r);
+      }
+    geo::CrsTransform tm(kLocalTm);
+    std::vector<double> x = lon, y = lat;
+    tm.FromLonLat(x, y);
+    std::vector<float> h(101 * 101);
+    for (size_t i = 0; i < h.size(); ++i) h[i] = static_cast<float>(plane(x[i], y[i]));
+    geo::WriteDemGeoTiff(geographic, h, 101, 101, {lon0 - dlon / 2, dlon, 0.0, lat0 + dlat / 2, 0.0, -dlat}, "EPSG:4326");
+  }
+  for (const std::string& dem_path : {DemOf(dir / "tilted.tif", plane), geographic}) {
+  SCOPED_TRACE(dem_path);
+  std::mt19937 rng(23);
+  auto post = [&](int lo, int hi) { return 10.0 * std::uniform_int_distribution<int>(lo, hi)(rng); };
+  std::uniform_real_distribution<double> anywhere(-470.0, 420.0);
+  std::vector<Feature> forest, water, buildings;
+  for (int i = 0; i < 12; ++i) {
+    const double x0 = post(-48, 30), y0 = post(-48, 30);
+    forest.push_back({"Polygon", {Rect(x0, y0, x0 + post(2, 15), y0 + post(2, 15))}});
+    const Vector2d c(anywhere(rng), anywhere(rng));
+    water.push_back({"Polygon", {{c, c + Vector2d(37.3, 4.1), c + Vector2d(41.0, 52.7), c + Vector2d(-3.3, 47.9), c}}});
+    const double bx = post(-45, 40), by = post(-45, 40);
+    buildings.push_back({"Polygon", {Rect(bx, by, bx + post(1, 4), by + post(1, 4))}, R"({"height": "15"})"});
+  }
+  const std::vector<Feature> roads = {{"LineString", {{{-600, 0}, {600, 0}}}, R"({"highway": "primary"})"},
+                                      {"LineString", {{{-400, -430}, {380, 410}}}, R"({"highway": "residential"})"}};
+  SceneConfig config;
+  config.line_widths_m = DefaultLineWidths();
+  config.layers = {Spec(WriteGeoJson(dir / "forest.geojson", forest), kClassForest, LayerKind::kPolygon),
+                   Spec(WriteGeoJson(dir / "water.geojson", water), kClassWater, LayerKind::kPolygon),
+                   Spec(WriteGeoJson(dir / "roads.geojson", roads), kClassRoad, LayerKind::kLine),
+                   Spec(WriteGeoJson(dir / "buildings.geojson", buildings), kClassBuilding, LayerKind::kBuilding)};
+  const geo::Dem dem = geo::ReadDem(dem_path);
+  const geo::GeoPoint centre = geo::ResolveSceneCentre(dem, std::nullopt, std::nullopt);
+  const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg);
+  const GisScene fast = BuildGisScene(dem, frame, config);
+  const GisScene every = BuildGisScene(dem, frame, config, NullReporter(), TerrainTriangulation::kEveryPost);
+  EXPECT_EQ(fast.stats.cdt_cells + fast.stats.grid_cells, 100 * 100);
+  EXPECT_GT(fast.stats.grid_cells, 100 * 100 / 2);
+  EXPECT_EQ(every.stats.cdt_cells, 100 * 100);
+  EXPECT_EQ(every.stats.grid_cells, 0);
+
+  struct Summary {
+    std::array<double, kClassCount> plan_area_m2{};
+    int walls = 0;
+    double wall_area_m2 = 0.0;
+  };
+  auto summarise = [](const GisScene& scene) {
+    Summary s;
+    const TriangleMesh& mesh = scene.mesh;
+    for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+      const Eigen::Vector3i& tri = mesh.triangles[t];
+      const Vector2d e1 = scene.planar[tri[1]] - scene.planar[tri[0]], e2 = scene.planar[tri[2]] - scene.planar[tri[0]];
+      s.plan_area_m2[mesh.classes[t]] += 0.5 * std::abs(e1.x() * e2.y() - e1.y() * e2.x());
+      if (mesh.classes[t] == kClassBuilding && std::abs(mesh.Normal(t).z()) < 0.01f) {
+        ++s.walls;
+        s.wall_area_m2 += AreaOf(mesh, t);
+      }
+    }
+    return s;
+  };
+  const Summary a = summarise(fast), b = summarise(every);
+  for (int c = 0; c < kClassCount; ++c) {
+    EXPECT_NEAR(a.plan_area_m2[c], b.plan_area_m2[c], 1e-3) << ClassNames()[c];
+    EXPECT_NEAR(fast.stats.mesh_area_m2[c], every.stats.mesh_area_m2[c], 1e-3) << ClassNames()[c];
+  }
+  EXPECT_GT(a.plan_area_m2[kClassForest], 1e4);
+  EXPECT_GT(a.plan_area_m2[kClassWater], 1e4);
+  EXPECT_GT(a.plan_area_m2[kClassRoad], 1e4);
+  EXPECT_GT(a.walls, 12 * 8);
+  EXPECT_EQ(a.walls, b.walls);
+  EXPECT_NEAR(a.wall_area_m2, b.wall_area_m2, 1e-3);
+  ExpectAreasMatch(fast);
+  ExpectBoundariesAreMeshEdges(fast);
+
+  // Closed terrain: edges used by one terrain triangle, not on the DEM's
+  // border nor at the foot of a wall. The CDT leaves a few of its own
+  // (both sides of a terrain sliver narrower than 10 um, dropped, between two
+  // constraints that nearly touch); the direct cells must add none.
+  struct Openness {
+    int open_inside = 0, over_used = 0, border_edges = 0;
+  };
+  auto openness = [&](const GisScene& scene) {
+    Openness o;
+    const Eigen::Matrix2d cell_from_planar = scene.planar_from_cell.inverse();
+    auto plan_key = [](const Vector2d& p, const Vector2d& q) {
+      std::array<int64_t, 4> k = {std::llround(p.x() * 1e4), std::llround(p.y() * 1e4), std::llround(q.x() * 1e4),
+                                  std::llround(q.y() * 1e4)};
+      if (std::make_pair(k[2], k[3]) < std::make_pair(k[0], k[1])) k = {k[2], k[3], k[0], k[1]};
+      return k;
+    };
+    std::map<std::pair<int, int>, int> uses;
+    std::set<std::array<int64_t, 4>> building_edges;
+    for (size_t t = 0; t < scene.mesh.triangle_count(); ++t) {
+      const Eigen::Vector3i& tri = scene.mesh.triangles[t];
+      for (int k = 0; k < 3; ++k) {
+        const int p = tri[k], q = tri[(k + 1) % 3];
+        if (scene.mesh.classes[t] == kClassBuilding) {
+          building_edges.insert(plan_key(scene.planar[p], scene.planar[q]));
+        } else {
+          ++uses[{std::min(p, q), std::max(p, q)}];
+        }
+      }
+    }
+    auto on_dem_border = [&](const Vector2d& p, const Vector2d& q) {
+      const Vector2d cp = cell_from_planar * p, cq = cell_from_planar * q;
+      for (int axis = 0; axis < 2; ++axis) {
+        for (const double line : {0.0, 100.0}) {
+          if (std::abs(cp[axis] - line) < 1e-6 && std::abs(cq[axis] - line) < 1e-6) return true;
+        }
+      }
+      return false;
+    };
+    for (const auto& [edge, count] : uses) {
+      if (count > 2) ++o.over_used;
+      if (count != 1) continue;
+      const Vector2d& p = scene.planar[edge.first];
+      const Vector2d& q = scene.planar[edge.second];
+      if (on_dem_border(p, q)) {
+        ++o.border_edges;
+      } else if (building_edges.count(plan_key(p, q)) == 0) {
+        ++o.open_inside;
+      }
+    }
+    return o;
+  };
+  const Openness of_fast = openness(fast), of_every = openness(every);
+  EXPECT_EQ(of_fast.over_used, 0);
+  EXPECT_EQ(of_every.over_used, 0);
+  EXPECT_EQ(of_fast.open_inside, of_every.open_inside);
+  EXPECT_LE(of_fast.open_inside, 2 * fast.stats.sliver_faces);
+  EXPECT_EQ(of_fast.border_edges, of_every.border_edges);
+  EXPECT_GE(of_fast.border_edges, 4 * 100);
+  }
+}
+
 TEST(GisSceneTest, BadVectorInputIsAClearError) {
   const fs::path dir = testing::MakeTempDir();
   const std::string dem = FlatDem(dir);
