@@ -211,6 +211,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
            {"cdt_cells", built.stats.cdt_cells},
            {"cdt_posts", built.stats.cdt_posts},
            {"grid_cells", built.stats.grid_cells},
+           {"terrain_grid_cells", built.grid.cells},
            {"cdt_rebuilds", built.stats.cdt_rebuilds},
            {"features_read", built.stats.features_read},
            {"features_outside", built.stats.features_outside},
@@ -246,6 +247,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
 
   scene::SceneFile file;
   file.mesh = std::move(built.mesh);
+  file.grid = built.grid;
   if (!options.flat_shading) file.mesh.SmoothShadingNormals(scene::kClassBuilding);
   if (!reflector_rows.empty()) {
     // On the scene's surface (roofs included), found as simulate finds it.

@@ -418,6 +418,11 @@ Terrain TerrainFromScene(const SimulateRequest& options) {
                    {"scene_provenance", file.provenance}};
   t.reflectors = StoredReflectors(file.reflectors, options.scene);
   t.description["reflectors"] = file.reflectors.size();
+  if (file.grid.cells > 0) {
+    // Checked by ReadScene.
+    t.scene_grid = render::TerrainGrid{file.grid.width, file.grid.height, *scene::GridPrefixCells(file.mesh, file.grid)};
+    t.description["terrain_grid_cells"] = file.grid.cells;
+  }
   t.mesh = std::move(file.mesh);
   return t;
 }
@@ -768,9 +773,12 @@ Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter) {
 }
 
 render::TerrainGrid TracedGrid(const Terrain& terrain, const SimulateRequest& options) {
+  if (!options.heightfield) return {};
+  // A scene's directly split terrain cells, the others holes.
+  if (!terrain.scene_grid.cells.empty()) return terrain.scene_grid;
   // A DEM's posts and MeshFromGrid's triangles are the mesh (LoadTerrain).
-  if (!options.heightfield || terrain.grid_width < 2 || terrain.grid_height < 2) return {};
-  return render::TerrainGrid{terrain.grid_width, terrain.grid_height};
+  if (terrain.grid_width < 2 || terrain.grid_height < 2) return {};
+  return render::TerrainGrid{terrain.grid_width, terrain.grid_height, {}};
 }
 
 void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree, const SimulateRequest& options) {
@@ -1298,6 +1306,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                          {"sub_rays", image.stats.sub_rays},
                          {"shadow_rays", image.stats.shadow_rays},
                          {"dem_cells", image.stats.cells},
+                         {"heightfield_cells", image.stats.heightfield_cells},
                          {"mask_pixels",
                           MaskPixelCounts(image.mask)}};
   provenance["radiometry"] = {

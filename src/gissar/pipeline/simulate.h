@@ -185,6 +185,9 @@ struct Terrain {
   // A DEM's grid of posts (mesh.vertices, row-major); 0 x 0 for scenes.
   int grid_width = 0;
   int grid_height = 0;
+  // A scene's terrain grid (scene::GridPrefix: its directly split cells at
+  // the start of the mesh, the others holes); cells empty: none.
+  render::TerrainGrid scene_grid;
   // Raster engine: the class of every triangle of the DEM's grid
   // (scene::MeshFromGrid's order, e.g. the sea); empty = all `default`.
   std::vector<scene::ClassId> grid_classes;
@@ -252,8 +255,9 @@ using SurfaceHeightAt = std::function<std::optional<double>(double x_m, double y
 SurfaceHeightAt EmbreeSurface(const render::EmbreeScene& embree, double top_z_m);
 
 // The terrain grid the trace engine traces as a height field
-// (render::EmbreeScene's TerrainGrid): a DEM's grid when
-// options.heightfield, none for GIS scenes or --no-heightfield.
+// (render::EmbreeScene's TerrainGrid) when options.heightfield: a DEM's
+// grid, or a scene's terrain grid with its holes (scenes built before it:
+// none); none with --no-heightfield.
 render::TerrainGrid TracedGrid(const Terrain& terrain, const SimulateRequest& options);
 // Reflector rows placed on a surface (apex = surface height at lon, lat +
 // apex_height_m, ENU of `frame`). Throws InputError naming `source` and the

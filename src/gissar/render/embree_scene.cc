@@ -57,21 +57,36 @@ bool PairsIntoQuads(const scene::TriangleMesh& mesh) {
   return true;
 }
 
-// Whether the mesh starts with scene::MeshFromGrid's triangles of a
-// grid.width x grid.height grid of its first vertices (either orientation).
-bool IsTerrainGrid(const scene::TriangleMesh& mesh, TerrainGrid grid) {
-  if (grid.width < 2 || grid.height < 2) return false;
+// The number of grid cells (two triangles each) the mesh starts with when
+// they are scene::MeshFromGrid's triangles of the cells of `grid` (every
+// cell, or those in grid.cells) over its first vertices (either
+// orientation); 0 when it does not.
+size_t TerrainGridCells(const scene::TriangleMesh& mesh, const TerrainGrid& grid) {
+  if (grid.width < 2 || grid.height < 2) return 0;
   const size_t w = size_t(grid.width), h = size_t(grid.height);
-  if (mesh.vertices.size() < w * h || mesh.triangles.size() < (w - 1) * (h - 1) * 2) return false;
+  const bool masked = !grid.cells.empty();
+  if (masked && grid.cells.size() != (w - 1) * (h - 1)) return 0;
+  // First triangle pair of each row of cells.
+  std::vector<size_t> row_first(h, 0);
+  for (size_t r = 0; r + 1 < h; ++r) {
+    size_t in_row = w - 1;
+    if (masked) in_row = size_t(std::count_if(grid.cells.begin() + r * (w - 1), grid.cells.begin() + (r + 1) * (w - 1),
+                                              [](uint8_t f) { return f != 0; }));
+    row_first[r + 1] = row_first[r] + in_row;
+  }
+  const size_t cells = row_first[h - 1];
+  if (cells == 0 || mesh.vertices.size() < w * h || mesh.triangles.size() < cells * 2) return 0;
   const Eigen::Vector3f du = mesh.vertices[1] - mesh.vertices[0];
   const Eigen::Vector3f dv = mesh.vertices[w] - mesh.vertices[0];
   const bool up = du.cross(dv).z() > 0.0f;
   std::atomic<bool> same{true};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, h - 1, 64), [&](const tbb::blocked_range<size_t>& rows) {
     for (size_t r = rows.begin(); r < rows.end() && same.load(std::memory_order_relaxed); ++r) {
+      size_t pair = row_first[r];
       for (size_t c = 0; c + 1 < w; ++c) {
+        if (masked && grid.cells[r * (w - 1) + c] == 0) continue;
         const int a = int(r * w + c), b = a + 1, d = a + int(w), e = d + 1;
-        const size_t cell = r * (w - 1) + c;
+        const size_t cell = pair++;
         const Eigen::Vector3i& t0 = mesh.triangles[2 * cell];
         const Eigen::Vector3i& t1 = mesh.triangles[2 * cell + 1];
         const bool ok = up ? t0 == Eigen::Vector3i(a, b, d) && t1 == Eigen::Vector3i(b, e, d)
@@ -83,7 +98,7 @@ bool IsTerrainGrid(const scene::TriangleMesh& mesh, TerrainGrid grid) {
       }
     }
   });
-  return same;
+  return same ? cells : 0;
 }
 
 // A hit this close (in barycentric or quad parameter units) to a border of
@@ -319,7 +334,7 @@ void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArgument
     if (!(hit.t < RTCRayN_tfar(rays, n, k))) return RTCRayN_tfar(rays, n, k);
     RTCRayN_tfar(rays, n, k) = hit.t;
     const Eigen::Vector3f* corners[3];
-    impl->heightfield->TriangleCorners(hit.triangle, corners);
+    impl->heightfield->CellCorners(hit.cell, hit.half, corners);
     const Eigen::Vector3f ng = (*corners[1] - *corners[0]).cross(*corners[2] - *corners[0]);
     RTCHitN_Ng_x(hits, n, k) = ng.x();
     RTCHitN_Ng_y(hits, n, k) = ng.y();
@@ -407,7 +422,7 @@ static_assert(RayPacket16::kNoHit == RTC_INVALID_GEOMETRY_ID);
 EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
     : EmbreeScene(mesh, TerrainGrid{}, quality) {}
 
-EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, TerrainGrid grid, BvhQuality quality)
+EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, BvhQuality quality)
     : impl_(std::make_unique<Impl>()) {
   if (mesh.triangles.empty()) throw InputError("scene has no triangles", "mesh");
   Stopwatch watch;
@@ -417,9 +432,10 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, TerrainGrid grid, BvhQ
   impl_->scene = rtcNewScene(impl_->device);
   // The terrain grid as a height field: a user geometry over its tiles.
   size_t first_mesh_triangle = 0;
-  if (IsTerrainGrid(mesh, grid)) {
-    impl_->heightfield = std::make_unique<HeightfieldTree>(mesh.vertices.data(), grid.width, grid.height);
-    first_mesh_triangle = size_t(grid.width - 1) * (grid.height - 1) * 2;
+  if (const size_t cells = TerrainGridCells(mesh, grid); cells > 0) {
+    impl_->heightfield = std::make_unique<HeightfieldTree>(mesh.vertices.data(), grid.width, grid.height,
+                                                           grid.cells.empty() ? nullptr : &grid.cells);
+    first_mesh_triangle = cells * 2;
     if (impl_->heightfield->tile_count() > 0) {
       RTCGeometry geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
       rtcSetGeometryUserPrimitiveCount(geometry, unsigned(impl_->heightfield->tile_count()));
@@ -515,6 +531,10 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, TerrainGrid grid, BvhQ
 }
 
 bool EmbreeScene::heightfield() const { return impl_->heightfield != nullptr; }
+
+int64_t EmbreeScene::heightfield_cells() const {
+  return impl_->heightfield ? int64_t(impl_->heightfield->cell_count()) : 0;
+}
 
 bool EmbreeScene::HeightfieldOnly() const {
   return impl_->heightfield != nullptr && impl_->mesh_geometry == RTC_INVALID_GEOMETRY_ID;

@@ -6,6 +6,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -45,12 +46,17 @@ struct alignas(64) RayPacket16 {
   }
 };
 
-// A grid of terrain posts at the start of a mesh: its first
-// (width - 1) * (height - 1) * 2 triangles are scene::MeshFromGrid's
-// triangles of its first width * height vertices. 0 x 0: no grid.
+// A grid of terrain posts at the start of a mesh: its first width * height
+// vertices are the posts (row-major) and its first triangles are
+// scene::MeshFromGrid's triangles of the grid's cells, two per cell,
+// row-major: of every cell when `cells` is empty, else of the cells k with
+// cells[k] != 0 ((width - 1) x (height - 1) row-major; the others are holes
+// whose surface is in the rest of the mesh: a GIS scene's cells that its
+// constraints triangulate, scene::GisScene). 0 x 0: no grid.
 struct TerrainGrid {
   int width = 0;
   int height = 0;
+  std::vector<uint8_t> cells;
 };
 
 // BVH build quality: kAuto picks by scene size (EmbreeScene constructor).
@@ -79,7 +85,7 @@ class EmbreeScene {
   // height field reads the grid's posts in place: `mesh` must outlive the
   // scene and keep its vertices. When the mesh does not start with such a
   // grid (checked), every triangle goes into the Embree mesh, as above.
-  EmbreeScene(const scene::TriangleMesh& mesh, TerrainGrid grid, BvhQuality quality = BvhQuality::kAuto);
+  EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, BvhQuality quality = BvhQuality::kAuto);
   ~EmbreeScene();
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
@@ -115,6 +121,8 @@ class EmbreeScene {
 
   // Whether a terrain grid is traced as a height field.
   bool heightfield() const;
+  // Its cells (holes not counted); 0 without one.
+  int64_t heightfield_cells() const;
   // Whether the scene is a terrain grid's height field and nothing else:
   // every surface is a single-valued function of the plan position (no
   // walls, no overhangs), so along a vertical plane a ray that meets it

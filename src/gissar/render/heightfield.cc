@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <atomic>
 #include <utility>
 
@@ -10,9 +11,26 @@
 
 namespace gissar::render {
 
-HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int height)
+HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int height,
+                                 const std::vector<uint8_t>* cells)
     : posts_(posts), width_(width), height_(height) {
   GISSAR_CHECK(width >= 2 && height >= 2);
+  if (cells != nullptr) {
+    const size_t count = size_t(width - 1) * (height - 1);
+    GISSAR_CHECK(cells->size() == count);
+    masked_ = true;
+    cell_bits_.assign((count + 63) / 64, 0);
+    for (size_t k = 0; k < count; ++k) {
+      if ((*cells)[k] != 0) cell_bits_[k >> 6] |= uint64_t{1} << (k & 63);
+    }
+    rank_before_.resize(cell_bits_.size() + 1);
+    uint32_t total = 0;
+    for (size_t w = 0; w < cell_bits_.size(); ++w) {
+      rank_before_[w] = total;
+      total += uint32_t(__builtin_popcountll(cell_bits_[w]));
+    }
+    rank_before_.back() = total;
+  }
   const Eigen::Vector3f du = posts[1] - posts[0];
   const Eigen::Vector3f dv = posts[width] - posts[0];
   column_cross_row_up_ = du.cross(dv).z() > 0.0f;
@@ -46,13 +64,26 @@ HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int he
         for (int i = 0; i < level.nx; ++i) {
           Box& box = below[size_t(j) * level.nx + i];
           empty(box);
-          for (int r = 2 * j; r <= std::min(2 * j + 2, height - 1); ++r) {
-            for (int c = 2 * i; c <= std::min(2 * i + 2, width - 1); ++c) {
-              const Eigen::Vector3f& p = posts[size_t(r) * width + c];
-              if (p.allFinite()) {
-                grow(box, p.data(), p.data());
-              } else {
-                non_finite = true;
+          auto add_post = [&](int r, int c) {
+            const Eigen::Vector3f& p = posts[size_t(r) * width + c];
+            if (p.allFinite()) {
+              grow(box, p.data(), p.data());
+            } else {
+              non_finite = true;
+            }
+          };
+          if (!masked_) {
+            for (int r = 2 * j; r <= std::min(2 * j + 2, height - 1); ++r) {
+              for (int c = 2 * i; c <= std::min(2 * i + 2, width - 1); ++c) add_post(r, c);
+            }
+            continue;
+          }
+          // With holes: the posts of the cells in only.
+          for (int r = 2 * j; r <= std::min(2 * j + 1, height - 2); ++r) {
+            for (int c = 2 * i; c <= std::min(2 * i + 1, width - 2); ++c) {
+              if (!Included(size_t(r) * (width - 1) + c)) continue;
+              for (int dr = 0; dr < 2; ++dr) {
+                for (int dc = 0; dc < 2; ++dc) add_post(r + dr, c + dc);
               }
             }
           }
@@ -106,17 +137,30 @@ void HeightfieldTree::TileBounds(size_t tile, float lower[3], float upper[3]) co
 }
 
 size_t HeightfieldTree::MemoryBytes() const {
-  size_t bytes = tiles_.capacity() * sizeof(uint32_t) + tile_boxes_.capacity() * sizeof(Box);
+  size_t bytes = tiles_.capacity() * sizeof(uint32_t) + tile_boxes_.capacity() * sizeof(Box) +
+                 cell_bits_.capacity() * sizeof(uint64_t) + rank_before_.capacity() * sizeof(uint32_t);
   for (const Level& level : levels_) bytes += level.groups.capacity() * sizeof(Group);
   return bytes;
 }
 
 void HeightfieldTree::TriangleCorners(uint32_t triangle, const Eigen::Vector3f* corners[3]) const {
-  const uint32_t cell = triangle / 2;
+  uint32_t cell = triangle / 2;
+  if (masked_) {
+    // The cell of rank triangle / 2: its word by binary search, then its bit.
+    const uint32_t rank = triangle / 2;
+    const size_t w = size_t(std::upper_bound(rank_before_.begin(), rank_before_.end(), rank) - rank_before_.begin()) - 1;
+    uint64_t bits = cell_bits_[w];
+    for (uint32_t skip = rank - rank_before_[w]; skip > 0; --skip) bits &= bits - 1;
+    cell = uint32_t(w * 64 + size_t(__builtin_ctzll(bits)));
+  }
+  CellCorners(cell, int(triangle % 2), corners);
+}
+
+void HeightfieldTree::CellCorners(uint32_t cell, int half, const Eigen::Vector3f* corners[3]) const {
   const int c = int(cell % uint32_t(width_ - 1)), r = int(cell / uint32_t(width_ - 1));
   const Eigen::Vector3f* a = posts_ + size_t(r) * width_ + c;
   const Eigen::Vector3f *b = a + 1, *d = a + width_, *e = d + 1;
-  if (triangle % 2 == 0) {
+  if (half == 0) {
     corners[0] = a;
     corners[1] = column_cross_row_up_ ? b : d;
     corners[2] = column_cross_row_up_ ? d : b;

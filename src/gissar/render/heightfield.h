@@ -55,13 +55,17 @@ struct HeightfieldRay {
 };
 
 // A candidate hit: ray parameter, mesh triangle (scene::MeshFromGrid's
-// numbering: triangles 2k and 2k + 1 of cell k = row * (width - 1) + column)
-// and its barycentrics (point = (1 - u - v) v0 + u v1 + v v2 in the mesh's
-// vertex order of that triangle).
+// numbering: triangles 2k and 2k + 1 of the k-th cell of the height field,
+// row-major; without holes cell k = row * (width - 1) + column), its
+// barycentrics (point = (1 - u - v) v0 + u v1 + v v2 in the mesh's vertex
+// order of that triangle), and its cell and half (0: the triangle holding
+// post (c, r), 1: the one holding (c + 1, r + 1)).
 struct HeightfieldHit {
   float t = 0.0f;
   uint32_t triangle = 0;
   float u = 0.0f, v = 0.0f;
+  uint32_t cell = 0;
+  int half = 0;
 };
 
 class HeightfieldTree {
@@ -72,8 +76,12 @@ class HeightfieldTree {
 
   // Builds the quadtree over the `width` x `height` posts (row-major, ENU
   // metres), which must outlive the tree. Non-finite posts bound nothing
-  // (their triangles are never hit). CHECKs at least 2 x 2 posts.
-  HeightfieldTree(const Eigen::Vector3f* posts, int width, int height);
+  // (their triangles are never hit). `cells` (optional, (width - 1) x
+  // (height - 1) row-major, nonzero = in): the cells of the height field;
+  // the others are holes, never hit (a GIS scene's cells that its
+  // constraints triangulate otherwise), and the mesh numbers only the cells
+  // in. CHECKs at least 2 x 2 posts and the size of `cells`.
+  HeightfieldTree(const Eigen::Vector3f* posts, int width, int height, const std::vector<uint8_t>* cells = nullptr);
 
   int width() const { return width_; }
   int height() const { return height_; }
@@ -85,6 +93,10 @@ class HeightfieldTree {
   size_t MemoryBytes() const;
   // Corner posts of `triangle` in the mesh's vertex order.
   void TriangleCorners(uint32_t triangle, const Eigen::Vector3f* corners[3]) const;
+  // The same for half `half` of grid cell `cell` (row-major over all cells).
+  void CellCorners(uint32_t cell, int half, const Eigen::Vector3f* corners[3]) const;
+  // Cells in the height field (all of them without holes).
+  size_t cell_count() const { return masked_ ? size_t(rank_before_.back()) : size_t(width_ - 1) * (height_ - 1); }
 
   // Offers every triangle of tile `tile` that the ray meets at t in
   // [t_near, *t_far] to `accept(const HeightfieldHit&)`, boxes nearest
@@ -133,8 +145,20 @@ class HeightfieldTree {
   bool LeafTriangles(int i, int j, const Group& cells, const HeightfieldRay& ray, float t_near, float* t_far,
                      Accept& accept) const;
 
+  // Holes: bit k of cell_bits_ (row-major cell k) set for a cell in;
+  // rank_before_[w] counts the cells in before word w (one more entry at
+  // the end: the total).
+  bool Included(size_t cell) const { return !masked_ || (cell_bits_[cell >> 6] >> (cell & 63)) & 1u; }
+  uint32_t TriangleOf(size_t cell, int half) const {
+    if (!masked_) return uint32_t(2 * cell + size_t(half));
+    const uint64_t below = cell_bits_[cell >> 6] & ((uint64_t{1} << (cell & 63)) - 1);
+    return 2 * (rank_before_[cell >> 6] + uint32_t(__builtin_popcountll(below))) + uint32_t(half);
+  }
   const Eigen::Vector3f* posts_;
   int width_, height_;
+  bool masked_ = false;
+  std::vector<uint64_t> cell_bits_;
+  std::vector<uint32_t> rank_before_;
   bool column_cross_row_up_ = true;  // MeshFromGrid's triangle orientation
   bool all_finite_ = true;           // every post has finite coordinates
   std::vector<Level> levels_;        // levels 1 .. kTileLevel (level 1 holds no groups)
@@ -215,6 +239,7 @@ inline void HeightfieldTree::CellBoxes(int i, int j, Group* out) const {
   for (int dr = 0; dr < nr; ++dr) {
     for (int dc = 0; dc < nc; ++dc) {
       const int q = 2 * dr + dc;
+      if (masked_ && !Included(size_t(r0 + dr) * (width_ - 1) + (c0 + dc))) continue;  // a hole: empty box
       const Eigen::Vector3f* p = posts_ + size_t(r0 + dr) * width_ + (c0 + dc);
       if (all_finite_) {
         for (int a = 0; a < 3; ++a) {
@@ -291,7 +316,7 @@ bool HeightfieldTree::LeafTriangles(int i, int j, const Group& cells, const Heig
         const float t = float(t_scaled / det);
         if (!(t >= t_near && t <= *t_far)) continue;
         const double inv = 1.0 / det;
-        HeightfieldHit hit{t, 2 * cell + uint32_t(half), float(v_edge * inv), float(w_edge * inv)};
+        HeightfieldHit hit{t, TriangleOf(cell, half), float(v_edge * inv), float(w_edge * inv), cell, half};
         *t_far = accept(hit);
         if (*t_far == -std::numeric_limits<float>::infinity()) return false;
       }

@@ -177,6 +177,121 @@ TEST(HeightfieldTest, HitsAreTheExactFirstHitsAndEmbreesTriangles) {
   }
 }
 
+// A grid with holes (a GIS scene: cells its constraints triangulate): the
+// height field traces the cells in, the BVH the rest of the mesh (here a fan
+// of four triangles round a raised centre in each hole, so that a hole's
+// surface is not the grid's). Against the BVH of the whole mesh and the
+// exact first hit: the same hits on the same triangles, the holes' among
+// them; packets as single rays.
+TEST(HeightfieldTest, HolesAreTracedThroughTheRestOfTheMesh) {
+  constexpr int kPosts = 37;
+  const scene::TriangleMesh grid = scene::MeshFromHeights(RoughHeights(kPosts, 21), kPosts, kPosts, 25.0);
+  constexpr int kCells = kPosts - 1;
+  std::vector<uint8_t> cells(size_t(kCells) * kCells, 1);
+  std::mt19937 rng(4);
+  for (auto& f : cells) f = std::uniform_real_distribution<double>(0.0, 1.0)(rng) < 0.25 ? 0 : 1;
+  for (int r = 10; r < 18; ++r)
+    for (int c = 5; c < 20; ++c) cells[size_t(r) * kCells + c] = 0;  // a block of holes
+  scene::TriangleMesh mesh;
+  mesh.vertices = grid.vertices;
+  for (size_t k = 0; k < cells.size(); ++k) {
+    if (!cells[k]) continue;
+    for (int half = 0; half < 2; ++half) {
+      mesh.triangles.push_back(grid.triangles[2 * k + size_t(half)]);
+      mesh.classes.push_back(1);
+    }
+  }
+  const size_t grid_triangles = mesh.triangles.size();
+  for (int r = 0; r < kCells; ++r) {
+    for (int c = 0; c < kCells; ++c) {
+      if (cells[size_t(r) * kCells + c]) continue;
+      const int a = r * kPosts + c, b = a + 1, d = a + kPosts, e = d + 1;
+      const Vector3f centre = (mesh.vertices[a] + mesh.vertices[b] + mesh.vertices[d] + mesh.vertices[e]) / 4.0f +
+                              Vector3f(0.0f, 0.0f, 3.0f);
+      const int m = int(mesh.vertices.size());
+      mesh.vertices.push_back(centre);
+      for (const auto& [p, q] : {std::pair{a, b}, {b, e}, {e, d}, {d, a}}) {
+        Eigen::Vector3i t(p, q, m);
+        const Vector3f n = (mesh.vertices[q] - mesh.vertices[p]).cross(centre - mesh.vertices[p]);
+        if (n.z() < 0.0f) std::swap(t[1], t[2]);
+        mesh.triangles.push_back(t);
+        mesh.classes.push_back(2);
+      }
+    }
+  }
+  const EmbreeScene triangles(mesh), heightfield(mesh, TerrainGrid{kPosts, kPosts, cells});
+  ASSERT_TRUE(heightfield.heightfield());
+  EXPECT_FALSE(heightfield.HeightfieldOnly());
+  // A mask that does not match the mesh's first triangles: no height field.
+  std::vector<uint8_t> wrong = cells;
+  wrong[0] = !wrong[0];
+  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{kPosts, kPosts, wrong}).heightfield());
+
+  // The exact first hit, to 2 mm: always on the height field's cells; on the
+  // holes' triangles (Embree's float arithmetic: a few mm at 5 km) the BVH
+  // alone gives the same hit.
+  const std::vector<TestRay> rays = RandomRays(mesh, 6000, 12);
+  int grid_off = 0, hole_off = 0;
+  for (const TestRay& ray : rays) {
+    const auto exact = BruteForceFirstHit(mesh, ray);
+    const auto hit = heightfield.Intersect(ray.origin, ray.direction, 0.0f, kInf);
+    if (exact.has_value() == hit.has_value() && (!hit || std::abs(hit->t - *exact) <= 2e-3f)) continue;
+    const auto bvh = triangles.Intersect(ray.origin, ray.direction, 0.0f, kInf);
+    if (hit && bvh && hit->triangle >= grid_triangles && bvh->triangle == hit->triangle && bvh->t == hit->t) {
+      ++hole_off;
+    } else {
+      ++grid_off;
+    }
+  }
+  EXPECT_EQ(grid_off, 0);
+  EXPECT_LE(hole_off, 10);
+  const Agreement random = Compare(triangles, heightfield, rays);
+  EXPECT_GT(random.hits, 3500);
+  EXPECT_LE(random.hit_mismatch + random.distance_mismatch, 10);
+  EXPECT_LE(random.triangle_mismatch, 10);
+  int grid_hits = 0, hole_hits = 0;
+  for (const TestRay& ray : rays) {
+    const auto hit = heightfield.Intersect(ray.origin, ray.direction, 0.0f, kInf);
+    if (!hit) continue;
+    (hit->triangle < grid_triangles ? grid_hits : hole_hits) += 1;
+    EXPECT_EQ(mesh.classes[hit->triangle], hit->triangle < grid_triangles ? 1 : 2);
+  }
+  EXPECT_GT(grid_hits, 1000);
+  EXPECT_GT(hole_hits, 300);
+  // Rays at posts and edges (ties, resolved by the triangles' corners).
+  for (const bool oblique : {true, false}) {
+    const std::vector<TestRay> edge_rays = RaysAtEdges(mesh, kPosts, oblique);
+    const Agreement edges = Compare(triangles, heightfield, edge_rays);
+    EXPECT_LE(edges.hit_mismatch + edges.distance_mismatch, edges.rays / 20);
+  }
+  // The tree names every grid triangle's corners as the mesh does.
+  const HeightfieldTree tree(mesh.vertices.data(), kPosts, kPosts, &cells);
+  ASSERT_EQ(tree.cell_count() * 2, grid_triangles);
+  for (uint32_t t = 0; t < grid_triangles; ++t) {
+    const Eigen::Vector3f* corners[3];
+    tree.TriangleCorners(t, corners);
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(corners[k], &mesh.vertices[size_t(mesh.triangles[t][k])]) << t;
+  }
+  // Packets.
+  int compared = 0;
+  for (size_t first = 0; first + 16 <= rays.size(); first += 16) {
+    RayPacket16 packet;
+    alignas(64) int valid[16];
+    for (int k = 0; k < 16; ++k) {
+      valid[k] = -1;
+      packet.SetRay(k, rays[first + k].origin, rays[first + k].direction);
+    }
+    heightfield.Intersect16(valid, packet, false);
+    for (int k = 0; k < 16; ++k) {
+      const auto single = heightfield.Intersect(rays[first + k].origin, rays[first + k].direction, 0.0f, kInf);
+      ++compared;
+      ASSERT_EQ(single.has_value(), packet.triangle[k] != RayPacket16::kNoHit) << "ray " << first + k;
+      if (single) EXPECT_EQ(single->triangle, packet.triangle[k]) << "ray " << first + k;
+    }
+  }
+  EXPECT_GT(compared, 5000);
+}
+
 // Packets (one walk of a tile for all lanes, HeightfieldTree::
 // IntersectPacket) give each lane the hit a single ray gets, on coherent
 // packets (neighbouring primary rays) and incoherent ones (random rays).

@@ -27,6 +27,7 @@ IntensityAgreement CompareIntensities(const std::vector<float>& a, const std::ve
   const double cov = sxy - sx * sy / n, vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
   result.db_pearson = n >= 2 && vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy)
                                                  : std::numeric_limits<double>::quiet_NaN();
+  result.mean_db_difference = n >= 1 ? (sy - sx) / n : std::numeric_limits<double>::quiet_NaN();
   return result;
 }
 

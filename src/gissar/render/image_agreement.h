@@ -1,5 +1,6 @@
 // How closely two renderings of the same scene agree: the raster engine
-// against the ray tracer (tests, `make bench`). Both images must have the
+// against the ray tracer, the height field against the BVH (tests, `make
+// bench`). Both images must have the
 // same size and pixel grid.
 #pragma once
 
@@ -13,6 +14,8 @@ struct IntensityAgreement {
   // are positive (NaN when fewer than two such pixels or a constant image).
   double db_pearson = 0.0;
   int64_t compared_pixels = 0;  // pixels in the correlation
+  // Mean of 10 log10(b / a) over the same pixels (NaN when there are none).
+  double mean_db_difference = 0.0;
   int64_t one_sided_zero = 0;   // pixels where exactly one image is zero
 };
 

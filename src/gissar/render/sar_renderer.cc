@@ -808,6 +808,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   // Tracing phase: rays, shading, splatting and merging (not the assembly
   // of the output planes below).
   image.stats.trace_seconds = trace_watch.ElapsedSeconds();
+  image.stats.heightfield_cells = embree.heightfield_cells();
   if (options.coherent) {
     image.intensity.resize(size_t(width) * height);
     for (size_t k = 0; k < image.intensity.size(); ++k) {

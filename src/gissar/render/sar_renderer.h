@@ -116,6 +116,7 @@ struct RenderStats {
   int64_t sub_rays = 0;       // extra first-bounce rays of footprint splitting (near-grazing hits)
   int64_t shadow_rays = 0;    // visibility rays of the mask
   int64_t cells = 0;          // DEM cells projected (raster engine)
+  int64_t heightfield_cells = 0;  // terrain cells traced as a height field (EmbreeScene::heightfield_cells)
   double trace_seconds = 0.0;  // tracer: rays, shading, splatting, merging; raster: all
   double mask_seconds = 0.0;
   // Illuminated footprint: pixels whose centre a lit surface covers (the

@@ -1244,36 +1244,49 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
 
   step();
   // Vertices: ground vertices with DEM heights; roof copies per building.
-  // Posts first (those of valid cells, row-major), then the vertices the
-  // constraints inserted; each CDT vertex's index lives in its info.
+  // Every DEM post first, row-major (vertex r * W + c: the terrain grid of
+  // the directly split cells, GisScene::grid), then the vertices the
+  // constraints inserted; each CDT vertex's index lives in its info. Posts
+  // of no valid cell are in no triangle; they take their DEM height, or
+  // when it is no-data the lowest height of the scene's posts (finite, and
+  // inside the scene's bounds).
   auto ground_index = [](const Cdt::Vertex_handle& v) { return v->info().ground; };
-  std::vector<int32_t> post_ground(size_t(W) * H, -1);
+  std::vector<uint8_t> post_used(size_t(W) * H, 0);
   for (int r = 0; r < cells_y; ++r) {
     for (int c = 0; c < cells_x; ++c) {
       if (!cell_valid(c, r)) continue;
-      for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) post_ground[size_t(r + dr) * W + c + dc] = 0;
+      for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) post_used[size_t(r + dr) * W + c + dc] = 1;
     }
   }
-  std::vector<Vector2d> planar;
-  std::vector<double> heights;
+  std::vector<Vector2d> planar(size_t(W) * H);
+  std::vector<double> heights(size_t(W) * H, std::numeric_limits<double>::quiet_NaN());
+  double lowest = std::numeric_limits<double>::infinity();
   for (int r = 0; r < H; ++r) {
     for (int c = 0; c < W; ++c) {
       const size_t post = size_t(r) * W + c;
-      if (post_ground[post] < 0) continue;
+      planar[post] = A * Vector2d(c, r);
       double h = dem.heights_m[post];
       // A void that joined the sea lies at sea level.
       if (!dem_sea.empty() && dem_sea[post] && !dem.nodata_mask.empty() && dem.nodata_mask[post]) {
         h = config.sea_level_m;
       }
-      post_ground[post] = static_cast<int32_t>(planar.size());
-      planar.push_back(A * Vector2d(c, r));
-      heights.push_back(h);
+      const bool nodata = !dem.nodata_mask.empty() && dem.nodata_mask[post] && h != config.sea_level_m;
+      if (post_used[post]) {
+        heights[post] = h;
+        lowest = std::min(lowest, h);
+      } else if (!nodata && std::isfinite(h)) {
+        heights[post] = h;
+      }
     }
   }
+  if (!std::isfinite(lowest)) lowest = 0.0;
+  for (size_t post = 0; post < heights.size(); ++post) {
+    if (!post_used[post] && !std::isfinite(heights[post])) heights[post] = lowest;
+  }
+  std::vector<uint8_t>().swap(post_used);
   for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) {
     if (v->info().post > 0) {
-      v->info().ground = post_ground[size_t(v->info().post - 1)];
-      GISSAR_CHECK(v->info().ground >= 0);
+      v->info().ground = static_cast<int>(v->info().post - 1);
       continue;
     }
     ++stats.inserted_vertices;
@@ -1285,26 +1298,15 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     planar.push_back(m);
     heights.push_back(*dem.InterpolateHeight(cell.x(), cell.y()));
   }
-  // The two triangles of directly triangulated cell (c, r) as ground vertex
-  // indices, counter-clockwise in M, split along the shorter diagonal (ties:
-  // post (c + 1, r) to (c, r + 1), as MeshFromGrid).
+  // The two triangles of directly split cell (c, r) as vertex (= post)
+  // indices: MeshFromGrid's, split from post (c + 1, r) to (c, r + 1) and
+  // counter-clockwise in M (M is ENU-aligned: counter-clockwise seen from
+  // above, normals up).
   const bool mirrored = A.determinant() < 0.0;  // (col, row) turns clockwise in M
-  const double diagonal_down = (A * Vector2d(1, 1)).squaredNorm();   // (c, r) - (c + 1, r + 1)
-  const double diagonal_up = (A * Vector2d(1, -1)).squaredNorm();    // (c + 1, r) - (c, r + 1)
-  const bool split_down = diagonal_down < diagonal_up;
   auto cell_triangles = [&](int c, int r, Eigen::Vector3i out[2]) {
-    const int p00 = post_ground[size_t(r) * W + c], p10 = post_ground[size_t(r) * W + c + 1];
-    const int p01 = post_ground[size_t(r + 1) * W + c], p11 = post_ground[size_t(r + 1) * W + c + 1];
-    if (split_down) {
-      out[0] = {p00, p10, p11};
-      out[1] = {p00, p11, p01};
-    } else {
-      out[0] = {p00, p10, p01};
-      out[1] = {p10, p11, p01};
-    }
-    if (mirrored) {
-      for (int k = 0; k < 2; ++k) std::swap(out[k][1], out[k][2]);
-    }
+    const int a = r * W + c, b = a + 1, d = a + W, e = d + 1;
+    out[0] = mirrored ? Eigen::Vector3i(a, d, b) : Eigen::Vector3i(a, b, d);
+    out[1] = mirrored ? Eigen::Vector3i(b, d, e) : Eigen::Vector3i(b, e, d);
   };
   const double cell_triangle_area_m2 = 0.5 * std::abs(A.determinant());
 
@@ -1347,7 +1349,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       if (id < 0 || regions[size_t(id)].building < 0) continue;
       const int g = group[regions[size_t(id)].building];
       for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) {
-        roof_height[g] = std::min(roof_height[g], heights[size_t(post_ground[size_t(r + dr) * W + c + dc])]);
+        roof_height[g] = std::min(roof_height[g], heights[size_t(r + dr) * W + c + dc]);
       }
     }
   }
@@ -1384,6 +1386,31 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     triangles.reserve(expected);
     classes.reserve(expected);
   }
+  // First the directly split terrain cells, row-major, on the posts: the
+  // mesh's terrain grid (GisScene::grid), which the ray tracer can trace as
+  // a height field with the other cells as holes.
+  for (int r = 0; r < cells_y; ++r) {
+    for (int c = 0; c < cells_x; ++c) {
+      const int32_t id = cell_region[cell_at(c, r)];
+      if (id < 0 || regions[size_t(id)].building >= 0) continue;
+      ClassId cls = regions[size_t(id)].cls;
+      if (cls == kClassDefault && !sea_posts.empty() && cell_is_sea(A * Vector2d(c + 0.5, r + 0.5))) {
+        cls = kClassSea;
+        stats.region_area_m2[kClassDefault] -= 2.0 * cell_triangle_area_m2;
+        stats.region_area_m2[kClassSea] += 2.0 * cell_triangle_area_m2;
+      }
+      stats.mesh_area_m2[cls] += 2.0 * cell_triangle_area_m2;
+      Eigen::Vector3i tri[2];
+      cell_triangles(c, r, tri);
+      for (const Eigen::Vector3i& t : tri) {
+        triangles.push_back(t);
+        classes.push_back(cls);
+      }
+      ++scene.grid.cells;
+    }
+  }
+  scene.grid.width = W;
+  scene.grid.height = H;
   // A wall triangle, ordered so that the horizontal part of its normal
   // (computed in double precision from the plan coordinates and heights)
   // points along `out` (a plan direction), or against it when `facing_out`
@@ -1486,34 +1513,20 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       }
     }
   }
-  // The directly triangulated cells: terrain, or a roof (no walls: no
+  // The directly split cells inside buildings: roofs (no walls: no
   // footprint edge touches them).
   for (int r = 0; r < cells_y; ++r) {
     for (int c = 0; c < cells_x; ++c) {
       const int32_t id = cell_region[cell_at(c, r)];
-      if (id < 0) continue;
+      if (id < 0 || regions[size_t(id)].building < 0) continue;
       const Region& region = regions[size_t(id)];
       Eigen::Vector3i tri[2];
       cell_triangles(c, r, tri);
-      if (region.building >= 0) {
-        const int own = group[region.building];
-        stats.mesh_area_m2[region.cls] += 2.0 * cell_triangle_area_m2;
-        for (const Eigen::Vector3i& t : tri) {
-          triangles.emplace_back(roof_vertex(own, t[0]), roof_vertex(own, t[1]), roof_vertex(own, t[2]));
-          classes.push_back(kClassBuilding);
-        }
-        continue;
-      }
-      ClassId cls = region.cls;
-      if (cls == kClassDefault && !sea_posts.empty() && cell_is_sea(A * Vector2d(c + 0.5, r + 0.5))) {
-        cls = kClassSea;
-        stats.region_area_m2[kClassDefault] -= 2.0 * cell_triangle_area_m2;
-        stats.region_area_m2[kClassSea] += 2.0 * cell_triangle_area_m2;
-      }
-      stats.mesh_area_m2[cls] += 2.0 * cell_triangle_area_m2;
+      const int own = group[region.building];
+      stats.mesh_area_m2[region.cls] += 2.0 * cell_triangle_area_m2;
       for (const Eigen::Vector3i& t : tri) {
-        triangles.push_back(t);
-        classes.push_back(cls);
+        triangles.emplace_back(roof_vertex(own, t[0]), roof_vertex(own, t[1]), roof_vertex(own, t[2]));
+        classes.push_back(kClassBuilding);
       }
     }
   }
@@ -1523,7 +1536,6 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   cdt.clear();
   std::vector<uint8_t>().swap(in_cdt);
   std::vector<int32_t>().swap(cell_region);
-  std::vector<int32_t>().swap(post_ground);
 
   // The sea surface lies at the sea level: DEM heights over the sea (SRTM's
   // noise, filled voids, a cliff smoothed over the 90 m posts) are not its
@@ -1603,6 +1615,9 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
         const double width = std::abs(e1.x() * e2.y() - e1.y() * e2.x()) / std::max(longest, 1e-12);
         if (n.z() <= cos80 * n.norm() && width < 0.1) {
           ++stats.steep_slivers;
+          // A grid cell's triangle (never this narrow): the mesh no longer
+          // starts with the grid.
+          if (t < size_t(2 * scene.grid.cells)) scene.grid = GridPrefix{};
           continue;
         }
       }
@@ -1614,6 +1629,9 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     classes.resize(kept);
   }
   mesh.triangles = std::move(triangles);
+  // The grid's orientation in ENU must be MeshFromGrid's (it is: M is the
+  // ENU-aligned Jacobian of the grid).
+  if (scene.grid.cells > 0 && !GridPrefixCells(mesh, scene.grid)) scene.grid = GridPrefix{};
   mesh.classes = std::move(classes);
   scene.planar = std::move(planar);
   for (ClassId c : mesh.classes) ++stats.triangles[c];

@@ -60,6 +60,10 @@ struct GisSceneStats {
 
 struct GisScene {
   TriangleMesh mesh;                    // ENU metres, class per triangle
+  // The mesh starts with the DEM's posts and the directly split terrain cells
+  // (TerrainTriangulation::kConstrainedCellsOnly), a terrain grid with the
+  // other cells as holes; cells == 0 when it does not.
+  GridPrefix grid;
   std::vector<Eigen::Vector2d> planar;  // M coordinates of each mesh vertex
   Eigen::Matrix2d planar_from_cell;     // M = planar_from_cell * (col, row)
   // Clipped class and building boundaries in M: every one is a union of mesh

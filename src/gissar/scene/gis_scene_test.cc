@@ -942,6 +942,16 @@ TEST(GisSceneTest, DirectlyTriangulatedCellsMeetTheCdtEdgeToEdge) {
   EXPECT_GT(fast.stats.grid_cells, 100 * 100 / 2);
   EXPECT_EQ(every.stats.cdt_cells, 100 * 100);
   EXPECT_EQ(every.stats.grid_cells, 0);
+  // The directly split terrain cells open the mesh as a terrain grid on the
+  // posts (the roofs of directly split cells inside buildings come later).
+  EXPECT_EQ(fast.grid.width, 101);
+  EXPECT_EQ(fast.grid.height, 101);
+  EXPECT_GT(fast.grid.cells, fast.stats.grid_cells * 9 / 10);
+  EXPECT_LE(fast.grid.cells, fast.stats.grid_cells);
+  const auto cells = GridPrefixCells(fast.mesh, fast.grid);
+  ASSERT_TRUE(cells.has_value());
+  EXPECT_EQ(std::count(cells->begin(), cells->end(), 1), fast.grid.cells);
+  EXPECT_EQ(every.grid.cells, 0);
 
   struct Summary {
     std::array<double, kClassCount> plan_area_m2{};

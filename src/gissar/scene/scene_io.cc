@@ -76,6 +76,9 @@ void WriteScene(const fs::path& path, const SceneFile& scene) {
     }
     header["reflectors"] = list;
   }
+  if (scene.grid.cells > 0) {
+    header["terrain_grid"] = {{"width", scene.grid.width}, {"height", scene.grid.height}, {"cells", scene.grid.cells}};
+  }
   const std::string text = header.dump();
   out.write(kMagic, sizeof(kMagic));
   Put(out, kSceneFileVersion);
@@ -164,6 +167,12 @@ SceneFile ReadScene(const fs::path& path) {
         scene.reflectors.push_back(r);
       }
     }
+    if (header.contains("terrain_grid")) {
+      const nlohmann::json& g = header.at("terrain_grid");
+      scene.grid.width = g.at("width").get<int>();
+      scene.grid.height = g.at("height").get<int>();
+      scene.grid.cells = g.at("cells").get<int64_t>();
+    }
   } catch (const nlohmann::json::exception& e) {
     throw InputError(std::string("scene header is corrupt: ") + e.what(), path.string());
   }
@@ -220,6 +229,9 @@ SceneFile ReadScene(const fs::path& path) {
       throw InputError("scene file is corrupt (class id " + std::to_string(c) + " has no name)",
                        path.string());
     }
+  }
+  if (scene.grid.cells != 0 && !GridPrefixCells(scene.mesh, scene.grid)) {
+    throw InputError("scene file is corrupt (its terrain grid is not the mesh's first triangles)", path.string());
   }
   return scene;
 }

@@ -10,6 +10,8 @@
 // is refused with a message to rebuild the scene. The header's optional key
 // "reflectors" (absent in scenes built before it: none) lists the canonical
 // reflectors placed by `scene build --reflectors` (StoredReflector).
+// The optional key "terrain_grid" ({"width", "height", "cells"}) says that
+// the mesh starts with a terrain grid (GridPrefix).
 #pragma once
 
 #include <array>
@@ -52,6 +54,9 @@ struct SceneFile {
   nlohmann::json materials = nlohmann::json::object();  // overrides from the config
   nlohmann::json provenance = nlohmann::json::object();
   std::vector<StoredReflector> reflectors;
+  // The mesh's terrain grid (GridPrefix; header key "terrain_grid", absent in
+  // scenes built before it and when cells == 0): traced as a height field.
+  GridPrefix grid;
 };
 
 // Writes the binary scene. Throws IoError on failure.
@@ -63,7 +68,8 @@ void WriteScene(const std::filesystem::path& path, const SceneFile& scene);
 // corrupt: a header that is not the expected JSON, a non-finite or invalid
 // frame origin or centre, no class names, out-of-range vertex indices or
 // class ids, non-finite vertices or shading normals, a bad end marker, a
-// reflector with a non-finite field, size <= 0 or no type name.
+// reflector with a non-finite field, size <= 0 or no type name, a
+// terrain_grid that is not the mesh's first triangles.
 SceneFile ReadScene(const std::filesystem::path& path);
 
 // Binary little-endian PLY with vertex x,y,z (float, ENU metres) and faces

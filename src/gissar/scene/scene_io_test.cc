@@ -86,6 +86,29 @@ TEST(SceneIoTest, ReflectorsRoundTripAndAreChecked) {
 // Shading normals: the plane z = x / 10 + 3 y / 10 (posts 10 m apart)
 // has the unit normal (-0.1, -0.3, 1) / |(-0.1, -0.3, 1)| at every vertex; they
 // survive the round trip.
+// A terrain grid at the start of the mesh round-trips; one the mesh does not
+// start with is a corrupt file.
+TEST(SceneIoTest, TerrainGridRoundTripsAndIsChecked) {
+  const fs::path dir = testing::MakeTempDir();
+  SceneFile scene = Sample();
+  std::vector<float> heights(4 * 3, 5.0f);
+  TriangleMesh grid = MeshFromHeights(heights, 4, 3, 10.0);
+  scene.mesh.vertices = grid.vertices;
+  scene.mesh.triangles.assign(grid.triangles.begin() + 2, grid.triangles.begin() + 6);  // cells 1 and 2
+  scene.mesh.classes.assign(4, 1);
+  scene.grid = GridPrefix{4, 3, 2};
+  WriteScene(dir / "grid.gscene", scene);
+  const SceneFile back = ReadScene(dir / "grid.gscene");
+  EXPECT_EQ(back.grid.width, 4);
+  EXPECT_EQ(back.grid.height, 3);
+  EXPECT_EQ(back.grid.cells, 2);
+  WriteScene(dir / "none.gscene", Sample());
+  EXPECT_EQ(ReadScene(dir / "none.gscene").grid.cells, 0);
+  scene.grid.cells = 3;  // more cells than the mesh starts with
+  WriteScene(dir / "bad.gscene", scene);
+  EXPECT_THROW(ReadScene(dir / "bad.gscene"), InputError);
+}
+
 TEST(SceneIoTest, ShadingNormalsRoundTrip) {
   SceneFile s = Sample();
   s.mesh.classes[1] = 0;

@@ -107,6 +107,35 @@ size_t TriangleMesh::MemoryBytes() const {
          triangles.capacity() * sizeof(Eigen::Vector3i) + classes.capacity() * sizeof(ClassId);
 }
 
+std::optional<std::vector<uint8_t>> GridPrefixCells(const TriangleMesh& mesh, const GridPrefix& prefix) {
+  if (prefix.width < 2 || prefix.height < 2 || prefix.cells <= 0) return std::nullopt;
+  const int64_t w = prefix.width, h = prefix.height;
+  if (int64_t(mesh.vertices.size()) < w * h || int64_t(mesh.triangles.size()) < 2 * prefix.cells ||
+      prefix.cells > (w - 1) * (h - 1)) {
+    return std::nullopt;
+  }
+  const Eigen::Vector3f du = mesh.vertices[1] - mesh.vertices[0];
+  const Eigen::Vector3f dv = mesh.vertices[size_t(w)] - mesh.vertices[0];
+  const bool up = du.cross(dv).z() > 0.0f;
+  std::vector<uint8_t> cells(size_t((w - 1) * (h - 1)), 0);
+  int64_t previous = -1;
+  for (int64_t k = 0; k < prefix.cells; ++k) {
+    const Eigen::Vector3i& t0 = mesh.triangles[size_t(2 * k)];
+    const Eigen::Vector3i& t1 = mesh.triangles[size_t(2 * k + 1)];
+    const int64_t a = t0[0], c = a % w, r = a / w;
+    if (a < 0 || c + 1 >= w || r + 1 >= h) return std::nullopt;
+    const int64_t cell = r * (w - 1) + c;
+    if (cell <= previous) return std::nullopt;
+    const int b = int(a + 1), d = int(a + w), e = d + 1;
+    const bool ok = up ? t0 == Eigen::Vector3i(int(a), b, d) && t1 == Eigen::Vector3i(b, e, d)
+                       : t0 == Eigen::Vector3i(int(a), d, b) && t1 == Eigen::Vector3i(b, d, e);
+    if (!ok) return std::nullopt;
+    cells[size_t(cell)] = 1;
+    previous = cell;
+  }
+  return cells;
+}
+
 TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height) {
   return MeshFromGrid(std::vector<Eigen::Vector3f>(posts), width, height);
 }

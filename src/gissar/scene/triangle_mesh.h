@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -66,6 +67,23 @@ struct TriangleMesh {
 TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height);
 // The same, taking the posts over (no copy of the vertex array).
 TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts, int width, int height);
+
+// A terrain grid at the start of a mesh that is not all grid (a GIS scene):
+// vertices [0, width * height) are the DEM posts, row-major, and triangles
+// [0, 2 * cells) are MeshFromGrid's two triangles of each of `cells` grid
+// cells, in row-major cell order; the other cells' surface is elsewhere in
+// the mesh. cells == 0: none.
+struct GridPrefix {
+  int width = 0;
+  int height = 0;
+  int64_t cells = 0;
+};
+
+// The cells of `prefix` ((width - 1) x (height - 1) row-major, 1 = one of
+// its grid cells), read from the mesh's first triangles; nullopt when the
+// mesh does not start that way (too few vertices or triangles, a pair that
+// is not a cell's MeshFromGrid triangles, cells out of order).
+std::optional<std::vector<uint8_t>> GridPrefixCells(const TriangleMesh& mesh, const GridPrefix& prefix);
 
 // Terrain mesh of a regular height grid in the ENU frame: post (c, r) at
 // x = x0 + c * spacing_m, y = y0 + r * spacing_m, z = heights[r * width + c].

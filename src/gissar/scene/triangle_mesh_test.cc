@@ -48,3 +48,44 @@ TEST(TriangleMeshTest, AppendReindexes) {
 
 }  // namespace
 }  // namespace gissar::scene
+
+namespace gissar::scene {
+namespace {
+
+// The grid cells a mesh opens with: every cell of MeshFromGrid's mesh;
+// cells kept in order with the others dropped; nothing for a prefix the
+// mesh does not have (too many cells, a triangle changed, cells out of
+// order, a grid wider than the vertices allow).
+TEST(GridPrefixTest, CellsAreReadFromTheMeshsFirstTriangles) {
+  std::vector<float> heights(5 * 4);
+  for (size_t i = 0; i < heights.size(); ++i) heights[i] = float(i % 3);
+  const TriangleMesh grid = MeshFromHeights(heights, 5, 4, 10.0);
+  const auto all = GridPrefixCells(grid, {5, 4, 12});
+  ASSERT_TRUE(all.has_value());
+  EXPECT_EQ(*all, std::vector<uint8_t>(12, 1));
+  EXPECT_FALSE(GridPrefixCells(grid, {5, 4, 13}).has_value());
+  EXPECT_FALSE(GridPrefixCells(grid, {6, 4, 12}).has_value());
+  EXPECT_FALSE(GridPrefixCells(grid, {5, 4, 0}).has_value());
+  // Cells 1, 2 and 7 only, in order.
+  TriangleMesh holed;
+  holed.vertices = grid.vertices;
+  for (const int cell : {1, 2, 7}) {
+    holed.triangles.push_back(grid.triangles[2 * cell]);
+    holed.triangles.push_back(grid.triangles[2 * cell + 1]);
+  }
+  const auto some = GridPrefixCells(holed, {5, 4, 3});
+  ASSERT_TRUE(some.has_value());
+  std::vector<uint8_t> want(12, 0);
+  want[1] = want[2] = want[7] = 1;
+  EXPECT_EQ(*some, want);
+  TriangleMesh swapped = holed;
+  std::swap(swapped.triangles[0], swapped.triangles[2]);
+  std::swap(swapped.triangles[1], swapped.triangles[3]);
+  EXPECT_FALSE(GridPrefixCells(swapped, {5, 4, 3}).has_value());
+  TriangleMesh changed = holed;
+  std::swap(changed.triangles[4][1], changed.triangles[4][2]);
+  EXPECT_FALSE(GridPrefixCells(changed, {5, 4, 3}).has_value());
+}
+
+}  // namespace
+}  // namespace gissar::scene
