@@ -536,6 +536,10 @@ int64_t EmbreeScene::heightfield_cells() const {
   return impl_->heightfield ? int64_t(impl_->heightfield->cell_count()) : 0;
 }
 
+int EmbreeScene::heightfield_grid_width() const { return impl_->heightfield ? impl_->heightfield->width() : 0; }
+
+int EmbreeScene::heightfield_grid_height() const { return impl_->heightfield ? impl_->heightfield->height() : 0; }
+
 bool EmbreeScene::HeightfieldOnly() const {
   return impl_->heightfield != nullptr && impl_->mesh_geometry == RTC_INVALID_GEOMETRY_ID;
 }

@@ -123,6 +123,9 @@ class EmbreeScene {
   bool heightfield() const;
   // Its cells (holes not counted); 0 without one.
   int64_t heightfield_cells() const;
+  // Its grid's posts across and down; 0 without one.
+  int heightfield_grid_width() const;
+  int heightfield_grid_height() const;
   // Whether the scene is a terrain grid's height field and nothing else:
   // every surface is a single-valued function of the plan position (no
   // walls, no overhangs), so along a vertical plane a ray that meets it

@@ -292,105 +292,148 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
     const double slant = range0 + (p - xc).dot(l);
     return {(slant - range0) / dr + u0, (p - xc).dot(h) / da + v0};
   };
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangle_count(), 4096),
-                    [&](const tbb::blocked_range<size_t>& range) {
-    int64_t local_rays = 0;
-    // Visibility rays go to Embree 16 at a time (neighbouring pixel
-    // centres, one direction in affine mode: a coherent packet).
-    struct Pending {
-      size_t pixel;
-      Vector3d point, to_radar;
-      float t_near, t_far;
-      double cos_in;
-      size_t triangle;
-      bool flipped;  // the surface faces away from the range plane's upward normal
-    };
+  // One task's pass over its triangles: the pixel centres each covers,
+  // their visibility rays 16 at a time (neighbouring pixel centres, one
+  // direction in affine mode: a coherent packet).
+  struct Pending {
+    size_t pixel;
+    Vector3d point, to_radar;
+    float t_near, t_far;
+    double cos_in;
+    size_t triangle;
+    bool flipped;  // the surface faces away from the range plane's upward normal
+  };
+  struct Task {
     Pending pending[16];
     int count = 0;
     alignas(64) RayPacket16 packet;
     alignas(64) int valid[16];
     bool blocked[16];
-    auto settle = [&](const Pending& q, bool occluded) {
-      if (occluded && q.cos_in < kSelfHitCos) {
-        // Seen almost edge-on the surface may still hit itself
-        // beyond t_near by rounding: skip its own triangle once.
-        const auto hit = embree.Intersect(q.point.cast<float>(), q.to_radar.cast<float>(), q.t_near, q.t_far);
-        if (hit && hit->triangle == q.triangle) {
-          ++local_rays;
-          occluded = embree.Occluded(q.point.cast<float>(), q.to_radar.cast<float>(), hit->t + q.t_near, q.t_far);
+    int64_t local_rays = 0;
+  };
+  auto settle = [&](Task& task, const Pending& q, bool occluded) {
+    if (occluded && q.cos_in < kSelfHitCos) {
+      // Seen almost edge-on the surface may still hit itself
+      // beyond t_near by rounding: skip its own triangle once.
+      const auto hit = embree.Intersect(q.point.cast<float>(), q.to_radar.cast<float>(), q.t_near, q.t_far);
+      if (hit && hit->triangle == q.triangle) {
+        ++task.local_rays;
+        occluded = embree.Occluded(q.point.cast<float>(), q.to_radar.cast<float>(), hit->t + q.t_near, q.t_far);
+      }
+    }
+    uint8_t code = kMaskNone;
+    if (occluded) {
+      code = kMaskShadow;
+    } else {
+      if (lit != nullptr) flags[q.pixel].fetch_or(kLitBit, std::memory_order_relaxed);
+      if (q.flipped) code = kMaskLayover;
+    }
+    flags[q.pixel].fetch_or(code | kCoveredBit, std::memory_order_relaxed);
+  };
+  auto flush = [&](Task& task) {
+    for (int k = 0; k < 16; ++k) {
+      task.valid[k] = k < task.count ? -1 : 0;
+      if (k >= task.count) continue;
+      task.packet.SetRay(k, task.pending[k].point.cast<float>(), task.pending[k].to_radar.cast<float>());
+      task.packet.tnear[k] = task.pending[k].t_near;
+      task.packet.tfar[k] = task.pending[k].t_far;
+    }
+    embree.Occluded16(task.valid, task.packet, /*coherent=*/true, task.blocked);
+    for (int k = 0; k < task.count; ++k) settle(task, task.pending[k], task.blocked[k]);
+    task.count = 0;
+  };
+  // Triangle t with corners v (ENU) projected to p (pixels).
+  auto triangle = [&](Task& task, size_t t, const Vector3d v[3], const Eigen::Vector2d p[3]) {
+    const double area2 = (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
+    if (std::abs(area2) < 1e-12) return;  // seen edge-on: covers no pixel centre
+    const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].x(), p[1].x(), p[2].x()}))));
+    const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max({p[0].x(), p[1].x(), p[2].x()}))));
+    const int r_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].y(), p[1].y(), p[2].y()}))));
+    const int r_hi = std::min(height - 1, static_cast<int>(std::floor(std::max({p[0].y(), p[1].y(), p[2].y()}))));
+    if (c_lo > c_hi || r_lo > r_hi) return;  // no pixel centre inside its bounds
+    const Vector3d normal = mesh.Normal(t).cast<double>();
+    if (normal.isZero()) return;
+    for (int r = r_lo; r <= r_hi; ++r) {
+      for (int c = c_lo; c <= c_hi; ++c) {
+        // Barycentric coordinates of the pixel centre in the projected triangle.
+        const Eigen::Vector2d q(c, r);
+        const double w1 = ((q - p[0]).x() * (p[2] - p[0]).y() - (q - p[0]).y() * (p[2] - p[0]).x()) / area2;
+        const double w2 = ((p[1] - p[0]).x() * (q - p[0]).y() - (p[1] - p[0]).y() * (q - p[0]).x()) / area2;
+        const double w0 = 1.0 - w1 - w2;
+        constexpr double kTol = -1e-9;
+        if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
+        const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
+        const Vector3d dir = geometry.RayDirectionTo(point);
+        const size_t pixel = size_t(r) * width + c;
+        if (normal.dot(-dir) <= kMaskEdgeOnCos) {
+          // Turned away from the radar.
+          flags[pixel].fetch_or(kMaskShadow | kCoveredBit, std::memory_order_relaxed);
+          continue;
         }
+        const double t_far =
+            geometry.mode() == sensor::ProjectionMode::kAffine
+                ? far_affine
+                : (geometry.SensorPosition(geometry.AlongTrack(point)) - point).norm();
+        ++task.local_rays;
+        // Leaving the surface at grazing incidence the ray climbs only
+        // cos(theta) per metre: start it where it has cleared the
+        // rounding of the surface itself (no self-shadowing).
+        const double cos_in = normal.dot(-dir);
+        const float t_near = eps / static_cast<float>(std::max(cos_in, 0.01));
+        task.pending[task.count++] = Pending{pixel, point, -dir, t_near, static_cast<float>(t_far), cos_in, t,
+                                             normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0};
+        if (task.count == 16) flush(task);
       }
-      uint8_t code = kMaskNone;
-      if (occluded) {
-        code = kMaskShadow;
-      } else {
-        if (lit != nullptr) flags[q.pixel].fetch_or(kLitBit, std::memory_order_relaxed);
-        if (q.flipped) code = kMaskLayover;
+    }
+  };
+  auto finish = [&](Task& task) {
+    if (task.count > 0) flush(task);
+    rays.fetch_add(task.local_rays, std::memory_order_relaxed);
+  };
+  // A terrain grid without holes at the start of the mesh (a DEM's): its
+  // triangles row of cells by row of cells, every post projected once per
+  // row (a post is a corner of six triangles) instead of once per corner.
+  const int grid_w = embree.heightfield_grid_width(), grid_h = embree.heightfield_grid_height();
+  const bool whole_grid = grid_w >= 2 && embree.heightfield_cells() == int64_t(grid_w - 1) * (grid_h - 1);
+  const size_t grid_triangles = whole_grid ? size_t(2 * embree.heightfield_cells()) : 0;
+  if (whole_grid) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, grid_h - 1, 8), [&](const tbb::blocked_range<int>& rows) {
+      Task task;
+      const size_t posts_across = size_t(grid_w);
+      std::vector<Eigen::Vector2d> below(posts_across), above(posts_across);
+      for (int c = 0; c < grid_w; ++c) {
+        below[size_t(c)] = project(mesh.vertices[size_t(rows.begin()) * grid_w + c].cast<double>());
       }
-      flags[q.pixel].fetch_or(code | kCoveredBit, std::memory_order_relaxed);
-    };
-    auto flush = [&] {
-      for (int k = 0; k < 16; ++k) {
-        valid[k] = k < count ? -1 : 0;
-        if (k >= count) continue;
-        packet.SetRay(k, pending[k].point.cast<float>(), pending[k].to_radar.cast<float>());
-        packet.tnear[k] = pending[k].t_near;
-        packet.tfar[k] = pending[k].t_far;
+      for (int r = rows.begin(); r < rows.end(); ++r) {
+        for (int c = 0; c < grid_w; ++c) above[size_t(c)] = project(mesh.vertices[size_t(r + 1) * grid_w + c].cast<double>());
+        for (size_t t = size_t(2) * size_t(r) * (grid_w - 1); t < size_t(2) * size_t(r + 1) * (grid_w - 1); ++t) {
+          const Eigen::Vector3i& tri = mesh.triangles[t];
+          Vector3d v[3];
+          Eigen::Vector2d p[3];
+          for (int k = 0; k < 3; ++k) {
+            const size_t post = size_t(tri[k]);
+            v[k] = mesh.vertices[post].cast<double>();
+            p[k] = (post / size_t(grid_w) == size_t(r) ? below : above)[post % size_t(grid_w)];
+          }
+          triangle(task, t, v, p);
+        }
+        std::swap(below, above);
       }
-      embree.Occluded16(valid, packet, /*coherent=*/true, blocked);
-      for (int k = 0; k < count; ++k) settle(pending[k], blocked[k]);
-      count = 0;
-    };
+      finish(task);
+    });
+  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(grid_triangles, mesh.triangle_count(), 4096),
+                    [&](const tbb::blocked_range<size_t>& range) {
+    Task task;
     for (size_t t = range.begin(); t != range.end(); ++t) {
       const Eigen::Vector3i& tri = mesh.triangles[t];
       const Vector3d v[3] = {mesh.vertices[tri[0]].cast<double>(),
                              mesh.vertices[tri[1]].cast<double>(),
                              mesh.vertices[tri[2]].cast<double>()};
       const Eigen::Vector2d p[3] = {project(v[0]), project(v[1]), project(v[2])};
-      const double area2 = (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
-      if (std::abs(area2) < 1e-12) continue;  // seen edge-on: covers no pixel centre
-      const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].x(), p[1].x(), p[2].x()}))));
-      const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max({p[0].x(), p[1].x(), p[2].x()}))));
-      const int r_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].y(), p[1].y(), p[2].y()}))));
-      const int r_hi = std::min(height - 1, static_cast<int>(std::floor(std::max({p[0].y(), p[1].y(), p[2].y()}))));
-      if (c_lo > c_hi || r_lo > r_hi) continue;  // no pixel centre inside its bounds
-      const Vector3d normal = mesh.Normal(t).cast<double>();
-      if (normal.isZero()) continue;
-      for (int r = r_lo; r <= r_hi; ++r) {
-        for (int c = c_lo; c <= c_hi; ++c) {
-          // Barycentric coordinates of the pixel centre in the projected triangle.
-          const Eigen::Vector2d q(c, r);
-          const double w1 = ((q - p[0]).x() * (p[2] - p[0]).y() - (q - p[0]).y() * (p[2] - p[0]).x()) / area2;
-          const double w2 = ((p[1] - p[0]).x() * (q - p[0]).y() - (p[1] - p[0]).y() * (q - p[0]).x()) / area2;
-          const double w0 = 1.0 - w1 - w2;
-          constexpr double kTol = -1e-9;
-          if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
-          const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
-          const Vector3d dir = geometry.RayDirectionTo(point);
-          const size_t pixel = size_t(r) * width + c;
-          if (normal.dot(-dir) <= kMaskEdgeOnCos) {
-            // Turned away from the radar.
-            flags[pixel].fetch_or(kMaskShadow | kCoveredBit, std::memory_order_relaxed);
-            continue;
-          }
-          const double t_far =
-              geometry.mode() == sensor::ProjectionMode::kAffine
-                  ? far_affine
-                  : (geometry.SensorPosition(geometry.AlongTrack(point)) - point).norm();
-          ++local_rays;
-          // Leaving the surface at grazing incidence the ray climbs only
-          // cos(theta) per metre: start it where it has cleared the
-          // rounding of the surface itself (no self-shadowing).
-          const double cos_in = normal.dot(-dir);
-          const float t_near = eps / static_cast<float>(std::max(cos_in, 0.01));
-          pending[count++] = Pending{pixel, point, -dir, t_near, static_cast<float>(t_far), cos_in, t,
-                                     normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0};
-          if (count == 16) flush();
-        }
-      }
+      triangle(task, t, v, p);
     }
-    if (count > 0) flush();
-    rays.fetch_add(local_rays, std::memory_order_relaxed);
+    finish(task);
   });
   if (shadow_rays != nullptr) *shadow_rays = rays.load();
   std::vector<uint8_t> mask(flags.size());
