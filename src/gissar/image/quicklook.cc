@@ -20,18 +20,22 @@ double Percentile(std::vector<float>& values, double p) {
 std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low_percentile,
                                  double high_percentile, DbStretch* stretch) {
   GISSAR_CHECK(0.0 <= low_percentile && low_percentile < high_percentile && high_percentile <= 100.0);
-  std::vector<float> db;
-  db.reserve(intensity.size());
+  // Percentiles of the linear values, then in dB: 10 log10 is increasing,
+  // so the k-th smallest dB value is the dB of the k-th smallest value (one
+  // logarithm per percentile instead of one per pixel).
+  std::vector<float> positive;
+  positive.reserve(intensity.size());
   for (float v : intensity) {
-    if (std::isfinite(v) && v > 0.0f) db.push_back(10.0f * std::log10(v));
+    if (std::isfinite(v) && v > 0.0f) positive.push_back(v);
   }
   DbStretch s;
-  if (!db.empty()) {
-    s.low_db = Percentile(db, low_percentile);
-    s.high_db = Percentile(db, high_percentile);
+  if (!positive.empty()) {
+    // In float, as the dB values were computed pixel by pixel.
+    s.low_db = 10.0f * std::log10(static_cast<float>(Percentile(positive, low_percentile)));
+    s.high_db = 10.0f * std::log10(static_cast<float>(Percentile(positive, high_percentile)));
   }
   if (stretch != nullptr) *stretch = s;
-  if (db.empty()) return std::vector<uint8_t>(intensity.size(), 0);
+  if (positive.empty()) return std::vector<uint8_t>(intensity.size(), 0);
   return DbQuicklookWithStretch(intensity, s);
 }
 
