@@ -941,9 +941,9 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   stats.constraint_segments = static_cast<int64_t>(scene.boundary_segments.size());
 
   // Triangulation. A cell that no constraint touches lies inside one class
-  // region (every class and building boundary is a constraint): it is
-  // triangulated directly, two triangles along its shorter diagonal in M
-  // (the Delaunay choice). Only the cells that constraints touch go through
+  // region (every class and building boundary is a constraint): it is split
+  // directly into MeshFromGrid's two triangles (a DEM's own split; in a
+  // rectangular cell either diagonal is Delaunay). Only the cells that constraints touch go through
   // CGAL's constrained Delaunay triangulation, with their posts, the
   // constraints and the border between them and the other cells (also
   // constrained), so that both parts meet edge to edge. A constraint vertex
