@@ -77,12 +77,13 @@ struct GisScene {
 enum class TerrainTriangulation {
   // Cells that a constraint touches go through the constrained Delaunay
   // triangulation (CGAL); every other cell lies inside one class region and
-  // is split directly along its shorter diagonal in M (the Delaunay choice),
-  // the two parts meeting edge to edge. Time and memory grow with the
+  // is split directly into MeshFromGrid's two triangles, the two parts
+  // meeting edge to edge; the directly split terrain cells open the mesh as
+  // a terrain grid (GisScene::grid). Time and memory grow with the
   // constraints, not with the DEM.
   kConstrainedCellsOnly,
   // Every post goes through the CDT (the reference for tests: the same
-  // regions and areas, up to the diagonal CGAL picks in square cells).
+  // regions and areas, up to the diagonals CGAL picks); no terrain grid.
   kEveryPost,
 };
 
