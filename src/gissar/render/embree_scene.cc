@@ -76,22 +76,16 @@ size_t TerrainGridCells(const scene::TriangleMesh& mesh, const TerrainGrid& grid
   }
   const size_t cells = row_first[h - 1];
   if (cells == 0 || mesh.vertices.size() < w * h || mesh.triangles.size() < cells * 2) return 0;
-  const Eigen::Vector3f du = mesh.vertices[1] - mesh.vertices[0];
-  const Eigen::Vector3f dv = mesh.vertices[w] - mesh.vertices[0];
-  const bool up = du.cross(dv).z() > 0.0f;
+  const bool up = scene::GridColumnCrossRowUp(mesh.vertices.data(), grid.width);
   std::atomic<bool> same{true};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, h - 1, 64), [&](const tbb::blocked_range<size_t>& rows) {
     for (size_t r = rows.begin(); r < rows.end() && same.load(std::memory_order_relaxed); ++r) {
       size_t pair = row_first[r];
       for (size_t c = 0; c + 1 < w; ++c) {
         if (masked && grid.cells[r * (w - 1) + c] == 0) continue;
-        const int a = int(r * w + c), b = a + 1, d = a + int(w), e = d + 1;
         const size_t cell = pair++;
-        const Eigen::Vector3i& t0 = mesh.triangles[2 * cell];
-        const Eigen::Vector3i& t1 = mesh.triangles[2 * cell + 1];
-        const bool ok = up ? t0 == Eigen::Vector3i(a, b, d) && t1 == Eigen::Vector3i(b, e, d)
-                           : t0 == Eigen::Vector3i(a, d, b) && t1 == Eigen::Vector3i(b, d, e);
-        if (!ok) {
+        const auto expected = scene::GridCellTriangles(grid.width, int(c), int(r), up);
+        if (mesh.triangles[2 * cell] != expected[0] || mesh.triangles[2 * cell + 1] != expected[1]) {
           same = false;
           return;
         }

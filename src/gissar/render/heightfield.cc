@@ -7,6 +7,7 @@
 #include <atomic>
 #include <utility>
 
+#include "gissar/scene/triangle_mesh.h"
 #include "gissar/util/check.h"
 
 namespace gissar::render {
@@ -31,9 +32,7 @@ HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int he
     }
     rank_before_.back() = total;
   }
-  const Eigen::Vector3f du = posts[1] - posts[0];
-  const Eigen::Vector3f dv = posts[width] - posts[0];
-  column_cross_row_up_ = du.cross(dv).z() > 0.0f;
+  column_cross_row_up_ = scene::GridColumnCrossRowUp(posts, width);
   const int cells_x = width - 1, cells_y = height - 1;
   levels_.resize(kTileLevel);
   for (int k = 1; k <= kTileLevel; ++k) {
@@ -158,17 +157,8 @@ void HeightfieldTree::TriangleCorners(uint32_t triangle, const Eigen::Vector3f* 
 
 void HeightfieldTree::CellCorners(uint32_t cell, int half, const Eigen::Vector3f* corners[3]) const {
   const int c = int(cell % uint32_t(width_ - 1)), r = int(cell / uint32_t(width_ - 1));
-  const Eigen::Vector3f* a = posts_ + size_t(r) * width_ + c;
-  const Eigen::Vector3f *b = a + 1, *d = a + width_, *e = d + 1;
-  if (half == 0) {
-    corners[0] = a;
-    corners[1] = column_cross_row_up_ ? b : d;
-    corners[2] = column_cross_row_up_ ? d : b;
-  } else {
-    corners[0] = b;
-    corners[1] = column_cross_row_up_ ? e : d;
-    corners[2] = column_cross_row_up_ ? d : e;
-  }
+  const Eigen::Vector3i triangle = scene::GridCellTriangles(width_, c, r, column_cross_row_up_)[size_t(half)];
+  for (int k = 0; k < 3; ++k) corners[k] = posts_ + triangle[k];
 }
 
 }  // namespace gissar::render

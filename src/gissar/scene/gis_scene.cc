@@ -1302,12 +1302,8 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   // indices: MeshFromGrid's, split from post (c + 1, r) to (c, r + 1) and
   // counter-clockwise in M (M is ENU-aligned: counter-clockwise seen from
   // above, normals up).
-  const bool mirrored = A.determinant() < 0.0;  // (col, row) turns clockwise in M
-  auto cell_triangles = [&](int c, int r, Eigen::Vector3i out[2]) {
-    const int a = r * W + c, b = a + 1, d = a + W, e = d + 1;
-    out[0] = mirrored ? Eigen::Vector3i(a, d, b) : Eigen::Vector3i(a, b, d);
-    out[1] = mirrored ? Eigen::Vector3i(b, d, e) : Eigen::Vector3i(b, e, d);
-  };
+  const bool column_cross_row_up = A.determinant() > 0.0;  // (col, row) turns counter-clockwise in M
+  auto cell_triangles = [&](int c, int r) { return GridCellTriangles(W, c, r, column_cross_row_up); };
   const double cell_triangle_area_m2 = 0.5 * std::abs(A.determinant());
 
   // Building groups: footprints that share a mesh edge and have the same
@@ -1400,9 +1396,7 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
         stats.region_area_m2[kClassSea] += 2.0 * cell_triangle_area_m2;
       }
       stats.mesh_area_m2[cls] += 2.0 * cell_triangle_area_m2;
-      Eigen::Vector3i tri[2];
-      cell_triangles(c, r, tri);
-      for (const Eigen::Vector3i& t : tri) {
+      for (const Eigen::Vector3i& t : cell_triangles(c, r)) {
         triangles.push_back(t);
         classes.push_back(cls);
       }
@@ -1520,11 +1514,9 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       const int32_t id = cell_region[cell_at(c, r)];
       if (id < 0 || regions[size_t(id)].building < 0) continue;
       const Region& region = regions[size_t(id)];
-      Eigen::Vector3i tri[2];
-      cell_triangles(c, r, tri);
       const int own = group[region.building];
       stats.mesh_area_m2[region.cls] += 2.0 * cell_triangle_area_m2;
-      for (const Eigen::Vector3i& t : tri) {
+      for (const Eigen::Vector3i& t : cell_triangles(c, r)) {
         triangles.emplace_back(roof_vertex(own, t[0]), roof_vertex(own, t[1]), roof_vertex(own, t[2]));
         classes.push_back(kClassBuilding);
       }

@@ -114,9 +114,7 @@ std::optional<std::vector<uint8_t>> GridPrefixCells(const TriangleMesh& mesh, co
       prefix.cells > (w - 1) * (h - 1)) {
     return std::nullopt;
   }
-  const Eigen::Vector3f du = mesh.vertices[1] - mesh.vertices[0];
-  const Eigen::Vector3f dv = mesh.vertices[size_t(w)] - mesh.vertices[0];
-  const bool up = du.cross(dv).z() > 0.0f;
+  const bool up = GridColumnCrossRowUp(mesh.vertices.data(), prefix.width);
   std::vector<uint8_t> cells(size_t((w - 1) * (h - 1)), 0);
   int64_t previous = -1;
   for (int64_t k = 0; k < prefix.cells; ++k) {
@@ -126,10 +124,8 @@ std::optional<std::vector<uint8_t>> GridPrefixCells(const TriangleMesh& mesh, co
     if (a < 0 || c + 1 >= w || r + 1 >= h) return std::nullopt;
     const int64_t cell = r * (w - 1) + c;
     if (cell <= previous) return std::nullopt;
-    const int b = int(a + 1), d = int(a + w), e = d + 1;
-    const bool ok = up ? t0 == Eigen::Vector3i(int(a), b, d) && t1 == Eigen::Vector3i(b, e, d)
-                       : t0 == Eigen::Vector3i(int(a), d, b) && t1 == Eigen::Vector3i(b, d, e);
-    if (!ok) return std::nullopt;
+    const auto expected = GridCellTriangles(prefix.width, int(c), int(r), up);
+    if (t0 != expected[0] || t1 != expected[1]) return std::nullopt;
     cells[size_t(cell)] = 1;
     previous = cell;
   }
@@ -145,25 +141,16 @@ TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts_taken, int width,
   GISSAR_CHECK(posts_taken.size() == size_t(width) * height);
   TriangleMesh mesh;
   mesh.vertices = std::move(posts_taken);
-  const std::vector<Eigen::Vector3f>& posts = mesh.vertices;
   mesh.triangles.resize(size_t(width - 1) * (height - 1) * 2);
-  // Orientation of the grid: does (next column) x (next row) point up?
-  const Eigen::Vector3f du = posts[1] - posts[0];
-  const Eigen::Vector3f dv = posts[width] - posts[0];
-  const bool column_cross_row_up = du.cross(dv).z() > 0.0f;
+  const bool column_cross_row_up = GridColumnCrossRowUp(mesh.vertices.data(), width);
   // Rows of cells in parallel; triangle 2k and 2k + 1 belong to cell k.
   tbb::parallel_for(tbb::blocked_range<int>(0, height - 1, 64), [&](const tbb::blocked_range<int>& rows) {
     for (int r = rows.begin(); r < rows.end(); ++r) {
       Eigen::Vector3i* out = mesh.triangles.data() + size_t(r) * (width - 1) * 2;
       for (int c = 0; c + 1 < width; ++c) {
-        const int a = r * width + c, b = a + 1, d = a + width, e = d + 1;
-        if (column_cross_row_up) {
-          *out++ = Eigen::Vector3i(a, b, d);
-          *out++ = Eigen::Vector3i(b, e, d);
-        } else {
-          *out++ = Eigen::Vector3i(a, d, b);
-          *out++ = Eigen::Vector3i(b, d, e);
-        }
+        const auto cell = GridCellTriangles(width, c, r, column_cross_row_up);
+        *out++ = cell[0];
+        *out++ = cell[1];
       }
     }
   });

@@ -2,6 +2,7 @@
 // local ENU frame (metres) with a radar class per triangle.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -61,9 +62,27 @@ struct TriangleMesh {
   size_t MemoryBytes() const;
 };
 
+// Whether (next column) x (next row) points up at the first post of a grid
+// `width` posts wide (row-major `posts`, at least 2 x 2): the orientation
+// MeshFromGrid's triangles follow.
+inline bool GridColumnCrossRowUp(const Eigen::Vector3f* posts, int width) {
+  return (posts[1] - posts[0]).cross(posts[size_t(width)] - posts[0]).z() > 0.0f;
+}
+
+// MeshFromGrid's two triangles of cell (c, r) of a grid `width` posts wide
+// (vertex r * width + c is post (c, r)): split from post (c + 1, r) to
+// (c, r + 1), counter-clockwise seen from above (`column_cross_row_up`:
+// GridColumnCrossRowUp). The first holds post (c, r), the second (c + 1, r + 1).
+inline std::array<Eigen::Vector3i, 2> GridCellTriangles(int width, int c, int r, bool column_cross_row_up) {
+  const int a = r * width + c, b = a + 1, d = a + width, e = d + 1;
+  if (column_cross_row_up) return {Eigen::Vector3i(a, b, d), Eigen::Vector3i(b, e, d)};
+  return {Eigen::Vector3i(a, d, b), Eigen::Vector3i(b, d, e)};
+}
+
 // Terrain mesh of a grid of posts (row-major, `width` x `height`, e.g. the
-// DEM posts in ENU): two triangles per cell, normals pointing up (+z), class
-// kDefaultClass. CHECKs that the grid has at least 2x2 posts.
+// DEM posts in ENU): two triangles per cell (GridCellTriangles), normals
+// pointing up (+z), class kDefaultClass. CHECKs that the grid has at least
+// 2x2 posts.
 TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height);
 // The same, taking the posts over (no copy of the vertex array).
 TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts, int width, int height);
