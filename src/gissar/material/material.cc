@@ -114,8 +114,8 @@ double TableSigma0(const std::vector<std::pair<double, double>>& table, double t
   return std::pow(10.0, db / 10.0);
 }
 
-constexpr double kTableStepDeg = 0.05;
-constexpr int kTableSamples = 1800;  // 90 deg / step
+constexpr double kTableStepDeg = Sigma0Table::kStepDeg;
+constexpr int kTableSamples = Sigma0Table::kSamples;
 
 }  // namespace
 
@@ -404,25 +404,6 @@ Sigma0Table::Sigma0Table(const Material& material, double wavelength_m, Polariza
     samples_[i] = i == kTableSamples ? 0.0f
                                      : static_cast<float>(material.Sigma0(std::cos(theta), wavelength_m, pol));
   }
-}
-
-double AcosOfUnitInterval(double x) {
-  // Abramowitz & Stegun 4.4.46: acos x = sqrt(1 - x) (a0 + a1 x + ... + a7 x^7)
-  // + e, |e| <= 2e-8, for 0 <= x <= 1.
-  constexpr double a[8] = {1.5707963050, -0.2145988016, 0.0889789874, -0.0501743046,
-                           0.0308918810, -0.0170881256, 0.0066700901, -0.0012624911};
-  x = std::clamp(x, 0.0, 1.0);
-  const double p = a[0] + x * (a[1] + x * (a[2] + x * (a[3] + x * (a[4] + x * (a[5] + x * (a[6] + x * a[7]))))));
-  return std::sqrt(1.0 - x) * p;
-}
-
-double Sigma0Table::operator()(double cos_incidence) const {
-  if (cos_incidence <= 0.0 || samples_.empty()) return 0.0;
-  // The angle to 2e-8 rad, 40000 times finer than the table's step.
-  const double x = AcosOfUnitInterval(cos_incidence) / (kTableStepDeg * kDeg);
-  const int i = std::min(kTableSamples - 1, static_cast<int>(x));
-  const double f = x - i;
-  return samples_[i] + f * (samples_[i + 1] - samples_[i]);
 }
 
 MaterialTable::MaterialTable() : materials_(1, DefaultMaterial(scene::kClassDefault)) {}

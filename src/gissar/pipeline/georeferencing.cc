@@ -26,8 +26,11 @@ double GridMaxGradient(const std::vector<Eigen::Vector3f>& posts, int width, int
         auto offer = [&best2](float ux, float uy, float uz, float vx, float vy, float vz) {
           const float nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
           const float h2 = nx * nx + ny * ny;
-          // A vertical facet (nz = 0) makes the bound infinite.
-          best2 = std::max(best2, nz != 0.0f ? h2 / (nz * nz) : std::numeric_limits<float>::infinity());
+          // A vertical facet (nz = 0) makes the bound infinite. (The
+          // division only when the ratio may beat the best so far.)
+          if (h2 > best2 * (nz * nz)) {
+            best2 = std::max(best2, nz != 0.0f ? h2 / (nz * nz) : std::numeric_limits<float>::infinity());
+          }
         };
         for (int r = rows.begin(); r < rows.end(); ++r) {
           const Eigen::Vector3f* row = posts.data() + size_t(r) * width;
@@ -95,7 +98,7 @@ TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.
   const bool plain_grid = cells > 0 && all_finite && vertices_.size() == size_t(terrain.grid_width) * terrain.grid_height &&
                           (terrain.mesh.triangles.empty() || terrain.mesh.triangles.size() == 2 * cells);
   if (plain_grid) {
-    grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height);
+    grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height, bounds.z_max);
     limits_.max_gradient = GridMaxGradient(vertices_, terrain.grid_width, terrain.grid_height);
     return;
   }

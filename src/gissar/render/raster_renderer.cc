@@ -740,13 +740,18 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
   return image;
 }
 
-GridHeightfield::GridHeightfield(const std::vector<Eigen::Vector3f>& posts, int width, int height)
+GridHeightfield::GridHeightfield(const std::vector<Eigen::Vector3f>& posts, int width, int height,
+                                 std::optional<double> top_z)
     : posts_(posts.data()), width_(width), height_(height) {
   GISSAR_CHECK(width >= 2 && height >= 2);
   GISSAR_CHECK(posts.size() == size_t(width) * height);
-  top_z_ = -std::numeric_limits<double>::infinity();
-  for (const Eigen::Vector3f& p : posts) {
-    if (std::isfinite(p.z())) top_z_ = std::max(top_z_, double(p.z()));
+  if (top_z) {
+    top_z_ = *top_z;
+  } else {
+    top_z_ = -std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3f& p : posts) {
+      if (std::isfinite(p.z())) top_z_ = std::max(top_z_, double(p.z()));
+    }
   }
   // A quarter of the smallest horizontal post spacing at the corners and
   // the centre.

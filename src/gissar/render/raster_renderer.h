@@ -88,8 +88,10 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
 class GridHeightfield {
  public:
   // CHECKs at least 2 x 2 posts and posts.size() == width * height. Keeps a
-  // pointer to `posts`, which must outlive it.
-  GridHeightfield(const std::vector<Eigen::Vector3f>& posts, int width, int height);
+  // pointer to `posts`, which must outlive it. `top_z`: the highest finite
+  // post height when the caller knows it (else found here).
+  GridHeightfield(const std::vector<Eigen::Vector3f>& posts, int width, int height,
+                  std::optional<double> top_z = std::nullopt);
   // Height of the surface at ENU (x, y): the grid triangle whose plan
   // contains it; nullopt outside the grid.
   std::optional<double> SurfaceHeight(double x, double y) const;

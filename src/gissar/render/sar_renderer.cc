@@ -1,5 +1,6 @@
 #include "gissar/render/sar_renderer.h"
 
+#include "gissar/render/profile_sweep.h"
 #include "gissar/render/splat.h"
 
 #include <tbb/blocked_range.h>
@@ -247,10 +248,79 @@ constexpr int kMaxSubRays = 64;
 constexpr uint8_t kLitBit = 8;
 constexpr uint8_t kCoveredBit = 16;
 
+// A point of a profile is hidden when the horizon before it is higher than
+// this (metres along n): the rounding of the double-precision profile.
+constexpr double kProfileShadowToleranceM = 1e-6;
+
 // Small offset along a ray that clears float rounding of scene coordinates.
 float RayEpsilon(const Eigen::AlignedBox3d& box) {
   const double extent = std::max(box.max().cwiseAbs().maxCoeff(), box.min().cwiseAbs().maxCoeff());
   return static_cast<float>(std::max(0.01, 4e-7 * extent));
+}
+
+// The profile sweep over `embree`'s terrain grid when it applies: a whole
+// grid's height field and nothing else (GridProfileSweep's conditions).
+std::optional<GridProfileSweep> ProfileSweepOf(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                                               const sensor::SarGeometry& geometry) {
+  if (!embree.HeightfieldOnly()) return std::nullopt;
+  const int gw = embree.heightfield_grid_width(), gh = embree.heightfield_grid_height();
+  if (gw < 2 || embree.heightfield_cells() != int64_t(gw - 1) * (gh - 1) || mesh.vertices.size() < size_t(gw) * gh) {
+    return std::nullopt;
+  }
+  return GridProfileSweep(mesh.vertices.data(), gw, gh, geometry);
+}
+
+// RenderLayoverShadowMask's flags (mask codes, kLitBit, kCoveredBit) of a
+// whole terrain grid in affine mode from one profile per image row: the
+// centres of row r lie on the azimuth line through it, a centre is covered
+// by every profile segment whose slant-range span holds it (layover: more
+// than one), and a point of a segment is hidden exactly when the horizon
+// before it (the highest e of the profile nearer the radar) is above it:
+// the visibility ray towards the radar runs in that plane at constant e.
+// False (nothing written) when the sweep does not apply.
+bool MaskByProfileSweep(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                        const sensor::SarGeometry& geometry, std::vector<uint8_t>* flags) {
+  if (geometry.mode() != sensor::ProjectionMode::kAffine) return false;
+  const std::optional<GridProfileSweep> sweep = ProfileSweepOf(embree, mesh, geometry);
+  if (!sweep) return false;
+  const int width = geometry.width(), height = geometry.height();
+  const Vector3d to_radar = -geometry.look_direction();
+  const Vector3d n_up = geometry.UpwardRangePlaneNormal(geometry.scene_centre());
+  const double inv_dr = 1.0 / geometry.range_spacing_m(), u0 = geometry.u0();
+  flags->assign(size_t(width) * height, 0);
+  std::atomic<bool> failed{false};
+  tbb::parallel_for(tbb::blocked_range<int>(0, height, 8), [&](const tbb::blocked_range<int>& rows) {
+    std::vector<GridProfileSweep::ProfileSegment> segments;
+    for (int r = rows.begin(); r != rows.end() && !failed.load(std::memory_order_relaxed); ++r) {
+      if (!sweep->Profile((r - geometry.v0()) * geometry.azimuth_spacing_m(), &segments)) {
+        failed = true;
+        return;
+      }
+      uint8_t* row = flags->data() + size_t(r) * width;
+      for (const GridProfileSweep::ProfileSegment& s : segments) {
+        const double col0 = s.from.xl * inv_dr + u0, col1 = s.to.xl * inv_dr + u0;
+        if (col0 == col1) continue;  // seen edge-on: covers no centre
+        const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min(col0, col1))));
+        const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max(col0, col1))));
+        if (c_lo > c_hi) continue;
+        const Vector3d normal = sweep->Normal(s.facet).cast<double>();
+        if (normal.isZero()) continue;
+        const bool turned_away = normal.dot(to_radar) <= kMaskEdgeOnCos;
+        const uint8_t lit_code = kLitBit | (normal.dot(n_up) < 0.0 ? kMaskLayover : kMaskNone);
+        const double inv = 1.0 / (col1 - col0);
+        const double up_from = sweep->Elevation(s.from), up_to = sweep->Elevation(s.to);
+        for (int c = c_lo; c <= c_hi; ++c) {
+          const double up = up_from + (c - col0) * inv * (up_to - up_from);
+          // Hidden when the horizon before the point is above it (ties
+          // within rounding: lit, as the tracer's ray ignores its own
+          // surface).
+          const bool shadow = turned_away || s.horizon > up + kProfileShadowToleranceM;
+          row[c] |= kCoveredBit | (shadow ? kMaskShadow : lit_code);
+        }
+      }
+    }
+  });
+  return !failed.load();
 }
 
 }  // namespace
@@ -269,8 +339,28 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
                                              int64_t* shadow_rays, std::vector<uint8_t>* lit,
-                                             std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box) {
+                                             std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box,
+                                             bool profile_sweep) {
   const int width = geometry.width(), height = geometry.height();
+  auto unpack = [&](auto&& flag_at, size_t size) {
+    std::vector<uint8_t> mask(size);
+    if (lit != nullptr) lit->assign(size, 0);
+    if (covered != nullptr) covered->assign(size, 0);
+    for (size_t i = 0; i < size; ++i) {
+      const uint8_t f = flag_at(i);
+      mask[i] = f & (kMaskLayover | kMaskShadow);
+      if (lit != nullptr) (*lit)[i] = (f & kLitBit) != 0;
+      if (covered != nullptr) (*covered)[i] = (f & kCoveredBit) != 0;
+    }
+    return mask;
+  };
+  if (profile_sweep) {
+    std::vector<uint8_t> flags;
+    if (MaskByProfileSweep(embree, mesh, geometry, &flags)) {
+      if (shadow_rays != nullptr) *shadow_rays = 0;
+      return unpack([&](size_t i) { return flags[i]; }, flags.size());
+    }
+  }
   std::vector<std::atomic<uint8_t>> flags(size_t(width) * height);
   for (auto& f : flags) f.store(0, std::memory_order_relaxed);
   const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
@@ -436,16 +526,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
     finish(task);
   });
   if (shadow_rays != nullptr) *shadow_rays = rays.load();
-  std::vector<uint8_t> mask(flags.size());
-  if (lit != nullptr) lit->assign(flags.size(), 0);
-  if (covered != nullptr) covered->assign(flags.size(), 0);
-  for (size_t i = 0; i < flags.size(); ++i) {
-    const uint8_t f = flags[i].load(std::memory_order_relaxed);
-    mask[i] = f & (kMaskLayover | kMaskShadow);
-    if (lit != nullptr) (*lit)[i] = (f & kLitBit) != 0;
-    if (covered != nullptr) (*covered)[i] = (f & kCoveredBit) != 0;
-  }
-  return mask;
+  return unpack([&](size_t i) { return flags[i].load(std::memory_order_relaxed); }, flags.size());
 }
 
 SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
@@ -479,6 +560,11 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   // before tnear). The hits, and the image, are the same bit for bit.
   const Vector3d ground_look = Vector3d(l.x(), l.y(), 0.0).normalized();
   const bool skip_to_previous_hit = options.skip_to_previous_hit && embree.HeightfieldOnly() && n.z() > 0.0;
+  // Over a whole terrain grid and nothing else, the primary hits of each
+  // azimuth line come from one walk along its profile (GridProfileSweep)
+  // instead of a ray traversal each.
+  const std::optional<GridProfileSweep> sweep =
+      options.profile_sweep ? ProfileSweepOf(embree, mesh, geometry) : std::nullopt;
   auto sigma0_of = [&](scene::ClassId id, double cos_in) {
     return sigma0_tables[id < sigma0_tables.size() ? id : 0](cos_in);
   };
@@ -540,6 +626,10 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       alignas(64) int valid[16];  // Embree: the valid mask of rtcIntersect16 is 64-byte aligned
       std::vector<Vector3d> line_sensor;
       std::vector<double> line_previous_hit;
+      std::vector<uint8_t> line_swept;
+      std::vector<double> line_depth;
+      std::vector<uint32_t> line_triangle;
+      std::vector<Vector3f> line_normal;
       Vector3d lane_origin[16], lane_dir[16];
       Vector3f lane_normal[16];
       scene::ClassId lane_class[16];
@@ -556,6 +646,18 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       // of its previous packet's highest ray when it met the terrain from
       // above; -inf: none (see skip_to_previous_hit).
       line_previous_hit.assign(size_t(lines), -std::numeric_limits<double>::infinity());
+      // The lines' primary hits by profile sweep, where it applies.
+      if (sweep) {
+        line_swept.resize(size_t(lines));
+        line_depth.resize(size_t(lines) * grid.n_el);
+        line_triangle.resize(size_t(lines) * grid.n_el);
+        line_normal.resize(size_t(lines) * grid.n_el);
+        for (int i = i0; i < i1; ++i) {
+          const size_t at = size_t(i - i0) * grid.n_el;
+          line_swept[size_t(i - i0)] = sweep->Trace(grid.a0 + i * grid.da, grid.e0, grid.de, grid.n_el,
+                                                    &line_depth[at], &line_triangle[at], &line_normal[at]);
+        }
+      }
       for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
         for (int i = i0; i < i1; ++i) {
           const double a = grid.a0 + i * grid.da;
@@ -586,17 +688,32 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             any = true;
           }
           if (!any) continue;
-          embree.Intersect16(valid, packet, /*coherent=*/true);
+          if (sweep && line_swept[size_t(i - i0)]) {
+            const size_t at = size_t(i - i0) * grid.n_el + size_t(j0);
+            for (int k = 0; k < 16; ++k) {
+              if (valid[k] == 0) continue;
+              packet.triangle[k] = line_triangle[at + size_t(k)];
+              // Distance from the ray's origin: affine depths are along l
+              // from the scene centre, exact ones from the sensor.
+              const double depth = line_depth[at + size_t(k)];
+              packet.tfar[k] = static_cast<float>(affine ? depth + grid.back_off_m : depth - lane_travelled[k]);
+            }
+          } else {
+            embree.Intersect16(valid, packet, /*coherent=*/true);
+          }
           // The hit triangles' normals and classes for all lanes first,
           // prefetched in two waves (triangles, then their vertices): the
           // mesh is large and the lanes' triangles lie in different DEM
           // rows, so their cache misses overlap instead of queueing.
+          // (A swept line's triangles are grid cells: their normals come
+          // from the posts the sweep has just read, not through the mesh.)
+          const bool swept = sweep && line_swept[size_t(i - i0)];
           for (int k = 0; k < 16; ++k) {
             if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-            __builtin_prefetch(&mesh.triangles[packet.triangle[k]]);
+            if (!swept) __builtin_prefetch(&mesh.triangles[packet.triangle[k]]);
             __builtin_prefetch(&mesh.classes[packet.triangle[k]]);
           }
-          for (int k = 0; k < 16; ++k) {
+          for (int k = 0; k < 16 && !swept; ++k) {
             if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
             for (int corner = 0; corner < 3; ++corner) {
               __builtin_prefetch(&mesh.vertices[mesh.triangles[packet.triangle[k]][corner]]);
@@ -604,7 +721,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
           }
           for (int k = 0; k < 16; ++k) {
             if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-            lane_normal[k] = mesh.Normal(packet.triangle[k]);
+            lane_normal[k] = swept ? line_normal[size_t(i - i0) * grid.n_el + size_t(j0 + k)]
+                                   : mesh.Normal(packet.triangle[k]);
             lane_class[k] = mesh.classes[packet.triangle[k]];
           }
           if (skip_to_previous_hit) {
@@ -889,7 +1007,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m);
   std::vector<uint8_t> lit;
   image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit, &image.footprint,
-                                       options.ray_box ? &*options.ray_box : nullptr);
+                                       options.ray_box ? &*options.ray_box : nullptr, options.profile_sweep);
   for (size_t q = 0; q < lit.size(); ++q) {
     if (!lit[q]) continue;
     ++image.stats.footprint_pixels;

@@ -90,6 +90,12 @@ struct RenderOptions {
   // radar up an azimuth line): the same hits, fewer tiles visited. False
   // traces every primary ray from its origin (for comparison).
   bool skip_to_previous_hit = true;
+  // Over a scene that is a whole terrain grid's height field and nothing
+  // else, the primary rays' first hits come from one walk per azimuth line
+  // along the terrain's profile (GridProfileSweep) instead of a traversal
+  // per ray: the same hits to float rounding. False traces every primary ray.
+  // The mask does the same (RenderLayoverShadowMask's profile_sweep).
+  bool profile_sweep = true;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;
@@ -230,13 +236,19 @@ std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const s
 // Only the layover/shadow mask (see RenderSar). `lit` (optional): 1 where a
 // lit surface (facing the radar, not occluded) covers the pixel centre.
 // `covered` (optional): 1 where any surface not seen exactly edge-on covers
-// the pixel centre (SarImage::footprint).
+// the pixel centre (SarImage::footprint). `profile_sweep`: over a whole
+// terrain grid's height field and nothing else, in affine mode, each image
+// row's centres are read off the terrain profile of their azimuth line
+// (GridProfileSweep: the horizon before a point decides its shadow exactly;
+// *shadow_rays is then 0); otherwise, and when false, one visibility ray
+// per covered centre.
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
                                              int64_t* shadow_rays = nullptr,
                                              std::vector<uint8_t>* lit = nullptr,
                                              std::vector<uint8_t>* covered = nullptr,
-                                             const Eigen::AlignedBox3d* ray_box = nullptr);
+                                             const Eigen::AlignedBox3d* ray_box = nullptr,
+                                             bool profile_sweep = true);
 
 }  // namespace gissar::render

@@ -1,5 +1,6 @@
 #include "gissar/render/sar_renderer.h"
 #include "gissar/render/embree_scene.h"
+#include "gissar/render/image_agreement.h"
 
 #include <gtest/gtest.h>
 
@@ -329,6 +330,7 @@ TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
       const auto g = sensor::SarGeometry::Covering(o, Vector3d::Zero(), mesh.vertices);
       RenderOptions options = Quiet(4.0);
       options.max_bounces = 3;
+      options.profile_sweep = false;  // every primary ray traced
       const SarImage skipping = RenderSar(heightfield, mesh, UnitLambert(), g, options);
       options.skip_to_previous_hit = false;
       const SarImage plain = RenderSar(heightfield, mesh, UnitLambert(), g, options);
@@ -352,6 +354,130 @@ TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
   EXPECT_GT(layover, 500);
   mesh.AddQuad(Vector3f(0, 0, 0), Vector3f(20, 0, 0), Vector3f(20, 0, 300), Vector3f(0, 0, 300));
   EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{kPosts, kPosts}).HeightfieldOnly());
+}
+
+// A ridge H = 50 m high across flat ground, 10 m posts, seen at depression
+// 40 deg across it, as a whole grid's height field (the mask read off each
+// row's profile) and as an ordinary mesh (a visibility ray per centre). The
+// front slope (78.7 deg) lays over the ground 10-41.9 m before the ridge
+// (slant ranges of both slopes: -32.1 to -7.7 m and -32.1 to 7.7 m), the
+// back slope is turned away, and the ridge's shadow on the ground behind it ends at x = H / tan(40 deg) =
+// 59.6 m: a ground centre at x is lit beyond it and in shadow before it.
+TEST(SarRendererTest, RidgeShadowEndsAtTheClosedFormDistanceInBothMasks) {
+  constexpr int kCols = 61, kRows = 41;
+  constexpr double kH = 50.0, kDep = 40.0;
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kRows; ++r) {
+    for (int c = 0; c < kCols; ++c) {
+      const double x = 10.0 * (c - 30);
+      posts.emplace_back(float(x), float(10.0 * (r - 20)), float(std::max(0.0, kH - 5.0 * std::abs(x))));
+    }
+  }
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kCols, kRows);
+  // Flight north, looking east (+x): azimuth lines run along the rows.
+  const auto g = sensor::SarGeometry::Covering(Options(0.0, kDep, 2.0), Vector3d::Zero(), mesh.vertices);
+  ASSERT_NEAR(g.look_direction().x(), std::cos(kDep * kDeg), 1e-12);
+  const double shadow_end_x = kH / std::tan(kDep * kDeg);
+  for (const bool sweep : {true, false}) {
+    const EmbreeScene embree(mesh, TerrainGrid{kCols, kRows});
+    int64_t rays = -1;
+    const std::vector<uint8_t> mask = RenderLayoverShadowMask(embree, mesh, g, &rays, nullptr, nullptr, nullptr, sweep);
+    EXPECT_EQ(rays == 0, sweep);
+    int64_t checked = 0;
+    for (int r = 0; r < g.height(); ++r) {
+      const double y = (r - g.v0()) * g.azimuth_spacing_m();
+      if (std::abs(y) > 190.0) continue;  // lines near the grid's sides
+      for (int c = 0; c < g.width(); ++c) {
+        // The flat-ground point of this centre: xl = x cos(dep) at z = 0.
+        const double xl = (c - g.u0()) * g.range_spacing_m();
+        const double x = xl / std::cos(kDep * kDeg) + g.scene_centre().dot(Vector3d(1, 0, 0));
+        if (x < -280.0 || x > 280.0) continue;
+        // Slant ranges of the slopes: front [-32.1, -7.7] m, back [-32.1, 7.7] m.
+        const double margin = 3.0;  // metres of ground, clear of the edges
+        uint8_t expected;
+        if (x > 10.0 + margin && x < shadow_end_x - margin) {
+          expected = kMaskShadow;
+        } else if (x > -41.9 + margin && x < -10.0 - margin) {
+          // Ground lit, the front slope lit and flipped, the back slope
+          // turned away: all three at these slant ranges.
+          expected = kMaskLayover | kMaskShadow;
+        } else if (x > shadow_end_x + margin || x < -41.9 - margin) {
+          expected = kMaskNone;
+        } else {
+          continue;
+        }
+        ASSERT_EQ(mask[size_t(r) * g.width() + c], expected) << "sweep " << sweep << " x " << x << " y " << y;
+        ++checked;
+      }
+    }
+    EXPECT_GT(checked, 10000);
+  }
+}
+
+// Over a whole grid's height field the primary hits come from one profile
+// walk per azimuth line and the affine mask from one profile per image row
+// (RenderOptions::profile_sweep). On the steep terrain above, warped in plan
+// as a geographic DEM is in ENU, with three bounces, both modes and both
+// look sides: the image is the traced one to float rounding and the masks
+// agree but for pixel centres at a shadow or layover edge.
+TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
+  constexpr int kPosts = 90;
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kPosts; ++r) {
+    for (int c = 0; c < kPosts; ++c) {
+      const double z = 120.0 * std::sin(0.23 * c) * std::cos(0.19 * r) + 60.0 * std::sin(0.61 * c + 0.37 * r) +
+                       7.0 * ((c * 5 + r * 3) % 4);
+      posts.emplace_back(float(10.0 * (c - 45) + 0.7 * (r - 45) + 0.01 * (r - 45) * (r - 45)),
+                         float(9.0 * (r - 45) - 0.4 * (c - 45)), float(z));
+    }
+  }
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  ASSERT_TRUE(heightfield.HeightfieldOnly());
+  int64_t shadow = 0, layover = 0, differing = 0, flagged = 0;
+  for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    for (const auto side : {sensor::LookSide::kRight, sensor::LookSide::kLeft}) {
+      for (double heading : {0.0, 30.0, 160.0}) {
+        sensor::SarGeometryOptions o = Options(heading, 40.0, 5.0);
+        o.mode = mode;
+        o.look_side = side;
+        o.slant_range_m = 5000.0;
+        const auto g = sensor::SarGeometry::Covering(o, Vector3d::Zero(), mesh.vertices);
+        RenderOptions options = Quiet(4.0);
+        options.max_bounces = 3;
+        const SarImage swept = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+        options.profile_sweep = false;
+        const SarImage traced = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+        const IntensityAgreement image = CompareIntensities(traced.intensity, swept.intensity);
+        EXPECT_GT(image.db_pearson, 0.99999) << heading;
+        EXPECT_LT(std::abs(image.mean_db_difference), 1e-3) << heading;
+        EXPECT_LE(image.one_sided_zero, image.compared_pixels / 5000) << heading;
+        EXPECT_NEAR(double(swept.stats.hits), double(traced.stats.hits), 1e-4 * double(traced.stats.hits));
+        const MaskAgreement masks = CompareMasks(traced.mask, swept.mask, g.width(), g.height());
+        // A centre at the bottom of a shadowed valley (on the edge between a
+        // slope turned away and a flipped one) is lit for the tracer when
+        // the occluding slope is within its visibility ray's t_near (a few
+        // centimetres): at most one such pixel per image.
+        EXPECT_LE(masks.away_from_edges, 1) << heading;
+        EXPECT_LE(masks.differing, std::max<int64_t>(2, masks.flagged / 500)) << heading;
+        EXPECT_EQ(swept.footprint, traced.footprint) << heading;
+        if (mode == sensor::ProjectionMode::kAffine) {
+          EXPECT_EQ(swept.stats.shadow_rays, 0);
+        } else {
+          EXPECT_GT(swept.stats.shadow_rays, 0);  // exact mode: the mask's rays
+        }
+        differing += masks.differing;
+        flagged += masks.flagged;
+        for (uint8_t m : swept.mask) {
+          shadow += m == kMaskShadow;
+          layover += m == kMaskLayover;
+        }
+      }
+    }
+  }
+  EXPECT_GT(shadow, 2000);  // the terrain does cast shadows and lay over
+  EXPECT_GT(layover, 2000);
+  std::printf("mask pixels flagged %lld, differing %lld\n", (long long)flagged, (long long)differing);
 }
 
 }  // namespace

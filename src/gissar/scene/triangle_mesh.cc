@@ -10,10 +10,7 @@ namespace gissar::scene {
 
 Eigen::Vector3f TriangleMesh::Normal(size_t t) const {
   const Eigen::Vector3i& tri = triangles[t];
-  const Eigen::Vector3f n =
-      (vertices[tri[1]] - vertices[tri[0]]).cross(vertices[tri[2]] - vertices[tri[0]]);
-  const float norm = n.norm();
-  return norm > 0.0f ? Eigen::Vector3f(n / norm) : Eigen::Vector3f::Zero();
+  return TriangleNormal(vertices[tri[0]], vertices[tri[1]], vertices[tri[2]]);
 }
 
 Eigen::Vector3f TriangleMesh::ShadingNormal(size_t t, float u, float v) const {

@@ -69,6 +69,14 @@ inline bool GridColumnCrossRowUp(const Eigen::Vector3f* posts, int width) {
   return (posts[1] - posts[0]).cross(posts[size_t(width)] - posts[0]).z() > 0.0f;
 }
 
+// Unit normal of the triangle (v0, v1, v2), counter-clockwise seen from
+// where it points; zero for a degenerate triangle (TriangleMesh::Normal).
+inline Eigen::Vector3f TriangleNormal(const Eigen::Vector3f& v0, const Eigen::Vector3f& v1, const Eigen::Vector3f& v2) {
+  const Eigen::Vector3f n = (v1 - v0).cross(v2 - v0);
+  const float norm = n.norm();
+  return norm > 0.0f ? Eigen::Vector3f(n / norm) : Eigen::Vector3f::Zero();
+}
+
 // MeshFromGrid's two triangles of cell (c, r) of a grid `width` posts wide
 // (vertex r * width + c is post (c, r)): split from post (c + 1, r) to
 // (c, r + 1), counter-clockwise seen from above (`column_cross_row_up`:
