@@ -1307,6 +1307,8 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                          {"shadow_rays", image.stats.shadow_rays},
                          {"dem_cells", image.stats.cells},
                          {"heightfield_cells", image.stats.heightfield_cells},
+                         {"profile_swept_lines", image.stats.profile_swept_lines},
+                         {"profile_swept_mask_rows", image.stats.profile_swept_mask_rows},
                          {"mask_pixels",
                           MaskPixelCounts(image.mask)}};
   provenance["radiometry"] = {

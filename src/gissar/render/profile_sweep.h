@@ -16,13 +16,17 @@
 // every ray's hit: no traversal per ray, no acceleration structure.
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
+#include "gissar/util/check.h"
 
 namespace gissar::render {
 
@@ -75,6 +79,19 @@ class GridProfileSweep {
   struct ProfilePoint {
     double xl, e, g;
   };
+  // The rays of one azimuth line and where their hits go (Trace's arguments).
+  struct LineRays {
+    double a_m, e0, de;
+    int count;
+    double* depth_m;
+    uint32_t* triangle;
+    Eigen::Vector3f* normal;  // may be null
+  };
+  // Trace for several lines, walked in lockstep (a stretch of each in turn:
+  // neighbouring lines cross the same posts, which the next line then finds
+  // in cache); ok[k]: Trace's result for lines[k].
+  void TraceLines(const std::vector<LineRays>& lines, uint8_t* ok) const;
+
   // The part of the profile inside one triangle, and the horizon before it:
   // the highest Elevation of the profile from its near end to `from`. A
   // point of the segment with an Elevation below the horizon is hidden from
@@ -87,6 +104,11 @@ class GridProfileSweep {
   // The profile of the line at `a_m` (as Trace), segments in order away
   // from the radar; empty when the line misses the grid. False as Trace.
   bool Profile(double a_m, std::vector<ProfileSegment>* segments) const;
+  // The profiles of `lines` lines at a_m[k], walked in lockstep: calls
+  // segment(k, ProfileSegment) for line k's segments in order; ok[k]: as
+  // Profile's result (when false, line k's calls so far are void).
+  template <class Segment>
+  void ProfileLines(const double* a_m, size_t lines, uint8_t* ok, Segment&& segment) const;
   // The coordinate the rays of a line are ordered by: affine e (metres along
   // n), exact tan of the angle from l seen from the sensor.
   double Coordinate(const ProfilePoint& p) const { return affine_ ? p.e : p.e / (range0_ + p.xl); }
@@ -94,11 +116,6 @@ class GridProfileSweep {
   double Elevation(const ProfilePoint& p) const { return up_sign_ * Coordinate(p); }
 
  private:
-  // Walks the line's profile from its near end, calling
-  // segment(from, to, triangle) for each triangle crossed, until it returns
-  // false. False when the line does not cross the grid in one piece.
-  template <class Segment>
-  bool Walk(double a_m, Segment&& segment) const;
   // A grid edge on the boundary: triangle (c, r, half) and its edge index.
   struct BoundaryEdge {
     int c, r, half, edge;
@@ -115,6 +132,65 @@ class GridProfileSweep {
             x * n_.x() + y * n_.y() + z * n_.z(), x * ground_.x() + y * ground_.y()};
   }
   double AlongTrack(int64_t post) const { return Values(post).a; }
+  // A walk along one line's profile from its near end, resumable.
+  class LineWalk {
+   public:
+    enum class State { kMissed, kRefused, kWalking, kDone };
+    // Finds the line's entry: kMissed when it misses the grid, kRefused when
+    // the grid's boundary crosses it other than twice.
+    LineWalk(const GridProfileSweep& sweep, double a_m);
+    State state() const { return state_; }
+    // Crosses at most `steps` more triangles, calling
+    // segment(from, to, facet) for each, until that returns false or the
+    // line leaves the grid (kDone).
+    template <class Segment>
+    void Advance(int steps, Segment&& segment);
+
+   private:
+    ProfilePoint Crossing(const PostValues& p, const PostValues& q) const {
+      const double lambda = (a_m_ - p.a) / (q.a - p.a);
+      return ProfilePoint{p.xl + lambda * (q.xl - p.xl), p.e + lambda * (q.e - p.e), p.g + lambda * (q.g - p.g)};
+    }
+    const GridProfileSweep* sweep_;
+    double a_m_;
+    State state_ = State::kMissed;
+    int c_ = 0, r_ = 0, half_ = 0, in_edge_ = 0;
+    // The entry edge's two posts and their values, carried from triangle to
+    // triangle: each step computes only the new corner's.
+    std::array<int64_t, 2> in_post_{};
+    std::array<PostValues, 2> in_value_{};
+    ProfilePoint from_{};
+    int64_t steps_left_ = 0;  // a bound that no walk reaches
+  };
+  // Walks `walks` in lockstep, kLockstepSteps triangles of each in turn,
+  // calling segment(k, from, to, facet) for walk k until all are done.
+  template <class Segment>
+  void Lockstep(std::vector<LineWalk>& walks, Segment&& segment) const;
+  static constexpr int kLockstepSteps = 64;
+
+  // The walk's triangles: cell (c, r), half 0 with corners (a, b, d) and
+  // half 1 with corners (b, e, d), where a = (c, r), b = (c + 1, r),
+  // d = (c, r + 1), e = (c + 1, r + 1) (scene::GridCellTriangles'
+  // triangles, corners in this fixed order whatever their winding). Edge k
+  // joins corners k and k + 1. Across edge k of half h lies the triangle
+  // (c + dc, r + dr, half), entered through its edge `edge`.
+  struct Across {
+    int dc, dr, half, edge;
+  };
+  static constexpr Across kAcross[2][3] = {
+      {{0, -1, 1, 1}, {0, 0, 1, 2}, {-1, 0, 1, 0}},  // half 0: a-b (row r), b-d (diagonal), d-a (column c)
+      {{1, 0, 0, 2}, {0, 1, 0, 0}, {0, 0, 0, 1}},    // half 1: b-e (column c + 1), e-d (row r + 1), d-b
+  };
+  std::array<int64_t, 3> Corners(int c, int r, int half) const {
+    const int64_t a = int64_t(r) * width_ + c;
+    return half == 0 ? std::array<int64_t, 3>{a, a + 1, a + width_}
+                     : std::array<int64_t, 3>{a + 1, a + width_ + 1, a + width_};
+  }
+  // Whether the line a = A crosses the edge between posts with along-track
+  // coordinates a_p and a_q: the rule (a_p < A) != (a_q < A) counts every
+  // crossing once, whichever triangle asks (exactly 0 or 2 edges of a
+  // triangle cross).
+  static bool Crosses(double a_p, double a_q, double A) { return (a_p < A) != (a_q < A); }
   const Eigen::Vector3f* posts_;
   int width_, height_;
   bool affine_;
@@ -128,5 +204,75 @@ class GridProfileSweep {
   std::vector<BoundaryEdge> edges_;
   std::vector<uint32_t> bucket_start_, bucket_edges_;
 };
+
+template <class Segment>
+void GridProfileSweep::LineWalk::Advance(int steps, Segment&& segment) {
+  const GridProfileSweep& s = *sweep_;
+  for (int k = 0; k < steps && state_ == State::kWalking; ++k) {
+    GISSAR_CHECK(--steps_left_ >= 0);
+    const auto corners = s.Corners(c_, r_, half_);
+    // Entry edge: corners in_edge (A) and in_edge + 1 (B); the others B-C, C-A.
+    const int64_t A = corners[size_t(in_edge_)], B = corners[size_t((in_edge_ + 1) % 3)],
+                  C = corners[size_t((in_edge_ + 2) % 3)];
+    const bool same_order = in_post_[0] == A;
+    const PostValues vA = same_order ? in_value_[0] : in_value_[1];
+    const PostValues vB = same_order ? in_value_[1] : in_value_[0];
+    const PostValues vC = s.Values(C);
+    int out_edge;
+    if (Crosses(vB.a, vC.a, a_m_)) {
+      out_edge = (in_edge_ + 1) % 3;
+      in_post_ = {B, C};
+      in_value_ = {vB, vC};
+    } else {
+      GISSAR_CHECK(Crosses(vC.a, vA.a, a_m_));
+      out_edge = (in_edge_ + 2) % 3;
+      in_post_ = {C, A};
+      in_value_ = {vC, vA};
+    }
+    const ProfilePoint to = Crossing(in_value_[0], in_value_[1]);
+    if (!segment(from_, to, Facet{c_, r_, half_})) {
+      state_ = State::kDone;
+      return;
+    }
+    const Across& next = kAcross[half_][out_edge];
+    c_ += next.dc;
+    r_ += next.dr;
+    if (c_ < 0 || r_ < 0 || c_ > s.width_ - 2 || r_ > s.height_ - 2) {  // left the grid
+      state_ = State::kDone;
+      return;
+    }
+    half_ = next.half;
+    in_edge_ = next.edge;
+    from_ = to;
+  }
+}
+
+template <class Segment>
+void GridProfileSweep::Lockstep(std::vector<LineWalk>& walks, Segment&& segment) const {
+  for (bool any = true; any;) {
+    any = false;
+    for (size_t k = 0; k < walks.size(); ++k) {
+      if (walks[k].state() != LineWalk::State::kWalking) continue;
+      walks[k].Advance(kLockstepSteps, [&](const ProfilePoint& from, const ProfilePoint& to, const Facet& facet) {
+        return segment(k, from, to, facet);
+      });
+      any = any || walks[k].state() == LineWalk::State::kWalking;
+    }
+  }
+}
+
+template <class Segment>
+void GridProfileSweep::ProfileLines(const double* a_m, size_t lines, uint8_t* ok, Segment&& segment) const {
+  std::vector<LineWalk> walks;
+  walks.reserve(lines);
+  for (size_t k = 0; k < lines; ++k) walks.emplace_back(*this, a_m[k]);
+  std::vector<double> horizon(lines, -std::numeric_limits<double>::infinity());
+  Lockstep(walks, [&](size_t k, const ProfilePoint& from, const ProfilePoint& to, const Facet& facet) {
+    horizon[k] = std::max(horizon[k], Elevation(from));
+    segment(k, ProfileSegment{from, to, horizon[k], facet});
+    return true;
+  });
+  for (size_t k = 0; k < lines; ++k) ok[k] = walks[k].state() != LineWalk::State::kRefused;
+}
 
 }  // namespace gissar::render

@@ -164,5 +164,54 @@ TEST(GridProfileSweepTest, EveryRayHitsWhereEmbreeDoes) {
               (long long)hits, (long long)disagree, (long long)other_triangle, worst_depth);
 }
 
+// A grid bent in plan into an arc (not convex): lines that cross its
+// boundary four times are refused (the caller traces them), the others are
+// swept and agree with Embree.
+TEST(GridProfileSweepTest, RefusesLinesThatCrossTheGridTwice) {
+  const int w = 80, h = 12;
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      // Column c at angle 0..pi around the origin, rows at radius 300..410 m.
+      const double angle = M_PI * c / (w - 1), radius = 300.0 + 10.0 * r;
+      posts.emplace_back(float(radius * std::cos(angle)), float(radius * std::sin(angle)),
+                         float(5.0 * std::sin(0.3 * c + 0.5 * r)));
+    }
+  }
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, w, h);
+  const EmbreeScene embree(mesh);
+  // Flight north, looking east from the right: lines run west-east (a = y).
+  const auto g = sensor::SarGeometry::Covering(Options(0.0, 45.0, sensor::ProjectionMode::kAffine), Vector3d::Zero(),
+                                               posts);
+  const GridProfileSweep sweep(posts.data(), w, h, g);
+  const int count = 400;
+  std::vector<double> depth(count);
+  std::vector<uint32_t> tri(count);
+  int refused = 0, swept = 0;
+  for (double a = -50.0; a <= 450.0; a += 5.0) {
+    // 0 < y < 300: the line crosses both arms of the arc.
+    const double y = a + g.scene_centre().y();
+    const bool ok = sweep.Trace(a, -500.0, 2.5, count, depth.data(), tri.data());
+    if (std::abs(y) < 5.0 || std::abs(y - 300.0) < 5.0) continue;  // at an arm's end or the inner edge's top
+    const bool twice = y > 0.0 && y < 300.0;
+    EXPECT_EQ(ok, !twice) << a;
+    if (!ok) {
+      ++refused;
+      continue;
+    }
+    ++swept;
+    for (int j = 0; j < count; ++j) {
+      const Vector3d origin = g.scene_centre() + a * g.flight_direction() + (-500.0 + 2.5 * j) * g.range_plane_normal() -
+                              3000.0 * g.look_direction();
+      const auto hit = embree.Intersect(origin.cast<float>(), g.look_direction().cast<float>(), 0.0f,
+                                        std::numeric_limits<float>::infinity());
+      ASSERT_EQ(hit.has_value(), tri[j] != GridProfileSweep::kNoHit) << a << " " << j;
+      if (hit) EXPECT_NEAR(double(hit->t) - 3000.0, depth[j], 0.01);
+    }
+  }
+  EXPECT_GT(refused, 50);
+  EXPECT_GT(swept, 30);  // above the hole, and beside the grid (every ray misses)
+}
+
 }  // namespace
 }  // namespace gissar::render

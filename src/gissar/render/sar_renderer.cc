@@ -251,6 +251,8 @@ constexpr uint8_t kCoveredBit = 16;
 // A point of a profile is hidden when the horizon before it is higher than
 // this (metres along n): the rounding of the double-precision profile.
 constexpr double kProfileShadowToleranceM = 1e-6;
+// Image rows whose profiles the mask walks in lockstep.
+constexpr int kMaskRowsInLockstep = 16;
 
 // Small offset along a ray that clears float rounding of scene coordinates.
 float RayEpsilon(const Eigen::AlignedBox3d& box) {
@@ -289,26 +291,30 @@ bool MaskByProfileSweep(const EmbreeScene& embree, const scene::TriangleMesh& me
   const double inv_dr = 1.0 / geometry.range_spacing_m(), u0 = geometry.u0();
   flags->assign(size_t(width) * height, 0);
   std::atomic<bool> failed{false};
-  tbb::parallel_for(tbb::blocked_range<int>(0, height, 8), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<GridProfileSweep::ProfileSegment> segments;
-    for (int r = rows.begin(); r != rows.end() && !failed.load(std::memory_order_relaxed); ++r) {
-      if (!sweep->Profile((r - geometry.v0()) * geometry.azimuth_spacing_m(), &segments)) {
-        failed = true;
-        return;
-      }
-      uint8_t* row = flags->data() + size_t(r) * width;
-      for (const GridProfileSweep::ProfileSegment& s : segments) {
+  // Rows in groups walked in lockstep (neighbouring rows cross the same
+  // posts); each writes only its own row.
+  tbb::parallel_for(tbb::blocked_range<int>(0, height, kMaskRowsInLockstep), [&](const tbb::blocked_range<int>& rows) {
+    std::vector<double> a_m;
+    std::vector<uint8_t> ok;
+    for (int r0 = rows.begin(); r0 < rows.end() && !failed.load(std::memory_order_relaxed);
+         r0 += kMaskRowsInLockstep) {
+      const int r1 = std::min(rows.end(), r0 + kMaskRowsInLockstep);
+      a_m.clear();
+      for (int r = r0; r < r1; ++r) a_m.push_back((r - geometry.v0()) * geometry.azimuth_spacing_m());
+      ok.assign(a_m.size(), 0);
+      sweep->ProfileLines(a_m.data(), a_m.size(), ok.data(), [&](size_t k, const GridProfileSweep::ProfileSegment& s) {
         const double col0 = s.from.xl * inv_dr + u0, col1 = s.to.xl * inv_dr + u0;
-        if (col0 == col1) continue;  // seen edge-on: covers no centre
+        if (col0 == col1) return;  // seen edge-on: covers no centre
         const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min(col0, col1))));
         const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max(col0, col1))));
-        if (c_lo > c_hi) continue;
+        if (c_lo > c_hi) return;
         const Vector3d normal = sweep->Normal(s.facet).cast<double>();
-        if (normal.isZero()) continue;
+        if (normal.isZero()) return;
         const bool turned_away = normal.dot(to_radar) <= kMaskEdgeOnCos;
         const uint8_t lit_code = kLitBit | (normal.dot(n_up) < 0.0 ? kMaskLayover : kMaskNone);
         const double inv = 1.0 / (col1 - col0);
         const double up_from = sweep->Elevation(s.from), up_to = sweep->Elevation(s.to);
+        uint8_t* row = flags->data() + size_t(r0 + int(k)) * width;
         for (int c = c_lo; c <= c_hi; ++c) {
           const double up = up_from + (c - col0) * inv * (up_to - up_from);
           // Hidden when the horizon before the point is above it (ties
@@ -317,6 +323,9 @@ bool MaskByProfileSweep(const EmbreeScene& embree, const scene::TriangleMesh& me
           const bool shadow = turned_away || s.horizon > up + kProfileShadowToleranceM;
           row[c] |= kCoveredBit | (shadow ? kMaskShadow : lit_code);
         }
+      });
+      for (const uint8_t line_ok : ok) {
+        if (!line_ok) failed = true;
       }
     }
   });
@@ -340,8 +349,9 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const sensor::SarGeometry& geometry,
                                              int64_t* shadow_rays, std::vector<uint8_t>* lit,
                                              std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box,
-                                             bool profile_sweep) {
+                                             bool profile_sweep, bool* swept) {
   const int width = geometry.width(), height = geometry.height();
+  if (swept != nullptr) *swept = false;
   auto unpack = [&](auto&& flag_at, size_t size) {
     std::vector<uint8_t> mask(size);
     if (lit != nullptr) lit->assign(size, 0);
@@ -358,6 +368,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
     std::vector<uint8_t> flags;
     if (MaskByProfileSweep(embree, mesh, geometry, &flags)) {
       if (shadow_rays != nullptr) *shadow_rays = 0;
+      if (swept != nullptr) *swept = true;
       return unpack([&](size_t i) { return flags[i]; }, flags.size());
     }
   }
@@ -600,8 +611,15 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   std::vector<std::vector<Band::Overflow>> block_overflow(n_blocks);
   std::vector<std::vector<Contribution>> block_contributions(options.record_contributions ? n_blocks : 0);
   tbb::enumerable_thread_specific<std::vector<float>> band_buffers;
+  struct SweptHits {
+    std::vector<uint8_t> swept;
+    std::vector<double> depth;
+    std::vector<uint32_t> triangle;
+    std::vector<Vector3f> normal;
+  };
+  tbb::enumerable_thread_specific<SweptHits> swept_buffers;
   std::array<std::mutex, 64> row_locks;  // by image row modulo 64
-  std::atomic<int64_t> hits{0}, sub_rays{0};
+  std::atomic<int64_t> hits{0}, sub_rays{0}, swept_lines{0};
   Reporter& reporter = options.reporter != nullptr ? *options.reporter : NullReporter();
   Progress progress("simulate: tracing", n_blocks, reporter);
   Stopwatch trace_watch;
@@ -617,7 +635,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       buffer.assign(size_t(planes) * band.rows * width, 0.0f);
       band.values = buffer.data();
       band.overflow = &block_overflow[b];
-      int64_t local_hits = 0, local_sub_rays = 0;
+      int64_t local_hits = 0, local_sub_rays = 0, local_swept = 0;
       // Primary rays go out 16 at a time along an azimuth row (neighbouring
       // origins, parallel or fanned directions: a coherent packet); each
       // lane's later bounces are then followed one ray at a time, lanes in
@@ -626,10 +644,13 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       alignas(64) int valid[16];  // Embree: the valid mask of rtcIntersect16 is 64-byte aligned
       std::vector<Vector3d> line_sensor;
       std::vector<double> line_previous_hit;
-      std::vector<uint8_t> line_swept;
-      std::vector<double> line_depth;
-      std::vector<uint32_t> line_triangle;
-      std::vector<Vector3f> line_normal;
+      // The block's swept hits, in buffers each thread keeps (tens of MB:
+      // allocating them per block cost page faults).
+      SweptHits& swept_hits = swept_buffers.local();
+      std::vector<uint8_t>& line_swept = swept_hits.swept;
+      std::vector<double>& line_depth = swept_hits.depth;
+      std::vector<uint32_t>& line_triangle = swept_hits.triangle;
+      std::vector<Vector3f>& line_normal = swept_hits.normal;
       Vector3d lane_origin[16], lane_dir[16];
       Vector3f lane_normal[16];
       scene::ClassId lane_class[16];
@@ -652,11 +673,14 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
         line_depth.resize(size_t(lines) * grid.n_el);
         line_triangle.resize(size_t(lines) * grid.n_el);
         line_normal.resize(size_t(lines) * grid.n_el);
+        std::vector<GridProfileSweep::LineRays> rays;
         for (int i = i0; i < i1; ++i) {
           const size_t at = size_t(i - i0) * grid.n_el;
-          line_swept[size_t(i - i0)] = sweep->Trace(grid.a0 + i * grid.da, grid.e0, grid.de, grid.n_el,
-                                                    &line_depth[at], &line_triangle[at], &line_normal[at]);
+          rays.push_back({grid.a0 + i * grid.da, grid.e0, grid.de, grid.n_el, &line_depth[at], &line_triangle[at],
+                          &line_normal[at]});
         }
+        sweep->TraceLines(rays, line_swept.data());
+        for (const uint8_t swept : line_swept) local_swept += swept;
       }
       for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
         for (int i = i0; i < i1; ++i) {
@@ -852,8 +876,10 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               // sigma0 times the surface area the ray covers, per pixel area.
               const double cos_eff = std::max(cos_in, kMaskEdgeOnCos);
               value = sigma0_of(class_id, cos_shade) * area / cos_eff * inv_pixel_area;
-              diffuse_part = m.diffuse * cos_in;  // for the `specular` flag of contributions
-              specular_part = m.Backscatter(cos_in) - diffuse_part;
+              if (options.record_contributions) {  // only for the `specular` flag of contributions
+                diffuse_part = m.diffuse * cos_in;
+                specular_part = m.Backscatter(cos_in) - diffuse_part;
+              }
               // Footprint: the neighbouring ray across range hits the same
               // plane s_e |N.v_e| / cos(theta_l) further in slant range.
               const double e = grid.e0 + j * grid.de;
@@ -870,12 +896,36 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 // power lands. The ray itself continues (multi-bounce).
                 const int subs = std::min(kMaxSubRays, static_cast<int>(std::ceil(box_cols / split_footprint_px)));
                 local_sub_rays += subs;
+                // On a swept line, the ray below this one (j - 1 when the
+                // range-plane normal points up, else j + 1) that met the
+                // terrain from above has passed over everything before its
+                // hit, and so does every sub-ray (all above it): they start
+                // there (less kSkipMarginM of ground), as packets do with
+                // skip_to_previous_hit.
+                double sub_start_ground = -std::numeric_limits<double>::infinity();
+                const int j_below = n.z() > 0.0 ? j - 1 : j + 1;
+                if (swept && j_below >= 0 && j_below < grid.n_el) {
+                  const size_t below = size_t(i - i0) * grid.n_el + size_t(j_below);
+                  Vector3d o_b, d_b;
+                  double trav_b;
+                  if (line_triangle[below] != GridProfileSweep::kNoHit &&
+                      PrimaryRay(geometry, grid, box, a, grid.e0 + j_below * grid.de, sensor, &o_b, &d_b, &trav_b) &&
+                      line_normal[below].cast<double>().dot(d_b) < 0.0) {
+                    const double t_b = affine ? line_depth[below] + grid.back_off_m : line_depth[below] - trav_b;
+                    sub_start_ground = (o_b + t_b * d_b).dot(ground_look);
+                  }
+                }
                 for (int q = 0; q < subs; ++q) {
                   const double e_q = e + grid.de * ((q + 0.5) / subs - 0.5);
                   Vector3d o_q, d_q;
                   double trav_q;
                   if (!PrimaryRay(geometry, grid, box, a, e_q, sensor, &o_q, &d_q, &trav_q)) continue;
-                  const auto h_q = embree.Intersect(o_q.cast<float>(), d_q.cast<float>(), 0.0f,
+                  float t_near_q = 0.0f;
+                  if (sub_start_ground > -std::numeric_limits<double>::infinity()) {
+                    const double t_skip = (sub_start_ground - kSkipMarginM - o_q.dot(ground_look)) / d_q.dot(ground_look);
+                    if (t_skip > 0.0) t_near_q = static_cast<float>(t_skip);
+                  }
+                  const auto h_q = embree.Intersect(o_q.cast<float>(), d_q.cast<float>(), t_near_q,
                                                     std::numeric_limits<float>::infinity());
                   if (!h_q) continue;
                   const Vector3d p_q = o_q + double(h_q->t) * d_q;
@@ -951,6 +1001,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       }
       hits.fetch_add(local_hits, std::memory_order_relaxed);
       sub_rays.fetch_add(local_sub_rays, std::memory_order_relaxed);
+      swept_lines.fetch_add(local_swept, std::memory_order_relaxed);
       progress.Advance(1);
       ThrowIfCancelled(reporter, "simulate: tracing");
     }
@@ -1002,12 +1053,16 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   image.stats.rays = int64_t{grid.n_az} * grid.n_el;
   image.stats.hits = hits.load();
   image.stats.sub_rays = sub_rays.load();
+  image.stats.profile_swept_lines = swept_lines.load();
 
   Stopwatch mask_watch;
   image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m);
   std::vector<uint8_t> lit;
+  bool mask_swept = false;
   image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit, &image.footprint,
-                                       options.ray_box ? &*options.ray_box : nullptr, options.profile_sweep);
+                                       options.ray_box ? &*options.ray_box : nullptr, options.profile_sweep,
+                                       &mask_swept);
+  if (mask_swept) image.stats.profile_swept_mask_rows = height;
   for (size_t q = 0; q < lit.size(); ++q) {
     if (!lit[q]) continue;
     ++image.stats.footprint_pixels;

@@ -123,6 +123,10 @@ struct RenderStats {
   int64_t shadow_rays = 0;    // visibility rays of the mask
   int64_t cells = 0;          // DEM cells projected (raster engine)
   int64_t heightfield_cells = 0;  // terrain cells traced as a height field (EmbreeScene::heightfield_cells)
+  // Azimuth lines whose primary hits came from a profile sweep, and image
+  // rows whose mask did (RenderOptions::profile_sweep); 0: traced.
+  int64_t profile_swept_lines = 0;
+  int64_t profile_swept_mask_rows = 0;
   double trace_seconds = 0.0;  // tracer: rays, shading, splatting, merging; raster: all
   double mask_seconds = 0.0;
   // Illuminated footprint: pixels whose centre a lit surface covers (the
@@ -240,8 +244,8 @@ std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const s
 // terrain grid's height field and nothing else, in affine mode, each image
 // row's centres are read off the terrain profile of their azimuth line
 // (GridProfileSweep: the horizon before a point decides its shadow exactly;
-// *shadow_rays is then 0); otherwise, and when false, one visibility ray
-// per covered centre.
+// *shadow_rays is then 0 and *swept, when given, true); otherwise, and when
+// false, one visibility ray per covered centre.
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
@@ -249,6 +253,6 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              std::vector<uint8_t>* lit = nullptr,
                                              std::vector<uint8_t>* covered = nullptr,
                                              const Eigen::AlignedBox3d* ray_box = nullptr,
-                                             bool profile_sweep = true);
+                                             bool profile_sweep = true, bool* swept = nullptr);
 
 }  // namespace gissar::render

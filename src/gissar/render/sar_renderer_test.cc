@@ -461,10 +461,19 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
         EXPECT_LE(masks.away_from_edges, 1) << heading;
         EXPECT_LE(masks.differing, std::max<int64_t>(2, masks.flagged / 500)) << heading;
         EXPECT_EQ(swept.footprint, traced.footprint) << heading;
+        // Near-grazing hits split into sub-rays, which start at the swept
+        // hit of the ray below them.
+        EXPECT_GT(swept.stats.sub_rays, 0);
+        EXPECT_NEAR(double(swept.stats.sub_rays), double(traced.stats.sub_rays), 1e-3 * double(traced.stats.sub_rays));
+        EXPECT_GT(swept.stats.profile_swept_lines, 0);
+        EXPECT_EQ(traced.stats.profile_swept_lines, 0);
+        EXPECT_EQ(traced.stats.profile_swept_mask_rows, 0);
         if (mode == sensor::ProjectionMode::kAffine) {
           EXPECT_EQ(swept.stats.shadow_rays, 0);
+          EXPECT_EQ(swept.stats.profile_swept_mask_rows, g.height());
         } else {
           EXPECT_GT(swept.stats.shadow_rays, 0);  // exact mode: the mask's rays
+          EXPECT_EQ(swept.stats.profile_swept_mask_rows, 0);
         }
         differing += masks.differing;
         flagged += masks.flagged;
