@@ -60,8 +60,9 @@ for n in 1024 2048 4096; do run "dem_$n" "$B/bench/fractal_dem" "fractal_$n.tif"
 run dem_1000 "$B/bench/fractal_dem" fractal_1000.tif 1000 10 800 1 fractal_1000.pgm
 
 # Outputs as issue 18 defines the benchmark: tiled ZSTD GeoTIFFs (COG
-# layout) without overviews.
-SIM=(simulate --heading 30 --depression 40 --slant-range 20000 --rays-per-cell 4 --no-overviews --quiet)
+# layout) without overviews, and fixed sampling (the primary rays of the ray
+# grid, no adaptive sub-rays: the rays counted are the rays traced).
+SIM=(simulate --heading 30 --depression 40 --slant-range 20000 --rays-per-cell 4 --no-overviews --fixed-sampling --quiet)
 for n in 1024 2048 4096; do
   for b in 1 3; do
     say "simulate ${n}^2, $b bounce(s)"
@@ -121,8 +122,9 @@ say "POV-Ray side by side, 1000 x 1000 heightfield"
 # of the DEM's 10 m; rays per cell chosen so that the primary rays are
 # 1000 x 1000 (measured with a first run at 1 ray per cell).
 run pov_probe "$GISSAR" simulate --dem fractal_1000.tif --heading 0 --depression 40 --slant-range 20000 \
-  --rays-per-cell 1 --bounces 1 --quiet --out probe
+  --rays-per-cell 1 --bounces 1 --fixed-sampling --quiet --out probe
 RPC=$(python3 -c "import json; j=json.load(open('probe.json')); print('%.4f' % (1e6 / j['stats']['rays']))")
+RPC16=$(python3 -c "import json; j=json.load(open('probe.json')); print('%.4f' % (16e6 / j['stats']['rays']))")
 # POV-Ray: the same heights (16-bit PGM, identical quantisation) as a
 # height_field of 10 km x 800 m x 10 km, an orthographic camera and a
 # parallel light both along the radar's look direction (so POV-Ray's shadows
@@ -142,11 +144,17 @@ height_field { pgm "fractal_1000.pgm"
   texture { pigment { color rgb 1 } finish { ambient 0 diffuse 1 reflection { $reflection } } }
   translate <-0.5, 0, -0.5> scale <10000, 800, 10000> translate <0, 500, 0> }
 EOF
-  say "POV-Ray, $levels level(s)"
+  say "POV-Ray, $levels level(s), 1 M and 16 M rays"
   run "pov_$levels" povray "+Ipov_$levels.pov" "+Opov_$levels.png" +W1000 +H1000 -A +Q9 +WT2 -D +FN
   run "ours_pov_$levels" "$GISSAR" simulate --dem fractal_1000.tif --heading 0 --depression 40 \
-    --slant-range 20000 --rays-per-cell "$RPC" --bounces "$levels" --quiet --out "ours_pov_$levels"
+    --slant-range 20000 --rays-per-cell "$RPC" --bounces "$levels" --fixed-sampling --quiet --out "ours_pov_$levels"
   cp "ours_pov_$levels.json" "$R/"
+  # The same heightfield with 4000 x 4000 rays (16 M) on both sides.
+  run "pov16_$levels" povray "+Ipov_$levels.pov" "+Opov16_$levels.png" +W4000 +H4000 -A +Q9 +WT2 -D +FN
+  run "ours_pov16_$levels" "$GISSAR" simulate --dem fractal_1000.tif --heading 0 --depression 40 \
+    --slant-range 20000 --rays-per-cell "$RPC16" --bounces "$levels" --fixed-sampling --quiet --out "ours_pov16_$levels"
+  cp "ours_pov16_$levels.json" "$R/"
+  rm -f "pov16_$levels.png" "ours_pov16_$levels".tif "ours_pov16_$levels".png "ours_pov16_$levels"_*
 done
 
 say "corridor on Dask: 50 poses with 1 and 2 workers, --threads 1"

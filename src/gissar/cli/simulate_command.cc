@@ -85,6 +85,9 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_flag("--heightfield,!--no-heightfield", options->heightfield,
                 "Trace a DEM's terrain as a height field (default: a quadtree over its cells, no BVH), or "
                 "(--no-heightfield) through Embree's BVH over its triangles");
+  cmd->add_flag("--adaptive-sampling,!--fixed-sampling", options->adaptive_sampling,
+                "Split near-grazing first hits wider than a pixel into sub-rays (default), or (--fixed-sampling) "
+                "trace exactly the ray grid's primary rays (benchmarks)");
   cmd->add_option("--materials", options->materials,
                   "Materials file (JSON, class -> sigma0 law); with --dem it sets the class 'default'");
   cmd->add_option("--reflectors", options->reflectors,

@@ -166,6 +166,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["layers"] = layers;
   j["overviews"] = overviews;
   j["heightfield"] = heightfield;
+  j["adaptive_sampling"] = adaptive_sampling;
   j["materials"] = materials;
   j["reflectors"] = reflectors;
   j["contributions"] = contributions;
@@ -237,6 +238,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "layers") set(layers);
     else if (key == "overviews") set(overviews);
     else if (key == "heightfield") set(heightfield);
+    else if (key == "adaptive_sampling") set(adaptive_sampling);
     else if (key == "materials") set(materials);
     else if (key == "reflectors") set(reflectors);
     else if (key == "contributions") set(contributions);
@@ -980,6 +982,7 @@ render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* 
   r.polarization = material::ParsePolarization(options.polarization, "--polarization");
   r.seed = options.seed;
   r.record_contributions = !options.contributions.empty();
+  r.adaptive_sampling = options.adaptive_sampling;
   r.reporter = reporter;
   return r;
 }

@@ -133,6 +133,11 @@ struct SimulateRequest {
   // a fraction of the memory); false builds Embree's BVH over the triangles
   // (the same hits to rounding; GIS scenes always use it).
   bool heightfield = true;
+  // Adaptive sampling: a near-grazing first hit whose footprint is wider
+  // than a pixel is split into sub-rays across its interval (the default);
+  // false (--fixed-sampling) traces exactly the primary rays of the ray grid,
+  // as benchmarks count them.
+  bool adaptive_sampling = true;
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
   // spectral window ("none", "hamming", "taylor").
   double range_resolution_m = 0.0;

@@ -887,7 +887,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               const double s_e = affine ? grid.de_m : travelled * grid.de;
               box_cols = s_e * std::abs(normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
               box_rows = grid.da / geometry.azimuth_spacing_m();
-              if (box_cols > split_footprint_px) {
+              if (options.adaptive_sampling && box_cols > split_footprint_px) {
                 // Adaptive sampling: a footprint wider than a pixel (a
                 // surface seen near grazing) is covered by sub-rays across
                 // the ray's interval, each with its own hit, normal and

@@ -96,6 +96,12 @@ struct RenderOptions {
   // per ray: the same hits to float rounding. False traces every primary ray.
   // The mask does the same (RenderLayoverShadowMask's profile_sweep).
   bool profile_sweep = true;
+  // A first hit whose footprint is wider than twice the flat-ground
+  // footprint of a ray (near grazing) is split into sub-rays across the
+  // ray's interval, each with its own hit (stats.sub_rays); false keeps the
+  // one hit and spreads its return over the footprint (fixed sampling: the
+  // rays traced are exactly the ray grid's).
+  bool adaptive_sampling = true;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;

@@ -356,6 +356,37 @@ TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
   EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{kPosts, kPosts}).HeightfieldOnly());
 }
 
+// Fixed sampling (RenderOptions::adaptive_sampling false) traces exactly the
+// ray grid's primary rays: no sub-rays on terrain steep enough to need
+// them, and the same total power to within the sampling's noise (both
+// integrate sigma0 over the lit surface).
+TEST(SarRendererTest, FixedSamplingTracesNoSubRaysAndKeepsThePower) {
+  constexpr int kPosts = 90;
+  std::vector<float> heights(size_t(kPosts) * kPosts);
+  for (int r = 0; r < kPosts; ++r) {
+    for (int c = 0; c < kPosts; ++c) {
+      heights[size_t(r) * kPosts + c] = float(120.0 * std::sin(0.23 * c) * std::cos(0.19 * r) +
+                                              60.0 * std::sin(0.61 * c + 0.37 * r));
+    }
+  }
+  const scene::TriangleMesh mesh = scene::MeshFromHeights(heights, kPosts, kPosts, 10.0, -445.0, -445.0);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const auto g = sensor::SarGeometry::Covering(Options(30.0, 40.0, 5.0), Vector3d::Zero(), mesh.vertices);
+  RenderOptions options = Quiet(4.0);
+  const SarImage adaptive = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+  options.adaptive_sampling = false;
+  const SarImage fixed = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+  EXPECT_GT(adaptive.stats.sub_rays, 1000);
+  EXPECT_EQ(fixed.stats.sub_rays, 0);
+  EXPECT_EQ(fixed.stats.rays, adaptive.stats.rays);
+  double sum_adaptive = 0.0, sum_fixed = 0.0;
+  for (size_t i = 0; i < fixed.intensity.size(); ++i) {
+    sum_adaptive += adaptive.intensity[i];
+    sum_fixed += fixed.intensity[i];
+  }
+  EXPECT_NEAR(sum_fixed / sum_adaptive, 1.0, 0.02);
+}
+
 // A ridge H = 50 m high across flat ground, 10 m posts, seen at depression
 // 40 deg across it, as a whole grid's height field (the mask read off each
 // row's profile) and as an ordinary mesh (a visibility ray per centre). The
