@@ -36,11 +36,7 @@ GridProfileSweep::GridProfileSweep(const Eigen::Vector3f* posts, int width, int 
   double a_lo = std::numeric_limits<double>::infinity(), a_hi = -a_lo;
   for (size_t k = 0; k < edges_.size(); ++k) {
     const BoundaryEdge& b = edges_[k];
-    const std::array<int64_t, 3> corners =
-        b.half == 0 ? std::array<int64_t, 3>{int64_t(b.r) * width + b.c, int64_t(b.r) * width + b.c + 1,
-                                             int64_t(b.r + 1) * width + b.c}
-                    : std::array<int64_t, 3>{int64_t(b.r) * width + b.c + 1, int64_t(b.r + 1) * width + b.c + 1,
-                                             int64_t(b.r + 1) * width + b.c};
+    const std::array<int64_t, 3> corners = Corners(b.c, b.r, b.half);
     const double ap = AlongTrack(corners[size_t(b.edge)]), aq = AlongTrack(corners[size_t((b.edge + 1) % 3)]);
     span[k] = {std::min(ap, aq), std::max(ap, aq)};
     a_lo = std::min(a_lo, span[k][0]);
@@ -208,13 +204,6 @@ void GridProfileSweep::TraceLines(const std::vector<LineRays>& lines, uint8_t* o
     return assigners[k](from, to, facet);
   });
   for (size_t k = 0; k < lines.size(); ++k) ok[k] = walks[k].state() != LineWalk::State::kRefused;
-}
-
-bool GridProfileSweep::Profile(double a_m, std::vector<ProfileSegment>* segments) const {
-  segments->clear();
-  uint8_t ok = 0;
-  ProfileLines(&a_m, 1, &ok, [&](size_t, const ProfileSegment& segment) { segments->push_back(segment); });
-  return ok != 0;
 }
 
 }  // namespace gissar::render

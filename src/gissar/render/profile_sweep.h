@@ -101,12 +101,11 @@ class GridProfileSweep {
     double horizon;
     Facet facet;
   };
-  // The profile of the line at `a_m` (as Trace), segments in order away
-  // from the radar; empty when the line misses the grid. False as Trace.
-  bool Profile(double a_m, std::vector<ProfileSegment>* segments) const;
-  // The profiles of `lines` lines at a_m[k], walked in lockstep: calls
-  // segment(k, ProfileSegment) for line k's segments in order; ok[k]: as
-  // Profile's result (when false, line k's calls so far are void).
+  // The profiles of `lines` lines at a_m[k] (as Trace), walked in lockstep:
+  // calls segment(k, ProfileSegment) for line k's segments in order away
+  // from the radar (none when the line misses the grid); ok[k]: false when
+  // the line does not cross the grid in one piece (as Trace; line k's calls
+  // so far are then void).
   template <class Segment>
   void ProfileLines(const double* a_m, size_t lines, uint8_t* ok, Segment&& segment) const;
   // The coordinate the rays of a line are ordered by: affine e (metres along

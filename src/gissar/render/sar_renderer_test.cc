@@ -25,6 +25,20 @@ sensor::SarGeometryOptions Options(double heading, double depression, double spa
   return o;
 }
 
+// Heights of a kPosts x kPosts grid (row-major): ridges steep enough to
+// shadow and lay over at 40 degrees, plus steps of `step_m` in a 4-post
+// pattern.
+std::vector<float> SteepRidgeHeights(int posts, double step_m) {
+  std::vector<float> heights(size_t(posts) * posts);
+  for (int r = 0; r < posts; ++r) {
+    for (int c = 0; c < posts; ++c) {
+      heights[size_t(r) * posts + c] = float(120.0 * std::sin(0.23 * c) * std::cos(0.19 * r) +
+                                             60.0 * std::sin(0.61 * c + 0.37 * r) + step_m * ((c * 5 + r * 3) % 4));
+    }
+  }
+  return heights;
+}
+
 RenderOptions Quiet(double rays_per_cell = 4.0) {
   RenderOptions r;
   r.rays_per_cell = rays_per_cell;
@@ -309,14 +323,7 @@ TEST(SarRendererTest, RejectsBadRaysPerCell) {
 // scene no longer a height field.
 TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
   constexpr int kPosts = 90;
-  std::vector<float> heights(size_t(kPosts) * kPosts);
-  for (int r = 0; r < kPosts; ++r) {
-    for (int c = 0; c < kPosts; ++c) {
-      // Ridges steep enough to shadow and lay over at 40 degrees.
-      heights[size_t(r) * kPosts + c] = float(120.0 * std::sin(0.23 * c) * std::cos(0.19 * r) +
-                                              60.0 * std::sin(0.61 * c + 0.37 * r) + 7.0 * ((c * 5 + r * 3) % 4));
-    }
-  }
+  const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
   scene::TriangleMesh mesh = scene::MeshFromHeights(heights, kPosts, kPosts, 10.0, -445.0, -445.0);
   const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
   ASSERT_TRUE(heightfield.HeightfieldOnly());
@@ -362,13 +369,7 @@ TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
 // integrate sigma0 over the lit surface).
 TEST(SarRendererTest, FixedSamplingTracesNoSubRaysAndKeepsThePower) {
   constexpr int kPosts = 90;
-  std::vector<float> heights(size_t(kPosts) * kPosts);
-  for (int r = 0; r < kPosts; ++r) {
-    for (int c = 0; c < kPosts; ++c) {
-      heights[size_t(r) * kPosts + c] = float(120.0 * std::sin(0.23 * c) * std::cos(0.19 * r) +
-                                              60.0 * std::sin(0.61 * c + 0.37 * r));
-    }
-  }
+  const std::vector<float> heights = SteepRidgeHeights(kPosts, 0.0);
   const scene::TriangleMesh mesh = scene::MeshFromHeights(heights, kPosts, kPosts, 10.0, -445.0, -445.0);
   const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
   const auto g = sensor::SarGeometry::Covering(Options(30.0, 40.0, 5.0), Vector3d::Zero(), mesh.vertices);
@@ -453,11 +454,11 @@ TEST(SarRendererTest, RidgeShadowEndsAtTheClosedFormDistanceInBothMasks) {
 // agree but for pixel centres at a shadow or layover edge.
 TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
   constexpr int kPosts = 90;
+  const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
   std::vector<Vector3f> posts;
   for (int r = 0; r < kPosts; ++r) {
     for (int c = 0; c < kPosts; ++c) {
-      const double z = 120.0 * std::sin(0.23 * c) * std::cos(0.19 * r) + 60.0 * std::sin(0.61 * c + 0.37 * r) +
-                       7.0 * ((c * 5 + r * 3) % 4);
+      const double z = heights[size_t(r) * kPosts + c];
       posts.emplace_back(float(10.0 * (c - 45) + 0.7 * (r - 45) + 0.01 * (r - 45) * (r - 45)),
                          float(9.0 * (r - 45) - 0.4 * (c - 45)), float(z));
     }
