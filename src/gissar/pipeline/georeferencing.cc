@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include "gissar/geo/thin_plate_spline.h"
 #include "gissar/geo/warp.h"
 #include "gissar/util/error.h"
 
@@ -227,8 +229,20 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
     truth_xy.push_back(terrain.frame.EnuFromGeodetic(p.lon_deg, p.lat_deg, 0.0).head<2>());
   }
   std::vector<double> error_m(candidates.size(), 0.0);
+  // The spline gdalwarp -tps builds through the GCPs (geo::ThinPlateSpline:
+  // GDAL's interpolant, forward only and vectorised; GDAL's transformer
+  // where that refuses the GCPs).
+  auto spline_lonlat = [&] {
+    std::vector<Eigen::Vector2d> nodes, values;
+    for (const auto& q : g.gcps) {
+      nodes.emplace_back(q.pixel, q.line);
+      values.emplace_back(q.lon_deg, q.lat_deg);
+    }
+    const std::optional<geo::ThinPlateSpline> spline = geo::ThinPlateSpline::Fit(nodes, values);
+    return spline ? spline->Evaluate(pixels) : geo::TpsLonLat(g.gcps, pixels);
+  };
   auto measure = [&] {
-    const std::vector<Eigen::Vector2d> lonlat = geo::TpsLonLat(g.gcps, pixels);
+    const std::vector<Eigen::Vector2d> lonlat = spline_lonlat();
     for (size_t i = 0; i < candidates.size(); ++i) {
       error_m[i] = lonlat[i].allFinite()
                        ? (terrain.frame.EnuFromGeodetic(lonlat[i].x(), lonlat[i].y(), 0.0).head<2>() - truth_xy[i]).norm()

@@ -70,7 +70,8 @@ struct TpsRefinement {
 // GCPs and RPCs of a simulated image on its terrain; the RPC fit's residuals
 // and the GCP count go to `report`. GCPs: a 12 x 12 lattice (or a denser one,
 // up to 40 x 40, until at least 100 of them see the terrain), then refined
-// for gdalwarp -tps: wherever GDAL's thin-plate spline through the GCPs puts
+// for gdalwarp -tps: wherever GDAL's thin-plate spline through the GCPs
+// (geo::ThinPlateSpline, GDAL's interpolant) puts
 // a candidate pixel (a lattice about one node per 3 pixels, at most 150 x 150,
 // away from layover/shadow/no-data in `mask` when given) more than
 // kTpsToleranceSpacings x the finer pixel spacing from its terrain point,

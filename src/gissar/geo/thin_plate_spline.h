@@ -1,0 +1,60 @@
+// The thin-plate spline of `gdalwarp -tps`, fitted and evaluated without
+// GDAL's transformer, for callers that fit many splines and evaluate each at
+// many points (the GCP refinement of simulated images).
+//
+// The interpolant is GDAL's (alg/thinplatespline.cpp): through nodes p_j
+// with values v_j,
+//   f(p) = a0 + a1 x + a2 y + sum_j c_j phi(|p - p_j|^2),  phi(d) = d ln d,
+// with sum_j c_j = sum_j c_j x_j = sum_j c_j y_j = 0 and f(p_j) = v_j
+// exactly. That interpolant is unique for nodes not all on one line, so this
+// class and GDAL's transformer give the same values up to rounding
+// (thin_plate_spline_test.cc compares them). It is also unchanged by a
+// translation and a uniform scaling of the nodes (phi's ln-scale term is a
+// quadratic that the side conditions turn into a constant), which lets the
+// fit work in centred, unit-scaled coordinates.
+//
+// Fit: only the forward spline (GDAL's transformer also solves the reverse
+// one), by the null-space method: with P = [1 x y] = Q R, the coefficients
+// are c = Q2 w with (Q2' K Q2) w = Q2' v, a positive definite system (phi is
+// conditionally positive definite of order 2), solved by Cholesky in
+// n^3 / 3 operations instead of the general solve's 2 n^3 / 3.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace gissar::geo {
+
+class ThinPlateSpline {
+ public:
+  // The spline through `nodes` (any planar coordinates, e.g. pixel/line)
+  // with two values each (e.g. longitude/latitude). nullopt when there are
+  // fewer than 3 nodes, the nodes lie on one line or coincide, or the
+  // system is too ill-conditioned to interpolate its nodes to about 1e-9 of
+  // the values' spread (GDAL's general solver, with its own special cases,
+  // is then the fallback). CHECKs nodes.size() == values.size().
+  static std::optional<ThinPlateSpline> Fit(const std::vector<Eigen::Vector2d>& nodes,
+                                            const std::vector<Eigen::Vector2d>& values);
+
+  // The spline's two values at `point` (non-finite point: NaN).
+  Eigen::Vector2d operator()(const Eigen::Vector2d& point) const;
+  // The same at every point, in parallel; out[i] is the value at points[i].
+  std::vector<Eigen::Vector2d> Evaluate(const std::vector<Eigen::Vector2d>& points) const;
+
+  int node_count() const { return n_; }
+
+ private:
+  ThinPlateSpline() = default;
+  // Nodes in the fit's coordinates: (p - centre_) * inv_scale_.
+  Eigen::Vector2d centre_ = Eigen::Vector2d::Zero();
+  double inv_scale_ = 1.0;
+  int n_ = 0;
+  std::vector<double> x_, y_;      // scaled node coordinates, padded to a multiple of 4
+  std::vector<double> c0_, c1_;    // kernel coefficients of the two values
+  Eigen::Matrix<double, 3, 2> affine_ = Eigen::Matrix<double, 3, 2>::Zero();  // a0, a1, a2 per value (scaled p)
+  Eigen::Vector2d offset_ = Eigen::Vector2d::Zero();  // mean value, added back
+};
+
+}  // namespace gissar::geo
