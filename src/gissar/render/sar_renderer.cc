@@ -975,6 +975,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               emit(value, 0.5 * (travelled + back), 0.5 * (a + a_p), box_cols, box_rows, bounce, bounce, p,
                    mesh.classes[hit->triangle], specular_part > diffuse_part);
             }
+            if (bounce == options.max_bounces) break;  // no mirror ray to follow
             // Continue as the mirror ray, with the class's Fresnel mirror
             // reflectivity at this incidence.
             // The radar's H/V basis is projected on this surface's plane of
