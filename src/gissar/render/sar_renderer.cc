@@ -187,6 +187,82 @@ void SplatFootprint2(Band& band, int width, int first, int second, double col, d
   }
 }
 
+// First-bounce (incoherent) returns of a block's azimuth lines, summed
+// along range into one profile per line. A first hit lies in its line's
+// zero-Doppler plane, so every first-bounce return of a line has the line's
+// along-track coordinate and the same footprint height (the ray spacing
+// across azimuth): its row shares are the line's. The profile keeps the
+// column shares; Flush spreads it over the rows once per line, instead of
+// every return splatting its box into two planes.
+struct LineProfiles {
+  int width = 0;
+  std::vector<double> values;  // lines x width, zero outside [lo, hi]
+  std::vector<int> lo, hi;     // columns touched per line (lo > hi: none)
+
+  void Reset(int lines, int image_width) {
+    if (image_width != width || values.size() < size_t(lines) * image_width) {
+      width = image_width;
+      values.assign(size_t(lines) * width, 0.0);
+    }
+    lo.assign(size_t(lines), width);
+    hi.assign(size_t(lines), -1);
+  }
+
+  // A return of `value` with footprint width `box_cols` (pixels) centred on
+  // column `col`.
+  void Add(int line, double col, double box_cols, double value) {
+    double share[kMaxShares];
+    int first = 0;
+    const int count = FootprintShares(col, box_cols, &first, share);
+    double* row = values.data() + size_t(line) * width;
+    int& line_lo = lo[size_t(line)];
+    int& line_hi = hi[size_t(line)];
+    for (int k = 0; k < count; ++k) {
+      const int c = first + k;
+      if (c < 0 || c >= width || share[k] == 0.0) continue;
+      row[c] += value * share[k];
+      line_lo = std::min(line_lo, c);
+      line_hi = std::max(line_hi, c);
+    }
+  }
+
+  // Line `line`'s profile at image row `row` with footprint height
+  // `box_rows` into planes `first_plane` and `second_plane` of `band` (rows
+  // outside the band: its overflow), then cleared.
+  void Flush(int line, double row, double box_rows, Band& band, int first_plane, int second_plane) {
+    const size_t l = size_t(line);
+    if (hi[l] < lo[l]) return;
+    double row_share[kMaxShares];
+    int r_first = 0;
+    const int count = FootprintShares(row, box_rows, &r_first, row_share);
+    double* profile = values.data() + l * width;
+    float* const planes[2] = {band.values + size_t(first_plane) * band.rows * width,
+                              band.values + size_t(second_plane) * band.rows * width};
+    for (int k = 0; k < count; ++k) {
+      if (row_share[k] == 0.0) continue;
+      const int r = r_first + k;
+      const bool inside = r >= band.row0 && r < band.row0 + band.rows;
+      for (int c = lo[l]; c <= hi[l]; ++c) {
+        if (profile[c] == 0.0) continue;
+        const float v = static_cast<float>(profile[c] * row_share[k]);
+        if (inside) {
+          const size_t at = size_t(r - band.row0) * width + c;
+          planes[0][at] += v;
+          planes[1][at] += v;
+        } else {
+          // A point at the pixel itself (box 0: all of it in (r, c)).
+          for (const int plane : {first_plane, second_plane}) {
+            band.overflow->push_back({plane, double(c), double(r), v, false, 0.0, 0.0});
+          }
+        }
+      }
+    }
+    std::fill(profile + lo[l], profile + hi[l] + 1, 0.0);
+    lo[l] = width;
+    hi[l] = -1;
+  }
+};
+
 // SplitMix64: a per-scatterer random phase from (seed, ray, bounce).
 double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (ray * 17 + bounce + 1);
@@ -618,6 +694,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     std::vector<Vector3f> normal;
   };
   tbb::enumerable_thread_specific<SweptHits> swept_buffers;
+  tbb::enumerable_thread_specific<LineProfiles> profile_buffers;
   std::array<std::mutex, 64> row_locks;  // by image row modulo 64
   std::atomic<int64_t> hits{0}, sub_rays{0}, swept_lines{0};
   Reporter& reporter = options.reporter != nullptr ? *options.reporter : NullReporter();
@@ -636,6 +713,11 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
       band.values = buffer.data();
       band.overflow = &block_overflow[b];
       int64_t local_hits = 0, local_sub_rays = 0, local_swept = 0;
+      // Incoherent first-bounce returns go through one range profile per
+      // line (LineProfiles).
+      const bool by_profile = !options.coherent;
+      LineProfiles& profiles = profile_buffers.local();
+      if (by_profile) profiles.Reset(i1 - i0, width);
       // Primary rays go out 16 at a time along an azimuth row (neighbouring
       // origins, parallel or fanned directions: a coherent packet); each
       // lane's later bounces are then followed one ray at a time, lanes in
@@ -787,7 +869,11 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             // mode the two add in phase.
             const double reciprocal = bounce > 1 ? 2.0 : 1.0;
             value *= reciprocal;
-            if (!options.coherent && box_cols >= 0.0) {
+            if (by_profile && bounce == 1 && box_cols >= 0.0) {
+              // Into the line's range profile (its bounce layer and the
+              // total when the block is done).
+              profiles.Add(i - i0, col, box_cols, value);
+            } else if (!options.coherent && box_cols >= 0.0) {
               // Its bounce layer and the total, from the same shares.
               SplatFootprint2(band, width, total_planes + layer, 0, col, row, box_cols, box_rows,
                               static_cast<float>(value));
@@ -987,6 +1073,13 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             dir = mirror.normalized();
           }
           }
+        }
+      }
+      if (by_profile) {
+        // The first-bounce footprint's height: the ray spacing across azimuth.
+        const double box_rows = grid.da / geometry.azimuth_spacing_m();
+        for (int i = i0; i < i1; ++i) {
+          profiles.Flush(i - i0, geometry.RowOfAlongTrack(grid.a0 + i * grid.da), box_rows, band, total_planes, 0);
         }
       }
       // Into the image, one row at a time under its lock.

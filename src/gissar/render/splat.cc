@@ -49,6 +49,18 @@ int FootprintShares(double x, double w, int* first, double* share) {
     return 2;
   }
   const double x0 = x - 0.5 * w, x1 = x + 0.5 * w;
+  if (w <= 1.0) {
+    // A box inside one unit interval [k, k + 1]: the tents of k and k + 1
+    // are linear there, so their means over the box are their values at its
+    // centre (the bilinear weights of x).
+    const double k = std::floor(x0);
+    if (std::floor(x1) == k) {
+      *first = static_cast<int>(k);
+      share[0] = 1.0 - (x - k);
+      share[1] = x - k;
+      return 2;
+    }
+  }
   const int c0 = static_cast<int>(std::ceil(x0 - 1.0)), c1 = static_cast<int>(std::floor(x1 + 1.0));
   *first = c0;
   int n = 0;
