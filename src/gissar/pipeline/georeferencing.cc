@@ -6,10 +6,12 @@
 #include <optional>
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "gissar/geo/thin_plate_spline.h"
 #include "gissar/geo/warp.h"
+#include "gissar/render/profile_sweep.h"
 #include "gissar/util/error.h"
 
 namespace gissar::pipeline {
@@ -48,7 +50,71 @@ double GridMaxGradient(const std::vector<Eigen::Vector3f>& posts, int width, int
       [](double a, double b) { return std::max(a, b); });
 }
 
+// Lattice rows whose profiles are walked together (render::GridProfileSweep::
+// ProfileLines, lockstep).
+constexpr int kLatticeRowsInLockstep = 8;
+
 }  // namespace
+
+std::vector<sensor::KnownLatticePoint> ProfileLatticePoints(const render::GridProfileSweep& sweep,
+                                                            const sensor::SarGeometry& geometry, int grid) {
+  std::vector<sensor::KnownLatticePoint> out(size_t(grid) * grid);
+  // Range offsets of the lattice's columns, increasing.
+  std::vector<double> xl(static_cast<size_t>(grid));
+  for (int i = 0; i < grid; ++i) {
+    xl[size_t(i)] = (sensor::LatticePixel(geometry, grid, i, 0).x() - geometry.u0()) * geometry.range_spacing_m();
+  }
+  const Eigen::Vector3d& xc = geometry.scene_centre();
+  const Eigen::Vector3d &h = geometry.flight_direction(), &l = geometry.look_direction(),
+                        &n = geometry.range_plane_normal();
+  tbb::parallel_for(tbb::blocked_range<int>(0, grid, kLatticeRowsInLockstep), [&](const tbb::blocked_range<int>& rows) {
+    const int count = rows.size();
+    std::vector<double> a_m(static_cast<size_t>(count));
+    for (int k = 0; k < count; ++k) {
+      const int j = rows.begin() + k;
+      a_m[size_t(k)] = (sensor::LatticePixel(geometry, grid, 0, j).y() - geometry.v0()) * geometry.azimuth_spacing_m();
+    }
+    std::vector<uint8_t> ok(size_t(count), 0);
+    // Per row and column: the highest crossing so far (elevation, point).
+    constexpr double kNone = -std::numeric_limits<double>::infinity();
+    std::vector<double> best(size_t(count) * grid, kNone);
+    std::vector<render::GridProfileSweep::ProfilePoint> best_point(size_t(count) * grid);
+    sweep.ProfileLines(a_m.data(), a_m.size(), ok.data(), [&](size_t k, const render::GridProfileSweep::ProfileSegment& s) {
+      const double lo = std::min(s.from.xl, s.to.xl), hi = std::max(s.from.xl, s.to.xl);
+      for (auto it = std::lower_bound(xl.begin(), xl.end(), lo); it != xl.end() && *it <= hi; ++it) {
+        const size_t i = size_t(it - xl.begin());
+        auto offer = [&](const render::GridProfileSweep::ProfilePoint& p) {
+          const double elevation = sweep.Elevation(p);
+          if (elevation > best[k * grid + i]) {
+            best[k * grid + i] = elevation;
+            best_point[k * grid + i] = p;
+          }
+        };
+        if (s.from.xl == s.to.xl) {  // seen edge-on: both ends lie on the locus
+          offer(s.from);
+          offer(s.to);
+          continue;
+        }
+        const double t = (*it - s.from.xl) / (s.to.xl - s.from.xl);
+        offer({*it, s.from.e + t * (s.to.e - s.from.e), s.from.g + t * (s.to.g - s.from.g)});
+      }
+    });
+    for (int k = 0; k < count; ++k) {
+      if (!ok[size_t(k)]) continue;  // left to the march
+      const int j = rows.begin() + k;
+      for (int i = 0; i < grid; ++i) {
+        sensor::KnownLatticePoint& node = out[size_t(j) * grid + i];
+        node.known = true;
+        const size_t at = size_t(k) * grid + i;
+        if (best[at] == kNone) continue;  // the locus misses the terrain
+        const render::GridProfileSweep::ProfilePoint& p = best_point[at];
+        node.enu = xc + a_m[size_t(k)] * h + p.xl * l + p.e * n;
+      }
+    }
+  });
+  return out;
+}
+
 
 TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.vertices) {
   constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -101,7 +167,8 @@ TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.
                           (terrain.mesh.triangles.empty() || terrain.mesh.triangles.size() == 2 * cells);
   if (plain_grid) {
     grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height, bounds.z_max);
-    limits_.max_gradient = GridMaxGradient(vertices_, terrain.grid_width, terrain.grid_height);
+    plain_width_ = terrain.grid_width;
+    plain_height_ = terrain.grid_height;
     return;
   }
   if (!terrain.mesh.triangles.empty()) {
@@ -144,6 +211,14 @@ TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.
   }
 }
 
+const sensor::SurfaceLimits& TerrainSurface::limits() const {
+  if (grid_) {
+    std::call_once(gradient_once_,
+                   [&] { limits_.max_gradient = GridMaxGradient(vertices_, plain_width_, plain_height_); });
+  }
+  return limits_;
+}
+
 Eigen::Vector3i TerrainSurface::Triangle(size_t t) const {
   if (triangles_ != nullptr) return (*triangles_)[t];
   const size_t quad = t / 2;
@@ -182,12 +257,28 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
                                          TpsRefinement* refinement) {
   const TerrainSurface surface(terrain);
   const auto height_at = [&](double x, double y) { return surface(x, y); };
+  // A plain DEM grid in affine mode: the lattices' terrain points from the
+  // terrain's profiles (ProfileLatticePoints), the march only for rows the
+  // profile walk refuses.
+  std::optional<render::GridProfileSweep> sweep;
+  if (surface.plain_grid() && geometry.mode() == sensor::ProjectionMode::kAffine) {
+    sweep.emplace(terrain.mesh.vertices.data(), terrain.grid_width, terrain.grid_height, geometry);
+  }
+  auto lattice = [&](int grid, sensor::GeoreferenceReport* lattice_report) {
+    std::vector<sensor::KnownLatticePoint> known;
+    if (sweep) known = ProfileLatticePoints(*sweep, geometry, grid);
+    const bool all_known = !known.empty() && std::all_of(known.begin(), known.end(),
+                                                          [](const sensor::KnownLatticePoint& k) { return k.known; });
+    // The slope bound (a pass over the grid) only when something is marched.
+    return sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(),
+                                          grid, lattice_report, all_known ? sensor::SurfaceLimits{} : surface.limits(),
+                                          known.empty() ? nullptr : &known);
+  };
   // 12 x 12 nodes; where part of the image sees no terrain (a rotated image
   // around a DEM), a denser lattice until at least 100 GCPs hit it.
   geo::Georeference g;
   for (int grid = 12;; grid += 4) {
-    g = sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(),
-                                       grid, report, surface.limits());
+    g = lattice(grid, report);
     if (g.gcps.size() >= 100 || grid >= 40) break;
   }
   if (refinement != nullptr) *refinement = TpsRefinement{};
@@ -201,12 +292,9 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
   // pixel-to-ground map folds and no spline can follow it.
   const int w = geometry.width(), h = geometry.height();
   const int dense = std::clamp(std::max(w, h) / 3, 12, kTpsCandidateLattice);
-  const std::vector<geo::GroundControlPoint> lattice =
-      sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(), dense,
-                                     nullptr, surface.limits())
-          .gcps;
+  const std::vector<geo::GroundControlPoint> dense_gcps = lattice(dense, nullptr).gcps;
   std::vector<geo::GroundControlPoint> candidates;
-  for (const auto& p : lattice) {
+  for (const auto& p : dense_gcps) {
     bool clear = true;
     if (mask != nullptr && mask->size() == size_t(w) * h) {
       const int c = int(std::floor(p.pixel)), r = int(std::floor(p.line));

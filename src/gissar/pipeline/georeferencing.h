@@ -3,6 +3,7 @@
 #pragma once
 
 #include <limits>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -10,6 +11,7 @@
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/render/profile_sweep.h"
 #include "gissar/render/raster_renderer.h"
 #include "gissar/sensor/georeference.h"
 
@@ -29,8 +31,10 @@ class TerrainSurface {
   double z_max_m() const { return z_max_; }
   // For sensor::SlantRangeGeoreference: the plan box of the finite
   // vertices, and the steepest triangle's slope of a plain DEM grid (+inf
-  // for any other mesh).
-  const sensor::SurfaceLimits& limits() const { return limits_; }
+  // for any other mesh; computed at the first call, a pass over the grid).
+  const sensor::SurfaceLimits& limits() const;
+  // Whether the terrain is a plain DEM grid (searched as a grid).
+  bool plain_grid() const { return grid_.has_value(); }
 
  private:
   Eigen::Vector3i Triangle(size_t t) const;
@@ -44,8 +48,22 @@ class TerrainSurface {
   std::vector<uint32_t> start_;    // CSR offsets, nx*ny + 1
   std::vector<uint32_t> members_;  // triangle indices
   double z_min_ = 0, z_max_ = 0;
-  sensor::SurfaceLimits limits_;
+  int plain_width_ = 0, plain_height_ = 0;
+  mutable std::once_flag gradient_once_;
+  mutable sensor::SurfaceLimits limits_;
 };
+
+// The terrain's top point at every node of sensor::SlantRangeGeoreference's
+// `grid` x `grid` lattice over a plain DEM grid in affine mode, from one walk
+// along the terrain's profile under each lattice row (`sweep`: the grid's
+// render::GridProfileSweep for `geometry`): node (i, j)'s locus is the line
+// along n at the range of column i in row j's zero-Doppler plane, so its
+// points on the terrain are where the row's profile crosses that range, and
+// the first one seen from above is the highest of them (the march's point,
+// exactly). The nodes of a row whose line the grid's boundary crosses other
+// than twice stay unknown (left to the march).
+std::vector<sensor::KnownLatticePoint> ProfileLatticePoints(const render::GridProfileSweep& sweep,
+                                                            const sensor::SarGeometry& geometry, int grid);
 
 // Limits of the GCP refinement for thin-plate-spline users (gdalwarp -tps).
 inline constexpr int kMaxGcps = 1024;

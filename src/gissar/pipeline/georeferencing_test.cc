@@ -168,3 +168,72 @@ TEST(GeoreferencingTest, AndorraReliefFeaturesLandOnTheirMapPosition) {
 
 }  // namespace
 }  // namespace gissar::pipeline
+
+namespace gissar::pipeline {
+namespace {
+
+// The lattice's terrain points from the profiles under its rows are the
+// march's points: Andorra's relief (SRTM 3", affine, 150 m pixels,
+// heading 30, depression 40), a 60 x 60 lattice. Each point also lies on
+// the terrain and projects to its node's pixel.
+TEST(GeoreferencingTest, ProfileLatticePointsAreTheMarchsPoints) {
+  SimulateRequest o;
+  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_raw.tif").string();
+  o.fill_nodata = true;
+  o.geometry.heading_deg = 30.0;
+  o.geometry.depression_deg = 40.0;
+  o.geometry.range_spacing_m = 150.0;
+  o.geometry.azimuth_spacing_m = 150.0;
+  o.out_prefix = "unused";
+  const Terrain terrain = LoadTerrain(o);
+  const sensor::SarGeometry geometry =
+      sensor::SarGeometry::Covering(ResolvedGeometry(o, terrain), terrain.centre_enu, terrain.mesh.vertices);
+  ASSERT_EQ(geometry.mode(), sensor::ProjectionMode::kAffine);
+  const TerrainSurface surface(terrain);
+  ASSERT_TRUE(surface.plain_grid());
+  const render::GridProfileSweep sweep(terrain.mesh.vertices.data(), terrain.grid_width, terrain.grid_height,
+                                       geometry);
+  const int grid = 60;
+  const std::vector<sensor::KnownLatticePoint> known = ProfileLatticePoints(sweep, geometry, grid);
+  ASSERT_EQ(known.size(), size_t(grid) * grid);
+  // The march alone (no known points), node by node.
+  const geo::Georeference marched =
+      sensor::SlantRangeGeoreference(geometry, terrain.frame, [&](double x, double y) { return surface(x, y); },
+                                     surface.z_min_m(), surface.z_max_m(), grid, nullptr, surface.limits());
+  std::vector<std::optional<Eigen::Vector3d>> march(known.size());
+  for (const auto& gcp : marched.gcps) {
+    const int i = int(std::lround((gcp.pixel - 0.5) * (grid - 1) / (geometry.width() - 1)));
+    const int j = int(std::lround((gcp.line - 0.5) * (grid - 1) / (geometry.height() - 1)));
+    march[size_t(j) * grid + i] = terrain.frame.EnuFromGeodetic(gcp.lon_deg, gcp.lat_deg, gcp.height_m);
+  }
+  int both = 0, profile_only = 0, march_only = 0;
+  double worst_m = 0.0;
+  for (int j = 0; j < grid; ++j) {
+    for (int i = 0; i < grid; ++i) {
+      const sensor::KnownLatticePoint& k = known[size_t(j) * grid + i];
+      ASSERT_TRUE(k.known) << i << " " << j;  // every row crosses Andorra's grid in one piece
+      const auto& m = march[size_t(j) * grid + i];
+      if (k.enu && m) {
+        ++both;
+        worst_m = std::max(worst_m, (*k.enu - *m).norm());
+      }
+      profile_only += k.enu && !m;
+      march_only += !k.enu && m;
+      if (!k.enu) continue;
+      // On the terrain, at the node's pixel.
+      EXPECT_NEAR(k.enu->z(), surface(k.enu->x(), k.enu->y()), 1e-6) << i << " " << j;
+      const Eigen::Vector2d px = geometry.Project(*k.enu), want = sensor::LatticePixel(geometry, grid, i, j);
+      EXPECT_NEAR(px.x(), want.x(), 1e-9) << i << " " << j;
+      EXPECT_NEAR(px.y(), want.y(), 1e-9) << i << " " << j;
+    }
+  }
+  std::printf("[ measured ] %d nodes found by both (largest distance %.3g m), %d by the profile only, %d by the "
+              "march only\n", both, worst_m, profile_only, march_only);
+  EXPECT_GT(both, grid * grid / 3);
+  EXPECT_LT(worst_m, 1e-3);
+  EXPECT_EQ(march_only, 0);
+  EXPECT_LE(profile_only, 2);
+}
+
+}  // namespace
+}  // namespace gissar::pipeline

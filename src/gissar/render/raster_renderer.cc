@@ -799,9 +799,6 @@ std::optional<double> GridHeightfield::SurfaceHeight(double x, double y) const {
   }
   const int c = std::clamp(static_cast<int>(std::floor(g.x())), 0, width_ - 2);
   const int r = std::clamp(static_cast<int>(std::floor(g.y())), 0, height_ - 2);
-  // MeshFromGrid's triangles (a, b, d) and (b, e, d): a = (c, r),
-  // b = (c + 1, r), d = (c, r + 1), e = (c + 1, r + 1).
-  const Eigen::Vector3d a = Post(c, r), b = Post(c + 1, r), d = Post(c, r + 1), e = Post(c + 1, r + 1);
   auto height_in = [&](const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
                        double* out) {
     const Eigen::Vector2d u = (p1 - p0).head<2>(), v = (p2 - p0).head<2>(), w = Eigen::Vector2d(x, y) - p0.head<2>();
@@ -811,9 +808,28 @@ std::optional<double> GridHeightfield::SurfaceHeight(double x, double y) const {
     *out = p0.z() + s * (p1.z() - p0.z()) + t * (p2.z() - p0.z());
     return s >= -1e-9 && t >= -1e-9 && s + t <= 1.0 + 1e-9;
   };
+  // MeshFromGrid's triangles (a, b, d) and (b, e, d) of cell (cc, rr):
+  // a = (cc, rr), b = (cc + 1, rr), d = (cc, rr + 1), e = (cc + 1, rr + 1).
+  // The last call's z is the plane of (b, e, d).
+  auto height_in_cell = [&](int cc, int rr, double* out) {
+    const Eigen::Vector3d a = Post(cc, rr), b = Post(cc + 1, rr), d = Post(cc, rr + 1), e = Post(cc + 1, rr + 1);
+    return height_in(a, b, d, out) || height_in(b, e, d, out);
+  };
   double z = 0.0;
-  if (height_in(a, b, d, &z)) return z;
-  height_in(b, e, d, &z);  // the other half (or, at the grid's border, its extension)
+  if (height_in_cell(c, r, &z)) return z;
+  // The local affine inversion of a grid that is not a parallelogram
+  // lattice (a geographic DEM in ENU) can land one cell off near a cell's
+  // edge: the neighbours hold the point then.
+  for (int dr = -1; dr <= 1; ++dr) {
+    for (int dc = -1; dc <= 1; ++dc) {
+      const int cc = c + dc, rr = r + dr;
+      if ((dc == 0 && dr == 0) || cc < 0 || rr < 0 || cc > width_ - 2 || rr > height_ - 2) continue;
+      double zn = 0.0;
+      if (height_in_cell(cc, rr, &zn)) return zn;
+    }
+  }
+  // At the grid's border (within the tolerance of GridCoordinates' bounds):
+  // the plane of the found cell's second half.
   return std::isfinite(z) ? std::optional<double>(z) : std::nullopt;
 }
 

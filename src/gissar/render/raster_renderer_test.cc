@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/image_agreement.h"
@@ -365,6 +366,54 @@ TEST(GridHeightfieldTest, SurfaceAndLineOfSightMatchTheMesh) {
     EXPECT_EQ(from_field[k].col, from_embree[k].col);
     EXPECT_EQ(from_field[k].beta0_sum, from_embree[k].beta0_sum);
   }
+}
+
+// A grid that is not a parallelogram lattice (columns fanning out and rows
+// bending, as a geographic DEM's posts in ENU far from the frame's origin):
+// the surface height at random points equals that of the one mesh triangle
+// whose plan holds the point, found by testing every triangle.
+TEST(GridHeightfieldTest, SurfaceHeightOfACurvedGridIsItsTrianglesHeight) {
+  const int w = 40, h = 30;
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      const double x = (10.0 + 0.35 * r) * c + 0.02 * r * r;
+      const double y = 9.0 * r + 0.04 * c * c - 0.002 * c * r * r;
+      posts.emplace_back(float(x), float(y), float(300.0 + 40.0 * std::sin(0.7 * c) * std::cos(0.9 * r) + 3.0 * c));
+    }
+  }
+  const GridHeightfield field(posts, w, h);
+  auto brute_force = [&](double x, double y) -> std::optional<double> {
+    for (int r = 0; r + 1 < h; ++r) {
+      for (int c = 0; c + 1 < w; ++c) {
+        auto p = [&](int cc, int rr) { return posts[size_t(rr) * w + cc].cast<double>(); };
+        const Vector3d a = p(c, r), b = p(c + 1, r), d = p(c, r + 1), e = p(c + 1, r + 1);
+        for (const auto& [p0, p1, p2] : {std::tuple{a, b, d}, std::tuple{b, e, d}}) {
+          const Eigen::Vector2d u = (p1 - p0).head<2>(), v = (p2 - p0).head<2>(), q = Eigen::Vector2d(x, y) - p0.head<2>();
+          const double det = u.x() * v.y() - u.y() * v.x();
+          const double s = (q.x() * v.y() - q.y() * v.x()) / det, t = (u.x() * q.y() - u.y() * q.x()) / det;
+          if (s >= 1e-7 && t >= 1e-7 && s + t <= 1.0 - 1e-7) return p0.z() + s * (p1.z() - p0.z()) + t * (p2.z() - p0.z());
+        }
+      }
+    }
+    return std::nullopt;
+  };
+  uint64_t state = 99;
+  auto uniform = [&]() {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return double(state >> 11) / double(1ULL << 53);
+  };
+  int inside = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const double x = 700.0 * uniform(), y = 300.0 * uniform();
+    const std::optional<double> want = brute_force(x, y);
+    if (!want) continue;  // outside the grid's plan, or on an edge
+    ++inside;
+    const std::optional<double> got = field.SurfaceHeight(x, y);
+    ASSERT_TRUE(got.has_value()) << x << " " << y;
+    EXPECT_NEAR(*got, *want, 1e-6) << x << " " << y;
+  }
+  EXPECT_GT(inside, 1000);
 }
 
 // Classes per triangle (MeshFromGrid's order: first the triangle holding

@@ -12,6 +12,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "gissar/util/check.h"
 #include "gissar/util/error.h"
 
 namespace gissar::sensor {
@@ -42,12 +43,19 @@ std::string Number(double v) {
 
 }  // namespace
 
+Eigen::Vector2d LatticePixel(const SarGeometry& geometry, int grid, int i, int j) {
+  return Eigen::Vector2d((geometry.width() - 1) * double(i) / (grid - 1),
+                         (geometry.height() - 1) * double(j) / (grid - 1));
+}
+
 geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo::LocalFrame& frame,
                                          const SurfaceHeight& surface, double z_min_m,
                                          double z_max_m, int grid, GeoreferenceReport* report,
-                                         const SurfaceLimits& limits) {
+                                         const SurfaceLimits& limits,
+                                         const std::vector<KnownLatticePoint>* known) {
   const double max_gradient = limits.max_gradient;
   if (grid < 2) throw ConfigError("GCP grid must be at least 2 x 2", "georeference");
+  GISSAR_CHECK(known == nullptr || known->size() == size_t(grid) * grid);
   const double margin_m = 100.0;
   const double z_top = z_max_m + margin_m;
   const double z_bottom = z_min_m - margin_m;
@@ -66,9 +74,17 @@ geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo:
   std::vector<std::optional<geo::GroundControlPoint>> found(size_t(grid) * grid);
   tbb::parallel_for(tbb::blocked_range<int>(0, grid * grid, 8), [&](const tbb::blocked_range<int>& nodes) {
     for (int node = nodes.begin(); node < nodes.end(); ++node) {
+      if (known != nullptr && (*known)[size_t(node)].known) {
+        if (const auto& p = (*known)[size_t(node)].enu) {
+          const Eigen::Vector3d g = frame.GeodeticFromEnu(*p);
+          const Eigen::Vector2d px = geometry.Project(*p);
+          found[size_t(node)] = geo::GroundControlPoint{px.x() + 0.5, px.y() + 0.5, g.x(), g.y(), g.z()};
+        }
+        continue;
+      }
       const int j = node / grid, i = node % grid;
-      const double col = (geometry.width() - 1) * double(i) / (grid - 1);
-      const double row = (geometry.height() - 1) * double(j) / (grid - 1);
+      const Eigen::Vector2d pixel = LatticePixel(geometry, grid, i, j);
+      const double col = pixel.x(), row = pixel.y();
       const double along = (row - geometry.v0()) * geometry.azimuth_spacing_m();
       const double range = geometry.slant_range_m() + (col - geometry.u0()) * geometry.range_spacing_m();
       // The locus of the pixel as a curve point(s), s from the top down.

@@ -5,6 +5,8 @@
 
 #include <functional>
 #include <limits>
+#include <optional>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -35,6 +37,20 @@ struct GeoreferenceReport {
   double rpc_rms_error_px = 0.0;
 };
 
+// Pixel centre (column, row) of node (i, j) of SlantRangeGeoreference's
+// `grid` x `grid` lattice: ((width - 1) i / (grid - 1), (height - 1) j /
+// (grid - 1)); the node's index is j * grid + i.
+Eigen::Vector2d LatticePixel(const SarGeometry& geometry, int grid, int i, int j);
+
+// A lattice node's terrain point as a caller found it directly (e.g. by a
+// walk along the terrain's profile under the node's image row): `known`
+// false leaves the node to the march; `enu` nullopt: the node's locus misses
+// the terrain.
+struct KnownLatticePoint {
+  bool known = false;
+  std::optional<Eigen::Vector3d> enu;
+};
+
 // GCPs on a `grid` x `grid` lattice of pixels spanning the image (corners
 // included): each is the first terrain point, seen from above, whose
 // projection is that pixel (the affine model's line along n, or exact mode's
@@ -51,11 +67,15 @@ struct GeoreferenceReport {
 // ENU is smooth in lon/lat/h, so the fit is exact to rounding (3e-10 px
 // measured); exact mode's square-root range fits to a few hundredths of a
 // pixel. The residuals are reported.
-// Throws ConfigError when fewer than 3 GCPs hit the terrain or grid < 2.
+// `known` (optional, one per lattice node in index order): nodes whose
+// point the caller found are not marched (that point is the node's GCP).
+// Throws ConfigError when fewer than 3 GCPs hit the terrain or grid < 2;
+// CHECKs that `known`, when given, has grid * grid entries.
 geo::Georeference SlantRangeGeoreference(const SarGeometry& geometry, const geo::LocalFrame& frame,
                                          const SurfaceHeight& surface, double z_min_m,
                                          double z_max_m, int grid = 12,
                                          GeoreferenceReport* report = nullptr,
-                                         const SurfaceLimits& limits = {});
+                                         const SurfaceLimits& limits = {},
+                                         const std::vector<KnownLatticePoint>* known = nullptr);
 
 }  // namespace gissar::sensor
