@@ -68,6 +68,36 @@ constexpr int kLanes = 4;
 
 inline double Phi(double d) { return d > 0.0 ? d * std::log(d) : 0.0; }
 
+// Cholesky factor of the symmetric positive definite `a` (its lower
+// triangle read), written over a's lower triangle: right-looking and
+// blocked, each panel's solve and the trailing update split over threads
+// (Eigen's LLT runs on one). False when `a` is not positive definite.
+bool CholeskyInPlace(Eigen::MatrixXd& a) {
+  constexpr int kBlock = 96, kGrain = 64;
+  const int n = static_cast<int>(a.rows());
+  for (int k = 0; k < n; k += kBlock) {
+    const int kb = std::min(kBlock, n - k);
+    Eigen::Ref<Eigen::MatrixXd> a11 = a.block(k, k, kb, kb);
+    const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> diagonal(a11);  // in place
+    if (diagonal.info() != Eigen::Success) return false;
+    const int m = n - k - kb;
+    if (m == 0) break;
+    // Panel: A21 <- A21 L11^-T.
+    tbb::parallel_for(tbb::blocked_range<int>(0, m, kGrain), [&](const tbb::blocked_range<int>& rows) {
+      auto panel = a.block(k + kb + rows.begin(), k, rows.size(), kb);
+      a11.triangularView<Eigen::Lower>().transpose().solveInPlace<Eigen::OnTheRight>(panel);
+    });
+    // Trailing update of the lower triangle: A22 -= A21 A21', by column blocks.
+    tbb::parallel_for(tbb::blocked_range<int>(0, m, kGrain), [&](const tbb::blocked_range<int>& cols) {
+      const int j0 = k + kb + cols.begin(), jb = cols.size();
+      const auto panel_rows = a.block(j0, k, n - j0, kb);
+      const auto panel_cols = a.block(j0, k, jb, kb);
+      a.block(j0, j0, n - j0, jb).noalias() -= panel_rows * panel_cols.transpose();
+    });
+  }
+  return true;
+}
+
 // sum_j c_j phi(|q - p_j|^2) for both values over `count` nodes (a multiple
 // of kLanes). Compiled twice, for AVX2 + FMA and for the x86-64 baseline, the
 // loader picking the one the CPU runs (GCC function multi-versioning).
@@ -137,22 +167,26 @@ std::optional<ThinPlateSpline> ThinPlateSpline::Fit(const std::vector<Eigen::Vec
   const double r_scale = r.diagonal().cwiseAbs().maxCoeff();
   if (!(r.diagonal().cwiseAbs().minCoeff() > 1e-9 * r_scale)) return std::nullopt;
   Eigen::MatrixXd b = k;
-  b.applyOnTheLeft(qr.householderQ().adjoint());
-  b.applyOnTheRight(qr.householderQ());
+  const auto q = qr.householderQ();
+  b.applyOnTheLeft(q.adjoint());
+  b.applyOnTheRight(q);
   Eigen::MatrixX2d z = v;
-  z.applyOnTheLeft(qr.householderQ().adjoint());
+  z.applyOnTheLeft(q.adjoint());
   const int m = n - 3;
   Eigen::MatrixX2d w = Eigen::MatrixX2d::Zero(n, 2);
   if (m > 0) {
-    const Eigen::LLT<Eigen::MatrixXd> llt(b.bottomRightCorner(m, m));
-    if (llt.info() != Eigen::Success) return std::nullopt;
-    w.bottomRows(m) = llt.solve(z.bottomRows(m));
+    Eigen::MatrixXd factor = b.bottomRightCorner(m, m);
+    if (!CholeskyInPlace(factor)) return std::nullopt;
+    Eigen::MatrixX2d y = z.bottomRows(m);
+    factor.triangularView<Eigen::Lower>().solveInPlace(y);
+    factor.triangularView<Eigen::Lower>().transpose().solveInPlace(y);
+    w.bottomRows(m) = y;
   }
   // Affine part: R a = Q1' (v - K c) = z_top - (Q' K Q)_top,bottom w.
   const Eigen::Matrix<double, 3, 2> rhs = z.topRows<3>() - b.topRows<3>() * w;
   s.affine_ = r.triangularView<Eigen::Upper>().solve(rhs);
   Eigen::MatrixX2d c = w;
-  c.applyOnTheLeft(qr.householderQ());
+  c.applyOnTheLeft(q);
 
   // The spline must pass through its nodes.
   const Eigen::MatrixX2d residual = k * c + pm * s.affine_ - v;

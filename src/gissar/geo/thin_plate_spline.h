@@ -17,7 +17,8 @@
 // one), by the null-space method: with P = [1 x y] = Q R, the coefficients
 // are c = Q2 w with (Q2' K Q2) w = Q2' v, a positive definite system (phi is
 // conditionally positive definite of order 2), solved by Cholesky in
-// n^3 / 3 operations instead of the general solve's 2 n^3 / 3.
+// n^3 / 3 operations instead of the general solve's 2 n^3 / 3 (blocked,
+// its panels and trailing updates in parallel).
 #pragma once
 
 #include <optional>
