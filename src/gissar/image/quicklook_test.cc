@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
+#include <utility>
 
 namespace gissar::image {
 namespace {
@@ -36,6 +39,46 @@ TEST(QuicklookTest, ClipsOutsideThePercentiles) {
 TEST(QuicklookTest, AllDarkImageIsBlack) {
   const auto grey = DbQuicklook(std::vector<float>(10, 0.0f), 2.0, 98.0);
   for (uint8_t g : grey) EXPECT_EQ(g, 0);
+}
+
+// The stretch and every grey level equal their definition evaluated
+// directly (sorting the positive values for the percentiles, a logarithm
+// per pixel): speckle-like intensities over 60 dB with ties, zeros, NaN and
+// infinities, for several percentile pairs.
+TEST(QuicklookTest, MatchesTheDefinitionPixelByPixel) {
+  std::mt19937 rng(5);
+  std::lognormal_distribution<float> speckle(0.0f, 2.0f);
+  std::vector<float> intensity;
+  for (int i = 0; i < 200000; ++i) {
+    const int kind = int(rng() % 50);
+    if (kind == 0) intensity.push_back(0.0f);
+    else if (kind == 1) intensity.push_back(std::numeric_limits<float>::quiet_NaN());
+    else if (kind == 2) intensity.push_back(std::numeric_limits<float>::infinity());
+    else if (kind == 3) intensity.push_back(0.25f);  // ties
+    else intensity.push_back(1e-3f * speckle(rng));
+  }
+  for (const auto& [low, high] : {std::pair{2.0, 98.0}, std::pair{0.0, 100.0}, std::pair{10.0, 60.0}}) {
+    std::vector<float> positive;
+    for (float v : intensity) {
+      if (std::isfinite(v) && v > 0.0f) positive.push_back(v);
+    }
+    std::sort(positive.begin(), positive.end());
+    auto at = [&](double p) { return positive[size_t(std::llround(p / 100.0 * double(positive.size() - 1)))]; };
+    const double low_db = 10.0f * std::log10(at(low)), high_db = 10.0f * std::log10(at(high));
+    DbStretch stretch;
+    const std::vector<uint8_t> grey = DbQuicklook(intensity, low, high, &stretch);
+    EXPECT_EQ(stretch.low_db, low_db);
+    EXPECT_EQ(stretch.high_db, high_db);
+    const double span = high_db - low_db;
+    for (size_t i = 0; i < intensity.size(); ++i) {
+      const float v = intensity[i];
+      uint8_t want = 0;
+      if (std::isfinite(v) && v > 0.0f) {
+        want = uint8_t(1 + std::lround(254.0 * std::clamp((10.0 * std::log10(v) - low_db) / span, 0.0, 1.0)));
+      }
+      ASSERT_EQ(grey[i], want) << i << " " << v;
+    }
+  }
 }
 
 TEST(MultilookTest, BlockMeansSkipNaNAndDropPartialBlocks) {
