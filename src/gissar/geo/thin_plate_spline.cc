@@ -24,7 +24,7 @@ namespace {
 // Four doubles at a time (GCC/Clang vector extensions: SSE2 pairs on the
 // x86-64 baseline, one AVX register where the compiler may use it).
 using V4 = double __attribute__((vector_size(32)));
-using I4 = long long __attribute__((vector_size(32)));
+using I4 = unsigned long long __attribute__((vector_size(32)));  // bit patterns: wrapping, logical shifts
 constexpr int kLanes = 4;
 
 [[gnu::always_inline]] inline V4 Broadcast(double v) { return V4{v, v, v, v}; }
@@ -38,11 +38,11 @@ constexpr int kLanes = 4;
   std::memcpy(&bits, &x, sizeof(bits));
   // Shift the exponent so that mantissas from sqrt(1/2) up count in the next
   // binade, then rebuild m in [sqrt(1/2), sqrt(2)).
-  const I4 t = bits + (0x3ff0000000000000LL - 0x3fe6a09e667f3bcdLL);
-  const I4 m_bits = (t & 0x000fffffffffffffLL) + 0x3fe6a09e667f3bcdLL;
+  const I4 t = bits + (0x3ff0000000000000ULL - 0x3fe6a09e667f3bcdULL);
+  const I4 m_bits = (t & 0x000fffffffffffffULL) + 0x3fe6a09e667f3bcdULL;
   // The biased exponent as a double without an int64 -> double conversion
   // (none in SSE2): the integer in the low mantissa bits of 2^52.
-  const I4 k_bits = (t >> 52) | 0x4330000000000000LL;
+  const I4 k_bits = (t >> 52) | 0x4330000000000000ULL;
   V4 m, k;
   std::memcpy(&m, &m_bits, sizeof(m));
   std::memcpy(&k, &k_bits, sizeof(k));
