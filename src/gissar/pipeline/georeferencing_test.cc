@@ -21,6 +21,20 @@ namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 
+// Andorra's relief as the georeferencing tests see it: SRTM 3" with its
+// voids filled, heading 30, depression 40, 150 m pixels (affine).
+SimulateRequest AndorraRequest(const std::string& out_prefix) {
+  SimulateRequest o;
+  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_raw.tif").string();
+  o.fill_nodata = true;
+  o.geometry.heading_deg = 30.0;
+  o.geometry.depression_deg = 40.0;
+  o.geometry.range_spacing_m = 150.0;
+  o.geometry.azimuth_spacing_m = 150.0;
+  o.out_prefix = out_prefix;
+  return o;
+}
+
 // A plain DEM grid (searched as a grid) and the same surface as a general
 // mesh (binned triangles) give the height of a tilted plane, exactly, on a
 // sheared and rotated grid of posts; NaN off the grid. A post that is not
@@ -71,14 +85,7 @@ TEST(TerrainSurfaceTest, GridAndBinnedMeshGiveThePlaneHeight) {
 // their true longitude/latitude.
 TEST(GeoreferencingTest, AndorraReliefFeaturesLandOnTheirMapPosition) {
   const fs::path dir = testing::MakeTempDir();
-  SimulateRequest o;
-  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_raw.tif").string();
-  o.fill_nodata = true;
-  o.geometry.heading_deg = 30.0;
-  o.geometry.depression_deg = 40.0;
-  o.geometry.range_spacing_m = 150.0;
-  o.geometry.azimuth_spacing_m = 150.0;
-  o.out_prefix = (dir / "andorra").string();
+  const SimulateRequest o = AndorraRequest((dir / "andorra").string());
   SimulationOutputs reserved;
   ReserveSimulationOutputs(o, reserved);
   SimulatedImage simulated = SimulateImage(o);
@@ -166,25 +173,12 @@ TEST(GeoreferencingTest, AndorraReliefFeaturesLandOnTheirMapPosition) {
   }
 }
 
-}  // namespace
-}  // namespace gissar::pipeline
-
-namespace gissar::pipeline {
-namespace {
-
 // The lattice's terrain points from the profiles under its rows are the
 // march's points: Andorra's relief (SRTM 3", affine, 150 m pixels,
 // heading 30, depression 40), a 60 x 60 lattice. Each point also lies on
 // the terrain and projects to its node's pixel.
 TEST(GeoreferencingTest, ProfileLatticePointsAreTheMarchsPoints) {
-  SimulateRequest o;
-  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_raw.tif").string();
-  o.fill_nodata = true;
-  o.geometry.heading_deg = 30.0;
-  o.geometry.depression_deg = 40.0;
-  o.geometry.range_spacing_m = 150.0;
-  o.geometry.azimuth_spacing_m = 150.0;
-  o.out_prefix = "unused";
+  const SimulateRequest o = AndorraRequest("unused");
   const Terrain terrain = LoadTerrain(o);
   const sensor::SarGeometry geometry =
       sensor::SarGeometry::Covering(ResolvedGeometry(o, terrain), terrain.centre_enu, terrain.mesh.vertices);
