@@ -47,15 +47,65 @@ class ThinPlateSpline {
   int node_count() const { return n_; }
 
  private:
+  friend class IncrementalThinPlateSpline;
   ThinPlateSpline() = default;
+  // Sets the nodes (fit coordinates, n x 2) and their kernel coefficients.
+  void AssignNodes(const Eigen::MatrixX2d& nodes, const Eigen::MatrixX2d& coefficients);
   // Nodes in the fit's coordinates: (p - centre_) * inv_scale_.
   Eigen::Vector2d centre_ = Eigen::Vector2d::Zero();
   double inv_scale_ = 1.0;
   int n_ = 0;
-  std::vector<double> x_, y_;      // scaled node coordinates, padded to a multiple of 4
+  std::vector<double> x_, y_;      // scaled node coordinates, padded to a multiple of 8
   std::vector<double> c0_, c1_;    // kernel coefficients of the two values
   Eigen::Matrix<double, 3, 2> affine_ = Eigen::Matrix<double, 3, 2>::Zero();  // a0, a1, a2 per value (scaled p)
   Eigen::Vector2d offset_ = Eigen::Vector2d::Zero();  // mean value, added back
+};
+
+// The spline through a node set that grows (GCPs added in rounds), each
+// round's fit extending the last one's factorisation instead of starting
+// again: about 2 m^2 k operations for k nodes added to m instead of
+// (m + k)^3 / 3.
+//
+// The null space of P' is spanned here by z_i = e_i - sum_a lambda_ia e_a for
+// every node i but three anchors a (lambda_i: node i's barycentric
+// coordinates in the anchors' triangle, so that P' z_i = 0). Unlike an
+// orthonormal basis it stays a basis when nodes are appended, so M = Z' K Z
+// only gains rows and columns and its Cholesky factor only gains a block
+// row. The anchors are three far-apart nodes of the first batch (the
+// farthest from the batch's centre, the farthest from that one, and the one
+// spanning the largest triangle with both): the barycentric coordinates of
+// later nodes in the same domain stay bounded, and M about as well
+// conditioned as with an orthonormal basis. The spline is the interpolant
+// ThinPlateSpline::Fit computes (it is unique), equal to it up to rounding.
+class IncrementalThinPlateSpline {
+ public:
+  // Appends nodes with their values (CHECKs equal sizes). False, leaving
+  // the spline as it was, when a node or value is not finite, when the
+  // first batch has fewer than 3 nodes or they lie on one line, or when the
+  // extended system is not positive definite (e.g. a repeated node).
+  bool Add(const std::vector<Eigen::Vector2d>& nodes, const std::vector<Eigen::Vector2d>& values);
+  // The spline through every node added so far; nullopt before a
+  // successful Add, or when it does not interpolate its nodes to 1e-8 of
+  // the values' spread (ThinPlateSpline::Fit's test: then use Fit or GDAL's
+  // transformer).
+  std::optional<ThinPlateSpline> Spline() const;
+  int node_count() const { return static_cast<int>(px_.size()); }
+
+ private:
+  // Fit coordinates of every node, the three anchors first, and values
+  // minus offset_.
+  std::vector<double> px_, py_;
+  std::vector<Eigen::Vector2d> values_;
+  Eigen::Vector2d centre_ = Eigen::Vector2d::Zero(), offset_ = Eigen::Vector2d::Zero();
+  double inv_scale_ = 1.0;
+  // lambda = to_barycentric_ * (1, x, y); the kernel among the anchors.
+  Eigen::Matrix3d to_barycentric_ = Eigen::Matrix3d::Zero(), anchor_kernel_ = Eigen::Matrix3d::Zero();
+  // Per basis node i (node 3 + i): barycentric coordinates, kernel to the
+  // anchors.
+  std::vector<Eigen::Vector3d> lambda_, anchor_phi_;
+  int m_ = 0;               // basis size: node_count() - 3
+  Eigen::MatrixXd factor_;  // lower Cholesky factor of M in the top-left m_ x m_ (spare capacity beyond)
+  Eigen::MatrixX2d rhs_;    // Z' v, m_ rows used
 };
 
 }  // namespace gissar::geo

@@ -61,12 +61,10 @@ TEST(ThinPlateSplineTest, ReproducesAnAffineFunction) {
   }
 }
 
-// Against GDAL's own transformer (the one gdalwarp -tps builds): GCPs with
-// relief-like longitude/latitude offsets, a jittered lattice plus a dense
-// cluster 3 pixels apart (as the GCP refinement places them), evaluated
-// between the nodes and beyond them.
-TEST(ThinPlateSplineTest, AgreesWithGdalsTransformer) {
-  std::mt19937 rng(11);
+// GCPs with relief-like longitude/latitude offsets: a jittered 12 x 16
+// lattice 80 pixels apart, then a dense 24 x 24 cluster 3 pixels apart (as the
+// GCP refinement places them).
+std::vector<GroundControlPoint> ReliefGcps(std::mt19937& rng) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::normal_distribution<double> relief(0.0, 2e-4);  // about 20 m
   std::vector<GroundControlPoint> gcps;
@@ -86,19 +84,36 @@ TEST(ThinPlateSplineTest, AgreesWithGdalsTransformer) {
       gcps.push_back(g);
     }
   }
-  std::vector<Eigen::Vector2d> nodes, values;
   for (auto& g : gcps) {
     g.lon_deg = 1.5 + 1e-4 * g.pixel + 2e-6 * g.line + relief(rng);
     g.lat_deg = 42.5 - 1e-6 * g.pixel - 1e-4 * g.line + relief(rng);
+  }
+  return gcps;
+}
+
+// Points between the nodes and beyond them, and in the dense cluster.
+std::vector<Eigen::Vector2d> ProbePoints(std::mt19937& rng) {
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Eigen::Vector2d> points;
+  for (int i = 0; i < 3000; ++i) points.emplace_back(1100.0 * unit(rng) - 50.0, 1400.0 * unit(rng) - 50.0);
+  for (int i = 0; i < 500; ++i) points.emplace_back(395.0 + 80.0 * unit(rng), 595.0 + 80.0 * unit(rng));
+  return points;
+}
+
+// Against GDAL's own transformer (the one gdalwarp -tps builds), evaluated
+// between the nodes and beyond them.
+TEST(ThinPlateSplineTest, AgreesWithGdalsTransformer) {
+  std::mt19937 rng(11);
+  const std::vector<GroundControlPoint> gcps = ReliefGcps(rng);
+  std::vector<Eigen::Vector2d> nodes, values;
+  for (const auto& g : gcps) {
     nodes.emplace_back(g.pixel, g.line);
     values.emplace_back(g.lon_deg, g.lat_deg);
   }
   ASSERT_EQ(gcps.size(), 768u);
   const auto spline = ThinPlateSpline::Fit(nodes, values);
   ASSERT_TRUE(spline.has_value());
-  std::vector<Eigen::Vector2d> points;
-  for (int i = 0; i < 3000; ++i) points.emplace_back(1100.0 * unit(rng) - 50.0, 1400.0 * unit(rng) - 50.0);
-  for (int i = 0; i < 500; ++i) points.emplace_back(395.0 + 80.0 * unit(rng), 595.0 + 80.0 * unit(rng));
+  const std::vector<Eigen::Vector2d> points = ProbePoints(rng);
   const std::vector<Eigen::Vector2d> ours = spline->Evaluate(points);
   const std::vector<Eigen::Vector2d> gdal = TpsLonLat(gcps, points);
   double worst = 0.0;
@@ -114,6 +129,81 @@ TEST(ThinPlateSplineTest, AgreesWithGdalsTransformer) {
   for (size_t i = 0; i < nodes.size(); i += 7) {
     EXPECT_LT(((*spline)(nodes[i]) - values[i]).cwiseAbs().maxCoeff(), 1e-10) << i;
   }
+}
+
+// The incremental fit, with the same GCPs added as the refinement adds them
+// (the lattice, then the cluster in rounds of 144), is GDAL's spline after
+// the last round and Fit's spline after every round.
+TEST(ThinPlateSplineTest, IncrementalFitIsGdalsSplineAfterEveryRound) {
+  std::mt19937 rng(11);
+  const std::vector<GroundControlPoint> gcps = ReliefGcps(rng);
+  const std::vector<Eigen::Vector2d> points = ProbePoints(rng);
+  IncrementalThinPlateSpline incremental;
+  EXPECT_FALSE(incremental.Spline().has_value());
+  std::vector<Eigen::Vector2d> all_nodes, all_values;
+  for (size_t begin = 0; begin < gcps.size();) {
+    const size_t end = begin == 0 ? 192 : std::min(gcps.size(), begin + 144);
+    std::vector<Eigen::Vector2d> nodes, values;
+    for (size_t i = begin; i < end; ++i) {
+      nodes.emplace_back(gcps[i].pixel, gcps[i].line);
+      values.emplace_back(gcps[i].lon_deg, gcps[i].lat_deg);
+    }
+    all_nodes.insert(all_nodes.end(), nodes.begin(), nodes.end());
+    all_values.insert(all_values.end(), values.begin(), values.end());
+    ASSERT_TRUE(incremental.Add(nodes, values)) << begin;
+    EXPECT_EQ(incremental.node_count(), int(end));
+    const auto spline = incremental.Spline();
+    const auto direct = ThinPlateSpline::Fit(all_nodes, all_values);
+    ASSERT_TRUE(spline && direct) << begin;
+    EXPECT_EQ(spline->node_count(), int(end));
+    const std::vector<Eigen::Vector2d> a = spline->Evaluate(points), b = direct->Evaluate(points);
+    double worst = 0.0;
+    for (size_t i = 0; i < points.size(); ++i) worst = std::max(worst, (a[i] - b[i]).cwiseAbs().maxCoeff());
+    EXPECT_LT(worst, 1e-10) << "after " << end << " nodes";
+    begin = end;
+  }
+  const std::vector<Eigen::Vector2d> ours = incremental.Spline()->Evaluate(points);
+  const std::vector<Eigen::Vector2d> gdal = TpsLonLat(gcps, points);
+  double worst = 0.0;
+  for (size_t i = 0; i < points.size(); ++i) worst = std::max(worst, (ours[i] - gdal[i]).cwiseAbs().maxCoeff());
+  std::printf("[ measured ] incremental fit, largest difference from GDAL's spline: %.3g deg\n", worst);
+  EXPECT_LT(worst, 1e-9);
+}
+
+// The square's closed form (SquareCornersGiveTheClosedForm) with the fourth
+// corner added in a second batch.
+TEST(ThinPlateSplineTest, IncrementalFitOfTheSquareGivesTheClosedForm) {
+  IncrementalThinPlateSpline spline;
+  ASSERT_TRUE(spline.Add({{0, 0}, {1, 0}, {0, 1}}, {{0, 7}, {0, 7}, {0, 7}}));
+  // Three nodes: the affine plane through them.
+  EXPECT_NEAR((*spline.Spline())(Eigen::Vector2d(5, -2)).x(), 0.0, 1e-15);
+  ASSERT_TRUE(spline.Add({{1, 1}}, {{1, 4}}));
+  const double ln2 = std::log(2.0);
+  const double far = 1.75 + (8.0 * std::log(8.0) - 10.0 * std::log(5.0) + 2.0 * ln2) / (8.0 * ln2);
+  const auto s = spline.Spline();
+  ASSERT_TRUE(s.has_value());
+  for (const auto& [p, f] : std::vector<std::pair<Eigen::Vector2d, double>>{
+           {{0.5, 0.5}, 0.25}, {{0.5, 0.0}, 0.0}, {{2.0, 2.0}, far}, {{1.0, 1.0}, 1.0}}) {
+    EXPECT_NEAR((*s)(p).x(), f, 1e-12) << p.transpose();
+    EXPECT_NEAR((*s)(p).y(), -3.0 * f + 7.0, 1e-11) << p.transpose();
+  }
+}
+
+TEST(ThinPlateSplineTest, IncrementalFitRefusesAndKeepsItsSpline) {
+  IncrementalThinPlateSpline spline;
+  EXPECT_FALSE(spline.Add({{0, 0}, {1, 1}}, {{0, 0}, {1, 1}}));  // too few
+  std::vector<Eigen::Vector2d> line;
+  for (int i = 0; i < 10; ++i) line.emplace_back(3.0 * i, 2.0 * i + 1.0);
+  EXPECT_FALSE(spline.Add(line, line));  // collinear
+  EXPECT_EQ(spline.node_count(), 0);
+  ASSERT_TRUE(spline.Add({{0, 0}, {10, 0}, {0, 10}, {10, 10}}, {{0, 0}, {1, 0}, {0, 1}, {1, 1}}));
+  const Eigen::Vector2d probe(3.0, 7.0);
+  const Eigen::Vector2d before = (*spline.Spline())(probe);
+  // A node already there makes the system singular; a non-finite one is refused.
+  EXPECT_FALSE(spline.Add({{5, 5}, {10, 10}}, {{0.5, 0.5}, {2, 2}}));
+  EXPECT_FALSE(spline.Add({{5, std::nan("")}}, {{0, 0}}));
+  EXPECT_EQ(spline.node_count(), 4);
+  EXPECT_EQ((*spline.Spline())(probe), before);
 }
 
 TEST(ThinPlateSplineTest, RefusesTooFewOrCollinearNodes) {

@@ -317,16 +317,33 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
     truth_xy.push_back(terrain.frame.EnuFromGeodetic(p.lon_deg, p.lat_deg, 0.0).head<2>());
   }
   std::vector<double> error_m(candidates.size(), 0.0);
-  // The spline gdalwarp -tps builds through the GCPs (geo::ThinPlateSpline:
-  // GDAL's interpolant, forward only and vectorised; GDAL's transformer
-  // where that refuses the GCPs).
+  // The spline gdalwarp -tps builds through the GCPs: GDAL's interpolant,
+  // forward only and vectorised, each round extending the last round's fit
+  // (geo::IncrementalThinPlateSpline); a fit from scratch
+  // (geo::ThinPlateSpline), then GDAL's transformer, where that refuses the
+  // GCPs.
+  geo::IncrementalThinPlateSpline incremental;
+  bool incremental_ok = true;
   auto spline_lonlat = [&] {
     std::vector<Eigen::Vector2d> nodes, values;
-    for (const auto& q : g.gcps) {
-      nodes.emplace_back(q.pixel, q.line);
-      values.emplace_back(q.lon_deg, q.lat_deg);
+    auto gcps_from = [&](size_t first) {
+      nodes.clear();
+      values.clear();
+      for (size_t i = first; i < g.gcps.size(); ++i) {
+        nodes.emplace_back(g.gcps[i].pixel, g.gcps[i].line);
+        values.emplace_back(g.gcps[i].lon_deg, g.gcps[i].lat_deg);
+      }
+    };
+    std::optional<geo::ThinPlateSpline> spline;
+    if (incremental_ok) {
+      gcps_from(size_t(incremental.node_count()));
+      if (incremental.Add(nodes, values)) spline = incremental.Spline();
+      incremental_ok = spline.has_value();
     }
-    const std::optional<geo::ThinPlateSpline> spline = geo::ThinPlateSpline::Fit(nodes, values);
+    if (!spline) {
+      gcps_from(0);
+      spline = geo::ThinPlateSpline::Fit(nodes, values);
+    }
     return spline ? spline->Evaluate(pixels) : geo::TpsLonLat(g.gcps, pixels);
   };
   auto measure = [&] {
