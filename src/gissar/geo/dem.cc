@@ -5,7 +5,6 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -477,33 +476,15 @@ namespace {
 // exactly transformed nodes (DemPostsInFrame).
 constexpr double kInterpolationNodeSpacingM = 64.0;
 
-// One transformation per thread, made on the thread's first use: PROJ's
-// objects are not shared between threads, and making one searches PROJ's
-// database (milliseconds), too slow to repeat for every block of rows.
-class ThreadTransforms {
- public:
-  explicit ThreadTransforms(const std::string& crs_wkt) : crs_wkt_(crs_wkt) {}
-  const CrsTransform& Local() {
-    std::unique_ptr<CrsTransform>& crs = transforms_.local();
-    if (!crs) crs = std::make_unique<CrsTransform>(crs_wkt_);
-    return *crs;
-  }
-
- private:
-  const std::string& crs_wkt_;
-  tbb::enumerable_thread_specific<std::unique_ptr<CrsTransform>> transforms_;
-};
-
 // Every post transformed exactly: map -> WGS84 (PROJ) -> ENU.
 std::vector<Eigen::Vector3f> ExactPostsInFrame(const Dem& dem, const LocalFrame& frame) {
   const size_t n = size_t(dem.width) * dem.height;
   std::vector<Eigen::Vector3f> enu(n);
-  // Blocks of rows in parallel, each thread with its own transformation
-  // (ThreadTransforms) and row-sized buffers only.
+  // Blocks of rows in parallel, each with its own transformation (PROJ's
+  // objects are not shared between threads) and row-sized buffers only.
   const int grain = std::max(1, dem.height / 64);
-  ThreadTransforms transforms(dem.crs_wkt);
   tbb::parallel_for(tbb::blocked_range<int>(0, dem.height, grain), [&](const tbb::blocked_range<int>& rows) {
-    const CrsTransform& crs = transforms.Local();
+    const CrsTransform crs(dem.crs_wkt);
     const size_t count = size_t(rows.size()) * dem.width;
     std::vector<double> x(count), y(count);
     for (int r = rows.begin(); r < rows.end(); ++r) {
@@ -559,9 +540,8 @@ std::vector<Eigen::Vector3f> DemPostsInFrame(const Dem& dem, const LocalFrame& f
   const int nodes_y = static_cast<int>(FloorDiv(g_row0 + dem.height - 1, step) - k_row0 + 2);
   std::vector<Eigen::Vector3d> ground(size_t(nodes_x) * nodes_y), up(ground.size());
   std::atomic<bool> failed{false};
-  ThreadTransforms transforms(dem.crs_wkt);
   tbb::parallel_for(tbb::blocked_range<int>(0, nodes_y, 4), [&](const tbb::blocked_range<int>& rows) {
-    const CrsTransform& crs = transforms.Local();
+    const CrsTransform crs(dem.crs_wkt);
     const size_t count = size_t(rows.size()) * nodes_x;
     std::vector<double> x(count), y(count);
     for (int j = rows.begin(); j < rows.end(); ++j) {
