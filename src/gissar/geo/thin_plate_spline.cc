@@ -1,4 +1,5 @@
 #include "gissar/geo/thin_plate_spline.h"
+#include "gissar/geo/thin_plate_spline_kernels.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -139,6 +140,10 @@ template <class V, class I>
   sums[1] = t1;
 }
 
+}  // namespace
+
+namespace internal {
+
 // KernelSumsN four lanes at a time, compiled for AVX2 + FMA and for the
 // x86-64 baseline, the loader picking the one the CPU runs (GCC function
 // multi-versioning); eight lanes with AVX-512.
@@ -153,10 +158,18 @@ __attribute__((target("avx512f,fma"))) void KernelSums8(const double* xs, const 
                                                          double* sums) {
   KernelSumsN<V8, I8>(xs, ys, c0s, c1s, count, qx, qy, sums);
 }
+bool HasAvx512() {
+  static const bool avx512 = __builtin_cpu_supports("avx512f");
+  return avx512;
+}
+
+}  // namespace internal
+
+namespace {
+
 void KernelSums(const double* xs, const double* ys, const double* c0s, const double* c1s, size_t count, double qx,
                 double qy, double* sums) {
-  static const bool avx512 = __builtin_cpu_supports("avx512f");
-  (avx512 ? KernelSums8 : KernelSums4)(xs, ys, c0s, c1s, count, qx, qy, sums);
+  (internal::HasAvx512() ? internal::KernelSums8 : internal::KernelSums4)(xs, ys, c0s, c1s, count, qx, qy, sums);
 }
 
 // out[j] = phi(|q - p_j|^2) for the `count` nodes (xs, ys): four at a time,
@@ -403,11 +416,11 @@ bool IncrementalThinPlateSpline::Add(const std::vector<Eigen::Vector2d>& nodes,
   // L22 = chol(M22 - L21 L21').
   if (m > 0 && k > 0) {
     const auto l11 = factor_.topLeftCorner(m, m).triangularView<Eigen::Lower>();
-    tbb::parallel_for(tbb::blocked_range<int>(0, k, 16), [&](const tbb::blocked_range<int>& cols) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, k, std::max(16, (k + 1) / 2)), [&](const tbb::blocked_range<int>& cols) {
       auto block = x.middleCols(cols.begin(), cols.size());
       l11.solveInPlace(block);
     });
-    m22.noalias() -= x.transpose() * x;
+    m22.selfadjointView<Eigen::Lower>().rankUpdate(x.transpose(), -1.0);  // the lower triangle, which Cholesky reads
   }
   if (k > 0 && !CholeskyInPlace(m22)) return false;
 

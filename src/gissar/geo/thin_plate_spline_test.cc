@@ -6,6 +6,7 @@
 #include <random>
 
 #include "gissar/geo/raster_io.h"
+#include "gissar/geo/thin_plate_spline_kernels.h"
 #include "gissar/geo/warp.h"
 
 namespace gissar::geo {
@@ -204,6 +205,45 @@ TEST(ThinPlateSplineTest, IncrementalFitRefusesAndKeepsItsSpline) {
   EXPECT_FALSE(spline.Add({{5, std::nan("")}}, {{0, 0}}));
   EXPECT_EQ(spline.node_count(), 4);
   EXPECT_EQ((*spline.Spline())(probe), before);
+}
+
+// Both vector widths of the kernel sums against a long-double sum of
+// d ln d: nodes at squared distances from 0 (phi(0) = 0) through 1e-12 to
+// 2e4, with coefficients of both signs. The eight-lane build runs only where
+// the CPU has AVX-512.
+TEST(ThinPlateSplineTest, BothKernelWidthsSumDLnD) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-50.0, 50.0), c(-1.0, 1.0);
+  constexpr size_t kCount = 200;  // a multiple of 8
+  std::vector<double> xs(kCount), ys(kCount), c0(kCount), c1(kCount);
+  for (size_t j = 0; j < kCount; ++j) {
+    xs[j] = u(rng);
+    ys[j] = u(rng);
+    c0[j] = c(rng);
+    c1[j] = c(rng);
+  }
+  const double qx = xs[7], qy = ys[7];  // on a node: phi(0) = 0
+  xs[11] = qx;                          // squared distance 1e-12
+  ys[11] = qy + 1e-6;
+  long double reference[2] = {0.0L, 0.0L}, magnitude = 0.0L;
+  for (size_t j = 0; j < kCount; ++j) {
+    const long double dx = (long double)xs[j] - qx, dy = (long double)ys[j] - qy;
+    const long double d = dx * dx + dy * dy;
+    const long double phi = d > 0.0L ? d * std::log(d) : 0.0L;
+    reference[0] += c0[j] * phi;
+    reference[1] += c1[j] * phi;
+    magnitude += std::fabs(phi);
+  }
+  auto check = [&](const char* name, auto&& sums_of) {
+    double sums[2];
+    sums_of(xs.data(), ys.data(), c0.data(), c1.data(), kCount, qx, qy, sums);
+    for (int v = 0; v < 2; ++v) {
+      EXPECT_NEAR(sums[v], double(reference[v]), 1e-14 * double(magnitude)) << name << " value " << v;
+    }
+  };
+  check("four lanes", internal::KernelSums4);
+  if (internal::HasAvx512()) check("eight lanes", internal::KernelSums8);
+  std::printf("[ measured ] kernel widths checked: 4%s\n", internal::HasAvx512() ? " and 8 (AVX-512)" : "");
 }
 
 TEST(ThinPlateSplineTest, RefusesTooFewOrCollinearNodes) {

@@ -348,11 +348,13 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
   };
   auto measure = [&] {
     const std::vector<Eigen::Vector2d> lonlat = spline_lonlat();
-    for (size_t i = 0; i < candidates.size(); ++i) {
-      error_m[i] = lonlat[i].allFinite()
-                       ? (terrain.frame.EnuFromGeodetic(lonlat[i].x(), lonlat[i].y(), 0.0).head<2>() - truth_xy[i]).norm()
-                       : std::numeric_limits<double>::infinity();
-    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        error_m[i] = lonlat[i].allFinite() ? (terrain.frame.EnuFromGeodetic(lonlat[i].x(), lonlat[i].y(), 0.0).head<2>() -
+                                              truth_xy[i]).norm()
+                                           : std::numeric_limits<double>::infinity();
+      }
+    });
   };
   int rounds = 0, added_total = 0;
   bool measured = false;
@@ -364,21 +366,34 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
       break;  // GDAL could not build the spline (degenerate GCPs): keep what there is
     }
     if (rounds >= kTpsMaxRounds || int(g.gcps.size()) >= kMaxGcps) break;
-    std::vector<size_t> order(candidates.size());
-    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return error_m[a] > error_m[b]; });
+    // The candidates the spline misses, worst first: sorted only as far as
+    // the round reads (a few times the GCPs it may add), the rest on demand.
+    std::vector<size_t> order;
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      if (error_m[i] > tolerance_m) order.push_back(i);
+    }
+    const auto worse = [&](size_t a, size_t b) { return error_m[a] > error_m[b]; };
+    size_t sorted = std::min(order.size(), size_t(8 * kTpsMaxAddedPerRound));
+    std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(sorted), order.end(), worse);
+    constexpr double kMinSeparation2 = kTpsMinSeparationPx * kTpsMinSeparationPx;
     int added = 0;
-    for (size_t i : order) {
-      if (!(error_m[i] > tolerance_m) || int(g.gcps.size()) >= kMaxGcps || added >= kTpsMaxAddedPerRound) break;
+    for (size_t k = 0; k < order.size(); ++k) {
+      if (int(g.gcps.size()) >= kMaxGcps || added >= kTpsMaxAddedPerRound) break;
+      if (k == sorted) {
+        std::sort(order.begin() + std::ptrdiff_t(k), order.end(), worse);
+        sorted = order.size();
+      }
+      const geo::GroundControlPoint& candidate = candidates[order[k]];
       bool far = true;
       for (const auto& q : g.gcps) {
-        if (std::hypot(q.pixel - candidates[i].pixel, q.line - candidates[i].line) < kTpsMinSeparationPx) {
+        const double dx = q.pixel - candidate.pixel, dy = q.line - candidate.line;
+        if (dx * dx + dy * dy < kMinSeparation2) {
           far = false;
           break;
         }
       }
       if (!far) continue;
-      g.gcps.push_back(candidates[i]);
+      g.gcps.push_back(candidate);
       ++added;
     }
     if (added == 0) break;
