@@ -279,6 +279,7 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   dem.file_vertical_datum =
       VerticalDatumOfCrs(dem.crs_wkt, ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "");
   if (srs->IsGeographic()) CheckGeographicExtent(dem, *srs);
+
   GDALRasterBand* band = ds->GetRasterBand(options.band);
   int has_nodata = 0;
   const double nodata = band->GetNoDataValue(&has_nodata);

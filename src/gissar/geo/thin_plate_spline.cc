@@ -334,8 +334,7 @@ bool IncrementalThinPlateSpline::Add(const std::vector<Eigen::Vector2d>& nodes,
     v[i] = values[i] - offset_;
   }
   // The order in which the batch is appended: the anchors first.
-  std::vector<size_t> order(count);
-  for (size_t i = 0; i < count; ++i) order[i] = i;
+  std::vector<size_t> order;
   Eigen::Matrix3d to_barycentric = to_barycentric_, anchor_kernel = anchor_kernel_;
   if (first) {
     auto farthest = [&](auto&& measure) {
@@ -361,10 +360,10 @@ bool IncrementalThinPlateSpline::Add(const std::vector<Eigen::Vector2d>& nodes,
       for (int b = 0; b < 3; ++b) anchor_kernel(a, b) = Phi((p[anchors[a]] - p[anchors[b]]).squaredNorm());
     }
     to_barycentric = g.inverse();
-    std::stable_partition(order.begin(), order.end(), [&](size_t i) { return i == a0 || i == a1 || i == a2; });
-    std::sort(order.begin(), order.begin() + 3, [&](size_t i, size_t j) {
-      return std::find(anchors, anchors + 3, i) < std::find(anchors, anchors + 3, j);
-    });
+    order = {a0, a1, a2};
+  }
+  for (size_t i = 0; i < count; ++i) {
+    if (!first || (i != order[0] && i != order[1] && i != order[2])) order.push_back(i);
   }
   const size_t basis_begin = first ? 3 : 0;  // the batch's first basis node in `order`
   const int k = static_cast<int>(count - basis_begin), m = m_;
@@ -400,16 +399,14 @@ bool IncrementalThinPlateSpline::Add(const std::vector<Eigen::Vector2d>& nodes,
     std::vector<double> row(size_t(std::max(m, k)));
     for (int q = range.begin(); q < range.end(); ++q) {
       const Eigen::Vector3d lq = lambda[q], kq = anchor_phi[q], mq = anchor_kernel * lq;
-      if (m > 0) {
-        KernelRow(px_.data() + 3, py_.data() + 3, size_t(m), bx[q], by[q], row.data());
-        for (int j = 0; j < m; ++j) {
-          x(j, q) = row[j] - lambda_[j].dot(kq) - lq.dot(anchor_phi_[j]) + mq.dot(lambda_[j]);
-        }
-      }
-      KernelRow(bx.data(), by.data(), size_t(k), bx[q], by[q], row.data());
-      for (int j = 0; j < k; ++j) {
-        m22(j, q) = row[j] - lambda[j].dot(kq) - lq.dot(anchor_phi[j]) + mq.dot(lambda[j]);
-      }
+      // Column q of M against `count` basis nodes (coordinates xs, ys).
+      auto column = [&](const double* xs, const double* ys, const std::vector<Eigen::Vector3d>& lambdas,
+                        const std::vector<Eigen::Vector3d>& phis, int count, auto&& out) {
+        KernelRow(xs, ys, size_t(count), bx[q], by[q], row.data());
+        for (int j = 0; j < count; ++j) out(j) = row[j] - lambdas[j].dot(kq) - lq.dot(phis[j]) + mq.dot(lambdas[j]);
+      };
+      if (m > 0) column(px_.data() + 3, py_.data() + 3, lambda_, anchor_phi_, m, [&](int j) -> double& { return x(j, q); });
+      column(bx.data(), by.data(), lambda, anchor_phi, k, [&](int j) -> double& { return m22(j, q); });
     }
   });
   // Factor's new block row: L21' = L11^-1 M21' (columns in parallel), and
