@@ -22,6 +22,7 @@
 #include <tbb/global_control.h>
 
 #include "gissar/pipeline/geocode.h"
+#include "gissar/util/check.h"
 #include "gissar/pipeline/locate.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
@@ -72,6 +73,36 @@ py::array_t<T> Image(const std::vector<T>& values, int height, int width) {
   py::array_t<T> out({height, width});
   std::copy(values.begin(), values.end(), out.mutable_data());
   return out;
+}
+
+// The bounce layers as a (layer, row, column) array; a layer the render left
+// empty (no return of that order) as the writers give it.
+py::array_t<float> BounceBands(const render::SarImage& image, bool db) {
+  const size_t n = size_t(image.width) * image.height;
+  py::array_t<float> bands({render::kBounceLayers, image.height, image.width});
+  std::vector<float> no_return;
+  for (int b = 0; b < render::kBounceLayers; ++b) {
+    const std::vector<float>* layer = &image.bounce_layers[b];
+    if (layer->empty()) {
+      if (no_return.empty()) no_return = pipeline::NoReturnPlane(image, db);
+      layer = &no_return;
+    }
+    GISSAR_CHECK(layer->size() == n);
+    std::copy(layer->begin(), layer->end(), bands.mutable_data() + size_t(b) * n);
+  }
+  return bands;
+}
+
+// The (M, 3) vertex indices of every triangle of `mesh` (an implicit grid's
+// included).
+py::array_t<int32_t> TriangleIndices(const scene::TriangleMesh& mesh) {
+  py::array_t<int32_t> t({py::ssize_t(mesh.triangle_count()), py::ssize_t(3)});
+  int32_t* out = t.mutable_data();
+  for (size_t k = 0; k < mesh.triangle_count(); ++k) {
+    const Eigen::Vector3i tri = mesh.Triangle(k);
+    std::copy(tri.data(), tri.data() + 3, out + 3 * k);
+  }
+  return t;
 }
 
 // Keyword arguments as JSON values (str, bool, int, float, None, and
@@ -325,11 +356,7 @@ py::dict Simulate(py::kwargs kwargs) {
       image = std::move(simulated.image);
     }
   }
-  py::array_t<float> bands({render::kBounceLayers, image.height, image.width});
-  for (int b = 0; b < render::kBounceLayers; ++b) {
-    std::copy(image.bounce_layers[b].begin(), image.bounce_layers[b].end(),
-              bands.mutable_data() + size_t(b) * image.width * image.height);
-  }
+  py::array_t<float> bands = BounceBands(image, options.db);
   py::array_t<bool> layover({image.height, image.width}), shadow({image.height, image.width});
   for (size_t i = 0; i < image.mask.size(); ++i) {
     const bool inside = image.mask[i] != render::kMaskOutside;
@@ -364,11 +391,7 @@ py::dict SimulateProduct(const std::string& product, py::kwargs kwargs) {
   render::SarImage image = sim.image.image;
   if (image.footprint.size() == image.intensity.size()) pipeline::MarkOutsideFootprint(image, sim.image.image.footprint);
   const int h = image.height, w = image.width;
-  py::array_t<float> bands({render::kBounceLayers, h, w});
-  for (int b = 0; b < render::kBounceLayers; ++b) {
-    std::copy(image.bounce_layers[b].begin(), image.bounce_layers[b].end(),
-              bands.mutable_data() + size_t(b) * w * h);
-  }
+  py::array_t<float> bands = BounceBands(image, options.db);
   py::dict out;
   out["image"] = Image(image.intensity, h, w);
   out["bounces"] = bands;
@@ -939,8 +962,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         const scene::SceneFile s = scene::ReadScene(path);
         py::array_t<float> v({py::ssize_t(s.mesh.vertices.size()), py::ssize_t(3)});
         std::memcpy(v.mutable_data(), s.mesh.vertices.data(), s.mesh.vertices.size() * 12);
-        py::array_t<int32_t> t({py::ssize_t(s.mesh.triangles.size()), py::ssize_t(3)});
-        std::memcpy(t.mutable_data(), s.mesh.triangles.data(), s.mesh.triangles.size() * 12);
+        py::array_t<int32_t> t = TriangleIndices(s.mesh);
         py::array_t<uint8_t> c(py::ssize_t(s.mesh.classes.size()));
         std::memcpy(c.mutable_data(), s.mesh.classes.data(), s.mesh.classes.size());
         py::dict out;
@@ -1095,9 +1117,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         return v;
       }, "(N, 3) float32 vertices, ENU metres.")
       .def_property_readonly("triangles", [](const PyScene& s) {
-        py::array_t<int32_t> t({py::ssize_t(s.file.mesh.triangles.size()), py::ssize_t(3)});
-        std::memcpy(t.mutable_data(), s.file.mesh.triangles.data(), s.file.mesh.triangles.size() * 12);
-        return t;
+        return TriangleIndices(s.file.mesh);
       }, "(M, 3) int32 vertex indices.")
       .def_property_readonly("classes", [](const PyScene& s) {
         py::array_t<uint8_t> c(py::ssize_t(s.file.mesh.classes.size()));

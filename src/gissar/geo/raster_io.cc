@@ -329,7 +329,8 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   const char* options[] = {"COMPRESS=ZSTD", "ZSTD_LEVEL=1", "TILED=YES", "PREDICTOR=3", "NUM_THREADS=ALL_CPUS",
                            nullptr};
   std::vector<const void*> planes;
-  for (const std::vector<float>& b : raster.bands) {
+  for (const std::vector<float>& band : raster.bands) {
+    const std::vector<float>& b = band.empty() ? raster.empty_band_pixels : band;
     if (b.size() != size_t(raster.width) * raster.height) throw IoError("band size does not match the raster", path.string());
     planes.push_back(b.data());
   }
@@ -359,7 +360,7 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
     }
     if (!IsCog(raster.width, raster.height) &&
         band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
-                       const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
+                       const_cast<void*>(planes[b]), raster.width, raster.height,
                        GDT_Float32, 0, 0, nullptr) != CE_None) {
       throw IoError("cannot write GeoTIFF band: " + LastGdalMessage(), path.string());
     }

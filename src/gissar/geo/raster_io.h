@@ -62,6 +62,10 @@ struct FloatRaster {
   // A COG (either side over kCogMinSidePx) gets its internal overviews;
   // false: the COG layout without overviews (a third less to write).
   bool overviews = true;
+  // The pixels of every band left empty in `bands` (one plane shared by all
+  // of them, e.g. a simulation's bounce layers with no return); unused when
+  // no band is empty.
+  std::vector<float> empty_band_pixels;
 };
 
 // Every GeoTIFF writer below writes a ZSTD-compressed (level 1), tiled GeoTIFF;

@@ -22,7 +22,7 @@ const std::array<std::array<uint8_t, 3>, scene::kClassCount>& ClassColours() {
 
 RgbImage RenderClassMap(const scene::TriangleMesh& mesh, const std::vector<std::string>& class_names,
                         int max_side_px) {
-  GISSAR_CHECK(!mesh.triangles.empty());
+  GISSAR_CHECK(mesh.triangle_count() > 0);
   const Eigen::AlignedBox3d box = mesh.Bounds();
   const double span = std::max(box.sizes().x(), box.sizes().y());
   const double px_per_m = (max_side_px - 1) / span;
@@ -44,9 +44,9 @@ RgbImage RenderClassMap(const scene::TriangleMesh& mesh, const std::vector<std::
       if (n.z() < 0.01f) continue;  // walls and overhangs are invisible from above
       const float shade = 0.75f + 0.25f * std::max(0.0f, n.dot(sun));
       const auto& colour = ClassColours()[std::min<int>(mesh.classes[t], scene::kClassCount - 1)];
-      const cv::Point pts[3] = {to_px(mesh.vertices[mesh.triangles[t][0]]),
-                                to_px(mesh.vertices[mesh.triangles[t][1]]),
-                                to_px(mesh.vertices[mesh.triangles[t][2]])};
+      const Eigen::Vector3i tri = mesh.Triangle(t);
+      const cv::Point pts[3] = {to_px(mesh.vertices[tri[0]]), to_px(mesh.vertices[tri[1]]),
+                                to_px(mesh.vertices[tri[2]])};
       cv::fillConvexPoly(canvas, pts, 3,
                          cv::Scalar(colour[0] * shade, colour[1] * shade, colour[2] * shade),
                          cv::LINE_8, 4);

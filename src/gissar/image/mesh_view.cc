@@ -47,7 +47,7 @@ std::vector<std::array<uint8_t, 3>> ClassColourList() {
 RgbImage RenderMeshView(const scene::TriangleMesh& mesh, const std::vector<std::array<uint8_t, 3>>& class_colours,
                         const MeshViewOptions& options) {
   options.Check();
-  GISSAR_CHECK(!mesh.triangles.empty());
+  GISSAR_CHECK(mesh.triangle_count() > 0);
   const int ss = 2;  // supersampling factor
   const int w = options.width * ss, h = options.height * ss;
   const Eigen::AlignedBox3d box = mesh.Bounds();
@@ -100,7 +100,7 @@ RgbImage RenderMeshView(const scene::TriangleMesh& mesh, const std::vector<std::
   std::vector<Eigen::Vector3d> vertex_normal(mesh.vertices.size(), Eigen::Vector3d::Zero());
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
     if (mesh.classes[t] == scene::kClassBuilding) continue;
-    const auto& tri = mesh.triangles[t];
+    const Eigen::Vector3i tri = mesh.Triangle(t);
     Eigen::Vector3d n = (world(mesh.vertices[tri[1]]) - world(mesh.vertices[tri[0]]))
                             .cross(world(mesh.vertices[tri[2]]) - world(mesh.vertices[tri[0]]));
     if (n.z() < 0) n = -n;
@@ -109,7 +109,7 @@ RgbImage RenderMeshView(const scene::TriangleMesh& mesh, const std::vector<std::
   auto shade_of = [&](const Eigen::Vector3d& n) { return 0.35 + 0.65 * std::max(0.0, n.dot(sun)); };
 
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
-    const auto& tri = mesh.triangles[t];
+    const Eigen::Vector3i tri = mesh.Triangle(t);
     Eigen::Vector3d p[3];
     double sx[3], sy[3], iz[3];
     bool behind = false;

@@ -88,10 +88,27 @@ void AddPointPhasor(std::vector<float>& re, std::vector<float>& im, int width, i
   }
 }
 
+// A canonical reflector returns into its bounce layer whatever the bounces
+// traced: a layer the renderer left empty (no return of that order) becomes
+// a plane of zeros for the reflectors that land in it.
+void MaterializePointLayers(render::SarImage& image) {
+  const size_t n = image.intensity.size();
+  const bool coherent = !image.real.empty();
+  for (const render::PointReturn& p : image.points) {
+    if (p.layer < 0 || p.layer >= render::kBounceLayers) continue;
+    if (image.bounce_layers[p.layer].empty()) image.bounce_layers[p.layer].assign(n, 0.0f);
+    if (coherent && image.bounce_real[p.layer].empty()) {
+      image.bounce_real[p.layer].assign(n, 0.0f);
+      image.bounce_imag[p.layer].assign(n, 0.0f);
+    }
+  }
+}
+
 }  // namespace
 
 void AddPointIntensities(render::SarImage& image, const SensorEffects& effects) {
   const int w = image.width, h = image.height;
+  MaterializePointLayers(image);
   for (const render::PointReturn& p : image.points) {
     AddPointIntensity(image.intensity, w, h, p.col, p.row, p.beta0_sum, effects);
     auto& layer = image.bounce_layers[p.layer];
@@ -106,6 +123,7 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
   GISSAR_CHECK(!coherent || (image.real.size() == image.intensity.size() && image.imag.size() == image.real.size()));
   GISSAR_CHECK(!coherent || effects.speckle_looks == 0.0);
   const int w = image.width, h = image.height;
+  MaterializePointLayers(image);
   std::vector<std::vector<float>*> layers;
   for (auto& layer : image.bounce_layers) {
     if (layer.size() == image.intensity.size()) layers.push_back(&layer);

@@ -75,7 +75,9 @@ void AddPointIntensities(render::SarImage& image, const SensorEffects& effects);
 
 // Applies `effects` to `image` (beta0 on entry), with incidence_deg[c] the
 // ellipsoid incidence of column c. CHECKs the sizes and that a coherent
-// image has no speckle requested.
+// image has no speckle requested. A bounce layer the renderer left empty
+// stays empty unless a point return lands in it (it then becomes a plane of
+// zeros plus those returns; here and in AddPointIntensities).
 void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
                         const std::vector<double>& incidence_deg);
 

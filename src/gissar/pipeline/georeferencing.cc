@@ -164,16 +164,16 @@ TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.
                            ? size_t(terrain.grid_width - 1) * (terrain.grid_height - 1)
                            : 0;
   const bool plain_grid = cells > 0 && all_finite && vertices_.size() == size_t(terrain.grid_width) * terrain.grid_height &&
-                          (terrain.mesh.triangles.empty() || terrain.mesh.triangles.size() == 2 * cells);
+                          (terrain.mesh.triangle_count() == 0 || terrain.mesh.triangle_count() == 2 * cells);
   if (plain_grid) {
     grid_.emplace(vertices_, terrain.grid_width, terrain.grid_height, bounds.z_max);
     plain_width_ = terrain.grid_width;
     plain_height_ = terrain.grid_height;
     return;
   }
-  if (!terrain.mesh.triangles.empty()) {
-    triangles_ = &terrain.mesh.triangles;
-    triangle_count_ = terrain.mesh.triangles.size();
+  if (terrain.mesh.triangle_count() > 0) {
+    mesh_ = &terrain.mesh;
+    triangle_count_ = terrain.mesh.triangle_count();
   } else if (cells > 0) {
     grid_width_ = terrain.grid_width;
     grid_height_ = terrain.grid_height;
@@ -220,7 +220,7 @@ const sensor::SurfaceLimits& TerrainSurface::limits() const {
 }
 
 Eigen::Vector3i TerrainSurface::Triangle(size_t t) const {
-  if (triangles_ != nullptr) return (*triangles_)[t];
+  if (mesh_ != nullptr) return mesh_->Triangle(t);
   const size_t quad = t / 2;
   const int i = int(quad % (grid_width_ - 1)), j = int(quad / (grid_width_ - 1));
   const int a = j * grid_width_ + i, b = a + 1, c = a + grid_width_, d = c + 1;

@@ -40,7 +40,7 @@ class TerrainSurface {
   Eigen::Vector3i Triangle(size_t t) const;
   const std::vector<Eigen::Vector3f>& vertices_;
   std::optional<render::GridHeightfield> grid_;  // a plain DEM grid
-  const std::vector<Eigen::Vector3i>* triangles_ = nullptr;
+  const scene::TriangleMesh* mesh_ = nullptr;  // its triangles, when it has any
   int grid_width_ = 0, grid_height_ = 0;
   size_t triangle_count_ = 0;
   double x0_ = 0, y0_ = 0, cell_ = 1;

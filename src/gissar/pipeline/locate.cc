@@ -76,9 +76,9 @@ scene::TriangleMesh SmoothedTerrain(const scene::TriangleMesh& mesh, double lamb
   std::vector<double> sum(n, 0.0);
   std::vector<int> count(n, 0);
   std::vector<bool> fixed(n, false);
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-    const Eigen::Vector3i& tri = mesh.triangles[t];
-    const bool building = mesh.classes.size() == mesh.triangles.size() && mesh.classes[t] == scene::kClassBuilding;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const Eigen::Vector3i tri = mesh.Triangle(t);
+    const bool building = mesh.classes.size() == mesh.triangle_count() && mesh.classes[t] == scene::kClassBuilding;
     for (int k = 0; k < 3; ++k) {
       if (building) fixed[tri[k]] = true;
       for (int j = 0; j < 3; ++j) {

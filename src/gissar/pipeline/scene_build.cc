@@ -339,9 +339,9 @@ void PrintSceneInfo(const std::string& scene_path, std::ostream& out) {
   std::vector<double> area(file.class_names.size(), 0.0), plan(file.class_names.size(), 0.0);
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
     const size_t c = std::min<size_t>(mesh.classes[t], file.class_names.size() - 1);
-    const Eigen::Vector3f a = mesh.vertices[mesh.triangles[t][0]];
-    const Eigen::Vector3f cross =
-        (mesh.vertices[mesh.triangles[t][1]] - a).cross(mesh.vertices[mesh.triangles[t][2]] - a);
+    const Eigen::Vector3i tri = mesh.Triangle(t);
+    const Eigen::Vector3f a = mesh.vertices[tri[0]];
+    const Eigen::Vector3f cross = (mesh.vertices[tri[1]] - a).cross(mesh.vertices[tri[2]] - a);
     ++triangles[c];
     area[c] += 0.5 * cross.norm();
     plan[c] += 0.5 * std::abs(cross.z());

@@ -317,6 +317,14 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
 // `inside` as image.footprint. CHECKs the size.
 void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside);
 
+// The pixels of a bounce layer the render left empty (no return of that
+// order, render::SarImage::bounce_layers), as the writers and Python give
+// it: 0 inside the footprint (NaN when `db`: the dB of no power, as
+// image::ToDecibels writes it), NaN outside it (image.footprint; every pixel
+// is inside when the footprint is empty). Also the real and the imaginary
+// part of an empty complex layer (db false).
+std::vector<float> NoReturnPlane(const render::SarImage& image, bool db);
+
 // The tracer's options of a simulation: rays per cell, bounces, coherence,
 // wavelength, seed, contributions (when options.contributions is set) and
 // progress (unless quiet). The one place SimulateRequest map to the tracer.

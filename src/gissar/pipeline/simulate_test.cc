@@ -66,12 +66,16 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
     const float v = image.bands[0][i];
     if (mask[i] == render::kMaskOutside) {
       ASSERT_TRUE(std::isnan(v)) << i;
+      ASSERT_TRUE(std::isnan(image.bands[4][i])) << i;
       ++outside;
       continue;
     }
     ASSERT_LE(mask[i], 3);
     ASSERT_TRUE(std::isfinite(v)) << i;
     ASSERT_GE(v, 0.0f);
+    // Three bounces traced: nothing returns after four or more (the layer
+    // the renderer leaves empty is written as zeros inside the footprint).
+    ASSERT_EQ(image.bands[4][i], 0.0f) << i;
     positive += v > 0;
     shadow += (mask[i] & 2) != 0;
     layover += (mask[i] & 1) != 0;

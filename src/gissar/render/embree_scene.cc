@@ -75,7 +75,9 @@ size_t TerrainGridCells(const scene::TriangleMesh& mesh, const TerrainGrid& grid
     row_first[r + 1] = row_first[r] + in_row;
   }
   const size_t cells = row_first[h - 1];
-  if (cells == 0 || mesh.vertices.size() < w * h || mesh.triangles.size() < cells * 2) return 0;
+  if (cells == 0 || mesh.vertices.size() < w * h || mesh.triangle_count() < cells * 2) return 0;
+  // An implicit grid (scene::GridMesh) is MeshFromGrid's by construction.
+  if (!masked && mesh.grid_width == grid.width && mesh.grid_height == grid.height) return cells;
   const bool up = scene::GridColumnCrossRowUp(mesh.vertices.data(), grid.width);
   std::atomic<bool> same{true};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, h - 1, 64), [&](const tbb::blocked_range<size_t>& rows) {
@@ -85,7 +87,7 @@ size_t TerrainGridCells(const scene::TriangleMesh& mesh, const TerrainGrid& grid
         if (masked && grid.cells[r * (w - 1) + c] == 0) continue;
         const size_t cell = pair++;
         const auto expected = scene::GridCellTriangles(grid.width, int(c), int(r), up);
-        if (mesh.triangles[2 * cell] != expected[0] || mesh.triangles[2 * cell + 1] != expected[1]) {
+        if (mesh.Triangle(2 * cell) != expected[0] || mesh.Triangle(2 * cell + 1) != expected[1]) {
           same = false;
           return;
         }
@@ -418,7 +420,7 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
 
 EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, BvhQuality quality)
     : impl_(std::make_unique<Impl>()) {
-  if (mesh.triangles.empty()) throw InputError("scene has no triangles", "mesh");
+  if (mesh.triangle_count() == 0) throw InputError("scene has no triangles", "mesh");
   Stopwatch watch;
   impl_->device = rtcNewDevice(nullptr);
   if (impl_->device == nullptr) throw Error("cannot create Embree device", "ray tracer");
@@ -444,19 +446,23 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& gri
   }
   // The other triangles (buildings, reflectors; all of them without a
   // height field) as an Embree triangle or quad mesh, with only the
-  // vertices they use.
+  // vertices they use (and every index stored: an implicit grid the height
+  // field does not take is written out here).
   scene::TriangleMesh rest_storage;
   const scene::TriangleMesh* rest = &mesh;
-  if (first_mesh_triangle > 0) {
+  if (first_mesh_triangle > 0 || mesh.grid_width > 0) {
     rest = &rest_storage;
-    std::vector<int> new_index(first_mesh_triangle < mesh.triangles.size() ? mesh.vertices.size() : 0, -1);
-    for (size_t t = first_mesh_triangle; t < mesh.triangles.size(); ++t) {
+    const size_t count = mesh.triangle_count();
+    std::vector<int> new_index(first_mesh_triangle < count ? mesh.vertices.size() : 0, -1);
+    rest_storage.triangles.reserve(count - first_mesh_triangle);
+    for (size_t t = first_mesh_triangle; t < count; ++t) {
+      const Eigen::Vector3i source = mesh.Triangle(t);
       Eigen::Vector3i tri;
       for (int c = 0; c < 3; ++c) {
-        int& index = new_index[size_t(mesh.triangles[t][c])];
+        int& index = new_index[size_t(source[c])];
         if (index < 0) {
           index = int(rest_storage.vertices.size());
-          rest_storage.vertices.push_back(mesh.vertices[size_t(mesh.triangles[t][c])]);
+          rest_storage.vertices.push_back(mesh.vertices[size_t(source[c])]);
         }
         tri[c] = index;
       }

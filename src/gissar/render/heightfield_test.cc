@@ -515,6 +515,41 @@ TEST(HeightfieldTest, CurvedGridsAndMissingPostsMatchEmbree) {
   EXPECT_FALSE(hit.has_value());
 }
 
+// A DEM's grid with its triangles kept implicit (scene::GridMesh) plus a
+// building: the same hits, distances and triangle ids as the same mesh with
+// every index stored, as a height field and (its triangles written out for
+// Embree) without one.
+TEST(HeightfieldTest, AnImplicitGridIsTracedLikeItsStoredTriangles) {
+  constexpr int kPosts = 40;
+  scene::TriangleMesh stored = scene::MeshFromHeights(RoughHeights(kPosts, 5), kPosts, kPosts, 25.0);
+  scene::TriangleMesh implicit = scene::GridMesh(std::vector<Vector3f>(stored.vertices), kPosts, kPosts);
+  const Vector3f a(250, 250, 0), b(350, 250, 0), c(350, 350, 0), up(0, 0, 400);
+  for (scene::TriangleMesh* mesh : {&stored, &implicit}) {
+    mesh->AddQuad(a + up, b + up, c + up, a + up + (c - b), 3);
+    mesh->AddQuad(a, b, b + up, a + up, 3);
+  }
+  ASSERT_TRUE(implicit.triangles.size() == 4 && implicit.triangle_count() == stored.triangle_count());
+  const std::vector<TestRay> rays = RandomRays(stored, 4000, 12);
+  for (const bool as_heightfield : {true, false}) {
+    SCOPED_TRACE(as_heightfield ? "height field" : "Embree triangles");
+    const TerrainGrid grid = as_heightfield ? TerrainGrid{kPosts, kPosts} : TerrainGrid{};
+    const EmbreeScene from_stored(stored, grid), from_implicit(implicit, grid);
+    EXPECT_EQ(from_implicit.heightfield(), as_heightfield);
+    int hits = 0;
+    for (const TestRay& ray : rays) {
+      const auto hs = from_stored.Intersect(ray.origin, ray.direction, 0.0f, kInf);
+      const auto hi = from_implicit.Intersect(ray.origin, ray.direction, 0.0f, kInf);
+      ASSERT_EQ(hs.has_value(), hi.has_value());
+      if (!hs) continue;
+      ++hits;
+      EXPECT_EQ(hs->t, hi->t);
+      EXPECT_EQ(hs->triangle, hi->triangle);
+      EXPECT_EQ(implicit.Triangle(hi->triangle), stored.triangles[hs->triangle]);
+    }
+    EXPECT_GT(hits, 2000);
+  }
+}
+
 // A mesh that does not start with the stated grid goes into Embree whole.
 TEST(HeightfieldTest, AMeshThatIsNotTheStatedGridIsTracedAsTriangles) {
   scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(10, 1), 10, 10, 10.0);

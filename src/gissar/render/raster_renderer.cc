@@ -731,10 +731,7 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
     image.footprint[i] = (image.mask[i] & kCoveredFlag) != 0;
     image.mask[i] &= kMaskLayover | kMaskShadow;
   }
-  image.bounce_layers[0] = image.intensity;
-  for (int layer = 1; layer < kBounceLayers; ++layer) {
-    image.bounce_layers[layer].assign(image.intensity.size(), 0.0f);
-  }
+  image.bounce_layers[0] = image.intensity;  // single bounce only: the other layers stay empty
   image.stats.cells = int64_t(width - 1) * (height - 1);
   image.stats.trace_seconds = watch.ElapsedSeconds();
   return image;

@@ -54,7 +54,7 @@ namespace gissar::render {
 // Returns the SarImage of RenderSar: `intensity` calibrated identically
 // (beta0: each patch of area A returns sigma0(theta_l) A over the pixel
 // area),
-// bounce_layers[0] equal to it and the other layers zero, the mask with the
+// bounce_layers[0] equal to it and the other layers empty, the mask with the
 // same codes and semantics (value at each pixel centre: kMaskShadow when a
 // surface covering it faces away from the radar or lies below the horizon
 // of its azimuth line, kMaskLayover when a lit surface covering it is imaged

@@ -584,7 +584,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
       for (int r = rows.begin(); r < rows.end(); ++r) {
         for (int c = 0; c < grid_w; ++c) above[size_t(c)] = project(mesh.vertices[size_t(r + 1) * grid_w + c].cast<double>());
         for (size_t t = size_t(2) * size_t(r) * (grid_w - 1); t < size_t(2) * size_t(r + 1) * (grid_w - 1); ++t) {
-          const Eigen::Vector3i& tri = mesh.triangles[t];
+          const Eigen::Vector3i tri = mesh.Triangle(t);
           Vector3d v[3];
           Eigen::Vector2d p[3];
           for (int k = 0; k < 3; ++k) {
@@ -603,7 +603,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                     [&](const tbb::blocked_range<size_t>& range) {
     Task task;
     for (size_t t = range.begin(); t != range.end(); ++t) {
-      const Eigen::Vector3i& tri = mesh.triangles[t];
+      const Eigen::Vector3i tri = mesh.Triangle(t);
       const Vector3d v[3] = {mesh.vertices[tri[0]].cast<double>(),
                              mesh.vertices[tri[1]].cast<double>(),
                              mesh.vertices[tri[2]].cast<double>()};
@@ -620,7 +620,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                    const material::MaterialTable& materials, const sensor::SarGeometry& geometry,
                    const RenderOptions& options) {
   options.Check();
-  GISSAR_CHECK(mesh.classes.size() == mesh.triangles.size());
+  GISSAR_CHECK(mesh.classes.size() == mesh.triangle_count());
+  const size_t implicit_triangles = mesh.GridTriangleCount();
   SarImage image;
   image.width = geometry.width();
   image.height = geometry.height();
@@ -683,7 +684,10 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     return static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + (i1 - 1) * grid.da))) + 2 - band_row0(b);
   };
   for (int b = 0; b + 2 < n_blocks; ++b) GISSAR_CHECK(band_row0(b) + band_rows(b) <= band_row0(b + 2));
-  std::vector<std::vector<float>> full(planes, std::vector<float>(size_t(width) * height, 0.0f));
+  // The planes are zeroed in parallel, one task per plane: for a large image
+  // the first touch of fresh pages is most of their cost.
+  std::vector<std::vector<float>> full(planes);
+  tbb::parallel_for(0, planes, [&](int p) { full[p].assign(size_t(width) * height, 0.0f); });
   std::vector<std::vector<Band::Overflow>> block_overflow(n_blocks);
   std::vector<std::vector<Contribution>> block_contributions(options.record_contributions ? n_blocks : 0);
   tbb::enumerable_thread_specific<std::vector<float>> band_buffers;
@@ -816,14 +820,15 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
           const bool swept = sweep && line_swept[size_t(i - i0)];
           for (int k = 0; k < 16; ++k) {
             if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-            if (!swept) __builtin_prefetch(&mesh.triangles[packet.triangle[k]]);
-            __builtin_prefetch(&mesh.classes[packet.triangle[k]]);
+            // (An implicit grid's triangles are computed, not read.)
+            const size_t t = packet.triangle[k];
+            if (!swept && t >= implicit_triangles) __builtin_prefetch(&mesh.triangles[t - implicit_triangles]);
+            __builtin_prefetch(&mesh.classes[t]);
           }
           for (int k = 0; k < 16 && !swept; ++k) {
             if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-            for (int corner = 0; corner < 3; ++corner) {
-              __builtin_prefetch(&mesh.vertices[mesh.triangles[packet.triangle[k]][corner]]);
-            }
+            const Eigen::Vector3i tri = mesh.Triangle(packet.triangle[k]);
+            for (int corner = 0; corner < 3; ++corner) __builtin_prefetch(&mesh.vertices[tri[corner]]);
           }
           for (int k = 0; k < 16; ++k) {
             if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
@@ -945,7 +950,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               // (The adaptive sub-rays below do the same at their own hits.)
               auto shade = [&](uint32_t triangle, const Vector3d& point, const Vector3d& ray, double cos_facet) {
                 if (mesh.shading_normals.empty()) return cos_facet;
-                const Eigen::Vector3i& tri = mesh.triangles[triangle];
+                const Eigen::Vector3i tri = mesh.Triangle(triangle);
                 const Vector3d v0 = mesh.vertices[tri[0]].cast<double>();
                 const Vector3d e1 = mesh.vertices[tri[1]].cast<double>() - v0;
                 const Vector3d e2 = mesh.vertices[tri[2]].cast<double>() - v0;
@@ -1122,25 +1127,15 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     }
     image.real = std::move(full[0]);
     image.imag = std::move(full[1]);
-    for (int layer = 0; layer < kBounceLayers; ++layer) {
-      if (layer < used_layers) {
-        image.bounce_real[layer] = std::move(full[complex_layer_plane(layer)]);
-        image.bounce_imag[layer] = std::move(full[complex_layer_plane(layer) + 1]);
-      } else {
-        image.bounce_real[layer].assign(size_t(width) * height, 0.0f);
-        image.bounce_imag[layer].assign(size_t(width) * height, 0.0f);
-      }
+    for (int layer = 0; layer < used_layers; ++layer) {
+      image.bounce_real[layer] = std::move(full[complex_layer_plane(layer)]);
+      image.bounce_imag[layer] = std::move(full[complex_layer_plane(layer) + 1]);
     }
   } else {
     image.intensity = std::move(full[0]);
   }
-  for (int layer = 0; layer < kBounceLayers; ++layer) {
-    if (layer < used_layers) {
-      image.bounce_layers[layer] = std::move(full[total_planes + layer]);
-    } else {
-      image.bounce_layers[layer].assign(size_t(width) * height, 0.0f);
-    }
-  }
+  // Layers beyond max_bounces stay empty (no return of that order).
+  for (int layer = 0; layer < used_layers; ++layer) image.bounce_layers[layer] = std::move(full[total_planes + layer]);
   for (auto& list : block_contributions) {
     image.contributions.insert(image.contributions.end(), list.begin(), list.end());
   }

@@ -151,14 +151,18 @@ struct SarImage {
   std::vector<float> intensity;
   // Intensity per bounce count: [0] single, [1] double, [2] triple, [3] four
   // or more (incoherent sums; after image::ApplySensorEffects in coherent
-  // mode, the detected power of bounce_real/bounce_imag).
+  // mode, the detected power of bounce_real/bounce_imag). A layer the render
+  // cannot reach (more bounces than RenderOptions::max_bounces; the raster
+  // engine's multi-bounce layers) is empty rather than a full-size plane of
+  // zeros: no return of that order (pipeline::NoReturnPlane gives its
+  // pixels as written).
   std::array<std::vector<float>, kBounceLayers> bounce_layers;
   // Coherent mode: the complex image (amplitude sqrt(beta0)) before the
   // sensor stage; `intensity` is its detected power. Empty otherwise.
   std::vector<float> real, imag;
   // Coherent mode: the complex image of each bounce count (same layers as
-  // bounce_layers); they add up to real/imag (before thermal noise). Empty
-  // otherwise.
+  // bounce_layers, empty where bounce_layers is); they add up to real/imag
+  // (before thermal noise). Empty otherwise.
   std::array<std::vector<float>, kBounceLayers> bounce_real, bounce_imag;
   // Canonical reflectors' returns (added by the sensor stage).
   std::vector<PointReturn> points;

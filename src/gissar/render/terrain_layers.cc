@@ -60,7 +60,7 @@ TerrainLayers ComputeTerrainLayers(const scene::TriangleMesh& mesh, const sensor
   // sums do not depend on threads).
   std::vector<double> area(n, 0.0), weighted(n, 0.0);
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
-    const Eigen::Vector3i& tri = mesh.triangles[t];
+    const Eigen::Vector3i tri = mesh.Triangle(t);
     const Vector3d v[3] = {mesh.vertices[tri[0]].cast<double>(), mesh.vertices[tri[1]].cast<double>(),
                            mesh.vertices[tri[2]].cast<double>()};
     if (!v[0].allFinite() || !v[1].allFinite() || !v[2].allFinite()) continue;

@@ -385,8 +385,8 @@ std::vector<uint8_t> SeaPostMask(const geo::Dem& dem, double sea_level_m) {
 int64_t MarkSeaTriangles(TriangleMesh& mesh, const std::vector<uint8_t>& sea_posts) {
   int64_t marked = 0;
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
-    const Eigen::Vector3i& tri = mesh.triangles[t];
     if (mesh.classes[t] != kClassDefault) continue;
+    const Eigen::Vector3i tri = mesh.Triangle(t);
     if (sea_posts[size_t(tri[0])] && sea_posts[size_t(tri[1])] && sea_posts[size_t(tri[2])]) {
       mesh.classes[t] = kClassSea;
       ++marked;

@@ -48,6 +48,12 @@ class Reader {
 }  // namespace
 
 void WriteScene(const fs::path& path, const SceneFile& scene) {
+  if (scene.mesh.grid_width > 0) {  // the file stores every triangle
+    SceneFile stored = scene;
+    stored.mesh.MakeExplicit();
+    WriteScene(path, stored);
+    return;
+  }
   std::ofstream out(path, std::ios::binary);
   if (!out) throw IoError("cannot open scene file for writing", path.string());
   nlohmann::json header = {
@@ -247,13 +253,14 @@ void WritePly(const fs::path& path, const TriangleMesh& mesh, const std::vector<
   for (const std::string& line : header_comments) out << "comment " << line << "\n";
   out << "element vertex " << mesh.vertices.size()
       << "\nproperty float x\nproperty float y\nproperty float z\n"
-      << "element face " << mesh.triangles.size()
+      << "element face " << mesh.triangle_count()
       << "\nproperty list uchar int vertex_indices\nproperty uchar class\nend_header\n";
   out.write(reinterpret_cast<const char*>(mesh.vertices.data()),
             static_cast<std::streamsize>(mesh.vertices.size() * sizeof(Eigen::Vector3f)));
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
     Put(out, static_cast<uint8_t>(3));
-    out.write(reinterpret_cast<const char*>(mesh.triangles[t].data()), 3 * sizeof(int));
+    const Eigen::Vector3i face = mesh.Triangle(t);
+    out.write(reinterpret_cast<const char*>(face.data()), 3 * sizeof(int));
     Put(out, mesh.classes[t]);
   }
   out.close();
@@ -297,7 +304,7 @@ void WriteObj(const fs::path& path, const fs::path& mtl_path, const std::string&
         out << "usemtl " << class_names[c] << "\n";
         any = true;
       }
-      const Eigen::Vector3i& f = mesh.triangles[t];
+      const Eigen::Vector3i f = mesh.Triangle(t);
       out << "f " << f[0] + 1 << " " << f[1] + 1 << " " << f[2] + 1 << "\n";
     }
   }

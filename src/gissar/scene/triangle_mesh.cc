@@ -8,14 +8,34 @@
 
 namespace gissar::scene {
 
+Eigen::Vector3i TriangleMesh::Triangle(size_t t) const {
+  const size_t grid = GridTriangleCount();
+  if (t >= grid) return triangles[t - grid];
+  const size_t cell = t / 2, cells_per_row = size_t(grid_width - 1);
+  const int r = int(cell / cells_per_row), c = int(cell % cells_per_row);
+  return GridCellTriangles(grid_width, c, r, grid_column_cross_row_up)[t % 2];
+}
+
+void TriangleMesh::MakeExplicit() {
+  if (grid_width == 0) return;
+  const size_t grid = GridTriangleCount();
+  std::vector<Eigen::Vector3i> all(grid + triangles.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, grid, size_t(1) << 16), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t t = range.begin(); t != range.end(); ++t) all[t] = Triangle(t);
+  });
+  std::copy(triangles.begin(), triangles.end(), all.begin() + std::ptrdiff_t(grid));
+  triangles = std::move(all);
+  grid_width = grid_height = 0;
+}
+
 Eigen::Vector3f TriangleMesh::Normal(size_t t) const {
-  const Eigen::Vector3i& tri = triangles[t];
+  const Eigen::Vector3i tri = Triangle(t);
   return TriangleNormal(vertices[tri[0]], vertices[tri[1]], vertices[tri[2]]);
 }
 
 Eigen::Vector3f TriangleMesh::ShadingNormal(size_t t, float u, float v) const {
   if (shading_normals.empty()) return Normal(t);
-  const Eigen::Vector3i& tri = triangles[t];
+  const Eigen::Vector3i tri = Triangle(t);
   const Eigen::Vector3f& n0 = shading_normals[tri[0]];
   const Eigen::Vector3f& n1 = shading_normals[tri[1]];
   const Eigen::Vector3f& n2 = shading_normals[tri[2]];
@@ -27,9 +47,9 @@ Eigen::Vector3f TriangleMesh::ShadingNormal(size_t t, float u, float v) const {
 
 void TriangleMesh::SmoothShadingNormals(ClassId excluded) {
   std::vector<Eigen::Vector3d> sum(vertices.size(), Eigen::Vector3d::Zero());
-  for (size_t t = 0; t < triangles.size(); ++t) {
+  for (size_t t = 0; t < triangle_count(); ++t) {
     if (classes[t] == excluded) continue;
-    const Eigen::Vector3i& tri = triangles[t];
+    const Eigen::Vector3i tri = Triangle(t);
     const Eigen::Vector3d a = vertices[tri[0]].cast<double>();
     // Cross product = normal * twice the area: area weighting.
     const Eigen::Vector3d n =
@@ -63,6 +83,13 @@ Eigen::AlignedBox3d TriangleMesh::Bounds() const {
 }
 
 void TriangleMesh::Append(const TriangleMesh& other) {
+  // An implicit grid can only start a mesh: one appended is stored.
+  if (other.grid_width > 0) {
+    TriangleMesh copy = other;
+    copy.MakeExplicit();
+    Append(copy);
+    return;
+  }
   const int offset = static_cast<int>(vertices.size());
   if (!shading_normals.empty() || !other.shading_normals.empty()) {
     shading_normals.resize(vertices.size(), Eigen::Vector3f::Zero());
@@ -107,7 +134,7 @@ size_t TriangleMesh::MemoryBytes() const {
 std::optional<std::vector<uint8_t>> GridPrefixCells(const TriangleMesh& mesh, const GridPrefix& prefix) {
   if (prefix.width < 2 || prefix.height < 2 || prefix.cells <= 0) return std::nullopt;
   const int64_t w = prefix.width, h = prefix.height;
-  if (int64_t(mesh.vertices.size()) < w * h || int64_t(mesh.triangles.size()) < 2 * prefix.cells ||
+  if (int64_t(mesh.vertices.size()) < w * h || int64_t(mesh.triangle_count()) < 2 * prefix.cells ||
       prefix.cells > (w - 1) * (h - 1)) {
     return std::nullopt;
   }
@@ -115,8 +142,8 @@ std::optional<std::vector<uint8_t>> GridPrefixCells(const TriangleMesh& mesh, co
   std::vector<uint8_t> cells(size_t((w - 1) * (h - 1)), 0);
   int64_t previous = -1;
   for (int64_t k = 0; k < prefix.cells; ++k) {
-    const Eigen::Vector3i& t0 = mesh.triangles[size_t(2 * k)];
-    const Eigen::Vector3i& t1 = mesh.triangles[size_t(2 * k + 1)];
+    const Eigen::Vector3i t0 = mesh.Triangle(size_t(2 * k));
+    const Eigen::Vector3i t1 = mesh.Triangle(size_t(2 * k + 1));
     const int64_t a = t0[0], c = a % w, r = a / w;
     if (a < 0 || c + 1 >= w || r + 1 >= h) return std::nullopt;
     const int64_t cell = r * (w - 1) + c;
@@ -152,6 +179,18 @@ TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts_taken, int width,
     }
   });
   mesh.classes.assign(mesh.triangles.size(), kDefaultClass);
+  return mesh;
+}
+
+TriangleMesh GridMesh(std::vector<Eigen::Vector3f>&& posts_taken, int width, int height) {
+  GISSAR_CHECK(width >= 2 && height >= 2);
+  GISSAR_CHECK(posts_taken.size() == size_t(width) * height);
+  TriangleMesh mesh;
+  mesh.vertices = std::move(posts_taken);
+  mesh.grid_width = width;
+  mesh.grid_height = height;
+  mesh.grid_column_cross_row_up = GridColumnCrossRowUp(mesh.vertices.data(), width);
+  mesh.classes.assign(mesh.GridTriangleCount(), kDefaultClass);
   return mesh;
 }
 

@@ -19,16 +19,35 @@ inline constexpr ClassId kDefaultClass = 0;
 
 struct TriangleMesh {
   std::vector<Eigen::Vector3f> vertices;   // ENU metres
-  std::vector<Eigen::Vector3i> triangles;  // vertex indices, counter-clockwise seen
-                                           // from the side the normal points to
-  std::vector<ClassId> classes;            // one per triangle
+  // Vertex indices, counter-clockwise seen from the side the normal points
+  // to: every triangle, or with an implicit grid (below) the triangles after
+  // the grid's (triangle t is triangles[t - GridTriangleCount()]). Read a
+  // triangle with Triangle(t), count them with triangle_count().
+  std::vector<Eigen::Vector3i> triangles;
+  std::vector<ClassId> classes;            // one per triangle (triangle_count())
+  // An implicit grid (GridMesh): vertices [0, grid_width * grid_height) are
+  // a grid's posts, row-major, and triangles [0, GridTriangleCount()) are
+  // MeshFromGrid's two triangles of each of its cells, computed on demand
+  // instead of stored (a 8192^2 DEM's index array is 1.6 GB). grid_width 0:
+  // none, every triangle is in `triangles`.
+  int grid_width = 0;
+  int grid_height = 0;
+  bool grid_column_cross_row_up = true;  // GridColumnCrossRowUp of the grid
   // Optional per-vertex unit shading normals (smooth terrain): empty = flat
   // shading everywhere; a zero vector at any vertex of a triangle = flat
   // shading for that triangle (buildings). Geometry (hits, shadows, back
   // faces, mirror directions) always uses the facet normal.
   std::vector<Eigen::Vector3f> shading_normals;
 
-  size_t triangle_count() const { return triangles.size(); }
+  size_t GridTriangleCount() const {
+    return grid_width > 1 ? size_t(grid_width - 1) * size_t(grid_height - 1) * 2 : 0;
+  }
+  size_t triangle_count() const { return GridTriangleCount() + triangles.size(); }
+  // Vertex indices of triangle t (t < triangle_count()).
+  Eigen::Vector3i Triangle(size_t t) const;
+  // Stores the implicit grid's triangles in `triangles` (no implicit grid
+  // afterwards): for code that hands the index array to another library.
+  void MakeExplicit();
 
   // Shading normal of triangle `t` at barycentric (u, v) (the point
   // (1-u-v) v0 + u v1 + v v2): the normalised interpolation of its vertices'
@@ -94,6 +113,9 @@ inline std::array<Eigen::Vector3i, 2> GridCellTriangles(int width, int c, int r,
 TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, int height);
 // The same, taking the posts over (no copy of the vertex array).
 TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts, int width, int height);
+// The same triangles kept implicit (TriangleMesh::grid_width): no index
+// array, Triangle(t) computes them. Same CHECKs.
+TriangleMesh GridMesh(std::vector<Eigen::Vector3f>&& posts, int width, int height);
 
 // A terrain grid at the start of a mesh that is not all grid (a GIS scene):
 // vertices [0, width * height) are the DEM posts, row-major, and triangles

@@ -46,6 +46,44 @@ TEST(TriangleMeshTest, AppendReindexes) {
   EXPECT_EQ(a.classes[2], 3);
 }
 
+// A grid mesh with implicit triangles is MeshFromGrid's, triangle by
+// triangle (both grid orientations), until it is made explicit; triangles
+// appended to it come after the grid's, and appending it to another mesh
+// stores its triangles.
+TEST(TriangleMeshTest, ImplicitGridIsMeshFromGrids) {
+  for (const float row_step : {10.0f, -10.0f}) {
+    std::vector<Eigen::Vector3f> posts;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 5; ++c) posts.emplace_back(c * 10.0f, r * row_step, float((c * 7 + r * 3) % 5));
+    const TriangleMesh stored = MeshFromGrid(posts, 5, 4);
+    TriangleMesh implicit = GridMesh(std::vector<Eigen::Vector3f>(posts), 5, 4);
+    EXPECT_TRUE(implicit.triangles.empty());
+    ASSERT_EQ(implicit.triangle_count(), 4u * 3u * 2u);
+    ASSERT_EQ(implicit.classes.size(), implicit.triangle_count());
+    EXPECT_EQ(implicit.MemoryBytes(), posts.size() * sizeof(Eigen::Vector3f) + implicit.classes.capacity());
+    for (size_t t = 0; t < stored.triangle_count(); ++t) {
+      EXPECT_EQ(implicit.Triangle(t), stored.triangles[t]) << t;
+      EXPECT_EQ(implicit.Normal(t), stored.Normal(t)) << t;
+      EXPECT_GT(implicit.Normal(t).z(), 0.0f) << t;
+    }
+    TriangleMesh extended = implicit;
+    extended.AddTriangle({0, 0, 50}, {1, 0, 50}, {0, 1, 50}, 4);
+    ASSERT_EQ(extended.triangle_count(), 25u);
+    EXPECT_EQ(extended.Triangle(24), Eigen::Vector3i(20, 21, 22));
+    EXPECT_EQ(extended.classes[24], 4);
+    extended.MakeExplicit();
+    EXPECT_EQ(extended.grid_width, 0);
+    ASSERT_EQ(extended.triangles.size(), 25u);
+    for (size_t t = 0; t < 24; ++t) EXPECT_EQ(extended.triangles[t], stored.triangles[t]) << t;
+    EXPECT_EQ(extended.triangles[24], Eigen::Vector3i(20, 21, 22));
+    TriangleMesh host;
+    host.AddTriangle({0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+    host.Append(implicit);
+    ASSERT_EQ(host.triangles.size(), 25u);
+    EXPECT_EQ(host.triangles[1], stored.triangles[0] + Eigen::Vector3i::Constant(3));
+  }
+}
+
 }  // namespace
 }  // namespace gissar::scene
 

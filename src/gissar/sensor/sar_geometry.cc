@@ -1,6 +1,10 @@
 #include "gissar/sensor/sar_geometry.h"
 
 #include <Eigen/Geometry>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include <array>
 #include <cmath>
 #include <sstream>
 
@@ -99,14 +103,22 @@ SarGeometry SarGeometry::Covering(const SarGeometryOptions& options,
   }
   // Project with a provisional frame (Xc at pixel 0,0), then shift.
   const SarGeometry probe(options, scene_centre, 0.0, 0.0, 1, 1);
-  double cmin = 0, cmax = 0, rmin = 0, rmax = 0;
-  for (const Eigen::Vector3f& p : points) {
-    const Eigen::Vector2d px = probe.Project(p.cast<double>());
-    cmin = std::min(cmin, px.x());
-    cmax = std::max(cmax, px.x());
-    rmin = std::min(rmin, px.y());
-    rmax = std::max(rmax, px.y());
-  }
+  // Extent of the projections (in parallel: a large DEM has tens of
+  // millions of posts); min and max do not depend on the order.
+  using Extent = std::array<double, 4>;  // column min, max, row min, max
+  const Extent extent = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, points.size(), size_t(1) << 16), Extent{0.0, 0.0, 0.0, 0.0},
+      [&](const tbb::blocked_range<size_t>& range, Extent e) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+          const Eigen::Vector2d px = probe.Project(points[i].cast<double>());
+          e = {std::min(e[0], px.x()), std::max(e[1], px.x()), std::min(e[2], px.y()), std::max(e[3], px.y())};
+        }
+        return e;
+      },
+      [](const Extent& a, const Extent& b) {
+        return Extent{std::min(a[0], b[0]), std::max(a[1], b[1]), std::min(a[2], b[2]), std::max(a[3], b[3])};
+      });
+  const double cmin = extent[0], cmax = extent[1], rmin = extent[2], rmax = extent[3];
   const double u0 = std::ceil(-cmin) + margin_px;
   const double v0 = std::ceil(-rmin) + margin_px;
   const double width_d = std::ceil(cmax + u0) + margin_px + 1;
