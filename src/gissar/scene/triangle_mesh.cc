@@ -161,24 +161,8 @@ TriangleMesh MeshFromGrid(const std::vector<Eigen::Vector3f>& posts, int width, 
 }
 
 TriangleMesh MeshFromGrid(std::vector<Eigen::Vector3f>&& posts_taken, int width, int height) {
-  GISSAR_CHECK(width >= 2 && height >= 2);
-  GISSAR_CHECK(posts_taken.size() == size_t(width) * height);
-  TriangleMesh mesh;
-  mesh.vertices = std::move(posts_taken);
-  mesh.triangles.resize(size_t(width - 1) * (height - 1) * 2);
-  const bool column_cross_row_up = GridColumnCrossRowUp(mesh.vertices.data(), width);
-  // Rows of cells in parallel; triangle 2k and 2k + 1 belong to cell k.
-  tbb::parallel_for(tbb::blocked_range<int>(0, height - 1, 64), [&](const tbb::blocked_range<int>& rows) {
-    for (int r = rows.begin(); r < rows.end(); ++r) {
-      Eigen::Vector3i* out = mesh.triangles.data() + size_t(r) * (width - 1) * 2;
-      for (int c = 0; c + 1 < width; ++c) {
-        const auto cell = GridCellTriangles(width, c, r, column_cross_row_up);
-        *out++ = cell[0];
-        *out++ = cell[1];
-      }
-    }
-  });
-  mesh.classes.assign(mesh.triangles.size(), kDefaultClass);
+  TriangleMesh mesh = GridMesh(std::move(posts_taken), width, height);
+  mesh.MakeExplicit();
   return mesh;
 }
 
