@@ -561,12 +561,6 @@ void WriteGifFrames(const std::string& path, const std::vector<py::array_t<uint8
 
 // ---------------------------------------------------------------- navigation
 
-Eigen::Vector3d Vec3(const py::handle& h, const std::string& key) {
-  const auto v = h.cast<std::vector<double>>();
-  if (v.size() != 3) throw ConfigError("expected three numbers", key);
-  return {v[0], v[1], v[2]};
-}
-
 py::dict PoseDict(const nav::NavPose& pose, sensor::LookSide side) {
   const Eigen::Vector3d s = pose.SensorPosition(side);
   return py::dict(py::arg("heading_deg") = pose.heading_deg, py::arg("depression_deg") = pose.depression_deg,
@@ -578,7 +572,7 @@ py::dict PoseDict(const nav::NavPose& pose, sensor::LookSide side) {
 py::dict Locate(const PyScene& scene, const py::array_t<float, py::array::c_style | py::array::forcecast>& observed_image,
                 const py::dict& prior_dict, double range_spacing_m, double azimuth_spacing_m,
                 const std::string& look_side, const std::string& matcher, int search_px, int step_px,
-                int polish_evaluations, int bounces, double rays_per_cell, bool references) {
+                int dense_renders, int polish_evaluations, int bounces, double rays_per_cell, bool references) {
   const FloatImage observed = ToFloatImage(observed_image, "gissar.locate: image");
   const nlohmann::json prior_json = nlohmann::json::parse(py::module_::import("json").attr("dumps")(prior_dict).cast<std::string>());
   const pipeline::PriorPose prior = pipeline::ParsePriorJson(prior_json, "gissar.locate: prior");
@@ -593,6 +587,7 @@ py::dict Locate(const PyScene& scene, const py::array_t<float, py::array::c_styl
   lo.matcher = nav::ParseMatcher(matcher, "matcher");
   lo.initial_search_px = search_px;
   lo.step_px = step_px;
+  lo.dense_renders = dense_renders;
   lo.polish_evaluations = polish_evaluations;
   lo.Check();
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "bounces");
@@ -637,6 +632,8 @@ py::dict Locate(const PyScene& scene, const py::array_t<float, py::array::c_styl
   out["matches"] = r.matches;
   out["inliers"] = r.inliers;
   out["rms_px"] = r.rms_px;
+  out["dense_renders"] = r.dense_renders;
+  out["dense_rms_db"] = r.dense_rms_db;
   out["similarity_ncc"] = r.similarity;
   out["prior_similarity_ncc"] = r.prior_similarity;
   out["heading_sigma_deg"] = r.heading_sigma_deg;
@@ -1261,13 +1258,14 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
 
   m.def("locate", &Locate, py::arg("scene"), py::arg("image"), py::arg("prior"), py::arg("range_spacing_m"),
         py::arg("azimuth_spacing_m"), py::arg("look_side") = "right", py::arg("matcher") = "ncc",
-        py::arg("search_px") = 28, py::arg("step_px") = 12, py::arg("polish_evaluations") = 0,
+        py::arg("search_px") = 28, py::arg("step_px") = 12, py::arg("dense_renders") = 2,
+        py::arg("polish_evaluations") = 0,
         py::arg("bounces") = 1, py::arg("rays_per_cell") = 4.0, py::arg("references") = true,
         "`gissar locate` (docs/navigation.md): pose fix of one observed SAR image (H, W) linear intensity with "
         "the given pixel spacings (m) against the Scene, from an INS prior dict {'heading_deg', "
         "'slant_range_m', and 'sensor_enu_m' [x, y, z] or 'depression_deg' + 'centre_enu_m'/'centre_lonlat'}. "
         "Returns {'pose': {heading_deg, depression_deg, slant_range_m, centre_enu_m, sensor_enu_m}, 'prior', "
-        "'converged', 'iterations', 'matches', 'inliers', 'rms_px', 'similarity_ncc', 'prior_similarity_ncc', "
+        "'converged', 'iterations', 'matches', 'inliers', 'rms_px', 'dense_renders', 'dense_rms_db', 'similarity_ncc', 'prior_similarity_ncc', "
         "sigmas, 'seconds'} and with references=True the simulated images at the prior and at the fix.");
 
   m.def("sequence", [](const std::string& out_prefix, double heading_from_deg, double heading_to_deg, int frames,

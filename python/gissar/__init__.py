@@ -238,7 +238,7 @@ epipolar_plot = _images_in(_core.epipolar_plot, ["image1", "image2"])
 def locate(scene, image, prior, range_spacing_m, azimuth_spacing_m, **kwargs):
     """`gissar locate` (docs/navigation.md): pose fix of one observed SAR image against a scene (gissar.Scene or
     the path of a .gscene). image: NumPy array, DataArray (its total band), path or GDAL dataset. Keywords:
-    look_side, matcher, search_px, step_px, polish_evaluations, bounces, rays_per_cell, references (as
+    look_side, matcher, search_px, step_px, dense_renders, polish_evaluations, bounces, rays_per_cell, references (as
     gissar._core.locate). Returns the fix as a dict (see help(gissar._core.locate))."""
     if not isinstance(scene, _core.Scene):
         scene = Scene(_os.fspath(scene))

@@ -47,6 +47,8 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features (--product: ncc, gradient, phase or mi)")->capture_default_str();
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (prior uncertainty)")->capture_default_str();
     cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
+    cmd->add_option("--dense-renders", o->dense_renders,
+                    "Renders of the dense stage (all-pixel fit with one gain per class; 0 = off)")->capture_default_str();
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray in the reference renders")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell in the reference renders")->capture_default_str();
@@ -98,6 +100,8 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_flag("--no-compare", *no_compare, "Skip the per-trial matcher comparison");
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (0 = from the prior errors)")->capture_default_str();
     cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
+    cmd->add_option("--dense-renders", o->dense_renders,
+                    "Renders of the dense stage (all-pixel fit with one gain per class; 0 = off)")->capture_default_str();
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell")->capture_default_str();

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <opencv2/imgproc.hpp>
+
 #include "gissar/mvg/registration.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
@@ -105,6 +107,167 @@ std::optional<KnownSpacingResection> ResectKnownSpacing(const std::vector<Eigen:
   return out;
 }
 
+// The pose a resection moves `pose` to, and the size of that move in pixels
+// (the largest of the centre shift, the rotation at the image edge and the
+// range rescaling of the depression change at the image edge); nullopt when
+// the new line of sight leaves the scene.
+struct PoseStep {
+  NavPose pose;
+  double update_px = 0.0;
+};
+std::optional<PoseStep> StepTo(const NavScene& scene, const NavPose& pose, const SensorModel& model,
+                               const KnownSpacingResection& res) {
+  const double a = ((model.width - 1) / 2.0 - res.u0) * model.range_spacing_m;
+  const double b = ((model.height - 1) / 2.0 - res.v0) * model.azimuth_spacing_m;
+  const double d_heading = std::remainder(res.heading_deg - pose.heading_deg, 360.0);
+  const double d_depression = res.depression_deg - pose.depression_deg;
+  const auto next = Moved(scene, pose, model, d_heading, d_depression, a, b);
+  if (!next) return std::nullopt;
+  const double rotation_px = std::abs(d_heading) * kDeg * 0.5 * std::max(model.width, model.height);
+  // A depression change rescales the range axis by ~tan(delta) d_delta.
+  const double tilt_px = std::abs(d_depression) * kDeg * std::tan(pose.depression_deg * kDeg) * 0.5 * model.width;
+  return PoseStep{*next, std::max({std::abs(a) / model.range_spacing_m, std::abs(b) / model.azimuth_spacing_m,
+                                   rotation_px, tilt_px})};
+}
+
+// Dense refinement of (heading, depression, u0, v0): Gauss-Newton on the
+// log-intensity difference of every usable reference pixel. The 3-D point X
+// of reference pixel c moves to c + P_q(X) - P_q0(X) in the observed image
+// (P_q: the affine camera of the parameters q, P_q0 the reference's). The
+// observed log image there is predicted as 10 log10(sum_k g_k B_k(c) + floor),
+// B_k the box-filtered intensity of class k (LogIntensity's filter, which is
+// linear) and g_k = 10^(a_k / 10) the class's fitted gain: the scene's
+// materials are known to a few dB only, and a mismatch moves a class's
+// returns by one factor, in mixed pixels too. The gains carry a weak prior
+// (a_k ~ N(0, 10 dB)) so that a class seen in few pixels stays determined.
+// Pixels: valid reference pixels at least 2 px inside the image; residuals
+// are Huber-weighted (1.345 robust sigmas). `rms_px` of the result is the
+// robust RMS residual in dB. nullopt when fewer than 64 pixels are usable or
+// the normal equations are singular.
+std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv::Mat& obs_log,
+                                                 const Eigen::Vector3d& xc, const SensorModel& model,
+                                                 double heading_deg, double depression_deg, int iterations,
+                                                 int filter_px, double floor) {
+  const int w = model.width, h = model.height;
+  const int classes = static_cast<int>(ref.class_intensity.size());
+  if (classes == 0) return std::nullopt;
+  std::vector<cv::Mat> box(classes);
+  for (int k = 0; k < classes; ++k) {
+    if (filter_px > 1) {
+      cv::boxFilter(ref.class_intensity[k], box[k], CV_32F, cv::Size(filter_px, filter_px), cv::Point(-1, -1),
+                    true, cv::BORDER_REFLECT);
+    } else {
+      box[k] = ref.class_intensity[k];
+    }
+  }
+  cv::Mat gx, gy;  // gradients of the observed log image, dB per pixel
+  cv::Sobel(obs_log, gx, CV_32F, 1, 0, 3, 1.0 / 8.0);
+  cv::Sobel(obs_log, gy, CV_32F, 0, 1, 3, 1.0 / 8.0);
+  struct Sample { Eigen::Vector3d d; Eigen::Vector2d c0; };
+  std::vector<Sample> samples;
+  std::vector<double> class_box;  // classes values per sample
+  const Eigen::Vector3d l0 = sensor::LookDirection(heading_deg, depression_deg, model.look_side);
+  const Eigen::Vector3d h0 = sensor::FlightDirection(heading_deg);
+  for (int y = 2; y < h - 2; ++y)
+    for (int x = 2; x < w - 2; ++x) {
+      if (ref.valid.at<uint8_t>(y, x) == 0) continue;
+      const cv::Vec3f p = ref.points.at<cv::Vec3f>(y, x);
+      const Eigen::Vector3d d = Eigen::Vector3d(p[0], p[1], p[2]) - xc;
+      // c0 = c - P_q0(X): P_q0 images Xc at the image centre.
+      const Eigen::Vector2d c0(x - (w - 1) / 2.0 - d.dot(l0) / model.range_spacing_m,
+                               y - (h - 1) / 2.0 - d.dot(h0) / model.azimuth_spacing_m);
+      samples.push_back({d, c0});
+      for (int k = 0; k < classes; ++k) class_box.push_back(std::max(0.0f, box[k].at<float>(y, x)));
+    }
+  if (samples.size() < 64) return std::nullopt;
+  auto bilinear = [](const cv::Mat& m, double x, double y) {
+    const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+    const double fx = x - x0, fy = y - y0;
+    const float* r0 = m.ptr<float>(y0);
+    const float* r1 = m.ptr<float>(y0 + 1);
+    return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+  };
+  // Parameters: heading, depression (deg), u0, v0 (px), a_k (dB) per class.
+  const int np = 4 + classes;
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(np);
+  q << heading_deg, depression_deg, (w - 1) / 2.0, (h - 1) / 2.0, Eigen::VectorXd::Zero(classes);
+  constexpr double kGainPriorDb = 10.0;
+  constexpr double kEps = 1e-6;
+  constexpr double kDbPerNeper = 10.0 / M_LN10;
+  KnownSpacingResection out;
+  double rms = 0, s2 = 0;
+  Eigen::MatrixXd normal(np, np);
+  Eigen::VectorXd j(np), rhs(np), gains(classes);
+  std::vector<double> residual;
+  std::vector<Eigen::VectorXd> jac;
+  for (int it = 0; it < iterations; ++it) {
+    const Eigen::Vector3d l = sensor::LookDirection(q[0], q[1], model.look_side);
+    const Eigen::Vector3d hh = sensor::FlightDirection(q[0]);
+    const Eigen::Vector3d dl_dh = (sensor::LookDirection(q[0] + kEps, q[1], model.look_side) - l) / kEps;
+    const Eigen::Vector3d dl_dd = (sensor::LookDirection(q[0], q[1] + kEps, model.look_side) - l) / kEps;
+    const Eigen::Vector3d dh_dh = (sensor::FlightDirection(q[0] + kEps) - hh) / kEps;
+    for (int k = 0; k < classes; ++k) gains[k] = std::pow(10.0, q[4 + k] / 10.0);
+    residual.clear();
+    jac.clear();
+    for (size_t i = 0; i < samples.size(); ++i) {
+      const Sample& s = samples[i];
+      const double ox = s.c0.x() + q[2] + s.d.dot(l) / model.range_spacing_m;
+      const double oy = s.c0.y() + q[3] + s.d.dot(hh) / model.azimuth_spacing_m;
+      if (ox < 1 || oy < 1 || ox > w - 2.001 || oy > h - 2.001) continue;
+      const double* b = class_box.data() + i * classes;
+      double sum = floor;
+      for (int k = 0; k < classes; ++k) sum += gains[k] * b[k];
+      const double ogx = bilinear(gx, ox, oy), ogy = bilinear(gy, ox, oy);
+      j[0] = ogx * s.d.dot(dl_dh) / model.range_spacing_m + ogy * s.d.dot(dh_dh) / model.azimuth_spacing_m;
+      j[1] = ogx * s.d.dot(dl_dd) / model.range_spacing_m;
+      j[2] = ogx;
+      j[3] = ogy;
+      for (int k = 0; k < classes; ++k) j[4 + k] = -gains[k] * b[k] / sum;
+      residual.push_back(bilinear(obs_log, ox, oy) - kDbPerNeper * std::log(sum));
+      jac.push_back(j);
+    }
+    const int used = static_cast<int>(residual.size());
+    if (used < 64) return std::nullopt;
+    std::vector<double> a(residual.size());
+    for (size_t i = 0; i < a.size(); ++i) a[i] = std::abs(residual[i]);
+    std::nth_element(a.begin(), a.begin() + a.size() / 2, a.end());
+    const double sigma = std::max(1.4826 * a[a.size() / 2], 1e-3);
+    const double huber = 1.345 * sigma;
+    normal.setZero();
+    rhs.setZero();
+    double wsum = 0, wr2 = 0;
+    for (size_t i = 0; i < residual.size(); ++i) {
+      const double wt = std::abs(residual[i]) <= huber ? 1.0 : huber / std::abs(residual[i]);
+      normal.selfadjointView<Eigen::Lower>().rankUpdate(jac[i], wt);
+      rhs -= wt * residual[i] * jac[i];
+      wsum += wt;
+      wr2 += wt * residual[i] * residual[i];
+    }
+    normal = normal.selfadjointView<Eigen::Lower>();
+    // The gains' prior, in units of the pixel residuals' variance.
+    const double prior_weight = sigma * sigma / (kGainPriorDb * kGainPriorDb);
+    for (int k = 0; k < classes; ++k) {
+      normal(4 + k, 4 + k) += prior_weight;
+      rhs[4 + k] -= prior_weight * q[4 + k];
+    }
+    const Eigen::VectorXd step = normal.ldlt().solve(rhs);
+    if (!step.allFinite()) return std::nullopt;
+    q += step;
+    rms = std::sqrt(wr2 / std::max(wsum, 1.0));
+    s2 = wr2 / std::max(wsum - np, 1.0);
+    if (std::abs(step[0]) < 1e-7 && std::abs(step[1]) < 1e-7 && step.segment<2>(2).norm() < 1e-5) break;
+  }
+  if (!(q[1] > 1.0 && q[1] < 89.0)) return std::nullopt;
+  out.heading_deg = q[0];
+  out.depression_deg = q[1];
+  out.u0 = q[2];
+  out.v0 = q[3];
+  out.rms_px = rms;
+  const Eigen::MatrixXd cov = s2 * normal.inverse();
+  out.sigma = cov.diagonal().head<4>().cwiseMax(0.0).cwiseSqrt();
+  return out;
+}
+
 }  // namespace
 
 Eigen::Vector3d NavPose::LookDirection(sensor::LookSide side) const {
@@ -132,6 +295,8 @@ void LocateOptions::Check() const {
   if (max_iterations < 1) throw ConfigError("must be >= 1", "max_iterations");
   if (!(ransac_threshold_px > 0.0)) throw ConfigError("must be > 0", "ransac_threshold_px");
   if (min_matches < 6) throw ConfigError("must be >= 6", "min_matches");
+  if (dense_renders < 0) throw ConfigError("must be >= 0", "dense_renders");
+  if (dense_iterations < 1) throw ConfigError("must be >= 1", "dense_iterations");
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "polish_evaluations");
   if (!(reference_floor > 0.0) || !std::isfinite(reference_floor)) throw ConfigError("must be > 0", "reference_floor");
 }
@@ -171,7 +336,7 @@ std::optional<Eigen::Vector3d> SurfaceBelow(const render::EmbreeScene& embree,
 }
 
 Reference RenderReference(const NavScene& scene, const NavPose& pose, const SensorModel& model) {
-  Reference ref{GeometryOf(pose, model), {}, {}, {}};
+  Reference ref{GeometryOf(pose, model), {}, {}, {}, {}, {}};
   render::RenderOptions ro;
   ro.rays_per_cell = scene.rays_per_cell;
   ro.max_bounces = scene.bounces;
@@ -180,6 +345,33 @@ Reference RenderReference(const NavScene& scene, const NavPose& pose, const Sens
   ref.intensity = std::move(image.intensity);
   const int w = model.width, h = model.height;
   cv::Mat sum(h, w, CV_64FC3, cv::Scalar::all(0)), weight(h, w, CV_64F, cv::Scalar(0));
+  // Intensity per (pixel, class of the last hit), every bounce.
+  int class_count = 0;
+  for (const render::Contribution& c : image.contributions) class_count = std::max(class_count, c.class_id + 1);
+  std::vector<double> class_weight(size_t(w) * h * class_count, 0.0);
+  std::vector<double> class_total(class_count, 0.0);
+  for (const render::Contribution& c : image.contributions) {
+    const int x = static_cast<int>(std::lround(ref.geometry.ColumnOfRange(c.range_m)));
+    const int y = static_cast<int>(std::lround(ref.geometry.RowOfAlongTrack(c.azimuth_m)));
+    if (x < 0 || y < 0 || x >= w || y >= h) continue;
+    class_weight[(size_t(y) * w + x) * class_count + c.class_id] += c.intensity;
+    class_total[c.class_id] += c.intensity;
+  }
+  for (int k = 0; k < class_count; ++k) {
+    if (!(class_total[k] > 0)) continue;
+    ref.class_ids.push_back(k);
+    ref.class_intensity.emplace_back(h, w, CV_32F, cv::Scalar(0));
+  }
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double* cw = class_weight.data() + (size_t(y) * w + x) * class_count;
+      double total = 0;
+      for (int k = 0; k < class_count; ++k) total += cw[k];
+      if (!(total > 0)) continue;
+      const double pixel = ref.intensity[size_t(y) * w + x];
+      for (size_t i = 0; i < ref.class_ids.size(); ++i)
+        ref.class_intensity[i].at<float>(y, x) = static_cast<float>(pixel * cw[ref.class_ids[i]] / total);
+    }
   for (const render::Contribution& c : image.contributions) {
     if (c.bounces != 1) continue;
     const int x = static_cast<int>(std::lround(ref.geometry.ColumnOfRange(c.range_m)));
@@ -275,12 +467,8 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
       result.failure_reason = "the matches determine no camera (degenerate control points)";
       break;
     }
-    const double a = ((model.width - 1) / 2.0 - res->u0) * model.range_spacing_m;
-    const double b = ((model.height - 1) / 2.0 - res->v0) * model.azimuth_spacing_m;
-    const double d_heading = std::remainder(res->heading_deg - pose.heading_deg, 360.0);
-    const double d_depression = res->depression_deg - pose.depression_deg;
-    const auto next = Moved(scene, pose, model, d_heading, d_depression, a, b);
-    if (!next) {
+    const auto step = StepTo(scene, pose, model, *res);
+    if (!step) {
       result.failure_reason = "the resected pose's line of sight leaves the scene";
       break;
     }
@@ -290,14 +478,26 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
     result.position_sigma_lhn_m = Eigen::Vector3d(res->sigma[2] * model.range_spacing_m,
                                                   res->sigma[3] * model.azimuth_spacing_m,
                                                   pose.slant_range_m * res->sigma[1] * kDeg);
-    const double rotation_px = std::abs(d_heading) * kDeg * 0.5 * std::max(model.width, model.height);
-    // A depression change rescales the range axis by ~tan(delta) d_delta.
-    const double tilt_px = std::abs(d_depression) * kDeg * std::tan(pose.depression_deg * kDeg) * 0.5 * model.width;
-    last_update_px = std::max({std::abs(a) / model.range_spacing_m, std::abs(b) / model.azimuth_spacing_m,
-                               rotation_px, tilt_px});
-    pose = *next;
+    last_update_px = step->update_px;
+    pose = step->pose;
     search = last_update_px > options.refine_search_px - 1 ? options.initial_search_px : options.refine_search_px;
     if (last_update_px < 0.1) break;
+  }
+  // Dense stage: from inside its basin (the patch stage's last update below
+  // 2 px; infinite when the patch stage found no camera).
+  for (int k = 0; k < options.dense_renders && last_update_px < 2.0; ++k) {
+    const Reference ref = RenderReference(scene, pose, model);
+    ++result.renders;
+    const auto res = DenseRefine(ref, obs_log, pose.centre_enu, model, pose.heading_deg, pose.depression_deg,
+                                 options.dense_iterations, options.filter_px, options.reference_floor);
+    if (!res) break;
+    const auto step = StepTo(scene, pose, model, *res);
+    if (!step) break;
+    pose = step->pose;
+    last_update_px = step->update_px;
+    result.dense_renders = k + 1;
+    result.dense_rms_db = res->rms_px;
+    if (last_update_px < 0.02) break;
   }
   result.converged = last_update_px < 0.5;
   if (result.converged) {

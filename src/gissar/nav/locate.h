@@ -17,9 +17,14 @@
 // known pixel spacings (heading, depression, u0, v0 by Gauss-Newton), move the
 // pose to the resected camera (new Xc: the surface point the resected camera
 // images at the image centre), and iterate with a shrinking search until the
-// update is below 0.1 px (converged: the last update below 0.5 px; at most
-// max_iterations renders); then optionally polish heading, depression and Xc
-// by Nelder-Mead on the whole-image NCC of log intensities.
+// update is below 0.1 px (at most max_iterations renders). Then the dense
+// stage (dense_renders > 0): render at the pose reached and fit (heading,
+// depression, u0, v0) by Gauss-Newton on the log-intensity difference of
+// every usable reference pixel, the reference being the sum of its classes'
+// intensities each scaled by a fitted gain (the scene's materials are known
+// to a few dB only); move the pose and repeat. Converged: the last update (patch stage, or dense stage
+// when it ran) below 0.5 px. Optionally polish heading, depression and Xc by
+// Nelder-Mead on the whole-image NCC of log intensities.
 //
 // Failures: bad options throw ConfigError; images of the wrong size throw
 // InputError; a fix that finds too few matches or no camera returns a result
@@ -93,6 +98,10 @@ struct Reference {
   std::vector<float> intensity;  // linear, row-major
   cv::Mat points;                // CV_32FC3: mean single-bounce hit per pixel (ENU), NaN if none
   cv::Mat valid;                 // CV_8U: a 3-D point and no layover
+  // The intensity split by the class of the last hit: class_intensity[c]
+  // (CV_32F, linear) for the classes in class_ids; they sum to `intensity`.
+  std::vector<int> class_ids;
+  std::vector<cv::Mat> class_intensity;
 };
 Reference RenderReference(const NavScene& scene, const NavPose& pose, const SensorModel& model);
 
@@ -106,6 +115,10 @@ struct LocateOptions {
   int max_iterations = 6;
   double ransac_threshold_px = 1.5;
   int min_matches = 8;
+  // Renders of the dense stage after the patch iterations (0 = off). It runs
+  // when the patch stage's last update was below 2 px (its basin).
+  int dense_renders = 2;
+  int dense_iterations = 10;       // Gauss-Newton steps per dense render
   int polish_evaluations = 0;      // Nelder-Mead evaluations (renders); 0 = off
   // Linear intensity added to the reference image before the log: the
   // observed sensor's noise floor (its NESZ as a linear sigma0), so that the
@@ -125,10 +138,13 @@ struct LocateResult {
   int iterations = 0;
   int matches = 0;                 // correspondences of the last iteration
   int inliers = 0;                 // after RANSAC
-  double rms_px = 0.0;             // resection residual of the last iteration
+  double rms_px = 0.0;             // resection residual of the last patch iteration
+  int dense_renders = 0;           // dense-stage renders whose update was applied
+  double dense_rms_db = 0.0;       // robust RMS log-intensity residual of the last dense fit, dB
   double similarity = 0.0;         // whole-image NCC of the log images at the result
   double prior_similarity = 0.0;   // the same at the prior
-  // One-sigma errors from the resection covariance of the last iteration.
+  // One-sigma errors from the resection covariance of the last patch
+  // iteration (the dense stage's pixels are correlated; it gives none).
   double heading_sigma_deg = 0.0;
   double depression_sigma_deg = 0.0;
   // Sensor position sigma along l, h and n (metres): u0 and v0 sigmas times

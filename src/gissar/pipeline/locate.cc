@@ -250,6 +250,7 @@ void LocateRequest::Check() const {
   nav::ParseMatcher(matcher, "--matcher");
   if (!look.empty()) sensor::ParseLookSide(look);
   if (range_spacing_m < 0 || azimuth_spacing_m < 0) throw ConfigError("must be > 0", "--range-spacing/--azimuth-spacing");
+  if (dense_renders < 0) throw ConfigError("must be >= 0", "--dense-renders");
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
   if (search_px < 5 || search_px > kMaxSearchPx) throw ConfigError("must be in [5, 2048] px", "--search");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
@@ -358,6 +359,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   if (!start) throw InputError("the prior's line of sight does not reach the scene", options.prior);
   nav::LocateOptions lo;
   lo.matcher = nav::ParseMatcher(options.matcher, "--matcher");
+  lo.dense_renders = options.dense_renders;
   lo.polish_evaluations = options.polish_evaluations;
   lo.initial_search_px = options.search_px;
   lo.step_px = options.step_px;
@@ -378,6 +380,8 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
       {"matches", r.matches},
       {"inliers", r.inliers},
       {"resection_rms_px", r.rms_px},
+      {"dense_renders", r.dense_renders},
+      {"dense_rms_db", r.dense_rms_db},
       {"similarity_ncc", r.similarity},
       {"prior_similarity_ncc", r.prior_similarity},
       {"error_estimate", {{"heading_sigma_deg", r.heading_sigma_deg},
@@ -442,6 +446,7 @@ void EvaluateRequest::Check() const {
   if (search_px != 0 && (search_px < 5 || search_px > kMaxSearchPx)) {
     throw ConfigError("must be 0 (automatic) or in [5, 2048] px", "--search");
   }
+  if (dense_renders < 0) throw ConfigError("must be >= 0", "--dense-renders");
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
   if (trial_first < 0 || trial_first >= trials) throw ConfigError("must be in [0, trials)", "--trial-first");
@@ -460,7 +465,8 @@ nlohmann::json EvaluateRequest::ToJson() const {
           {"prior_error_horizontal_m", prior_error_horizontal_m}, {"prior_error_vertical_m", prior_error_vertical_m},
           {"prior_error_heading_deg", prior_error_heading_deg}, {"success_cells", success_cells},
           {"success_heading_deg", success_heading_deg}, {"matcher", matcher}, {"compare_matchers", compare_matchers},
-          {"search_px", search_px}, {"step_px", step_px}, {"polish_evaluations", polish_evaluations},
+          {"search_px", search_px}, {"step_px", step_px}, {"dense_renders", dense_renders},
+          {"polish_evaluations", polish_evaluations},
           {"bounces", bounces}, {"rays_per_cell", rays_per_cell}, {"reference_floor", reference_floor},
           {"trial_first", trial_first}, {"trial_count", trial_count}, {"product", product},
           {"frequency", frequency}, {"polarization", polarization}, {"looks_range", looks_range},
@@ -507,6 +513,7 @@ void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "compare_matchers") set(compare_matchers);
     else if (key == "search_px") set(search_px);
     else if (key == "step_px") set(step_px);
+    else if (key == "dense_renders") set(dense_renders);
     else if (key == "polish_evaluations") set(polish_evaluations);
     else if (key == "bounces") set(bounces);
     else if (key == "rays_per_cell") set(rays_per_cell);
@@ -574,6 +581,7 @@ EvaluateSetup PrepareEvaluation(const EvaluateRequest& options, Reporter& report
   s.model.look_side = sensor::LookSide::kRight;
   nav::LocateOptions& lo = s.lo;
   lo.matcher = nav::ParseMatcher(options.matcher, "--matcher");
+  lo.dense_renders = options.dense_renders;
   lo.polish_evaluations = options.polish_evaluations;
   ResolveSearchAndFloor(options, lo);
   lo.step_px = options.step_px;
@@ -852,6 +860,7 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
                         {"material_db", options.material_db}, {"dem_smoothing", options.dem_smoothing},
                         {"prior_error_horizontal_m", options.prior_error_horizontal_m}, {"prior_error_vertical_m", options.prior_error_vertical_m},
                         {"prior_error_heading_deg", options.prior_error_heading_deg}, {"matcher", options.matcher},
+                        {"dense_renders", options.dense_renders},
                         {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", options.step_px}, {"bounces", options.bounces},
                         {"reference_floor", lo.reference_floor},
                         {"rays_per_cell", options.rays_per_cell}};

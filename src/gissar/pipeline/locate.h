@@ -58,6 +58,9 @@ struct LocateRequest {
   std::string matcher = "ncc";
   int search_px = 28;  // first-iteration search radius: the prior's uncertainty in pixels
   int step_px = 12;    // grid step of the matched patches
+  // Renders of the dense photometric stage after the patch iterations
+  // (nav::LocateOptions::dense_renders; 0 = off).
+  int dense_renders = 2;
   int polish_evaluations = 0;
   int bounces = 1;
   double rays_per_cell = 4.0;
@@ -127,6 +130,9 @@ struct EvaluateRequest {
   // (sqrt(2) horizontal + R sin(heading) + vertical / tan(min depression)) / spacing + 4.
   int search_px = 0;
   int step_px = 12;  // grid step of the matched patches (more matches: better depression)
+  // Renders of the dense photometric stage after the patch iterations
+  // (nav::LocateOptions::dense_renders; 0 = off).
+  int dense_renders = 2;
   int polish_evaluations = 0;
   int bounces = 1;
   double rays_per_cell = 4.0;
