@@ -58,9 +58,14 @@ int main(int argc, char** argv) {
     const render::SarImage traced =
         render::RenderSar(embree, terrain.mesh, terrain.materials, geometry, render_options);
     const double trace_seconds = trace_watch.ElapsedSeconds();
+    // The raster engine's terrain: the same posts, those outside the scene
+    // (a DEM's collar, border voids) non-finite.
+    pipeline::SimulateRequest raster_options = options;
+    raster_options.engine = "raster";
+    const pipeline::Terrain raster_terrain = pipeline::LoadTerrain(raster_options);
     Stopwatch raster_watch;
     const render::SarImage raster =
-        render::RenderSarRaster(terrain.mesh.vertices, width, height, terrain.materials, geometry);
+        render::RenderSarRaster(raster_terrain.mesh.vertices, width, height, terrain.materials, geometry);
     const double raster_seconds = raster_watch.ElapsedSeconds();
 
     const render::IntensityAgreement intensity = render::CompareIntensities(raster.intensity, traced.intensity);

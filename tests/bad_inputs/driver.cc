@@ -280,8 +280,9 @@ bool MakeFixture(const std::string& name, const fs::path& dir) {
     WriteUtmDem(path, z, 32, 32);
   } else if (name == "dem_inf.tif") {
     std::vector<float> z = Hill(32, 32);
-    z[7] = std::numeric_limits<float>::infinity();
-    z[8] = -std::numeric_limits<float>::infinity();
+    // Inside the grid: no-data on the border would be left out of the scene.
+    z[300] = std::numeric_limits<float>::infinity();
+    z[301] = -std::numeric_limits<float>::infinity();
     WriteUtmDem(path, z, 32, 32);
   } else if (name == "dem_all_nodata.tif") {
     WriteUtmDem(path, std::vector<float>(32 * 32, -9999.0f), 32, 32, -9999.0);

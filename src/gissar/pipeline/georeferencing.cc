@@ -177,6 +177,7 @@ TerrainSurface::TerrainSurface(const Terrain& terrain) : vertices_(terrain.mesh.
   } else if (cells > 0) {
     grid_width_ = terrain.grid_width;
     grid_height_ = terrain.grid_height;
+    grid_cross_up_ = scene::GridColumnCrossRowUp(vertices_.data(), grid_width_);  // x and y only: finite
     triangle_count_ = 2 * cells;
   }
   if (triangle_count_ == 0 || x_min > x_max) {
@@ -221,10 +222,10 @@ const sensor::SurfaceLimits& TerrainSurface::limits() const {
 
 Eigen::Vector3i TerrainSurface::Triangle(size_t t) const {
   if (mesh_ != nullptr) return mesh_->Triangle(t);
+  // MeshFromGrid's triangles of the posts-only grid (the raster engine's).
   const size_t quad = t / 2;
   const int i = int(quad % (grid_width_ - 1)), j = int(quad / (grid_width_ - 1));
-  const int a = j * grid_width_ + i, b = a + 1, c = a + grid_width_, d = c + 1;
-  return t % 2 == 0 ? Eigen::Vector3i(a, b, d) : Eigen::Vector3i(a, d, c);
+  return scene::GridCellTriangles(grid_width_, i, j, grid_cross_up_)[t % 2];
 }
 
 double TerrainSurface::operator()(double x, double y) const {

@@ -42,6 +42,7 @@ class TerrainSurface {
   std::optional<render::GridHeightfield> grid_;  // a plain DEM grid
   const scene::TriangleMesh* mesh_ = nullptr;  // its triangles, when it has any
   int grid_width_ = 0, grid_height_ = 0;
+  bool grid_cross_up_ = true;  // scene::GridColumnCrossRowUp of the posts-only grid
   size_t triangle_count_ = 0;
   double x0_ = 0, y0_ = 0, cell_ = 1;
   int nx_ = 0, ny_ = 0;

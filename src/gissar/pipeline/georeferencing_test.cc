@@ -178,7 +178,10 @@ TEST(GeoreferencingTest, AndorraReliefFeaturesLandOnTheirMapPosition) {
 // heading 30, depression 40), a 60 x 60 lattice. Each point also lies on
 // the terrain and projects to its node's pixel.
 TEST(GeoreferencingTest, ProfileLatticePointsAreTheMarchsPoints) {
-  const SimulateRequest o = AndorraRequest("unused");
+  // The filled DEM: the raw one's border voids are left out of the scene,
+  // which makes it a grid with holes, not a plain grid.
+  SimulateRequest o = AndorraRequest("unused");
+  o.dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
   const Terrain terrain = LoadTerrain(o);
   const sensor::SarGeometry geometry =
       sensor::SarGeometry::Covering(ResolvedGeometry(o, terrain), terrain.centre_enu, terrain.mesh.vertices);

@@ -272,6 +272,9 @@ constexpr double kBytesPerImagePixel = 64.0;
 geo::DemReadOptions DemReadOptionsOf(const SimulateRequest& options) {
   geo::DemReadOptions read_options;
   read_options.fill_nodata = options.fill_nodata;
+  // A collar (no-data connected to the border) is left out, as `scene build`
+  // leaves it: never filled, no --fill-nodata needed for it.
+  read_options.border_nodata_outside = true;
   read_options.max_bytes = options.max_memory_bytes;
   read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
   read_options.vertical_units = options.vertical_units;
@@ -283,11 +286,12 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   DemWindowPlan plan = PlanDemWindow(options, reporter);
   if (plan.read_window) read_options.window = plan.window;
   geo::Dem dem = geo::ReadDem(options.dem, read_options);
-  if (plan.read_window && dem.filled_nodata_cells > 0) {
+  if (plan.read_window && !dem.nodata_mask.empty()) {
     // GDAL's filling draws on valid cells up to its search distance away:
-    // the whole DEM's voids are filled from the whole DEM.
+    // the whole DEM's voids are filled from the whole DEM; and which voids
+    // are the border's collar is decided on the whole DEM.
     plan.read_window = false;
-    plan.reason = "--fill-nodata with voids in the window (filled from the whole DEM)";
+    plan.reason = "no-data in the window (filled, or left out, as in the whole DEM)";
     read_options.window.reset();
     dem = geo::ReadDem(options.dem, read_options);
   }
@@ -304,6 +308,8 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   // any datum change.
   std::vector<uint8_t> sea_posts;
   if (options.sea == "auto") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
+  // The collar and border voids (not sea) are outside the scene.
+  const std::vector<uint8_t> outside = scene::OutsidePostMask(dem, sea_posts);
   const geo::VerticalDatumChoice datum =
       geo::ResolveVerticalDatum(geo::CanonicalVerticalDatum(options.vertical_datum), dem.file_vertical_datum);
   if (datum.source == "assumed") reporter.Warn(geo::AssumedDatumWarning(options.dem));
@@ -325,6 +331,28 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   t.centre_enu = t.frame.EnuFromGeodetic(t.centre.lon_deg, t.centre.lat_deg, t.centre.height_m);
   if (options.engine == "raster") {
     t.mesh.vertices = geo::DemPostsInFrame(dem, t.frame);
+    // Posts outside the scene: non-finite, so their cells draw nothing.
+    for (size_t i = 0; i < outside.size(); ++i)
+      if (outside[i]) t.mesh.vertices[i].z() = std::numeric_limits<float>::quiet_NaN();
+  } else if (!outside.empty()) {
+    // The cells with no outside post, MeshFromGrid's triangles (traced as a
+    // height field with the others as holes, or by Embree).
+    const int w = dem.width, h = dem.height;
+    scene::TriangleMesh grid = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), w, h);
+    std::vector<uint8_t> cells(size_t(w - 1) * (h - 1), 0);
+    t.mesh.vertices = std::move(grid.vertices);
+    for (int r = 0; r + 1 < h; ++r)
+      for (int c = 0; c + 1 < w; ++c) {
+        const size_t i = size_t(r) * w + c, cell = size_t(r) * (w - 1) + c;
+        if (outside[i] || outside[i + 1] || outside[i + w] || outside[i + w + 1]) continue;
+        cells[cell] = 1;
+        for (int k = 0; k < 2; ++k) {
+          t.mesh.triangles.push_back(grid.triangles[2 * cell + k]);
+          t.mesh.classes.push_back(grid.classes[2 * cell + k]);
+        }
+      }
+    if (t.mesh.triangles.empty()) throw InputError("the DEM has no grid cell with four valid posts", options.dem);
+    if (options.heightfield) t.scene_grid = render::TerrainGrid{w, h, std::move(cells)};
   } else if (options.heightfield) {
     // Traced as a height field: the grid's triangles stay implicit (no
     // index array: 12 bytes per triangle, 1.6 GB for a 8192^2 DEM).
@@ -365,6 +393,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
                    {"width", dem.width},
                    {"height", dem.height},
                    {"filled_nodata_cells", dem.filled_nodata_cells},
+                   {"outside_posts", std::count(outside.begin(), outside.end(), uint8_t{1})},
                    {"source_width", source_width},
                    {"source_height", source_height},
                    {"oversample", options.dem_oversample},

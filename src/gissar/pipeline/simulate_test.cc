@@ -1,10 +1,13 @@
 #include "gissar/pipeline/image_probe_testing.h"
+#include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/render/image_agreement.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iomanip>
@@ -91,7 +94,9 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   nlohmann::json provenance;
   std::ifstream(options.out_prefix + ".json") >> provenance;
   EXPECT_EQ(provenance["options"]["heading_deg"], 30.0);
-  EXPECT_EQ(provenance["terrain"]["filled_nodata_cells"], 403);
+  // 403 voids: 391 inside (filled), 12 on the border (left out of the scene).
+  EXPECT_EQ(provenance["terrain"]["filled_nodata_cells"], 391);
+  EXPECT_EQ(provenance["terrain"]["outside_posts"], 12);
   EXPECT_EQ(provenance["inputs"][0]["sha256"].get<std::string>().size(), 64u);
   EXPECT_EQ(provenance["stats"]["mask_pixels"]["shadow"].get<int>() +
                 provenance["stats"]["mask_pixels"]["layover_and_shadow"].get<int>(),
@@ -373,6 +378,112 @@ TEST(SimulateTest, RasterEngineRendersReflectorsLikeTheTracer) {
 // range = ground range x cos(depression)); measured 31,530 (tracer) and
 // 31,503 (raster) with the edge pixels a splat reaches; every pixel outside is NaN,
 // declared no-data, with mask 255 (kMaskOutside), in both engines.
+// Issue 16, no bright column at the scene edge: a tilted plane
+// (z = 100 + 0.2 x) inside a square rotated by 30 degrees, no-data outside
+// (the collar of a reprojected DEM). The collar is outside the scene, so the
+// first and last 5 % of the scene's range bins (the columns from the first
+// to the last holding terrain) hold the plane as everywhere else:
+// every pixel there whose 7 x 7 neighbourhood is inside the footprint is
+// within 0.5 dB of the plane's level (the median of the image); the
+// footprint's own boundary pixels (the valid area's edge follows the 10 m
+// DEM cells) are partly covered and darker, never brighter.
+TEST(SimulateTest, ReprojectionCollarLeavesNoBrightColumnAtTheEdges) {
+  const fs::path dir = testing::MakeTempDir();
+  const char* tm = "+proj=tmerc +lat_0=43.7 +lon_0=7.4 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+  const double kNodata = -9999.0, angle = 30.0 * M_PI / 180.0;
+  std::vector<float> heights(101 * 101);
+  for (int r = 0; r < 101; ++r)
+    for (int c = 0; c < 101; ++c) {
+      const double x = -500.0 + 10 * c, y = 500.0 - 10 * r;
+      const double u = std::cos(angle) * x + std::sin(angle) * y, v = -std::sin(angle) * x + std::cos(angle) * y;
+      heights[size_t(r) * 101 + c] = std::abs(u) <= 350.0 && std::abs(v) <= 350.0 ? static_cast<float>(100.0 + 0.2 * x)
+                                                                                   : static_cast<float>(kNodata);
+    }
+  const fs::path dem = dir / "collar.tif";
+  geo::WriteDemGeoTiff(dem, heights, 101, 101, {-505.0, 10.0, 0.0, 505.0, 0.0, -10.0}, tm, kNodata);
+  SceneBuildRequest build;
+  build.dem = dem.string();
+  build.out_prefix = (dir / "collar_scene").string();
+  RunSceneBuild(build, "test");
+  for (const std::string engine : {"scene", "trace", "raster"}) {
+    // Looks along the square's sides (bearings 60 and 240 deg): the first and
+    // last range bins run along a whole side; the plane faces the radar,
+    // then turns away.
+    for (const double heading : {330.0, 150.0}) {
+      SCOPED_TRACE(engine + " heading " + std::to_string(heading));
+      SimulateRequest o;
+      if (engine == "scene") {
+        o.scene = build.out_prefix + ".gscene";
+      } else {
+        o.dem = dem.string();
+        o.engine = engine;
+      }
+      o.bounces = 1;
+      o.layers = true;
+      o.geometry.heading_deg = heading;
+      o.geometry.depression_deg = 40.0;
+      o.geometry.range_spacing_m = o.geometry.azimuth_spacing_m = 5.0;
+      o.out_prefix = (dir / (engine + std::to_string(int(heading)))).string();
+      RunSimulate(o, "test");
+      const geo::FloatRaster image = geo::ReadFloatRaster(o.out_prefix + ".tif");
+      const int w = image.width, h = image.height;
+      const std::vector<float>& v = image.bands[0];
+      std::vector<float> finite;
+      for (float x : v)
+        if (std::isfinite(x) && x > 0) finite.push_back(x);
+      ASSERT_GT(finite.size(), 1000u);
+      std::nth_element(finite.begin(), finite.begin() + finite.size() / 2, finite.end());
+      const double plane_db = 10.0 * std::log10(finite[finite.size() / 2]);
+      // Terrain pixels: finite and non-zero (the collar returns nothing).
+      auto terrain = [&](int x, int y) {
+        const float p = v[size_t(y) * w + x];
+        return std::isfinite(p) && p > 0.0f;
+      };
+      // The scene's range bins: the columns from the first to the last that
+      // hold terrain; its edges are their first and last 5 %.
+      int first = w, last = -1;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          if (terrain(x, y)) { first = std::min(first, x); last = std::max(last, x); }
+      ASSERT_GT(last - first, 80);
+      const int edge = static_cast<int>(std::lround(0.05 * (last - first + 1)));
+      int interior_pixels = 0, off = 0, brighter = 0;
+      double worst = 0.0, brightest = -1e9;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          if ((x >= first + edge && x <= last - edge) || !terrain(x, y)) continue;
+          const double d = 10.0 * std::log10(v[size_t(y) * w + x]) - plane_db;
+          brightest = std::max(brightest, d);
+          if (d > 0.5) ++brighter;  // any pixel, the footprint's boundary included
+          bool interior = x > 2 && y > 2 && x + 3 < w && y + 3 < h;
+          for (int dy = -3; dy <= 3 && interior; ++dy)
+            for (int dx = -3; dx <= 3; ++dx)
+              if (!terrain(x + dx, y + dy)) interior = false;
+          if (!interior) continue;
+          ++interior_pixels;
+          worst = std::max(worst, std::abs(d));
+          if (std::abs(d) > 0.5) ++off;
+        }
+      // The terrain layers (the raster engine triangulates its posts, the
+      // collar's non-finite): the plane's local incidence at the footprint's
+      // middle, to first order 50 deg minus its 11.31 deg slope times the
+      // cosine between the look bearing and the uphill bearing (90 deg):
+      // 40.2 deg at heading 330, 59.8 deg at heading 150.
+      const geo::FloatRaster layers = geo::ReadFloatRaster(o.out_prefix + "_layers.tif");
+      const size_t middle = size_t(h / 2) * w + (first + last) / 2;
+      const double slope_deg = std::atan(0.2) * 180.0 / M_PI;
+      const double look_from_uphill = (heading + 90.0 - 90.0) * M_PI / 180.0;
+      EXPECT_NEAR(layers.bands[0][middle], 50.0 - slope_deg * std::cos(look_from_uphill), 1.0);
+      std::printf("%s heading %.0f: plane %.2f dB; edge bins: %d interior pixels, %d beyond 0.5 dB (worst %.2f dB), "
+                  "%d brighter by 0.5 dB (brightest %+.2f dB)\n",
+                  engine.c_str(), heading, plane_db, interior_pixels, off, worst, brighter, brightest);
+      EXPECT_GT(interior_pixels, 30);
+      EXPECT_EQ(off, 0) << "worst " << worst << " dB";
+      EXPECT_EQ(brighter, 0) << "brightest " << brightest << " dB";
+    }
+  }
+}
+
 TEST(SimulateTest, FlatSquareIsNoDataOutsideItsFootprint) {
   const fs::path dir = testing::MakeTempDir();
   const char* tm = "+proj=tmerc +lat_0=43.7 +lon_0=7.4 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";

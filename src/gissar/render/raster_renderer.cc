@@ -273,6 +273,10 @@ class ChunkRenderer {
     const int np = prev_.t_hi - prev_.t_lo + 1;
     for (int k = 0; k < n; ++k) {
       const float A = cur_.a[k];
+      if (!std::isfinite(A + cur_.e[k])) {  // a post outside the scene (non-finite height)
+        cur_.margin[k] = std::numeric_limits<float>::quiet_NaN();
+        continue;
+      }
       const float fl = (A - offset) * inv_w - first;
       int line = FloorInt(fl);
       line = std::clamp(line, 0, last_line);
@@ -417,6 +421,9 @@ class ChunkRenderer {
       const float amin = std::min(std::min(A.step->a[A.k], C.step->a[C.k]), std::min(B.step->a[B.k], D.step->a[D.k]));
       const float amax = std::max(std::max(A.step->a[A.k], C.step->a[C.k]), std::max(B.step->a[B.k], D.step->a[D.k]));
       if (amax <= a_lo_cells_ || amin >= a_hi_cells_) continue;
+      // A cell with a non-finite post (outside the scene: a DEM's collar) is
+      // a hole: no return, no mask, no horizon of its own.
+      if (!std::isfinite(A.step->e[A.k] + B.step->e[B.k] + C.step->e[C.k] + D.step->e[D.k])) continue;
       // Materials of the cell's two triangles: the first one rendered below
       // is (A, B, C) or (A, B, D), the second (B, D, C) or (A, D, C).
       const Reflectivity* m1 = &ctx_.materials[0];

@@ -62,7 +62,9 @@ namespace gissar::render {
 // in azimuth, one through the centres of every image row (so the mask,
 // evaluated at pixel centres, is exact), and interpolated between them for
 // the intensity; each triangle is sampled at
-// sub-triangles at most about a pixel wide. stats.cells counts the DEM cells;
+// sub-triangles at most about a pixel wide. A cell with a post whose height
+// is not finite is a hole (outside the scene, e.g. a DEM's collar): it
+// returns nothing, covers no pixel and hides nothing. stats.cells counts the DEM cells;
 // stats.trace_seconds is the rendering time. The result does not depend on
 // the thread count.
 //

@@ -347,6 +347,40 @@ GeomPtr CoastlineSea(const Geos& geos, const GEOSGeometry* extent, const std::ve
 
 }  // namespace
 
+std::vector<uint8_t> OutsidePostMask(const geo::Dem& dem, const std::vector<uint8_t>& sea_posts) {
+  if (dem.nodata_mask.empty()) return {};
+  const int w = dem.width, h = dem.height;
+  std::vector<uint8_t> outside(size_t(w) * h, 0);
+  std::vector<size_t> stack;
+  int64_t count = 0;
+  auto push = [&](int c, int r) {
+    const size_t i = size_t(r) * w + c;
+    if (outside[i] || !dem.nodata_mask[i] || (!sea_posts.empty() && sea_posts[i])) return;
+    outside[i] = 1;
+    ++count;
+    stack.push_back(i);
+  };
+  for (int c = 0; c < w; ++c) {
+    push(c, 0);
+    push(c, h - 1);
+  }
+  for (int r = 0; r < h; ++r) {
+    push(0, r);
+    push(w - 1, r);
+  }
+  while (!stack.empty()) {
+    const size_t i = stack.back();
+    stack.pop_back();
+    const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
+    if (c > 0) push(c - 1, r);
+    if (c + 1 < w) push(c + 1, r);
+    if (r > 0) push(c, r - 1);
+    if (r + 1 < h) push(c, r + 1);
+  }
+  if (count == 0) outside.clear();
+  return outside;
+}
+
 std::vector<uint8_t> SeaPostMask(const geo::Dem& dem, double sea_level_m) {
   const int w = dem.width, h = dem.height;
   std::vector<uint8_t> sea(size_t(w) * h, 0);
@@ -611,37 +645,8 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
   // --sea auto rule); a cell is in the scene when its four posts are.
   const std::vector<uint8_t> dem_sea =
       config.sea_auto ? SeaPostMask(dem, config.sea_level_m) : std::vector<uint8_t>();
-  std::vector<uint8_t> outside;
-  if (!dem.nodata_mask.empty()) {
-    const int w = dem.width, h = dem.height;
-    outside.assign(size_t(w) * h, 0);
-    std::vector<size_t> stack;
-    auto push = [&](int c, int r) {
-      const size_t i = size_t(r) * w + c;
-      if (outside[i] || !dem.nodata_mask[i] || (!dem_sea.empty() && dem_sea[i])) return;
-      outside[i] = 1;
-      stack.push_back(i);
-    };
-    for (int c = 0; c < w; ++c) {
-      push(c, 0);
-      push(c, h - 1);
-    }
-    for (int r = 0; r < h; ++r) {
-      push(0, r);
-      push(w - 1, r);
-    }
-    while (!stack.empty()) {
-      const size_t i = stack.back();
-      stack.pop_back();
-      ++stats.outside_posts;
-      const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
-      if (c > 0) push(c - 1, r);
-      if (c + 1 < w) push(c + 1, r);
-      if (r > 0) push(c, r - 1);
-      if (r + 1 < h) push(c, r + 1);
-    }
-    if (stats.outside_posts == 0) outside.clear();
-  }
+  const std::vector<uint8_t> outside = OutsidePostMask(dem, dem_sea);
+  stats.outside_posts = std::count(outside.begin(), outside.end(), uint8_t{1});
   auto cell_valid = [&](int c, int r) {
     if (outside.empty()) return true;
     const size_t i = size_t(r) * dem.width + c;

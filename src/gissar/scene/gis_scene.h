@@ -103,6 +103,13 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
 // Row-major like dem.heights_m.
 std::vector<uint8_t> SeaPostMask(const geo::Dem& dem, double sea_level_m);
 
+// The posts outside the scene: no-data (dem.nodata_mask) 4-connected to the
+// raster's border through no-data posts (the collar of a reprojected DEM,
+// voids on its edge), unless they are sea posts (`sea_posts` from
+// SeaPostMask, or empty). Row-major like dem.heights_m; empty when there is
+// none. A grid cell is in the scene when none of its four posts is outside.
+std::vector<uint8_t> OutsidePostMask(const geo::Dem& dem, const std::vector<uint8_t>& sea_posts);
+
 // Sets class `sea` on default-class triangles whose three vertices are sea
 // posts, for meshes whose vertex i is DEM post i (MeshFromGrid). Returns the
 // number of triangles marked.
