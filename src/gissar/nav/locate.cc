@@ -152,14 +152,7 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
   const int classes = static_cast<int>(ref.class_intensity.size());
   if (classes == 0) return std::nullopt;
   std::vector<cv::Mat> box(classes);
-  for (int k = 0; k < classes; ++k) {
-    if (filter_px > 1) {
-      cv::boxFilter(ref.class_intensity[k], box[k], CV_32F, cv::Size(filter_px, filter_px), cv::Point(-1, -1),
-                    true, cv::BORDER_REFLECT);
-    } else {
-      box[k] = ref.class_intensity[k];
-    }
-  }
+  for (int k = 0; k < classes; ++k) box[k] = BoxMean(ref.class_intensity[k], filter_px);
   cv::Mat gx, gy;  // gradients of the observed log image, dB per pixel
   cv::Sobel(obs_log, gx, CV_32F, 1, 0, 3, 1.0 / 8.0);
   cv::Sobel(obs_log, gy, CV_32F, 0, 1, 3, 1.0 / 8.0);
@@ -194,8 +187,8 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
   constexpr double kGainPriorDb = 10.0;
   constexpr double kEps = 1e-6;
   constexpr double kDbPerNeper = 10.0 / M_LN10;
-  KnownSpacingResection out;
-  double rms = 0, s2 = 0;
+  KnownSpacingResection out;  // sigma stays zero: the pixels are correlated
+  double rms = 0;
   Eigen::MatrixXd normal(np, np);
   Eigen::VectorXd j(np), rhs(np), gains(classes);
   std::vector<double> residual;
@@ -254,7 +247,6 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
     if (!step.allFinite()) return std::nullopt;
     q += step;
     rms = std::sqrt(wr2 / std::max(wsum, 1.0));
-    s2 = wr2 / std::max(wsum - np, 1.0);
     if (std::abs(step[0]) < 1e-7 && std::abs(step[1]) < 1e-7 && step.segment<2>(2).norm() < 1e-5) break;
   }
   if (!(q[1] > 1.0 && q[1] < 89.0)) return std::nullopt;
@@ -263,8 +255,6 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
   out.u0 = q[2];
   out.v0 = q[3];
   out.rms_px = rms;
-  const Eigen::MatrixXd cov = s2 * normal.inverse();
-  out.sigma = cov.diagonal().head<4>().cwiseMax(0.0).cwiseSqrt();
   return out;
 }
 
@@ -350,12 +340,19 @@ Reference RenderReference(const NavScene& scene, const NavPose& pose, const Sens
   for (const render::Contribution& c : image.contributions) class_count = std::max(class_count, c.class_id + 1);
   std::vector<double> class_weight(size_t(w) * h * class_count, 0.0);
   std::vector<double> class_total(class_count, 0.0);
+  // One pass: every bounce's intensity by class, and the single-bounce
+  // hits' intensity-weighted mean point.
   for (const render::Contribution& c : image.contributions) {
     const int x = static_cast<int>(std::lround(ref.geometry.ColumnOfRange(c.range_m)));
     const int y = static_cast<int>(std::lround(ref.geometry.RowOfAlongTrack(c.azimuth_m)));
     if (x < 0 || y < 0 || x >= w || y >= h) continue;
     class_weight[(size_t(y) * w + x) * class_count + c.class_id] += c.intensity;
     class_total[c.class_id] += c.intensity;
+    if (c.bounces != 1) continue;
+    const double wt = double(c.intensity) + 1e-9;
+    cv::Vec3d& s = sum.at<cv::Vec3d>(y, x);
+    for (int k = 0; k < 3; ++k) s[k] += wt * c.hit_enu[k];
+    weight.at<double>(y, x) += wt;
   }
   for (int k = 0; k < class_count; ++k) {
     if (!(class_total[k] > 0)) continue;
@@ -372,16 +369,6 @@ Reference RenderReference(const NavScene& scene, const NavPose& pose, const Sens
       for (size_t i = 0; i < ref.class_ids.size(); ++i)
         ref.class_intensity[i].at<float>(y, x) = static_cast<float>(pixel * cw[ref.class_ids[i]] / total);
     }
-  for (const render::Contribution& c : image.contributions) {
-    if (c.bounces != 1) continue;
-    const int x = static_cast<int>(std::lround(ref.geometry.ColumnOfRange(c.range_m)));
-    const int y = static_cast<int>(std::lround(ref.geometry.RowOfAlongTrack(c.azimuth_m)));
-    if (x < 0 || y < 0 || x >= w || y >= h) continue;
-    const double wt = double(c.intensity) + 1e-9;
-    cv::Vec3d& s = sum.at<cv::Vec3d>(y, x);
-    for (int k = 0; k < 3; ++k) s[k] += wt * c.hit_enu[k];
-    weight.at<double>(y, x) += wt;
-  }
   ref.points = cv::Mat(h, w, CV_32FC3, cv::Scalar::all(std::numeric_limits<float>::quiet_NaN()));
   ref.valid = cv::Mat(h, w, CV_8U, cv::Scalar(0));
   for (int y = 0; y < h; ++y)

@@ -65,19 +65,20 @@ void MatchOptions::Check() const {
   if (!(min_contrast_db >= 0.0)) throw ConfigError("must be >= 0", "min_contrast_db");
 }
 
+cv::Mat BoxMean(const cv::Mat& image, int filter_px) {
+  if (filter_px <= 1) return image.clone();
+  cv::Mat filtered;
+  cv::boxFilter(image, filtered, CV_32F, cv::Size(filter_px, filter_px), cv::Point(-1, -1), true,
+                cv::BORDER_REFLECT);
+  return filtered;
+}
+
 cv::Mat LogIntensity(const std::vector<float>& intensity, int width, int height, int filter_px,
                      double floor) {
   if (width <= 0 || height <= 0 || intensity.size() != size_t(width) * size_t(height)) {
     throw InputError("intensity size does not match width x height", "nav::LogIntensity");
   }
-  cv::Mat image(height, width, CV_32F, const_cast<float*>(intensity.data()));
-  cv::Mat filtered;
-  if (filter_px > 1) {
-    cv::boxFilter(image, filtered, CV_32F, cv::Size(filter_px, filter_px), cv::Point(-1, -1), true,
-                  cv::BORDER_REFLECT);
-  } else {
-    filtered = image.clone();
-  }
+  cv::Mat filtered = BoxMean(cv::Mat(height, width, CV_32F, const_cast<float*>(intensity.data())), filter_px);
   cv::max(filtered, 0.0, filtered);
   filtered += floor;
   cv::Mat out;

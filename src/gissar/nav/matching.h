@@ -43,6 +43,11 @@ enum class Matcher { kNcc, kChamfer, kFeatures };
 Matcher ParseMatcher(const std::string& text, const std::string& option);
 std::string ToString(Matcher matcher);
 
+// Mean over `filter_px` x `filter_px` boxes (reflected at the border) of a
+// CV_32F image: the multi-look speckle filter of LogIntensity; a copy for
+// filter_px <= 1.
+cv::Mat BoxMean(const cv::Mat& image, int filter_px);
+
 // CV_32F image of 10 log10(box mean over `filter_px` x `filter_px` of the
 // intensity + floor), a multi-look speckle filter followed by the log.
 // `intensity` is row-major width x height, linear; floor > 0 avoids log 0.
