@@ -22,7 +22,7 @@ constexpr uint8_t kCoveredFlag = 16;
 constexpr float kNoHorizon = -1e30f;
 // Image rows rendered by one task. Each task renders every cell that
 // reaches its rows and writes only its rows, so tasks never share a pixel.
-constexpr int kChunkRows = 32;
+constexpr int kChunkRows = 128;
 // Triangles wider than this (pixels, along range or azimuth) are split into
 // sub-triangles for the intensity splat (each sampled at its three edge
 // midpoints).
@@ -116,6 +116,9 @@ inline int FloorInt(float x) {
   const int i = static_cast<int>(x);
   return i - (x < static_cast<float>(i));
 }
+
+// ceil(x) as an int for |x| < 2^31.
+inline int CeilInt(float x) { return -FloorInt(-x); }
 
 // Bilinear splat of `value` at (col, row) into rows [row0, row1).
 inline void Splat(float* image, int width, int row0, int row1, float col, float row, float value) {
@@ -328,10 +331,10 @@ class ChunkRenderer {
   // current step (between transverse positions rho1 and rho2), or `best`.
   // Edges ending at the current step's post `skip_t` are left out.
   float StripCrossings(float A, float rho1, float rho2, float best, int skip_t = -1) const {
-    const int t_a = FloorInt(std::min(rho1, rho2));
-    const int t_b = FloorInt(std::max(rho1, rho2));
+    // Cells whose four corners both steps hold.
+    const int t_a = std::max(FloorInt(std::min(rho1, rho2)), std::max(prev_.t_lo, cur_.t_lo));
+    const int t_b = std::min(FloorInt(std::max(rho1, rho2)), std::min(prev_.t_hi, cur_.t_hi) - 1);
     for (int t = t_a; t <= t_b; ++t) {
-      if (!prev_.Has(t) || !prev_.Has(t + 1) || !cur_.Has(t) || !cur_.Has(t + 1)) continue;
       const int p0 = t - prev_.t_lo, c0 = t - cur_.t_lo;
       // Corners: A=(prev, t) C=(prev, t+1) B=(cur, t) D=(cur, t+1).
       const float ea = prev_.e[p0], ec = prev_.e[p0 + 1], eb = cur_.e[c0], ed = cur_.e[c0 + 1];
@@ -505,11 +508,11 @@ class ChunkRenderer {
     const bool smooth = ctx_.normals != nullptr && !s0.normal[k0].isZero() && !s1.normal[k1].isZero() &&
                         !s2.normal[k2].isZero();
     if (!turned_away && !all_dark) {
-      const float power = 0.5f * twice_area * static_cast<float>(material(cos_in)) * ctx_.power_scale;
+      const float power = 0.5f * twice_area * material.Fast(cos_in) * ctx_.power_scale;
       const float area_power = 0.5f * twice_area * ctx_.power_scale;
       const float extent = std::max({std::abs(c1 - c0), std::abs(c2 - c0), std::abs(c2 - c1),
                                      std::abs(r1 - r0), std::abs(r2 - r0), std::abs(r2 - r1)});
-      int m = std::clamp(static_cast<int>(std::ceil(extent / kSampleSpacingPx)), 1, 256);
+      int m = std::clamp(CeilInt(std::min(extent / kSampleSpacingPx, 1e6f)), 1, 256);
       if (!all_lit) m = std::max(m, kPartialSubdivision);
       // The m^2 congruent sub-triangles, each integrated with the
       // edge-midpoint rule (exact for quadratic functions: the bilinear
@@ -530,20 +533,30 @@ class ChunkRenderer {
           const Eigen::Vector3f ns = (1.0f - u - v) * s0.normal[k0] + u * s1.normal[k1] + v * s2.normal[k2];
           const float norm = ns.norm();
           const float cos_shade = norm > 0.0f ? std::max(0.0f, -ns.dot(dir) / norm) : cos_in;
-          value = area_share * static_cast<float>(material(cos_shade));
+          value = area_share * material.Fast(cos_shade);
         }
         Deposit(c0 + u * (c1 - c0) + v * (c2 - c0), r0 + u * (r1 - r0) + v * (r2 - r0), value);
       };
-      for (int i = 0; i < m; ++i) {
-        for (int j = 0; i + j < m; ++j) {
-          const float fi = float(i), fj = float(j);
-          sample(fi + 0.5f, fj);
-          sample(fi, fj + 0.5f);
-          sample(fi + 0.5f, fj + 0.5f);
-          if (i + j <= m - 2) {
+      if (m == 1 && all_lit && !smooth) {
+        // The common case (a lit, flat-shaded triangle at most 1.5 pixels
+        // wide): the loop below with one sub-triangle, unrolled.
+        const float dc1 = 0.5f * (c1 - c0), dc2 = 0.5f * (c2 - c0);
+        const float dr1 = 0.5f * (r1 - r0), dr2 = 0.5f * (r2 - r0);
+        Deposit(c0 + dc1, r0 + dr1, share);
+        Deposit(c0 + dc2, r0 + dr2, share);
+        Deposit(c0 + dc1 + dc2, r0 + dr1 + dr2, share);
+      } else {
+        for (int i = 0; i < m; ++i) {
+          for (int j = 0; i + j < m; ++j) {
+            const float fi = float(i), fj = float(j);
+            sample(fi + 0.5f, fj);
+            sample(fi, fj + 0.5f);
             sample(fi + 0.5f, fj + 0.5f);
-            sample(fi + 1.0f, fj + 0.5f);
-            sample(fi + 0.5f, fj + 1.0f);
+            if (i + j <= m - 2) {
+              sample(fi + 0.5f, fj + 0.5f);
+              sample(fi + 1.0f, fj + 0.5f);
+              sample(fi + 0.5f, fj + 1.0f);
+            }
           }
         }
       }
@@ -557,15 +570,21 @@ class ChunkRenderer {
       // ridge edge in front can shadow its middle).
       const double area2 = double(c1 - c0) * (r2 - r0) - double(r1 - r0) * (c2 - c0);
       if (std::abs(area2) < 1e-12) return;
-      const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({c0, c1, c2}))));
-      const int c_hi = std::min(ctx_.width - 1, static_cast<int>(std::floor(std::max({c0, c1, c2}))));
-      const int r_lo = std::max(row0_, static_cast<int>(std::ceil(std::min({r0, r1, r2}))));
-      const int r_hi = std::min(row1_ - 1, static_cast<int>(std::floor(std::max({r0, r1, r2}))));
+      const int c_lo = std::max(0, CeilInt(std::min({c0, c1, c2})));
+      const int c_hi = std::min(ctx_.width - 1, FloorInt(std::max({c0, c1, c2})));
+      const int r_lo = std::max(row0_, CeilInt(std::min({r0, r1, r2})));
+      const int r_hi = std::min(row1_ - 1, FloorInt(std::max({r0, r1, r2})));
+      // Barycentrics as affine functions of the pixel: w1 = qc w1_c + qr
+      // w1_r, w2 = qc w2_c + qr w2_r with (qc, qr) = (c - c0, r - r0).
+      const double inv_area2 = 1.0 / area2;
+      const double w1_c = double(r2 - r0) * inv_area2, w1_r = -double(c2 - c0) * inv_area2;
+      const double w2_c = -double(r1 - r0) * inv_area2, w2_r = double(c1 - c0) * inv_area2;
       for (int r = r_lo; r <= r_hi; ++r) {
+        const double qr = r - r0;
         for (int c = c_lo; c <= c_hi; ++c) {
-          const double qc = c - c0, qr = r - r0;
-          const double w1 = (qc * (r2 - r0) - qr * (c2 - c0)) / area2;
-          const double w2 = (double(c1 - c0) * qr - double(r1 - r0) * qc) / area2;
+          const double qc = c - c0;
+          const double w1 = qc * w1_c + qr * w1_r;
+          const double w2 = qc * w2_c + qr * w2_r;
           const double w0 = 1.0 - w1 - w2;
           constexpr double kTol = -1e-9;
           if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
