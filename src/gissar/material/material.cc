@@ -404,14 +404,14 @@ Sigma0Table::Sigma0Table(const Material& material, double wavelength_m, Polariza
     samples_[i] = i == kTableSamples ? 0.0f
                                      : static_cast<float>(material.Sigma0(std::cos(theta), wavelength_m, pol));
   }
-  // The fast table from the law itself; its last sample (cos = 0) is the
-  // limit operator() reaches there, samples_'s last.
+  // The fast table read from the angle table, not from the law: a law can
+  // cost microseconds per evaluation (water's Fresnel terms), and the
+  // tracer builds its tables at every render.
   fast_.resize(kFastSamples + 1);
-  for (int i = 0; i < kFastSamples; ++i) {
+  for (int i = 0; i <= kFastSamples; ++i) {
     const double s = double(i) / kFastSamples;
-    fast_[i] = static_cast<float>(material.Sigma0(1.0 - s * s, wavelength_m, pol));
+    fast_[i] = static_cast<float>((*this)(1.0 - s * s));
   }
-  fast_[kFastSamples] = samples_.back();
 }
 
 MaterialTable::MaterialTable() : materials_(1, DefaultMaterial(scene::kClassDefault)) {}

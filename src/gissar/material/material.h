@@ -202,7 +202,8 @@ class Sigma0Table {
   // s = sqrt(1 - cos) (kFastSamples steps, at most 0.028 deg apart in
   // angle: d theta / d s = 2 / sqrt(2 - s^2) <= 2), interpolated linearly.
   // Agrees with operator() to the float rounding and the two tables'
-  // interpolation (material_test); 0 for cos <= 0.
+  // interpolation (material_test; it is sampled from operator()); 0 for
+  // cos <= 0.
   static constexpr int kFastSamples = 4096;
   float Fast(float cos_incidence) const {
     if (!(cos_incidence > 0.0f) || fast_.empty()) return 0.0f;

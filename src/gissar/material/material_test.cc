@@ -89,10 +89,11 @@ TEST(MaterialTest, TableAngleLookupIsAcosTo2e8Radians) {
 }
 
 // The float lookup without an arc cosine: 4 cos^2 read at random angles
-// within its interpolation error (steps of 1/4096 in sqrt(1 - cos): 4 (1 -
-// s^2)^2 has |f''| <= 16, so |error| <= 16 / (8 4096^2) = 1.2e-7) and
-// float rounding; a table law (-10 dB at 10 deg, -18 dB at 50 deg) to
-// 0.01 dB; 0 at and beyond grazing.
+// within the two tables' interpolation errors (the angle table's 0.05 deg
+// steps: |d2f/dtheta2| <= 8, so <= 8 (8.7e-4)^2 / 8 = 7.6e-7; steps of
+// 1/4096 in s = sqrt(1 - cos): 4 (1 - s^2)^2 has |f''| <= 16, so <= 16 /
+// (8 4096^2) = 1.2e-7) and float rounding; a table law (-10 dB at 10 deg,
+// -18 dB at 50 deg) to 0.01 dB; 0 at and beyond grazing.
 TEST(MaterialTest, FastLookupFollowsTheLaw) {
   Material lambert{"default", 1.0};
   const Sigma0Table t(lambert, kC, Polarization::kVV);
