@@ -310,6 +310,8 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   if (options.sea == "auto") sea_posts = scene::SeaPostMask(dem, options.sea_level_m);
   // The collar and border voids (not sea) are outside the scene.
   const std::vector<uint8_t> outside = scene::OutsidePostMask(dem, sea_posts);
+  // No sea post (an inland DEM): no triangle to mark below.
+  if (std::find(sea_posts.begin(), sea_posts.end(), uint8_t{1}) == sea_posts.end()) sea_posts.clear();
   const geo::VerticalDatumChoice datum =
       geo::ResolveVerticalDatum(geo::CanonicalVerticalDatum(options.vertical_datum), dem.file_vertical_datum);
   if (datum.source == "assumed") reporter.Warn(geo::AssumedDatumWarning(options.dem));

@@ -152,6 +152,7 @@ class ChunkRenderer {
     const int lines = static_cast<int>(line_last - line_first_ + 1);
     horizon_.assign(size_t(lines), kNoHorizon);
     horizon_before_.assign(size_t(lines), kNoHorizon);
+    horizon_prev_.assign(size_t(lines), kNoHorizon);
     rho_.assign(size_t(lines), std::numeric_limits<float>::quiet_NaN());
     line_a_.resize(size_t(lines));
     for (int k = 0; k < lines; ++k) {
@@ -173,7 +174,9 @@ class ChunkRenderer {
       }
       ComputePosts(s);
       ComputeMargins();
-      horizon_prev_ = horizon_before_;
+      // The previous step's horizons move to horizon_prev_ (for this step's
+      // cells); UpdateLines rewrites every entry of horizon_before_.
+      std::swap(horizon_prev_, horizon_before_);
       UpdateLines();
       if (!prev_.empty()) RenderCells(s);
     }
@@ -471,7 +474,7 @@ class ChunkRenderer {
     Splat(intensity_, ctx_.width, row0_, row1_, col, row, value);
   }
 
-  void Triangle(const Vertex& v0, const Vertex& v1, const Vertex& v2, float sign,
+  [[gnu::always_inline]] inline void Triangle(const Vertex& v0, const Vertex& v1, const Vertex& v2, float sign,
                 const Reflectivity& material) {
     const Step &s0 = *v0.step, &s1 = *v1.step, &s2 = *v2.step;
     const int k0 = v0.k, k1 = v1.k, k2 = v2.k;
@@ -512,7 +515,7 @@ class ChunkRenderer {
       const float area_power = 0.5f * twice_area * ctx_.power_scale;
       const float extent = std::max({std::abs(c1 - c0), std::abs(c2 - c0), std::abs(c2 - c1),
                                      std::abs(r1 - r0), std::abs(r2 - r0), std::abs(r2 - r1)});
-      int m = std::clamp(CeilInt(std::min(extent / kSampleSpacingPx, 1e6f)), 1, 256);
+      int m = extent <= kSampleSpacingPx ? 1 : std::clamp(CeilInt(std::min(extent / kSampleSpacingPx, 1e6f)), 1, 256);
       if (!all_lit) m = std::max(m, kPartialSubdivision);
       // The m^2 congruent sub-triangles, each integrated with the
       // edge-midpoint rule (exact for quadratic functions: the bilinear
@@ -568,12 +571,13 @@ class ChunkRenderer {
       // a triangle whose three corners are lit is evaluated at every centre:
       // the horizon is not convex along the triangle (a peak or the end of a
       // ridge edge in front can shadow its middle).
-      const double area2 = double(c1 - c0) * (r2 - r0) - double(r1 - r0) * (c2 - c0);
-      if (std::abs(area2) < 1e-12) return;
       const int c_lo = std::max(0, CeilInt(std::min({c0, c1, c2})));
       const int c_hi = std::min(ctx_.width - 1, FloorInt(std::max({c0, c1, c2})));
       const int r_lo = std::max(row0_, CeilInt(std::min({r0, r1, r2})));
       const int r_hi = std::min(row1_ - 1, FloorInt(std::max({r0, r1, r2})));
+      if (c_lo > c_hi || r_lo > r_hi) return;  // no pixel centre in its bounding box (about half the triangles)
+      const double area2 = double(c1 - c0) * (r2 - r0) - double(r1 - r0) * (c2 - c0);
+      if (std::abs(area2) < 1e-12) return;
       // Barycentrics as affine functions of the pixel: w1 = qc w1_c + qr
       // w1_r, w2 = qc w2_c + qr w2_r with (qc, qr) = (c - c0, r - r0).
       const double inv_area2 = 1.0 / area2;
@@ -745,18 +749,19 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
   image.height = ctx.height;
   image.intensity.assign(size_t(ctx.width) * ctx.height, 0.0f);
   image.mask.assign(size_t(ctx.width) * ctx.height, kMaskNone);
+  image.footprint.assign(image.mask.size(), 0);
   const int chunks = (ctx.height + kChunkRows - 1) / kChunkRows;
   tbb::parallel_for(tbb::blocked_range<int>(0, chunks, 1), [&](const tbb::blocked_range<int>& range) {
     for (int k = range.begin(); k != range.end(); ++k) {
       const int row0 = k * kChunkRows, row1 = std::min(ctx.height, row0 + kChunkRows);
       ChunkRenderer(ctx, row0, row1, image.intensity.data(), image.mask.data()).Run();
+      // The chunk's rows are final: the covered flag becomes the footprint.
+      for (size_t i = size_t(row0) * ctx.width; i < size_t(row1) * ctx.width; ++i) {
+        image.footprint[i] = (image.mask[i] & kCoveredFlag) != 0;
+        image.mask[i] &= kMaskLayover | kMaskShadow;
+      }
     }
   });
-  image.footprint.assign(image.mask.size(), 0);
-  for (size_t i = 0; i < image.mask.size(); ++i) {
-    image.footprint[i] = (image.mask[i] & kCoveredFlag) != 0;
-    image.mask[i] &= kMaskLayover | kMaskShadow;
-  }
   image.bounce_layers[0] = image.intensity;  // single bounce only: the other layers stay empty
   image.stats.cells = int64_t(width - 1) * (height - 1);
   image.stats.trace_seconds = watch.ElapsedSeconds();
