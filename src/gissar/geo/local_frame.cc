@@ -3,7 +3,10 @@
 #include <ogr_spatialref.h>
 
 #include <cmath>
+#include <deque>
 #include <memory>
+#include <mutex>
+#include <string>
 
 #include "gissar/geo/gdal_env.h"
 #include "gissar/util/error.h"
@@ -67,8 +70,6 @@ Eigen::Vector3d LocalFrame::GeodeticFromEnu(const Eigen::Vector3d& enu) const {
 }
 
 struct CrsTransform::Impl {
-  OGRSpatialReference source;
-  OGRSpatialReference wgs84;
   OGRCoordinateTransformation* to_lonlat = nullptr;
   OGRCoordinateTransformation* from_lonlat = nullptr;
   ~Impl() {
@@ -77,24 +78,81 @@ struct CrsTransform::Impl {
   }
 };
 
+namespace {
+
+// The transformations found for a CRS definition, kept for the process: PROJ's
+// search for the operation to WGS84 takes 10-15 ms (its database), a clone of
+// the operation found 0.1-0.4 ms, and a run builds one CrsTransform per
+// thread and step (DemPostsInFrame's blocks among them). Never destroyed (no
+// ordering problem with GDAL's own clean-up at exit); at most kMaxPrototypes
+// definitions, the oldest dropped first.
+struct Prototype {
+  std::string definition;
+  std::unique_ptr<OGRCoordinateTransformation> to_lonlat, from_lonlat;
+  bool geographic = false;
+};
+constexpr size_t kMaxPrototypes = 16;
+std::mutex& PrototypeMutex() {
+  static std::mutex* mutex = new std::mutex;
+  return *mutex;
+}
+std::deque<Prototype>& Prototypes() {
+  static auto* prototypes = new std::deque<Prototype>;
+  return *prototypes;
+}
+
+}  // namespace
+
 CrsTransform::CrsTransform(const std::string& crs_definition) : impl_(std::make_unique<Impl>()) {
   EnsureGdal();
   if (crs_definition.empty()) {
     throw InputError("raster has no coordinate reference system", "");
   }
-  if (impl_->source.SetFromUserInput(crs_definition.c_str()) != OGRERR_NONE) {
+  {
+    // Clones in this thread's PROJ context, under the lock (the prototype's
+    // objects are read by one thread at a time).
+    const std::lock_guard<std::mutex> lock(PrototypeMutex());
+    for (const Prototype& p : Prototypes()) {
+      if (p.definition != crs_definition) continue;
+      impl_->to_lonlat = p.to_lonlat->Clone();
+      impl_->from_lonlat = p.from_lonlat->Clone();
+      if (impl_->to_lonlat != nullptr && impl_->from_lonlat != nullptr) {
+        source_is_geographic_ = p.geographic;
+        return;
+      }
+      OGRCoordinateTransformation::DestroyCT(impl_->to_lonlat);
+      OGRCoordinateTransformation::DestroyCT(impl_->from_lonlat);
+      impl_->to_lonlat = impl_->from_lonlat = nullptr;
+      break;
+    }
+  }
+  OGRSpatialReference source, wgs84;
+  if (source.SetFromUserInput(crs_definition.c_str()) != OGRERR_NONE) {
     throw InputError("cannot parse coordinate reference system", crs_definition.substr(0, 80));
   }
-  impl_->source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  impl_->wgs84.SetWellKnownGeogCS("WGS84");
-  impl_->wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  source_is_geographic_ = impl_->source.IsGeographic();
-  impl_->to_lonlat = OGRCreateCoordinateTransformation(&impl_->source, &impl_->wgs84);
-  impl_->from_lonlat = OGRCreateCoordinateTransformation(&impl_->wgs84, &impl_->source);
+  source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  wgs84.SetWellKnownGeogCS("WGS84");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  source_is_geographic_ = source.IsGeographic();
+  impl_->to_lonlat = OGRCreateCoordinateTransformation(&source, &wgs84);
+  // The inverse of the operation found (no second search); a new search
+  // where it has none.
+  if (impl_->to_lonlat != nullptr) impl_->from_lonlat = impl_->to_lonlat->GetInverse();
+  if (impl_->from_lonlat == nullptr) impl_->from_lonlat = OGRCreateCoordinateTransformation(&wgs84, &source);
   if (impl_->to_lonlat == nullptr || impl_->from_lonlat == nullptr) {
     throw InputError("no transformation from the raster's CRS to WGS84: " + LastGdalMessage(),
                      crs_definition.substr(0, 80));
   }
+  Prototype p{crs_definition, std::unique_ptr<OGRCoordinateTransformation>(impl_->to_lonlat->Clone()),
+              std::unique_ptr<OGRCoordinateTransformation>(impl_->from_lonlat->Clone()), source_is_geographic_};
+  if (!p.to_lonlat || !p.from_lonlat) return;
+  const std::lock_guard<std::mutex> lock(PrototypeMutex());
+  std::deque<Prototype>& prototypes = Prototypes();
+  for (const Prototype& q : prototypes) {
+    if (q.definition == crs_definition) return;  // another thread was first
+  }
+  if (prototypes.size() >= kMaxPrototypes) prototypes.pop_front();
+  prototypes.push_back(std::move(p));
 }
 
 CrsTransform::~CrsTransform() = default;

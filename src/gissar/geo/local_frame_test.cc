@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 #include <proj.h>
 
+#include <array>
 #include <random>
+#include <string>
+#include <thread>
 
 #include "gissar/util/error.h"
 
@@ -97,6 +100,35 @@ TEST(CrsTransformTest, UtmRoundTrip) {
   utm.ToLonLat(x, y);
   EXPECT_NEAR(x[0], 1.6, 1e-9);
   EXPECT_NEAR(y[0], 42.545, 1e-9);
+}
+
+TEST(CrsTransformTest, TransformsOfOneCrsAgreeOnEveryThread) {
+  // The second and later CrsTransforms of a definition are clones of the
+  // first's operations, each in its own thread's PROJ context. Zone 31's
+  // central meridian is 3 deg E: false easting 500 km there, northing 0 on
+  // the equator.
+  const std::string definition = "EPSG:32631";
+  std::vector<std::array<double, 4>> results(6);
+  std::vector<std::thread> threads;
+  for (size_t i = 0; i < results.size(); ++i) {
+    threads.emplace_back([&, i] {
+      const CrsTransform utm(definition);
+      std::vector<double> x{500000.0}, y{0.0};
+      utm.ToLonLat(x, y);
+      std::vector<double> e{3.0}, n{45.0};
+      utm.FromLonLat(e, n);
+      results[i] = {x[0], y[0], e[0], n[0]};
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  for (const auto& r : results) {
+    EXPECT_NEAR(r[0], 3.0, 1e-12);
+    EXPECT_NEAR(r[1], 0.0, 1e-12);
+    EXPECT_NEAR(r[2], 500000.0, 1e-6);
+    EXPECT_EQ(r, results[0]);
+  }
+  EXPECT_FALSE(CrsTransform(definition).source_is_geographic());
+  EXPECT_TRUE(CrsTransform("EPSG:4326").source_is_geographic());
 }
 
 TEST(CrsTransformTest, BadCrsIsAnInputError) {
