@@ -653,8 +653,10 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   // instead of a ray traversal each.
   const std::optional<GridProfileSweep> sweep =
       options.profile_sweep ? ProfileSweepOf(embree, mesh, geometry) : std::nullopt;
+  // The float table uniform in sqrt(1 - cos) (Sigma0Table::Fast: no arc
+  // cosine; within the angle table's own interpolation error of the law).
   auto sigma0_of = [&](scene::ClassId id, double cos_in) {
-    return sigma0_tables[id < sigma0_tables.size() ? id : 0](cos_in);
+    return double(sigma0_tables[id < sigma0_tables.size() ? id : 0].Fast(static_cast<float>(cos_in)));
   };
 
   // Planes: total intensity (coherent: real and imaginary amplitude), then
