@@ -197,8 +197,8 @@ class Sigma0Table {
     return samples_[i] + f * (samples_[i + 1] - samples_[i]);
   }
 
-  // The same law in float without an arc cosine, for per-facet lookups in
-  // bulk (the DEM-raster engine): a second table sampled uniformly in
+  // The same law in float without an arc cosine, for lookups in bulk (the
+  // DEM-raster engine's facets, the tracer's hits): a second table sampled uniformly in
   // s = sqrt(1 - cos) (kFastSamples steps, at most 0.028 deg apart in
   // angle: d theta / d s = 2 / sqrt(2 - s^2) <= 2), interpolated linearly.
   // Agrees with operator() to the float rounding and the two tables'
