@@ -168,8 +168,8 @@ struct Material {
 // wavelength and polarisation (linear interpolation): the renderers' fast
 // lookup.
 // acos(x) for x in [0, 1] (clamped), within 2e-8 rad (a polynomial, no
-// libm call): the angle lookups of Sigma0Table. Inline: the renderers call
-// it once per sample.
+// libm call): the angle lookups of Sigma0Table (operator(), which also
+// fills the renderers' Fast table).
 inline double AcosOfUnitInterval(double x) {
   // Abramowitz & Stegun 4.4.46: acos x = sqrt(1 - x) (a0 + a1 x + ... + a7 x^7)
   // + e, |e| <= 2e-8, for 0 <= x <= 1.

@@ -474,8 +474,8 @@ class ChunkRenderer {
     Splat(intensity_, ctx_.width, row0_, row1_, col, row, value);
   }
 
-  [[gnu::always_inline]] inline void Triangle(const Vertex& v0, const Vertex& v1, const Vertex& v2, float sign,
-                const Reflectivity& material) {
+  [[gnu::always_inline]] inline void Triangle(const Vertex& v0, const Vertex& v1, const Vertex& v2,
+                                              float sign, const Reflectivity& material) {
     const Step &s0 = *v0.step, &s1 = *v1.step, &s2 = *v2.step;
     const int k0 = v0.k, k1 = v1.k, k2 = v2.k;
     const Eigen::Vector3f p0(s0.x[k0], s0.y[k0], s0.z[k0]);
@@ -515,7 +515,8 @@ class ChunkRenderer {
       const float area_power = 0.5f * twice_area * ctx_.power_scale;
       const float extent = std::max({std::abs(c1 - c0), std::abs(c2 - c0), std::abs(c2 - c1),
                                      std::abs(r1 - r0), std::abs(r2 - r0), std::abs(r2 - r1)});
-      int m = extent <= kSampleSpacingPx ? 1 : std::clamp(CeilInt(std::min(extent / kSampleSpacingPx, 1e6f)), 1, 256);
+      int m = 1;  // without a division for the common small triangle
+      if (extent > kSampleSpacingPx) m = std::clamp(CeilInt(std::min(extent / kSampleSpacingPx, 1e6f)), 1, 256);
       if (!all_lit) m = std::max(m, kPartialSubdivision);
       // The m^2 congruent sub-triangles, each integrated with the
       // edge-midpoint rule (exact for quadratic functions: the bilinear
@@ -575,7 +576,9 @@ class ChunkRenderer {
       const int c_hi = std::min(ctx_.width - 1, FloorInt(std::max({c0, c1, c2})));
       const int r_lo = std::max(row0_, CeilInt(std::min({r0, r1, r2})));
       const int r_hi = std::min(row1_ - 1, FloorInt(std::max({r0, r1, r2})));
-      if (c_lo > c_hi || r_lo > r_hi) return;  // no pixel centre in its bounding box (about half the triangles)
+      // No pixel centre in its bounding box (a third of the triangles on a
+      // 1000^2 fractal DEM with pixels of the post spacing).
+      if (c_lo > c_hi || r_lo > r_hi) return;
       const double area2 = double(c1 - c0) * (r2 - r0) - double(r1 - r0) * (c2 - c0);
       if (std::abs(area2) < 1e-12) return;
       // Barycentrics as affine functions of the pixel: w1 = qc w1_c + qr
