@@ -312,8 +312,17 @@ w("| render time after loading (mean of %d) | %.0f ms |" % (raster["iterations"]
 w("| cells/s | %.1f M |" % (cells_per_s / 1e6))
 w("| STREAM triad, same process | %.1f GB/s |" % (stream["bytes_per_s"] / 1e9))
 w("| bytes of post data per second at that rate (12 B/post) | %.2f GB/s |" % (cells_per_s * 12 / 1e9))
+floor = {int(name.split("/")[1]): b for name, b in bm.items() if name.startswith("BM_SplatFloor/")}
+if {0, 1, 2} <= floor.keys():
+    w("| floor of this sampling, same process: posts projected, six bilinear splats per cell, nothing else | %.0f ms, %.1f M cells/s |" % (
+        floor[0]["real_time"], floor[0]["cells_per_s"] / 1e6))
+    w("| of which the projection / per-triangle arithmetic / splats | %.0f / %.0f / %.0f ms |" % (
+        floor[1]["real_time"], floor[2]["real_time"] - floor[1]["real_time"], floor[0]["real_time"] - floor[2]["real_time"]))
 w("")
-w("Command: `GISSAR_BENCH_DEM=fractal_4096.tif " + commands["raster_4096"] + "`.")
+w("Command: `GISSAR_BENCH_DEM=fractal_4096.tif " + commands["raster_4096"] + "`. The floor (`BM_SplatFloor`)")
+w("samples the image as the engine does (each triangle's power splatted bilinearly at its three edge")
+w("midpoints), without horizons, shadow, layover, mask or classes: the engine does all of this and")
+w("more (bench/PROFILES.md: what else was measured against this floor).")
 w("")
 w("Target (issue 18): ≥ 100 M cells/s on 2 threads (4096² in ≤ 168 ms). Reached here: %.1f M cells/s, %.0f ms (%s)." % (
     cells_per_s / 1e6, ms, verdict(cells_per_s >= 100e6)))
