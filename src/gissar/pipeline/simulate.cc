@@ -258,16 +258,35 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
 
 namespace {
 
-// Memory estimates for --max-memory (measured orders of magnitude, kept on
-// the safe side). Per DEM post: heights as read (12 B), map and ENU
-// coordinates (28 B), the mesh (2 triangles: 36 B) and Embree's BVH over
-// it (~150 B).
-constexpr double kBytesPerDemPost = 256.0;
+// Memory estimates for --max-memory (measured, kept on the safe side; peak
+// RSS of `simulate` on fractal DEMs, 2026-11-29, docs/robustness.md).
+// Per DEM post, traced as a height field or by the raster engine: heights
+// as read, map and ENU coordinates, sea mask and classes, and with a
+// collar the explicit triangles of the cells kept (measured 28-33 B per
+// post without a collar: 8192^2 posts and a small image, 1.9 GB traced,
+// 1.2 GB raster).
+constexpr double kBytesPerDemPost = 128.0;
+// The same with Embree's BVH over the DEM's triangles (--no-heightfield):
+// measured about 180 B per post (4096^2: 3.0 GB).
+constexpr double kBytesPerDemPostBvh = 256.0;
 // Per scene-file byte: the mesh as loaded plus Embree's BVH.
 constexpr double kBytesPerSceneFileByte = 5.0;
 // Per image pixel: the total and 4 per-bounce float planes, the per-block
-// accumulation bands (as much again), mask, quicklook and writing buffers.
+// accumulation bands, mask, quicklook and writing buffers (measured 18 B
+// with one bounce, 26 B with three).
 constexpr double kBytesPerImagePixel = 64.0;
+// The same in coherent mode, which adds the complex total and the complex
+// plane of every bounce count and writes the SLC (measured 98 B per pixel
+// with three bounces: 4096^2 posts, 96 Mpx, 10.0 GB).
+constexpr double kBytesPerCoherentImagePixel = 160.0;
+
+double BytesPerDemPost(const SimulateRequest& options) {
+  return options.engine == "trace" && !options.heightfield ? kBytesPerDemPostBvh : kBytesPerDemPost;
+}
+
+double BytesPerImagePixel(const SimulateRequest& options) {
+  return options.coherent ? kBytesPerCoherentImagePixel : kBytesPerImagePixel;
+}
 
 geo::DemReadOptions DemReadOptionsOf(const SimulateRequest& options) {
   geo::DemReadOptions read_options;
@@ -276,7 +295,7 @@ geo::DemReadOptions DemReadOptionsOf(const SimulateRequest& options) {
   // leaves it: never filled, no --fill-nodata needed for it.
   read_options.border_nodata_outside = true;
   read_options.max_bytes = options.max_memory_bytes;
-  read_options.bytes_per_post = static_cast<int64_t>(kBytesPerDemPost);
+  read_options.bytes_per_post = static_cast<int64_t>(BytesPerDemPost(options));
   read_options.vertical_units = options.vertical_units;
   return read_options;
 }
@@ -303,7 +322,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   }
   const int source_width = dem.width, source_height = dem.height;
   dem = geo::RefineDem(dem, options.dem_oversample,
-                       static_cast<int64_t>(double(options.max_memory_bytes) / kBytesPerDemPost));
+                       static_cast<int64_t>(double(options.max_memory_bytes) / BytesPerDemPost(options)));
   // Sea from the heights as given (orthometric for SRTM-like DEMs), before
   // any datum change.
   std::vector<uint8_t> sea_posts;
@@ -1061,7 +1080,7 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   CheckViewingGeometry(geometry, mesh, reporter);
   CheckImpulseResponsePixels(options.range_resolution_m / geometry.range_spacing_m(),
                              options.azimuth_resolution_m / geometry.azimuth_spacing_m());
-  CheckMemoryBudget(kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
+  CheckMemoryBudget(BytesPerImagePixel(options) * geometry.width() * double(geometry.height()) +
                         double(mesh.MemoryBytes()) * 3.0,
                     options.max_memory_bytes,
                     "image of " + std::to_string(geometry.width()) + " x " +
@@ -1071,7 +1090,7 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
     // Every ray may return once per bounce, each return kept in memory.
     const double returns = geometry.width() * double(geometry.height()) * options.rays_per_cell * options.bounces;
     CheckMemoryBudget(returns * double(sizeof(render::Contribution)) +
-                          kBytesPerImagePixel * geometry.width() * double(geometry.height()) +
+                          BytesPerImagePixel(options) * geometry.width() * double(geometry.height()) +
                           double(mesh.MemoryBytes()) * 3.0,
                       options.max_memory_bytes,
                       "recording up to " + std::to_string(int64_t(returns)) +

@@ -687,7 +687,8 @@ TEST(SimulateTest, DemWindowFitsAMemoryBudgetTheWholeDemDoesNot) {
   const fs::path dir = testing::MakeTempDir();
   const fs::path dem = WriteHillsDem(dir);
   SimulateRequest o = HillsWindowRequest(dem, dir / "m");
-  // 512^2 posts at 256 B each need 64 MiB; the window about a tenth.
+  // 512^2 posts at 128 B each (the height field's estimate) need 32 MiB;
+  // the window about a tenth.
   o.max_memory_bytes = int64_t{24} << 20;
   const SimulateResult result = RunSimulate(o, "test");
   EXPECT_EQ(result.width, 64);
@@ -704,6 +705,44 @@ TEST(SimulateTest, DemWindowFitsAMemoryBudgetTheWholeDemDoesNot) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("--max-memory"), std::string::npos) << e.what();
   }
+}
+
+// The memory budget's estimate per image pixel is higher in coherent mode
+// (the complex planes of the total and of every bounce count: 98 B per
+// pixel measured with three bounces, against 26 B incoherent): a budget
+// that holds the detected image refuses the coherent one before rendering.
+TEST(SimulateTest, CoherentModeNeedsMoreOfTheMemoryBudget) {
+  const fs::path dir = testing::MakeTempDir();
+  const fs::path dem = WriteHillsDem(dir);
+  SimulateRequest o;
+  o.dem = dem.string();
+  o.sea = "off";
+  o.geometry.heading_deg = 20.0;
+  o.geometry.depression_deg = 35.0;
+  o.geometry.range_spacing_m = 15.0;  // half the post spacing: about 4 pixels per post
+  o.geometry.azimuth_spacing_m = 15.0;
+  o.rays_per_cell = 1.0;
+  o.out_prefix = (dir / "unbounded").string();
+  const SimulateResult unbounded = RunSimulate(o, "test");
+  const double pixels = double(unbounded.width) * unbounded.height;
+  const double posts = 512.0 * 512.0;
+  ASSERT_GT(pixels, 3.0 * posts);
+  // Between the two estimates (64 and 160 B per pixel, plus 3x the mesh: 12
+  // to 32 B per post here), above the DEM's 128 B per post.
+  o.max_memory_bytes = static_cast<int64_t>(100.0 * pixels + 96.0 * posts);
+  o.out_prefix = (dir / "detected").string();
+  const SimulateResult detected = RunSimulate(o, "test");
+  EXPECT_EQ(detected.width, unbounded.width);
+  o.coherent = true;
+  o.out_prefix = (dir / "coherent").string();
+  try {
+    RunSimulate(o, "test");
+    FAIL() << "the coherent image fits the budget";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--max-memory"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("pixels"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "coherent.tif"));
 }
 
 TEST(SimulateTest, DemWindowFallsBackToTheWholeDemWithAReason) {
