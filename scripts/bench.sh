@@ -6,7 +6,7 @@
 # Figures (docs/performance.md): end-to-end `gissar simulate` on 1024^2,
 # 2048^2 and 4096^2 posts at 4 rays per cell with 1 and 3 bounces (wall time,
 # rays/s, peak RSS), 4096^2 with Embree's BVH instead of the height field and
-# 8192^2 (scale); the tracer's primary rays/s against raw Embree 16-wide
+# 8192^2 (scale; the raster engine at the same four sizes); the tracer's primary rays/s against raw Embree 16-wide
 # coherent packets on the same scene in the same process; BVH build time and
 # memory; the DEM-raster engine's cells/s on 4096^2 and a STREAM triad from
 # the same process; scene build (CDT) time and memory; raster/tracer agreement
@@ -73,6 +73,15 @@ for n in 1024 2048 4096; do
   done
 done
 
+# The DEM-raster engine (single bounce), whole simulate, same DEMs and geometry.
+RSIM=(simulate --heading 30 --depression 40 --slant-range 20000 --no-overviews --quiet --engine raster)
+for n in 1024 2048 4096; do
+  say "simulate ${n}^2, raster engine"
+  run "ras_${n}" "$GISSAR" "${RSIM[@]}" --dem "fractal_$n.tif" --out "ras_${n}"
+  cp "ras_${n}.json" "$R/"
+  rm -f "ras_${n}".tif "ras_${n}".png "ras_${n}"_quicklook.png "ras_${n}"_mask.tif
+done
+
 # The same 4096^2, 3-bounce run with Embree's BVH over the DEM's triangles
 # instead of the height field (the default): time and memory side by side.
 say "simulate 4096^2, 3 bounces, --no-heightfield"
@@ -86,7 +95,11 @@ say "scale: simulate 8192^2, 1 bounce"
 run dem_8192 "$B/bench/fractal_dem" fractal_8192.tif 8192 5
 run sim_8192_b1 "$GISSAR" "${SIM[@]}" --dem fractal_8192.tif --bounces 1 --out sim_8192_b1
 cp sim_8192_b1.json "$R/"
-rm -f fractal_8192.tif sim_8192_b1.tif sim_8192_b1.png sim_8192_b1_quicklook.png sim_8192_b1_mask.tif
+rm -f sim_8192_b1.tif sim_8192_b1.png sim_8192_b1_quicklook.png sim_8192_b1_mask.tif
+say "scale: simulate 8192^2, raster engine"
+run ras_8192 "$GISSAR" "${RSIM[@]}" --dem fractal_8192.tif --out ras_8192
+cp ras_8192.json "$R/"
+rm -f fractal_8192.tif ras_8192.tif ras_8192.png ras_8192_quicklook.png ras_8192_mask.tif
 
 say "GeoTIFF writer: the 4096^2 image's 5 float32 bands, with and without overviews"
 GISSAR_BENCH_IMAGE=sim_4096_b3.tif run write_4096 "$B/bench/write_bench" \

@@ -178,6 +178,31 @@ ratio8 = wall8 / scale[4096][0]
 w("Target (issue 18): 8192² within 24 GiB in ≈ 4× the 4096² time (± 30 %%). Reached here: %.2f× (%s), %.2f GiB (%s). Commands: %s, %s." % (
     ratio8, verdict(2.8 <= ratio8 <= 5.2), rss8 / GIB, verdict(rss8 < 24 * GIB), cmd("dem_8192"), cmd("sim_8192_b1")))
 w("")
+w("The DEM-raster engine (`--engine raster`: single bounce, no rays), whole `simulate` including writing,")
+w("on the same DEMs:")
+w("")
+w("| posts | DEM cells | image | wall s | peak RSS | ns per cell (wall) | render s | wall / wall at 4096² |")
+w("|---|---|---|---|---|---|---|---|")
+raster_scale = {}
+for n in (1024, 2048, 4096, 8192):
+    wall_x, rss_x = wall_rss("ras_%d" % n)
+    raster_scale[n] = (wall_x, rss_x, load("ras_%d.json" % n))
+for n, (wall_x, rss_x, jx) in raster_scale.items():
+    cells = (n - 1) ** 2
+    w("| %d² | %.1f M | %d × %d | %.1f | %.2f GiB | %.0f | %.1f | %.2f |" % (
+        n, cells / 1e6, jx["geometry"]["width"], jx["geometry"]["height"], wall_x, rss_x / GIB,
+        wall_x / cells * 1e9, jx["timings_s"]["raster"], wall_x / raster_scale[4096][0]))
+w("")
+w("Command: %s (and the same on each DEM)." % cmd("ras_4096"))
+w("")
+# 16384^2 by simulate's own memory estimate (pipeline/simulate.cc, docs/robustness.md): 128 B per post
+# (height field or raster engine) against the default budget, 3/4 of the machine's memory.
+need16 = 16384.0 ** 2 * 128
+budget = 0.75 * mem_total()
+w("16384² (268 M posts) needs about %.0f GiB by `simulate`'s memory estimate (128 B per DEM post,"
+  " docs/robustness.md) against this machine's default budget of %.1f GiB (3/4 of its memory): %s." % (
+      need16 / GIB, budget / GIB, "not run" if need16 > budget else "it fits, but is not part of this suite"))
+w("")
 
 # ---------------------------------------------------------------- writing
 w("## Writing the product")
