@@ -1,0 +1,409 @@
+#include "gissar/image/point_target.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/core.hpp>
+#include <sstream>
+
+#include "gissar/util/check.h"
+#include "gissar/util/error.h"
+
+namespace gissar::image {
+namespace {
+
+// Largest upsampled chip side (samples): 4096^2 complex doubles = 256 MiB.
+constexpr int kMaxUpsampledSide = 4096;
+
+std::string Num(double value) {
+  std::ostringstream out;
+  out.precision(6);
+  out << value;
+  return out.str();
+}
+
+// One cut through the peak: samples at 1 / upsampling pixel spacing over
+// the chip's sample extent.
+struct CutAnalysis {
+  double width_px = 0.0;      // -3 dB width
+  double main_lobe_px = 0.0;  // null to null
+  double pslr_db = 0.0;
+  double islr_db = 0.0;
+  int null_first = 0;  // main lobe = [null_first, null_last] (cut indices)
+  int null_last = 0;
+};
+
+std::optional<CutAnalysis> AnalyseCut(const std::vector<double>& cut, int peak, int upsampling,
+                                      const std::string& axis, std::string* why) {
+  const int n = static_cast<int>(cut.size());
+  GISSAR_CHECK(peak > 0 && peak < n - 1);
+  // Peak power: vertex of the parabola through the maximum and its
+  // neighbours (the grid maximum can sit up to half a grid step off).
+  double peak_power = cut[peak];
+  const double curvature = cut[peak - 1] - 2.0 * cut[peak] + cut[peak + 1];
+  if (curvature < 0.0) {
+    const double slope = cut[peak + 1] - cut[peak - 1];
+    peak_power -= slope * slope / (8.0 * curvature);
+  }
+  const double half = 0.5 * peak_power;
+  int lo = peak;  // last sample >= half, going left
+  while (lo > 0 && cut[lo - 1] >= half) --lo;
+  int hi = peak;
+  while (hi < n - 1 && cut[hi + 1] >= half) ++hi;
+  if (lo == 0 || hi == n - 1) {
+    *why = "the " + axis + " cut has no -3 dB crossing inside the chip (response wider than the chip)";
+    return std::nullopt;
+  }
+  const double left = (lo - 1) + (half - cut[lo - 1]) / (cut[lo] - cut[lo - 1]);
+  const double right = hi + (cut[hi] - half) / (cut[hi] - cut[hi + 1]);
+  // First minima beyond the crossings.
+  int null_first = lo - 1;
+  while (null_first > 0 && cut[null_first - 1] < cut[null_first]) --null_first;
+  int null_last = hi + 1;
+  while (null_last < n - 1 && cut[null_last + 1] < cut[null_last]) ++null_last;
+  if (null_first == 0 || null_last == n - 1) {
+    *why = "the " + axis + " cut has no first null inside the chip (main lobe wider than the chip)";
+    return std::nullopt;
+  }
+  double side_max = 0.0, side_energy = 0.0, main_energy = 0.0;
+  for (int i = 0; i < n; ++i) {
+    if (i >= null_first && i <= null_last) {
+      main_energy += cut[i];
+    } else {
+      side_energy += cut[i];
+      side_max = std::max(side_max, cut[i]);
+    }
+  }
+  if (side_max > peak_power) {
+    *why = "the " + axis + " cut holds a sample brighter than the peak inside the chip (the search found a " +
+           "sidelobe, or a brighter target is nearby)";
+    return std::nullopt;
+  }
+  CutAnalysis result;
+  result.width_px = (right - left) / upsampling;
+  result.main_lobe_px = double(null_last - null_first) / upsampling;
+  result.pslr_db = 10.0 * std::log10(side_max / peak_power);
+  result.islr_db = 10.0 * std::log10(side_energy / main_energy);
+  result.null_first = null_first;
+  result.null_last = null_last;
+  return result;
+}
+
+// Offset (fraction of the grid step, |.| <= 0.5) of the vertex of the
+// parabola through (-1, a), (0, b), (1, c); 0 when b is not a maximum.
+double ParabolaOffset(double a, double b, double c) {
+  const double curvature = a - 2.0 * b + c;
+  if (!(curvature < 0.0)) return 0.0;
+  return std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
+}
+
+// Where the N spectrum bins go in the M-point padded spectrum, with the
+// Nyquist bin (even N) split half and half between both ends.
+struct BinTarget {
+  int index[2];
+  double weight[2];
+  int count;
+};
+
+BinTarget PaddedBin(int k, int n, int m) {
+  if (2 * k < n) return {{k, 0}, {1.0, 0.0}, 1};
+  if (2 * k > n) return {{k - n + m, 0}, {1.0, 0.0}, 1};
+  return {{k, m - k}, {0.5, 0.5}, 2};
+}
+
+}  // namespace
+
+void ValidatePointTargetOptions(const PointTargetOptions& options) {
+  if (!(options.range_spacing_m > 0.0) || !std::isfinite(options.range_spacing_m)) {
+    throw ConfigError("range spacing must be a positive number of metres, got " + Num(options.range_spacing_m),
+                      "range_spacing_m");
+  }
+  if (!(options.azimuth_spacing_m > 0.0) || !std::isfinite(options.azimuth_spacing_m)) {
+    throw ConfigError("azimuth spacing must be a positive number of metres, got " + Num(options.azimuth_spacing_m),
+                      "azimuth_spacing_m");
+  }
+  if (!(options.search_radius_px >= 0.0) || !std::isfinite(options.search_radius_px)) {
+    throw ConfigError("search radius must be >= 0 pixels, got " + Num(options.search_radius_px), "search_radius_px");
+  }
+  if (options.chip_half_size_px < 4 || options.chip_half_size_px > kMaxUpsampledSide / 4) {
+    throw ConfigError("chip half-size must be 4 to " + std::to_string(kMaxUpsampledSide / 4) + " pixels, got " +
+                          std::to_string(options.chip_half_size_px),
+                      "chip_half_size_px");
+  }
+  if (options.upsampling < 2) {
+    throw ConfigError("upsampling factor must be >= 2, got " + std::to_string(options.upsampling), "upsampling");
+  }
+  if (2 * options.chip_half_size_px * options.upsampling > kMaxUpsampledSide) {
+    throw ConfigError("the upsampled chip (2 x chip_half_size_px x upsampling = " +
+                          std::to_string(2 * options.chip_half_size_px * options.upsampling) + ") exceeds " +
+                          std::to_string(kMaxUpsampledSide) + " samples per axis",
+                      "upsampling");
+  }
+  if (options.integration_half_size_px != 0 &&
+      (options.integration_half_size_px < 2 || options.integration_half_size_px > 4096)) {
+    throw ConfigError("integration half-size must be 0 (= chip half-size) or 2 to 4096 pixels, got " +
+                          std::to_string(options.integration_half_size_px),
+                      "integration_half_size_px");
+  }
+  if (options.beta0_calibration &&
+      (!(*options.beta0_calibration > 0.0) || !std::isfinite(*options.beta0_calibration))) {
+    throw ConfigError("beta0 calibration factor must be a positive linear factor, got " +
+                          Num(*options.beta0_calibration),
+                      "beta0_calibration");
+  }
+  if (!std::isfinite(options.min_peak_to_background_db)) {
+    throw ConfigError("minimum peak-to-background ratio must be a finite number of dB", "min_peak_to_background_db");
+  }
+}
+
+std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::complex<float>>& slc, int width,
+                                                         int height, double predicted_col, double predicted_row,
+                                                         const PointTargetOptions& options, std::string* why_not) {
+  ValidatePointTargetOptions(options);
+  if (width < 1 || height < 1) {
+    throw InputError("image size must be positive, got " + std::to_string(width) + " x " + std::to_string(height),
+                     "slc");
+  }
+  if (slc.size() != size_t(width) * size_t(height)) {
+    throw InputError("image has " + std::to_string(slc.size()) + " samples, expected " + std::to_string(width) +
+                         " x " + std::to_string(height),
+                     "slc");
+  }
+  if (!std::isfinite(predicted_col) || !std::isfinite(predicted_row)) {
+    throw InputError("predicted position is not finite", "predicted_px");
+  }
+  std::string why;
+  auto fail = [&](const std::string& reason) -> std::optional<PointTargetMeasurement> {
+    if (why_not) *why_not = reason;
+    return std::nullopt;
+  };
+  auto at = [&](int col, int row) -> std::complex<double> {
+    const std::complex<float> v = slc[size_t(row) * width + col];
+    if (!std::isfinite(v.real()) || !std::isfinite(v.imag())) {
+      throw InputError("sample (column " + std::to_string(col) + ", row " + std::to_string(row) + ") is not finite",
+                       "slc");
+    }
+    return {v.real(), v.imag()};
+  };
+  const std::string where_text = "(" + Num(predicted_col) + ", " + Num(predicted_row) + ")";
+
+  // 1. Brightest sample within the search circle; it must be a local maximum.
+  const double radius = options.search_radius_px;
+  const double col_lo = std::max(0.0, std::ceil(predicted_col - radius));
+  const double col_hi = std::min(width - 1.0, std::floor(predicted_col + radius));
+  const double row_lo = std::max(0.0, std::ceil(predicted_row - radius));
+  const double row_hi = std::min(height - 1.0, std::floor(predicted_row + radius));
+  int peak_col = -1, peak_row = -1;
+  double peak_sample_power = -1.0;
+  for (double r = row_lo; r <= row_hi; ++r) {
+    for (double c = col_lo; c <= col_hi; ++c) {
+      const double dc = c - predicted_col, dr = r - predicted_row;
+      if (dc * dc + dr * dr > radius * radius) continue;
+      const double p = std::norm(at(int(c), int(r)));
+      if (p > peak_sample_power) {
+        peak_sample_power = p;
+        peak_col = int(c);
+        peak_row = int(r);
+      }
+    }
+  }
+  if (peak_col < 0) {
+    return fail("the search circle of radius " + Num(radius) + " px around the prediction " + where_text +
+                " holds no image sample");
+  }
+  const std::string peak_text = "(" + std::to_string(peak_col) + ", " + std::to_string(peak_row) + ")";
+  for (int dr = -1; dr <= 1; ++dr) {
+    for (int dc = -1; dc <= 1; ++dc) {
+      const int c = peak_col + dc, r = peak_row + dr;
+      if (c < 0 || r < 0 || c >= width || r >= height) continue;
+      if (std::norm(at(c, r)) > peak_sample_power) {
+        return fail("the brightest sample within " + Num(radius) + " px of the prediction " + where_text + ", " +
+                    peak_text + ", is not a local maximum: the target lies outside the search radius");
+      }
+    }
+  }
+  const int h = options.chip_half_size_px;
+  const int hi = options.integration_half_size_px > 0 ? options.integration_half_size_px : h;
+  const int margin = std::max(h, hi);
+  if (peak_col - margin < 0 || peak_row - margin < 0 || peak_col + margin > width - 1 ||
+      peak_row + margin > height - 1) {
+    return fail("target too close to the image edge: the chip of +-" + std::to_string(margin) +
+                " px around the peak sample " + peak_text + " leaves the " + std::to_string(width) + " x " +
+                std::to_string(height) + " image");
+  }
+
+  // 5 (first, for the detection test). Energy and background on the
+  // original samples: (2 hi + 1)^2 box, four corner boxes of side b.
+  const int b = std::max(1, hi / 2);
+  double box_sum = 0.0, corner_sum = 0.0;
+  for (int r = peak_row - hi; r <= peak_row + hi; ++r) {
+    for (int c = peak_col - hi; c <= peak_col + hi; ++c) {
+      const double p = std::norm(at(c, r));
+      box_sum += p;
+      const bool corner_col = c < peak_col - hi + b || c > peak_col + hi - b;
+      const bool corner_row = r < peak_row - hi + b || r > peak_row + hi - b;
+      if (corner_col && corner_row) corner_sum += p;
+    }
+  }
+  const double box_count = double(2 * hi + 1) * double(2 * hi + 1);
+  const double background = corner_sum / (4.0 * b * b);
+  if (!(peak_sample_power > 0.0)) return fail("no target near " + where_text + ": every sample is zero");
+  if (background > 0.0) {
+    const double contrast_db = 10.0 * std::log10(peak_sample_power / background);
+    if (contrast_db < options.min_peak_to_background_db) {
+      return fail("no target near " + where_text + ": the brightest sample " + peak_text + " is only " +
+                  Num(contrast_db) + " dB above the background (at least " +
+                  Num(options.min_peak_to_background_db) + " dB needed)");
+    }
+  }
+  const double energy = box_sum - background * box_count;
+  if (!(energy > 0.0)) {
+    return fail("no target near " + where_text + ": the integrated energy minus the background is not positive");
+  }
+
+  // 2. Chip (2h x 2h, brightest sample at index h) with its spectral
+  // centroid removed.
+  const int n = 2 * h;
+  const int col0 = peak_col - h, row0 = peak_row - h;
+  std::vector<std::complex<double>> chip(size_t(n) * n);
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) chip[size_t(r) * n + c] = at(col0 + c, row0 + r);
+  }
+  std::complex<double> lag_col = 0.0, lag_row = 0.0;
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      const std::complex<double> v = chip[size_t(r) * n + c];
+      if (c + 1 < n) lag_col += chip[size_t(r) * n + c + 1] * std::conj(v);
+      if (r + 1 < n) lag_row += chip[size_t(r + 1) * n + c] * std::conj(v);
+    }
+  }
+  auto centroid = [](std::complex<double> lag) {
+    double f = std::arg(lag) / (2.0 * M_PI);  // arg(0) = 0
+    if (f >= 0.5) f -= 1.0;
+    return f;
+  };
+  const double f_col = centroid(lag_col), f_row = centroid(lag_row);
+  if (f_col != 0.0 || f_row != 0.0) {
+    for (int r = 0; r < n; ++r) {
+      for (int c = 0; c < n; ++c) {
+        chip[size_t(r) * n + c] *= std::polar(1.0, -2.0 * M_PI * (f_col * (c - h) + f_row * (r - h)));
+      }
+    }
+  }
+
+  // 3. Upsampling by zero-padding the spectrum.
+  const int u = options.upsampling;
+  const int m = n * u;
+  cv::Mat chip_mat(n, n, CV_64FC2);
+  for (int r = 0; r < n; ++r) {
+    auto* row = chip_mat.ptr<cv::Vec2d>(r);
+    for (int c = 0; c < n; ++c) row[c] = {chip[size_t(r) * n + c].real(), chip[size_t(r) * n + c].imag()};
+  }
+  cv::Mat spectrum;
+  cv::dft(chip_mat, spectrum, cv::DFT_COMPLEX_OUTPUT);
+  cv::Mat padded = cv::Mat::zeros(m, m, CV_64FC2);
+  for (int kr = 0; kr < n; ++kr) {
+    const BinTarget tr = PaddedBin(kr, n, m);
+    for (int kc = 0; kc < n; ++kc) {
+      const BinTarget tc = PaddedBin(kc, n, m);
+      const cv::Vec2d v = spectrum.at<cv::Vec2d>(kr, kc);
+      for (int i = 0; i < tr.count; ++i) {
+        for (int j = 0; j < tc.count; ++j) padded.at<cv::Vec2d>(tr.index[i], tc.index[j]) += v * (tr.weight[i] * tc.weight[j]);
+      }
+    }
+  }
+  // In place (the chip's memory is touched once: 16 MiB for 1024^2).
+  cv::Mat& upsampled = padded;
+  cv::dft(padded, upsampled, cv::DFT_INVERSE);  // unscaled: divide by n^2
+  const double scale = 1.0 / (double(n) * n);
+  // Power over the chip's sample extent (the wrap interval after the last
+  // sample excluded): l x l, grid step 1 / u pixel.
+  const int l = (n - 1) * u + 1;
+  auto p = [&](int r, int c) {
+    const cv::Vec2d& v = upsampled.at<cv::Vec2d>(r, c);
+    return (v[0] * v[0] + v[1] * v[1]) * scale * scale;
+  };
+  // Grid maximum within 2 px of the brightest sample, then parabolas.
+  int peak_r = h * u, peak_c = h * u;
+  double grid_max = p(peak_r, peak_c);
+  for (int r = (h - 2) * u; r <= (h + 2) * u; ++r) {
+    for (int c = (h - 2) * u; c <= (h + 2) * u; ++c) {
+      const double value = p(r, c);
+      if (value > grid_max) {
+        grid_max = value;
+        peak_r = r;
+        peak_c = c;
+      }
+    }
+  }
+  const double d_col = ParabolaOffset(p(peak_r, peak_c - 1), p(peak_r, peak_c), p(peak_r, peak_c + 1));
+  const double d_row = ParabolaOffset(p(peak_r - 1, peak_c), p(peak_r, peak_c), p(peak_r + 1, peak_c));
+
+  // 4. Cuts.
+  std::vector<double> range_cut(l), azimuth_cut(l);
+  for (int i = 0; i < l; ++i) {
+    range_cut[i] = p(peak_r, i);
+    azimuth_cut[i] = p(i, peak_c);
+  }
+  const auto range = AnalyseCut(range_cut, peak_c, u, "range", &why);
+  if (!range) return fail(why + " (target at " + peak_text + ")");
+  const auto azimuth = AnalyseCut(azimuth_cut, peak_r, u, "azimuth", &why);
+  if (!azimuth) return fail(why + " (target at " + peak_text + ")");
+  double total = 0.0, main = 0.0;
+  for (int r = 0; r < l; ++r) {
+    for (int c = 0; c < l; ++c) {
+      total += p(r, c);
+      if (r >= azimuth->null_first && r <= azimuth->null_last && c >= range->null_first && c <= range->null_last) {
+        main += p(r, c);
+      }
+    }
+  }
+
+  PointTargetMeasurement out;
+  out.predicted_px = {predicted_col, predicted_row};
+  out.peak_sample_col = peak_col;
+  out.peak_sample_row = peak_row;
+  out.peak_px = {col0 + (peak_c + d_col) / u, row0 + (peak_r + d_row) / u};
+  out.location_error_px = {out.peak_px.range - predicted_col, out.peak_px.azimuth - predicted_row};
+  out.location_error_m = {out.location_error_px.range * options.range_spacing_m,
+                          out.location_error_px.azimuth * options.azimuth_spacing_m};
+  out.resolution_px = {range->width_px, azimuth->width_px};
+  out.resolution_m = {range->width_px * options.range_spacing_m, azimuth->width_px * options.azimuth_spacing_m};
+  out.main_lobe_px = {range->main_lobe_px, azimuth->main_lobe_px};
+  out.pslr_db = {range->pslr_db, azimuth->pslr_db};
+  out.islr_db = {range->islr_db, azimuth->islr_db};
+  out.islr_2d_db = 10.0 * std::log10((total - main) / main);
+  out.spectrum_centre_cycles_per_px = {f_col, f_row};
+  const cv::Vec2d v = upsampled.at<cv::Vec2d>(peak_r, peak_c);
+  out.peak_value = std::complex<double>(v[0], v[1]) * scale *
+                   std::polar(1.0, 2.0 * M_PI * (f_col * (double(peak_c) / u - h) + f_row * (double(peak_r) / u - h)));
+  out.peak_power = std::norm(out.peak_value);
+  out.background_power = background;
+  out.energy = energy;
+  out.scr_db = background > 0.0 ? 10.0 * std::log10(out.peak_power / background)
+                                 : std::numeric_limits<double>::infinity();
+  out.calibrated = options.beta0_calibration.has_value();
+  out.beta0_calibration = options.beta0_calibration.value_or(1.0);
+  out.peak_beta0_db = 10.0 * std::log10(out.beta0_calibration * out.peak_power);
+  out.rcs_m2 = out.beta0_calibration * energy * options.range_spacing_m * options.azimuth_spacing_m;
+  out.rcs_dbsm = 10.0 * std::log10(out.rcs_m2);
+  return out;
+}
+
+nlohmann::json ToJson(const PointTargetMeasurement& measurement) {
+  auto pair = [](const RangeAzimuth& value) {
+    return nlohmann::json{{"range", value.range}, {"azimuth", value.azimuth}};
+  };
+  nlohmann::json out;
+  out["predicted_px"] = pair(measurement.predicted_px);
+  out["peak_px"] = pair(measurement.peak_px);
+  out["location_error_px"] = pair(measurement.location_error_px);
+  out["location_error_m"] = pair(measurement.location_error_m);
+  out["resolution_m"] = pair(measurement.resolution_m);
+  out["pslr_db"] = pair(measurement.pslr_db);
+  out["islr_db"] = pair(measurement.islr_db);
+  out["rcs_dbsm"] = measurement.rcs_dbsm;
+  return out;
+}
+
+}  // namespace gissar::image
