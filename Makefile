@@ -14,11 +14,17 @@ FUZZERS ?=
 
 all: build
 
+# Ninja for a new build tree: it compiles a library's objects while the
+# libraries below it are still linking, so both cores stay busy (make's
+# generator waits at every library: 157 % CPU against 195 %, measured on the
+# demo's build). A tree configured before keeps its own generator.
+GENERATOR = $(if $(wildcard $(1)/CMakeCache.txt),,-G Ninja)
+
 deps:
 	@bash scripts/install-deps.sh
 
 configure: deps
-	@cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=Release > /dev/null
+	@cmake -S . -B $(BUILD_DIR) $(call GENERATOR,$(BUILD_DIR)) -DCMAKE_BUILD_TYPE=Release > /dev/null
 
 build: configure
 	@cmake --build $(BUILD_DIR) -j$(JOBS)
@@ -56,7 +62,7 @@ test-sanitize: export ASAN_OPTIONS = detect_leaks=1:detect_stack_use_after_retur
 test-sanitize: export LSAN_OPTIONS = suppressions=$(CURDIR)/scripts/sanitizer/lsan.supp:print_suppressions=0
 test-sanitize: export UBSAN_OPTIONS = print_stacktrace=1:halt_on_error=1
 test-sanitize: deps
-	@cmake -S . -B $(SANITIZE_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGISSAR_SANITIZE=ON \
+	@cmake -S . -B $(SANITIZE_DIR) $(call GENERATOR,$(SANITIZE_DIR)) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGISSAR_SANITIZE=ON \
 	  -DGISSAR_BUILD_BENCH=OFF > /dev/null
 	@cmake --build $(SANITIZE_DIR) -j$(JOBS)
 	@cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) --timeout 1500
@@ -71,7 +77,7 @@ test-sanitize-ci: export ASAN_OPTIONS = detect_leaks=1:detect_stack_use_after_re
 test-sanitize-ci: export LSAN_OPTIONS = suppressions=$(CURDIR)/scripts/sanitizer/lsan.supp:print_suppressions=0
 test-sanitize-ci: export UBSAN_OPTIONS = print_stacktrace=1:halt_on_error=1
 test-sanitize-ci: deps
-	@cmake -S . -B $(SANITIZE_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGISSAR_SANITIZE=ON \
+	@cmake -S . -B $(SANITIZE_DIR) $(call GENERATOR,$(SANITIZE_DIR)) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGISSAR_SANITIZE=ON \
 	  -DGISSAR_BUILD_BENCH=OFF > /dev/null
 	@cmake --build $(SANITIZE_DIR) -j$(JOBS) $(addprefix --target ,$(SANITIZE_CI_TARGETS))
 	@cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) --timeout 1500 \
@@ -81,10 +87,14 @@ fuzz: build
 	@bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS) $(BUILD_DIR) $(FUZZERS)
 
 # The demo prints one line per product; the build's own output goes to
-# $(BUILD_DIR)/build.log (its tail is shown if the build fails).
+# $(BUILD_DIR)/build.log (its tail is shown if the build fails). It builds
+# only what it runs, the gissar binary (`make build` and `make test` build
+# the Python package, the tests and the benchmarks).
+DEMO_TARGETS = gissar
 demo: configure
-	@echo "demo: building (log: $(BUILD_DIR)/build.log)"
-	@cmake --build $(BUILD_DIR) -j$(JOBS) > $(BUILD_DIR)/build.log 2>&1 || (tail -40 $(BUILD_DIR)/build.log; exit 1)
+	@echo "demo: building $(DEMO_TARGETS) (log: $(BUILD_DIR)/build.log)"
+	@cmake --build $(BUILD_DIR) -j$(JOBS) $(addprefix --target ,$(DEMO_TARGETS)) > $(BUILD_DIR)/build.log 2>&1 \
+	  || (tail -40 $(BUILD_DIR)/build.log; exit 1)
 	@bash scripts/demo.sh $(BUILD_DIR)
 
 bench: build

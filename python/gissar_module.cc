@@ -10,7 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
-
+#include <mutex>
 #include <optional>
 
 #include <pybind11/eval.h>
@@ -26,6 +26,7 @@
 #include "gissar/pipeline/locate.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/pipeline/simulate_help.h"
 #include "gissar/pipeline/views.h"
 #include "gissar/geo/memory_raster.h"
 #include "gissar/pipeline/field_names.h"
@@ -186,10 +187,74 @@ py::array_t<uint8_t> RgbArray(const image::RgbImage& img) {
   return out;
 }
 
+// What the user gave for each in-memory raster a call reads through a GDAL
+// virtual path (/vsimem/gissar_*.tif, a DEM given as an array, DataArray or
+// dataset): "the `dem` array". Named by gissar._adapt (and TakeArrayDem) for
+// the duration of the call; messages and warnings say it instead of the path.
+std::mutex path_names_mutex;
+std::map<std::string, std::string>& PathNames() {
+  static std::map<std::string, std::string> names;
+  return names;
+}
+
+// Registers (description non-empty) or forgets the description of `path`.
+void NamePath(const std::string& path, const std::string& description) {
+  if (path.empty()) return;
+  const std::lock_guard<std::mutex> lock(path_names_mutex);
+  if (description.empty()) PathNames().erase(path);
+  else PathNames()[path] = description;
+}
+
+// `text` with every registered virtual path replaced by its description.
+std::string UserPaths(std::string text) {
+  const std::lock_guard<std::mutex> lock(path_names_mutex);
+  for (const auto& [path, description] : PathNames()) {
+    for (size_t at = text.find(path); at != std::string::npos; at = text.find(path, at + description.size())) {
+      text.replace(at, path.size(), description);
+    }
+  }
+  return text;
+}
+
+// A path named for the lifetime of this object.
+class NamedPath {
+ public:
+  NamedPath(std::string path, const std::string& description) : path_(std::move(path)) {
+    NamePath(path_, description);
+  }
+  ~NamedPath() { NamePath(path_, ""); }
+  NamedPath(const NamedPath&) = delete;
+  NamedPath& operator=(const NamedPath&) = delete;
+
+ private:
+  std::string path_;
+};
+
+// Rethrows the Error being handled with UserPaths applied to its message and
+// context (same class), while its virtual paths are still named; call in a
+// catch block.
+[[noreturn]] void RethrowWithUserPaths() {
+  try {
+    throw;
+  } catch (const CancelledError&) {
+    throw;
+  } catch (const InputError& e) {
+    throw InputError(UserPaths(e.message()), UserPaths(e.where()));
+  } catch (const ConfigError& e) {
+    throw ConfigError(UserPaths(e.message()), UserPaths(e.where()));
+  } catch (const IoError& e) {
+    throw IoError(UserPaths(e.message()), UserPaths(e.where()));
+  } catch (const Error& e) {
+    throw Error(UserPaths(e.message()), UserPaths(e.where()));
+  }
+}
+
 // `text` with every command-line flag of a request field ("--heading",
 // "--range-spacing/--azimuth-spacing", "give --vertical-datum ...") replaced
-// by the Python parameter of the same field ("heading_deg").
-std::string PythonNames(const std::string& text) {
+// by the Python parameter of the same field ("heading_deg"), and every
+// in-memory raster's virtual path by what the user gave (UserPaths).
+std::string PythonNames(const std::string& raw_text) {
+  const std::string text = UserPaths(raw_text);
   static const std::map<std::string, std::string> parameter_of_flag = [] {
     std::map<std::string, std::string> m;
     const nlohmann::json fields = pipeline::SimulateRequest().ToJson();
@@ -246,7 +311,7 @@ class PyReporter : public Reporter {
   }
   void Info(const std::string& line) override {
     py::gil_scoped_acquire gil;
-    py::module_::import("logging").attr("getLogger")("gissar").attr("info")(line);
+    py::module_::import("logging").attr("getLogger")("gissar").attr("info")(UserPaths(line));
   }
   void Warn(const std::string& line) override {
     py::gil_scoped_acquire gil;
@@ -324,10 +389,35 @@ std::unique_ptr<geo::MemoryRaster> TakeArrayDem(py::kwargs& kwargs) {
   return raster;
 }
 
+// `gissar simulate` requires --heading and --depression unless --product or
+// --orbit fixes the geometry (cli/simulate_command.cc); the keywords alike:
+// ConfigError "is required (heading_deg)". None counts as not given.
+void RequireKeywords(const py::kwargs& kwargs, const pipeline::SimulateRequest& request,
+                     std::initializer_list<const char*> keys) {
+  if (request.UsesProductGeometry()) return;
+  for (const char* key : keys) {
+    if (!kwargs.contains(key) || kwargs[key].is_none()) throw ConfigError("is required", key);
+  }
+}
+
+py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter);
+
+// gissar._core.simulate; a DEM array (TakeArrayDem) is "the `dem` array" in
+// its warnings and errors.
 py::dict Simulate(py::kwargs kwargs) {
   PyReporter reporter(TakeProgress(kwargs));
   const std::unique_ptr<geo::MemoryRaster> array_dem = TakeArrayDem(kwargs);
+  const NamedPath array_dem_name(array_dem ? array_dem->path() : "", "the `dem` array");
+  try {
+    return SimulateWith(kwargs, reporter);
+  } catch (const Error&) {
+    RethrowWithUserPaths();
+  }
+}
+
+py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
   const pipeline::SimulateRequest options = SimulateOptionsFrom(kwargs);
+  RequireKeywords(kwargs, options, {"heading_deg", "depression_deg"});
   render::SarImage image;
   std::optional<sensor::SarGeometry> geometry;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
@@ -521,7 +611,13 @@ image::MeshViewOptions MeshViewOptionsFrom(const py::kwargs& kwargs) {
     else if (key == "sun_elevation_deg") o.sun_elevation_deg = value.cast<double>();
     else if (key == "width") o.width = value.cast<int>();
     else if (key == "height") o.height = value.cast<int>();
-    else throw ConfigError("unknown option '" + key + "'", "gissar.Scene.view_3d");
+    else {
+      const std::string closest = pipeline::ClosestKey(
+          key, {"view_azimuth_deg", "view_elevation_deg", "vertical_exaggeration", "field_of_view_deg",
+                "sun_azimuth_deg", "sun_elevation_deg", "width", "height"});
+      throw ConfigError("unknown option '" + key + "'" + (closest.empty() ? "" : "; did you mean " + closest + "?"),
+                        "gissar.Scene.view_3d");
+    }
   }
   return o;
 }
@@ -767,6 +863,16 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
 
   m.def("simulate_request_defaults", [] { return JsonToPython(pipeline::SimulateRequest().ToJson()); },
         "The keywords of simulate with their defaults (the request fields, docs/conventions.md).");
+  m.def("simulate_request_help", [] { return pipeline::SimulateFieldHelp(); },
+        "{field: one-line help} of the simulate request fields the doors offer as flags or keywords (the text "
+        "of `gissar simulate --help`, without defaults; simulate_request_defaults() gives those).");
+  m.def("unknown_key_message", &pipeline::UnknownKeyMessage, py::arg("key"), py::arg("known"),
+        "\"unknown key 'KEY'\" with \"; did you mean K?\" when a key of `known` is close (the same case, '-' for "
+        "'_', the flag name without its unit suffix, or at most 2 edits): the message of every request's "
+        "unknown keyword.");
+  m.def("_name_path", &NamePath, py::arg("path"), py::arg("description"),
+        "Internal (gissar._adapt): messages and warnings say `description` (e.g. \"the `dem` array\") instead of "
+        "the virtual path `path` of an in-memory raster; an empty description forgets it.");
 
   m.def("evaluate_request_defaults", [] { return JsonToPython(pipeline::EvaluateRequest().ToJson()); },
         "The evaluate request's fields and their defaults (the keywords of gissar.evaluate).");
@@ -1273,6 +1379,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         PyReporter reporter(TakeProgress(kwargs));
         pipeline::SequenceRequest o;
         o.base = SimulateOptionsFrom(kwargs);
+        RequireKeywords(kwargs, o.base, {"depression_deg"});  // as `gissar sequence --depression`
         o.base.out_prefix = out_prefix;
         o.heading_from_deg = heading_from_deg;
         o.heading_to_deg = heading_to_deg;

@@ -22,14 +22,20 @@ DATA="$ROOT/data"
 START=$SECONDS
 PRODUCTS=0
 
-# product NAME MAIN_SUFFIX -- gissar arguments...: runs, then prints one line.
+# product NAME MAIN_SUFFIX -- gissar arguments...: runs, then prints one line
+# (the lines of stdout that name files are counted; the command's headline,
+# its one-line result, follows indented).
 product() {
   local name=$1 main=$2
   shift 3
-  local t0=$SECONDS files
-  files=$("$GISSAR" "$@" --quiet | wc -l)
+  local t0=$SECONDS output files=0 line headlines=()
+  output=$("$GISSAR" "$@" --quiet)
+  while IFS= read -r line; do
+    if [[ -e "$line" ]]; then files=$((files + 1)); elif [[ -n "$line" ]]; then headlines+=("$line"); fi
+  done <<< "$output"
   PRODUCTS=$((PRODUCTS + 1))
   printf '%-22s %-46s %2d files %4d s\n' "$name" "out/demo/$name$main" "$files" $((SECONDS - t0))
+  for line in "${headlines[@]}"; do printf '  %s\n' "$line"; done
 }
 
 for heading in 0 30; do
@@ -48,13 +54,6 @@ product monaco_scene_h0 .png -- simulate --scene "$OUT/monaco_scene.gscene" --he
   --slant-range 8000 --range-spacing 5 --azimuth-spacing 5 --out "$OUT/monaco_scene_h0"
 product sanand_fix _composite.png -- locate --product "$DATA/uavsar/SanAnd_129.h5" --dem "$DATA/uavsar/SanAnd_dem.tif" \
   --dem-oversample 4 --prior-offset-track -60,30,0 --out "$OUT/sanand_fix" --composite "$OUT/sanand_fix_composite.png"
-/usr/bin/env python3 - "$OUT/sanand_fix.json" <<'PY'
-import json, sys
-fix = json.load(open(sys.argv[1]))
-error = fix["fix"]["error_against_annotated_track"]
-print(f"  real image fix: converged {fix['converged']}, sensor position error {error['prior_position_error_m']:.0f} m "
-      f"at the prior -> {error['position_error_m']:.0f} m ({error['position_error_m'] / fix['cell_m']:.1f} cells)")
-PY
 echo "demo: $PRODUCTS products in out/demo/ in $((SECONDS - START)) s (.png quicklooks and class maps;" \
      ".tif float32 intensity; _mask.tif layover/shadow; .gscene/.ply scenes; .json provenance;" \
      "andorra_scene_info.txt: the scene's classes; sanand_fix.json: a real image's pose fix)"

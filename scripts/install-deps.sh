@@ -5,7 +5,7 @@
 set -euo pipefail
 
 PACKAGES=(
-  build-essential cmake pkg-config
+  build-essential cmake pkg-config ninja-build   # ninja: the build trees' generator (Makefile)
   libgdal-dev gdal-bin libproj-dev proj-bin proj-data  # geo: raster/vector I/O, CRS, EGM96 grid
   libhdf5-dev                                  # geo: NISAR RSLC products (HDF5)
   libcgal-dev libgeos-dev                      # scene: triangulation, buffers

@@ -29,20 +29,24 @@ def _unit_of(name):
     return None
 
 
-def _with_request_signature(function, defaults, leading, trailing, summary):
+def _with_request_signature(function, defaults, leading, trailing, summary, required=()):
     """Gives `function` (a **kwargs wrapper of the core) the signature of its request: every field a
-    keyword-only parameter with its default, units in the docstring."""
+    keyword-only parameter with its default (`required` ones first, without a default: the core raises
+    ConfigError "is required (NAME)" without them, as the command line does), units in the docstring."""
     params = [_inspect.Parameter(name, _inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default)
               for name, default in leading]
+    params += [_inspect.Parameter(name, _inspect.Parameter.KEYWORD_ONLY) for name in required]
     params += [_inspect.Parameter(name, _inspect.Parameter.KEYWORD_ONLY, default=value)
-               for name, value in defaults.items() if name not in dict(leading) and name != "out_prefix"]
+               for name, value in defaults.items()
+               if name not in dict(leading) and name not in required and name != "out_prefix"]
     params += [_inspect.Parameter(name, _inspect.Parameter.KEYWORD_ONLY, default=default)
                for name, default in trailing]
     function.__signature__ = _inspect.Signature(params)
     lines = [summary, "", "Parameters (units from the name's suffix):"]
     for p in params:
         unit = _unit_of(p.name)
-        lines.append(f"    {p.name}: default {p.default!r}" + (f" ({unit})" if unit else ""))
+        given = "required" if p.default is _inspect.Parameter.empty else f"default {p.default!r}"
+        lines.append(f"    {p.name}: {given}" + (f" ({unit})" if unit else ""))
     function.__doc__ = "\n".join(lines)
     return function
 
@@ -97,7 +101,9 @@ def simulate_product(product=None, **kwargs):
 simulate_product.__module__ = "gissar"
 
 _SIMULATE_SUMMARY = """Simulate a SAR image of a DEM (path, GDAL dataset, NumPy array with transform= and crs=, or a
-rioxarray DataArray; nothing is written to disk) or a scene (scene=path or gissar.Scene).
+rioxarray DataArray; nothing is written to disk) or a scene (scene=path or gissar.Scene). heading_deg and
+depression_deg are required, as `gissar simulate`'s --heading and --depression (gissar.ConfigError "is required
+(heading_deg)" without them).
 
 Returns an xarray.DataArray 'intensity' with dims (band, along_track_m, slant_range_m): bands total, single,
 double, triple, four_or_more (linear intensity in the request's radiometry, sigma0 by default; units '1'),
@@ -116,7 +122,7 @@ _with_request_signature(
     simulate, _core.simulate_request_defaults(),
     leading=[("dem", None)],
     trailing=[("transform", None), ("crs", None), ("nodata", None), ("progress", None), ("out_prefix", None)],
-    summary=_SIMULATE_SUMMARY)
+    summary=_SIMULATE_SUMMARY, required=("heading_deg", "depression_deg"))
 simulate.__module__ = "gissar"
 
 
@@ -193,9 +199,9 @@ def build_scene(dem, out_prefix, vectors=(), osm="", config="", fill_nodata=Fals
 def sequence(out_prefix, heading_from_deg, heading_to_deg, frames=7, frame_delay_cs=50, *, dem=None,
              transform=None, crs=None, nodata=None, progress=None, **kwargs):
     """`gissar sequence`: frames at evenly spaced headings (degrees) around the scene centre, one dB stretch:
-    PREFIX_fNN.tif/.png, PREFIX_contact.png, PREFIX.gif, PREFIX.json. Other keywords as gissar.simulate (dem in
-    any of its forms); progress and Ctrl-C as gissar.simulate (Ctrl-C stops before the next frame). Returns the
-    written paths."""
+    PREFIX_fNN.tif/.png, PREFIX_contact.png, PREFIX.gif, PREFIX.json. depression_deg is required (as `gissar
+    sequence --depression`); other keywords as gissar.simulate (dem in any of its forms); progress and Ctrl-C
+    as gissar.simulate (Ctrl-C stops before the next frame). Returns the written paths."""
     if "scene" in kwargs:
         kwargs["scene"] = _scene_path(kwargs["scene"])
     with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
@@ -203,6 +209,18 @@ def sequence(out_prefix, heading_from_deg, heading_to_deg, frames=7, frame_delay
             kwargs["dem"] = path
         return _adapt.run(_core.sequence, (_os.fspath(out_prefix), heading_from_deg, heading_to_deg, frames,
                                            frame_delay_cs), kwargs, progress)
+
+
+def _with_required_keywords(function, names):
+    """Shows the keywords `names` (checked by the core) as required keyword-only parameters of `function`."""
+    params = list(_inspect.signature(function).parameters.values())
+    first_keyword = next(i for i, p in enumerate(params) if p.kind in (p.KEYWORD_ONLY, p.VAR_KEYWORD))
+    params[first_keyword:first_keyword] = [_inspect.Parameter(n, _inspect.Parameter.KEYWORD_ONLY) for n in names]
+    function.__signature__ = _inspect.Signature(params)
+    return function
+
+
+_with_required_keywords(sequence, ["depression_deg"])
 
 
 # ---------------------------------------------------------------- images in
@@ -235,11 +253,19 @@ composite = _images_in(_core.composite, ["green", "magenta"])
 epipolar_plot = _images_in(_core.epipolar_plot, ["image1", "image2"])
 
 
+#: The keywords of gissar.locate after its positional arguments (gissar._core.locate's).
+_LOCATE_KEYWORDS = ("look_side", "matcher", "search_px", "step_px", "dense_renders", "polish_evaluations", "bounces",
+                    "rays_per_cell", "references")
+
+
 def locate(scene, image, prior, range_spacing_m, azimuth_spacing_m, **kwargs):
     """`gissar locate` (docs/navigation.md): pose fix of one observed SAR image against a scene (gissar.Scene or
     the path of a .gscene). image: NumPy array, DataArray (its total band), path or GDAL dataset. Keywords:
     look_side, matcher, search_px, step_px, dense_renders, polish_evaluations, bounces, rays_per_cell, references (as
     gissar._core.locate). Returns the fix as a dict (see help(gissar._core.locate))."""
+    for name in kwargs:
+        if name not in _LOCATE_KEYWORDS:
+            raise ConfigError(f"{_core.unknown_key_message(name, list(_LOCATE_KEYWORDS))} (gissar.locate)")
     if not isinstance(scene, _core.Scene):
         scene = Scene(_os.fspath(scene))
     return _core.locate(scene, _adapt.image_array(image, "image"), prior, range_spacing_m, azimuth_spacing_m,

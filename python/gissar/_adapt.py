@@ -87,7 +87,8 @@ def _array_from_gdal(ds):
 def raster_path(value, transform=None, crs=None, nodata=None, what="dem"):
     """A path the core reads for a raster given as a path (str, os.PathLike), an open GDAL dataset, a NumPy
     array with `transform` and `crs`, or a rioxarray DataArray. In-memory rasters live under GDAL's /vsimem/
-    (nothing is written to disk) for the duration of the `with` block. None stays None."""
+    (nothing is written to disk) for the duration of the `with` block; the core's warnings and error messages
+    meanwhile name what the user gave ("the `dem` array") instead of that path. None stays None."""
     if value is None or isinstance(value, (str, os.PathLike)):
         if transform is not None or crs is not None:
             raise _core.ConfigError(f"transform and crs go with a raster given as an array ({what})")
@@ -98,13 +99,16 @@ def raster_path(value, transform=None, crs=None, nodata=None, what="dem"):
             raise _core.ConfigError(f"a DataArray carries its own transform and crs ({what})")
         values, transform, crs, da_nodata = _array_from_dataarray(value, what)
         nodata = nodata if nodata is not None else da_nodata
+        description = f"the `{what}` DataArray"
     elif _is_gdal_dataset(value):
         values, transform, crs, ds_nodata = _array_from_gdal(value)
+        description = f"the `{what}` GDAL dataset"
         nodata = nodata if nodata is not None else ds_nodata
         if crs is None:
             raise _core.ConfigError(f"the GDAL dataset has no CRS ({what})")
     elif isinstance(value, np.ndarray) or hasattr(value, "__array__"):
         values = np.asarray(value)
+        description = f"the `{what}` array"
         if transform is None or crs is None:
             raise _core.ConfigError(f"a DEM given as an array needs transform= and crs= ({what})")
     else:
@@ -126,6 +130,7 @@ def raster_path(value, transform=None, crs=None, nodata=None, what="dem"):
         raise _core.ConfigError(f"not a CRS: {crs_text[:80]!r} (crs)")
     path = f"/vsimem/gissar_{uuid.uuid4().hex}.tif"
     ds = gdal.GetDriverByName("GTiff").Create(path, values.shape[1], values.shape[0], 1, gdal.GDT_Float32)
+    _core._name_path(path, description)
     try:
         ds.SetGeoTransform(gt)
         ds.SetSpatialRef(srs)
@@ -138,6 +143,7 @@ def raster_path(value, transform=None, crs=None, nodata=None, what="dem"):
     finally:
         ds = None
         gdal.Unlink(path)
+        _core._name_path(path, "")
 
 
 def image_array(value, what):

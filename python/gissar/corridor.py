@@ -3,7 +3,8 @@
 The C++ command line runs this module for `gissar corridor ARGS` (docs/distributed.md). Flags: the route,
 terrain, pose spacing, headings and cluster, then the sensor flags of `gissar simulate` (the kebab-case of the
 simulate request fields without their unit suffix, docs/conventions.md) and the common flags. Exit statuses:
-0 done; 2 bad input or usage (one `gissar: error:` line); 1 some poses failed (listed in the catalogue);
+0 done; 2 bad input or usage (one `gissar: error:` line); 3 no result (every pose skipped: one `gissar: no
+result:` line per kind of skip, with the flags that fix it); 1 some poses failed (listed in the catalogue);
 130 after Ctrl-C, 128 + N after SIGTERM/SIGHUP (finished poses are kept: a re-run resumes).
 """
 import argparse
@@ -19,20 +20,16 @@ import gissar
 from gissar import ConfigError
 from gissar import distributed as _distributed
 
+#: Column of the flag names in --help (CLI11's, as in every other gissar command).
+_HELP_COLUMN = 30
+#: Simulate fields whose default `gissar simulate --help` does not show (0 or empty means "automatic").
+_DEFAULT_NOT_SHOWN = ("range_spacing_m", "azimuth_spacing_m", "range_resolution_m", "azimuth_resolution_m",
+                      "nesz_db", "vertical_units", "vertical_datum", "materials", "reflectors")
 #: Simulate request fields the corridor sets itself or does not offer (per-pose or single-file outputs).
 _NOT_FLAGS = ("dem", "scene", "product", "orbit", "radar_grid", "center_lonlat", "center_map", "heading_deg",
               "out_prefix", "contributions", "max_memory_bytes", "width", "height")
 _UNITS = ("_deg", "_m", "_db", "_bytes", "_px", "_s")
 _SPECIAL_FLAGS = {"look_side": "--look", "out_prefix": "--out", "center_lonlat": "--center"}
-_HELP = {
-    "depression_deg": "Depression angle at the scene centre, degrees in (0, 90)",
-    "slant_range_m": "Slant range from the sensor to the scene centre, metres",
-    "range_spacing_m": "Slant-range pixel spacing, metres (default: the DEM's mean post spacing)",
-    "azimuth_spacing_m": "Azimuth pixel spacing, metres (default: the DEM's mean post spacing)",
-    "look_side": "Look side: right or left (the scene centres lie on that side of the route)",
-    "rays_per_cell": "Rays per resolution cell on flat ground",
-    "seed": "Seed of speckle and noise (the same for every pose)",
-}
 
 
 def flag_of_field(field):
@@ -50,9 +47,58 @@ class _Usage(Exception):
     """A command-line error: printed as one `gissar: error: ... (command line)` line, exit 2."""
 
 
+def _uint(text):
+    """A non-negative integer (CLI11's UINT, e.g. --seed)."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
+    return value
+
+
+def _type_label(action):
+    """CLI11's label of an option's value: TEXT, INT, UINT or FLOAT."""
+    if action.type is _uint:
+        return "UINT"
+    if action.type is int:
+        return "INT"
+    if action.type is float or action.type is _byte_size:
+        return "FLOAT" if action.type is float else "TEXT"
+    return "TEXT"
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
         raise _Usage(message)
+
+    def format_help(self):
+        """The help in the layout of every other gissar command (CLI11's, cli/cli.cc HelpFormatter): the names
+        ("--x, --no-x"), the value's type and REQUIRED in a 30-column left column, the text with
+        "(default: X)" on the right."""
+        lines = [self.description, f"Usage: {self.prog} [OPTIONS]", ""]
+        for group in self._action_groups:
+            actions = [a for a in group._group_actions if a.help is not argparse.SUPPRESS]
+            if not actions:
+                continue
+            lines.append(f"{group.title}:")
+            shown = set()
+            for a in actions:
+                if id(a) in shown or getattr(a, "gissar_negation", False):
+                    continue
+                shown.add(id(a))
+                names = ", ".join(a.option_strings + getattr(a, "gissar_negations", []))
+                if a.nargs != 0:
+                    names += " " + _type_label(a)
+                if getattr(a, "gissar_required", False):
+                    names += " REQUIRED"
+                left = "  " + names
+                text = a.help or ""
+                if len(left) >= _HELP_COLUMN:
+                    lines.append(left)
+                    lines.append(" " * _HELP_COLUMN + text)
+                else:
+                    lines.append(left.ljust(_HELP_COLUMN) + text)
+            lines.append("")
+        return "\n".join(lines) + "\n"
 
     def parse_args(self, args=None, namespace=None):
         """Unknown flags first (with a suggestion), then the required ones (argparse does it the other way)."""
@@ -90,6 +136,18 @@ def _headings(text):
     return values
 
 
+def _switch(group, flag, dest, text, default, extra_negations=()):
+    """An on/off flag as every gissar command has it: --X and --no-X (the last one given wins), shown as
+    "--x, --no-x" with its real default."""
+    negations = ["--no-" + flag[2:]] + list(extra_negations)
+    on = group.add_argument(flag, dest=dest, action="store_const", const=True, default=None,
+                            help=text + (" (default: on)" if default else " (default: off)"))
+    on.gissar_negations = negations
+    off = group.add_argument(*negations, dest=dest, action="store_const", const=False, default=None, help=text)
+    off.gissar_negation = True
+    return on
+
+
 def make_parser():
     """The argparse parser of `gissar corridor` (its --help is the command's help)."""
     p = _Parser(prog="gissar corridor", add_help=False, allow_abbrev=False,
@@ -100,56 +158,66 @@ def make_parser():
                             "done (docs/distributed.md).")
     p.add_argument("-h", "--help", action="help", help="Print this help message and exit")
     g = p.add_argument_group("corridor")
-    _required(g.add_argument("--route", metavar="ROUTE", help="(required) The sensor's ground track, WGS84: "
+    _required(g.add_argument("--route", metavar="ROUTE", help="The sensor's ground track, WGS84: "
                              "GeoJSON LineString (.geojson) or CSV of lon,lat rows"))
     g.add_argument("--dem", metavar="DEM", help="DEM raster (any GDAL format and CRS), readable by every worker")
     g.add_argument("--scene", metavar="SCENE", help="Scene file from `gissar scene build` (instead of --dem)")
     _required(g.add_argument("--pose-step", metavar="METRES", type=float, dest="pose_step_m",
-                             help="(required) Distance between poses along the route, metres (geodesic, WGS84)"))
+                             help="Distance between poses along the route, metres (geodesic, WGS84)"))
     _required(g.add_argument("--headings", metavar="H1,H2,...", type=_headings, dest="headings_deg",
-                             help="(required) Headings simulated at every pose, degrees clockwise from north"))
-    g.add_argument("--width", metavar="PX", type=int, default=512,
-                   help="Image columns (range), the same for every pose (default 512)")
-    g.add_argument("--height", metavar="PX", type=int, default=512,
-                   help="Image rows (azimuth), the same for every pose (default 512)")
+                             help="Headings simulated at every pose, degrees clockwise from north"))
+    g.add_argument("--width", metavar="PX", type=int, default=None,
+                   help="Image columns (range), the same for every pose; default: with --height not given either, "
+                        "the largest square up to 512 px whose footprint fits the DEM at every pose")
+    g.add_argument("--height", metavar="PX", type=int, default=None,
+                   help="Image rows (azimuth), the same for every pose; default: as --width (512 when only "
+                        "--width is given)")
     _required(g.add_argument("--out", metavar="PREFIX", dest="out_prefix",
-                             help="(required) Output prefix: PREFIX_<id>.* per pose, PREFIX_catalog.json, "
+                             help="Output prefix: PREFIX_<id>.* per pose, PREFIX_catalog.json, "
                                   "PREFIX_index.csv"))
     c = p.add_argument_group("cluster")
     c.add_argument("--scheduler", metavar="ADDRESS", help="Address of a running Dask scheduler (tcp://host:8786); default: an "
                                        "embedded LocalCluster")
     c.add_argument("--workers", metavar="N", type=int, help="Worker processes of the embedded cluster (default: one per core)")
-    c.add_argument("--retries", metavar="N", type=int, default=2, help="Dask retries of a pose whose worker died (default 2)")
+    c.add_argument("--retries", metavar="N", type=int, default=2, help="Dask retries of a pose whose worker died (default: 2)")
     c.add_argument("--hash-inputs", choices=("sha256", "stat"), default="sha256",
-                   help="How a re-run recognises the inputs: sha256 of their bytes (default) or stat "
-                        "(path, size, mtime)")
+                   help="How a re-run recognises the inputs: sha256 of their bytes or stat (path, size, mtime) "
+                        "(default: sha256)")
     s = p.add_argument_group("sensor and simulation (as gissar simulate)")
     defaults = gissar._core.simulate_request_defaults()
+    texts = gissar._core.simulate_request_help()
     for field in sorted(defaults):
-        if field in _NOT_FLAGS:
+        if field in _NOT_FLAGS or field not in texts:
             continue
         value = defaults[field]
         flag = flag_of_field(field)
-        text = _HELP.get(field, f"As gissar simulate {flag}")
+        text = texts[field]
+        if field == "depression_deg":  # simulate requires it; a corridor has a default
+            text = text.replace(" (required without --product/--orbit)", "")
         metavar = flag[2:].upper().replace("-", "_")
         if isinstance(value, bool):
-            s.add_argument(flag, dest=field, action="store_const", const=True, default=None, help=text)
-        elif isinstance(value, int):
-            s.add_argument(flag, dest=field, type=int, default=None, metavar=metavar, help=f"{text} (default {value})")
-        elif isinstance(value, float) or value is None:
-            s.add_argument(flag, dest=field, type=float, default=None, metavar=metavar,
-                           help=text + ("" if value is None else f" (default {value:g})"))
+            _switch(s, flag, field, text, value, ["--fixed-sampling"] if field == "adaptive_sampling" else [])
+            continue
+        shown = field not in _DEFAULT_NOT_SHOWN and value is not None and value != "" and not (
+            isinstance(value, float) and math.isnan(value))
+        if shown:
+            text += f" (default: {value:g})" if isinstance(value, float) else f" (default: {value})"
+        kind = int if isinstance(value, int) else float if (isinstance(value, float) or value is None) else None
+        if field == "seed":
+            kind = _uint  # an unsigned request field, as simulate's --seed
+        if kind is None:
+            s.add_argument(flag, dest=field, default=None, metavar=metavar, help=text)
         else:
-            s.add_argument(flag, dest=field, default=None, metavar=metavar, help=text + (f" (default {value})" if value else ""))
+            s.add_argument(flag, dest=field, type=kind, default=None, metavar=metavar, help=text)
     s.add_argument("--max-memory", metavar="SIZE", dest="max_memory_bytes", type=_byte_size, default=None,
-                   help="Memory budget of each simulation, e.g. 4G (default: 3/4 of the worker's memory)")
+                   help="Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early")
     m = p.add_argument_group("common")
-    m.add_argument("--quiet", action="store_true", help="Only warnings and errors on stderr (no progress bar)")
+    _switch(m, "--quiet", "quiet", "Only warnings and errors on stderr (same as --log-level warning)", False)
     m.add_argument("--log-level", choices=("error", "warning", "info"), default="info",
-                   help="error, warning or info (default info)")
+                   help="error, warning or info (default: info)")
     m.add_argument("--threads", metavar="N", type=int, default=None,
                    help="Threads of each simulation (default: cores / workers on the embedded cluster)")
-    m.add_argument("--force", action="store_true", help="Run simulations over the memory budget (--max-memory)")
+    _switch(m, "--force", "force", "Run even when the job exceeds the memory budget (--max-memory)", False)
     m.add_argument("--options", metavar="FILE.json", help="JSON file of options: keys are the snake_case names (docs/conventions.md); "
                                      "flags on the command line win")
     return p
@@ -174,7 +242,9 @@ def _apply_options_file(parser, argv):
     destinations = {a.dest for a in parser._actions}
     for key, value in values.items():
         if key not in destinations or key in ("help", "options"):
-            raise ConfigError(f"unknown key '{key}' ({known.options})")
+            close = difflib.get_close_matches(key, sorted(destinations - {"help", "options"}), n=1, cutoff=0.75)
+            raise ConfigError(f"unknown key '{key}'" + (f"; did you mean {close[0]}?" if close else "")
+                              + f" ({known.options})")
         if value is not None:
             if key == "headings_deg" and isinstance(value, (int, float)):
                 value = [value]
@@ -189,7 +259,7 @@ def run(argv):
     parser = make_parser()
     _apply_options_file(parser, argv)
     args = parser.parse_args(argv)
-    quiet = args.quiet or args.log_level in ("warning", "error")
+    quiet = bool(args.quiet) or args.log_level in ("warning", "error")
     if (args.dem is None) == (args.scene is None):
         raise ConfigError("give --dem or --scene (--dem/--scene)")
     if args.threads is not None and args.threads < 0:
@@ -214,10 +284,18 @@ def run(argv):
         args.route, dem=args.dem, scene=args.scene, pose_step_m=args.pose_step_m,
         headings_deg=args.headings_deg, out_prefix=args.out_prefix, width=args.width, height=args.height,
         scheduler=args.scheduler, workers=args.workers, threads=args.threads, retries=args.retries,
-        hash_inputs=args.hash_inputs, progress=not quiet, log=log, **keywords)
+        hash_inputs=args.hash_inputs, progress=not quiet, log=log, report_summary=False, **keywords)
     print(args.out_prefix + "_catalog.json")
     print(args.out_prefix + "_index.csv")
+    # The run's result, on stdout even with --quiet; why poses were skipped, on stderr even with --quiet.
+    print(_distributed.summary_line(catalog), flush=True)
     summary = catalog["gissar:summary"]
+    if summary["poses"] and summary["skipped"] == summary["poses"]:
+        for line in summary["skip_reasons"]:
+            print(f"gissar: no result: {line}", file=sys.stderr)
+        return 3
+    for line in summary["skip_reasons"]:
+        print(f"gissar: warning: {line}", file=sys.stderr)
     if summary["failed"]:
         first = next(p for p in catalog["gissar:poses"] if p["status"] == "failed")
         print(f"gissar: error: {summary['failed']} of {summary['poses']} poses failed, e.g. {first['id']}: "

@@ -283,6 +283,15 @@ class _DemExtent:
                                          + abs(gt[5]) * m_per_deg)
         else:
             self.post_spacing_m = 0.5 * (abs(gt[1]) + abs(gt[5])) * srs.GetLinearUnits()
+        self.kind = "DEM"
+        if self.geographic:
+            lat = gt[3] + gt[5] * ds.RasterYSize / 2
+            m_per_deg = math.pi * 6371008.8 / 180.0
+            self.extent_m = (abs(gt[1]) * ds.RasterXSize * m_per_deg * math.cos(math.radians(lat)),
+                             abs(gt[5]) * ds.RasterYSize * m_per_deg)
+        else:
+            self.extent_m = (abs(gt[1]) * ds.RasterXSize * srs.GetLinearUnits(),
+                             abs(gt[5]) * ds.RasterYSize * srs.GetLinearUnits())
 
     def outside(self, ring):
         """The first lon/lat point of ring outside the raster, or None."""
@@ -305,6 +314,8 @@ class _SceneExtent:
         self.hi = v[:, :2].max(axis=0)
         self.origin = scene["origin_lonlat_deg"]
         self.post_spacing_m = None
+        self.kind = "scene"
+        self.extent_m = (float(self.hi[0] - self.lo[0]), float(self.hi[1] - self.lo[1]))
 
     def outside(self, ring):
         geod = _geod()
@@ -522,7 +533,10 @@ def _check_keywords(keywords):
         if name in _PER_POSE:
             raise ConfigError(f"the corridor sets {name} for every pose ({name})")
         if name not in defaults:
-            raise ConfigError(f"unknown keyword '{name}' (not a simulate request field) ({name})")
+            hint = gissar._core.unknown_key_message(name, [k for k in defaults if k not in _PER_POSE])
+            suggestion = hint.partition("; ")[2]
+            raise ConfigError(f"unknown keyword '{name}' (not a simulate request field)"
+                              + (f"; {suggestion}" if suggestion else "") + f" ({name})")
 
 
 def _progress_reporter(progress, total):
@@ -594,16 +608,81 @@ def _start_client(client, scheduler, workers, threads_per_worker):
     return client, cluster, True
 
 
-def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, scene=None, width=512, height=512,
+#: The image side a corridor chooses when it is given no size (auto_image_size): at most, and at least.
+AUTO_SIZE_MAX_PX = 512
+AUTO_SIZE_MIN_PX = 64
+
+
+def _centre_outside(extent, pose):
+    return extent.outside([(pose["center_lon_deg"], pose["center_lat_deg"])]) is not None
+
+
+def auto_image_size(poses, extent, range_spacing_m, azimuth_spacing_m, depression_deg, look_side,
+                    largest=AUTO_SIZE_MAX_PX, smallest=AUTO_SIZE_MIN_PX):
+    """The square image side (pixels) of a corridor given no --width/--height: the largest side in
+    [smallest, largest] whose predicted footprint (predicted_footprint) fits the terrain at every pose whose scene
+    centre lies on it. Poses whose footprint cannot fit even `smallest` pixels, and poses whose centre lies off
+    the terrain, are skipped by the corridor and do not constrain the size. The footprint grows with the side
+    around a fixed centre, so each pose's largest fitting side is found by bisection."""
+    def fits(pose, side):
+        ring = predicted_footprint(pose, side, side, range_spacing_m, azimuth_spacing_m, depression_deg, look_side)
+        return extent.outside(ring) is None
+
+    side = largest
+    for pose in poses:
+        if _centre_outside(extent, pose) or fits(pose, side) or not fits(pose, smallest):
+            continue
+        lo, hi = smallest, side  # fits(lo), not fits(hi)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if fits(pose, mid):
+                lo = mid
+            else:
+                hi = mid
+        side = lo
+    return side
+
+
+def _skip_reasons(records, extent, *, width, height, range_spacing_m, azimuth_spacing_m, depression_deg,
+                  slant_range_m, look_side, auto_size):
+    """One line per kind of skip (scene centre off the terrain; footprint leaving it): how many poses, the
+    footprint and terrain sizes, and the flags that would fix it."""
+    skipped = [r for r in records if r["status"] == "skipped"]
+    lines = []
+    terrain = f"{extent.kind} ({extent.extent_m[0] / 1000:.1f} x {extent.extent_m[1] / 1000:.1f} km)"
+    centre = [r for r in skipped if r.get("skip_kind") == "centre"]
+    if centre:
+        ground_km = slant_range_m * math.cos(math.radians(depression_deg)) / 1000.0
+        lines.append(f"{len(centre)} of {len(records)} poses skipped: their scene centre, {ground_km:.1f} km to the "
+                     f"{look_side} of the route (--slant-range {slant_range_m:g} m at --depression "
+                     f"{depression_deg:g} deg, --look {look_side}), lies outside the {terrain}; give a --route "
+                     f"over the {extent.kind}, or change --slant-range/--depression/--look")
+    footprint = [r for r in skipped if r.get("skip_kind") == "footprint"]
+    if footprint:
+        across = width * range_spacing_m / math.cos(math.radians(depression_deg)) / 1000.0
+        along = height * azimuth_spacing_m / 1000.0
+        fix = (f"even at the smallest automatic size ({AUTO_SIZE_MIN_PX} px); give finer "
+               "--range-spacing/--azimuth-spacing or move the --route away from the edge" if auto_size else
+               "give a smaller --width/--height (or leave both out: the corridor then chooses a size that fits) "
+               "or finer --range-spacing/--azimuth-spacing")
+        lines.append(f"{len(footprint)} of {len(records)} poses skipped: their {width} x {height} px footprint "
+                     f"({across:.1f} km across x {along:.1f} km along at {range_spacing_m:g} m x "
+                     f"{azimuth_spacing_m:g} m spacing) leaves the {terrain}; {fix}")
+    return lines
+
+
+def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, scene=None, width=None, height=None,
                    client=None, scheduler=None, workers=None, threads_per_worker=1, threads=None, retries=2,
-                   hash_inputs="sha256", progress=True, log=None, **simulate_keywords):
+                   hash_inputs="sha256", progress=True, log=None, report_summary=True, **simulate_keywords):
     """Builds (or completes) a reference-image database along a route: ``gissar corridor`` in Python.
 
     route: GeoJSON/CSV path or [(lon, lat), ...] (see read_route); pose_step_m: spacing of the poses along the
     route (metres on the WGS84 ellipsoid); headings_deg: the headings simulated at every pose; out_prefix: every
     file starts with it (PREFIX_<id>.*, PREFIX_catalog.json, PREFIX_index.csv). dem (a path every worker can
     read, GDAL names included) or scene (a .gscene path or gissar.Scene). width, height: the fixed image size in
-    pixels. Other keywords: gissar.simulate's (depression_deg, slant_range_m, range_spacing_m, azimuth_spacing_m,
+    pixels; when neither is given, the largest square side up to 512 px whose footprint fits the terrain at every
+    pose (auto_image_size; recorded in the catalogue's ``gissar:image_size``); when one is given, the other
+    defaults to 512. Other keywords: gissar.simulate's (depression_deg, slant_range_m, range_spacing_m, azimuth_spacing_m,
     look_side, rays_per_cell, seed, ...; not center_lonlat/heading_deg, which the corridor sets per pose). The
     pixel spacings default to the DEM's mean post spacing at its centre (one spacing for every pose).
 
@@ -629,7 +708,10 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
         raise ConfigError(f"must be sha256 or stat, got {hash_inputs!r} (hash_inputs)")
     if not (isinstance(retries, int) and retries >= 0):
         raise ConfigError(f"must be a non-negative integer, got {retries!r} (retries)")
+    auto_size = width is None and height is None
     for name, value in (("width", width), ("height", height)):
+        if value is None:
+            continue
         if not (isinstance(value, int) and value >= 1):
             raise ConfigError(f"must be a positive number of pixels, got {value!r} ({name})")
     if threads is not None and not (isinstance(threads, int) and threads >= 0):
@@ -658,6 +740,15 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
             if extent.post_spacing_m is None:
                 raise ConfigError(f"give the pixel spacings of a scene corridor ({name})")
             kw[name] = round(extent.post_spacing_m, 3)
+    if auto_size:
+        width = height = auto_image_size(poses, extent, kw["range_spacing_m"], kw["azimuth_spacing_m"],
+                                         depression_deg, look_side)
+        size_rule = (f"auto: the largest square side up to {AUTO_SIZE_MAX_PX} px whose footprint fits the "
+                     f"{extent.kind} at every pose (at least {AUTO_SIZE_MIN_PX} px)")
+    else:
+        width = AUTO_SIZE_MAX_PX if width is None else width
+        height = AUTO_SIZE_MAX_PX if height is None else height
+        size_rule = "given"
     inputs = {name: _file_identity(os.fspath(value), hash_inputs)
               for name, value in list(terrain.items()) + [(k, kw[k]) for k in ("materials", "reflectors")
                                                              if kw.get(k)]}
@@ -676,11 +767,17 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
         records.append(record)
         where = extent.outside(record["ring"])
         if where is not None:
-            record.update(status="skipped", reason="footprint leaves the %s at lon %.5f, lat %.5f"
-                          % ("DEM" if "dem" in terrain else "scene", where[0], where[1]))
+            if _centre_outside(extent, pose):
+                record.update(status="skipped", skip_kind="centre",
+                              reason="scene centre outside the %s at lon %.5f, lat %.5f"
+                              % (extent.kind, pose["center_lon_deg"], pose["center_lat_deg"]))
+            else:
+                record.update(status="skipped", skip_kind="footprint",
+                              reason="footprint leaves the %s at lon %.5f, lat %.5f"
+                              % (extent.kind, where[0], where[1]))
             continue
         request = dict(kw, **terrain, center_lonlat=[pose["center_lon_deg"], pose["center_lat_deg"]],
-                       heading_deg=pose["heading_deg"], width=width, height=height)
+                       heading_deg=pose["heading_deg"], depression_deg=depression_deg, width=width, height=height)
         prefix = f"{out_prefix}_{pose['id']}"
         key = _pose_key(dict(request, pose_id=pose["id"]), inputs, hash_inputs)
         marker = _marker_matches(prefix, key)
@@ -752,7 +849,12 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
                          keywords=kw, terrain=terrain, inputs=inputs, hash_inputs=hash_inputs,
                          wall_seconds=wall_seconds, workers=worker_count, peak_rss=peak_rss,
                          simulated=len(tasks), index_path=index_path, cpu_seconds=cpu_seconds,
-                         task_seconds=task_seconds)
+                         task_seconds=task_seconds, size_rule=size_rule,
+                         skip_reasons=_skip_reasons(records, extent, width=width, height=height,
+                                                    range_spacing_m=kw["range_spacing_m"],
+                                                    azimuth_spacing_m=kw["azimuth_spacing_m"],
+                                                    depression_deg=depression_deg, slant_range_m=slant_range_m,
+                                                    look_side=look_side, auto_size=auto_size))
     failures = [r for r in records if r["status"] == "failed"]
     bad_input = ("ConfigError", "InputError", "MissingFileError")
     if failures and len(failures) == len(tasks) and all(r["reason"].startswith(bad_input) for r in failures):
@@ -762,10 +864,19 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
                "MissingFileError": gissar.MissingFileError}[kind](message)
     _write_atomic(index_path, _index_csv(records))
     _write_atomic(catalog_path, json.dumps(catalog, indent=2) + "\n")
-    s = catalog["gissar:summary"]
-    say(f"corridor: {s['poses']} poses: {s['done']} done ({s['cached']} already complete), {s['skipped']} skipped, "
-        f"{s['failed']} failed in {s['wall_seconds']:.1f} s on {s['workers']} workers")
+    if report_summary:
+        say(summary_line(catalog))
+        for line in catalog["gissar:summary"]["skip_reasons"]:
+            say("corridor: " + line)
     return catalog
+
+
+def summary_line(catalog):
+    """The one-line result of a corridor run (what ``gissar corridor`` prints on stdout)."""
+    s = catalog["gissar:summary"]
+    return (f"corridor: {s['poses']} poses: {s['done']} done ({s['cached']} already complete), {s['skipped']} "
+            f"skipped, {s['failed']} failed in {s['wall_seconds']:.1f} s on {s['workers']} workers; "
+            f"{catalog['gissar:width']} x {catalog['gissar:height']} px")
 
 
 def _index_csv(records):
@@ -782,7 +893,7 @@ def _index_csv(records):
 
 def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, headings_deg, width, height, keywords,
                terrain, inputs, hash_inputs, wall_seconds, workers, peak_rss, simulated, index_path, cpu_seconds,
-               task_seconds):
+               task_seconds, size_rule, skip_reasons):
     """The STAC Collection: links to every simulated pose's Item, every pose with its status, the summary."""
     done = [r for r in records if r["status"] == "done"]
     lons, lats, times = [], [], []
@@ -823,7 +934,11 @@ def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, head
                "failed": sum(1 for r in records if r["status"] == "failed"),
                "wall_seconds": wall_seconds, "workers": workers, "tasks_submitted": simulated,
                "task_seconds": task_seconds, "task_cpu_seconds": cpu_seconds,
-               "peak_worker_rss_bytes": peak_rss or None, "finished_utc": now}
+               "peak_worker_rss_bytes": peak_rss or None, "finished_utc": now, "skip_reasons": skip_reasons}
+    # No result (exit 3 of `gissar corridor`, docs/conventions.md): every pose skipped.
+    no_result = bool(records) and summary["skipped"] == len(records)
+    summary["converged"] = not no_result
+    summary["reason"] = "; ".join(skip_reasons) if no_result else None
     route_text = os.fspath(route) if isinstance(route, (str, os.PathLike)) else "(python)"
     return {
         "type": "Collection", "stac_version": STAC_VERSION, "stac_extensions": [], "id": collection_id,
@@ -838,6 +953,7 @@ def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, head
         "gissar:version": gissar.__version__,
         "gissar:route": route_text, "gissar:pose_step_m": pose_step_m,
         "gissar:headings_deg": _headings(headings_deg), "gissar:width": width, "gissar:height": height,
+        "gissar:image_size": {"width": width, "height": height, "rule": size_rule},
         "gissar:options": dict(keywords, **{k: os.fspath(v) for k, v in terrain.items()}),
         "gissar:inputs": inputs, "gissar:hash_inputs": hash_inputs,
         "gissar:summary": summary, "gissar:poses": poses,

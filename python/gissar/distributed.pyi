@@ -21,12 +21,17 @@ def predicted_footprint(pose: Dict[str, Any], width: int, height: int, range_spa
                         azimuth_spacing_m: float, depression_deg: float,
                         look_side: str) -> List[Tuple[float, float]]: ...
 def limit_threads(threads: Optional[int]) -> int: ...
+AUTO_SIZE_MAX_PX: int
+AUTO_SIZE_MIN_PX: int
+def auto_image_size(poses: Sequence[Dict[str, Any]], extent: Any, range_spacing_m: float, azimuth_spacing_m: float,
+                    depression_deg: float, look_side: str, largest: int = ..., smallest: int = ...) -> int: ...
+def summary_line(catalog: Dict[str, Any]) -> str: ...
 def build_corridor(route: Route, *, pose_step_m: float, headings_deg: Union[float, Sequence[float]],
                    out_prefix: PathLike, dem: Optional[PathLike] = ..., scene: Union[None, PathLike, Scene] = ...,
-                   width: int = ..., height: int = ..., client: Any = ..., scheduler: Optional[str] = ...,
+                   width: Optional[int] = ..., height: Optional[int] = ..., client: Any = ..., scheduler: Optional[str] = ...,
                    workers: Optional[int] = ..., threads_per_worker: int = ..., threads: Optional[int] = ...,
                    retries: int = ..., hash_inputs: str = ..., progress: CorridorProgress = ...,
-                   log: Optional[Callable[[str], Any]] = ..., depression_deg: float = ..., slant_range_m: float = ...,
+                   log: Optional[Callable[[str], Any]] = ..., report_summary: bool = ..., depression_deg: float = ..., slant_range_m: float = ...,
                    range_spacing_m: float = ..., azimuth_spacing_m: float = ..., look_side: str = ...,
                    rays_per_cell: float = ..., bounces: int = ..., speckle_looks: float = ..., seed: int = ...,
                    **simulate_keywords: Any) -> Dict[str, Any]: ...

@@ -31,7 +31,7 @@ SCHEMAS = os.path.join(ROOT, "tests", "data", "stac_schemas")
 ROUTE = [(1.42, 42.60), (1.61, 42.60), (1.80, 42.60)]
 STEP_M = 2000.0
 HEADINGS = [80.0, 100.0]
-IMAGE = dict(width=64, height=64, range_spacing_m=90.0, azimuth_spacing_m=90.0, rays_per_cell=1.0)
+IMAGE = dict(width=64, height=64, range_spacing_m=90.0, azimuth_spacing_m=90.0, rays_per_cell=1.0, depression_deg=40.0)
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +95,8 @@ def test_corridor_images_equal_the_single_process_simulation(reference):
     assert s["done"] + s["skipped"] == s["poses"] and s["workers"] == 2
     for pose in catalog["gissar:poses"]:
         if pose["status"] != "done":
-            assert pose["status"] == "skipped" and pose["reason"].startswith("footprint leaves the DEM"), pose
+            assert pose["status"] == "skipped" and pose["reason"].startswith(
+                ("footprint leaves the DEM", "scene centre outside the DEM")), pose
             assert not os.path.exists(f"{prefix}_{pose['id']}.tif")
             continue
         mine = gissar.simulate(DEM, center_lonlat=pose["center_lonlat_deg"], heading_deg=pose["heading_deg"],
@@ -184,7 +185,8 @@ def test_catalogue_is_a_stac_collection_of_valid_items_and_a_csv_index(reference
         if r["status"] == "done":
             assert f"ref_{r['id']}.tif" in r["files"].split() and f"ref_{r['id']}_done.json" in r["files"].split()
         else:
-            assert r["status"] == "skipped" and r["files"] == "" and "leaves the DEM" in r["reason"]
+            assert r["status"] == "skipped" and r["files"] == "" and r["reason"].startswith(
+                ("footprint leaves the DEM", "scene centre outside the DEM"))
 
 
 def test_rerun_of_a_finished_database_does_no_work(reference):
@@ -309,6 +311,8 @@ def test_route_and_keyword_errors(tmp_path):
     common = dict(pose_step_m=100, headings_deg=[0], out_prefix=str(tmp_path / "x"))
     with pytest.raises(gissar.ConfigError, match="unknown keyword 'headin_deg'"):
         gd.build_corridor(ROUTE, dem=DEM, headin_deg=3, **common)
+    with pytest.raises(gissar.ConfigError, match="did you mean depression_deg"):
+        gd.build_corridor(ROUTE, dem=DEM, depresion_deg=40, **common)
     with pytest.raises(gissar.ConfigError, match="sets heading_deg"):
         gd.build_corridor(ROUTE, dem=DEM, heading_deg=3, **common)
     with pytest.raises(gissar.ConfigError, match="dem or scene"):
@@ -338,7 +342,10 @@ def test_command_line(client, tmp_path):
     run = cli("--route", str(route), *flags, "--scheduler", client.scheduler.address, "--threads", "1",
               "--quiet", "--out", out)
     assert run.returncode == 0, run.stderr
-    assert run.stdout.split() == [out + "_catalog.json", out + "_index.csv"] and run.stderr == ""
+    # The files, then the run's result line (on stdout even with --quiet).
+    lines = run.stdout.splitlines()
+    assert lines[:2] == [out + "_catalog.json", out + "_index.csv"] and run.stderr == ""
+    assert len(lines) == 3 and lines[2].startswith("corridor: 4 poses: 4 done (0 already complete), 0 skipped, 0 failed")
     with open(out + "_catalog.json") as f:
         catalog = json.load(f)
     s = catalog["gissar:summary"]
@@ -368,6 +375,85 @@ def test_command_line(client, tmp_path):
 
 
 @pytest.mark.skipif("GISSAR_CLI" not in os.environ, reason="needs the gissar executable (GISSAR_CLI)")
+def test_defaults_fit_the_dem_and_a_route_off_the_dem_is_no_result(client, tmp_path):
+    """A 13 km route across the bundled DEM with only --route --dem --pose-step --headings --out: every pose gets
+    an image (the size is chosen to fit, <= 512 px); a route off the DEM: exit 3, the reason and the fix."""
+    route = tmp_path / "route.csv"
+    route.write_text("lon,lat\n1.45,42.545\n1.61,42.545\n")  # 13.1 km east along the DEM's middle latitude
+    out = str(tmp_path / "db")
+    run = cli("--route", str(route), "--dem", DEM, "--pose-step", "2000", "--headings", "0,90", "--out", out,
+              "--scheduler", client.scheduler.address, "--quiet")
+    assert run.returncode == 0, run.stderr
+    with open(out + "_catalog.json") as f:
+        catalog = json.load(f)
+    s = catalog["gissar:summary"]
+    assert s["poses"] == 14 and s["done"] == 14 and s["skipped"] == 0 and s["failed"] == 0, s
+    size = catalog["gissar:image_size"]
+    # By hand: heading 90 puts the first pose's scene centre 4.13 km east of the DEM's west edge (lon 1.45 vs
+    # 1.3996, 82.0 km per degree of longitude at 42.5 deg): along track the image may span 2 x 4.13 km at the
+    # DEM's mean 80.5 m posts, 102 px at most; every other pose leaves more room.
+    assert 64 <= size["width"] == size["height"] <= 110 and size["rule"].startswith("auto"), size
+    assert run.stdout.splitlines()[-1].startswith("corridor: 14 poses: 14 done"), run.stdout
+    for pose in catalog["gissar:poses"]:
+        assert os.path.exists(f"{out}_{pose['id']}.tif"), pose
+    # Entirely off the DEM (40 km east of it): nothing to do is no result, with the reason and the flags.
+    far = tmp_path / "far.csv"
+    far.write_text("lon,lat\n2.30,42.545\n2.46,42.545\n")
+    none = cli("--route", str(far), "--dem", DEM, "--pose-step", "2000", "--headings", "0,90",
+               "--out", str(tmp_path / "far"), "--scheduler", client.scheduler.address, "--quiet")
+    assert none.returncode == 3, (none.returncode, none.stderr)
+    reasons = [line for line in none.stderr.splitlines() if line.startswith("gissar: no result: ")]
+    assert len(reasons) == 1, none.stderr
+    assert "14 of 14 poses skipped: their scene centre" in reasons[0] and "outside the DEM (32.8 x 27.8 km)" in \
+        reasons[0] and "--route" in reasons[0], reasons
+    assert "corridor: 14 poses: 0 done (0 already complete), 14 skipped" in none.stdout
+    # A size the DEM cannot hold: skipped poses name the footprint, the DEM and the flags that fix it.
+    big = cli("--route", str(route), "--dem", DEM, "--pose-step", "2000", "--headings", "0,90", "--width", "600",
+              "--height", "600", "--out", str(tmp_path / "big"), "--scheduler", client.scheduler.address, "--quiet")
+    assert big.returncode == 3, big.stderr
+    assert "600 x 600 px footprint" in big.stderr and "give a smaller --width/--height" in big.stderr, big.stderr
+
+
+@pytest.mark.skipif("GISSAR_CLI" not in os.environ, reason="needs the gissar executable (GISSAR_CLI)")
+def test_corridor_flags_read_as_simulates(tmp_path):
+    """Every flag the corridor shares with `gissar simulate` has the same help text and default, switches are
+    --X/--no-X with their real default, and --no-overviews is accepted."""
+    def options(text):
+        rows, current = {}, None
+        for line in text.splitlines():
+            if line.startswith("  -"):
+                # CLI11's layout: names in a 30-column left column, or alone on their line when longer.
+                if "  " in line[2:30]:
+                    names, _, description = line[2:].partition("  ")
+                elif len(line) > 30 and line[29] == " ":
+                    names, description = line[:30], line[30:]
+                else:
+                    names, description = line, ""
+                current = names.split(",")[0].split()[0]
+                rows[current] = (names.strip(), description.strip())
+            elif current and line.startswith(" " * 30) and line.strip():
+                names, description = rows[current]
+                rows[current] = (names, (description + " " + line.strip()).strip())
+        return rows
+    simulate = subprocess.run([os.environ["GISSAR_CLI"], "simulate", "--help"], capture_output=True, text=True)
+    corridor = cli("--help")
+    assert simulate.returncode == 0 and corridor.returncode == 0
+    ours, theirs = options(corridor.stdout), options(simulate.stdout)
+    # Not compared: flags whose meaning differs (the corridor's size rule, per-pose outputs, the terrain every
+    # worker must open, threads per simulation) and --depression (required by simulate, 40 by default here).
+    shared = sorted(set(ours) & set(theirs) - {"--help", "--width", "--height", "--out", "--dem", "--scene",
+                                                "--threads", "--options", "--depression"})
+    assert len(shared) >= 25, shared
+    for flag in shared:
+        assert ours[flag] == theirs[flag], (flag, ours[flag], theirs[flag])
+    assert ours["--overviews"][0].startswith("--overviews, --no-overviews") and "(default: on)" in ours["--overviews"][1]
+    assert "{false}" not in simulate.stdout and "{false}" not in corridor.stdout
+    parsed = __import__("gissar.corridor", fromlist=["make_parser"]).make_parser().parse_args(
+        ["--route", "r", "--pose-step", "1", "--headings", "0", "--out", "o", "--no-overviews", "--fixed-sampling"])
+    assert parsed.overviews is False and parsed.adaptive_sampling is False
+
+
+@pytest.mark.skipif("GISSAR_CLI" not in os.environ, reason="needs the gissar executable (GISSAR_CLI)")
 def test_command_line_embedded_cluster_geojson_route_and_options_file(tmp_path):
     route = tmp_path / "route.geojson"
     route.write_text(json.dumps({"type": "LineString", "coordinates": [[1.55, 42.60], [1.56, 42.60]]}))
@@ -378,7 +464,7 @@ def test_command_line_embedded_cluster_geojson_route_and_options_file(tmp_path):
     run = cli("--route", str(route), "--dem", DEM, "--pose-step", "5000", "--options", str(options), "--workers", "1",
               "--out", out)
     assert run.returncode == 0, run.stderr
-    assert "1 poses: 1 done" in run.stderr  # the summary line (not --quiet)
+    assert "corridor: 1 poses: 1 done" in run.stdout  # the result line, on stdout
     with open(out + "_p0000_h090.json") as f:
         options_used = json.load(f)["options"]
     assert options_used["seed"] == 3 and options_used["width"] == 32 and options_used["heading_deg"] == 90.0
@@ -386,7 +472,8 @@ def test_command_line_embedded_cluster_geojson_route_and_options_file(tmp_path):
     bad.write_text(json.dumps({"headin_deg": 3}))
     run = cli("--route", str(route), "--dem", DEM, "--pose-step", "5000", "--headings", "0", "--options", str(bad),
               "--out", str(tmp_path / "e"))
-    assert run.returncode == 2 and "unknown key 'headin_deg'" in run.stderr and run.stderr.count("\n") == 1
+    assert run.returncode == 2 and "unknown key 'headin_deg'; did you mean headings_deg?" in run.stderr
+    assert run.stderr.count("\n") == 1
 
 
 def test_scene_corridor_skips_poses_outside_the_scene(client, tmp_path):
@@ -402,7 +489,11 @@ def test_scene_corridor_skips_poses_outside_the_scene(client, tmp_path):
     assert status == {"p0000_h090": "skipped", "p0001_h090": "skipped", "p0002_h090": "done",
                       "p0003_h090": "done", "p0004_h090": "done"}, status
     reason = next(p["reason"] for p in catalog["gissar:poses"] if p["id"] == "p0000_h090")
-    assert reason.startswith("footprint leaves the scene"), reason
+    # Heading 90 puts the scene centres due south of the route points: lon 1.50 and 1.5244 are both west of the
+    # scene's 1.5249 E, so these two are skipped for their centre, not only their footprint.
+    assert reason.startswith("scene centre outside the scene"), reason
+    reason = next(p["reason"] for p in catalog["gissar:poses"] if p["id"] == "p0001_h090")
+    assert reason.startswith("scene centre outside the scene at lon 1.52438"), reason
     with pytest.raises(gissar.ConfigError, match="pixel spacings of a scene corridor"):
         gd.build_corridor([(1.50, 42.62), (1.56, 42.62)], scene=str(tmp_path / "s.gscene"), pose_step_m=1000,
                           headings_deg=[90], out_prefix=str(tmp_path / "d"), client=client)

@@ -440,5 +440,6 @@ def test_simulate_has_a_real_signature():
                  "progress"):
         assert name in params, name
     assert params["rays_per_cell"].default == 4.0
-    assert "heading_deg: default" in gissar.simulate.__doc__ and "(degrees)" in gissar.simulate.__doc__
+    assert "heading_deg: required (degrees)" in gissar.simulate.__doc__
+    assert "slant_range_m: default" in gissar.simulate.__doc__ and "(metres)" in gissar.simulate.__doc__
     assert gissar.__version__ == gissar.version().split()[1]

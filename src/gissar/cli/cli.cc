@@ -59,11 +59,12 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
       AddCommonFlags(*sub, flags);
       continue;
     }
-    sub->add_flag("--quiet", flags.quiet, "Only warnings and errors on stderr (same as --log-level warning)");
-    sub->add_option("--log-level", flags.log_level, "error, warning or info (default info)");
+    if (sub->get_name() == "corridor") continue;  // its own flags (the Python command)
+    AddSwitch(sub, "quiet", flags.quiet, "Only warnings and errors on stderr (same as --log-level warning)");
+    sub->add_option("--log-level", flags.log_level, "error, warning or info")->capture_default_str();
     sub->add_option("--threads", flags.threads, "Worker threads (default: all cores)")
         ->check(CLI::NonNegativeNumber);
-    sub->add_flag("--force", flags.force, "Run even when the job exceeds the memory budget (--max-memory)");
+    AddSwitch(sub, "force", flags.force, "Run even when the job exceeds the memory budget (--max-memory)");
     sub->add_option("--options", flags.options_file,
                     "JSON file of options: keys are the snake_case field names (docs/conventions.md); "
                     "flags on the command line win");
@@ -71,6 +72,36 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
 }
 
 }  // namespace
+
+std::string HelpFormatter::make_option_name(const CLI::Option* option, bool positional) const {
+  if (positional) return CLI::Formatter::make_option_name(option, positional);
+  std::string names;
+  for (const std::string& s : option->get_snames()) names += (names.empty() ? "-" : ", -") + s;
+  for (const std::string& l : option->get_lnames()) names += (names.empty() ? "--" : ", --") + l;
+  return names;
+}
+
+std::string HelpFormatter::make_option_opts(const CLI::Option* option) const {
+  std::string text;
+  if (option->get_type_size() != 0) {
+    if (!option->get_type_name().empty()) text += " " + get_label(option->get_type_name());
+    if (option->get_expected_max() == CLI::detail::expected_max_vector_size) text += " ...";
+    if (option->get_required()) text += " " + get_label("REQUIRED");
+  }
+  if (!option->get_excludes().empty()) {
+    text += " " + get_label("Excludes") + ":";
+    for (const CLI::Option* other : option->get_excludes()) text += " " + other->get_name();
+  }
+  return text;
+}
+
+std::string HelpFormatter::make_option_desc(const CLI::Option* option) const {
+  std::string text = option->get_description();
+  if (option->get_type_size() != 0 && !option->get_default_str().empty()) {
+    text += " (default: " + option->get_default_str() + ")";
+  }
+  return text;
+}
 
 int64_t MemoryBudgetBytes(const std::string& max_memory_flag, bool force, int64_t fallback_bytes) {
   const int64_t budget = max_memory_flag.empty() ? fallback_bytes : ParseByteSize(max_memory_flag, "--max-memory");
@@ -84,6 +115,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
                "gissar");
   app.set_version_flag("--version", VersionString());
   app.require_subcommand(1);
+  app.formatter(std::make_shared<HelpFormatter>());  // before the commands: they inherit it
   CommandRegistry registry;
   AddSimulateCommand(app, registry);
   AddSceneCommands(app, registry);
@@ -92,9 +124,13 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddNavCommands(app, registry);
   AddProductCommands(app, registry);
   AddGeocodeCommand(app, registry);
-  // After the commands: a subcommand inherits the footer of its parent at creation.
-  app.footer("Also: corridor, a reference-image database along a route on Dask (the Python package: "
-             "gissar corridor --help; docs/distributed.md).");
+  // `gissar corridor` runs the Python package's command in place of this
+  // process (apps/gissar_main.cc) before this parser sees it; listed here so
+  // that `gissar --help` names every command.
+  app.add_subcommand("corridor",
+                     "Build a reference-image database along a route on Dask: one simulated image per pose and "
+                     "heading (gissar corridor --help; docs/distributed.md).")
+      ->allow_extras();
   CommonFlags common;
   AddCommonFlags(app, common);
 

@@ -15,6 +15,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "gissar/pipeline/field_names.h"
+#include "gissar/pipeline/simulate_help.h"
 #include "gissar/util/error.h"
 #include "gissar/util/reporter.h"
 
@@ -40,6 +42,10 @@ inline constexpr const char* kVerticalDatumHelp =
     "Datum of the DEM heights: ellipsoid, egm96, egm2008 or EPSG:n of a vertical CRS (default: the file's "
     "vertical CRS, else ellipsoid with a warning)";
 
+// Help of --max-memory, on every command that has a memory budget.
+inline constexpr const char* kMaxMemoryHelp =
+    "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early";
+
 inline void RequirePositiveIfGiven(const CLI::App& cmd, const std::string& flag, double value) {
   if (cmd.count(flag) > 0 && !(value > 0.0)) {
     std::ostringstream text;
@@ -62,6 +68,45 @@ inline std::string PrefixedOutput(const std::string& prefix, const std::string& 
   }
   return prefix + extension;
 }
+
+// An on/off option: accepted as --NAME and --no-NAME (the last one given
+// wins) on every command that has it, shown in --help as
+// "--NAME, --no-NAME" with its real default ("(default: on)"), read from
+// options files as a JSON boolean. `extra_negations` are older spellings of
+// --no-NAME that keep working (e.g. "--fixed-sampling").
+inline CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool& value, const std::string& help,
+                              const std::string& extra_negations = "") {
+  std::string names = "--" + name + ",!--no-" + name;
+  if (!extra_negations.empty()) names += ",!" + extra_negations;
+  return cmd->add_flag(names, value, help + (value ? " (default: on)" : " (default: off)"));
+}
+
+// A flag of a simulate request field (`field`, snake_case with its unit
+// suffix): the flag is pipeline::FlagOfField(field) and the help text
+// pipeline::SimulateHelp(field), the same in every command that offers it
+// (simulate, sequence, ortho, validate, corridor). The default is shown when
+// `show_default`.
+template <class T>
+CLI::Option* AddSimulateOption(CLI::App* cmd, const std::string& field, T& value, bool show_default = true) {
+  CLI::Option* option = cmd->add_option(pipeline::FlagOfField(field), value, pipeline::SimulateHelp(field));
+  if (show_default) option->capture_default_str();
+  return option;
+}
+inline CLI::Option* AddSimulateSwitch(CLI::App* cmd, const std::string& field, bool& value,
+                                      const std::string& extra_negations = "") {
+  const std::string flag = pipeline::FlagOfField(field);
+  return AddSwitch(cmd, flag.substr(2), value, pipeline::SimulateHelp(field), extra_negations);
+}
+
+// The help layout of every command: "--name, --no-name TYPE REQUIRED" on the
+// left, the description with "(default: X)" on the right (CLI11's own shows
+// "--no-x{false}" and "TYPE=X").
+class HelpFormatter : public CLI::Formatter {
+ public:
+  std::string make_option_name(const CLI::Option* option, bool positional) const override;
+  std::string make_option_opts(const CLI::Option* option) const override;
+  std::string make_option_desc(const CLI::Option* option) const override;
+};
 
 class CommandRegistry {
  public:

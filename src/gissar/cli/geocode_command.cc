@@ -2,6 +2,7 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
+#include "gissar/cli/headline.h"
 #include "gissar/pipeline/geocode.h"
 
 namespace gissar::cli {
@@ -26,6 +27,15 @@ void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry) {
     resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
     const pipeline::GeocodeResult result = pipeline::RunGeocode(resolved, context.command_line, context.reporter);
     for (const auto& path : result.outputs) context.out << path.string() << "\n";
+    // The CRS's name: "EPSG:n" as given, else the first quoted name of its WKT.
+    std::string crs = result.crs;
+    if (const size_t open = crs.find('"'); crs.rfind("EPSG:", 0) != 0 && open != std::string::npos) {
+      crs = crs.substr(open + 1, crs.find('"', open + 1) - open - 1);
+    }
+    context.out << GeocodeHeadline({{"width", result.width}, {"height", result.height},
+                                    {"pixel_size_m", result.geotransform.size() > 1 ? std::abs(result.geotransform[1]) : 0.0},
+                                    {"crs", crs}, {"valid_pixels", result.valid_pixels}})
+                << "\n";
   });
 }
 

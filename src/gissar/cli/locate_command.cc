@@ -2,6 +2,7 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
+#include "gissar/cli/headline.h"
 #include "gissar/pipeline/locate.h"
 
 namespace gissar::cli {
@@ -58,12 +59,13 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
       const auto report = RunLocate(resolved, context.command_line, context.reporter);
       context.out << resolved.out << "\n";
       if (!resolved.composite_png.empty()) context.out << resolved.composite_png << "\n";
+      context.out << LocateHeadline(report) << "\n";
       if (!report.at("converged").get<bool>()) context.no_result = report.at("reason").get<std::string>();
     });
   }
   {
     auto o = std::make_shared<EvaluateRequest>();
-    auto no_compare = std::make_shared<bool>(false);
+    auto compare = std::make_shared<bool>(true);
     CLI::App* cmd = root.add_subcommand(
         "evaluate", "Monte-Carlo evaluation of `locate`: success rate, position/heading errors, time per fix.");
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
@@ -97,7 +99,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--success-cells", o->success_cells, "Success: position error at most this many cells")->capture_default_str();
     cmd->add_option("--success-heading-deg", o->success_heading_deg, "Success: and heading error at most this, deg")->capture_default_str();
     cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features (--product: ncc, gradient, phase or mi)")->capture_default_str();
-    cmd->add_flag("--no-compare", *no_compare, "Skip the per-trial matcher comparison");
+    AddSwitch(cmd, "compare", *compare, "Per-trial matcher comparison (--no-compare: skip it)");
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (0 = from the prior errors)")->capture_default_str();
     cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
     cmd->add_option("--dense-renders", o->dense_renders,
@@ -105,16 +107,17 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell")->capture_default_str();
-    auto no_floor = std::make_shared<bool>(false);
-    cmd->add_flag("--no-reference-floor", *no_floor,
-                  "References without the observed noise floor (--nesz): dark areas at -40 dB instead");
+    auto floor = std::make_shared<bool>(true);
+    AddSwitch(cmd, "reference-floor", *floor,
+              "References with the observed noise floor (--nesz), or (--no-reference-floor) dark areas at -40 dB");
     registry.Add(cmd, [=](const CommandContext& context) {
       EvaluateRequest r = *o;
-      r.compare_matchers = !*no_compare;
-      r.reference_floor = !*no_floor;
-      RunEvaluate(r, context.command_line, context.reporter);
+      r.compare_matchers = *compare;
+      r.reference_floor = *floor;
+      const auto summary = RunEvaluate(r, context.command_line, context.reporter);
       context.out << r.out_prefix << ".json\n" << r.out_prefix << "_trials.csv\n";
       if (r.product.empty()) context.out << r.out_prefix << "_hist.png\n";
+      context.out << EvaluateHeadline(summary) << "\n";
     });
   }
   {

@@ -2,6 +2,7 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
+#include "gissar/cli/headline.h"
 #include "gissar/cli/command_line.h"
 #include "gissar/pipeline/mvg_commands.h"
 #include "gissar/pipeline/simulate.h"
@@ -16,7 +17,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     auto range_spacing = std::make_shared<std::string>(), azimuth_spacing = std::make_shared<std::string>();
     auto res1 = std::make_shared<std::string>(), res2 = std::make_shared<std::string>();  // deprecated
     auto depressions = std::make_shared<std::string>();
-    auto all = std::make_shared<bool>(false);
+    auto ransac = std::make_shared<bool>(true);
     CLI::App* cmd = root.add_subcommand(
         "fmatrix", "Affine fundamental matrix (RANSAC + Gold Standard), KvD decomposition and heading change.");
     cmd->add_option("--matches", o->matches, "CSV with a header and columns x1,y1,x2,y2 (others ignored)")->required();
@@ -30,7 +31,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--res2", *res2)->group("");
     cmd->add_option("--depressions", *depressions, "Depressions D1,D2 in degrees: gives the heading change");
     cmd->add_option("--threshold", o->threshold_px, "RANSAC inlier threshold, pixels")->capture_default_str();
-    cmd->add_flag("--no-ransac", *all, "One Gold Standard fit to all matches");
+    AddSwitch(cmd, "ransac", *ransac, "RANSAC before the Gold Standard fit, or (--no-ransac) one fit to all matches");
     cmd->add_option("--seed", o->seed, "RANSAC seed")->capture_default_str();
     cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the fit)")->required();
     cmd->add_option("--plot", o->plot_prefix, "Pictures: PREFIX_kvd.png (KvD diagram) and, with the images, "
@@ -40,7 +41,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     registry.Add(cmd, [=](const CommandContext& context) {
       FmatrixRequest r = *o;
       r.json_out = PrefixedOutput(o->json_out, ".json");
-      r.robust = !*all;
+      r.robust = *ransac;
       if (!range_spacing->empty()) r.range_spacing_m = ParseNumberPair(*range_spacing, "--range-spacing");
       if (!azimuth_spacing->empty()) r.azimuth_spacing_m = ParseNumberPair(*azimuth_spacing, "--azimuth-spacing");
       if (!res1->empty() || !res2->empty()) {
@@ -61,6 +62,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
       if (out.contains("pictures")) {
         for (const auto& p : out["pictures"]) context.out << p.get<std::string>() << "\n";
       }
+      context.out << FmatrixHeadline(out) << "\n";
     });
   }
   {
@@ -78,13 +80,13 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
       r.json_out = PrefixedOutput(o->json_out, ".json");
       if (!center->empty()) r.center_enu_m = Eigen::Vector3d((*center)[0], (*center)[1], (*center)[2]);
       if (*range != 0.0) r.slant_range_m = *range;
-      RunResect(r, context.command_line, context.reporter);
-      context.out << r.json_out << "\n";
+      const auto out = RunResect(r, context.command_line, context.reporter);
+      context.out << r.json_out << "\n" << ResectHeadline(out) << "\n";
     });
   }
   {
     auto o = std::make_shared<RegisterRequest>();
-    auto all = std::make_shared<bool>(false);
+    auto ransac = std::make_shared<bool>(true);
     CLI::App* cmd = root.add_subcommand(
         "register", "Register a moving image to a fixed one from control points (cpselect/fitgeotrans).");
     cmd->add_option("--fixed", o->fixed, "Fixed image (any GDAL raster)")->required();
@@ -93,12 +95,12 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--transform", o->transform, "similarity, affine, projective, poly2 or poly3")
         ->capture_default_str();
     cmd->add_option("--threshold", o->threshold_px, "Robust fit inlier threshold, pixels")->capture_default_str();
-    cmd->add_flag("--no-ransac", *all, "Least squares on all pairs");
+    AddSwitch(cmd, "ransac", *ransac, "Robust fit, or (--no-ransac) least squares on all pairs");
     cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.tif, PREFIX_composite.png, PREFIX.json")
         ->required();
     registry.Add(cmd, [=](const CommandContext& context) {
       RegisterRequest r = *o;
-      r.robust = !*all;
+      r.robust = *ransac;
       RunRegister(r, context.command_line, context.reporter);
       context.out << r.out_prefix << ".tif\n" << r.out_prefix << "_composite.png\n" << r.out_prefix << ".json\n";
     });

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "gissar/cli/command.h"
+#include "gissar/cli/headline.h"
 #include "gissar/pipeline/product_simulate.h"
 
 namespace gissar::cli {
@@ -16,29 +17,24 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
       "validate",
       "Simulate a real SAR product (NISAR RSLC HDF5) and compare with its image and a reference geolocation.");
   cmd->add_option("--product", options->simulate.product, "NISAR-format RSLC product (HDF5)")->required();
-  cmd->add_option("--dem", options->simulate.dem, "DEM raster covering the product");
-  cmd->add_option("--scene", options->simulate.scene, "Scene file from `gissar scene build` (instead of --dem)");
-  cmd->add_flag("--fill-nodata", options->simulate.fill_nodata, "Fill DEM no-data cells instead of failing");
-  cmd->add_option("--dem-oversample", options->simulate.dem_oversample,
-                  "Refine the DEM this many times (cubic convolution) before meshing; for posts coarser than the pixels")
-      ->capture_default_str();
-  cmd->add_option("--vertical-units", options->simulate.vertical_units,
-                  "Unit of the DEM heights: m, ft or us-ft (default: the file's band unit or vertical CRS, else m)");
-  cmd->add_option("--vertical-datum", options->simulate.vertical_datum, kVerticalDatumHelp);
+  AddSimulateOption(cmd, "dem", options->simulate.dem, false);
+  AddSimulateOption(cmd, "scene", options->simulate.scene, false);
+  AddSimulateSwitch(cmd, "fill_nodata", options->simulate.fill_nodata);
+  AddSimulateOption(cmd, "dem_oversample", options->simulate.dem_oversample);
+  AddSimulateOption(cmd, "vertical_units", options->simulate.vertical_units, false);
+  AddSimulateOption(cmd, "vertical_datum", options->simulate.vertical_datum, false);
   cmd->add_option("--reference-geolocation", options->reference_geolocation,
                   "Directory with a peer's per-pixel x.rdr, y.rdr, z.rdr (lon, lat, height; ISCE topo) and simamp.rdr");
   cmd->add_option("--looks", *looks, "Multilook sizes k of the k x k correlations, comma-separated")
       ->capture_default_str();
-  cmd->add_option("--rays-per-cell", options->simulate.rays_per_cell, "Rays per resolution cell on flat ground")
-      ->capture_default_str();
-  cmd->add_option("--bounces", options->simulate.bounces, "Reflections followed per ray")->capture_default_str();
+  AddSimulateOption(cmd, "rays_per_cell", options->simulate.rays_per_cell);
+  AddSimulateOption(cmd, "bounces", options->simulate.bounces);
   cmd->add_option("--out", options->out_prefix,
                   "Output prefix: PREFIX.json, PREFIX.md, PREFIX_side_by_side.png, PREFIX_histogram.png")
       ->required();
 
   auto max_memory = std::make_shared<std::string>();
-  cmd->add_option("--max-memory", *max_memory,
-                  "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger products fail early");
+  cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
 
   registry.Add(cmd, [=](const CommandContext& context) {
     ValidateRequest resolved = *options;
@@ -59,6 +55,7 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
     }
     const ValidateResult result = RunValidate(resolved, context.command_line, context.reporter);
     for (const auto& path : result.outputs) context.out << path.string() << "\n";
+    context.out << ValidateHeadline(result.report) << "\n";
   });
 }
 

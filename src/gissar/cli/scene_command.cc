@@ -18,7 +18,7 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
   CLI::App* build = scene->add_subcommand(
       "build", "DEM + vector layers -> classified constrained Delaunay mesh (.gscene, .ply, class map).");
   build->add_option("--dem", options->dem, "DEM raster, any GDAL format and CRS")->required();
-  build->add_flag("--fill-nodata", options->fill_nodata, "Fill DEM no-data cells instead of failing");
+  AddSimulateSwitch(build, "fill_nodata", options->fill_nodata);
   build->add_option("--window", *window, "DEM window COL,ROW,COLS,ROWS in cells (default: whole DEM)");
   build->add_option("--vectors", options->vectors,
                     "Vector files whose layer names say the class (water, forest, urban, roads, "
@@ -29,20 +29,19 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
   build->add_option("--out", options->out_prefix,
                     "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png (class map), PREFIX_3d.png (3-D view), PREFIX.json, PREFIX_mesh.json (the meshes' frame)")
       ->required();
-  build->add_flag("--obj", options->export_obj, "Also write PREFIX.obj + PREFIX.mtl (class colours) for 3-D viewers");
+  AddSwitch(build, "obj", options->export_obj, "Also write PREFIX.obj + PREFIX.mtl (class colours) for 3-D viewers");
   build->add_option("--sea", options->sea, "Sea: auto (coastline ways, else DEM at or below --sea-level connected to the border) or off");
   build->add_option("--sea-level", options->sea_level_m, "Sea level for --sea auto without coastline, metres (DEM heights; default 0)");
   build->add_option("--vertical-units", options->vertical_units,
                     "Unit of the DEM heights: m, ft or us-ft (default: the file's band unit or vertical CRS, else m)");
   build->add_option("--vertical-datum", options->vertical_datum, kVerticalDatumHelp);
   build->add_option("--dem-oversample", options->dem_oversample, "Refine the DEM N times (cubic) before meshing (default 1)");
-  build->add_flag("--flat-shading", options->flat_shading, "No smooth per-vertex shading normals on the terrain");
+  AddSwitch(build, "flat-shading", options->flat_shading, "No smooth per-vertex shading normals on the terrain");
   build->add_option("--reflectors", options->reflectors,
                     "Canonical reflectors CSV (type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,"
                     "boresight_elevation_deg): placed on the scene's surface and stored in the scene");
   auto max_memory = std::make_shared<std::string>();
-  build->add_option("--max-memory", *max_memory,
-                    "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early");
+  build->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
   registry.Add(build, [=](const CommandContext& context) {
     SceneBuildRequest resolved = *options;
     resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);

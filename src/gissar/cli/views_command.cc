@@ -19,24 +19,24 @@ struct CommonFlags {
 
   void Add(CLI::App* cmd, SimulateRequest& o, bool with_heading) {
     app = cmd;
-    cmd->add_option("--dem", o.dem, "DEM raster (or --scene)");
-    cmd->add_option("--scene", o.scene, "Scene file from `gissar scene build`");
-    cmd->add_flag("--fill-nodata", o.fill_nodata, "Fill DEM no-data cells");
-    cmd->add_option("--vertical-datum", o.vertical_datum, kVerticalDatumHelp);
-    if (with_heading) cmd->add_option("--heading", o.geometry.heading_deg, "Heading, degrees from north")->required();
-    cmd->add_option("--depression", o.geometry.depression_deg, "Depression at the scene centre, degrees")->required();
-    cmd->add_option("--look", *look, "right or left")->capture_default_str();
-    cmd->add_option("--center", *center, "Scene centre LON,LAT");
-    cmd->add_option("--slant-range", o.geometry.slant_range_m, "Slant range to the scene centre, m")->capture_default_str();
-    cmd->add_option("--range-spacing", o.geometry.range_spacing_m, "Slant-range pixel spacing, m");
-    cmd->add_option("--azimuth-spacing", o.geometry.azimuth_spacing_m, "Azimuth pixel spacing, m");
-    cmd->add_option("--max-memory", *max_memory, "Memory budget, e.g. 4G (default: 3/4 of RAM)");
-    cmd->add_option("--rays-per-cell", o.rays_per_cell, "Rays per resolution cell")->capture_default_str();
-    cmd->add_option("--range-resolution", o.range_resolution_m, "3 dB range resolution, m (0 = none)");
-    cmd->add_option("--azimuth-resolution", o.azimuth_resolution_m, "3 dB azimuth resolution, m (0 = none)");
-    cmd->add_option("--psf-window", o.psf_window, "none, hamming or taylor")->capture_default_str();
-    cmd->add_option("--speckle-looks", o.speckle_looks, "L-look speckle (0 = off)")->capture_default_str();
-    cmd->add_option("--seed", o.seed, "Seed of speckle and noise")->capture_default_str();
+    AddSimulateOption(cmd, "dem", o.dem, false);
+    AddSimulateOption(cmd, "scene", o.scene, false);
+    AddSimulateSwitch(cmd, "fill_nodata", o.fill_nodata);
+    AddSimulateOption(cmd, "vertical_datum", o.vertical_datum, false);
+    if (with_heading) AddSimulateOption(cmd, "heading_deg", o.geometry.heading_deg, false)->required();
+    AddSimulateOption(cmd, "depression_deg", o.geometry.depression_deg, false)->required();
+    AddSimulateOption(cmd, "look_side", *look);
+    AddSimulateOption(cmd, "center_lonlat", *center, false);
+    AddSimulateOption(cmd, "slant_range_m", o.geometry.slant_range_m);
+    AddSimulateOption(cmd, "range_spacing_m", o.geometry.range_spacing_m, false);
+    AddSimulateOption(cmd, "azimuth_spacing_m", o.geometry.azimuth_spacing_m, false);
+    cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
+    AddSimulateOption(cmd, "rays_per_cell", o.rays_per_cell);
+    AddSimulateOption(cmd, "range_resolution_m", o.range_resolution_m, false);
+    AddSimulateOption(cmd, "azimuth_resolution_m", o.azimuth_resolution_m, false);
+    AddSimulateOption(cmd, "psf_window", o.psf_window);
+    AddSimulateOption(cmd, "speckle_looks", o.speckle_looks);
+    AddSimulateOption(cmd, "seed", o.seed);
   }
   void Resolve(SimulateRequest& o, bool force) const {
     RequirePositiveIfGiven(*app, "--range-spacing", o.geometry.range_spacing_m);
@@ -56,7 +56,7 @@ void AddViewCommands(CLI::App& root, CommandRegistry& registry) {
   CLI::App* seq = root.add_subcommand(
       "sequence", "Render a heading sequence (same depression and altitude) from one scene build.");
   sequence_flags->Add(seq, sequence->base, false);
-  seq->add_option("--mode", *sequence_flags->mode, "affine or exact")->capture_default_str();
+  AddSimulateOption(seq, "mode", *sequence_flags->mode);
   seq->add_option("--heading-from", sequence->heading_from_deg, "First heading, degrees")->capture_default_str();
   seq->add_option("--heading-to", sequence->heading_to_deg, "Last heading, degrees")->capture_default_str();
   seq->add_option("--frames", sequence->frames, "Number of frames (>= 2)")->capture_default_str();

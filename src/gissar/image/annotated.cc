@@ -74,7 +74,8 @@ RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int 
   while (title_scale > 0.3 && cv::getTextSize(title, font, title_scale, 1, nullptr).width > title_room) title_scale -= 0.05;
   cv::putText(canvas, title, cv::Point(4, 18), font, title_scale, black, 1, cv::LINE_AA);
   cv::rectangle(canvas, cv::Rect(left - 1, top - 1, width + 2, height + 2), black, 1);
-  // Slant-range axis (bottom): true slant range, near range on the left.
+  // Slant-range axis (bottom): true slant range (or, affine, relative to the
+  // scene centre), near range on the left.
   std::string range_unit;
   for (const AxisTick& t : AxisTicks(axes.range_origin_m, axes.range_spacing_m, width, 6, &range_unit)) {
     const int x = left + static_cast<int>(std::lround(t.pixel));
@@ -82,8 +83,17 @@ RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int 
     cv::line(canvas, cv::Point(x, top + height + 1), cv::Point(x, top + height + 6), black, 1);
     cv::putText(canvas, t.label, cv::Point(x - text_width / 2, top + height + 20), font, 0.4, black, 1, cv::LINE_AA);
   }
-  cv::putText(canvas, "slant range (" + range_unit + ") ->", cv::Point(left + width / 2 - 60, top + height + 40), font,
-              0.45, black, 1, cv::LINE_AA);
+  // The longest label that fits the picture's width.
+  std::string range_label = "slant range (" + range_unit + ") ->";
+  if (axes.range_relative) {
+    for (const char* words : {"slant range from scene centre (", "range from scene centre (", "range from centre ("}) {
+      range_label = words + range_unit + ") ->";
+      if (cv::getTextSize(range_label, font, 0.45, 1, nullptr).width <= canvas.cols - 4) break;
+    }
+  }
+  const int range_label_width = cv::getTextSize(range_label, font, 0.45, 1, nullptr).width;
+  cv::putText(canvas, range_label, cv::Point(std::max(2, left + width / 2 - range_label_width / 2), top + height + 40),
+              font, 0.45, black, 1, cv::LINE_AA);
   // Along-track axis (left), relative to the scene centre, increasing down.
   std::string azimuth_unit;
   for (const AxisTick& t : AxisTicks(axes.azimuth_origin_m, axes.azimuth_spacing_m, height, 6, &azimuth_unit)) {

@@ -21,6 +21,10 @@ struct QuicklookAxes {
   double range_spacing_m = 1.0;   // slant-range metres per column
   double azimuth_origin_m = 0.0;  // along-track coordinate of row 0
   double azimuth_spacing_m = 1.0; // along-track metres per row
+  // True when range_origin_m is relative to the scene centre (affine
+  // geometry: parallel rays, no sensor position, so no true slant range);
+  // the axis then reads "slant range from scene centre".
+  bool range_relative = false;
 };
 
 // One labelled tick of an axis: its pixel coordinate (column or row of the

@@ -72,6 +72,29 @@ TEST(AnnotatedTest, QuicklookKeepsTheImageAndAddsAxes) {
     }
 }
 
+TEST(AnnotatedTest, RelativeRangeAxisIsLabelledAsSuchAndCentredOnZero) {
+  // Affine geometry: column 0 at -100 m from the scene centre, 2 m per column,
+  // 101 columns: the centre column 50 reads 0 and the label changes (only the
+  // text under the image differs from the absolute axis of the same origin).
+  std::vector<float> intensity(101 * 60, 0.5f);
+  const RgbImage relative = AnnotatedQuicklook(intensity, 101, 60, QuicklookAxes{-100.0, 2.0, -90.0, 3.0, true}, "t");
+  const RgbImage absolute = AnnotatedQuicklook(intensity, 101, 60, QuicklookAxes{-100.0, 2.0, -90.0, 3.0, false}, "t");
+  ASSERT_EQ(relative.width, absolute.width);
+  ASSERT_EQ(relative.height, absolute.height);
+  const int label_rows_from = 44 + 60 + 21;  // below the tick labels
+  int differing_above = 0, differing_label = 0;
+  for (int y = 0; y < relative.height; ++y)
+    for (int x = 0; x < relative.width; ++x) {
+      const size_t i = (size_t(y) * relative.width + x) * 3;
+      if (relative.rgb[i] != absolute.rgb[i]) (y < label_rows_from ? differing_above : differing_label) += 1;
+    }
+  EXPECT_EQ(differing_above, 0);
+  EXPECT_GT(differing_label, 20);
+  bool zero_at_centre = false;
+  for (const AxisTick& t : AxisTicks(-100.0, 2.0, 101, 6, nullptr)) zero_at_centre |= (t.value_m == 0.0 && t.pixel == 50.0);
+  EXPECT_TRUE(zero_at_centre);
+}
+
 TEST(AnnotatedTest, SlantRangeTicksStartAtTheNearRange) {
   // Scene centre at slant range 10 km on column u0 = 100, 5 m per column,
   // 200 columns: column 0 is at 10000 - 100 * 5 = 9500 m, column 199 at

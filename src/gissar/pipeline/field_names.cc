@@ -1,6 +1,38 @@
 #include "gissar/pipeline/field_names.h"
 
+#include <algorithm>
+#include <cctype>
+
 namespace gissar::pipeline {
+
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+namespace {
+
+// Lower case, leading dashes dropped, '-' read as '_' ("--Range-Spacing" ->
+// "range_spacing").
+std::string Normalised(const std::string& key) {
+  std::string out = key.substr(std::min(key.find_first_not_of('-'), key.size()));
+  for (char& c : out) {
+    c = c == '-' ? '_' : static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  return out;
+}
+
+}  // namespace
 
 std::string FlagOfField(const std::string& field) {
   // Flags whose name is not the field's (docs/conventions.md).
@@ -20,6 +52,32 @@ std::string FlagOfField(const std::string& field) {
     if (c == '_') c = '-';
   }
   return "--" + name;
+}
+
+std::string ClosestKey(const std::string& key, const std::vector<std::string>& known) {
+  const std::string word = Normalised(key);
+  if (word.empty()) return "";
+  for (const std::string& k : known) {
+    if (word == Normalised(k) || word == Normalised(FlagOfField(k))) return k;
+  }
+  std::string best;
+  size_t best_distance = std::min<size_t>(3, word.size());  // at most 2 edits, fewer than its characters
+  for (const std::string& k : known) {
+    const size_t d = std::min(EditDistance(word, Normalised(k)), EditDistance(word, Normalised(FlagOfField(k))));
+    if (d < best_distance) best_distance = d, best = k;
+  }
+  return best;
+}
+
+std::string UnknownKeyMessage(const std::string& key, const std::vector<std::string>& known) {
+  const std::string closest = ClosestKey(key, known);
+  return "unknown key '" + key + "'" + (closest.empty() ? "" : "; did you mean " + closest + "?");
+}
+
+std::vector<std::string> KeysOf(const nlohmann::json& object) {
+  std::vector<std::string> keys;
+  for (const auto& [key, value] : object.items()) keys.push_back(key);
+  return keys;
 }
 
 }  // namespace gissar::pipeline

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -16,6 +17,28 @@ namespace gissar::pipeline {
 // the exceptions are out_prefix (--out), center_lonlat (--center) and
 // look_side (--look).
 std::string FlagOfField(const std::string& field);
+
+// Levenshtein distance between `a` and `b` (insertions, deletions,
+// substitutions): the measure of every "did you mean" (keys here, flags and
+// commands in cli/command_line.cc).
+size_t EditDistance(const std::string& a, const std::string& b);
+
+// The known key closest to a mistyped `key`, "" when none is close. A key
+// is close when, compared lower-case with '-' read as '_' and leading
+// dashes dropped, it is a known key (Heading_Deg, range-spacing-m), the
+// flag name of one (heading, range_spacing, center: the CLI spelling,
+// FlagOfField), or at most 2 edits (Levenshtein) away from either and fewer
+// edits than it has characters; the fewest edits wins, ties the first of
+// `known`.
+std::string ClosestKey(const std::string& key, const std::vector<std::string>& known);
+
+// "unknown key 'KEY'" with "; did you mean K?" when ClosestKey finds one: the
+// message of every request's ApplyJson (Python keywords, options files,
+// sidecars) for a key it does not know.
+std::string UnknownKeyMessage(const std::string& key, const std::vector<std::string>& known);
+
+// The keys of a JSON object (a request's ToJson(): its fields), in order.
+std::vector<std::string> KeysOf(const nlohmann::json& object);
 
 // Reads `value` into the request field `field` (ApplyJson of every request);
 // ConfigError naming `key` and `source` when the JSON type does not fit.

@@ -164,7 +164,9 @@ PriorPose ParsePriorJson(const nlohmann::json& json, const std::string& source) 
   static const std::set<std::string> known = {"heading_deg", "slant_range_m", "sensor_enu_m", "depression_deg",
                                               "centre_enu_m", "centre_lonlat", "sensor_lon_lat_h"};
   for (const auto& [key, value] : json.items()) {
-    if (!known.count(key)) throw ConfigError("unknown key '" + key + "'", source);
+    if (!known.count(key)) {
+      throw ConfigError(UnknownKeyMessage(key, std::vector<std::string>(known.begin(), known.end())), source);
+    }
   }
   PriorPose p;
   if (!json.contains("heading_deg")) throw ConfigError("missing key 'heading_deg'", source);
@@ -284,7 +286,16 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
     else if (key == "looks_range") set(looks_range);
     else if (key == "looks_azimuth") set(looks_azimuth);
     else if (key == "dem_oversample") set(dem_oversample);
-    else throw ConfigError("unknown key '" + key + "'", source);
+    else {
+      // The keys above (LocateRequest has no ToJson to list them).
+      throw ConfigError(
+          UnknownKeyMessage(key, {"image", "scene", "dem", "vertical_datum", "out", "composite_png", "matcher",
+                                  "bounces", "rays_per_cell", "product", "orbit", "radar_grid", "frequency",
+                                  "polarization", "prior_offset_track", "prior_heading_offset_deg",
+                                  "prior_sigma_horizontal_m", "prior_sigma_vertical_m", "prior_sigma_heading_deg",
+                                  "looks_range", "looks_azimuth", "dem_oversample"}),
+          source);
+    }
   }
 }
 
@@ -526,7 +537,7 @@ void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "looks_range") set(looks_range);
     else if (key == "looks_azimuth") set(looks_azimuth);
     else if (key == "dem_oversample") set(dem_oversample);
-    else throw ConfigError("unknown key '" + key + "'", source);
+    else throw ConfigError(UnknownKeyMessage(key, KeysOf(EvaluateRequest().ToJson())), source);
   }
 }
 

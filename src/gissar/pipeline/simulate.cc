@@ -252,7 +252,7 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     } else if (key == "seed") set(seed);
     else if (key == "out_prefix") set(out_prefix);
     else if (key == "max_memory_bytes") set(max_memory_bytes);
-    else throw ConfigError("unknown key '" + key + "'", source);
+    else throw ConfigError(UnknownKeyMessage(key, KeysOf(SimulateRequest().ToJson())), source);
   }
 }
 
@@ -1219,10 +1219,14 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                                                : std::vector<float>();
     const double dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
     const double half_block = 0.5 * (looks - 1);
+    // Affine geometry has parallel rays and no sensor: its range axis is
+    // relative to the scene centre (a nominal slant range added to it would
+    // read ranges shorter than the sensor's height).
+    const bool affine = geometry_options.mode == sensor::ProjectionMode::kAffine;
     const image::RgbImage annotated = image::AnnotatedQuicklook(
         looks > 1 ? shown : linear, image.width / looks, image.height / looks,
-        {geometry.slant_range_m() + (half_block - geometry.u0()) * dr, dr * looks,
-         (half_block - geometry.v0()) * da, da * looks},
+        {(affine ? 0.0 : geometry.slant_range_m()) + (half_block - geometry.u0()) * dr, dr * looks,
+         (half_block - geometry.v0()) * da, da * looks, affine},
         title);
     geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
     quicklook_seconds = watch.ElapsedSeconds();
