@@ -95,6 +95,14 @@ def main(gissar, source):
     headline = [line for line in rs.stdout.splitlines() if line.startswith("resect: ")]
     check(len(headline) == 1 and re.search(r"depression 40\.000", headline[0]) is not None,
           f"resect prints its headline ({rs.stdout!r})")
+    # locate on a real product prints its fix and its error against the annotated track.
+    data = os.path.join(source, "data", "uavsar")
+    lo = run([gissar, "locate", "--product", os.path.join(data, "SanAnd_129.h5"), "--dem",
+              os.path.join(data, "SanAnd_dem.tif"), "--dem-oversample", "4", "--prior-offset-track", "-60,30,0",
+              "--out", "fix", "--quiet"], work)
+    headline = [line for line in lo.stdout.splitlines() if line.startswith("locate: ")]
+    check(lo.returncode == 0 and len(headline) == 1 and "error against the annotated track" in headline[0]
+          and headline[0].endswith("; converged"), f"locate prints its fix ({lo.stdout!r}, {lo.stderr.strip()})")
     # `make demo` builds only the binary and the Python package.
     dry = run(["make", "-n", "-C", source, "demo", "BUILD_DIR=build-first-hour-dry-run"], work)
     build_lines = [line for line in dry.stdout.splitlines() if "cmake --build" in line]
@@ -107,6 +115,8 @@ def main(gissar, source):
     check(first_block == ["make", "demo", "make", "test"], f"the README starts with make demo, make test ({first_block})")
     check(re.search(r"`make demo`[^.]*measured", readme) is not None,
           "the README states the fresh-clone `make demo` time as measured")
+    check(re.search(r"examples/tutorial\.py\)[^.]*measured [0-9.–]+ s", readme) is not None,
+          "the README states the tutorial's run time as measured")
     shutil.rmtree(work, ignore_errors=True)
     for f in failures:
         print("FAILED:", f)

@@ -488,6 +488,10 @@ std::vector<std::vector<std::string>> LeafCommands() {
       std::istringstream words(line);
       std::string name;
       if (line.rfind("  ", 0) != 0 || !(words >> name)) continue;
+      // `corridor` is the Python package's command (the executable hands over
+      // before this parser runs): its flags are checked against simulate's by
+      // python/tests/test_corridor.py.
+      if (path.empty() && name == "corridor") continue;
       std::vector<std::string> child = path;
       child.push_back(name);
       walk(child);
@@ -596,6 +600,66 @@ TEST(HelpWalkTest, SingleFileOutputIsAPrefix) {
   ASSERT_EQ(o.status, 0) << o.err;
   EXPECT_TRUE(fs::exists(dir / "pair.png"));
   EXPECT_EQ(o.out, (dir / "pair.png").string() + "\n");
+}
+
+}  // namespace
+}  // namespace gissar::cli
+
+#include "gissar/cli/headline.h"
+
+namespace gissar::cli {
+namespace {
+
+// The headlines read the result JSON the commands write (the keys of
+// pipeline/locate.cc, product_locate.cc, mvg_commands.cc, product_simulate.cc).
+TEST(HeadlineTest, EachCommandStatesItsResultInOneLine) {
+  const nlohmann::json fmatrix = {{"heading_change_deg", 29.996}, {"heading_change_candidates", {29.996, -29.996}},
+                                  {"inliers", {0, 1, 2, 4}}, {"num_matches", 5}, {"rms_gs_px", 0.1234},
+                                  {"kvd", {{"s", 1.0}, {"theta_deg", 23.2}, {"phi_deg", 11.6}}}};
+  EXPECT_EQ(FmatrixHeadline(fmatrix),
+            "fmatrix: heading change 30.00 deg (candidates 30.00, -30.00), 4 of 5 matches inliers, Gold Standard "
+            "rms 0.123 px; KvD s 1.0000, theta 23.20 deg, phi 11.60 deg");
+  const nlohmann::json locate = {{"converged", false},
+                                 {"reason", "too few matches"},
+                                 {"pose", {{"heading_deg", 30.0}, {"depression_deg", 40.0},
+                                           {"sensor_enu_m", {3.0, 4.0, 0.0}}, {"sensor_lon_lat_h", {1.5, 42.5, 6000.0}}}},
+                                 {"prior", {{"sensor_enu_m", {0.0, 0.0, 0.0}}}},
+                                 {"inliers", 12}};
+  EXPECT_EQ(LocateHeadline(locate),
+            "locate: fix heading 30.000 deg, depression 40.000 deg, sensor lon 1.500000, lat 42.500000, h 6000.0 m; "
+            "5.0 m from the prior, 12 inliers; not converged: too few matches");
+  const nlohmann::json product_fix = {
+      {"converged", true}, {"cell_m", 10.0},
+      {"fix", {{"time_utc", "2018-10-11T22:46:39Z"},
+               {"frame", {{"sensor_lon_lat_height", {-118.4, 34.05, 12495.0}}}},
+               {"correction", {{"along_m", 40.0}, {"cross_m", -20.0}, {"up_m", 0.5}}},
+               {"error_against_annotated_track", {{"position_error_m", 21.5}, {"prior_position_error_m", 67.1}}}}}};
+  EXPECT_EQ(LocateHeadline(product_fix),
+            "locate: fix sensor lon -118.400000, lat 34.050000, h 12495.0 m at 2018-10-11T22:46:39Z, correction "
+            "along 40.0 m, cross -20.0 m, up 0.5 m; error against the annotated track 21.5 m (prior 67.1 m), 2.15 "
+            "cells; converged");
+  const nlohmann::json evaluate = {
+      {"trials", 20}, {"success_rate", 0.95}, {"success_cells", 2.0},
+      {"position_error_cells", {{"median", 0.6}, {"p95", 1.9}}}, {"position_error_m", {{"median", 13.2}}},
+      {"covariance_check", {{"along_m", {{"error_mean", -17.0}, {"error_sd", 7.0}}},
+                            {"cross_m", {{"error_mean", 2.0}, {"error_sd", 3.0}}}}},
+      {"seconds_per_fix", {{"median", 0.5}}}};
+  EXPECT_EQ(EvaluateHeadline(evaluate),
+            "evaluate: 19 of 20 trials succeeded (95.0 %, <= 2.000 cells), median error 0.60 cells (13.2 m), p95 "
+            "1.90 cells; bias along -17.0 m (sd 7.0), cross 2.0 m (sd 3.0); 0.50 s per fix");
+  const nlohmann::json validate = {{"correlation", {{{"looks", 1}, {"r_db", 0.5}}, {{"looks", 3}, {"r_db", 0.71}}}},
+                                   {"pixels_geolocated", 100}};
+  EXPECT_EQ(ValidateHeadline(validate),
+            "validate: simulated vs real dB correlation r 0.500 at 1x1 looks, r 0.710 at 3x3 looks; 100 pixels "
+            "geolocated");
+  EXPECT_EQ(GeocodeHeadline({{"width", 10}, {"height", 20}, {"pixel_size_m", 30.0}, {"crs", "EPSG:32631"},
+                             {"valid_pixels", 150}}),
+            "geocode: 10 x 20 px of 30.000 m in EPSG:32631, 150 pixels with a value");
+  EXPECT_EQ(ResectHeadline({{"heading_deg", 30.0}, {"depression_deg", 40.0}, {"range_spacing_m", 1.0},
+                            {"azimuth_spacing_m", 1.0}, {"rms_px", 0.0}, {"converged", true},
+                            {"sigma", {{"heading_deg", 0.001}, {"depression_deg", 0.002}}}}),
+            "resect: heading 30.000 +- 0.001 deg, depression 40.000 +- 0.002 deg, spacings 1.000 x 1.000 m (range x "
+            "azimuth), rms 0.000 px");
 }
 
 }  // namespace
