@@ -62,6 +62,11 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
       if (out.contains("pictures")) {
         for (const auto& p : out["pictures"]) context.out << p.get<std::string>() << "\n";
       }
+      // A consensus no better than chance: the JSON says why (exit 3).
+      if (!out.value("converged", true)) {
+        context.no_result = out.at("reason").get<std::string>();
+        return;
+      }
       context.out << FmatrixHeadline(out) << "\n";
     });
   }

@@ -1,14 +1,22 @@
 #include "gissar/geo/raster_io.h"
 
 #include <cpl_string.h>
+#include <cpl_vsi.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <sys/statvfs.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -26,6 +34,21 @@ struct GdalDatasetCloser {
   void operator()(GDALDataset* ds) const { GDALClose(ds); }
 };
 using DatasetPtr = std::unique_ptr<GDALDataset, GdalDatasetCloser>;
+
+// Runs a writer of `path`; an IoError it throws on a full disk (see
+// OutOfSpace) says so instead of GDAL's message ("IO error writing tag data",
+// "TIFFRewriteDirectory:Error fetching directory count", ...).
+template <typename Write>
+void WithSpaceCheck(const fs::path& path, const char* what, Write&& write) {
+  errno = 0;  // no stale errno from before the write
+  try {
+    write();
+  } catch (const IoError& e) {
+    const int error = errno;
+    if (OutOfSpace(error, path)) throw IoError(std::string(what) + ": " + NoSpaceMessage(path), path.string());
+    throw;
+  }
+}
 
 GDALDriver* Driver(const char* name) {
   EnsureGdal();
@@ -323,7 +346,7 @@ Metadata LonLatGeolocation(int lon_band, int lat_band) {
   return m;
 }
 
-void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
+static void WriteFloatGeoTiffUnchecked(const fs::path& path, const FloatRaster& raster) {
   const int nbands = static_cast<int>(raster.bands.size());
   if (nbands == 0) throw IoError("no band to write", path.string());
   const char* options[] = {"COMPRESS=ZSTD", "ZSTD_LEVEL=1", "TILED=YES", "PREDICTOR=3", "NUM_THREADS=ALL_CPUS",
@@ -370,7 +393,7 @@ void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
   FinishGeoTiff(std::move(ds), path, "AVERAGE", raster.overviews, raster.georeference.geolocation, planes);
 }
 
-void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width,
+static void WriteByteGeoTiffUnchecked(const fs::path& path, const std::vector<uint8_t>& data, int width,
                       int height, const Metadata& metadata, const Georeference& georeference,
                       const ByteCategories& categories, bool overviews) {
   const char* options[] = {"COMPRESS=ZSTD", "ZSTD_LEVEL=1", "TILED=YES", "NUM_THREADS=ALL_CPUS", nullptr};
@@ -418,7 +441,7 @@ void WriteComplexGeoTiff(const fs::path& path, const std::vector<float>& real, c
   WriteComplexGeoTiff(path, {ComplexBand{&real, &imag, "slc"}}, width, height, metadata, band_unit);
 }
 
-void WriteComplexGeoTiff(const fs::path& path, const std::vector<ComplexBand>& bands, int width, int height,
+static void WriteComplexGeoTiffUnchecked(const fs::path& path, const std::vector<ComplexBand>& bands, int width, int height,
                          const Metadata& metadata, const std::string& band_unit, const Georeference& georeference,
                          bool nodata_nan, bool overviews) {
   if (bands.empty()) throw IoError("a complex raster needs at least one band", path.string());
@@ -489,7 +512,7 @@ ComplexRaster ReadComplexRaster(const fs::path& path) {
   return raster;
 }
 
-void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,
+static void WritePngUnchecked(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,
               int channels) {
   DatasetPtr mem(Driver("MEM")->Create("", width, height, channels, GDT_Byte, nullptr));
   if (!mem) throw IoError("cannot stage PNG in memory", path.string());
@@ -502,11 +525,46 @@ void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width,
   }
   // zlib level 2 instead of GDAL's default 6: about 3x faster on
   // quicklooks and a few percent larger (docs/performance.md).
+  // Encoded in memory, then written here: GDAL's PNG driver does not report
+  // a failed close, so a PNG cut short by a full disk would pass as written.
+  static std::atomic<uint64_t> counter{0};
+  const std::string staging = "/vsimem/gissar_png_" + std::to_string(counter++) + "/image.png";
   const char* options[] = {"ZLEVEL=2", nullptr};
-  DatasetPtr png(Driver("PNG")->CreateCopy(path.c_str(), mem.get(), FALSE, const_cast<char**>(options), nullptr,
+  DatasetPtr png(Driver("PNG")->CreateCopy(staging.c_str(), mem.get(), FALSE, const_cast<char**>(options), nullptr,
                                            nullptr));
-  if (!png) throw IoError("cannot write PNG: " + LastGdalMessage(), path.string());
+  if (!png) {
+    const std::string message = LastGdalMessage();
+    VSIRmdirRecursive(fs::path(staging).parent_path().c_str());
+    throw IoError("cannot write PNG: " + message, path.string());
+  }
   CloseChecked(std::move(png), path);
+  vsi_l_offset size = 0;
+  GByte* bytes = VSIGetMemFileBuffer(staging.c_str(), &size, TRUE);  // taken over: freed below
+  VSIRmdirRecursive(fs::path(staging).parent_path().c_str());
+  if (bytes == nullptr) throw IoError("cannot write PNG: no encoded image", path.string());
+  if (path.string().rfind("/vsi", 0) == 0) {  // a GDAL virtual file
+    VSILFILE* file = VSIFOpenL(path.c_str(), "wb");
+    const bool written = file != nullptr && VSIFWriteL(bytes, 1, size_t(size), file) == size_t(size);
+    const bool closed = file != nullptr && VSIFCloseL(file) == 0;
+    VSIFree(bytes);
+    if (!written || !closed) throw IoError("cannot write PNG", path.string());
+    return;
+  }
+  errno = 0;
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  int error = file == nullptr ? errno : 0;
+  if (file != nullptr) {
+    if (std::fwrite(bytes, 1, size_t(size), file) != size_t(size)) error = errno;
+    if (std::fclose(file) != 0 && error == 0) error = errno;
+  }
+  VSIFree(bytes);
+  if (file == nullptr || error != 0) {
+    IoError failure(std::string(file == nullptr ? "cannot open PNG for writing: " : "failed writing PNG: ") +
+                        std::strerror(error),
+                    path.string());
+    errno = error;  // for WithSpaceCheck
+    throw failure;
+  }
 }
 
 Georeference ReadGeoreference(const fs::path& path) {
@@ -575,6 +633,52 @@ std::vector<uint8_t> ReadByteRaster(const fs::path& path, int* width, int* heigh
     throw InputError("cannot read raster: " + LastGdalMessage(), path.string());
   }
   return values;
+}
+
+// The writers: a failure on a full disk says so (WithSpaceCheck).
+void WriteFloatGeoTiff(const fs::path& path, const FloatRaster& raster) {
+  WithSpaceCheck(path, "failed writing raster", [&] { WriteFloatGeoTiffUnchecked(path, raster); });
+}
+
+void WriteByteGeoTiff(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,
+                      const Metadata& metadata, const Georeference& georeference, const ByteCategories& categories,
+                      bool overviews) {
+  WithSpaceCheck(path, "failed writing raster", [&] {
+    WriteByteGeoTiffUnchecked(path, data, width, height, metadata, georeference, categories, overviews);
+  });
+}
+
+void WriteComplexGeoTiff(const fs::path& path, const std::vector<ComplexBand>& bands, int width, int height,
+                         const Metadata& metadata, const std::string& band_unit, const Georeference& georeference,
+                         bool nodata_nan, bool overviews) {
+  WithSpaceCheck(path, "failed writing raster", [&] {
+    WriteComplexGeoTiffUnchecked(path, bands, width, height, metadata, band_unit, georeference, nodata_nan,
+                                 overviews);
+  });
+}
+
+void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width, int height, int channels) {
+  WithSpaceCheck(path, "failed writing PNG", [&] { WritePngUnchecked(path, data, width, height, channels); });
+}
+
+bool OutOfSpace(int error, const fs::path& path) {
+  if (error == ENOSPC || error == EDQUOT) return true;
+  std::error_code ec;
+  fs::path dir = fs::absolute(path, ec).lexically_normal().parent_path();
+  if (ec || dir.empty()) dir = ".";
+  struct statvfs st {};
+  // Blocks free to unprivileged users; root may still use the reserved
+  // ones (f_bfree), and a write fails for it only when those are gone too.
+  // No block accounting (e.g. /proc), or read-only (squashfs reports no free block).
+  if (statvfs(dir.c_str(), &st) != 0 || st.f_blocks == 0 || (st.f_flag & ST_RDONLY) != 0) return false;
+  return (geteuid() == 0 ? st.f_bfree : st.f_bavail) == 0;
+}
+
+std::string NoSpaceMessage(const fs::path& path) {
+  std::error_code ec;
+  fs::path dir = fs::absolute(path, ec).lexically_normal().parent_path();
+  if (ec || dir.empty()) dir = fs::current_path(ec);
+  return "no space left on the device holding " + dir.string();
 }
 
 }  // namespace gissar::geo

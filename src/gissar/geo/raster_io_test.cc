@@ -5,8 +5,10 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <cerrno>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <sstream>
@@ -310,6 +312,42 @@ TEST(RasterIoTest, WritingIntoMissingDirectoryIsAnIoError) {
   EXPECT_THROW(WriteFloatGeoTiff("/nonexistent/dir/x.tif", raster), IoError);
   FloatRaster large{1100, 2, {std::vector<float>(2200)}, {}, {}};
   EXPECT_THROW(WriteFloatGeoTiff("/nonexistent/dir/x.tif", large), IoError);
+}
+
+// A full disk is named as such, with the directory of the output, instead
+// of GDAL's "IO error writing tag data". /dev/full fails every write with
+// ENOSPC, as a full file system does.
+TEST(RasterIoTest, AFullDiskSaysNoSpaceLeft) {
+  ASSERT_TRUE(std::filesystem::exists("/dev/full"));
+  auto error_of = [](const std::function<void()>& write) -> std::string {
+    try {
+      write();
+    } catch (const IoError& e) {
+      EXPECT_EQ(e.where(), "/dev/full");
+      return e.message();
+    }
+    return "no error";
+  };
+  const std::string expected = "no space left on the device holding /dev";
+  FloatRaster small{4, 3, {std::vector<float>(12, 1.0f)}, {}, {}};
+  EXPECT_EQ(error_of([&] { WriteFloatGeoTiff("/dev/full", small); }), "failed writing raster: " + expected);
+  FloatRaster large{1100, 1100, {std::vector<float>(1100 * 1100, 2.0f)}, {}, {}};  // a COG
+  EXPECT_EQ(error_of([&] { WriteFloatGeoTiff("/dev/full", large); }), "failed writing raster: " + expected);
+  EXPECT_EQ(error_of([&] { WriteByteGeoTiff("/dev/full", std::vector<uint8_t>(12, 1), 4, 3, {}); }),
+            "failed writing raster: " + expected);
+  const std::vector<float> re(12, 1.0f), im(12, 0.5f);
+  EXPECT_EQ(error_of([&] { WriteComplexGeoTiff("/dev/full", re, im, 4, 3, {}); }),
+            "failed writing raster: " + expected);
+  EXPECT_EQ(error_of([&] { WritePng("/dev/full", std::vector<uint8_t>(12 * 3, 7), 4, 3, 3); }),
+            "failed writing PNG: " + expected);
+  // The test itself: errno ENOSPC or EDQUOT; other errors on a disk with
+  // room are not a full disk.
+  const std::filesystem::path dir = testing::MakeTempDir();
+  EXPECT_TRUE(OutOfSpace(ENOSPC, dir / "x.tif"));
+  EXPECT_TRUE(OutOfSpace(EDQUOT, dir / "x.tif"));
+  EXPECT_FALSE(OutOfSpace(EACCES, dir / "x.tif"));
+  EXPECT_FALSE(OutOfSpace(ENOENT, "/nonexistent/dir/x.tif"));
+  EXPECT_EQ(NoSpaceMessage(dir / "sub" / ".." / "x.tif"), "no space left on the device holding " + dir.string());
 }
 
 }  // namespace

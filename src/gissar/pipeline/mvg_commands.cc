@@ -1,6 +1,8 @@
 #include "gissar/pipeline/mvg_commands.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -11,6 +13,7 @@
 #include "gissar/image/quicklook.h"
 #include "gissar/mvg/affine_camera.h"
 #include "gissar/mvg/affine_fundamental.h"
+#include "gissar/mvg/consensus.h"
 #include "gissar/mvg/match_io.h"
 #include "gissar/mvg/registration.h"
 #include "gissar/mvg/resection.h"
@@ -64,13 +67,17 @@ std::vector<uint8_t> LoadGrey(const std::string& path, int* width, int* height, 
   return grey;
 }
 
-// The image pair with the matches and their epipolar lines under `f`.
-image::RgbImage EpipolarPicture(const std::vector<mvg::PointMatch>& matches, const Eigen::Matrix3d& f,
-                                const std::vector<int>& inliers, const std::string& image1,
-                                const std::string& image2) {
+// Grey quicklooks of an image pair, as EpipolarPlotInput holds them.
+image::EpipolarPlotInput LoadGreyPair(const std::string& image1, const std::string& image2) {
   image::EpipolarPlotInput in;
   in.image1 = LoadGrey(image1, &in.width1, &in.height1, nullptr);
   in.image2 = LoadGrey(image2, &in.width2, &in.height2, nullptr);
+  return in;
+}
+
+// The image pair (LoadGreyPair) with the matches and their epipolar lines under `f`.
+image::RgbImage EpipolarPicture(const std::vector<mvg::PointMatch>& matches, const Eigen::Matrix3d& f,
+                                const std::vector<int>& inliers, image::EpipolarPlotInput in) {
   std::vector<bool> inlier(matches.size(), false);
   for (int i : inliers) inlier[i] = true;
   in.inlier = inlier;
@@ -108,20 +115,80 @@ json FmatrixRequest::ToJson() const {
           {"plot", plot_prefix}, {"image1", image1}, {"image2", image2}};
 }
 
+namespace {
+
+// The final paths of fmatrix's outputs, each with the flag that names it:
+// two naming the same file (also through links or different spellings) are
+// a ConfigError naming both flags, before anything is read or written.
+void CheckFmatrixOutputsDiffer(const std::vector<std::pair<std::string, std::string>>& outputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      const auto& [a, a_flag] = outputs[j];
+      const auto& [b, b_flag] = outputs[i];
+      if (a.empty() || b.empty()) continue;
+      try {
+        CheckOutputsAreNotInputs({a, b}, {});
+      } catch (const ConfigError&) {
+        const std::string flags = a_flag == b_flag ? a_flag : a_flag + " and " + b_flag;
+        throw ConfigError(flags + " name the same file " + a + (a == b ? "" : " (also as " + b + ")"),
+                          a_flag == b_flag ? a_flag : a_flag + "/" + b_flag);
+      }
+    }
+  }
+}
+
+json ConsensusJson(const mvg::ConsensusTest& t) {
+  return {{"inliers", t.inliers},
+          {"matches", t.matches},
+          {"chance_inlier_probability", t.chance_probability},
+          {"expected_by_chance", t.expected_by_chance},
+          {"p_value", t.p_value},
+          {"required", t.required >= 0 ? json(t.required) : json(nullptr)},
+          {"hypotheses", t.hypotheses},
+          {"alpha", t.alpha},
+          {"significant", t.significant}};
+}
+
+std::string Figure(double value, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.*g", digits, value);
+  return text;
+}
+
+// Why a consensus no better than chance is no result.
+std::string NoConsensusReason(const mvg::ConsensusTest& t) {
+  std::string reason = "no consensus better than chance: the best F has " + std::to_string(t.inliers) +
+                       " inliers of " + std::to_string(t.matches) + " matches, " +
+                       Figure(t.expected_by_chance, 3) + " expected from unrelated matches (p-value " +
+                       Figure(t.p_value, 2) + "); ";
+  if (t.required >= 0) {
+    reason += std::to_string(t.required) + " are needed";
+  } else {
+    reason += "even all " + std::to_string(t.matches) + " would not be enough at this spread of the points";
+  }
+  return reason + " for a false-alarm rate of " + Figure(t.alpha, 2) + " over " + std::to_string(t.hypotheses) +
+         " RANSAC samples";
+}
+
+}  // namespace
+
 json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   const std::string kvd_png = options.plot_prefix.empty() ? "" : options.plot_prefix + "_kvd.png";
   const std::string epipolar_png = options.image1.empty() ? "" : options.plot_prefix + "_epipolar.png";
+  CheckFmatrixOutputsDiffer({{options.json_out, "--out"}, {kvd_png, "--plot"}, {epipolar_png, "--plot"}});
   CheckOutputsAreNotInputs({options.json_out, kvd_png, epipolar_png},
                            {options.matches, options.image1, options.image2});
   AtomicOutputs outputs;
   const fs::path json_path = outputs.Add(options.json_out);
-  const fs::path kvd_path = kvd_png.empty() ? fs::path() : outputs.Add(kvd_png);
-  const fs::path epipolar_path = epipolar_png.empty() ? fs::path() : outputs.Add(epipolar_png);
   const std::vector<mvg::PointMatch> matches = mvg::ReadMatchesCsv(options.matches);
   if (matches.size() < 4) {
     throw InputError("at least 4 matches are needed, got " + std::to_string(matches.size()), options.matches);
   }
+  // Every input is read before the outcome is decided: a bad image is an
+  // error even when there is no result to draw.
+  std::optional<image::EpipolarPlotInput> pair;
+  if (!options.image1.empty()) pair = LoadGreyPair(options.image1, options.image2);
   mvg::TwoViewOptions two;
   two.robust = options.robust;
   two.ransac.threshold_px = options.threshold_px;
@@ -154,36 +221,63 @@ json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, 
               {"version", VersionString()},
               {"options", options.ToJson()},
               {"inputs", json::array({InputFileRecord(options.matches)})},
-              {"convention", "[x2 y2 1] F [x1 y1 1]' = 0, F = [0 0 a; 0 0 b; c d e], ||(a,b,c,d)|| = 1, c > 0"},
+              {"num_matches", a.num_matches}};
+  if (pair) {
+    out["inputs"].push_back(InputFileRecord(options.image1));
+    out["inputs"].push_back(InputFileRecord(options.image2));
+  }
+  // RANSAC keeps the best of many hypotheses: its consensus must beat what
+  // unrelated matches give by chance (mvg/consensus.h), else no result. One
+  // fit to all matches (--no-ransac) tests no hypothesis.
+  if (options.robust) {
+    const int n = static_cast<int>(matches.size());
+    const mvg::ConsensusTest consensus = mvg::TestConsensus(
+        n, static_cast<int>(a.inliers.size()), mvg::ChanceInlierProbability(a.f, matches, options.threshold_px),
+        std::max<int64_t>(1, std::min<int64_t>(a.ransac_iterations, mvg::DistinctSamples(n, 4))));
+    out["consensus"] = ConsensusJson(consensus);
+    if (!consensus.significant) {
+      out["converged"] = false;
+      out["reason"] = NoConsensusReason(consensus);
+      out["ransac_iterations"] = a.ransac_iterations;
+      out["pictures"] = json::array();  // nothing to draw
+      WriteJsonFile(out, json_path);
+      outputs.Commit();
+      return out;
+    }
+  } else {
+    out["consensus"] = nullptr;
+  }
+  out["converged"] = true;
+  out["reason"] = nullptr;
+  out.update({{"convention", "[x2 y2 1] F [x1 y1 1]' = 0, F = [0 0 a; 0 0 b; c d e], ||(a,b,c,d)|| = 1, c > 0"},
               {"F", Matrix(a.f)},
               {"F_calibrated", Matrix(a.f_calibrated)},
               {"calibrated", options.range_spacing_m.has_value()},
-              {"num_matches", a.num_matches},
               {"inliers", a.inliers},
               {"rms_gs_px", a.rms_gs_px},
               {"rms_epi1_px", a.rms_epi1_px},
               {"rms_epi2_px", a.rms_epi2_px},
               {"ransac_iterations", a.ransac_iterations},
               {"kvd", {{"s", a.kvd.s}, {"theta_deg", a.kvd.theta_deg}, {"phi_deg", a.kvd.phi_deg},
-                       {"rho", "not recoverable from two views (bas-relief ambiguity); needs a third view"}}}};
+                       {"rho", "not recoverable from two views (bas-relief ambiguity); needs a third view"}}}});
   if (a.sar) {
     out["heading_change_deg"] = a.sar->heading_change_deg;
     out["rho_abs_deg_from_model"] = a.sar->rho_abs_deg;
     out["phi_residual_deg"] = a.sar->phi_residual_deg;
     out["heading_change_candidates"] = a.sar->candidates;
   }
-  if (!kvd_path.empty()) {
+  if (!kvd_png.empty()) {
+    const fs::path kvd_path = outputs.Add(kvd_png);
     const image::RgbImage kvd = image::KvdDiagram(a.kvd.s, a.kvd.theta_deg, a.kvd.phi_deg,
                                                   a.sar ? a.sar->heading_change_deg : 0.0, a.sar.has_value());
     geo::WritePng(kvd_path, kvd.rgb, kvd.width, kvd.height, 3);
     out["pictures"] = {kvd_png};
   }
-  if (!epipolar_path.empty()) {
-    const image::RgbImage pair = EpipolarPicture(matches, a.f, a.inliers, options.image1, options.image2);
-    geo::WritePng(epipolar_path, pair.rgb, pair.width, pair.height, 3);
+  if (!epipolar_png.empty()) {
+    const fs::path epipolar_path = outputs.Add(epipolar_png);
+    const image::RgbImage picture = EpipolarPicture(matches, a.f, a.inliers, std::move(*pair));
+    geo::WritePng(epipolar_path, picture.rgb, picture.width, picture.height, 3);
     out["pictures"].push_back(epipolar_png);
-    out["inputs"].push_back(InputFileRecord(options.image1));
-    out["inputs"].push_back(InputFileRecord(options.image2));
   }
   WriteJsonFile(out, json_path);
   outputs.Commit();
@@ -355,7 +449,8 @@ void RunEpipolar(const EpipolarRequest& options) {
     throw InputError(e.message(), options.matches);
   }
   if (!a) throw InputError("F is undetermined: the matches are degenerate", options.matches);
-  const image::RgbImage picture = EpipolarPicture(matches, a->f, a->inliers, options.image1, options.image2);
+  const image::RgbImage picture =
+      EpipolarPicture(matches, a->f, a->inliers, LoadGreyPair(options.image1, options.image2));
   geo::WritePng(png, picture.rgb, picture.width, picture.height, 3);
   outputs.Commit();
 }

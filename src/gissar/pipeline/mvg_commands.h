@@ -37,9 +37,16 @@ struct FmatrixRequest {
 };
 
 // Estimates F and its KvD decomposition (heading change with depressions).
-// Writes `json_out` (and the pictures of `plot_prefix`) and returns the JSON. Throws InputError for bad or
-// degenerate matches (fewer than 4, NaN, collinear/coplanar so that F is
-// undetermined, no RANSAC model), ConfigError for bad options.
+// Writes `json_out` (and the pictures of `plot_prefix`) and returns the JSON
+// ("converged": true). Throws InputError for bad or degenerate matches (fewer
+// than 4, NaN, collinear/coplanar so that F is undetermined, no RANSAC
+// model), ConfigError for bad options and for two outputs naming the same
+// file (the JSON, PREFIX_kvd.png, PREFIX_epipolar.png: the message names
+// both flags). With RANSAC, the consensus must beat chance
+// (mvg::TestConsensus, false-alarm rate mvg::kConsensusAlpha over the
+// samples drawn; the figures in "consensus"): otherwise no result, the JSON
+// written with "converged": false, a "reason", no F and no pictures (the
+// CLI exits 3).
 nlohmann::json RunFmatrix(const FmatrixRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 struct ResectRequest {

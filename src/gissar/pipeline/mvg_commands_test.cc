@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <random>
 #include <sstream>
@@ -215,6 +216,114 @@ TEST(FmatrixCommandTest, PlotsTheKvdDiagramAndTheEpipolarPair) {
   // An image without --plot is a configuration error.
   f.plot_prefix.clear();
   EXPECT_THROW(RunFmatrix(f, "test"), ConfigError);
+}
+
+// Two outputs resolving to one file (the JSON named like the plot's
+// PREFIX_kvd.png or PREFIX_epipolar.png, also through a link or another
+// spelling) are a ConfigError naming both flags, and nothing is written.
+TEST(FmatrixCommandTest, OutputsNamingTheSameFileAreAConfigErrorNamingBothFlags) {
+  const fs::path dir = testing::MakeTempDir();
+  const int w = 64, h = 64;
+  geo::WriteFloatGeoTiff(dir / "a.tif", {w, h, {std::vector<float>(size_t(w) * h, 1.0f)}, {}, {}});
+  FmatrixRequest f;
+  f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  f.plot_prefix = (dir / "OUT").string();
+  auto expect_collision = [&](const std::string& json_out, const std::string& what) {
+    f.json_out = json_out;
+    try {
+      RunFmatrix(f, "test");
+      ADD_FAILURE() << what << ": expected ConfigError";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.where(), "--out/--plot") << what;
+      EXPECT_NE(e.message().find("--out and --plot name the same file"), std::string::npos) << e.message();
+    }
+  };
+  expect_collision((dir / "OUT_kvd.png").string(), "JSON over the KvD diagram");
+  expect_collision((dir / "sub" / ".." / "OUT_kvd.png").string(), "another spelling");
+  f.image1 = f.image2 = (dir / "a.tif").string();
+  expect_collision((dir / "OUT_epipolar.png").string(), "JSON over the epipolar picture");
+  f.image1 = f.image2 = "";
+  // A link to the KvD diagram of an earlier run: the same file too.
+  std::ofstream(dir / "OUT_kvd.png") << "earlier";
+  fs::create_symlink(dir / "OUT_kvd.png", dir / "link.json");
+  expect_collision((dir / "link.json").string(), "a link");
+  std::ifstream earlier(dir / "OUT_kvd.png");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(earlier), {}), "earlier");
+  size_t entries = 0;
+  for (auto it = fs::directory_iterator(dir); it != fs::directory_iterator(); ++it) ++entries;
+  EXPECT_EQ(entries, 3u);  // a.tif, OUT_kvd.png, link.json: nothing new
+  // Distinct names are fine.
+  f.json_out = (dir / "OUT.json").string();
+  EXPECT_TRUE(RunFmatrix(f, "test")["converged"].get<bool>());
+}
+
+// Matches of two unrelated point sets: RANSAC finds an F with a few
+// inliers, but no more than chance gives, so there is no result: the JSON
+// says converged false and why, with the consensus figures; no F, no
+// heading change, no pictures.
+TEST(FmatrixCommandTest, UnrelatedMatchesAreNoResult) {
+  const fs::path dir = testing::MakeTempDir();
+  {
+    std::mt19937 rng(40);
+    std::uniform_real_distribution<double> coordinate(0.0, 1000.0);
+    std::ofstream csv(dir / "random.csv");
+    csv.precision(10);
+    csv << "x1,y1,x2,y2\n";
+    for (int i = 0; i < 40; ++i) {
+      const double x1 = coordinate(rng), y1 = coordinate(rng), x2 = coordinate(rng), y2 = coordinate(rng);
+      csv << x1 << "," << y1 << "," << x2 << "," << y2 << "\n";
+    }
+  }
+  FmatrixRequest f;
+  f.matches = (dir / "random.csv").string();
+  f.range_spacing_m = f.azimuth_spacing_m = Vector2d(1, 1);
+  f.depressions = Vector2d(40, 40);
+  f.json_out = (dir / "f.json").string();
+  f.plot_prefix = (dir / "f").string();
+  const nlohmann::json out = RunFmatrix(f, "test");
+  EXPECT_FALSE(out["converged"].get<bool>());
+  EXPECT_NE(out["reason"].get<std::string>().find("no consensus better than chance"), std::string::npos)
+      << out["reason"];
+  const nlohmann::json& c = out["consensus"];
+  EXPECT_GE(c["inliers"].get<int>(), 5);  // what RANSAC alone accepted
+  EXPECT_FALSE(c["significant"].get<bool>());
+  EXPECT_GT(c["p_value"].get<double>(), c["alpha"].get<double>() / c["hypotheses"].get<double>());
+  EXPECT_TRUE(c["required"].is_null() || c["required"].get<int>() > c["inliers"].get<int>());
+  EXPECT_GT(c["expected_by_chance"].get<double>(), 4.0);
+  EXPECT_FALSE(out.contains("F"));
+  EXPECT_FALSE(out.contains("heading_change_deg"));
+  nlohmann::json written;
+  std::ifstream(dir / "f.json") >> written;
+  EXPECT_EQ(written, out);
+  EXPECT_FALSE(fs::exists(dir / "f_kvd.png"));
+}
+
+// The reference cases (50 noise-free matches; 200 with noise and 30
+// outliers) are far beyond chance.
+TEST(FmatrixCommandTest, ReferenceCasesHaveASignificantConsensus) {
+  const fs::path dir = testing::MakeTempDir();
+  for (const char* name : {"affine/case2_thesis_dpsi30_dep40_noisefree_points.csv",
+                           "affine/case3_dpsi30_dep40_45_res1_0.75_points.csv"}) {
+    FmatrixRequest f;
+    f.matches = testing::TestDataPath(name).string();
+    f.json_out = (dir / "f.json").string();
+    const nlohmann::json out = RunFmatrix(f, "test");
+    EXPECT_TRUE(out["converged"].get<bool>()) << name;
+    EXPECT_TRUE(out["reason"].is_null()) << name;
+    const nlohmann::json& c = out["consensus"];
+    EXPECT_TRUE(c["significant"].get<bool>()) << name;
+    EXPECT_EQ(c["inliers"].get<size_t>(), out["inliers"].size()) << name;
+    EXPECT_LT(c["p_value"].get<double>(), 1e-30) << name;
+    EXPECT_LT(c["required"].get<int>(), 20) << name;
+  }
+  // One fit to all matches tests no hypothesis.
+  FmatrixRequest f;
+  f.matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  f.json_out = (dir / "g.json").string();
+  f.robust = false;
+  const nlohmann::json out = RunFmatrix(f, "test");
+  EXPECT_TRUE(out["converged"].get<bool>());
+  EXPECT_TRUE(out["consensus"].is_null());
 }
 
 TEST(RegisterCommandTest, RecoversAKnownAffineWarp) {

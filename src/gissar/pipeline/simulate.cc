@@ -745,7 +745,12 @@ DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) 
       x.push_back(geodetic.x());
       y.push_back(geodetic.y());
     }
-    crs.FromLonLat(x, y);
+    try {
+      crs.FromLonLat(x, y);
+    } catch (const InputError&) {  // a footprint beyond the domain of the DEM's CRS: read the whole DEM
+      plan.reason = "the image's footprint reaches outside the domain of the DEM's CRS";
+      return plan;
+    }
     double col_min = 1e300, col_max = -1e300, row_min = 1e300, row_max = -1e300;
     for (size_t i = 0; i < x.size(); ++i) {
       double c = 0.0, r = 0.0;

@@ -1,9 +1,11 @@
 #include "gissar/scene/scene_io.h"
 
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 
+#include "gissar/geo/raster_io.h"
 #include "gissar/util/error.h"
 
 namespace gissar::scene {
@@ -12,6 +14,17 @@ namespace {
 
 constexpr char kMagic[8] = {'G', 'I', 'S', 'S', 'A', 'R', 'S', 'C'};
 constexpr char kEndMagic[8] = {'G', 'S', 'C', 'N', 'E', 'N', 'D', '1'};
+
+// Closes `out` and throws IoError("<what>", path) when a write or the close
+// failed: on a full disk (geo::OutOfSpace), "<what>: no space left on the
+// device holding DIR".
+void CloseChecked(std::ofstream& out, const fs::path& path, const std::string& what) {
+  out.close();
+  if (out) return;
+  const int error = errno;
+  if (geo::OutOfSpace(error, path)) throw IoError(what + ": " + geo::NoSpaceMessage(path), path.string());
+  throw IoError(what, path.string());
+}
 
 template <typename T>
 void Put(std::ofstream& out, const T& value) {
@@ -54,6 +67,7 @@ void WriteScene(const fs::path& path, const SceneFile& scene) {
     WriteScene(path, stored);
     return;
   }
+  errno = 0;  // no stale errno from before the write
   std::ofstream out(path, std::ios::binary);
   if (!out) throw IoError("cannot open scene file for writing", path.string());
   nlohmann::json header = {
@@ -111,8 +125,7 @@ void WriteScene(const fs::path& path, const SceneFile& scene) {
               static_cast<std::streamsize>(mesh.shading_normals.size() * sizeof(Eigen::Vector3f)));
   }
   out.write(kEndMagic, sizeof(kEndMagic));
-  out.close();
-  if (!out) throw IoError("failed writing scene file", path.string());
+  CloseChecked(out, path, "failed writing scene file");
 }
 
 SceneFile ReadScene(const fs::path& path) {
@@ -244,6 +257,7 @@ SceneFile ReadScene(const fs::path& path) {
 
 void WritePly(const fs::path& path, const TriangleMesh& mesh, const std::vector<std::string>& class_names,
               const std::vector<std::string>& header_comments) {
+  errno = 0;
   std::ofstream out(path, std::ios::binary);
   if (!out) throw IoError("cannot open PLY for writing", path.string());
   out << "ply\nformat binary_little_endian 1.0\ncomment gissar scene, ENU metres\n";
@@ -263,8 +277,7 @@ void WritePly(const fs::path& path, const TriangleMesh& mesh, const std::vector<
     out.write(reinterpret_cast<const char*>(face.data()), 3 * sizeof(int));
     Put(out, mesh.classes[t]);
   }
-  out.close();
-  if (!out) throw IoError("failed writing PLY", path.string());
+  CloseChecked(out, path, "failed writing PLY");
 }
 
 void WriteObj(const fs::path& path, const TriangleMesh& mesh, const std::vector<std::string>& class_names,
@@ -279,6 +292,7 @@ void WriteObj(const fs::path& path, const fs::path& mtl_path, const std::string&
               const std::vector<std::array<uint8_t, 3>>& class_colours,
               const std::vector<std::string>& header_comments) {
   {
+    errno = 0;
     std::ofstream mtl(mtl_path);
     if (!mtl) throw IoError("cannot open MTL for writing", mtl_path.string());
     for (size_t c = 0; c < class_names.size(); ++c) {
@@ -286,8 +300,9 @@ void WriteObj(const fs::path& path, const fs::path& mtl_path, const std::string&
       mtl << "newmtl " << class_names[c] << "\nKd " << rgb[0] / 255.0 << " " << rgb[1] / 255.0 << " "
           << rgb[2] / 255.0 << "\n";
     }
-    if (!mtl) throw IoError("failed writing MTL", mtl_path.string());
+    CloseChecked(mtl, mtl_path, "failed writing MTL");  // a short file fails only when flushed
   }
+  errno = 0;
   std::ofstream out(path);
   if (!out) throw IoError("cannot open OBJ for writing", path.string());
   out << "# gissar scene, ENU metres (x east, y north, z up)\n";
@@ -308,8 +323,7 @@ void WriteObj(const fs::path& path, const fs::path& mtl_path, const std::string&
       out << "f " << f[0] + 1 << " " << f[1] + 1 << " " << f[2] + 1 << "\n";
     }
   }
-  out.close();
-  if (!out) throw IoError("failed writing OBJ", path.string());
+  CloseChecked(out, path, "failed writing OBJ");
 }
 
 }  // namespace gissar::scene

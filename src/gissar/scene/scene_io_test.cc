@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "gissar/util/error.h"
@@ -190,6 +191,36 @@ TEST(SceneIoTest, ObjHasEveryVertexFaceAndClassMaterial) {
   std::stringstream text;
   text << mtl.rdbuf();
   EXPECT_NE(text.str().find("newmtl water\nKd 0 0 1"), std::string::npos);
+}
+
+// A full disk is named as such, with the directory of the output, instead
+// of "failed writing scene file" alone. /dev/full fails every write with
+// ENOSPC, as a full file system does.
+TEST(SceneIoTest, AFullDiskSaysNoSpaceLeft) {
+  ASSERT_TRUE(fs::exists("/dev/full"));
+  auto error_of = [](const std::function<void()>& write) -> std::string {
+    try {
+      write();
+    } catch (const IoError& e) {
+      EXPECT_EQ(e.where(), "/dev/full");
+      return e.message();
+    }
+    return "no error";
+  };
+  const SceneFile s = Sample();
+  const std::string expected = ": no space left on the device holding /dev";
+  EXPECT_EQ(error_of([&] { WriteScene("/dev/full", s); }), "failed writing scene file" + expected);
+  EXPECT_EQ(error_of([&] { WritePly("/dev/full", s.mesh, s.class_names); }), "failed writing PLY" + expected);
+  const fs::path dir = testing::MakeTempDir();
+  EXPECT_EQ(error_of([&] { WriteObj("/dev/full", dir / "s.mtl", "s.mtl", s.mesh, s.class_names, {}); }),
+            "failed writing OBJ" + expected);
+  // The MTL is short: its failure shows only when it is flushed.
+  try {
+    WriteObj(dir / "s.obj", "/dev/full", "full.mtl", s.mesh, s.class_names, {});
+    ADD_FAILURE() << "expected IoError";
+  } catch (const IoError& e) {
+    EXPECT_EQ(e.message(), "failed writing MTL" + expected);
+  }
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <sstream>
+#include <string>
 
 #include "gissar/util/error.h"
 
@@ -20,6 +21,19 @@ std::string Num(double v) {
   s.precision(17);
   s << v;
   return s.str();
+}
+
+// A given side (`size` pixels of `spacing_m`, named `flag`) must not span
+// more than kMaxImageExtentM: its footprint would leave the Earth.
+void CheckGivenExtent(int size, double spacing_m, const char* flag, const char* spacing_flag) {
+  const double extent_m = double(size) * spacing_m;
+  if (size <= 0 || extent_m <= kMaxImageExtentM) return;
+  std::ostringstream text;
+  text << flag << " " << size << " at " << spacing_m << " m per pixel spans " << std::llround(extent_m / 1e3)
+       << " km, beyond the Earth's radius (" << std::llround(kMaxImageExtentM / 1e3)
+       << " km): the image's footprint would leave the Earth; use a smaller " << flag << " or a finer "
+       << spacing_flag;
+  throw ConfigError(text.str(), "--width/--height");
 }
 
 }  // namespace
@@ -78,6 +92,12 @@ void SarGeometryOptions::Check() const {
                       "--azimuth-spacing");
   }
   if (width < 0 || height < 0) throw ConfigError("image size must not be negative", "--width/--height");
+  // A given size: checked here, before anything projects its footprint.
+  if (width > 0 && height > 0 && double(width) * double(height) > double(kMaxImagePixels)) {
+    throw ConfigError("image of " + std::to_string(width) + " x " + std::to_string(height) + " pixels is over the " +
+                          std::to_string(kMaxImagePixels) + "-pixel limit; use a smaller --width/--height",
+                      "--width/--height");
+  }
 }
 
 SarGeometry::SarGeometry(const SarGeometryOptions& options, const Eigen::Vector3d& scene_centre,
@@ -97,7 +117,16 @@ SarGeometry SarGeometry::Covering(const SarGeometryOptions& options,
                                   const std::vector<Eigen::Vector3f>& points, int margin_px,
                                   int64_t max_pixels) {
   options.Check();
+  // A given size, with the spacings resolved: before anything projects its
+  // footprint (a DEM window, a map projection).
+  CheckGivenExtent(options.width, options.range_spacing_m, "--width", "--range-spacing");
+  CheckGivenExtent(options.height, options.azimuth_spacing_m, "--height", "--azimuth-spacing");
   if (options.width > 0 && options.height > 0) {
+    if (double(options.width) * double(options.height) > static_cast<double>(max_pixels)) {
+      throw ConfigError("image of " + std::to_string(options.width) + " x " + std::to_string(options.height) +
+                            " pixels is too large; use a smaller --width/--height",
+                        "--width/--height");
+    }
     return SarGeometry(options, scene_centre, (options.width - 1) / 2.0,
                        (options.height - 1) / 2.0, options.width, options.height);
   }
@@ -125,10 +154,14 @@ SarGeometry SarGeometry::Covering(const SarGeometryOptions& options,
   const double height_d = std::ceil(rmax + v0) + margin_px + 1;
   int width = options.width > 0 ? options.width : 0;
   int height = options.height > 0 ? options.height : 0;
-  if (width_d * height_d > static_cast<double>(max_pixels) || width_d > 1e9 || height_d > 1e9) {
-    throw ConfigError("image of " + Num(width_d) + " x " + Num(height_d) +
-                          " pixels is too large; use coarser pixel spacing or a smaller scene",
-                      "--range-spacing/--azimuth-spacing");
+  // The size of the image made: a given side replaces the covering one.
+  const double final_width = width > 0 ? width : width_d, final_height = height > 0 ? height : height_d;
+  if (final_width * final_height > static_cast<double>(max_pixels) || final_width > 1e9 || final_height > 1e9) {
+    const bool given = width > 0 || height > 0;
+    throw ConfigError("image of " + Num(final_width) + " x " + Num(final_height) + " pixels is too large; " +
+                          (given ? "use a smaller --width/--height or coarser pixel spacing"
+                                 : "use coarser pixel spacing or a smaller scene"),
+                      given ? "--width/--height" : "--range-spacing/--azimuth-spacing");
   }
   return SarGeometry(options, scene_centre, width > 0 ? (width - 1) / 2.0 : u0,
                      height > 0 ? (height - 1) / 2.0 : v0,

@@ -15,6 +15,7 @@
 //    range |X - P(a)|; depression varies across the swath.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -44,6 +45,15 @@ Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSid
 inline constexpr double kMaxSlantRangeM = 1e8;
 inline constexpr double kMaxAbsHeadingDeg = 1e4;
 inline constexpr double kMaxPixelSpacingM = 1e5;
+// Most pixels of an image (1024 Mpx: 64 GiB of simulation planes), whether
+// its size is given or covers the scene.
+inline constexpr int64_t kMaxImagePixels = int64_t{1} << 30;
+// Largest extent of an image on either axis (size x pixel spacing): the
+// Earth's mean radius. The image plane is tangent to the Earth at the scene
+// centre; a footprint reaching this far from it leaves the Earth (its far
+// range grazes the surface once the Earth has curved by the depression
+// angle, i.e. within R x depression < R), so no map projection holds it.
+inline constexpr double kMaxImageExtentM = 6.371e6;
 
 struct SarGeometryOptions {
   double heading_deg = 0.0;       // flight direction, clockwise from north, |h| <= kMaxAbsHeadingDeg
@@ -57,7 +67,10 @@ struct SarGeometryOptions {
   int height = 0;  // image rows (azimuth); 0 = cover the whole scene
 
   // Throws ConfigError naming the option when a value is out of range or
-  // not finite (spacings must already be resolved to positive values).
+  // not finite (spacings must already be resolved to positive values), and
+  // for --width/--height when a given size exceeds kMaxImagePixels (which
+  // the spacings do not change: callers may check options whose spacings
+  // are placeholders).
   void Check() const;
 };
 
@@ -71,11 +84,14 @@ class SarGeometry {
   // The geometry whose image just covers every point of `points` (plus
   // `margin_px` on each side); with options.width/height set, that size
   // centred on Xc instead. Throws ConfigError when the image would exceed
-  // `max_pixels`.
+  // `max_pixels` (naming --width/--height when a size was given, else the
+  // spacings), and first, for --width/--height, when a given side spans
+  // more than kMaxImageExtentM at its spacing (width x range spacing,
+  // height x azimuth spacing).
   static SarGeometry Covering(const SarGeometryOptions& options,
                               const Eigen::Vector3d& scene_centre,
                               const std::vector<Eigen::Vector3f>& points, int margin_px = 2,
-                              int64_t max_pixels = int64_t{1} << 30);
+                              int64_t max_pixels = kMaxImagePixels);
 
   const SarGeometryOptions& options() const { return options_; }
   ProjectionMode mode() const { return options_.mode; }

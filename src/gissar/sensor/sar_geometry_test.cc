@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -183,6 +184,53 @@ TEST(SarGeometryTest, RejectsBadOptions) {
   o.azimuth_spacing_m = -2.0;
   EXPECT_THROW(o.Check(), ConfigError);
   EXPECT_THROW(ParseProjectionMode("fisheye"), ConfigError);
+}
+
+// A given size is refused before anything projects its footprint: over
+// kMaxImagePixels (from the options alone, whatever the spacings), or
+// spanning more than the Earth's radius on an axis at the resolved spacing
+// (gissar simulate --width 2147483647 --height 1 once reached PROJ with
+// points off the Earth: "Reprojection failed, err = 2050").
+TEST(SarGeometryTest, RejectsGivenSizesTooLargeOrLeavingTheEarth) {
+  auto error_of = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.where(), "--width/--height");
+      return e.message();
+    }
+    return "";
+  };
+  const std::vector<Eigen::Vector3f> points = {{-50, -40, 0}, {60, 30, 10}};
+  SarGeometryOptions o = Options(0.0, 40.0, 90.0, 90.0);
+  auto check = [&] { o.Check(); };
+  auto covering = [&] { SarGeometry::Covering(o, Eigen::Vector3d::Zero(), points); };
+  o.width = 2147483647;
+  o.height = 1;
+  EXPECT_EQ(error_of(check),
+            "image of 2147483647 x 1 pixels is over the 1073741824-pixel limit; use a smaller --width/--height");
+  o.width = 100000;  // 9000 km at 90 m
+  EXPECT_EQ(error_of(check), "");  // the spacing may be a placeholder in Check
+  EXPECT_EQ(error_of(covering),
+            "--width 100000 at 90 m per pixel spans 9000 km, beyond the Earth's radius (6371 km): the image's "
+            "footprint would leave the Earth; use a smaller --width or a finer --range-spacing");
+  o.width = 1;
+  o.height = 100000;
+  EXPECT_NE(error_of(covering).find("--height 100000 at 90 m per pixel spans 9000 km"), std::string::npos);
+  o.height = 70000;  // 6300 km: within the Earth's radius
+  EXPECT_EQ(error_of(covering), "");
+  o.height = 0;  // covering the points
+  EXPECT_EQ(error_of(covering), "");
+  // One side given, the other covering: the image made is checked.
+  o = Options(0.0, 40.0, 0.001, 1.0);
+  o.width = 2147483647;  // 2147 km
+  EXPECT_NE(error_of(covering).find("pixels is too large; use a smaller --width/--height"), std::string::npos)
+      << error_of(covering);
+  // Both given, over a caller's smaller limit.
+  o.width = 3000;
+  o.height = 3000;
+  EXPECT_THROW(SarGeometry::Covering(o, Eigen::Vector3d::Zero(), points, 2, 1000000), ConfigError);
+  EXPECT_EQ(SarGeometry::Covering(o, Eigen::Vector3d::Zero(), points).width(), 3000);
 }
 
 }  // namespace
