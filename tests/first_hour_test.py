@@ -19,7 +19,7 @@ import sys
 import tempfile
 
 COMMANDS = ["simulate", "scene build", "scene info", "sequence", "ortho", "fmatrix", "resect", "register",
-            "epipolar", "composite", "locate", "evaluate", "matchpair", "validate", "geocode"]
+            "epipolar", "composite", "locate", "evaluate", "matchpair", "validate", "geocode", "pta", "polsar"]
 failures = []
 checks = [0]
 

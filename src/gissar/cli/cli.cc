@@ -124,6 +124,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   AddNavCommands(app, registry);
   AddProductCommands(app, registry);
   AddGeocodeCommand(app, registry);
+  AddPolarimetryCommands(app, registry);
   // `gissar corridor` runs the Python package's command in place of this
   // process (apps/gissar_main.cc) before this parser sees it; listed here so
   // that `gissar --help` names every command.

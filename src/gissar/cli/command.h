@@ -143,5 +143,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry);
 void AddProductCommands(CLI::App& root, CommandRegistry& registry);
 // Declares `gissar geocode` (geocode_command.cc).
 void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry);
+// Declares `gissar pta` and `gissar polsar` (polarimetry_command.cc).
+void AddPolarimetryCommands(CLI::App& root, CommandRegistry& registry);
 
 }  // namespace gissar::cli

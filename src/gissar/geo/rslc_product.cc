@@ -335,8 +335,61 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
     if (r.Exists(f, att + "/eulerAngles")) p.attitude.euler_deg = Rows3(r.Doubles(f, att + "/eulerAngles", 3));
   }
 
+  for (const char* pol : {"HH", "HV", "VH", "VV"}) {
+    if (r.Exists(f, freq + "/" + pol)) p.stored_polarizations.push_back(pol);
+  }
+
+  // The beta0 calibration LUT (optional).
+  if (options.read_calibration) {
+    const std::string cal = root + "/metadata/calibrationInformation";
+    const std::string values_path = cal + "/geometry/beta0";
+    if (r.Exists(f, values_path)) {
+      RslcCalibrationLut lut;
+      lut.dataset = values_path;
+      std::string axes = cal + "/geometry";
+      if (!r.Exists(f, axes + "/zeroDopplerTime") || !r.Exists(f, axes + "/slantRange")) axes = cal;
+      const std::string t_path = axes + "/zeroDopplerTime", r_path = axes + "/slantRange";
+      if (!r.Exists(f, t_path) || !r.Exists(f, r_path)) {
+        throw InputError("calibration LUT " + values_path + " has no zeroDopplerTime/slantRange axes", where);
+      }
+      lut.time_s = r.Doubles(f, t_path);
+      const double lut_epoch = EpochSeconds(r.Units(f, t_path), where + ":" + t_path, nullptr);
+      for (double& t : lut.time_s) t += lut_epoch - epoch;
+      lut.slant_range_m = r.Doubles(f, r_path);
+      H5Id lut_ds = r.OpenDataset(f, values_path);
+      const std::vector<hsize_t> lut_dims = r.Shape(lut_ds.get());
+      if (lut_dims.size() != 2 || lut_dims[0] != lut.time_s.size() || lut_dims[1] != lut.slant_range_m.size()) {
+        throw InputError("calibration LUT " + values_path + " does not match its " + std::to_string(lut.time_s.size()) +
+                             " x " + std::to_string(lut.slant_range_m.size()) + " axes",
+                         where);
+      }
+      if (lut.time_s.empty() || lut.slant_range_m.empty()) {
+        throw InputError("calibration LUT " + values_path + " is empty", where);
+      }
+      for (const std::vector<double>* axis : {&lut.time_s, &lut.slant_range_m}) {
+        for (size_t i = 1; i < axis->size(); ++i) {
+          if (!((*axis)[i] > (*axis)[i - 1])) {
+            throw InputError("axes of the calibration LUT " + values_path + " are not increasing", where);
+          }
+        }
+      }
+      lut.values = r.Doubles(f, values_path);  // non-finite values are an InputError there
+      for (double v : lut.values) {
+        if (!(v > 0.0)) throw InputError("calibration LUT " + values_path + " holds a value <= 0", where);
+      }
+      p.beta0_lut = std::move(lut);
+    }
+  }
+
   // The SLC layer.
   const std::string layer = freq + "/" + options.polarization;
+  if (!r.Exists(f, layer)) {
+    std::string stored;
+    for (const std::string& pol : p.stored_polarizations) stored += (stored.empty() ? "" : ", ") + pol;
+    throw InputError("product has no dataset " + layer + " (polarisations stored: " +
+                         (stored.empty() ? std::string("none") : stored) + ")",
+                     where);
+  }
   H5Id ds = r.OpenDataset(f, layer);
   const std::vector<hsize_t> dims = r.Shape(ds.get());
   if (dims.size() != 2 || dims[0] != hsize_t(p.rows()) || dims[1] != hsize_t(p.cols())) {
@@ -344,7 +397,7 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
                          std::to_string(p.cols()) + " radar grid",
                      where);
   }
-  if (options.read_amplitude) {
+  if (options.read_amplitude || options.read_complex) {
     H5Id type(H5Dget_type(ds.get()), H5Tclose);
     if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) {
       throw InputError("SLC layer " + layer + " is not complex (compound r, i)", where);
@@ -356,13 +409,45 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
     if (H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, slc.data()) < 0) {
       throw InputError("cannot read SLC layer " + layer + " (members must be named r and i)", where);
     }
-    p.amplitude.resize(slc.size());
-    for (size_t k = 0; k < slc.size(); ++k) {
-      const float a = std::abs(slc[k]);
-      p.amplitude[k] = std::isfinite(a) ? a : 0.0f;
+    if (options.read_amplitude) {
+      p.amplitude.resize(slc.size());
+      for (size_t k = 0; k < slc.size(); ++k) {
+        const float a = std::abs(slc[k]);
+        p.amplitude[k] = std::isfinite(a) ? a : 0.0f;
+      }
     }
+    if (options.read_complex) p.slc = std::move(slc);
   }
   return p;
+}
+
+double RslcCalibrationLut::At(double time, double range) const {
+  // Index and weight of `x` on an increasing axis, clamped to its ends.
+  auto locate = [](const std::vector<double>& axis, double x, size_t* i0, double* w) {
+    if (axis.size() < 2 || !(x > axis.front())) {
+      *i0 = 0;
+      *w = 0.0;
+      return;
+    }
+    if (!(x < axis.back())) {
+      *i0 = axis.size() - 2;
+      *w = 1.0;
+      return;
+    }
+    const size_t hi = size_t(std::upper_bound(axis.begin(), axis.end(), x) - axis.begin());
+    *i0 = hi - 1;
+    *w = (x - axis[hi - 1]) / (axis[hi] - axis[hi - 1]);
+  };
+  size_t it = 0, ir = 0;
+  double wt = 0.0, wr = 0.0;
+  locate(time_s, time, &it, &wt);
+  locate(slant_range_m, range, &ir, &wr);
+  const size_t nr = slant_range_m.size();
+  auto v = [&](size_t i, size_t j) {
+    return values[std::min(i, time_s.size() - 1) * nr + std::min(j, nr - 1)];
+  };
+  return (1.0 - wt) * ((1.0 - wr) * v(it, ir) + wr * v(it, ir + 1)) +
+         wt * ((1.0 - wr) * v(it + 1, ir) + wr * v(it + 1, ir + 1));
 }
 
 namespace {

@@ -15,6 +15,7 @@
 
 #include <complex>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,22 @@ struct RslcAttitude {
   std::vector<Eigen::Vector3d> euler_deg;   // as stored (may be all zero)
 };
 
+// A 2-D calibration look-up table of the product
+// (metadata/calibrationInformation): values on a (zero-Doppler time, slant
+// range) grid. The beta0 LUT is read as the linear factor that turns |DN|^2
+// into beta0 (beta0 = LUT x |DN|^2; NISAR RSLCs are beta0-calibrated by
+// design and store 1 there).
+struct RslcCalibrationLut {
+  std::string dataset;                // HDF5 path of the values
+  std::vector<double> time_s;         // seconds since the product's epoch, increasing
+  std::vector<double> slant_range_m;  // increasing
+  std::vector<double> values;         // time_s.size() x slant_range_m.size(), row-major
+  // Bilinear value at (time_s, slant_range_m), clamped to the table's
+  // extent (the edge value beyond it; a single row or column is constant
+  // along that axis).
+  double At(double time_s, double slant_range_m) const;
+};
+
 struct RslcProduct {
   std::string path;
   std::string mission;              // identification/missionId (may be empty)
@@ -53,6 +70,16 @@ struct RslcProduct {
   RslcAttitude attitude;                    // empty when the product has none
   // SLC amplitude |s| of the layer, rows x cols (read when requested).
   std::vector<float> amplitude;
+  // The complex SLC of the layer, rows x cols, as stored (non-finite
+  // samples kept); read with RslcReadOptions::read_complex.
+  std::vector<std::complex<float>> slc;
+  // The polarisation layers the band really holds as datasets, in the
+  // order HH, HV, VH, VV (listOfPolarizations may list more than a cropped
+  // file keeps).
+  std::vector<std::string> stored_polarizations;
+  // metadata/calibrationInformation/geometry/beta0 with its axes, read with
+  // RslcReadOptions::read_calibration when the product has it.
+  std::optional<RslcCalibrationLut> beta0_lut;
 
   int rows() const { return static_cast<int>(zero_doppler_time_s.size()); }
   int cols() const { return static_cast<int>(slant_range_m.size()); }
@@ -70,6 +97,15 @@ struct RslcReadOptions {
   // caller will allocate for it). Over it: ConfigError naming --max-memory.
   int64_t max_bytes = 0;
   double bytes_per_pixel = 12.0;  // the complex SLC read and its amplitude
+  // Keep the complex layer in RslcProduct::slc (8 bytes per pixel more).
+  bool read_complex = false;
+  // Read the beta0 calibration LUT (RslcProduct::beta0_lut) when present:
+  // the values under metadata/calibrationInformation/geometry/beta0 and its
+  // axes zeroDopplerTime and slantRange (in geometry/, or in
+  // calibrationInformation/ as in older products). A LUT present but
+  // malformed (shape not matching its axes, axes not increasing, values not
+  // finite or <= 0) is an InputError naming the dataset.
+  bool read_calibration = false;
 };
 
 // Speed of light in vacuum, m/s.

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <complex>
 #include <fstream>
 #include <numeric>
 #include <random>
@@ -54,6 +55,60 @@ TEST(RslcProductTest, ReadsSanAndrewsChipWithFourPolarizations) {
   EXPECT_THROW(ReadRslcProduct(DataPath("uavsar/SanAnd_129.h5"), {"C", "HH", true}), ConfigError);
 }
 
+// The ALOS-1 PALSAR quad-pol chip in NISAR RSLC layout (data/alos_rio_branco):
+// sample values checked with gdal_translate of the HDF5 layers.
+TEST(RslcProductTest, ReadsAlosQuadPolChipWithItsComplexLayersAndBeta0Lut) {
+  const std::filesystem::path path = DataPath("alos_rio_branco/calib_RSLC_ALPSRP025826990_RIO_BRANCO_CR.h5");
+  RslcReadOptions options;
+  options.read_amplitude = false;
+  options.read_complex = true;
+  options.read_calibration = true;
+  const RslcProduct p = ReadRslcProduct(path, options);
+  EXPECT_EQ(p.rows(), 100);
+  EXPECT_EQ(p.cols(), 50);
+  EXPECT_EQ(p.mission, "ALOS");
+  EXPECT_FALSE(p.look_left);
+  EXPECT_EQ(p.stored_polarizations, (std::vector<std::string>{"HH", "HV", "VH", "VV"}));
+  EXPECT_TRUE(p.amplitude.empty());
+  ASSERT_EQ(p.slc.size(), 5000u);
+  EXPECT_EQ(p.slc[0], std::complex<float>(-122.5625f, -411.5f));
+  EXPECT_EQ(p.slc[1], std::complex<float>(-704.0f, 2.3046875f));
+  EXPECT_EQ(p.slc[50 * 50 + 25], std::complex<float>(7356.0f, 20448.0f));  // the corner reflector
+  ASSERT_TRUE(p.beta0_lut.has_value());
+  EXPECT_EQ(p.beta0_lut->dataset, "/science/LSAR/RSLC/metadata/calibrationInformation/geometry/beta0");
+  EXPECT_EQ(p.beta0_lut->time_s.size(), 2u);
+  EXPECT_EQ(p.beta0_lut->slant_range_m.size(), 1u);
+  EXPECT_DOUBLE_EQ(p.beta0_lut->At(p.zero_doppler_time_s[50], p.slant_range_m[25]), 1.0);
+  // Without the flags: no LUT, amplitude only (the default behaviour).
+  const RslcProduct q = ReadRslcProduct(path, {"A", "VV", true});
+  EXPECT_FALSE(q.beta0_lut.has_value());
+  EXPECT_TRUE(q.slc.empty());
+  ASSERT_EQ(q.amplitude.size(), 5000u);
+  EXPECT_NEAR(q.amplitude[50 * 50 + 25], std::abs(std::complex<float>(-1886.0f, 16432.0f)), 1e-2);
+}
+
+TEST(RslcProductTest, CalibrationLutIsBilinearAndClamped) {
+  RslcCalibrationLut lut;
+  lut.time_s = {0.0, 10.0};
+  lut.slant_range_m = {100.0, 200.0, 300.0};
+  lut.values = {1.0, 2.0, 3.0, 11.0, 12.0, 13.0};
+  EXPECT_DOUBLE_EQ(lut.At(0.0, 100.0), 1.0);
+  EXPECT_DOUBLE_EQ(lut.At(5.0, 150.0), 6.5);
+  EXPECT_DOUBLE_EQ(lut.At(-5.0, 50.0), 1.0);     // clamped
+  EXPECT_DOUBLE_EQ(lut.At(20.0, 1000.0), 13.0);  // clamped
+  EXPECT_DOUBLE_EQ(lut.At(10.0, 250.0), 12.5);
+}
+
+// SanAnd lists four polarisations but the cropped file stores only HH.
+TEST(RslcProductTest, MissingLayerNamesTheStoredOnes) {
+  try {
+    ReadRslcProduct(DataPath("uavsar/SanAnd_129.h5"), {"A", "HV", true});
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("polarisations stored: HH"), std::string::npos) << e.what();
+  }
+}
+
 RslcProduct Synthetic() {
   RslcProduct p;
   p.epoch_utc = "2020-01-02 03:04:05";
@@ -82,6 +137,29 @@ TEST(RslcProductTest, WriterRoundTrip) {
   EXPECT_EQ(q.orbit.time_s, p.orbit.time_s);
   EXPECT_EQ(q.amplitude, p.amplitude);
   EXPECT_NEAR(q.wavelength_m, 0.0554658, 1e-7);
+}
+
+// A product over the memory budget is refused from its shape, before the
+// SLC is read, as `gissar validate` (and `simulate --product`) read it (400
+// B per pixel): the message names only flags those commands have,
+// --max-memory and --force.
+TEST(RslcProductTest, ProductOverTheBudgetNamesRealFlags) {
+  const auto dir = MakeTempDir();
+  WriteRslcProduct(dir / "p.h5", Synthetic());
+  RslcReadOptions options;
+  options.max_bytes = 1024;
+  options.bytes_per_pixel = 400.0;
+  try {
+    ReadRslcProduct(dir / "p.h5", options);
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.where(), "--max-memory");
+    EXPECT_EQ(e.message(), "product grid of 4 x 3 pixels (" + (dir / "p.h5").string() +
+                               ") needs about 4.7 KiB, over the memory limit of 1.0 KiB; crop the product, raise "
+                               "--max-memory, or run it anyway with --force");
+  }
+  options.max_bytes = 4800;  // 4 x 3 x 400 B: just enough
+  EXPECT_EQ(ReadRslcProduct(dir / "p.h5", options).rows(), 4);
 }
 
 TEST(RslcProductTest, RejectsBadProducts) {

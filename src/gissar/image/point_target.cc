@@ -387,7 +387,68 @@ std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::
   out.peak_beta0_db = 10.0 * std::log10(out.beta0_calibration * out.peak_power);
   out.rcs_m2 = out.beta0_calibration * energy * options.range_spacing_m * options.azimuth_spacing_m;
   out.rcs_dbsm = 10.0 * std::log10(out.rcs_m2);
+  // The cuts for plots, relative to the grid maximum.
+  auto cut_of = [&](const std::vector<double>& power, int first, const CutAnalysis& analysis) {
+    PointTargetCut cut;
+    cut.first_px = first;
+    cut.step_px = 1.0 / u;
+    cut.power_db.reserve(power.size());
+    for (double value : power) cut.power_db.push_back(10.0 * std::log10(std::max(value / grid_max, 1e-30)));
+    cut.null_first_px = first + double(analysis.null_first) / u;
+    cut.null_last_px = first + double(analysis.null_last) / u;
+    return cut;
+  };
+  out.range_cut = cut_of(range_cut, col0, *range);
+  out.azimuth_cut = cut_of(azimuth_cut, row0, *azimuth);
   return out;
+}
+
+std::optional<std::complex<double>> InterpolateComplex(const std::vector<std::complex<float>>& slc, int width,
+                                                       int height, double col, double row,
+                                                       const RangeAzimuth& centre, int chip_half_size_px) {
+  if (width < 1 || height < 1 || slc.size() != size_t(width) * size_t(height)) {
+    throw InputError("image has " + std::to_string(slc.size()) + " samples, expected " + std::to_string(width) +
+                         " x " + std::to_string(height),
+                     "slc");
+  }
+  if (!std::isfinite(col) || !std::isfinite(row) || !std::isfinite(centre.range) || !std::isfinite(centre.azimuth)) {
+    throw InputError("position or spectrum centre is not finite", "position");
+  }
+  GISSAR_CHECK(chip_half_size_px >= 1 && chip_half_size_px <= kMaxUpsampledSide / 4);
+  const int h = chip_half_size_px, n = 2 * h;
+  if (!(std::abs(col) < 1e9 && std::abs(row) < 1e9)) return std::nullopt;
+  const int c0 = int(std::lround(col)) - h, r0 = int(std::lround(row)) - h;
+  if (c0 < 0 || r0 < 0 || c0 + n > width || r0 + n > height) return std::nullopt;
+  // Periodic band-limited kernel of n samples: (1/n) sum_k w_k exp(j 2 pi k t / n),
+  // k = -n/2 .. n/2 with half weights at +-n/2 (real).
+  auto kernel = [n](double t) {
+    double sum = std::cos(M_PI * t);  // the split Nyquist bin
+    for (int k = 1; k < n / 2; ++k) sum += 2.0 * std::cos(2.0 * M_PI * k * t / n);
+    return (1.0 + sum) / n;
+  };
+  const double x = col - c0, y = row - r0;  // chip coordinates
+  std::vector<double> kx(n), ky(n);
+  for (int i = 0; i < n; ++i) {
+    kx[i] = kernel(x - i);
+    ky[i] = kernel(y - i);
+  }
+  std::complex<double> value = 0.0;
+  for (int r = 0; r < n; ++r) {
+    std::complex<double> line = 0.0;
+    for (int c = 0; c < n; ++c) {
+      const std::complex<float> v = slc[size_t(r0 + r) * width + (c0 + c)];
+      if (!std::isfinite(v.real()) || !std::isfinite(v.imag())) {
+        throw InputError("sample (column " + std::to_string(c0 + c) + ", row " + std::to_string(r0 + r) +
+                             ") is not finite",
+                         "slc");
+      }
+      const std::complex<double> ramp =
+          std::polar(1.0, -2.0 * M_PI * (centre.range * (c - h) + centre.azimuth * (r - h)));
+      line += std::complex<double>(v.real(), v.imag()) * ramp * kx[c];
+    }
+    value += line * ky[r];
+  }
+  return value * std::polar(1.0, 2.0 * M_PI * (centre.range * (x - h) + centre.azimuth * (y - h)));
 }
 
 nlohmann::json ToJson(const PointTargetMeasurement& measurement) {

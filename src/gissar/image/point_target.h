@@ -75,6 +75,18 @@ struct PointTargetOptions {
   double min_peak_to_background_db = 10.0;
 };
 
+// One upsampled cut through the peak (for plots): power in dB relative to
+// the upsampled grid's maximum; sample i lies at image coordinate
+// first_px + i * step_px (a column for the range cut, a row for the
+// azimuth cut); the main lobe spans [null_first_px, null_last_px].
+struct PointTargetCut {
+  double first_px = 0.0;
+  double step_px = 1.0;
+  std::vector<double> power_db;
+  double null_first_px = 0.0;
+  double null_last_px = 0.0;
+};
+
 struct PointTargetMeasurement {
   RangeAzimuth predicted_px;       // the prediction (column, row)
   int peak_sample_col = 0;         // brightest sample found by the search
@@ -103,6 +115,8 @@ struct PointTargetMeasurement {
   double peak_beta0_db = 0.0;      // 10 log10(beta0_calibration x peak_power)
   double rcs_m2 = 0.0;             // beta0_calibration x energy x spacings
   double rcs_dbsm = 0.0;           // 10 log10(rcs_m2)
+  PointTargetCut range_cut;        // the upsampled row through the peak
+  PointTargetCut azimuth_cut;      // the upsampled column through the peak
 };
 
 // Measures the point target predicted at (predicted_col, predicted_row)
@@ -126,6 +140,23 @@ std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::
 
 // Throws ConfigError naming the first option out of range.
 void ValidatePointTargetOptions(const PointTargetOptions& options);
+
+// The complex value of `slc` at the sub-pixel position (col, row) by the
+// Fourier interpolation of MeasurePointTarget: the 2h x 2h chip whose index
+// h holds the sample nearest to the position (h = chip_half_size_px >= 1),
+// the phase ramp of `spectrum_centre_cycles_per_px` removed (e.g. a
+// measurement's spectrum_centre_cycles_per_px, so that every channel of a
+// quad-pol image is interpolated with the co-pol channel's Doppler
+// centroid), its periodic band-limited interpolant (the Nyquist bin split
+// between both ends) evaluated at the position, the ramp restored. At a
+// grid point of MeasurePointTarget's upsampled chip this is the upsampled
+// value. Returns nullopt when the chip leaves the image. Throws InputError
+// ("slc") for a wrong image size or a non-finite chip sample, ("position")
+// for a non-finite position.
+std::optional<std::complex<double>> InterpolateComplex(const std::vector<std::complex<float>>& slc, int width,
+                                                       int height, double col, double row,
+                                                       const RangeAzimuth& spectrum_centre_cycles_per_px,
+                                                       int chip_half_size_px = 16);
 
 // The per-reflector JSON keys of `gissar pta` that come from the
 // measurement: predicted_px, peak_px, location_error_px, location_error_m,

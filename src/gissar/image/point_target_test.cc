@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <random>
 
+#include "gissar/image/irf_plot.h"
 #include "gissar/util/error.h"
 
 namespace gissar::image {
@@ -200,6 +202,71 @@ TEST(PointTargetTest, SpectrumOffCentreMeasuresLikeCentred) {
             << b->spectrum_centre_cycles_per_px.azimuth << "; peak difference "
             << b->peak_px.range - a->peak_px.range << ", " << b->peak_px.azimuth - a->peak_px.azimuth
             << " px; PSLR " << b->pslr_db.range << ", " << b->pslr_db.azimuth << " dB\n";
+}
+
+// InterpolateComplex (the quad-pol channels of `gissar pta` are read at the
+// co-pol peak with it): on an off-centre sinc it gives the value of the
+// continuous response at any sub-pixel position (to 2e-4 of the peak), and
+// at the measured peak the upsampled peak value; the cuts for plots are 0 dB at the peak, and
+// their main lobes are null to null.
+TEST(PointTargetTest, InterpolateComplexAndCuts) {
+  Target target;
+  target.centre_range = 0.23;
+  target.centre_azimuth = -0.31;
+  target.phase = 0.4;
+  const auto slc = Synthesise(64, 64, target);
+  std::string why;
+  const auto m = MeasurePointTarget(slc, 64, 64, 32.0, 32.0, Options(), &why);
+  ASSERT_TRUE(m) << why;
+  const auto at_peak = InterpolateComplex(slc, 64, 64, m->peak_px.range, m->peak_px.azimuth,
+                                          m->spectrum_centre_cycles_per_px);
+  ASSERT_TRUE(at_peak);
+  // The peak value is taken at the upsampled grid's maximum, within 1/64 px
+  // of peak_px: the same amplitude, the phase within 2 pi 0.54 / 64 rad.
+  EXPECT_NEAR(std::abs(*at_peak), std::abs(m->peak_value), 1e-3);
+  EXPECT_NEAR(std::remainder(std::arg(*at_peak) - std::arg(m->peak_value), 2.0 * M_PI), 0.0, 0.06);
+  double worst = 0.0;
+  for (const auto& [dc, dr] : std::vector<std::pair<double, double>>{{0, 0}, {0.5, 0.25}, {-0.3, 0.7}, {1.1, -0.6}}) {
+    const double c = target.col + dc, r = target.row + dr;
+    const auto v = InterpolateComplex(slc, 64, 64, c, r, m->spectrum_centre_cycles_per_px);
+    ASSERT_TRUE(v);
+    const std::complex<double> truth =
+        std::polar(Response(dc, target.band_range, false) * Response(dr, target.band_azimuth, false),
+                   target.phase + 2.0 * M_PI * (target.centre_range * c + target.centre_azimuth * r));
+    worst = std::max(worst, std::abs(*v - truth));
+  }
+  EXPECT_LT(worst, 0.01);  // the chip's periodic wrap of the sinc tails
+  EXPECT_FALSE(InterpolateComplex(slc, 64, 64, 3.0, 32.0, {}));  // the chip leaves the image
+  EXPECT_THROW(InterpolateComplex(slc, 64, 63, 32.0, 32.0, {}), InputError);
+  for (const PointTargetCut* cut : {&m->range_cut, &m->azimuth_cut}) {
+    ASSERT_EQ(cut->power_db.size(), size_t(31 * 32 + 1));
+    EXPECT_DOUBLE_EQ(cut->step_px, 1.0 / 32);
+    EXPECT_LE(*std::max_element(cut->power_db.begin(), cut->power_db.end()), 1e-12);
+    EXPECT_LT(cut->null_first_px, cut->null_last_px);
+  }
+  EXPECT_DOUBLE_EQ(m->range_cut.first_px, 16.0);
+  EXPECT_NEAR(m->range_cut.null_last_px - m->range_cut.null_first_px, m->main_lobe_px.range, 1e-9);
+  EXPECT_NEAR(0.5 * (m->azimuth_cut.null_first_px + m->azimuth_cut.null_last_px), target.row, 0.1);
+  std::cout << "InterpolateComplex: worst error " << worst << " of a unit peak\n";
+}
+
+// The picture of `gissar pta`: one row of two panels per target.
+TEST(PointTargetTest, IrfPlotDrawsTwoPanelsPerTarget) {
+  const Target target;
+  std::string why;
+  const auto m = MeasurePointTarget(Synthesise(64, 64, target), 64, 64, 32.0, 32.0, Options(), &why);
+  ASSERT_TRUE(m) << why;
+  const RgbImage one = IrfPlot({{"row 1", *m, 1.5, 2.0}});
+  const RgbImage two = IrfPlot({{"row 1", *m, 1.5, 2.0}, {"row 2", *m, 1.5, 2.0}});
+  EXPECT_EQ(two.width, one.width);
+  EXPECT_EQ(two.height, 2 * one.height - 8);
+  ASSERT_EQ(one.rgb.size(), size_t(one.width) * one.height * 3);
+  size_t blue = 0;  // the curves (anti-aliased)
+  for (size_t i = 0; i < one.rgb.size(); i += 3) blue += one.rgb[i + 2] > one.rgb[i] + 80;
+  EXPECT_GT(blue, 200u);
+  const RgbImage none = IrfPlot({});
+  EXPECT_GT(none.width, 0);
+  EXPECT_LT(none.height, one.height);
 }
 
 // Samples of a band-limited g(x) = sinc^2(B x) (band |f| < B <= 1) sum to

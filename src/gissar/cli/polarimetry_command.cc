@@ -1,0 +1,144 @@
+// `gissar pta` and `gissar polsar` flags (pipeline/pta.h and
+// pipeline/polsar.h hold the requests and the work).
+#include <cstdio>
+#include <memory>
+#include <sstream>
+
+#include "gissar/cli/command.h"
+#include "gissar/pipeline/polsar.h"
+#include "gissar/pipeline/pta.h"
+
+namespace gissar::cli {
+using namespace gissar::pipeline;  // the requests and Run functions these commands bind
+
+namespace {
+
+// "pta: 1 of 1 reflectors measured; row 1: location error 0.00 / 0.25 px
+// (range / azimuth), RCS 104.63 dBsm, expected 25.45 dBsm (offset +79.18 dB)".
+std::string PtaHeadline(const nlohmann::json& report) {
+  std::ostringstream out;
+  out << "pta: " << report.value("measured", 0) << " of " << report.value("total", 0) << " reflectors measured";
+  for (const nlohmann::json& r : report.at("reflectors")) {
+    if (!r.value("found", false)) continue;
+    char text[320];
+    std::snprintf(text, sizeof text, "; row %d: location error %.2f / %.2f px (range / azimuth), RCS %.2f dBsm",
+                  r.value("id", 0), r["location_error_px"].value("range", 0.0),
+                  r["location_error_px"].value("azimuth", 0.0), r.value("rcs_dbsm", 0.0));
+    out << text;
+    if (r.contains("rcs_expected_dbsm") && r["rcs_expected_dbsm"].is_number()) {
+      std::snprintf(text, sizeof text, ", expected %.2f dBsm (offset %+.2f dB)", r["rcs_expected_dbsm"].get<double>(),
+                    r["calibration_offset_db"].get<double>());
+      out << text;
+    }
+    if (r.contains("hh_vv_ratio_db") && r["hh_vv_ratio_db"].is_number()) {
+      std::snprintf(text, sizeof text, ", HH/VV %.2f dB %.1f deg, isolation %.1f dB", r["hh_vv_ratio_db"].get<double>(),
+                    r["hh_vv_phase_deg"].get<double>(), r["cross_pol_isolation_db"].get<double>());
+      out << text;
+    }
+    if (!report.at("calibration").value("calibrated", false)) out << " (uncalibrated)";
+  }
+  return out.str();
+}
+
+// "polsar: 16 x 33 px of 3 x 3 looks (C3); mean entropy 0.665, anisotropy
+// 0.609, alpha 52.2 deg".
+std::string PolsarHeadline(const PolsarResult& result, int looks_range, int looks_azimuth, const std::string& matrix) {
+  char text[256];
+  std::snprintf(text, sizeof text,
+                "polsar: %d x %d px of %d x %d looks (%s); mean entropy %.3f, anisotropy %.3f, alpha %.1f deg",
+                result.width, result.height, looks_range, looks_azimuth, matrix.c_str(), result.mean_entropy,
+                result.mean_anisotropy, result.mean_alpha_deg);
+  return text;
+}
+
+// "R,A" -> {R, A}; ConfigError naming --multilook otherwise.
+std::vector<int> ParseLooks(const std::string& text) {
+  std::vector<int> looks;
+  std::istringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    try {
+      size_t used = 0;
+      const int k = std::stoi(item, &used);
+      if (used != item.size()) throw std::invalid_argument(item);
+      looks.push_back(k);
+    } catch (const std::exception&) {
+      looks.clear();
+      break;
+    }
+  }
+  if (looks.size() != 2) {
+    throw ConfigError("needs two integers R,A (range and azimuth looks), got '" + text + "'", "--multilook");
+  }
+  return looks;
+}
+
+}  // namespace
+
+void AddPolarimetryCommands(CLI::App& root, CommandRegistry& registry) {
+  {
+    auto o = std::make_shared<PtaRequest>();
+    auto max_memory = std::make_shared<std::string>();
+    CLI::App* cmd = root.add_subcommand(
+        "pta", "Point-target analysis of surveyed reflectors in a complex image: location, resolution, PSLR/ISLR, RCS.");
+    cmd->add_option("--product", o->product, "NISAR RSLC product (HDF5): prediction by geo2rdr on its orbit");
+    cmd->add_option("--image", o->image,
+                    "Or PREFIX_slc.tif of `gissar simulate --coherent` (PREFIX.json beside it): its own geometry");
+    cmd->add_option("--reflectors", o->reflectors,
+                    "Reflectors CSV: type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg")
+        ->required();
+    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
+    cmd->add_option("--polarization", o->polarization,
+                    "Channel measured, HH/HV/VH/VV (default: HH; --image: the simulation's)");
+    cmd->add_option("--ground-height", o->ground_height_m,
+                    "With --product: ellipsoidal height of the ground under the reflectors, m")
+        ->capture_default_str();
+    cmd->add_option("--upsampling", o->upsampling, "Upsampling factor per axis of the target chip")->capture_default_str();
+    cmd->add_option("--search", o->search_px, "Search radius around the predicted position, px")->capture_default_str();
+    cmd->add_option("--chip-half-size", o->chip_half_size_px,
+                    "Half-size of the upsampled chip and of the energy box, px")
+        ->capture_default_str();
+    cmd->add_option("--detection-threshold", o->detection_threshold_db,
+                    "Found: brightest sample at least this far above the background, dB")
+        ->capture_default_str();
+    cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
+    cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.json (measurements), PREFIX_irf.png (cuts)")
+        ->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      PtaRequest resolved = *o;
+      resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
+      const PtaResult result = RunPta(resolved, context.command_line, context.reporter);
+      for (const auto& path : result.outputs) context.out << path.string() << "\n";
+      context.out << PtaHeadline(result.report) << "\n";
+      if (result.measured == 0) context.no_result = result.report.value("reason", std::string("no reflector found"));
+    });
+  }
+  {
+    auto o = std::make_shared<PolsarRequest>();
+    auto looks = std::make_shared<std::string>();
+    auto max_memory = std::make_shared<std::string>();
+    CLI::App* cmd = root.add_subcommand(
+        "polsar", "Polarimetric decomposition of a quad-pol SLC: C3 or T3, entropy/anisotropy/alpha, Pauli RGB.");
+    cmd->add_option("--image", o->image, "Complex GeoTIFF with bands named HH, HV, VH and VV");
+    cmd->add_option("--product", o->product, "Or a NISAR RSLC product (HDF5) holding the four layers");
+    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
+    cmd->add_option("--multilook,--looks", *looks, "R,A: range x azimuth looks averaged per output pixel")->required();
+    cmd->add_option("--matrix", o->matrix, "covariance (C3) or coherency (T3)")->capture_default_str();
+    cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
+    cmd->add_option("--out", o->out_prefix,
+                    "Output prefix: PREFIX_C3.tif (or _T3.tif), PREFIX_HAalpha.tif, PREFIX_pauli.png, PREFIX.json")
+        ->required();
+    registry.Add(cmd, [=](const CommandContext& context) {
+      PolsarRequest resolved = *o;
+      resolved.multilook = ParseLooks(*looks);
+      resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
+      const PolsarResult result = RunPolsar(resolved, context.command_line, context.reporter);
+      for (const auto& path : result.outputs) context.out << path.string() << "\n";
+      context.out << PolsarHeadline(result, resolved.multilook[0], resolved.multilook[1],
+                                    resolved.matrix == "covariance" ? "C3" : "T3")
+                  << "\n";
+    });
+  }
+}
+
+}  // namespace gissar::cli

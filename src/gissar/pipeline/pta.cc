@@ -1,0 +1,580 @@
+#include "gissar/pipeline/pta.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <optional>
+
+#include "gissar/geo/local_frame.h"
+#include "gissar/geo/raster_io.h"
+#include "gissar/geo/rslc_product.h"
+#include "gissar/image/irf_plot.h"
+#include "gissar/image/point_target.h"
+#include "gissar/material/reflector.h"
+#include "gissar/material/scattering.h"
+#include "gissar/pipeline/field_names.h"
+#include "gissar/pipeline/geocode.h"
+#include "gissar/pipeline/georeferencing.h"
+#include "gissar/pipeline/simulate.h"
+#include "gissar/sensor/range_doppler.h"
+#include "gissar/util/atomic_output.h"
+#include "gissar/util/check.h"
+#include "gissar/util/error.h"
+#include "gissar/util/progress.h"
+#include "gissar/util/provenance.h"
+
+namespace gissar::pipeline {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+constexpr const char* kChannels[4] = {"HH", "HV", "VH", "VV"};
+constexpr double kDeg = M_PI / 180.0;
+
+bool IsChannel(const std::string& name) {
+  return std::find(std::begin(kChannels), std::end(kChannels), name) != std::end(kChannels);
+}
+
+std::string Upper(std::string text) {
+  for (char& c : text) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return text;
+}
+
+json Pair(double range, double azimuth) { return {{"range", range}, {"azimuth", azimuth}}; }
+
+// Where a reflector is predicted, how it is seen and how its samples
+// convert to beta0.
+struct Prediction {
+  double col = 0.0, row = 0.0;
+  Eigen::Vector3d to_sensor_enu = Eigen::Vector3d::UnitZ();  // unit, from the apex
+  double azimuth_spacing_m = 0.0;
+  std::optional<double> beta0_factor;  // |s|^2 -> beta0; unset: uncalibrated
+  json geometry;                        // what the sidecar records of the prediction
+};
+
+// A complex image to measure: the channels on one grid and how to predict.
+struct Source {
+  int width = 0, height = 0;
+  std::string channel;  // the measured one
+  std::map<std::string, std::vector<std::complex<float>>> channels;
+  double range_spacing_m = 0.0;
+  double wavelength_m = 0.0;
+  bool polarimetric_expectation = true;  // channel share of ReflectorMatrix (products); simulations: unpolarised
+  std::function<Prediction(const material::ReflectorSpec&, const std::string& where)> predict;
+  json description;
+  json inputs = json::array();
+  std::string calibration_note;
+  bool calibrated = false;
+};
+
+// ENU components of an ECEF vector at (lon, lat).
+Eigen::Vector3d EnuOfEcefVector(double lon_deg, double lat_deg, const Eigen::Vector3d& v) {
+  const double lo = lon_deg * kDeg, la = lat_deg * kDeg;
+  const Eigen::Vector3d e(-std::sin(lo), std::cos(lo), 0.0);
+  const Eigen::Vector3d n(-std::sin(la) * std::cos(lo), -std::sin(la) * std::sin(lo), std::cos(la));
+  const Eigen::Vector3d u(std::cos(la) * std::cos(lo), std::cos(la) * std::sin(lo), std::sin(la));
+  return {e.dot(v), n.dot(v), u.dot(v)};
+}
+
+void CheckInside(const Prediction& p, int width, int height, const std::string& grid, const std::string& where) {
+  if (!(p.col >= -0.5 && p.col <= width - 0.5 && p.row >= -0.5 && p.row <= height - 0.5)) {
+    char text[256];
+    std::snprintf(text, sizeof text, "reflector lies outside the %s: predicted at column %.2f, row %.2f of %d x %d",
+                  grid.c_str(), p.col, p.row, width, height);
+    throw InputError(text, where);
+  }
+}
+
+Source ProductSource(const PtaRequest& request) {
+  Source s;
+  s.channel = request.polarization.empty() ? "HH" : request.polarization;
+  geo::RslcReadOptions options;
+  options.frequency = request.frequency;
+  options.polarization = s.channel;
+  options.read_amplitude = false;
+  options.read_complex = true;
+  options.read_calibration = true;
+  options.max_bytes = request.max_memory_bytes;
+  options.bytes_per_pixel = 4 * 8.0;  // up to four complex channels
+  auto product = std::make_shared<geo::RslcProduct>(geo::ReadRslcProduct(request.product, options));
+  const geo::RslcProduct& p = *product;
+  s.width = p.cols();
+  s.height = p.rows();
+  s.channels[s.channel] = std::move(product->slc);
+  const bool quad = std::all_of(std::begin(kChannels), std::end(kChannels), [&](const char* c) {
+    return std::find(p.stored_polarizations.begin(), p.stored_polarizations.end(), c) != p.stored_polarizations.end();
+  });
+  if (quad) {
+    for (const char* c : kChannels) {
+      if (s.channels.count(c)) continue;
+      geo::RslcReadOptions other = options;
+      other.polarization = c;
+      other.read_calibration = false;
+      s.channels[c] = geo::ReadRslcProduct(request.product, other).slc;
+    }
+  }
+  s.range_spacing_m = p.range_spacing_m();
+  s.wavelength_m = p.wavelength_m;
+  s.calibrated = p.beta0_lut.has_value();
+  s.calibration_note = s.calibrated ? "beta0 = LUT x |DN|^2, LUT " + p.beta0_lut->dataset +
+                                          " (bilinear at the reflector's zero-Doppler time and slant range)"
+                                    : "uncalibrated: the product states no beta0 LUT (rcs_dbsm in |DN|^2 m^2)";
+  s.inputs.push_back(InputFileRecord(request.product));
+  s.description = {{"kind", "NISAR RSLC product"},
+                   {"file", p.path},
+                   {"mission", p.mission},
+                   {"frequency", p.frequency},
+                   {"polarization", s.channel},
+                   {"stored_polarizations", p.stored_polarizations},
+                   {"epoch_utc", p.epoch_utc},
+                   {"rows", p.rows()},
+                   {"cols", p.cols()},
+                   {"first_zero_doppler_time_s", p.zero_doppler_time_s.front()},
+                   {"zero_doppler_time_spacing_s", p.azimuth_spacing_s()},
+                   {"first_slant_range_m", p.slant_range_m.front()},
+                   {"slant_range_spacing_m", p.range_spacing_m()},
+                   {"center_frequency_hz", p.center_frequency_hz},
+                   {"wavelength_m", p.wavelength_m},
+                   {"look_side", p.look_left ? "left" : "right"},
+                   {"ground_height_m", request.ground_height_m},
+                   {"prediction", "zero-Doppler geo2rdr on the product's orbit (cubic Hermite state vectors)"}};
+  auto orbit = std::make_shared<sensor::Orbit>(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
+  const double ground_height = request.ground_height_m;
+  s.predict = [product, orbit, ground_height](const material::ReflectorSpec& spec, const std::string& where) {
+    const geo::RslcProduct& p = *product;
+    const double height = ground_height + spec.apex_height_m;
+    const Eigen::Vector3d target = geo::LocalFrame::EcefFromGeodetic(spec.lon_deg, spec.lat_deg, height);
+    const double t_mid = 0.5 * (p.zero_doppler_time_s.front() + p.zero_doppler_time_s.back());
+    const auto rc = sensor::Geo2Rdr(*orbit, target, t_mid);
+    if (!rc) throw InputError("reflector has no zero-Doppler time on the product's orbit", where);
+    const sensor::LookSide side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
+    if (!sensor::IsOnSide(*orbit, target, rc->time_s, side)) {
+      throw InputError("reflector lies on the unlit side of the track (the product looks " +
+                           std::string(p.look_left ? "left" : "right") + ")",
+                       where);
+    }
+    Prediction out;
+    out.row = (rc->time_s - p.zero_doppler_time_s.front()) / p.azimuth_spacing_s();
+    out.col = (rc->range_m - p.slant_range_m.front()) / p.range_spacing_m();
+    const sensor::OrbitState state = orbit->Interpolate(rc->time_s);
+    out.to_sensor_enu = EnuOfEcefVector(spec.lon_deg, spec.lat_deg, state.position_m - target).normalized();
+    // Along-track pixel spacing on the ground at the reflector: the zero-
+    // Doppler point moves at |v| |X| / |P| (geocentric radii).
+    const double ground_speed = state.velocity_mps.norm() * target.norm() / state.position_m.norm();
+    out.azimuth_spacing_m = ground_speed * p.azimuth_spacing_s();
+    if (p.beta0_lut) out.beta0_factor = p.beta0_lut->At(rc->time_s, rc->range_m);
+    out.geometry = {{"zero_doppler_time_s", rc->time_s},
+                    {"slant_range_m", rc->range_m},
+                    {"apex_height_above_ellipsoid_m", height},
+                    {"ground_speed_mps", ground_speed},
+                    {"look_elevation_deg", std::asin(std::clamp(out.to_sensor_enu.z(), -1.0, 1.0)) / kDeg},
+                    {"look_azimuth_deg",
+                     std::fmod(std::atan2(out.to_sensor_enu.x(), out.to_sensor_enu.y()) / kDeg + 360.0, 360.0)}};
+    return out;
+  };
+  return s;
+}
+
+std::string MetadataValue(const geo::Metadata& m, const std::string& key) {
+  const auto it = m.find(key);
+  return it == m.end() ? "" : it->second;
+}
+
+// The sidecar of `gissar simulate`'s PREFIX_slc.tif: PREFIX.json.
+std::string SidecarOf(const std::string& image) {
+  const std::string suffix = "_slc.tif";
+  if (image.size() > suffix.size() && image.compare(image.size() - suffix.size(), suffix.size(), suffix) == 0) {
+    return image.substr(0, image.size() - suffix.size()) + ".json";
+  }
+  const fs::path p(image);
+  return (p.parent_path() / p.stem()).string() + ".json";
+}
+
+Source ImageSource(const PtaRequest& request, Reporter& reporter) {
+  Source s;
+  const geo::ComplexRaster raster = geo::ReadComplexRaster(request.image);
+  s.width = raster.width;
+  s.height = raster.height;
+  CheckMemoryBudget(double(raster.width) * raster.height * 8.0 * double(raster.bands.size()) * 2.0,
+                    request.max_memory_bytes, "the complex image (" + request.image + ")", "crop the image");
+  // Bands named after channels, else band 1 in the simulation's polarisation.
+  std::map<std::string, size_t> named;
+  for (size_t b = 0; b < raster.band_names.size(); ++b) {
+    const std::string name = Upper(raster.band_names[b]);
+    if (IsChannel(name) && !named.count(name)) named[name] = b;
+  }
+  const std::string sidecar_path = SidecarOf(request.image);
+  json sidecar;
+  {
+    std::ifstream in(sidecar_path);
+    if (!in) throw InputError("cannot read the image's sidecar (PREFIX.json of `gissar simulate`)", sidecar_path);
+    try {
+      in >> sidecar;
+    } catch (const json::exception& e) {
+      throw InputError(std::string("sidecar is not valid JSON: ") + e.what(), sidecar_path);
+    }
+  }
+  if (!sidecar.contains("options") || !sidecar.contains("frame") || !sidecar.contains("inputs") ||
+      sidecar.value("command", std::string()) != "simulate") {
+    throw InputError("not the sidecar of a `gissar simulate` run (no command/options/frame/inputs)", sidecar_path);
+  }
+  SimulateRequest o;
+  json options = sidecar["options"];
+  for (const char* key : {"materials", "reflectors", "contributions", "out_prefix"}) options.erase(key);
+  o.ApplyJson(options, sidecar_path);
+  if (o.UsesProductGeometry()) {
+    throw InputError("a simulation on a product grid: give the product itself (--product)", request.image);
+  }
+  const std::string simulated_pol = o.polarization;
+  if (!named.empty()) {
+    s.channel = request.polarization.empty() ? (named.count(simulated_pol) ? simulated_pol : named.begin()->first)
+                                             : request.polarization;
+    if (!named.count(s.channel)) {
+      throw InputError("the image has no band named " + s.channel, request.image);
+    }
+    for (const auto& [name, b] : named) {
+      std::vector<std::complex<float>> plane(size_t(s.width) * s.height);
+      for (size_t k = 0; k < plane.size(); ++k) plane[k] = {raster.bands[b][2 * k], raster.bands[b][2 * k + 1]};
+      s.channels[name] = std::move(plane);
+    }
+  } else {
+    s.channel = simulated_pol;
+    if (!request.polarization.empty() && request.polarization != simulated_pol) {
+      throw InputError("the image holds the simulation's " + simulated_pol + " channel only, not " +
+                           request.polarization,
+                       request.image);
+    }
+    if (raster.bands.empty()) throw InputError("the image has no band", request.image);
+    std::vector<std::complex<float>> plane(size_t(s.width) * s.height);
+    for (size_t k = 0; k < plane.size(); ++k) plane[k] = {raster.bands[0][2 * k], raster.bands[0][2 * k + 1]};
+    s.channels[s.channel] = std::move(plane);
+  }
+  const std::string units = MetadataValue(raster.metadata, "GISSAR_UNITS");
+  if (units.rfind("complex amplitude", 0) != 0) {
+    throw InputError("not a gissar complex image: GISSAR_UNITS is '" + units +
+                         "' (PREFIX_slc.tif of `gissar simulate --coherent` expected)",
+                     request.image);
+  }
+  auto geometry = std::make_shared<sensor::SarGeometry>(
+      GeometryFromMetadata(raster.metadata, raster.width, raster.height, request.image));
+  const std::string radiometry = MetadataValue(raster.metadata, "GISSAR_RADIOMETRY");
+  if (radiometry != "sigma0" && radiometry != "beta0" && radiometry != "gamma0") {
+    throw InputError("GISSAR_RADIOMETRY must be sigma0, beta0 or gamma0, got '" + radiometry + "'", request.image);
+  }
+  // The simulation's terrain, in its own frame.
+  const std::string input = sidecar["inputs"].at(0).at("path").get<std::string>();
+  if (!o.scene.empty()) o.scene = input;
+  else o.dem = input;
+  o.engine = "trace";
+  o.max_memory_bytes = request.max_memory_bytes;
+  auto terrain = std::make_shared<Terrain>(LoadTerrain(o, reporter));
+  const double lon0 = sidecar["frame"].value("origin_lon_deg", 0.0), lat0 = sidecar["frame"].value("origin_lat_deg", 0.0);
+  if (std::abs(terrain->frame.origin_lon_deg() - lon0) > 1e-9 || std::abs(terrain->frame.origin_lat_deg() - lat0) > 1e-9) {
+    throw InputError("the terrain's frame differs from the image's (was the DEM or scene changed?)", sidecar_path);
+  }
+  auto surface = std::make_shared<TerrainSurface>(*terrain);
+  s.range_spacing_m = geometry->range_spacing_m();
+  s.wavelength_m = o.wavelength_m;
+  s.polarimetric_expectation = false;
+  s.calibrated = true;
+  s.calibration_note = "|z|^2 = " + radiometry + " (GISSAR_RADIOMETRY); beta0 = " +
+                       (radiometry == "beta0"   ? std::string("|z|^2")
+                        : radiometry == "sigma0" ? std::string("|z|^2 / sin(incidence) of the reflector's column")
+                                                 : std::string("|z|^2 cos / sin(incidence) of the reflector's column"));
+  s.inputs.push_back(InputFileRecord(request.image));
+  s.inputs.push_back(InputFileRecord(sidecar_path));
+  s.description = {{"kind", "gissar simulate --coherent complex image"},
+                   {"file", fs::absolute(request.image).string()},
+                   {"sidecar", fs::absolute(sidecar_path).string()},
+                   {"terrain", input},
+                   {"polarization", s.channel},
+                   {"channels", json::array()},
+                   {"radiometry", radiometry},
+                   {"wavelength_m", o.wavelength_m},
+                   {"width", raster.width},
+                   {"height", raster.height},
+                   {"range_spacing_m", geometry->range_spacing_m()},
+                   {"azimuth_spacing_m", geometry->azimuth_spacing_m()},
+                   {"projection_mode", sensor::ToString(geometry->mode())},
+                   {"prediction", "the simulation's own geometry (GISSAR_* metadata) and terrain (sidecar options)"}};
+  for (const auto& [name, plane] : s.channels) s.description["channels"].push_back(name);
+  const std::string csv = request.reflectors;
+  s.predict = [geometry, terrain, surface, radiometry, csv](const material::ReflectorSpec& spec,
+                                                            const std::string& where) {
+    const TerrainSurface& f = *surface;
+    const SurfaceHeightAt height = [&f](double x, double y) -> std::optional<double> {
+      const double z = f(x, y);
+      return std::isnan(z) ? std::nullopt : std::optional<double>(z);
+    };
+    (void)where;
+    const std::vector<render::SceneReflector> placed = PlaceReflectorRows({spec}, csv, terrain->frame, height);
+    const Eigen::Vector3d apex = placed.at(0).apex_enu;
+    const Eigen::Vector2d q = geometry->Project(apex);
+    Prediction out;
+    out.col = q.x();
+    out.row = q.y();
+    out.to_sensor_enu = -geometry->RayDirectionTo(apex);
+    out.azimuth_spacing_m = geometry->azimuth_spacing_m();
+    const double incidence = geometry->IncidenceDeg(std::clamp(q.x(), 0.0, double(geometry->width() - 1))) * kDeg;
+    out.beta0_factor = radiometry == "beta0"    ? 1.0
+                       : radiometry == "sigma0" ? 1.0 / std::sin(incidence)
+                                                : std::cos(incidence) / std::sin(incidence);
+    out.geometry = {{"apex_enu_m", {apex.x(), apex.y(), apex.z()}},
+                    {"incidence_deg", incidence / kDeg},
+                    {"look_elevation_deg", std::asin(std::clamp(out.to_sensor_enu.z(), -1.0, 1.0)) / kDeg},
+                    {"look_azimuth_deg",
+                     std::fmod(std::atan2(out.to_sensor_enu.x(), out.to_sensor_enu.y()) / kDeg + 360.0, 360.0)}};
+    return out;
+  };
+  return s;
+}
+
+}  // namespace
+
+void PtaRequest::Check() const {
+  if (product.empty() == image.empty()) throw ConfigError("give one of --product or --image", "--product/--image");
+  if (reflectors.empty()) throw ConfigError("a reflectors CSV is required", "--reflectors");
+  if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
+  if (frequency != "A" && frequency != "B") throw ConfigError("must be A or B, got '" + frequency + "'", "--frequency");
+  if (!polarization.empty() && !IsChannel(polarization)) {
+    throw ConfigError("unknown channel '" + polarization + "' (HH, HV, VH or VV)", "--polarization");
+  }
+  if (!std::isfinite(ground_height_m) || std::abs(ground_height_m) > 20000.0) {
+    throw ConfigError("must be a height in metres within +-20 km of the ellipsoid", "--ground-height");
+  }
+  if (!image.empty() && ground_height_m != 0.0) {
+    throw ConfigError("goes with --product (an --image uses its simulation's terrain)", "--ground-height");
+  }
+  if (upsampling < 2 || upsampling > 64) {
+    throw ConfigError("must be 2 to 64, got " + std::to_string(upsampling), "--upsampling");
+  }
+  if (!(search_px >= 0.0) || !(search_px <= 1024.0)) throw ConfigError("must be 0 to 1024 px", "--search");
+  if (chip_half_size_px < 4 || chip_half_size_px > 256) {
+    throw ConfigError("must be 4 to 256 px, got " + std::to_string(chip_half_size_px), "--chip-half-size");
+  }
+  if (!(detection_threshold_db >= 0.0 && detection_threshold_db <= 100.0)) {
+    throw ConfigError("must be 0 to 100 dB", "--detection-threshold");
+  }
+  if (2 * chip_half_size_px * upsampling > 4096) {
+    throw ConfigError("the upsampled chip (2 x chip half-size x upsampling) exceeds 4096 samples a side",
+                      "--upsampling");
+  }
+  std::vector<std::string> inputs{product, image, reflectors};
+  if (!image.empty()) inputs.push_back(SidecarOf(image));
+  CheckOutputsAreNotInputs({out_prefix + ".json", out_prefix + "_irf.png"}, inputs);
+}
+
+json PtaRequest::ToJson() const {
+  return {{"product", product},
+          {"image", image},
+          {"reflectors", reflectors},
+          {"frequency", frequency},
+          {"polarization", polarization},
+          {"ground_height_m", ground_height_m},
+          {"upsampling", upsampling},
+          {"search_px", search_px},
+          {"chip_half_size_px", chip_half_size_px},
+          {"detection_threshold_db", detection_threshold_db},
+          {"out_prefix", out_prefix},
+          {"max_memory_bytes", max_memory_bytes}};
+}
+
+void PtaRequest::ApplyJson(const json& values, const std::string& source) {
+  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
+  for (const auto& [key, value] : values.items()) {
+    auto set = [&](auto& field) { AssignField(field, value, key, source); };
+    if (value.is_null()) continue;
+    if (key == "product") set(product);
+    else if (key == "image") set(image);
+    else if (key == "reflectors") set(reflectors);
+    else if (key == "frequency") set(frequency);
+    else if (key == "polarization") set(polarization);
+    else if (key == "ground_height_m") set(ground_height_m);
+    else if (key == "upsampling") set(upsampling);
+    else if (key == "search_px") set(search_px);
+    else if (key == "chip_half_size_px") set(chip_half_size_px);
+    else if (key == "detection_threshold_db") set(detection_threshold_db);
+    else if (key == "out_prefix") set(out_prefix);
+    else if (key == "max_memory_bytes") set(max_memory_bytes);
+    else throw ConfigError(UnknownKeyMessage(key, KeysOf(ToJson())), source);
+  }
+}
+
+PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Reporter& reporter) {
+  request.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path out_json = outputs.Add(request.out_prefix + ".json");
+  const fs::path out_png = outputs.Add(request.out_prefix + "_irf.png");
+
+  const std::vector<material::ReflectorSpec> rows = material::ReadReflectorsCsv(request.reflectors);
+  if (rows.empty()) throw InputError("the reflectors file holds no reflector", request.reflectors);
+  Source source = request.product.empty() ? ImageSource(request, reporter) : ProductSource(request);
+  ThrowIfCancelled(reporter, "pta");
+  const bool quad = std::all_of(std::begin(kChannels), std::end(kChannels),
+                                [&](const char* c) { return source.channels.count(c) > 0; });
+  if (!source.calibrated) {
+    reporter.Warn("pta: " + (request.product.empty() ? request.image : request.product) +
+                  " states no beta0 calibration: RCS reported uncalibrated (|DN|^2 x m^2)");
+  }
+  const std::vector<std::complex<float>>& slc = source.channels.at(source.channel);
+
+  // Predictions first: a bad row stops the run before anything is measured.
+  std::vector<Prediction> predictions;
+  for (const material::ReflectorSpec& spec : rows) {
+    const std::string where = request.reflectors + " row " + std::to_string(spec.row);
+    Prediction p = source.predict(spec, where);
+    CheckInside(p, source.width, source.height, request.product.empty() ? "image" : "product's radar grid", where);
+    predictions.push_back(std::move(p));
+  }
+
+  json reflectors = json::array();
+  std::vector<image::IrfPlotEntry> plots;
+  int measured = 0;
+  std::string first_reason;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    ThrowIfCancelled(reporter, "pta");
+    const material::ReflectorSpec& spec = rows[k];
+    const Prediction& p = predictions[k];
+    image::PointTargetOptions options;
+    options.range_spacing_m = source.range_spacing_m;
+    options.azimuth_spacing_m = p.azimuth_spacing_m;
+    options.search_radius_px = request.search_px;
+    options.chip_half_size_px = request.chip_half_size_px;
+    options.upsampling = request.upsampling;
+    options.beta0_calibration = p.beta0_factor;
+    options.min_peak_to_background_db = request.detection_threshold_db;
+    std::string why;
+    const auto m = image::MeasurePointTarget(slc, source.width, source.height, p.col, p.row, options, &why);
+    json r;
+    r["id"] = spec.row;
+    r["type"] = material::ToString(spec.type);
+    r["lon_deg"] = spec.lon_deg;
+    r["lat_deg"] = spec.lat_deg;
+    r["polarization"] = source.channel;
+    r["prediction"] = p.geometry;
+    // Expected RCS: physical optics seen from the sensor, the channel's share.
+    const Eigen::Vector3d boresight = material::BoresightVector(spec.boresight_azimuth_deg, spec.boresight_elevation_deg);
+    const double pattern_rcs =
+        material::ReflectorRcs(spec.type, spec.size_m, source.wavelength_m, boresight, p.to_sensor_enu);
+    double share = 1.0;
+    if (source.polarimetric_expectation) {
+      const material::ScatteringMatrix s = material::ReflectorMatrix(spec.type, spec.size_m, source.wavelength_m, 0.0);
+      share = material::ChannelRcs(s, material::ParsePolarization(source.channel, "--polarization")) /
+              material::PeakRcs(spec.type, spec.size_m, source.wavelength_m);
+    }
+    const double expected = pattern_rcs * share;
+    const double peak_rcs = material::PeakRcs(spec.type, spec.size_m, source.wavelength_m);
+    const double off_boresight_deg = std::acos(std::clamp(boresight.dot(p.to_sensor_enu), -1.0, 1.0)) / kDeg;
+    if (!m) {
+      r["found"] = false;
+      r["reason"] = why;
+      r["predicted_px"] = Pair(p.col, p.row);
+      reporter.Warn("pta: " + request.reflectors + " row " + std::to_string(spec.row) + ": not measured: " + why);
+      if (first_reason.empty()) first_reason = "row " + std::to_string(spec.row) + ": " + why;
+      reflectors.push_back(r);
+      continue;
+    }
+    ++measured;
+    r["found"] = true;
+    r.update(image::ToJson(*m));
+    r["rcs_expected_dbsm"] = expected > 0.0 ? json(10.0 * std::log10(expected)) : json(nullptr);
+    r["calibration_offset_db"] = expected > 0.0 ? json(m->rcs_dbsm - 10.0 * std::log10(expected)) : json(nullptr);
+    r["calibrated"] = m->calibrated;
+    r["beta0_calibration"] = m->beta0_calibration;
+    r["expected"] = {{"peak_rcs_dbsm", 10.0 * std::log10(peak_rcs)},
+                     {"off_boresight_deg", off_boresight_deg},
+                     {"pattern_db", pattern_rcs > 0.0 ? json(10.0 * std::log10(pattern_rcs / peak_rcs)) : json(nullptr)},
+                     {"channel_share", share},
+                     {"wavelength_m", source.wavelength_m}};
+    r["resolution_px"] = Pair(m->resolution_px.range, m->resolution_px.azimuth);
+    r["main_lobe_px"] = Pair(m->main_lobe_px.range, m->main_lobe_px.azimuth);
+    r["islr_2d_db"] = m->islr_2d_db;
+    r["scr_db"] = m->scr_db;
+    r["peak_beta0_db"] = m->peak_beta0_db;
+    r["spectrum_centre_cycles_per_px"] =
+        Pair(m->spectrum_centre_cycles_per_px.range, m->spectrum_centre_cycles_per_px.azimuth);
+    r["azimuth_spacing_m"] = p.azimuth_spacing_m;
+    r["range_spacing_m"] = source.range_spacing_m;
+    if (quad) {
+      std::map<std::string, std::complex<double>> value;
+      json channels = json::object();
+      for (const char* c : kChannels) {
+        const auto v = image::InterpolateComplex(source.channels.at(c), source.width, source.height, m->peak_px.range,
+                                                 m->peak_px.azimuth, m->spectrum_centre_cycles_per_px,
+                                                 request.chip_half_size_px);
+        if (!v) break;  // the chip around the sub-pixel peak leaves the image
+        value[c] = *v;
+        channels[c] = {{"power_db", 10.0 * std::log10(std::max(std::norm(*v), 1e-300))},
+                       {"phase_deg", std::arg(*v) / kDeg}};
+      }
+      if (value.size() < 4) {
+        r["hh_vv_ratio_db"] = r["hh_vv_phase_deg"] = r["cross_pol_isolation_db"] = nullptr;
+        r["quad_pol_reason"] = "the interpolation chip around the sub-pixel peak leaves the image";
+        reflectors.push_back(r);
+        plots.push_back({"row " + std::to_string(spec.row), *m, source.range_spacing_m, p.azimuth_spacing_m});
+        continue;
+      }
+      const double hh = std::norm(value["HH"]), vv = std::norm(value["VV"]);
+      const double hv = std::norm(value["HV"]), vh = std::norm(value["VH"]);
+      r["hh_vv_ratio_db"] = 10.0 * std::log10(hh / vv);
+      r["hh_vv_phase_deg"] = std::arg(value["HH"] * std::conj(value["VV"])) / kDeg;
+      r["cross_pol_isolation_db"] = 10.0 * std::log10((hh + vv) / (hv + vh));
+      r["channels_at_peak"] = channels;
+    }
+    reflectors.push_back(r);
+    char caption[200];
+    std::snprintf(caption, sizeof caption, "row %d %s, %s", spec.row, material::ToString(spec.type).c_str(),
+                  source.channel.c_str());
+    plots.push_back({caption, *m, source.range_spacing_m, p.azimuth_spacing_m});
+  }
+
+  json report = ProvenanceHeader("pta", command_line, request.ToJson());
+  json inputs = source.inputs;
+  inputs.push_back(InputFileRecord(request.reflectors));
+  report["inputs"] = inputs;
+  report["source"] = source.description;
+  report["calibration"] = {{"calibrated", source.calibrated}, {"how", source.calibration_note}};
+  report["quad_pol"] = quad;
+  report["definitions"] = {
+      {"rcs_dbsm", "10 log10(beta0 factor x (sum |s|^2 over the (2h+1)^2 box - background) x range_spacing_m x "
+                   "azimuth_spacing_m)"},
+      {"rcs_expected_dbsm", source.polarimetric_expectation
+                                ? "physical-optics RCS seen from the sensor (material::ReflectorRcs) x the channel's "
+                                  "share of the reflector's scattering matrix at roll 0"
+                                : "physical-optics RCS seen from the sensor (material::ReflectorRcs), as the "
+                                  "simulation renders it"},
+      {"calibration_offset_db", "rcs_dbsm - rcs_expected_dbsm"},
+      {"location_error", "peak - prediction (columns: slant range, rows: azimuth)"},
+      {"hh_vv_ratio_db", "20 log10 |S_HH / S_VV| at the measured peak"},
+      {"hh_vv_phase_deg", "arg(S_HH S_VV*) at the measured peak"},
+      {"cross_pol_isolation_db",
+       "10 log10((|S_HH|^2 + |S_VV|^2) / (|S_HV|^2 + |S_VH|^2)) at the measured peak: co-pol over cross-pol "
+       "power at the same position (clutter in the cross-pol channels bounds it from below)"}};
+  report["reflectors"] = reflectors;
+  report["measured"] = measured;
+  report["total"] = int(rows.size());
+  report["converged"] = measured > 0;
+  if (measured == 0) report["reason"] = "no reflector found: " + first_reason;
+  report["timings_s"] = {{"total", total.ElapsedSeconds()}};
+  std::vector<std::string> finals;
+  for (const fs::path& path : outputs.final_paths()) finals.push_back(fs::absolute(path).string());
+  report["outputs"] = finals;
+
+  const image::RgbImage picture = image::IrfPlot(plots, -40.0, "pta: no reflector found (see PREFIX.json)");
+  geo::WritePng(out_png, picture.rgb, picture.width, picture.height, 3);
+  WriteJsonFile(report, out_json);
+  outputs.Commit();
+  PtaResult result;
+  result.outputs = outputs.final_paths();
+  result.report = report;
+  result.measured = measured;
+  result.total = int(rows.size());
+  return result;
+}
+
+}  // namespace gissar::pipeline
