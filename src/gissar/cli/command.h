@@ -69,6 +69,32 @@ inline std::string PrefixedOutput(const std::string& prefix, const std::string& 
   return prefix + extension;
 }
 
+// "3,5,7" -> {3, 5, 7}: a comma-separated list of integers given to `flag`;
+// throws ConfigError naming `flag` (and `expected`, e.g. "two integers R,A")
+// for an item that is not an integer, or when `count` > 0 items were
+// expected and another number was given.
+inline std::vector<int> ParseIntegerList(const std::string& text, const std::string& flag,
+                                         const std::string& expected, size_t count = 0) {
+  std::vector<int> values;
+  std::istringstream in(text);
+  std::string item;
+  bool ok = true;
+  while (ok && std::getline(in, item, ',')) {
+    try {
+      size_t used = 0;
+      const int k = std::stoi(item, &used);
+      ok = used == item.size();
+      values.push_back(k);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  if (!ok || values.empty() || (count > 0 && values.size() != count)) {
+    throw ConfigError("needs " + expected + ", got '" + text + "'", flag);
+  }
+  return values;
+}
+
 // An on/off option: accepted as --NAME and --no-NAME (the last one given
 // wins) on every command that has it, shown in --help as
 // "--NAME, --no-NAME" with its real default ("(default: on)"), read from

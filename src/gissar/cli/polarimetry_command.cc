@@ -51,27 +51,6 @@ std::string PolsarHeadline(const PolsarResult& result, int looks_range, int look
   return text;
 }
 
-// "R,A" -> {R, A}; ConfigError naming --multilook otherwise.
-std::vector<int> ParseLooks(const std::string& text) {
-  std::vector<int> looks;
-  std::istringstream in(text);
-  std::string item;
-  while (std::getline(in, item, ',')) {
-    try {
-      size_t used = 0;
-      const int k = std::stoi(item, &used);
-      if (used != item.size()) throw std::invalid_argument(item);
-      looks.push_back(k);
-    } catch (const std::exception&) {
-      looks.clear();
-      break;
-    }
-  }
-  if (looks.size() != 2) {
-    throw ConfigError("needs two integers R,A (range and azimuth looks), got '" + text + "'", "--multilook");
-  }
-  return looks;
-}
 
 }  // namespace
 
@@ -130,7 +109,7 @@ void AddPolarimetryCommands(CLI::App& root, CommandRegistry& registry) {
         ->required();
     registry.Add(cmd, [=](const CommandContext& context) {
       PolsarRequest resolved = *o;
-      resolved.multilook = ParseLooks(*looks);
+      resolved.multilook = ParseIntegerList(*looks, "--multilook", "two integers R,A (range and azimuth looks)", 2);
       resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
       const PolsarResult result = RunPolsar(resolved, context.command_line, context.reporter);
       for (const auto& path : result.outputs) context.out << path.string() << "\n";

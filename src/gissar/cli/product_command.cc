@@ -40,19 +40,7 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
     ValidateRequest resolved = *options;
     resolved.simulate.max_memory_bytes =
         MemoryBudgetBytes(*max_memory, context.force, resolved.simulate.max_memory_bytes);
-    resolved.looks.clear();
-    std::istringstream in(*looks);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-      try {
-        size_t used = 0;
-        const int k = std::stoi(item, &used);
-        if (used != item.size()) throw std::invalid_argument(item);
-        resolved.looks.push_back(k);
-      } catch (const std::exception&) {
-        throw ConfigError("multilook sizes must be integers, got '" + *looks + "'", "--looks");
-      }
-    }
+    resolved.looks = ParseIntegerList(*looks, "--looks", "integer multilook sizes");
     const ValidateResult result = RunValidate(resolved, context.command_line, context.reporter);
     for (const auto& path : result.outputs) context.out << path.string() << "\n";
     context.out << ValidateHeadline(result.report) << "\n";
