@@ -50,6 +50,7 @@
 #include "gissar/mvg/resection.h"
 #include "gissar/mvg/two_view.h"
 #include "gissar/render/embree_scene.h"
+#include "gissar/material/material.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/util/reporter.h"
@@ -419,6 +420,10 @@ py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
   const pipeline::SimulateRequest options = SimulateOptionsFrom(kwargs);
   RequireKeywords(kwargs, options, {"heading_deg", "depression_deg"});
   render::SarImage image;
+  // Several channels (polarization="HH,VV" or "quad"): the other channels'
+  // images, in the GeoTIFF's band order.
+  std::vector<material::Polarization> channels;
+  std::vector<render::SarImage> other_channels;
   std::optional<sensor::SarGeometry> geometry;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   // With out_prefix: also the command line's files (GeoTIFF, mask, quicklooks,
@@ -437,13 +442,16 @@ py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
     pipeline::SimulatedImage simulated = pipeline::SimulateImage(options, reporter);
     geometry = simulated.geometry;
     centre = simulated.terrain.centre_enu;
+    channels = simulated.channels;
     if (write_files) {
       image = simulated.image;
+      other_channels = simulated.other_channels;
       const pipeline::SimulateResult r =
           pipeline::WriteSimulation(options, simulated, "python: gissar.simulate", *outputs, total);
       for (const auto& p : r.outputs) written.push_back(p.string());
     } else {
       image = std::move(simulated.image);
+      other_channels = std::move(simulated.other_channels);
     }
   }
   py::array_t<float> bands = BounceBands(image, options.db);
@@ -464,6 +472,31 @@ py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
   out["centre_enu_m"] = std::array<double, 3>{centre.x(), centre.y(), centre.z()};
   out["options"] = JsonToPython(options.ToJson());
   if (write_files) out["outputs"] = written;
+  if (!other_channels.empty()) {
+    // The GeoTIFF's bands: each channel's total, then each channel's bounce
+    // counts, with their names.
+    const size_t n = size_t(image.width) * image.height;
+    const size_t count = channels.size() * (1 + render::kBounceLayers);
+    py::array_t<float> all({py::ssize_t(count), py::ssize_t(image.height), py::ssize_t(image.width)});
+    std::vector<std::string> names;
+    const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
+    std::vector<const render::SarImage*> images = {&image};
+    for (const render::SarImage& c : other_channels) images.push_back(&c);
+    size_t band = 0;
+    for (size_t k = 0; k < images.size(); ++k, ++band) {
+      GISSAR_CHECK(images[k]->intensity.size() == n);
+      std::copy(images[k]->intensity.begin(), images[k]->intensity.end(), all.mutable_data() + band * n);
+      names.push_back(material::ToString(channels[k]));
+    }
+    for (size_t k = 0; k < images.size(); ++k) {
+      const py::array_t<float> layers = BounceBands(*images[k], options.db);
+      std::copy(layers.data(), layers.data() + render::kBounceLayers * n, all.mutable_data() + band * n);
+      band += render::kBounceLayers;
+      for (const char* layer : layer_names) names.push_back(material::ToString(channels[k]) + "_" + layer);
+    }
+    out["channel_bands"] = all;
+    out["band_names"] = names;
+  }
   return out;
 }
 

@@ -283,7 +283,16 @@ def _mask_coord(mask, dims):
 
 
 def _bands(raw):
+    if "channel_bands" in raw:  # several polarisation channels: the GeoTIFF's bands
+        return raw["channel_bands"]
     return np.concatenate([raw["image"][None], raw["bounces"]], axis=0)
+
+
+def _band_coord(raw):
+    if "band_names" in raw:
+        return ("band", list(raw["band_names"]),
+                {"long_name": "polarisation channel (totals, then each channel's bounce counts)"})
+    return ("band", list(BAND_NAMES), {"long_name": "contribution (bounce count)"})
 
 
 def _intensity_attrs(options):
@@ -302,7 +311,7 @@ def simulated_dataarray(raw):
     slant_range_m = g.slant_range_m + (np.arange(cols) - g.u0) * g.range_spacing_m
     dims = ("along_track_m", "slant_range_m")
     coords = {
-        "band": ("band", list(BAND_NAMES), {"long_name": "contribution (bounce count)"}),
+        "band": _band_coord(raw),
         "along_track_m": ("along_track_m", along_track_m,
                           {"units": "m", "long_name": "along-track distance from the scene centre's row"}),
         "slant_range_m": ("slant_range_m", slant_range_m,

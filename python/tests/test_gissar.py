@@ -95,6 +95,25 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
     assert np.array_equal(raw["image"], image, equal_nan=True)
 
 
+def test_simulate_quad_gives_the_geotiff_bands_by_channel(tmp_path):
+    from osgeo import gdal
+    prefix = str(tmp_path / "quad")
+    result = gissar.simulate(dem=DEM, heading_deg=30.0, depression_deg=40.0, range_spacing_m=300.0,
+                             azimuth_spacing_m=300.0, polarization="quad", out_prefix=prefix)
+    names = list(result["band"].values)
+    assert names[:4] == ["HH", "HV", "VH", "VV"] and names[4] == "HH_single" and len(names) == 20
+    tif = gdal.Open(prefix + ".tif")
+    assert tif.RasterCount == 20
+    for b in range(1, 21):
+        name = tif.GetRasterBand(b).GetDescription()
+        assert np.array_equal(tif.GetRasterBand(b).ReadAsArray(), result.sel(band=name).values, equal_nan=True), name
+    # Reciprocity: VH is the HV pass; bare soil's cross-polarised return is weaker than its co-polarised ones.
+    assert np.array_equal(result.sel(band="HV").values, result.sel(band="VH").values, equal_nan=True)
+    assert np.nanmean(result.sel(band="HV").values) < np.nanmean(result.sel(band="HH").values)
+    with pytest.raises(gissar.ConfigError, match="unknown channel 'XX'"):
+        gissar.simulate(dem=DEM, heading_deg=0, depression_deg=40, polarization="HH,XX")
+
+
 def test_errors_become_python_exceptions():
     with pytest.raises(gissar.ConfigError, match="unknown key 'headin_deg'"):
         gissar.simulate(dem=DEM, headin_deg=0, depression_deg=40)

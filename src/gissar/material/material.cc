@@ -218,6 +218,42 @@ Polarization ParsePolarization(const std::string& text, const std::string& optio
   throw ConfigError("polarization must be HH, HV, VH or VV, got '" + text + "'", option);
 }
 
+std::vector<Polarization> ParsePolarizationList(const std::string& text, const std::string& option) {
+  std::string lower = text;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (lower == "quad") return {Polarization::kHH, Polarization::kHV, Polarization::kVH, Polarization::kVV};
+  std::vector<Polarization> channels;
+  size_t start = 0;
+  while (true) {
+    const size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    Polarization pol;
+    try {
+      pol = ParsePolarization(item, option);
+    } catch (const ConfigError&) {
+      throw ConfigError("unknown channel '" + item + "': expected HH, HV, VH or VV, a comma list of them, or quad",
+                        option);
+    }
+    if (std::find(channels.begin(), channels.end(), pol) != channels.end()) {
+      throw ConfigError("channel " + ToString(pol) + " is given twice in '" + text + "'", option);
+    }
+    channels.push_back(pol);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return channels;
+}
+
+std::string ToString(const std::vector<Polarization>& channels) {
+  if (channels == std::vector<Polarization>{Polarization::kHH, Polarization::kHV, Polarization::kVH,
+                                            Polarization::kVV}) {
+    return "quad";
+  }
+  std::string out;
+  for (const Polarization pol : channels) out += (out.empty() ? "" : ",") + ToString(pol);
+  return out;
+}
+
 std::string ToString(Polarization pol) {
   switch (pol) {
     case Polarization::kHH: return "HH";

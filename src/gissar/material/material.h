@@ -40,6 +40,15 @@ enum class Polarization { kHH, kHV, kVH, kVV };
 // `option` otherwise.
 Polarization ParsePolarization(const std::string& text, const std::string& option);
 std::string ToString(Polarization pol);
+// The channels of a `--polarization` value (../shared/CONVENTIONS.md,
+// "Polarimetry"): one channel, a comma list ("HH,VV", any order, each at
+// most once, kept in the given order) or "quad" (HH, HV, VH, VV), case-
+// insensitive. Throws ConfigError naming `option` and the unknown or
+// repeated channel.
+std::vector<Polarization> ParsePolarizationList(const std::string& text, const std::string& option);
+// The same list written back: "quad" for the four channels in quad order,
+// else the channels joined with commas.
+std::string ToString(const std::vector<Polarization>& channels);
 
 enum class ScatteringModel { kLambert, kTable, kOh, kBragg, kWaterCloud };
 std::string ToString(ScatteringModel model);

@@ -335,6 +335,58 @@ TEST(ReflectorPhysicsTest, CsvRowsAreCheckedByRow) {
   std::filesystem::remove_all(dir);
 }
 
+// The optional roll_deg column: named by the header (any column order),
+// 0 when absent; a header with an unknown or missing column is an error
+// naming the header, a row without the header's field count one naming
+// the row.
+TEST(ReflectorPhysicsTest, CsvRollColumnIsOptional) {
+  const auto dir = std::filesystem::temp_directory_path() / "gissar_reflector_roll_test";
+  std::filesystem::create_directories(dir);
+  auto write = [&](const std::string& text) {
+    const auto p = dir / "r.csv";
+    std::ofstream(p) << text;
+    return p.string();
+  };
+  const std::string seven = "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg";
+  const auto rolled = ReadReflectorsCsv(write(seven + ",roll_deg\ndihedral,7.4,43.7,1,0.5,90,0,45\n"
+                                                       "trihedral,7.4,43.7,1,0.5,90,35,-10.5\n"));
+  ASSERT_EQ(rolled.size(), 2u);
+  EXPECT_EQ(rolled[0].roll_deg, 45.0);
+  EXPECT_EQ(rolled[1].roll_deg, -10.5);
+  EXPECT_EQ(rolled[1].boresight_elevation_deg, 35.0);
+  const auto plain = ReadReflectorsCsv(write(seven + "\ndihedral,7.4,43.7,1,0.5,90,0\n"));
+  ASSERT_EQ(plain.size(), 1u);
+  EXPECT_EQ(plain[0].roll_deg, 0.0);
+  // No header: the seven columns, roll 0.
+  const auto bare = ReadReflectorsCsv(write("plate,7.4,43.7,1,0.5,90,0\n"));
+  ASSERT_EQ(bare.size(), 1u);
+  EXPECT_EQ(bare[0].roll_deg, 0.0);
+  // Columns in another order.
+  const auto shuffled = ReadReflectorsCsv(
+      write("roll_deg,type,lat,lon,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n"
+            "30,dihedral,43.7,7.4,1,0.5,90,0\n"));
+  ASSERT_EQ(shuffled.size(), 1u);
+  EXPECT_EQ(shuffled[0].roll_deg, 30.0);
+  EXPECT_EQ(shuffled[0].lon_deg, 7.4);
+  EXPECT_EQ(shuffled[0].lat_deg, 43.7);
+  auto expect_error = [&](const std::string& text, const std::string& where, const std::string& needle) {
+    try {
+      ReadReflectorsCsv(write(text));
+      FAIL() << text;
+    } catch (const InputError& e) {
+      EXPECT_NE(e.where().find(where), std::string::npos) << e.what();
+      EXPECT_NE(e.message().find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error(seven + ",tilt_deg\ndihedral,7,43,1,1,0,0,5\n", "header", "unknown column 'tilt_deg'");
+  expect_error("type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,roll_deg\ndihedral,7,43,1,1,0,5\n", "header",
+               "missing column 'boresight_elevation_deg'");
+  expect_error(seven + ",roll_deg\ndihedral,7,43,1,1,0,0\n", "row 1", "expected 8 fields");
+  expect_error(seven + "\ndihedral,7,43,1,1,0,0,45\n", "row 1", "expected 7 fields");
+  expect_error(seven + ",roll_deg\ndihedral,7,43,1,1,0,0,left\n", "row 1", "roll_deg must be a number");
+  std::filesystem::remove_all(dir);
+}
+
 // Fresnel reflectivities against the closed forms: at normal incidence
 // |(1 - sqrt(eps)) / (1 + sqrt(eps))|^2 for both polarisations; at 45 deg on
 // a lossless half-space the Snell-angle forms Gamma_h = -sin(ti - tt) /

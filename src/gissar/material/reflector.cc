@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "gissar/util/error.h"
@@ -43,6 +44,23 @@ ReflectorType ParseReflectorType(const std::string& name, const std::string& whe
 std::vector<ReflectorSpec> ReadReflectorsCsv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw IoError("cannot read reflectors file", path);
+  // The columns: the seven required ones in their default order, then the
+  // optional roll.
+  static const char* const kNames[8] = {"type",          "lon",   "lat",
+                                        "apex_height_m", "size_m", "boresight_azimuth_deg",
+                                        "boresight_elevation_deg", "roll_deg"};
+  constexpr int kRequired = 7;
+  const std::string listing = "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg";
+  auto split = [](const std::string& t) {
+    std::vector<std::string> fields;
+    std::stringstream ss(t);
+    std::string f;
+    while (std::getline(ss, f, ',')) fields.push_back(Trim(f));
+    return fields;
+  };
+  // column[k]: the field index of name k (-1: absent).
+  int column[8] = {0, 1, 2, 3, 4, 5, 6, -1};
+  size_t field_count = kRequired;
   std::vector<ReflectorSpec> out;
   std::string line;
   bool header = true;
@@ -52,42 +70,65 @@ std::vector<ReflectorSpec> ReadReflectorsCsv(const std::string& path) {
     if (t.empty() || t[0] == '#') continue;
     if (header) {
       header = false;
-      if (t.rfind("type", 0) == 0) continue;  // the header line
+      // The header line: it starts with "type" or another column's name
+      // (a row starts with a reflector type).
+      const std::vector<std::string> names = split(t);
+      const bool named = !names.empty() && std::find(std::begin(kNames), std::end(kNames), names[0]) != std::end(kNames);
+      if (t.rfind("type", 0) == 0 || named) {
+        std::fill(std::begin(column), std::end(column), -1);
+        for (size_t i = 0; i < names.size(); ++i) {
+          const auto* known = std::find(std::begin(kNames), std::end(kNames), names[i]);
+          if (known == std::end(kNames)) {
+            throw InputError("unknown column '" + names[i] + "' (" + listing + "[,roll_deg])", path + " header");
+          }
+          int& at = column[known - std::begin(kNames)];
+          if (at >= 0) throw InputError("column '" + names[i] + "' appears twice", path + " header");
+          at = static_cast<int>(i);
+        }
+        for (int k = 0; k < kRequired; ++k) {
+          if (column[k] < 0) {
+            throw InputError(std::string("missing column '") + kNames[k] + "' (" + listing + "[,roll_deg])",
+                             path + " header");
+          }
+        }
+        field_count = names.size();
+        continue;
+      }
     }
     ++row;
-    std::vector<std::string> fields;
-    std::stringstream ss(t);
-    std::string f;
-    while (std::getline(ss, f, ',')) fields.push_back(Trim(f));
+    const std::vector<std::string> fields = split(t);
     const std::string where = path + " row " + std::to_string(row);
-    if (fields.size() != 7) {
-      throw InputError("expected 7 fields (type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,"
-                       "boresight_elevation_deg), got " + std::to_string(fields.size()),
+    if (fields.size() != field_count) {
+      throw InputError("expected " + std::to_string(field_count) + " fields (" +
+                           (field_count == kRequired ? listing : std::string("as the header names")) + "), got " +
+                           std::to_string(fields.size()),
                        where);
     }
     ReflectorSpec r;
     r.row = row;
-    r.type = ParseReflectorType(fields[0], where);
-    double v[6];
-    const char* names[6] = {"lon", "lat", "apex_height_m", "size_m", "boresight_azimuth_deg", "boresight_elevation_deg"};
-    for (int k = 0; k < 6; ++k) {
+    r.type = ParseReflectorType(fields[size_t(column[0])], where);
+    double v[7] = {0, 0, 0, 0, 0, 0, 0};  // lon .. roll_deg
+    for (int k = 1; k < 8; ++k) {
+      if (column[k] < 0) continue;  // roll_deg absent: 0
+      const std::string& field = fields[size_t(column[k])];
       size_t used = 0;
       try {
-        v[k] = std::stod(fields[k + 1], &used);
+        v[k - 1] = std::stod(field, &used);
       } catch (const std::exception&) {
         used = 0;
       }
-      if (used == 0 || used != fields[k + 1].size() || !std::isfinite(v[k])) {
-        throw InputError(std::string(names[k]) + " must be a number, got '" + fields[k + 1] + "'", where);
+      if (used == 0 || used != field.size() || !std::isfinite(v[k - 1])) {
+        throw InputError(std::string(kNames[k]) + " must be a number, got '" + field + "'", where);
       }
     }
     r.lon_deg = v[0], r.lat_deg = v[1], r.apex_height_m = v[2], r.size_m = v[3];
-    r.boresight_azimuth_deg = v[4], r.boresight_elevation_deg = v[5];
+    r.boresight_azimuth_deg = v[4], r.boresight_elevation_deg = v[5], r.roll_deg = v[6];
     if (!(r.size_m > 0.0)) throw InputError("size_m must be > 0", where);
     if (std::abs(r.lat_deg) > 90.0) throw InputError("lat must be in [-90, 90]", where);
     if (std::abs(r.boresight_elevation_deg) > 90.0) {
       throw InputError("boresight_elevation_deg must be in [-90, 90]", where);
     }
+    if (std::abs(r.roll_deg) > 360.0) throw InputError("roll_deg must be in [-360, 360]", where);
     out.push_back(r);
   }
   return out;

@@ -18,11 +18,16 @@ std::string ToString(ReflectorType type);
 ReflectorType ParseReflectorType(const std::string& name, const std::string& where);
 
 // One row of a reflectors CSV:
-// type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg
+// type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg[,roll_deg]
 // type: trihedral, trihedral_square, dihedral, plate; size_m = a, the leg
 // (trihedral) or side (dihedral plates, plate) length; apex (phase centre)
 // height above the ground; boresight: from the reflector towards the
-// sensor, compass bearing and elevation above the horizontal.
+// sensor, compass bearing and elevation above the horizontal; roll_deg
+// (optional, default 0): the reflector turned about its boresight, in the
+// sense of scattering.h (turning the radar's h towards v: counter-clockwise
+// as seen from the reflector looking back along its boresight); a
+// dihedral's fold is horizontal at roll 0. It changes the polarimetric
+// matrix only (material::ReflectorMatrix), not the RCS pattern.
 struct ReflectorSpec {
   ReflectorType type = ReflectorType::kTrihedral;
   double lon_deg = 0.0, lat_deg = 0.0;
@@ -30,14 +35,22 @@ struct ReflectorSpec {
   double size_m = 1.0;
   double boresight_azimuth_deg = 0.0;
   double boresight_elevation_deg = 0.0;
+  double roll_deg = 0.0;
   int row = 0;  // 1-based data row in the file (header excluded), for messages
 };
 
-// Reads a reflectors CSV (a header line naming the seven columns, then one
-// reflector per line; blank lines and lines starting with '#' skipped).
-// Throws IoError when the file cannot be read and InputError naming the
-// file and the row for an unknown type, a missing or non-numeric field,
-// size <= 0, latitude outside [-90, 90] or elevation outside [-90, 90].
+// Reads a reflectors CSV: an optional header line (the first non-comment
+// line when it starts with "type" or another column's name) naming the
+// columns, then one reflector
+// per line; blank lines and lines starting with '#' skipped. The header
+// names the seven columns above in any order, optionally roll_deg; every
+// row has the header's number of fields. Without a header the rows are the
+// seven columns in the order above (roll 0). Throws IoError when the file
+// cannot be read, InputError naming the file for a header with an unknown,
+// repeated or missing column, and InputError naming the file and the row
+// for an unknown type, a missing or non-numeric field, size <= 0, latitude
+// outside [-90, 90], elevation outside [-90, 90] or a roll outside
+// [-360, 360].
 std::vector<ReflectorSpec> ReadReflectorsCsv(const std::string& path);
 
 // Peak (boresight) radar cross section, m^2, of size a at wavelength lambda:

@@ -214,6 +214,34 @@ SpecularChain TraceReversedSpecularChain(const Eigen::Vector3d& line_of_sight, c
   return TraceSpecularChain(-forward.outgoing_direction, reversed, phase_centre_m);
 }
 
+Eigen::Matrix3cd SpecularReflectionOperator(const Eigen::Vector3d& d_in, const Eigen::Vector3d& n_in,
+                                            const FresnelAmplitudes& r) {
+  constexpr const char* kWhere = "SpecularReflectionOperator";
+  const Eigen::Vector3d d = UnitOrThrow(d_in, "direction", kWhere);
+  const Eigen::Vector3d n = UnitOrThrow(n_in, "normal", kWhere);
+  const double cos_i = -d.dot(n);
+  if (!(cos_i > 0.0)) throw InputError("the wave meets the face from behind or at grazing (d . n >= 0)", kWhere);
+  const Eigen::Vector3d d_out = d + 2.0 * cos_i * n;
+  Eigen::Vector3d s = d.cross(n);
+  if (s.norm() < 1e-12) {
+    s = HvBasis(d).h;  // normal incidence: any direction across d (r_v = -r_h there)
+  } else {
+    s.normalize();
+  }
+  const Eigen::Vector3d p_in = s.cross(d);
+  const Eigen::Vector3d p_out = s.cross(d_out);
+  return r.r_h * (s * s.transpose()).cast<cd>() + r.r_v * (p_out * p_in.transpose()).cast<cd>();
+}
+
+ScatteringMatrix UnitReflectorMatrix(ReflectorType type, double roll_rad) {
+  if (!std::isfinite(roll_rad)) throw ConfigError("roll must be finite", "UnitReflectorMatrix");
+  switch (type) {
+    case ReflectorType::kDihedral: return DihedralMatrix(roll_rad);
+    case ReflectorType::kPlate: return PlateMatrix();
+    default: return TrihedralMatrix();
+  }
+}
+
 cd PathPhase(double two_way_path_m, double wavelength_m) {
   if (!std::isfinite(wavelength_m) || !(wavelength_m > 0.0)) {
     throw ConfigError("wavelength must be positive and finite", "PathPhase");

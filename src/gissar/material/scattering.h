@@ -164,6 +164,20 @@ SpecularChain TraceSpecularChain(const Eigen::Vector3d& line_of_sight, const std
 SpecularChain TraceReversedSpecularChain(const Eigen::Vector3d& line_of_sight, const std::vector<Bounce>& bounces,
                                          const Eigen::Vector3d& phase_centre_m);
 
+// The 3 x 3 field operator of one specular reflection (the per-vertex
+// operator of TraceSpecularChain): a plane wave of unit propagation
+// direction d meets a face of unit normal n (d . n < 0, the side the wave
+// comes from) and leaves along d' = d - 2 (d . n) n; the field E (E . d = 0)
+// becomes r_h (E . s) s + r_v (E . p) p', s = d x n normalised, p = s x d,
+// p' = s x d' (normal incidence: s = HvBasis(d).h). `r` are the amplitudes
+// at this vertex's incidence, acos(-d . n) (FresnelCoefficients or the
+// perfect conductor). For a bistatic reflection from d into a direction
+// d_out != d, pass the facet normal (d_out - d) / |d_out - d|: its mirror
+// direction is d_out. Throws InputError for a non-finite or zero d or n, or
+// d . n >= 0.
+Eigen::Matrix3cd SpecularReflectionOperator(const Eigen::Vector3d& d, const Eigen::Vector3d& n,
+                                            const FresnelAmplitudes& r);
+
 // exp(-j 2 pi two_way_path_m / lambda) = exp(-j 4 pi R / lambda) for a
 // two-way path 2R. The argument is reduced modulo one wavelength before the
 // exponential. Throws ConfigError for wavelength_m <= 0 or non-finite and
@@ -185,6 +199,13 @@ std::complex<double> PathPhase(double two_way_path_m, double wavelength_m);
 ScatteringMatrix TrihedralMatrix();
 ScatteringMatrix DihedralMatrix(double roll_rad);
 ScatteringMatrix PlateMatrix();
+
+// The matrix of ReflectorMatrix without its amplitude: the unit matrix of
+// `type` (trihedrals I, dihedral DihedralMatrix(0), plate -I) turned by
+// roll_rad, so that |S_pq|^2 is the share of the boresight RCS that channel
+// pq returns (co-pol 1 at roll 0; dihedral at 45 deg: 0 co-pol, 1 HV).
+// Throws ConfigError for a non-finite roll.
+ScatteringMatrix UnitReflectorMatrix(ReflectorType type, double roll_rad);
 
 // The unit matrix of `type` (triangular and square trihedrals: the
 // trihedral) turned by roll_rad, scaled by sqrt(sigma / (4 pi)), sigma =

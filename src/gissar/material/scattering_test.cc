@@ -565,5 +565,63 @@ TEST(ScatteringTest, PolarimetricLawOfMaterials) {
   EXPECT_EQ(PolarimetricLaw(water, -0.1, lambda).sigma0_vv, 0.0);
 }
 
+
+// SpecularReflectionOperator is TraceSpecularChain's per-vertex operator:
+// the product of the operators of a dielectric-and-conductor dihedral
+// chain, read in the BSA bases, is the chain's S; a bistatic reflection
+// through the bisector facet leaves along the requested direction.
+TEST(ScatteringTest, ReflectionOperatorComposesTheChain) {
+  const Eigen::Vector3d l = LineOfSight(40.0, 30.0);
+  const Eigen::Vector3d apex(1.0, 2.0, 0.5);
+  std::vector<Face> faces = DihedralFaces(l, apex, 22.5 * kDeg);
+  faces[0].conductor = false;
+  faces[0].permittivity = cd(7.0, -1.5);
+  const PolarizationBasis b = HvBasis(l);
+  const std::vector<Bounce> path = MirrorPath(l, apex - 0.4 * (l + b.v) / std::sqrt(2.0), faces);
+  const SpecularChain chain = TraceSpecularChain(l, path, apex);
+  Eigen::Matrix3cd field = Eigen::Matrix3cd::Identity();
+  Eigen::Vector3d d = l;
+  for (const Bounce& bounce : path) {
+    const double cos_i = -d.dot(bounce.normal);
+    const FresnelAmplitudes r = bounce.perfect_conductor ? PerfectConductorAmplitudes()
+                                                         : FresnelCoefficients(bounce.permittivity, std::acos(cos_i));
+    field = SpecularReflectionOperator(d, bounce.normal, r) * field;
+    d = (d + 2.0 * cos_i * bounce.normal).normalized();
+  }
+  const PolarizationBasis rx = HvBasis(-d);
+  const Eigen::Vector3d et[2] = {b.h, b.v}, er[2] = {rx.h, rx.v};
+  for (int t = 0; t < 2; ++t) {
+    for (int r = 0; r < 2; ++r) {
+      const cd s = er[r].cast<cd>().dot(field * et[t].cast<cd>());
+      EXPECT_NEAR(std::abs(s - chain.s(t, r)), 0.0, 1e-14) << t << r;
+    }
+  }
+  // Bistatic facet: incoming l, outgoing towards (0, 0, 1) turned a bit.
+  const Eigen::Vector3d out = Eigen::Vector3d(0.2, -0.1, 1.0).normalized();
+  const Eigen::Matrix3cd op = SpecularReflectionOperator(l, (out - l).normalized(), PerfectConductorAmplitudes());
+  // A perfect conductor keeps the transverse field's norm and sends it
+  // across `out`.
+  for (const Eigen::Vector3d& e : {b.h, b.v}) {
+    const Eigen::Vector3cd f = op * e.cast<cd>();
+    EXPECT_NEAR(f.norm(), 1.0, 1e-14);
+    EXPECT_NEAR(std::abs(f.dot(out.cast<cd>())), 0.0, 1e-14);
+  }
+  EXPECT_THROW(SpecularReflectionOperator(l, l, PerfectConductorAmplitudes()), InputError);
+}
+
+// The unit reflector matrices: the canonical matrices without amplitude.
+TEST(ScatteringTest, UnitReflectorMatrices) {
+  EXPECT_EQ(UnitReflectorMatrix(ReflectorType::kTrihedralSquare, 0.3), TrihedralMatrix());
+  EXPECT_EQ(UnitReflectorMatrix(ReflectorType::kPlate, 0.3), PlateMatrix());
+  const ScatteringMatrix d45 = UnitReflectorMatrix(ReflectorType::kDihedral, 45 * kDeg);
+  EXPECT_NEAR(std::abs(d45(0, 0)), 0.0, 1e-15);
+  EXPECT_NEAR(std::abs(d45(1, 1)), 0.0, 1e-15);
+  EXPECT_NEAR(d45(0, 1).real(), 1.0, 1e-15);
+  const double amp = std::sqrt(PeakRcs(ReflectorType::kDihedral, 0.7, 0.03) / (4 * M_PI));
+  EXPECT_NEAR((ReflectorMatrix(ReflectorType::kDihedral, 0.7, 0.03, 0.4) -
+               amp * UnitReflectorMatrix(ReflectorType::kDihedral, 0.4)).norm(), 0.0, 1e-12 * amp);
+  EXPECT_THROW(UnitReflectorMatrix(ReflectorType::kDihedral, NAN), ConfigError);
+}
+
 }  // namespace
 }  // namespace gissar::material

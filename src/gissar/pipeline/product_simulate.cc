@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <fstream>
 #include <limits>
@@ -16,6 +17,7 @@
 #include "gissar/image/radiometry.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/image/side_by_side.h"
+#include "gissar/material/scattering.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
@@ -35,7 +37,6 @@ void CheckProductOptions(const SimulateRequest& o) {
   // The option that fixes the geometry, for the messages below.
   const std::string fixed_by = o.product.empty() ? "--orbit" : "--product";
   if (o.engine != "trace") throw ConfigError("the radar grid needs the trace engine", fixed_by + "/--engine");
-  if (o.coherent) throw ConfigError("the radar grid renders incoherently only", fixed_by + "/--coherent");
   if (!o.contributions.empty()) {
     throw ConfigError("contributions are not recorded on a radar grid", fixed_by + "/--contributions");
   }
@@ -76,32 +77,134 @@ std::vector<float> EllipsoidIncidenceDeg(const render::ProductImage& image, cons
 
 }  // namespace
 
-ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
-  auto say = [&](const std::string& line) { reporter.Info("simulate: " + line); };
-  ProductSimulation sim;
+geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
+  geo::RslcProduct product;
   geo::RslcReadOptions read;
   read.read_amplitude = read_amplitude;
   read.max_bytes = options.max_memory_bytes;  // checked from the shapes, before reading
   read.bytes_per_pixel = 400.0;
   if (!options.product.empty()) {
-    sim.product = geo::ReadRslcProduct(options.product, read);
+    product = geo::ReadRslcProduct(options.product, read);
   } else {
     const geo::StateVectors vectors = geo::ReadStateVectors(options.orbit);
-    sim.product = geo::ProductFromOrbit(vectors, options.orbit, geo::ReadRadarGrid(options.radar_grid),
-                                        options.radar_grid);
-    sim.product.polarization = options.polarization;
-    say("orbit: " + std::to_string(vectors.utc_s.size()) + " state vectors (" + vectors.format + ")");
+    product = geo::ProductFromOrbit(vectors, options.orbit, geo::ReadRadarGrid(options.radar_grid), options.radar_grid);
+    product.polarization = options.polarization;
+    reporter.Info("simulate: orbit: " + std::to_string(vectors.utc_s.size()) + " state vectors (" + vectors.format +
+                  ")");
   }
+  return product;
+}
+
+sensor::RadarGrid RadarGridOf(const geo::RslcProduct& p) {
+  sensor::RadarGrid grid;
+  grid.t0_s = p.zero_doppler_time_s.front();
+  grid.dt_s = p.azimuth_spacing_s();
+  grid.rows = p.rows();
+  grid.r0_m = p.slant_range_m.front();
+  grid.dr_m = p.range_spacing_m();
+  grid.cols = p.cols();
+  grid.look_side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
+  grid.wavelength_m = p.wavelength_m;
+  return grid;
+}
+
+namespace {
+
+// Adds each point return as a phasor sqrt(beta0_sum) exp(j phase_offset_rad)
+// exp(-j 4 pi range_m / lambda) with the amplitude response of `effects` centred on it, to the
+// complex total and its bounce layer (coherent product grids).
+void AddPointPhasors(render::SarImage& image, const std::vector<render::PointReturn>& points,
+                     const image::SensorEffects& effects) {
+  const int w = image.width, h = image.height;
+  const size_t n = size_t(w) * h;
+  for (const render::PointReturn& p : points) {
+    const bool layered = p.layer >= 0 && p.layer < render::kBounceLayers;
+    if (layered && image.bounce_real[p.layer].size() != n) {
+      image.bounce_real[p.layer].assign(n, 0.0f);
+      image.bounce_imag[p.layer].assign(n, 0.0f);
+    }
+    int c0 = 0, r0 = 0;
+    const std::vector<double> hx =
+        image::ShiftedAmplitudeResponse(p.col, effects.range_resolution_px, effects.window, &c0);
+    const std::vector<double> hy =
+        image::ShiftedAmplitudeResponse(p.row, effects.azimuth_resolution_px, effects.window, &r0);
+    // phase_offset_rad: arg S_c of a polarimetric pass's reflector matrix.
+    const std::complex<double> a = std::sqrt(p.beta0_sum) * std::polar(1.0, p.phase_offset_rad) *
+                                   material::PathPhase(2.0 * p.range_m, effects.wavelength_m);
+    for (size_t j = 0; j < hy.size(); ++j) {
+      const int r = r0 + int(j);
+      if (r < 0 || r >= h) continue;
+      for (size_t i = 0; i < hx.size(); ++i) {
+        const int c = c0 + int(i);
+        if (c < 0 || c >= w) continue;
+        const size_t k = size_t(r) * w + c;
+        const std::complex<double> z = a * (hx[i] * hy[j]);
+        image.real[k] += static_cast<float>(z.real());
+        image.imag[k] += static_cast<float>(z.imag());
+        if (layered) {
+          image.bounce_real[p.layer][k] += static_cast<float>(z.real());
+          image.bounce_imag[p.layer][k] += static_cast<float>(z.imag());
+        }
+      }
+    }
+  }
+}
+
+// The coherent end of the chain on a real radar grid (the complex
+// counterpart of image::ConvertPixelRadiometry): beta0 -> sigma0 with
+// pixel k's own incidence (complex planes by sqrt(sin theta_i)), complex
+// thermal noise of mean power nesz_db on the total, conversion to
+// `radiometry`, detection of the total and of each bounce layer, dB.
+// Pixels whose incidence is NaN (no ground point) keep their values.
+void ConvertPixelRadiometryCoherent(render::SarImage& image, const std::vector<float>& incidence_deg,
+                                    image::Radiometry radiometry, double nesz_db, uint64_t seed, bool db) {
+  const size_t n = image.real.size();
+  std::vector<std::vector<float>*> planes = {&image.real, &image.imag};
+  for (int b = 0; b < render::kBounceLayers; ++b) {
+    if (image.bounce_real[b].size() != n) continue;
+    planes.push_back(&image.bounce_real[b]);
+    planes.push_back(&image.bounce_imag[b]);
+  }
+  auto scale = [&](auto factor_of) {
+    for (size_t k = 0; k < n; ++k) {
+      if (std::isnan(incidence_deg[k])) continue;
+      const float factor = static_cast<float>(std::sqrt(factor_of(double(incidence_deg[k]))));
+      for (auto* plane : planes) (*plane)[k] *= factor;
+    }
+  };
+  scale([](double incidence) { return image::FactorFromBeta0(image::Radiometry::kSigma0, incidence); });
+  if (!std::isnan(nesz_db)) image::AddComplexThermalNoise(image.real, image.imag, nesz_db, seed);
+  if (radiometry != image::Radiometry::kSigma0) {
+    scale([&](double incidence) {
+      const double to_sigma0 = image::FactorFromBeta0(image::Radiometry::kSigma0, incidence);
+      return to_sigma0 > 0.0 ? image::FactorFromBeta0(radiometry, incidence) / to_sigma0 : 0.0;
+    });
+  }
+  auto detect = [](const std::vector<float>& re, const std::vector<float>& im, std::vector<float>& power) {
+    power.resize(re.size());
+    for (size_t k = 0; k < re.size(); ++k) power[k] = re[k] * re[k] + im[k] * im[k];
+  };
+  detect(image.real, image.imag, image.intensity);
+  for (int b = 0; b < render::kBounceLayers; ++b) {
+    if (image.bounce_real[b].size() == n) detect(image.bounce_real[b], image.bounce_imag[b], image.bounce_layers[b]);
+  }
+  if (db) {
+    image::ToDecibels(image.intensity);
+    for (auto& layer : image.bounce_layers) {
+      if (layer.size() == n) image::ToDecibels(layer);
+    }
+  }
+}
+
+}  // namespace
+
+ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
+  auto say = [&](const std::string& line) { reporter.Info("simulate: " + line); };
+  ProductSimulation sim;
+  sim.product = ReadProductGeometry(options, read_amplitude, reporter);
   const geo::RslcProduct& p = sim.product;
   const sensor::Orbit orbit(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
-  sim.grid.t0_s = p.zero_doppler_time_s.front();
-  sim.grid.dt_s = p.azimuth_spacing_s();
-  sim.grid.rows = p.rows();
-  sim.grid.r0_m = p.slant_range_m.front();
-  sim.grid.dr_m = p.range_spacing_m();
-  sim.grid.cols = p.cols();
-  sim.grid.look_side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
-  sim.grid.wavelength_m = p.wavelength_m;
+  sim.grid = RadarGridOf(p);
   CheckMemoryBudget(400.0 * double(p.rows()) * p.cols(), options.max_memory_bytes,
                     "product grid of " + std::to_string(p.rows()) + " x " + std::to_string(p.cols()) + " pixels",
                     "crop the product");
@@ -121,22 +224,39 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
       " returns re-projected");
 
   render::SarImage& image = sim.image.image;
-  CheckImpulseResponsePixels(options.range_resolution_m / sim.grid.dr_m,
-                             options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m);
-  image::ApplyImpulseResponse(image.intensity, image.width, image.height,
-                              options.range_resolution_m / sim.grid.dr_m,
-                              options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m,
-                              image::ParseSpectralWindow(options.psf_window, "--psf-window"));
-  if (options.speckle_looks >= 1.0) image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
-  image::SensorEffects point_response;  // reflectors: the same impulse response, added after the speckle
-  point_response.range_resolution_px = options.range_resolution_m / sim.grid.dr_m;
-  point_response.azimuth_resolution_px = options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m;
-  point_response.window = image::ParseSpectralWindow(options.psf_window, "--psf-window");
-  image::AddPointIntensities(image, point_response);
-  // beta0 so far: sigma0 / gamma0 need each pixel's own ellipsoid incidence.
-  image::ConvertPixelRadiometry(image, EllipsoidIncidenceDeg(sim.image, orbit, sim.grid),
-                                image::ParseRadiometry(options.radiometry, "--radiometry"), options.nesz_db,
-                                options.seed, options.db);
+  image::SensorEffects response;  // the impulse response on the product's pixel spacings
+  response.range_resolution_px = options.range_resolution_m / sim.grid.dr_m;
+  response.azimuth_resolution_px = options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m;
+  response.window = image::ParseSpectralWindow(options.psf_window, "--psf-window");
+  response.wavelength_m = p.wavelength_m;
+  CheckImpulseResponsePixels(response.range_resolution_px, response.azimuth_resolution_px);
+  const std::vector<float> incidence = EllipsoidIncidenceDeg(sim.image, orbit, sim.grid);
+  if (options.coherent) {
+    // The complex image (speckle from the phasors), the reflectors' phasors
+    // added with the same response, then the per-pixel radiometry.
+    if (response.range_resolution_px > 0.0 || response.azimuth_resolution_px > 0.0) {
+      image::ApplyComplexImpulseResponse(image.real, image.imag, image.width, image.height,
+                                         response.range_resolution_px, response.azimuth_resolution_px,
+                                         response.window);
+      for (int b = 0; b < render::kBounceLayers; ++b) {
+        if (image.bounce_real[b].size() != image.real.size()) continue;
+        image::ApplyComplexImpulseResponse(image.bounce_real[b], image.bounce_imag[b], image.width, image.height,
+                                           response.range_resolution_px, response.azimuth_resolution_px,
+                                           response.window);
+      }
+    }
+    AddPointPhasors(image, image.points, response);
+    ConvertPixelRadiometryCoherent(image, incidence, image::ParseRadiometry(options.radiometry, "--radiometry"),
+                                   options.nesz_db, options.seed, options.db);
+  } else {
+    image::ApplyImpulseResponse(image.intensity, image.width, image.height, response.range_resolution_px,
+                                response.azimuth_resolution_px, response.window);
+    if (options.speckle_looks >= 1.0) image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
+    image::AddPointIntensities(image, response);  // reflectors: the same impulse response, added after the speckle
+    // beta0 so far: sigma0 / gamma0 need each pixel's own ellipsoid incidence.
+    image::ConvertPixelRadiometry(image, incidence, image::ParseRadiometry(options.radiometry, "--radiometry"),
+                                  options.nesz_db, options.seed, options.db);
+  }
   sim.terrain = terrain.description;
   sim.frame = {{"origin_lon_deg", terrain.frame.origin_lon_deg()},
                {"origin_lat_deg", terrain.frame.origin_lat_deg()},
@@ -215,6 +335,7 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   const fs::path png = outputs.Add(options.out_prefix + ".png");
   const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
   const fs::path json = outputs.Add(options.out_prefix + ".json");
+  const fs::path slc_tif = options.coherent ? outputs.Add(options.out_prefix + "_slc.tif") : fs::path();
 
   ProductSimulation sim = SimulateProduct(options, false, reporter);
   // NaN where the pixel has no ground point on the terrain (declared no-data, mask 255).
@@ -244,6 +365,48 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   // GDAL geolocation arrays: gdalwarp -geoloc places the image from bands 6 and 7.
   raster.georeference.geolocation = geo::LonLatGeolocation(6, 7);
   geo::WriteFloatGeoTiff(tif, raster);
+  if (options.coherent) {
+    // The complex total and the complex image of each bounce count, as
+    // `gissar simulate --coherent` writes them; located by the geolocation
+    // arrays of PREFIX.tif beside it (bands 6 and 7).
+    geo::Metadata slc_metadata = metadata;
+    slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
+    slc_metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
+                                   "2-5 add up to band 1 before thermal noise)";
+    slc_metadata["GISSAR_PHASE"] = "exp(-j 4 pi R / lambda), R = true slant range (geo2rdr on the product orbit)";
+    std::vector<geo::ComplexBand> slc_bands = {{&image.real, &image.imag, "total"}};
+    std::vector<float> no_return;  // a layer with no return (none here: every layer is rendered)
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      if (image.bounce_real[layer].size() != image.real.size()) {
+        if (no_return.empty()) no_return = NoReturnPlane(image, /*db=*/false);
+        slc_bands.push_back({&no_return, &no_return, layer_names[layer]});
+      } else {
+        slc_bands.push_back({&image.bounce_real[layer], &image.bounce_imag[layer], layer_names[layer]});
+      }
+    }
+    // Georeference: GDAL geolocation arrays = bands 6/7 of PREFIX.tif (its
+    // absolute path: GDAL 3.6 opens X_DATASET as given), and, for when the
+    // files are moved apart, a lattice of up to 8 x 8 GCPs at pixel centres
+    // with a ground point (lon, lat, ellipsoidal height).
+    geo::Georeference slc_georeference;
+    slc_georeference.geolocation = geo::LonLatGeolocation(6, 7);
+    const std::string detected_path = fs::absolute(options.out_prefix + ".tif").lexically_normal().string();
+    slc_georeference.geolocation["X_DATASET"] = detected_path;
+    slc_georeference.geolocation["Y_DATASET"] = detected_path;
+    constexpr int kGcpLattice = 8;
+    for (int i = 0; i < kGcpLattice; ++i) {
+      const int row = int(std::lround(double(i) * (image.height - 1) / (kGcpLattice - 1)));
+      for (int j = 0; j < kGcpLattice; ++j) {
+        const int col = int(std::lround(double(j) * (image.width - 1) / (kGcpLattice - 1)));
+        const size_t k = size_t(row) * image.width + col;
+        if (!std::isfinite(sim.image.height_m[k])) continue;
+        slc_georeference.gcps.push_back({col + 0.5, row + 0.5, sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
+                                         double(sim.image.height_m[k])});
+      }
+    }
+    geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
+                             slc_georeference, /*nodata_nan=*/true, options.overviews);
+  }
   image::DbStretch stretch;
   geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);
   geo::Metadata mask_metadata = metadata;
@@ -260,6 +423,20 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   provenance["terrain"] = sim.terrain;
   provenance["frame"] = sim.frame;
   provenance["vertical_datum"] = {{"datum", sim.frame["vertical_datum"]}, {"source", sim.frame["vertical_datum_source"]}};
+  if (options.coherent) {
+    provenance["coherent"] = {
+        {"phase", "exp(-j 4 pi R / lambda): R = true slant range of each return (geo2rdr on the product orbit; "
+                  "multi-bounce: plus the path excess) and of each reflector's phase centre"},
+        {"rough_surface", "seeded random micro-phase per return and pixel (expected intensity = incoherent image)"},
+        {"impulse_response",
+         {{"range_resolution_m", options.range_resolution_m},
+          {"azimuth_resolution_m", options.azimuth_resolution_m},
+          {"range_resolution_px", options.range_resolution_m / sim.grid.dr_m},
+          {"azimuth_resolution_px", options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m},
+          {"window", options.psf_window}}},
+        {"wavelength_m", sim.product.wavelength_m},
+        {"seed", options.seed}};
+  }
   provenance["radiometry"] = {
       {"quantity", options.radiometry},
       {"scale", options.db ? "dB" : "linear"},

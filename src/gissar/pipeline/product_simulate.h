@@ -18,10 +18,22 @@
 namespace gissar::pipeline {
 
 // The rules SimulateRequest::Check applies when `product` is set: the
-// trace engine, incoherent, no idealised-geometry options (--center,
-// --center-map, --width, --height, --range-spacing, --azimuth-spacing) and no
-// --contributions. Throws ConfigError naming the option.
+// trace engine, no idealised-geometry options (--center, --center-map,
+// --width, --height, --range-spacing, --azimuth-spacing) and no
+// --contributions. Throws ConfigError naming the option. Coherent mode is
+// allowed (render::RenderProduct forms the phasors on the product grid).
 void CheckProductOptions(const SimulateRequest& options);
+
+// The radar geometry a product simulation renders on: options.product (a
+// NISAR RSLC; its amplitude read with `read_amplitude`) or options.orbit
+// with options.radar_grid (geo::ProductFromOrbit, polarisation
+// options.polarization), checked against options.max_memory_bytes. Throws
+// the gissar::Error family.
+geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_amplitude,
+                                     Reporter& reporter = NullReporter());
+
+// The product's radar grid (times, ranges, look side, wavelength).
+sensor::RadarGrid RadarGridOf(const geo::RslcProduct& product);
 
 // A product simulated in memory: the product (with its real amplitude when
 // read), the terrain description and the rendered image and geolocation.
@@ -35,13 +47,29 @@ struct ProductSimulation {
 };
 
 // Loads options.product and the terrain, renders the product grid and
-// applies the sensor effects. Throws the gissar::Error family.
+// applies the sensor effects. Incoherent: the intensity impulse response,
+// speckle, the reflectors' intensity responses, then per pixel the
+// conversion from beta0 (ellipsoid incidence of the pixel's ground point),
+// thermal noise and dB. Coherent (options.coherent): the complex image of
+// render::RenderProduct convolved with the amplitude impulse response of
+// --range-resolution / --azimuth-resolution (on the product's pixel
+// spacings), the reflectors added as phasors exp(-j 4 pi R / lambda) (R
+// their geo2rdr range) with the same response, no simulated speckle (the
+// phasors make it), then per pixel the conversion from beta0 (complex
+// planes by the square root of the factor), complex thermal noise on the
+// total and detection (image.intensity and bounce_layers the detected power
+// of the complex total and layers). Throws the gissar::Error family.
 ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude,
                                   Reporter& reporter = NullReporter());
 
 // `gissar simulate --product`: writes PREFIX.tif (bands total, single,
 // double, triple, four_or_more, lon_deg, lat_deg, height_m on exactly the
-// product's grid), PREFIX_mask.tif, PREFIX.png and PREFIX.json.
+// product's grid), PREFIX_mask.tif, PREFIX.png and PREFIX.json; in coherent
+// mode also PREFIX_slc.tif (CFloat32: total, single, double, triple,
+// four_or_more, |z|^2 in the output radiometry, linear; GEOLOCATION arrays
+// = bands 6 and 7 of PREFIX.tif by its absolute path, and up to 8 x 8 GCPs),
+// which `gissar pta --image`
+// measures on the product's own grid.
 SimulateResult RunProductSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 struct ValidateRequest {

@@ -200,7 +200,11 @@ TEST(ValidateTest, RejectsBadOptions) {
   o.simulate.dem_oversample = 0;
   EXPECT_THROW(o.Check(), ConfigError);
   o.simulate.dem_oversample = 2;
+  EXPECT_NO_THROW(o.Check());
+  // Issue 44: coherent mode renders on a product grid too.
   o.simulate.coherent = true;
+  EXPECT_NO_THROW(o.Check());
+  o.simulate.speckle_looks = 4;  // coherent mode forms its own speckle
   EXPECT_THROW(o.Check(), ConfigError);
 }
 

@@ -5,7 +5,9 @@
 #include <complex>
 #include <fstream>
 #include <functional>
+#include <cstdlib>
 #include <map>
+#include <memory>
 #include <optional>
 
 #include "gissar/geo/local_frame.h"
@@ -18,6 +20,7 @@
 #include "gissar/pipeline/field_names.h"
 #include "gissar/pipeline/geocode.h"
 #include "gissar/pipeline/georeferencing.h"
+#include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/sensor/range_doppler.h"
 #include "gissar/util/atomic_output.h"
@@ -194,6 +197,154 @@ std::string SidecarOf(const std::string& image) {
   return (p.parent_path() / p.stem()).string() + ".json";
 }
 
+// The terrain of a simulation's sidecar: its input `index` (0 for the
+// idealised geometry; a product simulation lists the product, or the orbit
+// and radar grid, first), loaded as the simulation loaded it and checked
+// against the sidecar's frame.
+std::shared_ptr<Terrain> SidecarTerrain(const json& sidecar, const std::string& sidecar_path, size_t index,
+                                        SimulateRequest& o, int64_t max_memory_bytes, Reporter& reporter,
+                                        std::string* input) {
+  *input = sidecar["inputs"].at(index).at("path").get<std::string>();
+  if (!o.scene.empty()) o.scene = *input;
+  else o.dem = *input;
+  o.engine = "trace";
+  o.max_memory_bytes = max_memory_bytes;
+  auto terrain = std::make_shared<Terrain>(LoadTerrain(o, reporter));
+  const double lon0 = sidecar["frame"].value("origin_lon_deg", 0.0), lat0 = sidecar["frame"].value("origin_lat_deg", 0.0);
+  if (std::abs(terrain->frame.origin_lon_deg() - lon0) > 1e-9 || std::abs(terrain->frame.origin_lat_deg() - lat0) > 1e-9) {
+    throw InputError("the terrain's frame differs from the image's (was the DEM or scene changed?)", sidecar_path);
+  }
+  return terrain;
+}
+
+// `gissar simulate --product --coherent`'s PREFIX_slc.tif: the reflectors
+// are placed on the simulation's terrain as the simulation placed them
+// (PlaceReflectorRows: the surface height + apex_height_m, ENU of its frame)
+// and predicted by zero-Doppler geo2rdr on the product's orbit (the product,
+// or orbit and radar grid, the sidecar names), where RenderProduct put
+// their phase centres. |z|^2 is `radiometry` per pixel (the ellipsoid
+// incidence of the pixel's ground point): beta0 = |z|^2 / (sin or tan of the
+// incidence of the reflector's ground point).
+void ProductGridPrediction(const PtaRequest& request, const json& sidecar, const std::string& sidecar_path,
+                           const geo::ComplexRaster& raster, const std::string& radiometry, SimulateRequest o,
+                           Source& s, Reporter& reporter) {
+  const json& inputs = sidecar["inputs"];
+  const bool from_product = !o.product.empty();
+  if (inputs.size() < (from_product ? 2u : 3u)) {
+    throw InputError("the sidecar lists no product (or orbit and radar grid) and terrain inputs", sidecar_path);
+  }
+  // The inputs as recorded (absolute paths), not as typed.
+  if (from_product) {
+    o.product = inputs[0].at("path").get<std::string>();
+  } else {
+    o.orbit = inputs[0].at("path").get<std::string>();
+    o.radar_grid = inputs[1].at("path").get<std::string>();
+  }
+  o.max_memory_bytes = request.max_memory_bytes;
+  auto product = std::make_shared<geo::RslcProduct>(ReadProductGeometry(o, false, reporter));
+  const geo::RslcProduct& p = *product;
+  if (p.cols() != raster.width || p.rows() != raster.height) {
+    throw InputError("the image is " + std::to_string(raster.width) + " x " + std::to_string(raster.height) +
+                         ", the product grid its sidecar names " + std::to_string(p.cols()) + " x " +
+                         std::to_string(p.rows()) + " (was the product changed?)",
+                     request.image);
+  }
+  const std::string first_range = MetadataValue(raster.metadata, "GISSAR_FIRST_RANGE_M");
+  if (!first_range.empty() && std::abs(std::atof(first_range.c_str()) - p.slant_range_m.front()) > 1e-3) {
+    throw InputError("the image's first slant range (GISSAR_FIRST_RANGE_M " + first_range +
+                         ") is not the product's (was the product changed?)",
+                     request.image);
+  }
+  std::string terrain_input;
+  auto terrain = SidecarTerrain(sidecar, sidecar_path, from_product ? 1 : 2, o, request.max_memory_bytes, reporter,
+                                &terrain_input);
+  auto surface = std::make_shared<TerrainSurface>(*terrain);
+  auto orbit = std::make_shared<sensor::Orbit>(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
+  s.range_spacing_m = p.range_spacing_m();
+  s.wavelength_m = p.wavelength_m;
+  s.polarimetric_expectation = false;
+  s.calibrated = true;
+  s.calibration_note = "|z|^2 = " + radiometry + " (GISSAR_RADIOMETRY), per pixel; beta0 = " +
+                       (radiometry == "beta0"   ? std::string("|z|^2")
+                        : radiometry == "sigma0" ? std::string("|z|^2 / sin(incidence)")
+                                                 : std::string("|z|^2 cos / sin(incidence)")) +
+                       (radiometry == "beta0" ? std::string()
+                                              : std::string(", incidence on the ellipsoid at the reflector's ground "
+                                                            "point"));
+  s.inputs.push_back(InputFileRecord(request.image));
+  s.inputs.push_back(InputFileRecord(sidecar_path));
+  s.description = {{"kind", "gissar simulate --coherent complex image on a product's radar grid"},
+                   {"file", fs::absolute(request.image).string()},
+                   {"sidecar", fs::absolute(sidecar_path).string()},
+                   {"terrain", terrain_input},
+                   {"product", from_product ? o.product : o.orbit},
+                   {"polarization", s.channel},
+                   {"channels", json::array()},
+                   {"radiometry", radiometry},
+                   {"wavelength_m", p.wavelength_m},
+                   {"width", raster.width},
+                   {"height", raster.height},
+                   {"first_zero_doppler_time_s", p.zero_doppler_time_s.front()},
+                   {"zero_doppler_time_spacing_s", p.azimuth_spacing_s()},
+                   {"first_slant_range_m", p.slant_range_m.front()},
+                   {"slant_range_spacing_m", p.range_spacing_m()},
+                   {"look_side", p.look_left ? "left" : "right"},
+                   {"prediction",
+                    "the simulation's terrain (sidecar inputs) for the apex, zero-Doppler geo2rdr on the product's "
+                    "orbit (cubic Hermite state vectors)"}};
+  for (const auto& [name, plane] : s.channels) s.description["channels"].push_back(name);
+  const std::string csv = request.reflectors;
+  s.predict = [product, orbit, terrain, surface, radiometry, csv](const material::ReflectorSpec& spec,
+                                                                  const std::string& where) {
+    const geo::RslcProduct& p = *product;
+    const TerrainSurface& f = *surface;
+    const SurfaceHeightAt height = [&f](double x, double y) -> std::optional<double> {
+      const double z = f(x, y);
+      return std::isnan(z) ? std::nullopt : std::optional<double>(z);
+    };
+    const std::vector<render::SceneReflector> placed = PlaceReflectorRows({spec}, csv, terrain->frame, height);
+    const Eigen::Vector3d apex_llh = terrain->frame.GeodeticFromEnu(placed.at(0).apex_enu);
+    const Eigen::Vector3d target = geo::LocalFrame::EcefFromGeodetic(apex_llh.x(), apex_llh.y(), apex_llh.z());
+    const double t_mid = 0.5 * (p.zero_doppler_time_s.front() + p.zero_doppler_time_s.back());
+    const auto rc = sensor::Geo2Rdr(*orbit, target, t_mid);
+    if (!rc) throw InputError("reflector has no zero-Doppler time on the product's orbit", where);
+    const sensor::LookSide side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
+    if (!sensor::IsOnSide(*orbit, target, rc->time_s, side)) {
+      throw InputError("reflector lies on the unlit side of the track (the product looks " +
+                           std::string(p.look_left ? "left" : "right") + ")",
+                       where);
+    }
+    Prediction out;
+    out.row = (rc->time_s - p.zero_doppler_time_s.front()) / p.azimuth_spacing_s();
+    out.col = (rc->range_m - p.slant_range_m.front()) / p.range_spacing_m();
+    const sensor::OrbitState state = orbit->Interpolate(rc->time_s);
+    out.to_sensor_enu = EnuOfEcefVector(apex_llh.x(), apex_llh.y(), state.position_m - target).normalized();
+    const double ground_speed = state.velocity_mps.norm() * target.norm() / state.position_m.norm();
+    out.azimuth_spacing_m = ground_speed * p.azimuth_spacing_s();
+    // Ellipsoid incidence at the reflector's ground point (the radiometry
+    // of the pixels around it): the geodetic normal there against the line
+    // of sight (EnuOfEcefVector's up is that normal).
+    const Eigen::Vector3d ground = geo::LocalFrame::EcefFromGeodetic(apex_llh.x(), apex_llh.y(),
+                                                                     apex_llh.z() - spec.apex_height_m);
+    const double incidence =
+        std::acos(std::clamp(EnuOfEcefVector(apex_llh.x(), apex_llh.y(), state.position_m - ground).normalized().z(),
+                             -1.0, 1.0));
+    out.beta0_factor = radiometry == "beta0"    ? 1.0
+                       : radiometry == "sigma0" ? 1.0 / std::sin(incidence)
+                                                : std::cos(incidence) / std::sin(incidence);
+    out.geometry = {{"zero_doppler_time_s", rc->time_s},
+                    {"slant_range_m", rc->range_m},
+                    {"apex_enu_m", {placed[0].apex_enu.x(), placed[0].apex_enu.y(), placed[0].apex_enu.z()}},
+                    {"apex_height_above_ellipsoid_m", apex_llh.z()},
+                    {"ground_speed_mps", ground_speed},
+                    {"incidence_deg", incidence / kDeg},
+                    {"look_elevation_deg", std::asin(std::clamp(out.to_sensor_enu.z(), -1.0, 1.0)) / kDeg},
+                    {"look_azimuth_deg",
+                     std::fmod(std::atan2(out.to_sensor_enu.x(), out.to_sensor_enu.y()) / kDeg + 360.0, 360.0)}};
+    return out;
+  };
+}
+
 Source ImageSource(const PtaRequest& request, Reporter& reporter) {
   Source s;
   const geo::ComplexRaster raster = geo::ReadComplexRaster(request.image);
@@ -226,9 +377,6 @@ Source ImageSource(const PtaRequest& request, Reporter& reporter) {
   json options = sidecar["options"];
   for (const char* key : {"materials", "reflectors", "contributions", "out_prefix"}) options.erase(key);
   o.ApplyJson(options, sidecar_path);
-  if (o.UsesProductGeometry()) {
-    throw InputError("a simulation on a product grid: give the product itself (--product)", request.image);
-  }
   const std::string simulated_pol = o.polarization;
   if (!named.empty()) {
     s.channel = request.polarization.empty() ? (named.count(simulated_pol) ? simulated_pol : named.begin()->first)
@@ -259,23 +407,19 @@ Source ImageSource(const PtaRequest& request, Reporter& reporter) {
                          "' (PREFIX_slc.tif of `gissar simulate --coherent` expected)",
                      request.image);
   }
-  auto geometry = std::make_shared<sensor::SarGeometry>(
-      GeometryFromMetadata(raster.metadata, raster.width, raster.height, request.image));
   const std::string radiometry = MetadataValue(raster.metadata, "GISSAR_RADIOMETRY");
   if (radiometry != "sigma0" && radiometry != "beta0" && radiometry != "gamma0") {
     throw InputError("GISSAR_RADIOMETRY must be sigma0, beta0 or gamma0, got '" + radiometry + "'", request.image);
   }
-  // The simulation's terrain, in its own frame.
-  const std::string input = sidecar["inputs"].at(0).at("path").get<std::string>();
-  if (!o.scene.empty()) o.scene = input;
-  else o.dem = input;
-  o.engine = "trace";
-  o.max_memory_bytes = request.max_memory_bytes;
-  auto terrain = std::make_shared<Terrain>(LoadTerrain(o, reporter));
-  const double lon0 = sidecar["frame"].value("origin_lon_deg", 0.0), lat0 = sidecar["frame"].value("origin_lat_deg", 0.0);
-  if (std::abs(terrain->frame.origin_lon_deg() - lon0) > 1e-9 || std::abs(terrain->frame.origin_lat_deg() - lat0) > 1e-9) {
-    throw InputError("the terrain's frame differs from the image's (was the DEM or scene changed?)", sidecar_path);
+  if (o.UsesProductGeometry()) {
+    ProductGridPrediction(request, sidecar, sidecar_path, raster, radiometry, o, s, reporter);
+    return s;
   }
+  auto geometry = std::make_shared<sensor::SarGeometry>(
+      GeometryFromMetadata(raster.metadata, raster.width, raster.height, request.image));
+  // The simulation's terrain, in its own frame.
+  std::string input;
+  auto terrain = SidecarTerrain(sidecar, sidecar_path, 0, o, request.max_memory_bytes, reporter, &input);
   auto surface = std::make_shared<TerrainSurface>(*terrain);
   s.range_spacing_m = geometry->range_spacing_m();
   s.wavelength_m = o.wavelength_m;

@@ -7,7 +7,12 @@
 // (row = zero-Doppler time on the product grid, column = slant range), or
 // the complex GeoTIFF of `gissar simulate --coherent` (--image PREFIX_slc.tif)
 // through the simulation's own geometry (its GISSAR_* metadata) and terrain
-// (its sidecar PREFIX.json); the target is measured with
+// (its sidecar PREFIX.json) -- for a simulation on a real radar grid
+// (`simulate --product/--orbit --coherent`) the apex is placed on that
+// terrain and predicted by zero-Doppler geo2rdr on the orbit of the product
+// (or orbit and radar grid) the sidecar names, and sigma0/gamma0 convert
+// back to beta0 with the ellipsoid incidence at the reflector's ground
+// point; the target is measured with
 // image::MeasurePointTarget (peak, -3 dB widths, PSLR/ISLR, background-
 // corrected energy -> RCS with the beta0 calibration the input states);
 // the expected RCS is the physical-optics RCS of the reflector seen from

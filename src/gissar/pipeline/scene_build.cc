@@ -265,6 +265,7 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
       r.size_m = row.size_m;
       r.boresight_azimuth_deg = row.boresight_azimuth_deg;
       r.boresight_elevation_deg = row.boresight_elevation_deg;
+      r.roll_deg = row.roll_deg;
       r.apex_enu = placed[k].apex_enu;
       r.source = fs::path(options.reflectors).filename().string();
       r.row = row.row;

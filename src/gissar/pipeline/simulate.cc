@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -23,6 +24,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/annotated.h"
 #include "gissar/image/impulse_response.h"
+#include "gissar/image/polarimetry.h"
 #include "gissar/image/quicklook.h"
 #include "gissar/image/radiometry.h"
 #include "gissar/material/material.h"
@@ -116,7 +118,7 @@ void SimulateRequest::Check() const {
   if (!(wavelength_m >= 1e-3 && wavelength_m <= 100.0)) {
     throw ConfigError("wavelength must be in [0.001, 100] m", "--wavelength");
   }
-  material::ParsePolarization(polarization, "--polarization");
+  material::ParsePolarizationList(polarization, "--polarization");
   if (coherent && speckle_looks > 0.0) {
     throw ConfigError("coherent mode forms its own speckle; do not add simulated speckle",
                       "--coherent/--speckle-looks");
@@ -279,13 +281,20 @@ constexpr double kBytesPerImagePixel = 64.0;
 // plane of every bounce count and writes the SLC (measured 98 B per pixel
 // with three bounces: 4096^2 posts, 96 Mpx, 10.0 GB).
 constexpr double kBytesPerCoherentImagePixel = 160.0;
+// Seed offset between the sensor stages (thermal noise, speckle) of the
+// channels of a polarimetric run: independent draws per channel.
+constexpr uint64_t kChannelSeedStride = 0x9e3779b97f4a7c15ULL;
 
 double BytesPerDemPost(const SimulateRequest& options) {
   return options.engine == "trace" && !options.heightfield ? kBytesPerDemPostBvh : kBytesPerDemPost;
 }
 
 double BytesPerImagePixel(const SimulateRequest& options) {
-  return options.coherent ? kBytesPerCoherentImagePixel : kBytesPerImagePixel;
+  // Every channel keeps its own planes (a polarimetric run holds them all
+  // until they are written).
+  const double channels =
+      double(material::ParsePolarizationList(options.polarization, "--polarization").size());
+  return channels * (options.coherent ? kBytesPerCoherentImagePixel : kBytesPerImagePixel);
 }
 
 geo::DemReadOptions DemReadOptionsOf(const SimulateRequest& options) {
@@ -893,6 +902,7 @@ std::vector<render::SceneReflector> PlaceReflectorRows(const std::vector<materia
     r.size_m = spec.size_m;
     r.apex_enu = Eigen::Vector3d(at.x(), at.y(), *z + spec.apex_height_m);
     r.boresight_enu = material::BoresightVector(spec.boresight_azimuth_deg, spec.boresight_elevation_deg);
+    r.roll_rad = spec.roll_deg * M_PI / 180.0;
     r.row = spec.row;
     out.push_back(r);
   }
@@ -916,6 +926,7 @@ std::vector<render::SceneReflector> StoredReflectors(const std::vector<scene::St
     r.size_m = s.size_m;
     r.apex_enu = s.apex_enu;
     r.boresight_enu = material::BoresightVector(s.boresight_azimuth_deg, s.boresight_elevation_deg);
+    r.roll_rad = s.roll_deg * M_PI / 180.0;
     r.row = s.row;
     out.push_back(r);
   }
@@ -1048,7 +1059,8 @@ render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* 
   r.max_bounces = options.bounces;
   r.coherent = options.coherent;
   r.wavelength_m = options.wavelength_m;
-  r.polarization = material::ParsePolarization(options.polarization, "--polarization");
+  // The first channel; SimulateImage renders the others as further passes.
+  r.polarization = material::ParsePolarizationList(options.polarization, "--polarization").front();
   r.seed = options.seed;
   r.record_contributions = !options.contributions.empty();
   r.adaptive_sampling = options.adaptive_sampling;
@@ -1108,39 +1120,171 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
         (raster_engine ? std::to_string(int64_t(terrain.grid_width - 1) * (terrain.grid_height - 1)) + " DEM cells"
                        : std::to_string(mesh.triangle_count()) + " triangles"));
   }
+  // One pass per channel (VH copies the HV pass: monostatic reciprocity).
+  // Several channels: polarimetric passes with one seed, so that the passes
+  // are the channels of one scattering matrix per return.
+  out.channels = material::ParsePolarizationList(options.polarization, "--polarization");
+  const bool polarimetric = out.channels.size() > 1;
+  std::vector<render::SceneReflector> reflectors = terrain.reflectors;
+  std::optional<render::GridHeightfield> heightfield;
   if (raster_engine) {
-    out.image = render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height, terrain.materials,
-                                        geometry, terrain.grid_classes, options.wavelength_m,
-                                        material::ParsePolarization(options.polarization, "--polarization"));
     // Reflectors: the tracer's closed-form returns, hidden by the DEM grid's
     // triangles (a height field: no BVH).
     if (!options.reflectors.empty() || !terrain.reflectors.empty()) {
-      const render::GridHeightfield heightfield(mesh.vertices, terrain.grid_width, terrain.grid_height);
-      std::vector<render::SceneReflector> reflectors = terrain.reflectors;
+      heightfield.emplace(mesh.vertices, terrain.grid_width, terrain.grid_height);
       if (!options.reflectors.empty()) {
         const auto placed = PlaceReflectorRows(
             material::ReadReflectorsCsv(options.reflectors), options.reflectors, terrain.frame,
-            [&](double x, double y) { return heightfield.SurfaceHeight(x, y); });
+            [&](double x, double y) { return heightfield->SurfaceHeight(x, y); });
         reflectors.insert(reflectors.end(), placed.begin(), placed.end());
       }
-      out.image.points = render::ReflectorReturns(heightfield, reflectors, geometry, options.wavelength_m);
     }
   } else {
-    render::RenderOptions ro = RenderOptionsOf(options, &reporter);
-    ro.ray_box = terrain.ray_box;
-    ro.reflectors = terrain.reflectors;
     const auto placed = PlaceReflectors(options, terrain, *embree);
-    ro.reflectors.insert(ro.reflectors.end(), placed.begin(), placed.end());
-    out.image = render::RenderSar(*embree, mesh, terrain.materials, geometry, ro);
+    reflectors.insert(reflectors.end(), placed.begin(), placed.end());
+  }
+  auto render_channel = [&](material::Polarization channel) {
+    if (raster_engine) {
+      render::SarImage image = render::RenderSarRaster(mesh.vertices, terrain.grid_width, terrain.grid_height,
+                                                       terrain.materials, geometry, terrain.grid_classes,
+                                                       options.wavelength_m, channel);
+      if (heightfield) {
+        // A single channel keeps the scalar RCS (as the tracer does).
+        image.points = render::ReflectorReturns(*heightfield, reflectors, geometry, options.wavelength_m,
+                                                polarimetric ? std::optional(channel) : std::nullopt);
+      }
+      return image;
+    }
+    render::RenderOptions ro = RenderOptionsOf(options, &reporter);
+    ro.polarization = channel;
+    ro.polarimetric = polarimetric;
+    ro.ray_box = terrain.ray_box;
+    ro.reflectors = reflectors;
+    return render::RenderSar(*embree, mesh, terrain.materials, geometry, ro);
+  };
+  for (size_t k = 0; k < out.channels.size(); ++k) {
+    const material::Polarization channel = out.channels[k];
+    if (polarimetric) reporter.Info("simulate: channel " + material::ToString(channel));
+    render::SarImage rendered;
+    const auto hv = std::find(out.channels.begin(), out.channels.begin() + k, material::Polarization::kHV);
+    const auto vh = std::find(out.channels.begin(), out.channels.begin() + k, material::Polarization::kVH);
+    if (channel == material::Polarization::kVH && hv != out.channels.begin() + k) {
+      rendered = hv == out.channels.begin() ? out.image : out.other_channels[hv - out.channels.begin() - 1];
+    } else if (channel == material::Polarization::kHV && vh != out.channels.begin() + k) {
+      rendered = vh == out.channels.begin() ? out.image : out.other_channels[vh - out.channels.begin() - 1];
+    } else {
+      rendered = render_channel(channel);
+    }
+    if (k == 0) out.image = std::move(rendered);
+    else out.other_channels.push_back(std::move(rendered));
   }
   // Sensor effects: impulse response, speckle, thermal noise (in this order).
+  // Each further channel has its own noise and speckle draws (seeds offset
+  // by kChannelSeedStride); the first keeps the request's seed.
   step = Stopwatch();
   ApplySensorEffects(out.image, options, geometry);
+  for (size_t k = 0; k < out.other_channels.size(); ++k) {
+    SimulateRequest channel_options = options;
+    channel_options.seed = options.seed + kChannelSeedStride * (k + 1);
+    ApplySensorEffects(out.other_channels[k], channel_options, geometry);
+  }
   out.timings_s["sensor_effects"] = step.ElapsedSeconds();
   out.timings_s[raster_engine ? "raster" : "trace"] = out.image.stats.trace_seconds;
   if (!raster_engine) out.timings_s["mask"] = out.image.stats.mask_seconds;
   return out;
 }
+
+namespace {
+
+std::vector<std::string> ChannelNames(const std::vector<material::Polarization>& channels) {
+  std::vector<std::string> names;
+  for (const material::Polarization c : channels) names.push_back(material::ToString(c));
+  return names;
+}
+
+// Whether the request's channels give a Pauli vector: HH, VV and HV or VH.
+bool HasPauliChannels(const SimulateRequest& options) {
+  const auto channels = material::ParsePolarizationList(options.polarization, "--polarization");
+  auto has = [&](material::Polarization p) { return std::find(channels.begin(), channels.end(), p) != channels.end(); };
+  return has(material::Polarization::kHH) && has(material::Polarization::kVV) &&
+         (has(material::Polarization::kHV) || has(material::Polarization::kVH));
+}
+
+// The complex total of channel `pol` (nullptr when the run has none).
+const render::SarImage* ChannelImage(const SimulatedImage& simulated, material::Polarization pol) {
+  for (size_t k = 0; k < simulated.channels.size(); ++k) {
+    if (simulated.channels[k] == pol) return k == 0 ? &simulated.image : &simulated.other_channels[k - 1];
+  }
+  return nullptr;
+}
+
+// Writes the Pauli RGB (image::PauliRgb: R = |HH - VV|, G = |HV + VH|, B =
+// |HH + VV|, each / sqrt 2, one common dB stretch from the 2nd to the 98th
+// percentile) of the multilooked coherency (at least 2 x 2 looks, more to
+// keep the longer side <= kQuicklookMaxSidePx) of a coherent run, and
+// records the looks and the stretch. A missing cross-polarised channel is
+// taken from the other (reciprocity).
+void WritePauliQuicklook(const fs::path& path, const SimulatedImage& simulated, nlohmann::json* record) {
+  using material::Polarization;
+  const render::SarImage* hh = ChannelImage(simulated, Polarization::kHH);
+  const render::SarImage* vv = ChannelImage(simulated, Polarization::kVV);
+  const render::SarImage* hv = ChannelImage(simulated, Polarization::kHV);
+  const render::SarImage* vh = ChannelImage(simulated, Polarization::kVH);
+  if (!hv) hv = vh;
+  if (!vh) vh = hv;
+  GISSAR_CHECK(hh && vv && hv && vh);
+  image::QuadPolImage quad;
+  quad.width = hh->width;
+  quad.height = hh->height;
+  auto complex_of = [](const render::SarImage& c) {
+    std::vector<std::complex<float>> z(c.real.size());
+    for (size_t i = 0; i < z.size(); ++i) z[i] = {c.real[i], c.imag[i]};
+    return z;
+  };
+  quad.hh = complex_of(*hh);
+  quad.hv = complex_of(*hv);
+  quad.vh = complex_of(*vh);
+  quad.vv = complex_of(*vv);
+  const int side = std::max(quad.width, quad.height);
+  const int looks = std::clamp((side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx, 2,
+                               std::max(1, std::min(quad.width, quad.height)));
+  const image::PolarimetricMatrixImage t3 = image::MultilookCoherency(quad, looks, looks);
+  image::PauliStretch stretch;
+  const image::RgbImage rgb = image::PauliRgb(t3, &stretch);
+  geo::WritePng(path, rgb.rgb, rgb.width, rgb.height, 3);
+  *record = {{"looks", {looks, looks}},
+             {"db_low", stretch.low_db},
+             {"db_high", stretch.high_db},
+             {"percentiles", {2, 98}},
+             {"channels", "R = |HH - VV| / sqrt 2, G = |HV + VH| / sqrt 2, B = |HH + VV| / sqrt 2 (multilooked "
+                          "coherency T22, T33, T11; one dB stretch for the three)"}};
+}
+
+// Per channel: the share of the total power (summed over the footprint,
+// before the sensor stage's noise) in each bounce layer: the double-bounce
+// share of HH is above VV's where walls and ground form dihedrals.
+nlohmann::json BounceShares(const SimulatedImage& simulated) {
+  nlohmann::json shares = nlohmann::json::object();
+  const char* names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
+  for (size_t k = 0; k < simulated.channels.size(); ++k) {
+    const render::SarImage& c = k == 0 ? simulated.image : simulated.other_channels[k - 1];
+    double layer_sum[render::kBounceLayers] = {0, 0, 0, 0}, total = 0.0;
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      for (const float v : c.bounce_layers[layer]) {
+        if (std::isfinite(v)) layer_sum[layer] += v;
+      }
+      total += layer_sum[layer];
+    }
+    nlohmann::json row = nlohmann::json::object();
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      row[names[layer]] = total > 0.0 ? layer_sum[layer] / total : 0.0;
+    }
+    shares[material::ToString(simulated.channels[k])] = row;
+  }
+  return shares;
+}
+
+}  // namespace
 
 void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& o) {
   o.tif = o.files.Add(options.out_prefix + ".tif");
@@ -1150,6 +1294,7 @@ void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs&
   o.json = o.files.Add(options.out_prefix + ".json");
   o.stac_json = o.files.Add(options.out_prefix + "_stac.json");
   if (options.coherent) o.slc_tif = o.files.Add(options.out_prefix + "_slc.tif");
+  if (options.coherent && HasPauliChannels(options)) o.pauli_png = o.files.Add(options.out_prefix + "_pauli.png");
   if (options.layers) o.layers_tif = o.files.Add(options.out_prefix + "_layers.tif");
   if (!options.contributions.empty()) o.contributions_csv = o.files.Add(options.contributions);
 }
@@ -1238,27 +1383,52 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   });
   // The bands are moved into the raster for the write and back afterwards
   // (the caller may still read the image): no copies of full-size planes.
-  geo::FloatRaster raster{image.width, image.height, {}, {"total"}, metadata};
-  raster.bands.push_back(std::move(image.intensity));
+  // One channel: total, then one band per bounce count. Several: each
+  // channel's total (named by its channel), then each channel's bounce bands.
+  std::vector<render::SarImage*> channel_images = {&image};
+  for (render::SarImage& other : simulated.other_channels) channel_images.push_back(&other);
+  const bool several = channel_images.size() > 1;
+  auto channel_name = [&](size_t k) {
+    return k < simulated.channels.size() ? material::ToString(simulated.channels[k]) : std::string("VV");
+  };
+  geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
   raster.band_unit = image::RadiometryUnit(options.db);
   const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
-  for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-    raster.bands.push_back(std::move(image.bounce_layers[layer]));
-    raster.band_names.push_back(layer_names[layer]);
-    // A layer with no return (more bounces than traced) shares one plane.
-    if (raster.bands.back().empty() && raster.empty_band_pixels.empty()) {
-      raster.empty_band_pixels = NoReturnPlane(image, options.db);
+  for (size_t k = 0; k < channel_images.size(); ++k) {
+    raster.bands.push_back(std::move(channel_images[k]->intensity));
+    raster.band_names.push_back(several ? channel_name(k) : "total");
+  }
+  for (size_t k = 0; k < channel_images.size(); ++k) {
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      raster.bands.push_back(std::move(channel_images[k]->bounce_layers[layer]));
+      raster.band_names.push_back(several ? channel_name(k) + "_" + layer_names[layer] : layer_names[layer]);
+      // A layer with no return (more bounces than traced) shares one plane.
+      if (raster.bands.back().empty() && raster.empty_band_pixels.empty()) {
+        raster.empty_band_pixels = NoReturnPlane(image, options.db);
+      }
     }
   }
   auto give_back_bands = [&] {
     if (raster.bands.empty()) return;
-    image.intensity = std::move(raster.bands[0]);
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      image.bounce_layers[layer] = std::move(raster.bands[1 + layer]);
+    const size_t n = channel_images.size();
+    for (size_t k = 0; k < n; ++k) {
+      channel_images[k]->intensity = std::move(raster.bands[k]);
+      for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+        channel_images[k]->bounce_layers[layer] = std::move(raster.bands[n + k * render::kBounceLayers + layer]);
+      }
     }
     raster.bands.clear();
   };
-  raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
+  if (several) {
+    std::string bands_text;
+    for (size_t k = 0; k < raster.band_names.size(); ++k) {
+      bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + raster.band_names[k];
+    }
+    raster.metadata["GISSAR_BANDS"] = bands_text + " (channel totals, then each channel's bounce counts)";
+    raster.metadata["GISSAR_POLARIZATIONS"] = material::ToString(simulated.channels);
+  } else {
+    raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
+  }
   raster.band_units.assign(raster.bands.size(), raster.band_unit);
   // NaN outside the imaged footprint (ApplySensorEffects), declared.
   raster.nodata_nan = true;
@@ -1299,26 +1469,49 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   }
   give_back_bands();
   lap("image");
+  nlohmann::json pauli_record;  // the Pauli quicklook's looks and stretch
   if (options.coherent) {
     geo::Metadata slc_metadata = metadata;
     slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
     // The complex total, then the complex image of each bounce count: they
-    // add up to the total (before thermal noise).
-    slc_metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
-                                   "2-5 add up to band 1 before thermal noise)";
-    std::vector<geo::ComplexBand> slc_bands = {{&image.real, &image.imag, "total"}};
+    // add up to the total (before thermal noise). Several channels: each
+    // channel's complex total, then each channel's bounce counts.
+    std::vector<geo::ComplexBand> slc_bands;
+    for (size_t k = 0; k < channel_images.size(); ++k) {
+      slc_bands.push_back({&channel_images[k]->real, &channel_images[k]->imag, several ? channel_name(k) : "total"});
+    }
     std::vector<float> no_return;  // the real and imaginary parts of a layer with no return
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      if (image.bounce_real[layer].empty()) {
-        if (no_return.empty()) no_return = NoReturnPlane(image, /*db=*/false);
-        slc_bands.push_back({&no_return, &no_return, layer_names[layer]});
-      } else {
-        slc_bands.push_back({&image.bounce_real[layer], &image.bounce_imag[layer], layer_names[layer]});
+    for (size_t k = 0; k < channel_images.size(); ++k) {
+      render::SarImage& c = *channel_images[k];
+      for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+        const std::string name = several ? channel_name(k) + "_" + layer_names[layer] : layer_names[layer];
+        if (c.bounce_real[layer].empty()) {
+          if (no_return.empty()) no_return = NoReturnPlane(image, /*db=*/false);
+          slc_bands.push_back({&no_return, &no_return, name});
+        } else {
+          slc_bands.push_back({&c.bounce_real[layer], &c.bounce_imag[layer], name});
+        }
       }
+    }
+    if (several) {
+      std::string bands_text;
+      for (size_t k = 0; k < slc_bands.size(); ++k) {
+        bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + slc_bands[k].name;
+      }
+      slc_metadata["GISSAR_BANDS"] = bands_text + " (complex; each channel's bounce bands add up to its total "
+                                                  "before thermal noise)";
+      slc_metadata["GISSAR_POLARIZATIONS"] = material::ToString(simulated.channels);
+    } else {
+      slc_metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
+                                     "2-5 add up to band 1 before thermal noise)";
     }
     geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
                              raster.georeference, /*nodata_nan=*/true, options.overviews);
     lap("slc");
+    if (!reserved.pauli_png.empty()) {
+      WritePauliQuicklook(reserved.pauli_png, simulated, &pauli_record);
+      lap("pauli");
+    }
   }
   if (!reserved.layers_tif.empty()) {
     const Stopwatch layers_watch;
@@ -1402,6 +1595,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
       {"scale", options.db ? "dB" : "linear"},
       {"unit", image::RadiometryUnit(options.db)},
       {"polarization", options.polarization},
+      {"channels", ChannelNames(simulated.channels)},
       {"wavelength_m", options.wavelength_m},
       {"nesz_db", std::isnan(options.nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(options.nesz_db)},
       {"incidence_reference",
@@ -1413,6 +1607,16 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
       {"range_spacing_m", geometry.range_spacing_m()},
       {"azimuth_spacing_m", geometry.azimuth_spacing_m()},
       {"reflector_returns", image.points.size()}};
+  if (several) {
+    // Polarimetric passes: the bounce shares per channel, the Pauli
+    // quicklook's stretch.
+    provenance["polarimetry"] = {
+        {"channels", ChannelNames(simulated.channels)},
+        {"model", "one polarimetric pass per channel (VH = HV by reciprocity), one seed: scattering matrices per "
+                  "return (docs/radiometry.md, Polarimetry in the renderer)"},
+        {"bounce_shares", BounceShares(simulated)}};
+    if (!pauli_record.is_null()) provenance["polarimetry"]["pauli_quicklook"] = pauli_record;
+  }
   provenance["sampling"] = {
       {"footprint_pixels", image.stats.footprint_pixels},
       {"empty_footprint_pixels", image.stats.empty_footprint_pixels},
@@ -1453,6 +1657,9 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
                 {"quicklook", final_of("_quicklook.png"), "image/png", "Annotated quicklook", {"overview"}},
                 {"provenance", final_of(".json"), "application/json", "gissar provenance sidecar", {"metadata"}}};
     if (options.coherent) p.assets.push_back({"slc", final_of("_slc.tif"), tiff, "Single-look complex image", {"data"}});
+    if (!reserved.pauli_png.empty()) {
+      p.assets.push_back({"pauli", final_of("_pauli.png"), "image/png", "Pauli RGB quicklook (multilooked)", {"overview"}});
+    }
     if (options.layers) {
       p.assets.push_back({"layers", final_of("_layers.tif"), tiff, "Local incidence angle and projected terrain area",
                           {"data", "local-incidence-angle"}});

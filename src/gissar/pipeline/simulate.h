@@ -108,7 +108,12 @@ struct SimulateRequest {
   int bounces = 3;                 // reflections followed per ray
   bool coherent = false;           // complex sum with phase 4 pi r / lambda
   double wavelength_m = 0.031;     // X band; selects the materials' sigma0 laws
-  std::string polarization = "VV";  // HH, HV, VH or VV: the materials' laws
+  // Channels (../shared/CONVENTIONS.md "Polarimetry"): one of HH, HV, VH,
+  // VV (the materials' laws of that channel), a comma list ("HH,VV") or
+  // "quad". Several channels render one polarimetric pass each
+  // (render::RenderOptions::polarimetric): bands per channel in PREFIX.tif
+  // and PREFIX_slc.tif, a Pauli quicklook for coherent quad runs.
+  std::string polarization = "VV";
   // Output radiometry (docs/radiometry.md): "sigma0", "beta0" or "gamma0",
   // linear (m2/m2) or, with `db`, decibels.
   std::string radiometry = "sigma0";
@@ -338,6 +343,12 @@ struct SimulatedImage {
   sensor::SarGeometryOptions geometry_options;
   std::optional<sensor::SarGeometry> geometry;  // always set on return
   render::SarImage image;
+  // The channels rendered (SimulateRequest::polarization) in output order:
+  // `image` is channels[0], other_channels[i] is channels[i + 1]. One
+  // channel: other_channels is empty and `image` is today's single-channel
+  // render (RenderOptions::polarimetric false).
+  std::vector<material::Polarization> channels;
+  std::vector<render::SarImage> other_channels;
   nlohmann::json timings_s = nlohmann::json::object();
 };
 
@@ -353,10 +364,11 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter 
 // work so that a missing or read-only directory fails first.
 struct SimulationOutputs {
   AtomicOutputs files;
-  std::filesystem::path tif, png, annotated_png, mask_tif, json, stac_json, contributions_csv, slc_tif, layers_tif;
+  std::filesystem::path tif, png, annotated_png, mask_tif, json, stac_json, contributions_csv, slc_tif, layers_tif,
+      pauli_png;
 };
 // Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _stac.json (STAC Item, stac.h), _slc.tif in
-// coherent mode, _layers.tif with `layers` and the contributions CSV when asked. Throws IoError for a missing or read-only
+// coherent mode (and _pauli.png for a coherent run with HH, VV and a cross-polarised channel), _layers.tif with `layers` and the contributions CSV when asked. Throws IoError for a missing or read-only
 // directory.
 void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& outputs);
 

@@ -43,7 +43,7 @@ const std::map<std::string, std::string>& SimulateFieldHelp() {
        "Coherent mode: complex sum per pixel (path phase 4 pi r / lambda, random micro-phase of rough surfaces), "
        "complex PSF; writes PREFIX_slc.tif"},
       {"wavelength_m", "Radar wavelength, metres (materials' sigma0 laws, coherent phase)"},
-      {"polarization", "Polarisation of the materials' sigma0 laws: HH, HV, VH or VV"},
+      {"polarization", "Channels: HH, HV, VH or VV (the materials' sigma0 laws), a comma list (HH,VV) or quad; several channels give bands per channel and, with --coherent and quad, PREFIX_pauli.png"},
       {"radiometry", "Output quantity: sigma0, beta0 or gamma0 (ellipsoid incidence; docs/radiometry.md)"},
       {"db", "Write decibels (10 log10) instead of linear m2/m2 (no return: NaN)"},
       {"layers", "Also write PREFIX_layers.tif: local incidence (deg) and projected terrain area (m2) per pixel"},

@@ -835,5 +835,103 @@ TEST(SimulateTest, HeightfieldAndBvhImagesAgreeOnAGeographicDem) {
   EXPECT_LE(diff[diff.size() * 99 / 100], 0.01);
 }
 
+// --- Polarimetric channels (--polarization HH,VV | quad).
+
+// Bitwise equality of two float planes (NaN equal to NaN).
+int DifferingPixels(const std::vector<float>& a, const std::vector<float>& b) {
+  if (a.size() != b.size()) return -1;
+  int differing = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!(a[i] == b[i] || (std::isnan(a[i]) && std::isnan(b[i])))) ++differing;
+  }
+  return differing;
+}
+
+TEST(SimulateTest, SeveralChannelsGiveNamedBandsEqualToSingleChannelRuns) {
+  const fs::path dir = testing::MakeTempDir();
+  const fs::path dem = WriteHillsDem(dir);
+  // Detected: HH and VV, each channel's total first, then the bounce bands.
+  SimulateRequest o = HillsWindowRequest(dem, dir / "dual");
+  o.polarization = "hh,VV";
+  RunSimulate(o, "test");
+  const geo::FloatRaster dual = geo::ReadFloatRaster(dir / "dual.tif");
+  ASSERT_EQ(dual.bands.size(), 10u);
+  EXPECT_EQ(dual.band_names[0], "HH");
+  EXPECT_EQ(dual.band_names[1], "VV");
+  EXPECT_EQ(dual.band_names[2], "HH_single");
+  EXPECT_EQ(dual.band_names[6], "VV_single");
+  EXPECT_EQ(dual.metadata.at("GISSAR_POLARIZATIONS"), "HH,VV");
+  // Bare terrain has no mirror paths: each polarimetric pass's detected image
+  // is the single-channel run of its channel, bit for bit.
+  for (const std::string channel : {"HH", "VV"}) {
+    SimulateRequest single = HillsWindowRequest(dem, dir / channel);
+    single.polarization = channel;
+    RunSimulate(single, "test");
+    const geo::FloatRaster one = geo::ReadFloatRaster(dir / (channel + ".tif"));
+    const int band = channel == "HH" ? 0 : 1;
+    EXPECT_EQ(DifferingPixels(dual.bands[band], one.bands[0]), 0) << channel;
+    EXPECT_EQ(DifferingPixels(dual.bands[2 + 4 * band], one.bands[1]), 0) << channel << " single bounce";
+  }
+  nlohmann::json provenance;
+  std::ifstream(dir / "dual.json") >> provenance;
+  EXPECT_EQ(provenance["radiometry"]["channels"], nlohmann::json({"HH", "VV"}));
+  EXPECT_DOUBLE_EQ(provenance["polarimetry"]["bounce_shares"]["HH"]["single"].get<double>(), 1.0);
+  nlohmann::json stac;
+  std::ifstream(dir / "dual_stac.json") >> stac;
+  EXPECT_EQ(stac["properties"]["sar:polarizations"], nlohmann::json({"HH", "VV"}));
+}
+
+TEST(SimulateTest, CoherentQuadWritesFourComplexChannelsAndAPauliQuicklook) {
+  const fs::path dir = testing::MakeTempDir();
+  const fs::path dem = WriteHillsDem(dir);
+  SimulateRequest o = HillsWindowRequest(dem, dir / "quad");
+  o.coherent = true;
+  o.polarization = "quad";
+  const SimulateResult result = RunSimulate(o, "test");
+  EXPECT_TRUE(fs::exists(dir / "quad_pauli.png"));
+  EXPECT_NE(std::find(result.outputs.begin(), result.outputs.end(), dir / "quad_pauli.png"), result.outputs.end());
+  const geo::ComplexRaster slc = geo::ReadComplexRaster(dir / "quad_slc.tif");
+  ASSERT_EQ(slc.bands.size(), 4u + 16u);
+  EXPECT_EQ(slc.band_names[0], "HH");
+  EXPECT_EQ(slc.band_names[1], "HV");
+  EXPECT_EQ(slc.band_names[2], "VH");
+  EXPECT_EQ(slc.band_names[3], "VV");
+  EXPECT_EQ(slc.band_names[4], "HH_single");
+  // Reciprocity: VH is the HV pass (no thermal noise here).
+  EXPECT_EQ(DifferingPixels(slc.bands[1], slc.bands[2]), 0);
+  // The HH pass of a polarimetric run keeps the single-channel micro-phases:
+  // its complex total equals a coherent HH run's.
+  SimulateRequest hh = HillsWindowRequest(dem, dir / "hh");
+  hh.coherent = true;
+  hh.polarization = "HH";
+  RunSimulate(hh, "test");
+  const geo::ComplexRaster single = geo::ReadComplexRaster(dir / "hh_slc.tif");
+  EXPECT_EQ(DifferingPixels(slc.bands[0], single.bands[0]), 0);
+  // HH and VV of a rough surface are partly correlated (rho < 1), not equal.
+  EXPECT_GT(DifferingPixels(slc.bands[0], slc.bands[3]), 0);
+  nlohmann::json provenance;
+  std::ifstream(dir / "quad.json") >> provenance;
+  EXPECT_EQ(provenance["polarimetry"]["channels"], nlohmann::json({"HH", "HV", "VH", "VV"}));
+  EXPECT_TRUE(provenance["polarimetry"].contains("pauli_quicklook"));
+  EXPECT_EQ(provenance["polarimetry"]["bounce_shares"].size(), 4u);
+}
+
+TEST(SimulateTest, UnknownOrRepeatedChannelsAreRefused) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest o = AndorraOptions(dir, 0.0);
+  o.polarization = "HH,XX";
+  try {
+    o.Check();
+    ADD_FAILURE() << "an unknown channel was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown channel 'XX'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--polarization"), std::string::npos) << e.what();
+  }
+  o.polarization = "VV,vv";
+  EXPECT_THROW(o.Check(), ConfigError);
+  o.polarization = "Quad";
+  EXPECT_NO_THROW(o.Check());
+}
+
 }  // namespace
 }  // namespace gissar::pipeline

@@ -3,10 +3,24 @@
 #include <algorithm>
 #include <cmath>
 
+#include "gissar/material/material.h"
 #include "gissar/util/error.h"
 #include "gissar/util/provenance.h"
 
 namespace gissar::pipeline {
+
+namespace {
+
+// sar:polarizations from a request's channels ("VV", "HH,VV", "quad").
+nlohmann::json StacPolarizations(const std::string& channels) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const material::Polarization c : material::ParsePolarizationList(channels, "polarization")) {
+    list.push_back(material::ToString(c));
+  }
+  return list;
+}
+
+}  // namespace
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
@@ -77,7 +91,7 @@ json StacItem(const StacProduct& product, const fs::path& item_directory) {
       {"sar:instrument_mode", product.instrument_mode},
       {"sar:frequency_band", FrequencyBandOf(product.wavelength_m)},
       {"sar:center_frequency", 0.299792458 / product.wavelength_m},
-      {"sar:polarizations", {product.polarization}},
+      {"sar:polarizations", StacPolarizations(product.polarization)},
       {"sar:product_type", product.product_type},
       {"sar:observation_direction", product.observation_direction},
       {"sar:pixel_spacing_range", product.range_spacing_m},

@@ -7,8 +7,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <limits>
+#include <optional>
 
+#include "gissar/material/scattering.h"
 #include "gissar/util/error.h"
 
 namespace gissar::render {
@@ -32,6 +35,48 @@ sensor::HeightFunction SceneHeightFunction(const EmbreeScene& embree, const scen
 
 namespace {
 
+// SplitMix64 of (seed, return index, pixel): the micro-phase of a rough-
+// surface return in one pixel of the product grid, uniform in [0, 2 pi).
+double MicroPhase(uint64_t seed, uint64_t index, uint64_t pixel) {
+  uint64_t z = (seed ^ (0x632be59bd9b4e019ULL * (pixel + 1))) + 0x9e3779b97f4a7c15ULL * (index + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z ^= z >> 31;
+  return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
+}
+
+// Adds the phasor `value` at fractional pixel (col, row) to the complex
+// total (image.real/imag) and to bounce layer `layer`'s complex planes,
+// split over the four
+// neighbouring pixel centres with the square roots of the bilinear weights
+// (the power splits as the bilinear weights). With `random`, every pixel's
+// share turns by its own MicroPhase(seed, index, pixel): independent parts,
+// so the expected power of every pixel is its bilinear share, also after
+// any linear filter (the complex impulse response).
+void SplatPhasor(SarImage& image, int layer, double col, double row, std::complex<double> value, bool random,
+                 uint64_t seed, uint64_t index) {
+  const int width = image.width, height = image.height;
+  const double c0f = std::floor(col), r0f = std::floor(row);
+  const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
+  const double fc = col - c0f, fr = row - r0f;
+  const double w[2][2] = {{(1 - fr) * (1 - fc), (1 - fr) * fc}, {fr * (1 - fc), fr * fc}};
+  for (int dr = 0; dr < 2; ++dr) {
+    const int r = r0 + dr;
+    if (r < 0 || r >= height) continue;
+    for (int dc = 0; dc < 2; ++dc) {
+      const int c = c0 + dc;
+      if (c < 0 || c >= width || w[dr][dc] <= 0.0) continue;
+      const size_t k = size_t(r) * width + c;
+      std::complex<double> z = value * std::sqrt(w[dr][dc]);
+      if (random) z *= std::polar(1.0, MicroPhase(seed, index, k));
+      const float re = static_cast<float>(z.real()), im = static_cast<float>(z.imag());
+      image.real[k] += re;
+      image.imag[k] += im;
+      image.bounce_real[layer][k] += re;
+      image.bounce_imag[layer][k] += im;
+    }
+  }
+}
 
 Vector3d EcefOfEnu(const geo::LocalFrame& frame, const Vector3d& enu) {
   const Vector3d llh = frame.GeodeticFromEnu(enu);
@@ -50,7 +95,10 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
                            const sensor::Orbit& orbit, const sensor::RadarGrid& grid,
                            const RenderOptions& options) {
   options.Check();
-  if (options.coherent) throw ConfigError("product geometry renders incoherently only", "--coherent");
+  const bool coherent = options.coherent;
+  if (coherent && !(options.wavelength_m > 0.0 && std::isfinite(options.wavelength_m))) {
+    throw ConfigError("coherent mode needs a positive wavelength", "--wavelength");
+  }
   const int width = grid.cols, height = grid.rows;
   ProductImage out;
   const size_t n = size_t(width) * height;
@@ -128,6 +176,10 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
   // 3. Trace with the unchanged tracer, recording every return.
   RenderOptions trace_options = options;
   trace_options.record_contributions = true;
+  // The phasors are formed on the product grid (step 4) from the recorded
+  // returns: the tracer's own coherent planes (straight-line ranges) are
+  // not needed.
+  trace_options.coherent = false;
   SarImage traced = RenderSar(embree, mesh, materials, geometry, trace_options);
 
   // 4. Re-project every return with the real geometry: the hit's true
@@ -138,9 +190,18 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
   image.height = height;
   image.intensity.assign(n, 0.0f);
   for (auto& layer : image.bounce_layers) layer.assign(n, 0.0f);
+  if (coherent) {
+    image.real.assign(n, 0.0f);
+    image.imag.assign(n, 0.0f);
+    for (int layer = 0; layer < kBounceLayers; ++layer) {
+      image.bounce_real[layer].assign(n, 0.0f);
+      image.bounce_imag[layer].assign(n, 0.0f);
+    }
+  }
   const std::vector<Contribution>& cs = traced.contributions;
   struct Landing {
     double col = 0, row = 0;
+    double range_m = 0;  // true range of the last hit plus the tracer's path excess
     bool ok = false;
   };
   std::vector<Landing> landing(cs.size());
@@ -153,16 +214,32 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
       if (!rc) continue;
       const double range = c.range_m + (rc->range_m - geometry.SlantRange(hit));
       const double time = rc->time_s + (c.azimuth_m - along) / ground_speed;
-      landing[k] = {grid.ColOfRange(range), grid.RowOfTime(time), true};
+      landing[k] = {grid.ColOfRange(range), grid.RowOfTime(time), range, true};
     }
   });
   for (size_t k = 0; k < cs.size(); ++k) {  // in order: deterministic sums
     if (!landing[k].ok) continue;
     const Contribution& c = cs[k];
-    SplatBilinear(image.intensity, width, height, landing[k].col, landing[k].row, c.intensity);
+    const Landing& at = landing[k];
     const int layer = std::min<int>(c.bounces, kBounceLayers) - 1;
-    SplatBilinear(image.bounce_layers[layer], width, height, landing[k].col, landing[k].row, c.intensity);
+    SplatBilinear(image.intensity, width, height, at.col, at.row, c.intensity);
+    SplatBilinear(image.bounce_layers[layer], width, height, at.col, at.row, c.intensity);
+    if (coherent) {
+      // Phase of the true two-way path, exp(-j 4 pi R / lambda); a rough-
+      // surface (single-bounce) return adds its seeded micro-phase per
+      // pixel (its expected power stays the incoherent one); a later
+      // bounce stands for its path and the reversed one in phase
+      // (RenderSar): twice the amplitude of the one path, whose power is
+      // half of c.intensity.
+      const std::complex<double> phasor = material::PathPhase(2.0 * at.range_m, options.wavelength_m);
+      const double amplitude =
+          c.bounces == 1 ? std::sqrt(double(c.intensity)) : 2.0 * std::sqrt(0.5 * double(c.intensity));
+      SplatPhasor(image, layer, at.col, at.row, amplitude * phasor, c.bounces == 1, options.seed, k);
+    }
     ++out.contributions;
+  }
+  if (coherent) {  // the total is the detected complex sum
+    for (size_t k = 0; k < n; ++k) image.intensity[k] = image.real[k] * image.real[k] + image.imag[k] * image.imag[k];
   }
 
   // 5. Mask through each pixel's ground point.
@@ -179,9 +256,13 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
     }
   }
   // 6. Canonical reflectors: RCS, pattern and visibility as in the tracing
-  // geometry (RenderSar), the phase centre placed with the real geometry.
+  // geometry (RenderSar), the phase centre placed with the real geometry:
+  // its pixel and its range (the coherent phase) from geo2rdr.
   for (const SceneReflector& r : options.reflectors) {
-    const std::vector<PointReturn> seen = ReflectorReturns(embree, {r}, geometry, options.wavelength_m);
+    const std::vector<PointReturn> seen =
+        ReflectorReturns(embree, {r}, geometry, options.wavelength_m,
+                         options.polarimetric ? std::optional<material::Polarization>(options.polarization)
+                                              : std::nullopt);
     if (seen.empty()) continue;
     const double along = geometry.AlongTrack(r.apex_enu);
     const auto rc = sensor::Geo2Rdr(orbit, EcefOfEnu(frame, r.apex_enu), t_c + along / ground_speed);

@@ -9,6 +9,11 @@
 // track over a chip, so illumination and occlusion are unchanged to within
 // milliradians); where each return lands is exact. The layover/shadow mask
 // is looked up through each product pixel's ground point (rdr2geo).
+// Coherent mode forms the complex image on the product grid itself: each
+// re-projected return is a phasor of phase exp(-j 4 pi R / lambda) with R
+// its true range (geo2rdr on the real orbit, plus the path excess of a
+// multi-bounce return), so the phase is that of the real geometry, not of
+// the straight tracing line.
 #pragma once
 
 #include <vector>
@@ -24,7 +29,10 @@ namespace gissar::render {
 
 struct ProductImage {
   // Intensity (total and per bounce count) and mask on the product grid:
-  // width = grid.cols (slant range), height = grid.rows (azimuth).
+  // width = grid.cols (slant range), height = grid.rows (azimuth). In
+  // coherent mode also the complex total and complex bounce layers
+  // (image.real/imag, bounce_real/bounce_imag; intensity = |real, imag|^2,
+  // bounce_layers the incoherent sums, as RenderSar gives them).
   SarImage image;
   // Per-pixel ground point of the product grid on the scene surface
   // (rdr2geo): WGS84 degrees and ellipsoidal metres; NaN where none.
@@ -43,13 +51,26 @@ sensor::HeightFunction SceneHeightFunction(const EmbreeScene& embree, const scen
                                            const geo::LocalFrame& frame);
 
 // Renders `mesh` (in `embree`, ENU coordinates of `frame`) on `grid` seen
-// from `orbit`. options.coherent is not supported (ConfigError): the
-// re-projection moves returns by fractions of a pixel, which would break the
-// phase model. Throws InputError when no pixel of the grid reaches the
+// from `orbit`. Throws InputError when no pixel of the grid reaches the
 // scene (the product lies outside the DEM). options.reflectors come back as
 // image.points on the product grid (RCS and visibility as RenderSar gives
-// them; the phase centre by geo2rdr on the real orbit), for the sensor stage
-// (image::AddPointIntensities).
+// them; the phase centre's pixel and range_m by geo2rdr on the real orbit),
+// for the sensor stage (image::AddPointIntensities, or phasors of phase
+// exp(-j 4 pi range_m / lambda) in coherent mode).
+//
+// Coherent mode (options.coherent, phase at options.wavelength_m: the
+// product's): every return RenderSar recorded becomes, where geo2rdr lands
+// it, a phasor sqrt(power) exp(-j 4 pi R / lambda), R = the hit's true
+// zero-Doppler range plus the tracer's path excess over it (0 for single
+// bounce), split over the four neighbouring pixels with the square roots of
+// the bilinear weights into image.real/imag and the return's bounce layer
+// (bounce_real/bounce_imag; the layers add up to the total). A single-
+// bounce (rough-surface) return also carries a micro-phase drawn from
+// (options.seed, its index), uniform and independent per return, so the
+// expected intensity of every pixel is the incoherent image's; a later
+// bounce carries only its path phase, with twice the amplitude of one path
+// (the path and its reverse add in phase, as in RenderSar). image.intensity
+// is the detected complex total; bounce_layers stay the incoherent sums.
 ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                            const material::MaterialTable& materials, const geo::LocalFrame& frame,
                            const sensor::Orbit& orbit, const sensor::RadarGrid& grid,

@@ -933,12 +933,13 @@ bool GridHeightfield::Occluded(const Eigen::Vector3d& origin, const Eigen::Vecto
 }
 
 std::vector<PointReturn> ReflectorReturns(const GridHeightfield& terrain, const std::vector<SceneReflector>& reflectors,
-                                          const sensor::SarGeometry& geometry, double wavelength_m) {
+                                          const sensor::SarGeometry& geometry, double wavelength_m,
+                                          std::optional<material::Polarization> polarization) {
   return ReflectorReturns(
       [&](const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_near, double t_far) {
         return terrain.Occluded(origin, dir, t_near, t_far);
       },
-      reflectors, geometry, wavelength_m);
+      reflectors, geometry, wavelength_m, polarization);
 }
 
 }  // namespace gissar::render

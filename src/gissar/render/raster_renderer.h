@@ -117,8 +117,10 @@ class GridHeightfield {
 
 // Returns of `reflectors` in the raster engine: render::ReflectorReturns
 // with the height field's line of sight (the same RCS, pattern, pixel and
-// phase as the tracer's).
+// phase as the tracer's; `polarization` as there: nullopt the scalar RCS,
+// a channel its share of the reflector's scattering matrix and phase).
 std::vector<PointReturn> ReflectorReturns(const GridHeightfield& terrain, const std::vector<SceneReflector>& reflectors,
-                                          const sensor::SarGeometry& geometry, double wavelength_m);
+                                          const sensor::SarGeometry& geometry, double wavelength_m,
+                                          std::optional<material::Polarization> polarization = std::nullopt);
 
 }  // namespace gissar::render

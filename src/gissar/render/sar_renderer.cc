@@ -1,6 +1,7 @@
 #include "gissar/render/sar_renderer.h"
 
 #include "gissar/render/profile_sweep.h"
+#include "gissar/render/raster_renderer.h"
 #include "gissar/render/splat.h"
 
 #include <tbb/blocked_range.h>
@@ -10,10 +11,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <complex>
 #include <limits>
 #include <mutex>
 #include <optional>
 
+#include "gissar/material/scattering.h"
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
@@ -272,14 +275,57 @@ double RandomPhase(uint64_t seed, uint64_t ray, uint64_t bounce) {
   return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
 }
 
+// Odd multipliers of a pixel's index in the seed of its micro-phases: phi1
+// (the single-channel micro-phase), and the two further phases phi2, phi3 of
+// polarimetric passes (MicroPhasorMix).
+constexpr uint64_t kPixelPhaseKey1 = 0x632be59bd9b4e019ULL;
+constexpr uint64_t kPixelPhaseKey2 = 0x9e6c63d0676a9a99ULL;
+constexpr uint64_t kPixelPhaseKey3 = 0xd6e8feb86659fd93ULL;
+
+// The seeded micro-phase (radians, [0, 2 pi)) of ray `ray_id` in pixel
+// `pixel` (row-major index), `pixel_key` one of kPixelPhaseKey*.
+double PixelPhase(uint64_t seed, uint64_t pixel_key, int64_t pixel, uint64_t ray_id, uint64_t key) {
+  return RandomPhase(seed ^ (pixel_key * uint64_t(pixel + 1)), ray_id, key);
+}
+
+// The unit micro-phasor of a rough-surface return in one channel of a
+// polarimetric set, from the pixel's three independent seeded phases:
+// first exp(j phi1) + second exp(j phi2), or exp(j phi3) alone (`cross`).
+// |first|^2 + second^2 = 1: unit mean power. The default (first 1, second
+// 0) is the single-channel micro-phasor exp(j phi1), computed as before.
+struct MicroPhasorMix {
+  std::complex<double> first{1.0, 0.0};
+  double second = 0.0;
+  bool cross = false;
+  bool Plain() const { return !cross && second == 0.0 && first == std::complex<double>(1.0, 0.0); }
+};
+
+// The mix of channel `pol` for HH-VV correlation rho (RenderSar,
+// "Polarimetric passes"): HH exp(j phi1), VV conj(rho) exp(j phi1) +
+// sqrt(1 - |rho|^2) exp(j phi2), HV and VH exp(j phi3).
+MicroPhasorMix MixOfChannel(material::Polarization pol, std::complex<double> rho) {
+  MicroPhasorMix mix;
+  switch (pol) {
+    case material::Polarization::kHH: break;
+    case material::Polarization::kVV:
+      mix.first = std::conj(rho);
+      mix.second = std::sqrt(std::max(0.0, 1.0 - std::norm(rho)));
+      break;
+    default: mix.cross = true; break;
+  }
+  return mix;
+}
+
 // Coherent rough-surface return: amplitude `amplitude` spread over the
 // footprint (see SplatFootprint) into the real and imaginary planes 0 and 1,
-// each pixel receiving sqrt(share) of it with its own seeded micro-phase
-// (the parts of a footprint are independent scatterers), so that the
-// expected intensity of every pixel is the incoherent share, before and
-// after any linear filtering. Pixels outside the band go to the overflow.
+// each pixel receiving sqrt(share) of it with its own seeded micro-phasor
+// (`mix` of the pixel's seeded phases; the parts of a footprint are
+// independent scatterers), so that the expected intensity of every pixel is
+// the incoherent share, before and after any linear filtering. Pixels
+// outside the band go to the overflow.
 void SplatFootprintPhasors(Band& band, int width, int plane, double col, double row, double wc, double wr,
-                           double amplitude, double phase, uint64_t seed, uint64_t ray_id, uint64_t key) {
+                           double amplitude, double phase, uint64_t seed, uint64_t ray_id, uint64_t key,
+                           const MicroPhasorMix& mix = {}) {
   double cs[kMaxShares], rs[kMaxShares];
   int c0 = 0, r0 = 0;
   const int nc = FootprintShares(col, wc, &c0, cs), nr = FootprintShares(row, wr, &r0, rs);
@@ -291,9 +337,21 @@ void SplatFootprintPhasors(Band& band, int width, int plane, double col, double 
     for (int i = 0; i < nc; ++i) {
       const int c = c0 + i;
       if (c < 0 || c >= width || cs[i] == 0.0) continue;
-      const double micro = RandomPhase(seed ^ (0x632be59bd9b4e019ULL * uint64_t(int64_t(r) * width + c + 1)), ray_id, key);
+      const int64_t pixel = int64_t(r) * width + c;
       const double a = amplitude * std::sqrt(rs[j] * cs[i]);
-      const float re = static_cast<float>(a * std::cos(phase + micro)), im = static_cast<float>(a * std::sin(phase + micro));
+      float re, im;
+      if (mix.Plain() || mix.cross) {
+        const double micro = PixelPhase(seed, mix.cross ? kPixelPhaseKey3 : kPixelPhaseKey1, pixel, ray_id, key);
+        re = static_cast<float>(a * std::cos(phase + micro));
+        im = static_cast<float>(a * std::sin(phase + micro));
+      } else {
+        const double phi1 = PixelPhase(seed, kPixelPhaseKey1, pixel, ray_id, key);
+        const double phi2 = PixelPhase(seed, kPixelPhaseKey2, pixel, ray_id, key);
+        const std::complex<double> z =
+            a * (mix.first * std::polar(1.0, phase + phi1) + mix.second * std::polar(1.0, phase + phi2));
+        re = static_cast<float>(z.real());
+        im = static_cast<float>(z.imag());
+      }
       if (r < band.row0 || r >= band.row0 + band.rows) {
         band.overflow->push_back({plane, double(c), double(r), re, true});
         band.overflow->push_back({plane + 1, double(c), double(r), im, true});
@@ -304,6 +362,170 @@ void SplatFootprintPhasors(Band& band, int width, int plane, double col, double 
       plane_im[k] += im;
     }
   }
+}
+
+// ------------------------------------------------ polarimetric passes
+
+// Per class, the HH-VV correlation rho of material::PolarimetricLaw as a
+// function of cos(local incidence), sampled uniformly in sqrt(1 - cos)
+// (kSamples steps, at most 0.9 deg apart in angle) and interpolated
+// linearly: one law evaluation per sample and class per render instead of
+// several sigma0 laws per hit (constant for oh, table and Lambert; Bragg's
+// phase and the water cloud's coherence vary with incidence).
+class HhVvCorrelationTables {
+ public:
+  static constexpr int kSamples = 128;
+
+  HhVvCorrelationTables() = default;
+  HhVvCorrelationTables(const material::MaterialTable& materials, double wavelength_m) {
+    tables_.resize(materials.size());
+    for (size_t id = 0; id < materials.size(); ++id) {
+      const material::Material& m = materials.Get(static_cast<scene::ClassId>(id));
+      std::vector<std::complex<double>>& t = tables_[id];
+      t.resize(kSamples + 1);
+      for (int i = 0; i < kSamples; ++i) {
+        const double s = double(i) / kSamples;
+        t[size_t(i)] = material::PolarimetricLaw(m, 1.0 - s * s, wavelength_m).rho_hh_vv;
+      }
+      t[kSamples] = t[kSamples - 1];  // grazing: the law is 0 at cos 0; keep the last value
+    }
+  }
+
+  // rho of class `id` (unknown classes: class 0) at cos(local incidence).
+  std::complex<double> operator()(scene::ClassId id, double cos_incidence) const {
+    const std::vector<std::complex<double>>& t = tables_[id < tables_.size() ? id : 0];
+    const double x = std::sqrt(std::clamp(1.0 - cos_incidence, 0.0, 1.0)) * kSamples;
+    const int i = std::min(kSamples - 1, static_cast<int>(x));
+    const double f = x - i;
+    return t[size_t(i)] + f * (t[size_t(i) + 1] - t[size_t(i)]);
+  }
+
+ private:
+  std::vector<std::vector<std::complex<double>>> tables_;
+};
+
+// The field a mirror chain carries, world (ENU) components, one column per
+// transmit polarisation (0: H, 1: V of the primary ray's HvBasis), per unit
+// transmitted field.
+using ChainField = Eigen::Matrix<std::complex<double>, 3, 2>;
+
+// The field of a primary ray of unit direction `dir` before any vertex.
+ChainField TransmitField(const Vector3d& dir) {
+  const material::PolarizationBasis b = material::HvBasis(dir);
+  ChainField f;
+  f.col(0) = b.h.cast<std::complex<double>>();
+  f.col(1) = b.v.cast<std::complex<double>>();
+  return f;
+}
+
+// The complex Fresnel amplitudes of permittivity `eps` at cos(incidence)
+// `cos_incidence` (clamped to [0, 1]).
+material::FresnelAmplitudes FresnelAt(std::complex<double> eps, double cos_incidence) {
+  return material::FresnelCoefficients(eps, std::acos(std::clamp(cos_incidence, 0.0, 1.0)));
+}
+
+// A mirror vertex: the ray of unit direction `dir` meets a face of unit
+// normal `normal` (cos(incidence) `cos_in` > 0) of permittivity `eps` and
+// leaves along its mirror direction; `field` takes the vertex's Fresnel
+// amplitudes in the face's own plane of incidence.
+void ReflectChainField(ChainField& field, const Vector3d& dir, const Vector3d& normal, double cos_in,
+                       std::complex<double> eps) {
+  field = material::SpecularReflectionOperator(dir, normal, FresnelAt(eps, cos_in)) * field;
+}
+
+// `field` (one column per transmit polarisation) read in the receive basis
+// HvBasis(-to_radar): the BSA matrix, row transmit, column receive.
+material::ScatteringMatrix ReadInReceiveBasis(const ChainField& field, const Vector3d& to_radar) {
+  material::ScatteringMatrix s;
+  const material::PolarizationBasis rx = material::HvBasis(-to_radar);
+  for (int t = 0; t < 2; ++t) {
+    s(t, 0) = rx.h.cast<std::complex<double>>().dot(field.col(t));  // real basis: no conjugate matters
+    s(t, 1) = rx.v.cast<std::complex<double>>().dot(field.col(t));
+  }
+  return s;
+}
+
+// The field operator of the diffuse (Lambertian) part of a last vertex's
+// bistatic law: the wave arriving along `dir` on a face of unit normal
+// `normal` scatters towards `to_radar` in the face's own frame, its TE
+// component (s_i = dir x n) into the TE of the scattering plane (s_o =
+// to_radar x n) with r_h, its TM component (p_i = s_i x dir) into the TM
+// (p_o = s_o x to_radar) with r_v, r_h and r_v the face's Fresnel amplitudes
+// at the incidence of cosine sqrt(cos_in cos_out) (symmetric in the two
+// directions: the reversed path's operator is the transpose). For the
+// mirror direction it is SpecularReflectionOperator. Unit directions;
+// cos_in = -dir . n > 0 and cos_out = to_radar . n > 0.
+Eigen::Matrix3cd DiffuseScatterOperator(const Vector3d& dir, const Vector3d& normal, const Vector3d& to_radar,
+                                        double cos_in, double cos_out, std::complex<double> eps) {
+  const material::FresnelAmplitudes r = FresnelAt(eps, std::sqrt(cos_in * cos_out));
+  Vector3d s_in = dir.cross(normal), s_out = to_radar.cross(normal);
+  // Along the normal (no plane of incidence): the h of the wave's own basis,
+  // as SpecularReflectionOperator (the limit of the mirror case).
+  s_in = s_in.norm() < 1e-12 ? material::HvBasis(dir).h : Vector3d(s_in.normalized());
+  s_out = s_out.norm() < 1e-12 ? material::HvBasis(-to_radar).h : Vector3d(s_out.normalized());
+  const Vector3d p_in = s_in.cross(dir), p_out = s_out.cross(to_radar);
+  return r.r_h * (s_out * s_in.transpose()).cast<std::complex<double>>() +
+         r.r_v * (p_out * p_in.transpose()).cast<std::complex<double>>();
+}
+
+// The BSA matrix (row transmit, column receive) of a chain whose last
+// vertex, a face of unit normal `normal` and permittivity `eps`, scatters
+// the ray arriving along `dir` back towards the radar along `to_radar`
+// (unit vectors), its bistatic law split into `diffuse` and `specular`
+// powers (Material::BistaticSigma0): the amplitude-weighted sum
+//   (sqrt(diffuse) D / |D|_rms + sqrt(specular) F / |F|_rms) / sqrt(diffuse + specular)
+// of the diffuse operator D (DiffuseScatterOperator: the face's own frame)
+// and the specular one F (the Fresnel matrix of the bistatic reflection off
+// the facet bisecting -dir and to_radar, Kirchhoff's stationary-phase
+// facet), each divided by its rms amplitude sqrt((|r_h|^2 + |r_v|^2) / 2)
+// (the bistatic law already holds the power), read in the receive basis
+// HvBasis(-to_radar). In the mirror direction D = F (facet = face).
+material::ScatteringMatrix ClosedChainMatrix(const ChainField& field, const Vector3d& dir, const Vector3d& to_radar,
+                                             const Vector3d& normal, double diffuse, double specular,
+                                             std::complex<double> eps) {
+  ChainField out = ChainField::Zero();
+  const double total = diffuse + specular;
+  if (!(total > 0.0)) return material::ScatteringMatrix::Zero();
+  const double cos_in = -dir.dot(normal), cos_out = to_radar.dot(normal);
+  if (diffuse > 0.0 && cos_in > 0.0 && cos_out > 0.0) {
+    const material::FresnelAmplitudes r = FresnelAt(eps, std::sqrt(cos_in * cos_out));
+    const double rms = std::sqrt(0.5 * (std::norm(r.r_h) + std::norm(r.r_v)));
+    if (rms > 0.0) {
+      out += std::sqrt(diffuse / total) / rms *
+             (DiffuseScatterOperator(dir, normal, to_radar, cos_in, cos_out, eps) * field);
+    }
+  }
+  const Vector3d bisector = to_radar - dir;
+  if (specular > 0.0 && bisector.norm() > 1e-9) {
+    const Vector3d facet = bisector.normalized();
+    const material::FresnelAmplitudes r = FresnelAt(eps, -dir.dot(facet));
+    const double rms = std::sqrt(0.5 * (std::norm(r.r_h) + std::norm(r.r_v)));
+    if (rms > 0.0) {
+      out += std::sqrt(specular / total) / rms * (material::SpecularReflectionOperator(dir, facet, r) * field);
+    }
+  }
+  return ReadInReceiveBasis(out, to_radar);
+}
+
+// The polarimetric terms of one return (RenderSar, "Polarimetric passes").
+struct PolarimetricTerms {
+  // First bounce, coherent: the micro-phasor of the channel.
+  MicroPhasorMix mix;
+  // Later bounces: |S_c|^2 + |S^T_c|^2 (the path and its reversed path;
+  // replaces the single-channel reciprocal factor 2) and S_c + S^T_c (their
+  // coherent sum; replaces the amplitude factor 2).
+  double mirror_power = 0.0;
+  std::complex<double> mirror_amplitude{0.0, 0.0};
+};
+
+// The later-bounce terms of channel `pol` of a path of BSA matrix `s`.
+PolarimetricTerms MirrorTerms(const material::ScatteringMatrix& s, material::Polarization pol) {
+  PolarimetricTerms terms;
+  const std::complex<double> forward = material::Channel(s, pol);
+  const std::complex<double> reverse = material::Channel(s.transpose(), pol);
+  terms.mirror_power = std::norm(forward) + std::norm(reverse);
+  terms.mirror_amplitude = forward + reverse;
+  return terms;
 }
 
 // Below this cosine of the local incidence angle, a visibility ray of the
@@ -658,6 +880,19 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   auto sigma0_of = [&](scene::ClassId id, double cos_in) {
     return double(sigma0_tables[id < sigma0_tables.size() ? id : 0].Fast(static_cast<float>(cos_in)));
   };
+  // Polarimetric passes (see the header): the HH-VV correlation tables are
+  // needed only by a coherent VV pass's micro-phasors.
+  const bool polarimetric = options.polarimetric;
+  const bool uses_rho = polarimetric && options.coherent && options.polarization == material::Polarization::kVV;
+  const HhVvCorrelationTables rho_tables =
+      uses_rho ? HhVvCorrelationTables(materials, options.wavelength_m) : HhVvCorrelationTables();
+  // The terms of a first-bounce return of class `id` at cos(shading
+  // incidence) `cos_shade`.
+  auto first_bounce_terms = [&](scene::ClassId id, double cos_shade) {
+    PolarimetricTerms terms;
+    terms.mix = MixOfChannel(options.polarization, uses_rho ? rho_tables(id, cos_shade) : std::complex<double>());
+    return terms;
+  };
 
   // Planes: total intensity (coherent: real and imaginary amplitude), then
   // one per bounce count that can occur (the others stay zero).
@@ -856,12 +1091,18 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
           double area = 0.0;   // beam cross-section of the ray at its first hit, m^2
           double share = 1.0;  // product of the mirror shares so far
           const uint64_t ray_id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
+          // Polarimetric passes: the field the mirror chain carries.
+          ChainField chain_field;
+          if (polarimetric) chain_field = TransmitField(dir);
           // One return into the image (and the contributions): `value` is
           // beta0 summed over its footprint; box_cols >= 0: the first-bounce
           // footprint (pixels), else a point. `phase_key` picks the random
-          // micro-phase of rough-surface returns.
+          // micro-phase of rough-surface returns. `pol` (polarimetric passes,
+          // else nullptr): the return's polarimetric terms; a later bounce's
+          // `value` is then the path power P without the reversed path.
           auto emit = [&](double value, double range, double along, double box_cols, double box_rows, int bounce,
-                          int phase_key, const Vector3d& p, scene::ClassId hit_class, bool specular) {
+                          int phase_key, const Vector3d& p, scene::ClassId hit_class, bool specular,
+                          const PolarimetricTerms* pol) {
             const double col = geometry.ColumnOfRange(range), row = geometry.RowOfAlongTrack(along);
             const int layer = std::min(bounce, kBounceLayers) - 1;
             auto deposit = [&](int plane) {
@@ -875,7 +1116,13 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             // path (same length, same power): twice the power; in coherent
             // mode the two add in phase.
             const double reciprocal = bounce > 1 ? 2.0 : 1.0;
-            value *= reciprocal;
+            const bool mirror_matrix = pol != nullptr && bounce > 1;
+            const double path_power = value;  // P, before the reversed path
+            if (mirror_matrix) {
+              value *= pol->mirror_power;
+            } else {
+              value *= reciprocal;
+            }
             if (by_profile && bounce == 1 && box_cols >= 0.0) {
               // Into the line's range profile (its bounce layer and the
               // total when the block is done).
@@ -897,7 +1144,14 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               for (const int plane : {0, complex_layer_plane(layer)}) {
                 if (bounce == 1) {
                   SplatFootprintPhasors(band, width, plane, col, row, std::max(0.0, box_cols), box_rows, amplitude,
-                                        phase, options.seed, ray_id, uint64_t(phase_key));
+                                        phase, options.seed, ray_id, uint64_t(phase_key),
+                                        pol != nullptr ? pol->mix : MicroPhasorMix());
+                } else if (mirror_matrix) {
+                  // sqrt(P) (S_c + S^T_c) with the path phase.
+                  const std::complex<double> z =
+                      std::sqrt(path_power) * pol->mirror_amplitude * std::polar(1.0, phase);
+                  Splat(band, width, plane, col, row, static_cast<float>(z.real()), true);
+                  Splat(band, width, plane + 1, col, row, static_cast<float>(z.imag()), true);
                 } else {
                   Splat(band, width, plane, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
                   Splat(band, width, plane + 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
@@ -944,6 +1198,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             double diffuse_part = 0.0, specular_part = 0.0;
             double value = 0.0;
             double box_cols = -1.0, box_rows = -1.0;
+            PolarimetricTerms terms;  // polarimetric passes
             if (bounce == 1) {
               // The local incidence of the class's sigma0 law comes from the
               // smooth-terrain shading normal when the mesh has one
@@ -966,6 +1221,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                 return std::max(0.0, -ns.dot(ray));
               };
               const double cos_shade = shade(hit->triangle, p, dir, cos_in);
+              if (polarimetric) terms = first_bounce_terms(class_id, cos_shade);
               // sigma0 times the surface area the ray covers, per pixel area.
               const double cos_eff = std::max(cos_in, kMaskEdgeOnCos);
               value = sigma0_of(class_id, cos_shade) * area / cos_eff * inv_pixel_area;
@@ -1029,8 +1285,8 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                   const double cos_q_eff = std::max(cos_q, kMaskEdgeOnCos);
                   const scene::ClassId class_q = mesh.classes[h_q->triangle];
                   const double area_q = affine ? grid.da * grid.de_m / subs : grid.da * grid.de / subs * trav_q;
-                  const double value_q =
-                      sigma0_of(class_q, shade(h_q->triangle, p_q, d_q, cos_q)) * area_q / cos_q_eff * inv_pixel_area;
+                  const double cos_shade_q = shade(h_q->triangle, p_q, d_q, cos_q);
+                  const double value_q = sigma0_of(class_q, cos_shade_q) * area_q / cos_q_eff * inv_pixel_area;
                   if (!(value_q > 0.0)) continue;
                   const Vector3d v_q = affine ? Vector3d(n) : Vector3d(-std::sin(e_q) * l + std::cos(e_q) * n);
                   const double s_q = affine ? grid.de_m / subs : trav_q * grid.de / subs;
@@ -1038,8 +1294,10 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                   const double a_q = geometry.AlongTrack(p_q);
                   const double back_q =
                       affine ? range0 + (p_q - xc).dot(l) : (geometry.SensorPosition(a_q) - p_q).norm();
+                  const PolarimetricTerms terms_q =
+                      polarimetric ? first_bounce_terms(class_q, cos_shade_q) : PolarimetricTerms();
                   emit(value_q, 0.5 * (trav_q + back_q), 0.5 * (a + a_q), cols_q, box_rows, 1, 1000 + q, p_q,
-                       class_q, false);
+                       class_q, false, polarimetric ? &terms_q : nullptr);
                 }
                 value = 0.0;  // returned by the sub-rays
               }
@@ -1062,20 +1320,37 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               // RCS of the path: bistatic sigma0 times the surface the ray's
               // cross-section covers here (area / cos_in), times the mirror
               // reflectivities on the way.
+              // (Polarimetric passes: `share` holds the mirror coefficients
+              // only, the Fresnel amplitudes are in the chain's matrix.)
               value = (diffuse_part + specular_part) * area / std::max(cos_in, kMaskEdgeOnCos) * share * inv_pixel_area;
+              if (polarimetric && value > 0.0) {
+                terms = MirrorTerms(ClosedChainMatrix(chain_field, dir, to_radar, normal, diffuse_part,
+                                                      specular_part, m.EffectivePermittivity(options.wavelength_m)),
+                                    options.polarization);
+              }
             }
             if (value > 0.0) {
               emit(value, 0.5 * (travelled + back), 0.5 * (a + a_p), box_cols, box_rows, bounce, bounce, p,
-                   mesh.classes[hit->triangle], specular_part > diffuse_part);
+                   mesh.classes[hit->triangle], specular_part > diffuse_part, polarimetric ? &terms : nullptr);
             }
             if (bounce == options.max_bounces) break;  // no mirror ray to follow
             // Continue as the mirror ray, with the class's Fresnel mirror
             // reflectivity at this incidence.
             // The radar's H/V basis is projected on this surface's plane of
-            // incidence (walls seen obliquely reflect part of V as TE).
-            share *= m.MirrorReflectivity(cos_in, dir, mirror.normalized(), normal, options.wavelength_m,
-                                          options.polarization);
-            if (share < 1e-9) break;
+            // incidence (walls seen obliquely reflect part of V as TE);
+            // polarimetric passes carry the field through it instead.
+            if (polarimetric) {
+              // The mirror coefficient in the share, the Fresnel amplitudes
+              // in the field; stop when the mean power left is below the cut.
+              share *= m.mirror;
+              if (share < 1e-9) break;
+              ReflectChainField(chain_field, dir, normal, cos_in, m.EffectivePermittivity(options.wavelength_m));
+              if (share * 0.5 * chain_field.squaredNorm() < 1e-9) break;
+            } else {
+              share *= m.MirrorReflectivity(cos_in, dir, mirror.normalized(), normal, options.wavelength_m,
+                                            options.polarization);
+              if (share < 1e-9) break;
+            }
             origin = p;
             dir = mirror.normalized();
           }
@@ -1147,7 +1422,9 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   image.stats.profile_swept_lines = swept_lines.load();
 
   Stopwatch mask_watch;
-  image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m);
+  image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m,
+                                  polarimetric ? std::optional<material::Polarization>(options.polarization)
+                                               : std::nullopt);
   std::vector<uint8_t> lit;
   bool mask_swept = false;
   image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit, &image.footprint,
@@ -1164,17 +1441,19 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
 }
 
 std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::vector<SceneReflector>& reflectors,
-                                          const sensor::SarGeometry& geometry, double wavelength_m) {
+                                          const sensor::SarGeometry& geometry, double wavelength_m,
+                                          std::optional<material::Polarization> polarization) {
   return ReflectorReturns(
       [&](const Vector3d& origin, const Vector3d& dir, double t_near, double t_far) {
         return embree.Occluded(origin.cast<float>(), dir.cast<float>(), static_cast<float>(t_near),
                                static_cast<float>(t_far));
       },
-      reflectors, geometry, wavelength_m);
+      reflectors, geometry, wavelength_m, polarization);
 }
 
 std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const std::vector<SceneReflector>& reflectors,
-                                          const sensor::SarGeometry& geometry, double wavelength_m) {
+                                          const sensor::SarGeometry& geometry, double wavelength_m,
+                                          std::optional<material::Polarization> polarization) {
   std::vector<PointReturn> out;
   const double inv_pixel_area = 1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m());
   for (const SceneReflector& r : reflectors) {
@@ -1192,6 +1471,13 @@ std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const s
     p.col = px.x();
     p.row = px.y();
     p.beta0_sum = rcs * inv_pixel_area;
+    if (polarization) {
+      // The channel's share of the RCS and its phase (unit matrix, roll).
+      const std::complex<double> s_c =
+          material::Channel(material::UnitReflectorMatrix(r.type, r.roll_rad), *polarization);
+      p.beta0_sum *= std::norm(s_c);
+      p.phase_offset_rad = std::norm(s_c) > 0.0 ? std::arg(s_c) : 0.0;
+    }
     p.range_m = geometry.SlantRange(r.apex_enu);
     p.layer = r.type == material::ReflectorType::kPlate ? 0 : r.type == material::ReflectorType::kDihedral ? 1 : 2;
     out.push_back(p);

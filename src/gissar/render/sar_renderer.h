@@ -40,6 +40,11 @@ struct SceneReflector {
   double size_m = 1.0;
   Eigen::Vector3d apex_enu = Eigen::Vector3d::Zero();  // phase centre
   Eigen::Vector3d boresight_enu = Eigen::Vector3d::UnitZ();  // towards the sensor
+  // Turned about the boresight (radians; material::ReflectorSpec::roll_deg,
+  // the sense of material/scattering.h): a polarimetric pass's matrix
+  // material::UnitReflectorMatrix(type, roll_rad). The RCS pattern and
+  // single-channel renders ignore it.
+  double roll_rad = 0.0;
   int row = 0;  // CSV row, for messages
 };
 
@@ -51,6 +56,10 @@ struct PointReturn {
   double beta0_sum = 0.0;
   double range_m = 0.0;          // slant range of the phase centre (coherent phase 4 pi r / lambda)
   int layer = 0;                 // bounce band: 0 single (plate), 1 double (dihedral), 2 triple (trihedral)
+  // Added to the coherent phase 4 pi r / lambda (radians): arg S_c of the
+  // reflector's unit matrix in a polarimetric pass (0 for a trihedral, pi
+  // for a plate and for a roll-0 dihedral's VV); 0 otherwise.
+  double phase_offset_rad = 0.0;
 };
 
 struct RenderOptions {
@@ -71,6 +80,12 @@ struct RenderOptions {
   double wavelength_m = 0.031;
   material::Polarization polarization = material::Polarization::kVV;
   uint64_t seed = 1;
+  // This pass is one channel of a polarimetric set: passes with the same
+  // seed (and everything else) and different `polarization` together give
+  // the channels of one scattering matrix per return (RenderSar, "Polarimetric
+  // passes"; docs/radiometry.md, "Polarimetry in the renderer"). False: the
+  // single-channel model, bit for bit as before the option existed.
+  bool polarimetric = false;
   // Canonical reflectors: their returns (RCS towards the sensor, zero when
   // the way back is occluded) go to SarImage::points.
   std::vector<SceneReflector> reflectors;
@@ -211,6 +226,42 @@ struct SarImage {
 // its azimuth is the mean of the first and last hit's along-track
 // coordinates (docs/geometry.md). Results do not depend on the thread count.
 //
+// Polarimetric passes (options.polarimetric; one channel c per pass, the
+// scattering matrix S of a return in the radar's BSA H/V basis,
+// material/scattering.h). Where they differ from the single-channel model:
+//  - Rough-surface (first-bounce) returns: the power is unchanged (the
+//    class's sigma0 law of channel c). In coherent mode the micro-phasor of
+//    each ray and pixel is drawn jointly across the passes from three seeded
+//    phases phi1 (the single-channel micro-phase), phi2, phi3: HH exp(j phi1)
+//    (an HH pass equals the single-channel HH pass bit for bit), VV
+//    conj(rho) exp(j phi1) + sqrt(1 - |rho|^2) exp(j phi2), HV and VH
+//    exp(j phi3); rho = material::PolarimetricLaw(...).rho_hh_vv of the
+//    class at the hit's (shading) incidence, tabulated per class. Hence
+//    E[HH VV*] = rho sqrt(sigma0_hh sigma0_vv), E|HV|^2 = sigma0_hv, HV
+//    uncorrelated: the multilooked covariance of a uniform class is the law.
+//  - Mirror paths (bounce >= 2): the ray carries the field of each transmit
+//    polarisation (transmit basis material::HvBasis of the primary ray)
+//    through its mirror vertices, each applying the complex Fresnel
+//    amplitudes of the class's EffectivePermittivity at its incidence in its
+//    own plane of incidence (material::SpecularReflectionOperator), instead
+//    of the Fresnel power MirrorReflectivity; the scalar share keeps only the
+//    product of the `mirror` coefficients. The last vertex applies the Fresnel
+//    matrix of its bistatic reflection towards the radar (facet normal: the
+//    bisector of the incoming and the radar direction) divided by
+//    sqrt((|r_h|^2 + |r_v|^2) / 2) there (the bistatic law already holds that
+//    power), read in the receive basis HvBasis(-to_radar): S. With P the
+//    single-channel path power without the Fresnel powers (bistatic sigma0 x
+//    area / cos x mirror shares / pixel area), the path and its reversed
+//    path (matrix S^T, material::TraceReversedSpecularChain) give channel c
+//    the power P (|S_c|^2 + |S^T_c|^2) (the single-channel model: 2 P R) and
+//    the coherent amplitude sqrt(P) (S_c + S^T_c) times the path phase: so
+//    HV = VH, and the image's inter-channel phases are those of S
+//    (arg z_HH z_VV* = arg S_HH S_VV*). A chain stops when the scalar share
+//    times the mean over transmit polarisations of |field|^2 falls below
+//    1e-9 (the single-channel cut on the share).
+//  - Reflectors: ReflectorReturns with options.polarization (roll and
+//    channel); single-channel passes keep the scalar RCS and no offset.
+//
 // Mask (value at each pixel centre): bit kMaskLayover when a lit surface that
 // is imaged flipped (steeper towards the radar than the local slant-range
 // plane) covers the centre; bit kMaskShadow when a surface covering the
@@ -232,9 +283,17 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
 
 // Returns of `reflectors` seen with `geometry` at `wavelength_m`: RCS from
 // material::ReflectorRcs towards the sensor, none where the way from the
-// apex to the sensor is occluded or the RCS is zero.
+// apex to the sensor is occluded or the RCS is zero. With `polarization`
+// (a polarimetric pass) the RCS of channel c is that RCS times |S_c|^2 and
+// PointReturn::phase_offset_rad = arg S_c (0 where S_c = 0), S =
+// material::UnitReflectorMatrix(type, roll_rad) (taken in the radar's H/V
+// basis: the boresight's small offset from the line of sight does not turn
+// it): roll 0 co-pol keeps the scalar RCS, a channel with S_c = 0 keeps the
+// point with beta0_sum 0 (every pass lists the same reflectors). Without it
+// (default): the scalar RCS in every channel, no phase offset.
 std::vector<PointReturn> ReflectorReturns(const EmbreeScene& embree, const std::vector<SceneReflector>& reflectors,
-                                          const sensor::SarGeometry& geometry, double wavelength_m);
+                                          const sensor::SarGeometry& geometry, double wavelength_m,
+                                          std::optional<material::Polarization> polarization = std::nullopt);
 
 // Whether the segment origin + t dir, t in [t_near, t_far] (dir a unit
 // vector, metres), meets the scene.
@@ -245,7 +304,9 @@ using OcclusionTest = std::function<bool(const Eigen::Vector3d& origin, const Ei
 // from t = 5 cm (clear of the reflector's own ground) to the sensor (affine
 // mode: twice the slant range).
 std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const std::vector<SceneReflector>& reflectors,
-                                          const sensor::SarGeometry& geometry, double wavelength_m);
+                                          const sensor::SarGeometry& geometry, double wavelength_m,
+                                          std::optional<material::Polarization> polarization = std::nullopt);
+
 
 // Only the layover/shadow mask (see RenderSar). `lit` (optional): 1 where a
 // lit surface (facing the radar, not occluded) covers the pixel centre.

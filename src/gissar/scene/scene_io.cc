@@ -90,6 +90,7 @@ void WriteScene(const fs::path& path, const SceneFile& scene) {
                       {"size_m", r.size_m},
                       {"boresight_azimuth_deg", r.boresight_azimuth_deg},
                       {"boresight_elevation_deg", r.boresight_elevation_deg},
+                      {"roll_deg", r.roll_deg},
                       {"apex_enu", {r.apex_enu.x(), r.apex_enu.y(), r.apex_enu.z()}},
                       {"source", r.source},
                       {"row", r.row}});
@@ -171,13 +172,14 @@ SceneFile ReadScene(const fs::path& path) {
         r.size_m = item.at("size_m");
         r.boresight_azimuth_deg = item.at("boresight_azimuth_deg");
         r.boresight_elevation_deg = item.at("boresight_elevation_deg");
+        r.roll_deg = item.value("roll_deg", 0.0);
         const auto& a = item.at("apex_enu");
         r.apex_enu = Eigen::Vector3d(a.at(0), a.at(1), a.at(2));
         r.source = item.at("source").get<std::string>();
         r.row = item.at("row");
         const bool finite = std::isfinite(r.lon_deg) && std::isfinite(r.lat_deg) && std::isfinite(r.apex_height_m) &&
                             std::isfinite(r.boresight_azimuth_deg) && std::isfinite(r.boresight_elevation_deg) &&
-                            r.apex_enu.allFinite();
+                            std::isfinite(r.roll_deg) && r.apex_enu.allFinite();
         if (r.type.empty() || !finite || !(r.size_m > 0.0) || !std::isfinite(r.size_m)) {
           throw InputError("scene header is corrupt: reflector " + std::to_string(scene.reflectors.size() + 1) +
                                " has no type, a non-finite field or size <= 0",

@@ -39,6 +39,7 @@ struct StoredReflector {
   double size_m = 1.0;
   double boresight_azimuth_deg = 0.0;
   double boresight_elevation_deg = 0.0;
+  double roll_deg = 0.0;  // about the boresight (material/scattering.h); absent in older scenes: 0
   Eigen::Vector3d apex_enu = Eigen::Vector3d::Zero();  // surface below (lon, lat) + apex_height_m
   std::string source;  // the CSV it came from (file name)
   int row = 0;         // its data row there

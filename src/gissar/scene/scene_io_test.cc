@@ -54,6 +54,7 @@ TEST(SceneIoTest, ReflectorsRoundTripAndAreChecked) {
   r.size_m = 0.8;
   r.boresight_azimuth_deg = 285.0;
   r.boresight_elevation_deg = 35.0;
+  r.roll_deg = 22.5;
   r.apex_enu = {81.9, -111.2, 2.5};
   r.source = "cr.csv";
   r.row = 3;
@@ -66,6 +67,7 @@ TEST(SceneIoTest, ReflectorsRoundTripAndAreChecked) {
   EXPECT_EQ(b.lon_deg, 1.601);
   EXPECT_EQ(b.size_m, 0.8);
   EXPECT_EQ(b.boresight_azimuth_deg, 285.0);
+  EXPECT_EQ(b.roll_deg, 22.5);
   EXPECT_EQ(b.apex_enu, Eigen::Vector3d(81.9, -111.2, 2.5));
   EXPECT_EQ(b.source, "cr.csv");
   EXPECT_EQ(b.row, 3);
