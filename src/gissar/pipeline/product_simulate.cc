@@ -40,6 +40,12 @@ void CheckProductOptions(const SimulateRequest& o) {
   if (!o.contributions.empty()) {
     throw ConfigError("contributions are not recorded on a radar grid", fixed_by + "/--contributions");
   }
+  if (o.coherent && material::ParsePolarizationList(o.polarization, "--polarization").size() > 1) {
+    // The re-projected returns carry one power each, not the channels' joint
+    // phasors: a coherent product grid renders one channel per run.
+    throw ConfigError("a coherent product grid renders one channel per run (several channels: detected only)",
+                      fixed_by + "/--coherent/--polarization");
+  }
   if (o.center_lonlat || o.center_map) {
     throw ConfigError("the radar grid fixes the scene centre", fixed_by + "/--center");
   }
@@ -73,6 +79,27 @@ std::vector<float> EllipsoidIncidenceDeg(const render::ProductImage& image, cons
     }
   }
   return incidence;
+}
+
+}  // namespace
+
+namespace {
+
+// Several channels simulate a real product's channels: each must be a layer
+// the product holds (ConfigError naming the product's channels otherwise).
+void CheckProductHasChannels(const geo::RslcProduct& p, const std::vector<material::Polarization>& channels,
+                             const std::string& product_path) {
+  std::string held;
+  for (const std::string& s : p.stored_polarizations) held += (held.empty() ? "" : ", ") + s;
+  for (const material::Polarization c : channels) {
+    const std::string name = material::ToString(c);
+    if (std::find(p.stored_polarizations.begin(), p.stored_polarizations.end(), name) ==
+        p.stored_polarizations.end()) {
+      throw ConfigError("the product holds " + (held.empty() ? std::string("no channel") : held) + " (frequency " +
+                            p.frequency + ", " + product_path + "), not " + name,
+                        "--polarization");
+    }
+  }
 }
 
 }  // namespace
@@ -211,6 +238,10 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   say("product " + std::to_string(p.rows()) + " lines x " + std::to_string(p.cols()) + " range bins, " +
       (p.look_left ? "left" : "right") + "-looking, wavelength " + std::to_string(p.wavelength_m) + " m");
 
+  sim.channels = material::ParsePolarizationList(options.polarization, "--polarization");
+  const bool polarimetric = sim.channels.size() > 1;
+  if (polarimetric && !options.product.empty()) CheckProductHasChannels(p, sim.channels, options.product);
+
   Terrain terrain = LoadTerrain(options, reporter);
   const render::EmbreeScene embree(terrain.mesh, TracedGrid(terrain, options));
   render::RenderOptions ro = RenderOptionsOf(options, &reporter);
@@ -218,12 +249,30 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   ro.reflectors = terrain.reflectors;  // a scene's own
   const auto placed = PlaceReflectors(options, terrain, embree);
   ro.reflectors.insert(ro.reflectors.end(), placed.begin(), placed.end());
+  // One pass per channel (polarimetric passes with one seed; VH = HV).
+  ro.polarization = sim.channels.front();
+  ro.polarimetric = polarimetric;
   sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
+  for (size_t k = 1; k < sim.channels.size(); ++k) {
+    const material::Polarization c = sim.channels[k];
+    const auto twin = std::find(sim.channels.begin(), sim.channels.begin() + k,
+                                c == material::Polarization::kVH ? material::Polarization::kHV
+                                : c == material::Polarization::kHV ? material::Polarization::kVH
+                                                                   : c);
+    if ((c == material::Polarization::kHV || c == material::Polarization::kVH) && twin != sim.channels.begin() + k) {
+      const size_t t = size_t(twin - sim.channels.begin());
+      sim.other_channels.push_back(t == 0 ? sim.image.image : sim.other_channels[t - 1]);
+      continue;
+    }
+    say("channel " + material::ToString(c));
+    ro.polarization = c;
+    sim.other_channels.push_back(
+        render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro).image);
+  }
   sim.ground_speed_mps = sim.image.tracing_geometry.azimuth_spacing_m / sim.grid.dt_s;
   say(std::to_string(sim.image.geolocated) + " pixels geolocated, " + std::to_string(sim.image.contributions) +
       " returns re-projected");
 
-  render::SarImage& image = sim.image.image;
   image::SensorEffects response;  // the impulse response on the product's pixel spacings
   response.range_resolution_px = options.range_resolution_m / sim.grid.dr_m;
   response.azimuth_resolution_px = options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m;
@@ -231,31 +280,38 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   response.wavelength_m = p.wavelength_m;
   CheckImpulseResponsePixels(response.range_resolution_px, response.azimuth_resolution_px);
   const std::vector<float> incidence = EllipsoidIncidenceDeg(sim.image, orbit, sim.grid);
-  if (options.coherent) {
-    // The complex image (speckle from the phasors), the reflectors' phasors
-    // added with the same response, then the per-pixel radiometry.
-    if (response.range_resolution_px > 0.0 || response.azimuth_resolution_px > 0.0) {
-      image::ApplyComplexImpulseResponse(image.real, image.imag, image.width, image.height,
-                                         response.range_resolution_px, response.azimuth_resolution_px,
-                                         response.window);
-      for (int b = 0; b < render::kBounceLayers; ++b) {
-        if (image.bounce_real[b].size() != image.real.size()) continue;
-        image::ApplyComplexImpulseResponse(image.bounce_real[b], image.bounce_imag[b], image.width, image.height,
+  // Each further channel draws its own noise and speckle (seed offset).
+  auto sensor_stage = [&](render::SarImage& image, uint64_t seed) {
+    if (options.coherent) {
+      // The complex image (speckle from the phasors), the reflectors' phasors
+      // added with the same response, then the per-pixel radiometry.
+      if (response.range_resolution_px > 0.0 || response.azimuth_resolution_px > 0.0) {
+        image::ApplyComplexImpulseResponse(image.real, image.imag, image.width, image.height,
                                            response.range_resolution_px, response.azimuth_resolution_px,
                                            response.window);
+        for (int b = 0; b < render::kBounceLayers; ++b) {
+          if (image.bounce_real[b].size() != image.real.size()) continue;
+          image::ApplyComplexImpulseResponse(image.bounce_real[b], image.bounce_imag[b], image.width, image.height,
+                                             response.range_resolution_px, response.azimuth_resolution_px,
+                                             response.window);
+        }
       }
+      AddPointPhasors(image, image.points, response);
+      ConvertPixelRadiometryCoherent(image, incidence, image::ParseRadiometry(options.radiometry, "--radiometry"),
+                                     options.nesz_db, seed, options.db);
+    } else {
+      image::ApplyImpulseResponse(image.intensity, image.width, image.height, response.range_resolution_px,
+                                  response.azimuth_resolution_px, response.window);
+      if (options.speckle_looks >= 1.0) image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, seed);
+      image::AddPointIntensities(image, response);  // reflectors: the same impulse response, added after the speckle
+      // beta0 so far: sigma0 / gamma0 need each pixel's own ellipsoid incidence.
+      image::ConvertPixelRadiometry(image, incidence, image::ParseRadiometry(options.radiometry, "--radiometry"),
+                                    options.nesz_db, seed, options.db);
     }
-    AddPointPhasors(image, image.points, response);
-    ConvertPixelRadiometryCoherent(image, incidence, image::ParseRadiometry(options.radiometry, "--radiometry"),
-                                   options.nesz_db, options.seed, options.db);
-  } else {
-    image::ApplyImpulseResponse(image.intensity, image.width, image.height, response.range_resolution_px,
-                                response.azimuth_resolution_px, response.window);
-    if (options.speckle_looks >= 1.0) image::ApplyMultiplicativeSpeckle(image.intensity, options.speckle_looks, options.seed);
-    image::AddPointIntensities(image, response);  // reflectors: the same impulse response, added after the speckle
-    // beta0 so far: sigma0 / gamma0 need each pixel's own ellipsoid incidence.
-    image::ConvertPixelRadiometry(image, incidence, image::ParseRadiometry(options.radiometry, "--radiometry"),
-                                  options.nesz_db, options.seed, options.db);
+  };
+  sensor_stage(sim.image.image, options.seed);
+  for (size_t k = 0; k < sim.other_channels.size(); ++k) {
+    sensor_stage(sim.other_channels[k], options.seed + 0x9e3779b97f4a7c15ULL * (k + 1));
   }
   sim.terrain = terrain.description;
   sim.frame = {{"origin_lon_deg", terrain.frame.origin_lon_deg()},
@@ -342,12 +398,39 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   render::SarImage image = sim.image.image;
   if (image.footprint.size() == image.intensity.size()) MarkOutsideFootprint(image, sim.image.image.footprint);
   geo::Metadata metadata = ProductMetadata(sim, options);
-  geo::FloatRaster raster{image.width, image.height, {image.intensity}, {"total"}, metadata};
   const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
-  for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-    raster.bands.push_back(image.bounce_layers[layer]);
-    raster.band_names.push_back(layer_names[layer]);
+  geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
+  const std::string unit = image::RadiometryUnit(options.db);
+  if (sim.other_channels.empty()) {
+    raster.bands.push_back(image.intensity);
+    raster.band_names.push_back("total");
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      raster.bands.push_back(image.bounce_layers[layer]);
+      raster.band_names.push_back(layer_names[layer]);
+    }
+  } else {
+    // Several channels (as `simulate` writes them): each channel's total,
+    // then each channel's bounce counts; NaN where the pixel has no ground
+    // point, as the first channel.
+    std::vector<render::SarImage> channel_images = {image};
+    for (render::SarImage c : sim.other_channels) {
+      if (c.footprint.size() == c.intensity.size()) MarkOutsideFootprint(c, sim.image.image.footprint);
+      channel_images.push_back(std::move(c));
+    }
+    for (size_t k = 0; k < channel_images.size(); ++k) {
+      raster.bands.push_back(channel_images[k].intensity);
+      raster.band_names.push_back(material::ToString(sim.channels[k]));
+    }
+    for (size_t k = 0; k < channel_images.size(); ++k) {
+      for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+        raster.bands.push_back(channel_images[k].bounce_layers[layer]);
+        raster.band_names.push_back(material::ToString(sim.channels[k]) + "_" + layer_names[layer]);
+      }
+    }
+    raster.metadata["GISSAR_POLARIZATIONS"] = material::ToString(sim.channels);
   }
+  const int image_bands = static_cast<int>(raster.bands.size());
+  raster.band_units.assign(raster.bands.size(), unit);
   raster.nodata_nan = true;
   const std::vector<uint8_t>& mask = image.mask;
   raster.bands.push_back(sim.image.lon_deg);
@@ -356,14 +439,16 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   raster.band_names.push_back("lat_deg");
   raster.bands.push_back(sim.image.height_m);
   raster.band_names.push_back("height_m");
-  const std::string unit = image::RadiometryUnit(options.db);
-  raster.band_units = {unit, unit, unit, unit, unit, "deg", "deg", "m"};
+  raster.band_units.insert(raster.band_units.end(), {"deg", "deg", "m"});
+  std::string bands_text;
+  for (int b = 0; b < image_bands; ++b) bands_text += (b ? ", " : "") + std::to_string(b + 1) + " " + raster.band_names[b];
+  const int lon_band = image_bands + 1, lat_band = image_bands + 2;
   raster.metadata["GISSAR_BANDS"] =
-      "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (" + options.radiometry +
-      (options.db ? ", dB" : ", linear") + "); 6 longitude, 7 latitude "
-      "(WGS84 degrees, float32: ~1 m), 8 ellipsoidal height (m) of each pixel's ground point (NaN: none)";
-  // GDAL geolocation arrays: gdalwarp -geoloc places the image from bands 6 and 7.
-  raster.georeference.geolocation = geo::LonLatGeolocation(6, 7);
+      bands_text + " (" + options.radiometry + (options.db ? ", dB" : ", linear") + "); " + std::to_string(lon_band) +
+      " longitude, " + std::to_string(lat_band) + " latitude (WGS84 degrees, float32: ~1 m), " +
+      std::to_string(image_bands + 3) + " ellipsoidal height (m) of each pixel's ground point (NaN: none)";
+  // GDAL geolocation arrays: gdalwarp -geoloc places the image from the longitude and latitude bands.
+  raster.georeference.geolocation = geo::LonLatGeolocation(lon_band, lat_band);
   geo::WriteFloatGeoTiff(tif, raster);
   if (options.coherent) {
     // The complex total and the complex image of each bounce count, as
@@ -442,6 +527,7 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
       {"scale", options.db ? "dB" : "linear"},
       {"unit", image::RadiometryUnit(options.db)},
       {"polarization", options.polarization},
+      {"channels", material::ToString(sim.channels)},
       {"wavelength_m", sim.product.wavelength_m},
       {"nesz_db", std::isnan(options.nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(options.nesz_db)},
       {"incidence_reference", "per pixel: WGS84 ellipsoid normal at the pixel's ground point vs the line of sight "

@@ -41,6 +41,11 @@ struct ProductSimulation {
   geo::RslcProduct product;
   sensor::RadarGrid grid;
   render::ProductImage image;
+  // The channels rendered (SimulateRequest::polarization) in output order:
+  // image.image is channels[0], other_channels[i] channels[i + 1] (same
+  // grid, mask and ground points). One channel: other_channels is empty.
+  std::vector<material::Polarization> channels;
+  std::vector<render::SarImage> other_channels;
   nlohmann::json terrain;       // Terrain::description
   nlohmann::json frame;         // local frame origin
   double ground_speed_mps = 0;  // azimuth pixel spacing / line time

@@ -360,5 +360,66 @@ TEST(OrbitSimulateTest, OrbitOptionsAreCheckedTogether) {
   }
 }
 
+// Several channels on a real quad-pol product's grid (ALOS-1 Rio Branco
+// chip, its surveyed trihedral on a flat dark DEM): bands per channel, the
+// trihedral in HH and VV alike and absent from HV (S = I), VH = HV; a
+// product without the channels, and coherent quad on a product, refused.
+TEST(ProductSimulateTest, QuadChannelsOnARealQuadPolGrid) {
+  const fs::path dir = MakeTempDir();
+  const double lon0 = -68.1728216904995, lat0 = -9.71311741457592;
+  const std::string tm = "+proj=tmerc +lat_0=" + std::to_string(lat0) + " +lon_0=" + std::to_string(lon0) +
+                         " +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+  const fs::path dem = dir / "flat.tif";
+  geo::WriteDemGeoTiff(dem, std::vector<float>(201 * 201, 0.0f), 201, 201, {-1507.5, 15.0, 0.0, 1507.5, 0.0, -15.0},
+                       tm);
+  const fs::path materials = dir / "dark.json";
+  std::ofstream(materials) << R"({"default": {"sigma0_db": [[0, -60], [90, -60]]}})";
+  SimulateRequest sim;
+  sim.product = DataPath("alos_rio_branco/calib_RSLC_ALPSRP025826990_RIO_BRANCO_CR.h5").string();
+  sim.dem = dem.string();
+  sim.vertical_datum = "ellipsoid";
+  sim.sea = "off";
+  sim.materials = materials.string();
+  sim.reflectors = DataPath("alos_rio_branco/rio_branco_reflector.csv").string();
+  sim.bounces = 1;
+  sim.polarization = "quad";
+  sim.out_prefix = (dir / "quad").string();
+  RunSimulate(sim, "test");
+  const geo::FloatRaster quad = geo::ReadFloatRaster(dir / "quad.tif");
+  ASSERT_EQ(quad.bands.size(), 4u + 16u + 3u);
+  EXPECT_EQ(quad.band_names[0], "HH");
+  EXPECT_EQ(quad.band_names[3], "VV");
+  EXPECT_EQ(quad.band_names[20], "lon_deg");
+  EXPECT_EQ(quad.metadata.at("GISSAR_POLARIZATIONS"), "quad");
+  auto peak = [&](int band) {
+    float best = 0.0f;
+    for (const float v : quad.bands[band]) if (std::isfinite(v)) best = std::max(best, v);
+    return best;
+  };
+  // A trihedral: S_HH = S_VV, S_HV = 0; the dark ground is 60 dB down.
+  EXPECT_NEAR(10.0 * std::log10(peak(0) / peak(3)), 0.0, 0.01);
+  EXPECT_GT(10.0 * std::log10(peak(0) / peak(1)), 40.0);
+  for (size_t k = 0; k < quad.bands[1].size(); ++k) {
+    ASSERT_TRUE(quad.bands[1][k] == quad.bands[2][k] || (std::isnan(quad.bands[1][k]) && std::isnan(quad.bands[2][k])));
+  }
+  // The UAVSAR chip holds HH only.
+  SimulateRequest hh_only;
+  hh_only.product = DataPath("uavsar/SanAnd_129.h5").string();
+  hh_only.dem = DataPath("uavsar/SanAnd_dem.tif").string();
+  hh_only.polarization = "HH,VV";
+  hh_only.out_prefix = (dir / "sanand").string();
+  try {
+    RunSimulate(hh_only, "test");
+    ADD_FAILURE() << "channels the product lacks were accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("the product holds HH"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not VV"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "sanand.tif"));
+  sim.coherent = true;
+  sim.out_prefix = (dir / "coherent").string();
+  EXPECT_THROW(sim.Check(), ConfigError);
+}
+
 }  // namespace
 }  // namespace gissar::pipeline
