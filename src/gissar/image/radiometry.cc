@@ -168,8 +168,9 @@ void ApplySensorEffects(render::SarImage& image, const SensorEffects& effects,
       AddPointIntensity(image.bounce_layers[p.layer], w, h, p.col, p.row, p.beta0_sum, effects);
     }
     if (coherent) {
-      // The path phase plus the channel's matrix phase (polarimetric passes).
-      const double phase = wavenumber2 * p.range_m + p.phase_offset_rad;
+      // The path phase exp(-j 4 pi R / lambda) (docs/conventions.md) plus
+      // the channel's matrix phase (polarimetric passes).
+      const double phase = -wavenumber2 * p.range_m + p.phase_offset_rad;
       AddPointPhasor(image.real, image.imag, w, h, p.col, p.row, std::sqrt(p.beta0_sum), phase, effects);
       if (p.layer >= 0 && p.layer < static_cast<int>(image.bounce_real.size()) &&
           image.bounce_real[p.layer].size() == image.real.size()) {

@@ -46,7 +46,7 @@ void ToDecibels(std::vector<float>& image);
 //     response centred on it, integrating to its beta0_sum;
 // Coherent (image.real/imag set; speckle must be 0): the complex image is
 // convolved with the amplitude response (before detection), the point
-// returns are added as phasors of phase 4 pi r / lambda plus their
+// returns are added as phasors of phase -4 pi r / lambda plus their
 // phase_offset_rad (a polarimetric pass's arg S_c, else 0), the total is
 // detected; the complex bounce images (image.bounce_real/bounce_imag) take
 // the same response, phasors and scaling, and each bounce band becomes

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <optional>
 
@@ -85,6 +86,48 @@ std::pair<double, double> CentreStats(const Rendered& r) {
 
 // Issue 17's acceptance: a flat plane of constant sigma0 = -10 dB reads
 // -10 dB whatever the depression, ray count and pixel spacing.
+// The coherent sensor stage adds each point's phase offset (arg S_c of a
+// polarimetric pass's reflector matrix) to its path phase: two points of
+// equal power and range, offsets 0 and pi, cancel; offsets 0 and 0 add to
+// twice the amplitude.
+TEST(RadiometryTest, PointPhaseOffsetTurnsThePhasor) {
+  auto sum_of = [](double offset_rad) {
+    render::SarImage image;
+    image.width = image.height = 32;
+    const size_t n = 32 * 32;
+    image.intensity.assign(n, 0.0f);
+    image.real.assign(n, 0.0f);
+    image.imag.assign(n, 0.0f);
+    for (const double offset : {0.0, offset_rad}) {
+      render::PointReturn p;
+      p.col = 15.3;
+      p.row = 16.7;
+      p.beta0_sum = 4.0;
+      p.range_m = 1234.5;
+      p.layer = 1;
+      p.phase_offset_rad = offset;
+      image.points.push_back(p);
+    }
+    SensorEffects effects;
+    effects.wavelength_m = 0.031;
+    effects.range_resolution_px = 1.0;
+    effects.azimuth_resolution_px = 1.0;
+    ApplySensorEffects(image, effects, std::vector<double>(32, 55.0));
+    std::complex<double> sum = 0.0;
+    double power = 0.0;
+    for (size_t k = 0; k < n; ++k) {
+      sum += std::complex<double>(image.real[k], image.imag[k]);
+      power += double(image.real[k]) * image.real[k] + double(image.imag[k]) * image.imag[k];
+    }
+    return std::make_pair(std::abs(sum), power);
+  };
+  const auto [opposite_amplitude, opposite_power] = sum_of(M_PI);
+  const auto [equal_amplitude, equal_power] = sum_of(0.0);
+  EXPECT_GT(equal_power, 0.0);
+  EXPECT_LT(opposite_power, 1e-9 * equal_power);
+  EXPECT_LT(opposite_amplitude, 1e-5 * equal_amplitude);
+}
+
 TEST(RadiometryTest, FlatPlaneSigma0IsIndependentOfRaysAndPixels) {
   for (double depression : {30.0, 45.0, 60.0}) {
     for (double rays : {1.0, 16.0}) {

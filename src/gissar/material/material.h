@@ -40,7 +40,7 @@ enum class Polarization { kHH, kHV, kVH, kVV };
 // `option` otherwise.
 Polarization ParsePolarization(const std::string& text, const std::string& option);
 std::string ToString(Polarization pol);
-// The channels of a `--polarization` value (../shared/CONVENTIONS.md,
+// The channels of a `--polarization` value (docs/conventions.md,
 // "Polarimetry"): one channel, a comma list ("HH,VV", any order, each at
 // most once, kept in the given order) or "quad" (HH, HV, VH, VV), case-
 // insensitive. Throws ConfigError naming `option` and the unknown or

@@ -108,7 +108,7 @@ struct SimulateRequest {
   int bounces = 3;                 // reflections followed per ray
   bool coherent = false;           // complex sum with phase 4 pi r / lambda
   double wavelength_m = 0.031;     // X band; selects the materials' sigma0 laws
-  // Channels (../shared/CONVENTIONS.md "Polarimetry"): one of HH, HV, VH,
+  // Channels (docs/conventions.md, "Polarimetry"): one of HH, HV, VH,
   // VV (the materials' laws of that channel), a comma list ("HH,VV") or
   // "quad". Several channels render one polarimetric pass each
   // (render::RenderOptions::polarimetric): bands per channel in PREFIX.tif

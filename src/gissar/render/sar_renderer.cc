@@ -1136,8 +1136,9 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             }
             if (options.coherent) {
               // Rough-surface (first-bounce) returns: random micro-phase;
-              // mirror paths: deterministic path phase.
-              const double phase = wavenumber2 * range;
+              // mirror paths: deterministic path phase, exp(-j 4 pi R /
+              // lambda) (material/scattering.h, docs/conventions.md).
+              const double phase = -wavenumber2 * range;
               const double amplitude = bounce > 1 ? 2.0 * std::sqrt(value / reciprocal) : std::sqrt(value);
               // The same phasor into the total and into its bounce's complex
               // band, so the complex bands add up to the complex total.

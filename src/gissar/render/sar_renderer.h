@@ -54,9 +54,9 @@ struct SceneReflector {
 struct PointReturn {
   double col = 0.0, row = 0.0;  // continuous pixel of the phase centre
   double beta0_sum = 0.0;
-  double range_m = 0.0;          // slant range of the phase centre (coherent phase 4 pi r / lambda)
+  double range_m = 0.0;          // slant range of the phase centre (coherent phase -4 pi r / lambda)
   int layer = 0;                 // bounce band: 0 single (plate), 1 double (dihedral), 2 triple (trihedral)
-  // Added to the coherent phase 4 pi r / lambda (radians): arg S_c of the
+  // Added to the coherent phase -4 pi r / lambda (radians): arg S_c of the
   // reflector's unit matrix in a polarimetric pass (0 for a trihedral, pi
   // for a plate and for a roll-0 dihedral's VV); 0 otherwise.
   double phase_offset_rad = 0.0;
@@ -72,7 +72,7 @@ struct RenderOptions {
   // Keep every contribution in SarImage::contributions (can be large).
   bool record_contributions = false;
   // Coherent mode: the total band is |sum of complex contributions|^2 per
-  // cell, each with phase 4 pi r / lambda plus a random phase per
+  // cell, each with phase -4 pi r / lambda plus a random phase per
   // scatterer (seeded) instead of a sum of intensities.
   bool coherent = false;
   // Radar wavelength (X band by default) and polarisation: they select the
@@ -211,10 +211,10 @@ struct SarImage {
 //
 // Coherent mode: each return adds phasors of total power `value`: the
 // single-bounce (rough-surface) return sqrt(share x value) in each pixel of
-// its footprint with phase 4 pi r / lambda plus a seeded random micro-phase
+// its footprint with phase -4 pi r / lambda plus a seeded random micro-phase
 // per ray and pixel (so the mean intensity equals the incoherent image
 // whatever the ray count, also after the complex PSF); mirror paths (later
-// bounces) with the deterministic phase 4 pi r / lambda of their path (r:
+// bounces) with the deterministic phase -4 pi r / lambda of their path (r:
 // half the path), split with the square roots of the bilinear weights.
 //
 // Multi-bounce (up to max_bounces): at later hits, if the way back to the
@@ -245,11 +245,27 @@ struct SarImage {
 //    amplitudes of the class's EffectivePermittivity at its incidence in its
 //    own plane of incidence (material::SpecularReflectionOperator), instead
 //    of the Fresnel power MirrorReflectivity; the scalar share keeps only the
-//    product of the `mirror` coefficients. The last vertex applies the Fresnel
-//    matrix of its bistatic reflection towards the radar (facet normal: the
-//    bisector of the incoming and the radar direction) divided by
-//    sqrt((|r_h|^2 + |r_v|^2) / 2) there (the bistatic law already holds that
-//    power), read in the receive basis HvBasis(-to_radar): S. With P the
+//    product of the `mirror` coefficients. The last vertex scatters back with
+//    the bistatic law, whose two parts carry the polarisation differently and
+//    add in amplitude with weights sqrt(part / (diffuse + specular)):
+//    the diffuse (Lambertian, small-scale roughness) part in the face's own
+//    frame: the incoming TE component (s_i = d x n) goes into the TE of the
+//    scattering plane (s_o = to_radar x n) with r_h, the TM component
+//    (p_i = s_i x d) into p_o = s_o x to_radar with r_v, at the incidence of
+//    cosine sqrt(cos_in cos_out); the specular cone as the Fresnel reflection
+//    off the facet bisecting the incoming and the radar direction (Kirchhoff
+//    facets). Each is divided by its sqrt((|r_h|^2 + |r_v|^2) / 2) (the
+//    bistatic law already holds the power); read in the receive basis
+//    HvBasis(-to_radar) their sum is S. In the mirror direction the two are
+//    the same. Elsewhere the bisecting facet is perpendicular to the mirror
+//    before it: with a wall turned by phi in azimuth it forms a dihedral
+//    turned about the line of sight (tan psi = tan phi / sin depression),
+//    whose unequal dielectric faces bring HH and VV in phase beyond
+//    psi ~ 28 deg; the diffuse part of rough ground, in the ground's frame,
+//    keeps a wall-ground double bounce's HH and VV opposite whatever the
+//    wall's azimuth (docs/radiometry.md, "Polarimetry in the renderer",
+//    also for the limits: a last vertex tilted in azimuth turns the
+//    polarisation in its own frame). With P the
 //    single-channel path power without the Fresnel powers (bistatic sigma0 x
 //    area / cos x mirror shares / pixel area), the path and its reversed
 //    path (matrix S^T, material::TraceReversedSpecularChain) give channel c
