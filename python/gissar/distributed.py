@@ -939,6 +939,15 @@ def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, head
     no_result = bool(records) and summary["skipped"] == len(records)
     summary["converged"] = not no_result
     summary["reason"] = "; ".join(skip_reasons) if no_result else None
+    # What a pose fix from this database needs (`gissar locate --database`, docs/distributed.md "Reference
+    # database keys"): the terrain's content hash and, per done pose, its stored image and affine camera.
+    directory = os.path.dirname(os.path.abspath(catalog_path))
+    for entry in poses:
+        if entry["status"] == "done":
+            reference = _reference_entry(directory, collection_id, entry["id"])
+            if reference is not None:
+                entry["reference"] = reference
+    database = _database_entry(terrain, inputs, keywords, width, height)
     route_text = os.fspath(route) if isinstance(route, (str, os.PathLike)) else "(python)"
     return {
         "type": "Collection", "stac_version": STAC_VERSION, "stac_extensions": [], "id": collection_id,
@@ -955,6 +964,82 @@ def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, head
         "gissar:headings_deg": _headings(headings_deg), "gissar:width": width, "gissar:height": height,
         "gissar:image_size": {"width": width, "height": height, "rule": size_rule},
         "gissar:options": dict(keywords, **{k: os.fspath(v) for k, v in terrain.items()}),
-        "gissar:inputs": inputs, "gissar:hash_inputs": hash_inputs,
+        "gissar:inputs": inputs, "gissar:hash_inputs": hash_inputs, "gissar:database": database,
         "gissar:summary": summary, "gissar:poses": poses,
     }
+
+
+#: Version of the catalogue's reference-database record (gissar:database and the poses' reference entries).
+DATABASE_FORMAT = 1
+
+
+def _content_sha256(identity):
+    """The SHA-256 of an input's bytes: from its identity when hashed already (hash_inputs='sha256'), else
+    read now (a 'stat' run still records the terrain's content hash: locate --database checks it); None for a
+    GDAL virtual path or a missing file."""
+    if identity.get("sha256"):
+        return identity["sha256"]
+    path = identity.get("path", "")
+    if path.startswith("/vsi") or not os.path.isfile(path):
+        return None
+    return _file_identity(path, "sha256")["sha256"]
+
+
+def _database_entry(terrain, inputs, keywords, width, height):
+    """gissar:database: the terrain (dem or scene) and the content hashes every stored reference was built from,
+    and the sensor shared by the poses."""
+    kind = "scene" if "scene" in terrain else "dem"
+    return {"format": DATABASE_FORMAT, "terrain": kind,
+            "terrain_sha256": _content_sha256(inputs[kind]),
+            "materials_sha256": _content_sha256(inputs["materials"]) if "materials" in inputs else None,
+            "reflectors_sha256": _content_sha256(inputs["reflectors"]) if "reflectors" in inputs else None,
+            "vertical_datum": keywords.get("vertical_datum") or "",
+            "projection_mode": keywords.get("mode") or "affine",
+            "look_side": keywords.get("look_side") or "right",
+            "width": width, "height": height,
+            "range_spacing_m": keywords.get("range_spacing_m"), "azimuth_spacing_m": keywords.get("azimuth_spacing_m")}
+
+
+def _geodetic_of_enu(origin, enu):
+    """(lon, lat, h) of a point of the ENU tangent frame at origin (lon, lat, h), WGS84 (PROJ's topocentric
+    conversion, inverted)."""
+    from pyproj import Transformer
+    from pyproj.enums import TransformDirection
+    to_enu = Transformer.from_pipeline(
+        "+proj=pipeline +step +proj=cart +ellps=WGS84 "
+        f"+step +proj=topocentric +ellps=WGS84 +lon_0={origin[0]!r} +lat_0={origin[1]!r} +h_0={origin[2]!r}")
+    lon, lat, h = to_enu.transform(enu[0], enu[1], enu[2], direction=TransformDirection.INVERSE)
+    return (lon, lat, h)
+
+
+def _reference_entry(directory, collection_id, pose_id):
+    """A done pose's stored reference: its files (relative to the catalogue), the pose (sensor position,
+    heading, depression, slant range, look side) and the affine camera of the image (in the ENU tangent frame of
+    the simulation, origin frame_origin_lon_lat_h), from the simulation's sidecar. None when the sidecar cannot
+    be read (the pose is then not usable as a reference)."""
+    stem = f"{collection_id}_{pose_id}"
+    try:
+        with open(os.path.join(directory, stem + ".json"), encoding="utf-8") as f:
+            sidecar = json.load(f)
+        g, frame, centre = sidecar["geometry"], sidecar["frame"], sidecar["scene_centre"]
+        options = sidecar.get("options", {})
+        origin = (float(frame["origin_lon_deg"]), float(frame["origin_lat_deg"]), float(frame["origin_height_m"]))
+        sensor = _geodetic_of_enu(origin, g["sensor_enu_m_at_centre"])
+        mask = stem + "_mask.tif"
+        return {"image": stem + ".tif", "band": 1, "mask": mask if os.path.exists(os.path.join(directory, mask))
+                else None, "sidecar": stem + ".json",
+                "heading_deg": float(options["heading_deg"]), "depression_deg": float(options["depression_deg"]),
+                "slant_range_m": float(options["slant_range_m"]), "look_side": options.get("look_side", "right"),
+                "projection_mode": options.get("mode") or "affine",
+                "radiometry": options.get("radiometry", "sigma0"), "db": bool(options.get("db", False)),
+                "sensor_lon_lat_h": list(sensor),
+                "centre_lon_lat_h": [float(centre["lon_deg"]), float(centre["lat_deg"]), float(centre["height_m"])],
+                "frame_origin_lon_lat_h": list(origin),
+                "centre_enu_m": list(map(float, centre["enu_m"])),
+                "sensor_enu_m": list(map(float, g["sensor_enu_m_at_centre"])),
+                "look_direction_enu": list(map(float, g["look_direction_enu"])),
+                "flight_direction_enu": list(map(float, g["flight_direction_enu"])),
+                "u0": float(g["u0"]), "v0": float(g["v0"]), "width": int(g["width"]), "height": int(g["height"]),
+                "range_spacing_m": float(g["range_spacing_m"]), "azimuth_spacing_m": float(g["azimuth_spacing_m"])}
+    except (OSError, ValueError, KeyError, TypeError):
+        return None

@@ -53,6 +53,14 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray in the reference renders")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell in the reference renders")->capture_default_str();
+    cmd->add_option("--database", o->database,
+                    "Reference database PREFIX_catalog.json (gissar corridor, same --dem/--scene): match the stored "
+                    "reference covering the prior, no rendering (docs/navigation.md)");
+    cmd->add_option("--database-fallback", o->database_fallback,
+                    "No stored reference covers the prior: none (no fix, exit 3) or render (on the fly)")
+        ->capture_default_str();
+    cmd->add_option("--database-heading-tolerance", o->database_heading_tolerance_deg,
+                    "Largest heading difference between the prior and a stored reference, deg")->capture_default_str();
     registry.Add(cmd, [=](const CommandContext& context) {
       LocateRequest resolved = *o;
       resolved.out = PrefixedOutput(o->out, ".json");
@@ -107,6 +115,16 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell")->capture_default_str();
+    cmd->add_option("--database", o->database,
+                    "Reference database PREFIX_catalog.json: trials around its stored poses, its image size and "
+                    "spacing; fixes from the stored references (docs/navigation.md)");
+    cmd->add_option("--database-fixes", o->database_fixes,
+                    "With --database: stored (match the stored references) or render (on the fly, same images)")
+        ->capture_default_str();
+    cmd->add_option("--database-fallback", o->database_fallback,
+                    "No stored reference covers the prior: none (no fix) or render (on the fly)")->capture_default_str();
+    cmd->add_option("--database-heading-tolerance", o->database_heading_tolerance_deg,
+                    "Largest heading difference between the prior and a stored reference, deg")->capture_default_str();
     auto floor = std::make_shared<bool>(true);
     AddSwitch(cmd, "reference-floor", *floor,
               "References with the observed noise floor (--nesz), or (--no-reference-floor) dark areas at -40 dB");

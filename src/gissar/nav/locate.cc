@@ -417,6 +417,12 @@ ControlMatches MatchReference(const Reference& reference, const cv::Mat& observe
 
 LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::vector<float>& observed,
                     const NavPose& prior, const LocateOptions& options) {
+  return Locate(scene, model, observed, prior, options,
+                [&](const NavPose& pose) { return RenderReference(scene, pose, model); });
+}
+
+LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::vector<float>& observed,
+                    const NavPose& prior, const LocateOptions& options, const ReferenceSource& source) {
   options.Check();
   model.Check();
   if (observed.size() != size_t(model.width) * size_t(model.height)) {
@@ -430,7 +436,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   int search = options.initial_search_px;
   double last_update_px = std::numeric_limits<double>::infinity();
   for (int it = 0; it < options.max_iterations; ++it) {
-    const Reference ref = RenderReference(scene, pose, model);
+    const Reference ref = source(pose);
     ++result.renders;
     if (it == 0) result.prior_similarity = Similarity(ref, obs_log, options.filter_px, options.reference_floor);
     MatchOptions mo;
@@ -473,7 +479,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   // Dense stage: from inside its basin (the patch stage's last update below
   // 2 px; infinite when the patch stage found no camera).
   for (int k = 0; k < options.dense_renders && last_update_px < 2.0; ++k) {
-    const Reference ref = RenderReference(scene, pose, model);
+    const Reference ref = source(pose);
     ++result.renders;
     const auto res = DenseRefine(ref, obs_log, pose.centre_enu, model, pose.heading_deg, pose.depression_deg,
                                  options.dense_iterations, options.filter_px, options.reference_floor);
@@ -500,7 +506,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
       const auto p = Moved(scene, pose, model, q[0], q[1], q[2], q[3]);
       if (!p) return 2.0;
       ++result.renders;
-      return -Similarity(RenderReference(scene, *p, model), obs_log, options.filter_px, options.reference_floor);
+      return -Similarity(source(*p), obs_log, options.filter_px, options.reference_floor);
     };
     std::vector<Eigen::Vector4d> simplex(5, Eigen::Vector4d::Zero());
     const Eigen::Vector4d steps(0.05, 0.1, 0.3 * model.range_spacing_m, 0.3 * model.azimuth_spacing_m);
@@ -547,7 +553,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   }
   result.pose = pose;
   result.sensor_enu = pose.SensorPosition(model.look_side);
-  result.similarity = Similarity(RenderReference(scene, pose, model), obs_log, options.filter_px, options.reference_floor);
+  result.similarity = Similarity(source(pose), obs_log, options.filter_px, options.reference_floor);
   ++result.renders;
   result.seconds = clock.ElapsedSeconds();
   return result;
@@ -583,6 +589,117 @@ std::optional<NavPose> PoseFromSensor(const NavScene& scene, const Eigen::Vector
   if (!ground) return std::nullopt;
   p.centre_enu = *ground;
   return p;
+}
+
+}  // namespace gissar::nav
+
+namespace gissar::nav {
+
+StoredReference MakeStoredReference(const NavScene& scene, const sensor::SarGeometry& geometry,
+                                    std::vector<float> intensity, const std::vector<uint8_t>& mask) {
+  const int w = geometry.width(), h = geometry.height();
+  if (intensity.size() != size_t(w) * size_t(h)) {
+    throw InputError("stored image is not width x height of its geometry", "nav::MakeStoredReference");
+  }
+  if (!mask.empty() && mask.size() != intensity.size()) {
+    throw InputError("stored mask is not width x height of its geometry", "nav::MakeStoredReference");
+  }
+  for (float& v : intensity) if (!std::isfinite(v) || v < 0.0f) v = 0.0f;
+  StoredReference out{geometry, std::move(intensity), cv::Mat(h, w, CV_32FC3, cv::Scalar::all(std::numeric_limits<float>::quiet_NaN())),
+                      cv::Mat(h, w, CV_8U, cv::Scalar(0)), 0};
+  const Eigen::Vector3d l = geometry.look_direction(), hh = geometry.flight_direction();
+  const Eigen::Vector3d n_up = UpNormal(geometry);
+  const double dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
+  const Eigen::AlignedBox3d box = scene.mesh->Bounds();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (!mask.empty() && mask[size_t(y) * w + x] != 0) continue;
+      const Eigen::Vector3d base = geometry.scene_centre() + (x - geometry.u0()) * dr * l + (y - geometry.v0()) * da * hh;
+      if (!(n_up.z() > 1e-6)) continue;
+      Eigen::Vector3d start = base + ((box.max().z() + 100.0 - base.z()) / n_up.z()) * n_up;
+      // Down the iso-range line: the first surface point that sees the sensor.
+      for (int k = 0; k < 8; ++k) {
+        const auto hit = scene.embree->Intersect(start.cast<float>(), (-n_up).cast<float>(), 0.0f, inf);
+        if (!hit) break;
+        const Eigen::Vector3d p = start - double(hit->t) * n_up;
+        const Eigen::Vector3d towards_sensor = -l;
+        const auto blocker = scene.embree->Intersect((p + 0.5 * towards_sensor).cast<float>(),
+                                                     towards_sensor.cast<float>(), 0.0f, inf);
+        if (!blocker) {
+          out.points.at<cv::Vec3f>(y, x) = cv::Vec3f(float(p.x()), float(p.y()), float(p.z()));
+          out.valid.at<uint8_t>(y, x) = 255;
+          ++out.valid_pixels;
+          break;
+        }
+        start = p - 0.5 * n_up;
+      }
+    }
+  return out;
+}
+
+Reference WarpStoredReference(const StoredReference& stored, const NavPose& pose, const SensorModel& model) {
+  Reference ref{GeometryOf(pose, model), {}, {}, {}, {}, {}};
+  const int w = model.width, h = model.height;
+  const int sw = stored.geometry.width(), sh = stored.geometry.height();
+  ref.intensity.assign(size_t(w) * h, 0.0f);
+  ref.points = cv::Mat(h, w, CV_32FC3, cv::Scalar::all(std::numeric_limits<float>::quiet_NaN()));
+  ref.valid = cv::Mat(h, w, CV_8U, cv::Scalar(0));
+  ref.class_ids = {0};
+  ref.class_intensity = {cv::Mat(h, w, CV_32F, cv::Scalar(0))};
+  // Least-squares affine map stored pixel -> pose pixel over the valid points.
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Matrix<double, 3, 2> atb = Eigen::Matrix<double, 3, 2>::Zero();
+  const int stride = std::max(1, std::min(sw, sh) / 64);
+  int used = 0;
+  for (int y = 0; y < sh; y += stride)
+    for (int x = 0; x < sw; x += stride) {
+      if (stored.valid.at<uint8_t>(y, x) == 0) continue;
+      const cv::Vec3f q = stored.points.at<cv::Vec3f>(y, x);
+      const Eigen::Vector2d p = ref.geometry.Project(Eigen::Vector3d(q[0], q[1], q[2]));
+      const Eigen::Vector3d a(x, y, 1.0);
+      ata += a * a.transpose();
+      atb += a * p.transpose();
+      ++used;
+    }
+  if (used < 16) return ref;  // nothing to match: every pixel invalid
+  const Eigen::Matrix<double, 3, 2> m = ata.ldlt().solve(atb);  // p = m^T [x y 1]
+  Eigen::Matrix2d a;
+  a << m(0, 0), m(1, 0), m(0, 1), m(1, 1);
+  const Eigen::Vector2d b(m(2, 0), m(2, 1));
+  if (!(std::abs(a.determinant()) > 1e-9) || !a.allFinite()) return ref;
+  const Eigen::Matrix2d a_inv = a.inverse();
+  float* out = ref.intensity.data();
+  cv::Mat& cls = ref.class_intensity[0];
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const Eigen::Vector2d p(x, y);
+      Eigen::Vector2d c = a_inv * (p - b);
+      for (int k = 0; k < 2; ++k) {
+        const int cx = static_cast<int>(std::lround(c.x())), cy = static_cast<int>(std::lround(c.y()));
+        if (cx < 0 || cy < 0 || cx >= sw || cy >= sh || stored.valid.at<uint8_t>(cy, cx) == 0) break;
+        const cv::Vec3f q = stored.points.at<cv::Vec3f>(cy, cx);
+        // The stored pixel's point moved by the sub-pixel part of c (the
+        // affine map's local scale) before projecting.
+        const Eigen::Vector2d at = ref.geometry.Project(Eigen::Vector3d(q[0], q[1], q[2])) +
+                                   a * (c - Eigen::Vector2d(cx, cy));
+        c += a_inv * (p - at);
+      }
+      if (!(c.x() >= 0.0 && c.y() >= 0.0 && c.x() <= sw - 1 && c.y() <= sh - 1)) continue;
+      const int x0 = std::min(sw - 2, static_cast<int>(std::floor(c.x())));
+      const int y0 = std::min(sh - 2, static_cast<int>(std::floor(c.y())));
+      const double fx = c.x() - x0, fy = c.y() - y0;
+      const float* r0 = stored.intensity.data() + size_t(y0) * sw;
+      const float* r1 = r0 + sw;
+      const double v = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+      out[size_t(y) * w + x] = static_cast<float>(v);
+      cls.at<float>(y, x) = static_cast<float>(v);
+      const int cx = static_cast<int>(std::lround(c.x())), cy = static_cast<int>(std::lround(c.y()));
+      if (stored.valid.at<uint8_t>(cy, cx) == 0) continue;
+      ref.points.at<cv::Vec3f>(y, x) = stored.points.at<cv::Vec3f>(cy, cx);
+      ref.valid.at<uint8_t>(y, x) = 255;
+    }
+  return ref;
 }
 
 }  // namespace gissar::nav

@@ -33,6 +33,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -158,6 +159,47 @@ struct LocateResult {
 LocateResult Locate(const NavScene& scene, const SensorModel& model,
                     const std::vector<float>& observed, const NavPose& prior,
                     const LocateOptions& options);
+
+// Where Locate gets the reference image of a pose (the geometry of the
+// returned Reference must be GeometryOf(pose, model)): RenderReference on
+// the fly, or a stored reference warped to the pose (WarpStoredReference).
+using ReferenceSource = std::function<Reference(const NavPose&)>;
+// Locate with references from `source` (the algorithm above, every
+// RenderReference replaced by `source`; `scene` still gives the surface the
+// pose moves on). LocateResult::renders counts the references taken.
+LocateResult Locate(const NavScene& scene, const SensorModel& model,
+                    const std::vector<float>& observed, const NavPose& prior,
+                    const LocateOptions& options, const ReferenceSource& source);
+
+// A reference image made beforehand (a corridor database's simulation,
+// docs/navigation.md "Fixes from a reference database"): its affine camera
+// in the scene's frame, its linear intensity and the 3-D point of every
+// pixel. The point of pixel (x, y) is the first surface point, from above,
+// on the pixel's iso-range line {Xc + (x - u0) dr l + (y - v0) da h + t n}
+// that sees the sensor (no other surface along -l); pixels flagged by the
+// simulation's mask (layover, shadow, outside: any non-zero code), or whose
+// line meets no lit surface, are not valid.
+struct StoredReference {
+  sensor::SarGeometry geometry;
+  std::vector<float> intensity;  // linear, row-major geometry.width() x geometry.height()
+  cv::Mat points;                // CV_32FC3, NaN where not valid
+  cv::Mat valid;                 // CV_8U
+  int valid_pixels = 0;
+};
+// `intensity` (and `mask`, kMask* codes, or empty: no mask) are row-major
+// geometry.width() x geometry.height(); InputError otherwise. Non-finite or
+// negative intensities read as 0.
+StoredReference MakeStoredReference(const NavScene& scene, const sensor::SarGeometry& geometry,
+                                    std::vector<float> intensity, const std::vector<uint8_t>& mask);
+// The stored reference resampled into the camera of `pose` (GeometryOf(pose,
+// model)): every pixel p takes the intensity (bilinear) and the 3-D point
+// and validity (nearest) of the stored pixel c whose point the pose's camera
+// images at p (P(X(c)) = p, solved from the least-squares affine map between
+// the two cameras' pixels and two fixed-point corrections through the
+// points). Pixels outside the stored image read 0 and are not valid. One
+// class (class_ids {0}) carries the whole intensity: the dense stage then
+// fits one gain. No rendering.
+Reference WarpStoredReference(const StoredReference& stored, const NavPose& pose, const SensorModel& model);
 
 // Correspondences of a matcher between a reference and the observed image
 // after the RANSAC affine filter, as control points (3-D point, observed

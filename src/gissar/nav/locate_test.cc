@@ -115,6 +115,64 @@ TEST(Locate, PoseFromSensorIsConsistent) {
   EXPECT_LT((p->centre_enu - truth.centre_enu).norm(), 0.5);
 }
 
+TEST(Locate, FixesFromAStoredReferenceWithoutRendering) {
+  const scene::TriangleMesh mesh = Hills();
+  const render::EmbreeScene embree(mesh);
+  const material::MaterialTable materials;
+  const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
+  SensorModel model;
+  model.range_spacing_m = model.azimuth_spacing_m = 30.0;
+  model.width = model.height = 96;
+  // The stored reference: another pose 300 m and 2.5 deg away from the truth.
+  NavPose stored_pose;
+  stored_pose.heading_deg = 34.5;
+  stored_pose.depression_deg = 41.0;
+  stored_pose.slant_range_m = 8000.0;
+  stored_pose.centre_enu = *SurfaceBelow(embree, mesh, 400.0, -20.0);
+  const Reference rendered = RenderReference(scene, stored_pose, model);
+  const StoredReference stored = MakeStoredReference(scene, rendered.geometry, rendered.intensity, {});
+  EXPECT_GT(stored.valid_pixels, 0.8 * 96 * 96);
+  // Its points are the rendered single-bounce hits (to a fraction of a pixel).
+  int compared = 0, close = 0;
+  for (int y = 0; y < 96; y += 4)
+    for (int x = 0; x < 96; x += 4) {
+      if (!rendered.valid.at<uint8_t>(y, x) || !stored.valid.at<uint8_t>(y, x)) continue;
+      const cv::Vec3f a = rendered.points.at<cv::Vec3f>(y, x), b = stored.points.at<cv::Vec3f>(y, x);
+      ++compared;
+      close += cv::norm(a - b) < 30.0;
+    }
+  EXPECT_GT(close, 0.95 * compared);
+  // Warped to its own pose it is itself.
+  const Reference same = WarpStoredReference(stored, stored_pose, model);
+  double diff = 0.0, sum = 0.0;
+  for (size_t i = 0; i < same.intensity.size(); ++i) {
+    diff += std::abs(same.intensity[i] - rendered.intensity[i]);
+    sum += rendered.intensity[i];
+  }
+  EXPECT_LT(diff / sum, 0.02);
+
+  NavPose truth;
+  truth.heading_deg = 37.0;
+  truth.depression_deg = 40.0;
+  truth.slant_range_m = 8000.0;
+  truth.centre_enu = *SurfaceBelow(embree, mesh, 150.0, -220.0);
+  Reference observed = RenderReference(scene, truth, model);
+  image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 5);
+  const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
+  const auto prior = PoseFromSensor(scene, sensor + Eigen::Vector3d(150, -120, 40), truth.heading_deg + 2.0,
+                                    truth.slant_range_m, 40.0, sensor::LookSide::kRight);
+  ASSERT_TRUE(prior);
+  int warps = 0;
+  const LocateResult r = Locate(scene, model, observed.intensity, *prior, LocateOptions(), [&](const NavPose& pose) {
+    ++warps;
+    return WarpStoredReference(stored, pose, model);
+  });
+  EXPECT_TRUE(r.converged) << r.failure_reason;
+  EXPECT_LT((r.sensor_enu - sensor).norm(), 30.0);  // one resolution cell
+  EXPECT_LT(std::abs(r.pose.heading_deg - truth.heading_deg), 0.1);
+  EXPECT_EQ(warps, r.renders);
+}
+
 TEST(Locate, RejectsBadOptions) {
   LocateOptions o;
   o.initial_search_px = 2;

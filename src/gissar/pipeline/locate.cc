@@ -4,7 +4,9 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <limits>
+#include <map>
 #include <memory>
 #include <type_traits>
 #include <random>
@@ -24,6 +26,7 @@
 #include "gissar/nav/product_locate.h"
 #include "gissar/pipeline/field_names.h"
 #include "gissar/pipeline/product_locate.h"
+#include "gissar/pipeline/reference_database.h"
 #include "gissar/scene/scene_config.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
@@ -195,6 +198,13 @@ namespace {
 // patch (2048 px: 64 MiB), and no image gissar reads needs more.
 constexpr int kMaxSearchPx = 2048;
 
+// Trials of `evaluate --database`: the true pose is a stored pose with its
+// heading and depression moved by up to these many degrees and its image
+// centre by up to this fraction of the footprint along and across track.
+constexpr double kDatabaseTrialHeadingDeg = 2.0;
+constexpr double kDatabaseTrialDepressionDeg = 2.0;
+constexpr double kDatabaseTrialOffset = 0.15;
+
 // A positive finite number from image metadata `key`; InputError otherwise
 // (never the library's "stod" message).
 double MetadataNumber(const std::string& text, const std::string& key, const std::string& image) {
@@ -211,11 +221,89 @@ double MetadataNumber(const std::string& text, const std::string& key, const std
   return value;
 }
 
+// The database options of locate and evaluate.
+void CheckDatabaseOptions(const std::string& database, const std::string& fallback, double heading_tolerance_deg) {
+  if (fallback != "none" && fallback != "render") throw ConfigError("must be none or render", "--database-fallback");
+  if (!(heading_tolerance_deg > 0.0 && heading_tolerance_deg <= 180.0)) {
+    throw ConfigError("must be in (0, 180] deg", "--database-heading-tolerance");
+  }
+  (void)database;
+}
+
+// A fix from a reference database: the covering stored references, nearest
+// first (at most two are tried, until one converges), or, when none covers
+// the prior, no fix with the reason (or the on-the-fly fix with fallback
+// "render"). `record`: the database part of the result JSON.
+struct DatabaseFix {
+  nav::LocateResult result;
+  nlohmann::json record;
+  bool rendered = false;  // the fix rendered its references (fallback)
+  int warps = 0;          // stored references warped to a pose
+  std::optional<size_t> item;  // the stored reference of `result`
+};
+
+DatabaseFix FixFromDatabase(const ReferenceDatabase& db, const std::vector<sensor::SarGeometry>& cameras,
+                            const std::function<const nav::StoredReference&(size_t)>& stored,
+                            const nav::NavScene& scene, const nav::SensorModel& model,
+                            const std::vector<float>& observed, const nav::NavPose& prior,
+                            const nav::LocateOptions& lo, double heading_tolerance_deg, const std::string& fallback) {
+  DatabaseFix out;
+  out.record = {{"catalog", db.path},
+                {"terrain_sha256", db.terrain_sha256},
+                {"references", db.items.size()},
+                {"used", nlohmann::json::array()},
+                {"fallback", nullptr},
+                {"reason", nullptr}};
+  std::string reason;
+  const std::vector<ReferenceChoice> choices =
+      CoveringReferences(db, cameras, prior, model, heading_tolerance_deg, 2, &reason);
+  double seconds = 0.0;
+  for (size_t k = 0; k < choices.size(); ++k) {
+    const ReferenceChoice& c = choices[k];
+    const nav::StoredReference& reference = stored(c.item);
+    const nav::LocateResult r = nav::Locate(scene, model, observed, prior, lo, [&](const nav::NavPose& pose) {
+      return nav::WarpStoredReference(reference, pose, model);
+    });
+    seconds += r.seconds;
+    out.warps += r.renders;
+    out.record["used"].push_back({{"id", db.items[c.item].id},
+                                  {"image", db.items[c.item].image},
+                                  {"distance_m", c.distance_m},
+                                  {"heading_difference_deg", c.heading_difference_deg},
+                                  {"converged", r.converged},
+                                  {"reason", r.converged ? nlohmann::json(nullptr) : nlohmann::json(r.failure_reason)}});
+    if (k == 0 || r.converged) {
+      out.result = r;
+      out.item = c.item;
+    }
+    if (r.converged) break;
+  }
+  out.result.seconds = seconds;
+  if (!choices.empty()) return out;
+  out.record["reason"] = reason;
+  if (fallback == "render") {
+    out.record["fallback"] = "render";
+    out.result = nav::Locate(scene, model, observed, prior, lo);
+    out.rendered = true;
+    return out;
+  }
+  out.result.pose = prior;
+  out.result.sensor_enu = prior.SensorPosition(model.look_side);
+  out.result.converged = false;
+  out.result.failure_reason = reason;
+  return out;
+}
+
 }  // namespace
 
 void LocateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
+  CheckDatabaseOptions(database, database_fallback, database_heading_tolerance_deg);
   if (UsesTrack()) {
+    if (!database.empty()) {
+      throw ConfigError("a reference database fixes an --image from a --prior, not a product or an orbit",
+                        "--database");
+    }
     if (!product.empty() && (!orbit.empty() || !radar_grid.empty())) {
       throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
     }
@@ -249,6 +337,7 @@ void LocateRequest::Check() const {
   if (image.empty()) throw ConfigError("required", "--image");
   if (prior.empty()) throw ConfigError("required", "--prior");
   if (out.empty()) throw ConfigError("required", "--out");
+  if (!database.empty()) CheckOutputsAreNotInputs({out, composite_png}, {database});
   nav::ParseMatcher(matcher, "--matcher");
   if (!look.empty()) sensor::ParseLookSide(look);
   if (range_spacing_m < 0 || azimuth_spacing_m < 0) throw ConfigError("must be > 0", "--range-spacing/--azimuth-spacing");
@@ -286,6 +375,9 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
     else if (key == "looks_range") set(looks_range);
     else if (key == "looks_azimuth") set(looks_azimuth);
     else if (key == "dem_oversample") set(dem_oversample);
+    else if (key == "database") set(database);
+    else if (key == "database_fallback") set(database_fallback);
+    else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
     else {
       // The keys above (LocateRequest has no ToJson to list them).
       throw ConfigError(
@@ -293,7 +385,8 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
                                   "bounces", "rays_per_cell", "product", "orbit", "radar_grid", "frequency",
                                   "polarization", "prior_offset_track", "prior_heading_offset_deg",
                                   "prior_sigma_horizontal_m", "prior_sigma_vertical_m", "prior_sigma_heading_deg",
-                                  "looks_range", "looks_azimuth", "dem_oversample"}),
+                                  "looks_range", "looks_azimuth", "dem_oversample", "database",
+                                  "database_fallback", "database_heading_tolerance_deg"}),
           source);
     }
   }
@@ -306,6 +399,12 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   AtomicOutputs outputs;
   const fs::path out = outputs.Add(options.out);
   const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
+  // A reference database is checked first: its catalogue, and that it was built from this terrain.
+  std::optional<ReferenceDatabase> database;
+  if (!options.database.empty()) {
+    database = ReadReferenceDatabase(options.database);
+    CheckDatabaseTerrain(*database, options.scene, options.dem, options.vertical_datum);
+  }
   std::ifstream prior_file(options.prior);
   if (!prior_file) throw IoError("cannot read prior", options.prior);
   nlohmann::json prior_json;
@@ -374,7 +473,30 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   lo.polish_evaluations = options.polish_evaluations;
   lo.initial_search_px = options.search_px;
   lo.step_px = options.step_px;
-  const nav::LocateResult r = nav::Locate(scene, model, observed, *start, lo);
+  nlohmann::json database_record = nullptr;
+  bool rendered = true;
+  int warps = 0;
+  nav::LocateResult r;
+  std::map<size_t, nav::StoredReference> loaded;
+  std::optional<size_t> used_item;
+  if (database) {
+    std::vector<sensor::SarGeometry> cameras;
+    for (const StoredReferenceItem& item : database->items) cameras.push_back(ItemGeometryInFrame(item, terrain.frame));
+    auto stored = [&](size_t i) -> const nav::StoredReference& {
+      auto it = loaded.find(i);
+      if (it == loaded.end()) it = loaded.emplace(i, LoadStoredReference(database->items[i], cameras[i], scene)).first;
+      return it->second;
+    };
+    DatabaseFix fix = FixFromDatabase(*database, cameras, stored, scene, model, observed, *start, lo,
+                                      options.database_heading_tolerance_deg, options.database_fallback);
+    r = fix.result;
+    database_record = fix.record;
+    rendered = fix.rendered;
+    warps = fix.warps;
+    used_item = fix.item;
+  } else {
+    r = nav::Locate(scene, model, observed, *start, lo);
+  }
 
   nlohmann::json result = PoseJson(r.pose, model.look_side, terrain.frame);
   nlohmann::json report = {
@@ -387,7 +509,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
       {"converged", r.converged},
       {"reason", r.converged ? nlohmann::json(nullptr) : nlohmann::json(r.failure_reason)},
       {"iterations", r.iterations},
-      {"renders", r.renders},
+      {"renders", rendered ? r.renders : 0},
       {"matches", r.matches},
       {"inliers", r.inliers},
       {"resection_rms_px", r.rms_px},
@@ -408,9 +530,19 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
       {"inputs", {{"image", InputFileRecord(options.image)},
                   {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)},
                   {"prior", InputFileRecord(options.prior)}}}};
+  if (database) {
+    database_record["stored_reference_warps"] = warps;
+    report["database"] = database_record;
+    report["inputs"]["database"] = InputFileRecord(options.database);
+  }
   if (!composite.empty()) {
-    const nav::Reference at_prior = nav::RenderReference(scene, *start, model);
-    const nav::Reference at_fix = nav::RenderReference(scene, r.pose, model);
+    // The references the fix saw: the stored one warped, or renders.
+    auto reference_at = [&](const nav::NavPose& pose) {
+      return used_item ? nav::WarpStoredReference(loaded.at(*used_item), pose, model)
+                       : nav::RenderReference(scene, pose, model);
+    };
+    const nav::Reference at_prior = reference_at(*start);
+    const nav::Reference at_fix = reference_at(r.pose);
     const image::RgbImage picture = image::SideBySide(
         {image::IntensityComposite(observed, at_prior.intensity, model.width, model.height),
          image::IntensityComposite(observed, at_fix.intensity, model.width, model.height)},
@@ -460,6 +592,11 @@ void EvaluateRequest::Check() const {
   if (dense_renders < 0) throw ConfigError("must be >= 0", "--dense-renders");
   if (polish_evaluations < 0) throw ConfigError("must be >= 0", "--polish");
   if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
+  CheckDatabaseOptions(database, database_fallback, database_heading_tolerance_deg);
+  if (database_fixes != "stored" && database_fixes != "render") throw ConfigError("must be stored or render", "--database-fixes");
+  if (!database.empty() && !product.empty()) {
+    throw ConfigError("a reference database's trials are simulated images, not a product's", "--database");
+  }
   if (trial_first < 0 || trial_first >= trials) throw ConfigError("must be in [0, trials)", "--trial-first");
   if (!(trial_count == -1 || (trial_count >= 1 && int64_t{trial_first} + trial_count <= trials))) {
     throw ConfigError("must be -1 (the rest) or in [1, trials - trial_first]", "--trial-count");
@@ -481,7 +618,9 @@ nlohmann::json EvaluateRequest::ToJson() const {
           {"bounces", bounces}, {"rays_per_cell", rays_per_cell}, {"reference_floor", reference_floor},
           {"trial_first", trial_first}, {"trial_count", trial_count}, {"product", product},
           {"frequency", frequency}, {"polarization", polarization}, {"looks_range", looks_range},
-          {"looks_azimuth", looks_azimuth}, {"dem_oversample", dem_oversample}};
+          {"looks_azimuth", looks_azimuth}, {"dem_oversample", dem_oversample}, {"database", database},
+          {"database_fallback", database_fallback},
+          {"database_heading_tolerance_deg", database_heading_tolerance_deg}, {"database_fixes", database_fixes}};
 }
 
 EvaluateRequest EvaluateRequest::Resolved() const {
@@ -490,6 +629,21 @@ EvaluateRequest EvaluateRequest::Resolved() const {
   if (r.prior_error_horizontal_m < 0) r.prior_error_horizontal_m = 200.0;
   if (r.prior_error_vertical_m < 0) r.prior_error_vertical_m = 50.0;
   if (r.prior_error_heading_deg < 0) r.prior_error_heading_deg = 3.0;
+  if (!database.empty()) {
+    // The observed images take the database's sensor (its first stored reference).
+    const ReferenceDatabase db = ReadReferenceDatabase(database);
+    const StoredReferenceItem& item = db.items.front();
+    if (item.width != item.height || std::abs(item.range_spacing_m - item.azimuth_spacing_m) > 1e-9) {
+      throw ConfigError("evaluate --database needs square images with equal range and azimuth spacings (this "
+                        "database: " + std::to_string(item.width) + " x " + std::to_string(item.height) + " px)",
+                        database);
+    }
+    r.spacing_m = item.range_spacing_m;
+    r.size_px = item.width;
+    r.slant_range_m = item.slant_range_m;
+    r.depression_min_deg = item.depression_deg - kDatabaseTrialDepressionDeg;
+    r.depression_max_deg = item.depression_deg + kDatabaseTrialDepressionDeg;
+  }
   return r;
 }
 
@@ -537,6 +691,10 @@ void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "looks_range") set(looks_range);
     else if (key == "looks_azimuth") set(looks_azimuth);
     else if (key == "dem_oversample") set(dem_oversample);
+    else if (key == "database") set(database);
+    else if (key == "database_fallback") set(database_fallback);
+    else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
+    else if (key == "database_fixes") set(database_fixes);
     else throw ConfigError(UnknownKeyMessage(key, KeysOf(EvaluateRequest().ToJson())), source);
   }
 }
@@ -573,6 +731,12 @@ struct EvaluateSetup {
   nav::SensorModel model;
   nav::LocateOptions lo;
   Eigen::Vector2d lo_xy, hi_xy;
+  // With a reference database: its catalogue, every stored reference's
+  // camera in the terrain's frame and (database_fixes "stored") the stored
+  // references, loaded once as a navigation computer would hold them.
+  std::optional<ReferenceDatabase> database;
+  std::vector<sensor::SarGeometry> cameras;
+  std::vector<nav::StoredReference> stored;
 };
 
 const std::vector<nav::Matcher>& ComparedMatchers() {
@@ -605,6 +769,21 @@ EvaluateSetup PrepareEvaluation(const EvaluateRequest& options, Reporter& report
                         options.prior_error_horizontal_m + 100.0;
   s.lo_xy = Eigen::Vector2d(box.min().x() + extent, box.min().y() + extent);
   s.hi_xy = Eigen::Vector2d(box.max().x() - extent, box.max().y() - extent);
+  if (!options.database.empty()) {
+    s.database = ReadReferenceDatabase(options.database);
+    CheckDatabaseTerrain(*s.database, options.scene, options.dem, options.vertical_datum);
+    for (const StoredReferenceItem& item : s.database->items) {
+      s.cameras.push_back(ItemGeometryInFrame(item, s.terrain.frame));
+    }
+    if (options.database_fixes == "stored") {
+      const nav::NavScene scene{&s.terrain.mesh, s.embree.get(), &s.terrain.materials, options.rays_per_cell,
+                                options.bounces};
+      for (size_t i = 0; i < s.cameras.size(); ++i) {
+        s.stored.push_back(LoadStoredReference(s.database->items[i], s.cameras[i], scene));
+      }
+    }
+    return s;  // true poses come from the stored poses, not the region below
+  }
   if (!(s.lo_xy.x() < s.hi_xy.x() && s.lo_xy.y() < s.hi_xy.y())) {
     throw ConfigError("the scene is too small for images of this size and the prior errors", "--size/--spacing");
   }
@@ -632,7 +811,30 @@ nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, 
   // True pose.
   nav::NavPose truth;
   bool ok = false;
-  for (int attempt = 0; attempt < 100 && !ok; ++attempt) {
+  nlohmann::json truth_item = nullptr;
+  if (s.database) {
+    // Around a stored pose (kDatabaseTrial*).
+    const size_t n = s.cameras.size();
+    for (int attempt = 0; attempt < 100 && !ok; ++attempt) {
+      const size_t k = std::min(n - 1, static_cast<size_t>(uni(0.0, double(n))));
+      const sensor::SarGeometry& g = s.cameras[k];
+      truth.heading_deg = g.options().heading_deg + uni(-1, 1) * kDatabaseTrialHeadingDeg;
+      truth.depression_deg = g.options().depression_deg + uni(-1, 1) * kDatabaseTrialDepressionDeg;
+      truth.slant_range_m = options.slant_range_m;
+      const Eigen::Vector3d across = Eigen::Vector3d(g.look_direction().x(), g.look_direction().y(), 0.0).normalized();
+      const double a = uni(-1, 1) * kDatabaseTrialOffset * g.width() * g.range_spacing_m() /
+                       std::cos(g.options().depression_deg * M_PI / 180.0);
+      const double b = uni(-1, 1) * kDatabaseTrialOffset * g.height() * g.azimuth_spacing_m();
+      const Eigen::Vector3d c = g.scene_centre() + a * across + b * g.flight_direction();
+      const auto ground = nav::SurfaceBelow(*s.embree, s.terrain.mesh, c.x(), c.y());
+      if (ground) {
+        truth.centre_enu = *ground;
+        truth_item = s.database->items[k].id;
+        ok = true;
+      }
+    }
+  }
+  for (int attempt = 0; attempt < 100 && !ok && !s.database; ++attempt) {
     truth.heading_deg = uni(0.0, 360.0);
     truth.depression_deg = uni(options.depression_min_deg, options.depression_max_deg);
     truth.slant_range_m = options.slant_range_m;
@@ -688,7 +890,26 @@ nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, 
                               {"median_error_px", NumberOrNull(med)}});
     }
   }
-  const nav::LocateResult r = nav::Locate(scene, model, obs.intensity, *prior, lo);
+  nav::LocateResult r;
+  nlohmann::json database_record = nullptr;
+  if (s.database && options.database_fixes == "stored") {
+    const Stopwatch clock;
+    DatabaseFix fix = FixFromDatabase(
+        *s.database, s.cameras, [&](size_t i) -> const nav::StoredReference& { return s.stored.at(i); }, scene, model,
+        obs.intensity, *prior, lo, options.database_heading_tolerance_deg, options.database_fallback);
+    r = fix.result;
+    r.seconds = clock.ElapsedSeconds();  // the choice of the references included
+    database_record = fix.record;
+    database_record.erase("catalog");
+    database_record.erase("terrain_sha256");
+    database_record["stored_reference_warps"] = fix.warps;
+  } else {
+    r = nav::Locate(scene, model, obs.intensity, *prior, lo);
+  }
+  if (s.database) {
+    if (database_record.is_null()) database_record = nlohmann::json::object();
+    database_record["truth_near"] = truth_item;
+  }
   const Eigen::Vector3d d = r.sensor_enu - sensor_true;
   const double e3 = d.norm(), eh = d.head<2>().norm();
   const double e_heading = std::abs(std::remainder(r.pose.heading_deg - truth.heading_deg, 360.0));
@@ -727,6 +948,7 @@ nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, 
           {"heading_error_deg", NumberOrNull(e_heading)},
           {"depression_error_deg", NumberOrNull(std::abs(e_dep))},
           {"seconds", r.seconds},
+          {"database", database_record},
           {"matchers", matcher_rows},
           {"csv_row", std::string(row)}};
 }
@@ -773,8 +995,10 @@ std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& requested, Rep
   return records;
 }
 
-nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector<nlohmann::json>& unsorted) {
-  if (!options.product.empty()) return ProductSummariseTrials(options, unsorted);
+nlohmann::json SummariseTrials(const EvaluateRequest& requested, const std::vector<nlohmann::json>& unsorted) {
+  if (!requested.product.empty()) return ProductSummariseTrials(requested, unsorted);
+  // A database sets the cell size (EvaluateRequest::Resolved).
+  const EvaluateRequest options = requested.database.empty() ? requested : requested.Resolved();
   const std::vector<nlohmann::json> records = SortedRecords(unsorted);
   if (records.empty()) throw ConfigError("no trial records to summarise", "evaluate trial records");
   std::vector<double> pos_err, pos_cells, horiz_err, head_err, dep_err, seconds;
@@ -812,8 +1036,25 @@ nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector
           {"trials_with_8_or_more_good", std::count_if(mstats[k].good.begin(), mstats[k].good.end(), [](double g) { return g >= 8; })}};
     }
   }
+  nlohmann::json database = nullptr;
+  if (!options.database.empty()) {
+    int uncovered = 0, fallbacks = 0;
+    for (const nlohmann::json& r : records) {
+      const auto it = r.find("database");
+      if (it == r.end() || !it->is_object()) continue;
+      if (it->contains("reason") && !(*it)["reason"].is_null()) ++uncovered;
+      if (it->contains("fallback") && !(*it)["fallback"].is_null()) ++fallbacks;
+    }
+    database = {{"catalog", options.database},
+                {"fixes", options.database_fixes},
+                {"fallback", options.database_fallback},
+                {"heading_tolerance_deg", options.database_heading_tolerance_deg},
+                {"trials_without_covering_reference", uncovered},
+                {"trials_fixed_by_fallback", fallbacks}};
+  }
   return {{"trials", n},
           {"seed", options.seed},
+          {"database", database},
           {"success_definition", "converged, 3-D sensor position error <= success_cells resolution cells and "
                                  "heading error <= success_heading_deg"},
           {"success_cells", options.success_cells},
@@ -840,7 +1081,7 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
   const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
   const fs::path png_path = outputs.Add(options.out_prefix + "_hist.png");
   CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
-                           {options.scene, options.dem});
+                           {options.scene, options.dem, options.database});
   const std::vector<nlohmann::json> records = SortedRecords(unsorted);
   nlohmann::json stats = SummariseTrials(options, records);
   std::FILE* csv = std::fopen(csv_path.c_str(), "w");
@@ -874,11 +1115,14 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
                         {"dense_renders", options.dense_renders},
                         {"polish_evaluations", options.polish_evaluations}, {"search_px", lo.initial_search_px}, {"step_px", options.step_px}, {"bounces", options.bounces},
                         {"reference_floor", lo.reference_floor},
-                        {"rays_per_cell", options.rays_per_cell}};
+                        {"rays_per_cell", options.rays_per_cell}, {"database", options.database},
+                        {"database_fixes", options.database_fixes}, {"database_fallback", options.database_fallback},
+                        {"database_heading_tolerance_deg", options.database_heading_tolerance_deg}};
   summary["vertical_datum"] = vertical_datum.is_null()
                                   ? nlohmann::json{{"datum", geo::CanonicalVerticalDatum(options.vertical_datum)}}
                                   : vertical_datum;
   summary["inputs"] = {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}};
+  if (!options.database.empty()) summary["inputs"]["database"] = InputFileRecord(options.database);
   summary["seconds"] = seconds;
   WriteJsonFile(summary, json_path);
   outputs.Commit();

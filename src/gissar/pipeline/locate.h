@@ -89,6 +89,16 @@ struct LocateRequest {
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;
+  // A reference database (docs/navigation.md "Fixes from a reference
+  // database"): a corridor's PREFIX_catalog.json built from the same
+  // --dem/--scene (SHA-256 checked). The fix matches the observed image
+  // against the stored reference that covers the prior (warped to the pose,
+  // no rendering) and resects with its geometry. No covering reference:
+  // database_fallback "none" = no fix (exit 3 with the reason), "render" =
+  // the fix renders its references on the fly. With --image/--prior only.
+  std::string database;
+  std::string database_fallback = "none";
+  double database_heading_tolerance_deg = 10.0;  // largest prior-to-reference heading difference
   bool UsesTrack() const { return !product.empty() || !orbit.empty() || !radar_grid.empty(); }
   void Check() const;
   // Sets the fields named by `values` ({snake_case field: value}: the Python
@@ -155,10 +165,23 @@ struct EvaluateRequest {
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;
+  // Fixes from a reference database (LocateRequest::database): the trials'
+  // true poses are drawn around its stored poses (a stored pose, heading and
+  // depression +- 2 deg, image centre +- 15 % of the footprint along and
+  // across) with its image size, pixel spacing, slant range and depression
+  // (Resolved() takes them from the catalogue); database_fixes "stored" fixes
+  // them from the stored references, "render" renders on the fly (the same
+  // observed images and priors: the comparison of docs/navigation.md).
+  std::string database;
+  std::string database_fallback = "none";
+  double database_heading_tolerance_deg = 10.0;
+  std::string database_fixes = "stored";
   void Check() const;
   // The request with automatic (negative) prior errors replaced by the
   // scene defaults (200 m, 50 m, 3 deg); product requests are returned as
-  // they are (RunProductEvaluate resolves them from the footprint).
+  // they are (RunProductEvaluate resolves them from the footprint). With a
+  // database: spacing_m, size_px, slant_range_m and the depression range
+  // from its catalogue (InputError naming the catalogue when unreadable).
   EvaluateRequest Resolved() const;
   // {snake_case field: value} and back (the Python keywords; unknown key or
   // wrong type: ConfigError naming `source`). ApplyJson(ToJson()) is the identity.

@@ -176,6 +176,52 @@ TEST(MatchPair, RecoversKnownWarpOnSentinel1Dates) {
   EXPECT_LT(r2["matchers"]["ncc"]["warp_rms_error_px"].get<double>(), 0.2);
 }
 
+TEST(Locate, DatabaseOptionsAreChecked) {
+  auto message = [](const auto& request) {
+    try {
+      request.Check();
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  LocateRequest lo;
+  lo.image = "obs.tif";
+  lo.dem = "dem.tif";
+  lo.prior = "prior.json";
+  lo.out = "fix.json";
+  lo.database = "db_catalog.json";
+  EXPECT_EQ(message(lo), "");
+  lo.database_fallback = "guess";
+  EXPECT_NE(message(lo).find("--database-fallback"), std::string::npos);
+  lo.database_fallback = "render";
+  lo.database_heading_tolerance_deg = 0.0;
+  EXPECT_NE(message(lo).find("--database-heading-tolerance"), std::string::npos);
+  LocateRequest product;
+  product.product = "p.h5";
+  product.dem = "dem.tif";
+  product.out = "fix.json";
+  product.database = "db_catalog.json";
+  EXPECT_NE(message(product).find("--database"), std::string::npos);
+  EvaluateRequest ev;
+  ev.dem = "dem.tif";
+  ev.out_prefix = "ev";
+  ev.database = "db_catalog.json";
+  ev.database_fixes = "both";
+  EXPECT_NE(message(ev).find("--database-fixes"), std::string::npos);
+  // The request fields round-trip (the Python keywords).
+  ev.database_fixes = "render";
+  EvaluateRequest round;
+  round.ApplyJson(ev.ToJson(), "test");
+  EXPECT_EQ(round.database, "db_catalog.json");
+  EXPECT_EQ(round.database_fixes, "render");
+  LocateRequest applied;
+  applied.ApplyJson({{"database", "db_catalog.json"}, {"database_fallback", "render"},
+                     {"database_heading_tolerance_deg", 5.0}}, "test");
+  EXPECT_EQ(applied.database_fallback, "render");
+  EXPECT_EQ(applied.database_heading_tolerance_deg, 5.0);
+}
+
 TEST(Prior, UnknownKeyIsAConfigErrorNamingIt) {
   const nlohmann::json j = {{"heading_deg", 1.0}, {"slant_range_m", 5000.0}, {"sensor_enu_m", {0, 0, 3000}}, {"hedding", 2}};
   try {
