@@ -96,6 +96,7 @@ demo: configure
 	@cmake --build $(BUILD_DIR) -j$(JOBS) $(addprefix --target ,$(DEMO_TARGETS)) > $(BUILD_DIR)/build.log 2>&1 \
 	  || (tail -40 $(BUILD_DIR)/build.log; exit 1)
 	@bash scripts/demo.sh $(BUILD_DIR)
+	@echo "demo: see it on a map: $(BUILD_DIR)/bin/gissar view out/demo/andorra_h0  (Ctrl-C stops; docs/view.md)"
 
 bench: build
 	@bash scripts/bench.sh $(BUILD_DIR)

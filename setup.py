@@ -33,6 +33,10 @@ class CMakeBuild(build_ext):
         target = self.get_ext_fullpath(ext.name)
         os.makedirs(os.path.dirname(target), exist_ok=True)
         shutil.copyfile(built[0], target)
+        # The `gissar view` page, bundled by the build (web/, esbuild) into the package directory.
+        page = os.path.join(build_dir, "python", "gissar", "web")
+        if os.path.isdir(page):
+            shutil.copytree(page, os.path.join(os.path.dirname(target), "web"), dirs_exist_ok=True)
 
 
 BUILD_DIR = os.environ.get("GISSAR_BUILD_DIR", os.path.join(ROOT, "build"))

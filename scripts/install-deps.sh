@@ -28,7 +28,12 @@ PACKAGES=(
   python3-xarray python3-rioxarray python3-tqdm       # Python results as xarray (rioxarray: CRS), progress bars
   python3-mypy                                         # type stubs checked in the tests
   python3-dask python3-distributed python3-pyproj     # gissar corridor: Dask workers, geodesic pose spacing
+  nodejs                                               # gissar view: the page's bundle (web/: npm ci + esbuild)
+  chromium chromium-driver python3-selenium            # gissar view: its tests in headless chromium (label browser)
 )
+# npm (gissar view's bundle): Debian's package, unless the installed nodejs brings its own (NodeSource's nodejs
+# provides and conflicts with npm: asking apt for Debian's would fail).
+command -v npm >/dev/null 2>&1 || PACKAGES+=(npm)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

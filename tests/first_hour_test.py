@@ -19,7 +19,8 @@ import sys
 import tempfile
 
 COMMANDS = ["simulate", "scene build", "scene info", "sequence", "ortho", "fmatrix", "resect", "register",
-            "epipolar", "composite", "locate", "evaluate", "matchpair", "validate", "geocode", "pta", "polsar"]
+            "epipolar", "composite", "locate", "evaluate", "matchpair", "validate", "geocode", "pta", "polsar",
+            "view"]
 failures = []
 checks = [0]
 

@@ -132,6 +132,11 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
                      "Build a reference-image database along a route on Dask: one simulated image per pose and "
                      "heading (gissar corridor --help; docs/distributed.md).")
       ->allow_extras();
+  // `gissar view` likewise runs the Python package's web server (gissar.view; docs/view.md).
+  app.add_subcommand("view",
+                     "Show a corridor catalogue, a simulation or a pose fix on a map in the browser: a local web "
+                     "server (gissar view PATH [--port N] [--host ADDR] [--no-browser]; docs/view.md).")
+      ->allow_extras();
   CommonFlags common;
   AddCommonFlags(app, common);
 

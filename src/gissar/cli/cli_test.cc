@@ -491,7 +491,7 @@ std::vector<std::vector<std::string>> LeafCommands() {
       // `corridor` is the Python package's command (the executable hands over
       // before this parser runs): its flags are checked against simulate's by
       // python/tests/test_corridor.py.
-      if (path.empty() && name == "corridor") continue;
+      if (path.empty() && (name == "corridor" || name == "view")) continue;
       std::vector<std::string> child = path;
       child.push_back(name);
       walk(child);
