@@ -24,6 +24,8 @@
 #include "gissar/pipeline/geocode.h"
 #include "gissar/util/check.h"
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/polsar.h"
+#include "gissar/pipeline/pta.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/simulate_help.h"
@@ -936,6 +938,44 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "Pose fix of a real product (or an orbit, radar grid and image) from a displaced prior: the locate "
         "request's fields as a dict (docs/navigation.md, 'Real images'). Returns the fix dict; no fix is "
         "converged=False with a reason.");
+  m.def("pta", [](const py::dict& options) {
+          pipeline::PtaRequest o;
+          o.ApplyJson(JsonOfFields(options), "gissar.pta keyword");
+          pipeline::PtaResult result;
+          {
+            py::gil_scoped_release release;
+            o.Check();
+            result = pipeline::RunPta(o, "gissar.pta (python)");
+          }
+          nlohmann::json out = result.report;
+          out["outputs"] = nlohmann::json::array();
+          for (const auto& p : result.outputs) out["outputs"].push_back(p.string());
+          return JsonToPython(out);
+        }, py::arg("options"),
+        "`gissar pta` (docs/radiometry.md, point targets): the pta request's fields as a dict (product or image, "
+        "reflectors, out_prefix, ...). Writes PREFIX.json and PREFIX_irf.png and returns PREFIX.json's dict "
+        "(plus 'outputs'); no reflector found is converged=False with a reason.");
+  m.def("pta_request_defaults", [] { return JsonToPython(pipeline::PtaRequest().ToJson()); },
+        "The pta request's fields and their defaults (the keywords of gissar.pta).");
+  m.def("polsar", [](const py::dict& options) {
+          pipeline::PolsarRequest o;
+          o.ApplyJson(JsonOfFields(options), "gissar.polsar keyword");
+          pipeline::PolsarResult result;
+          {
+            py::gil_scoped_release release;
+            o.Check();
+            result = pipeline::RunPolsar(o, "gissar.polsar (python)");
+          }
+          nlohmann::json out = result.report;
+          out["outputs"] = nlohmann::json::array();
+          for (const auto& p : result.outputs) out["outputs"].push_back(p.string());
+          return JsonToPython(out);
+        }, py::arg("options"),
+        "`gissar polsar` (docs/radiometry.md, polarimetric decomposition): the polsar request's fields as a dict "
+        "(image or product, looks, matrix, out_prefix). Writes the C3/T3 and H/A/alpha rasters and the Pauli "
+        "quicklook and returns PREFIX.json's dict (plus 'outputs').");
+  m.def("polsar_request_defaults", [] { return JsonToPython(pipeline::PolsarRequest().ToJson()); },
+        "The polsar request's fields and their defaults (the keywords of gissar.polsar).");
   m.def("summarise_trials", [](const py::dict& options, const py::iterable& records) {
           const pipeline::EvaluateRequest o = EvaluateOptionsFrom(options, "gissar.summarise_trials");
           return JsonToPython(pipeline::SummariseTrials(o, RecordsFrom(records)));

@@ -287,6 +287,41 @@ def locate_product(**kwargs):
     return _core.locate_product(options)
 
 
+def _paths(kwargs, keys):
+    return {k: (_os.fspath(v) if k in keys and v is not None else v) for k, v in kwargs.items()}
+
+
+def pta(reflectors, out_prefix, *, product=None, image=None, **kwargs):
+    """`gissar pta` (docs/radiometry.md, "Point targets"): each reflector of the CSV `reflectors` measured in a
+    real NISAR RSLC (product=path) or a gissar coherent simulation (image=PREFIX_slc.tif): predicted and peak
+    pixel, location error (px, m), resolution, PSLR/ISLR, calibrated RCS against physical optics, and for
+    quad-pol data the HH/VV ratio and phase and the cross-polarised isolation. Other keywords: the fields of
+    gissar._core.pta_request_defaults() (frequency, polarization, upsampling, search_px, ...). Writes
+    out_prefix.json and out_prefix_irf.png; returns the JSON's dict ('reflectors', 'converged', 'outputs').
+    No reflector found: converged False with the reason (the CLI's exit status 3)."""
+    options = {**kwargs, "reflectors": reflectors, "out_prefix": out_prefix}
+    if product is not None:
+        options["product"] = product
+    if image is not None:
+        options["image"] = image
+    return _core.pta(_paths(options, ("reflectors", "out_prefix", "product", "image")))
+
+
+def polsar(out_prefix, *, image=None, product=None, **kwargs):
+    """`gissar polsar` (docs/radiometry.md, "Polarimetric decomposition"): the multilooked covariance C3 (or
+    coherency T3, matrix="coherency") and the Cloude-Pottier entropy / anisotropy / mean alpha of a quad-pol
+    SLC (image=PREFIX_slc.tif of `gissar simulate --polarization quad --coherent`) or NISAR product
+    (product=path), written as float32 GeoTIFFs with a Pauli quicklook. Other keywords: the fields of
+    gissar._core.polsar_request_defaults() (multilook=[R, A] looks, matrix, frequency, ...). Returns PREFIX.json's dict (means of H, A,
+    alpha; 'outputs')."""
+    options = {**kwargs, "out_prefix": out_prefix}
+    if image is not None:
+        options["image"] = image
+    if product is not None:
+        options["product"] = product
+    return _core.polsar(_paths(options, ("out_prefix", "product", "image")))
+
+
 def _evaluate_options(kwargs):
     return {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix", "product") and v is not None else v)
             for k, v in kwargs.items()}

@@ -835,8 +835,12 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
                     report(done)
             finally:
                 report.close()
+                # Only what is still pending (an interrupted run): cancelling finished futures sends the
+                # scheduler a message each, which can still be in flight when the client closes (a
+                # "Future exception was never retrieved: TimeoutError" on stderr under load).
                 for future in futures:
-                    future.cancel()
+                    if not future.done():
+                        future.cancel()
         finally:
             if owned:
                 client.close()

@@ -114,6 +114,22 @@ def test_simulate_quad_gives_the_geotiff_bands_by_channel(tmp_path):
         gissar.simulate(dem=DEM, heading_deg=0, depression_deg=40, polarization="HH,XX")
 
 
+def test_pta_and_polsar_on_the_real_alos_quad_pol_chip(tmp_path):
+    alos = os.path.join(ROOT, "data", "alos_rio_branco")
+    product = os.path.join(alos, "calib_RSLC_ALPSRP025826990_RIO_BRANCO_CR.h5")
+    report = gissar.pta(os.path.join(alos, "rio_branco_reflector.csv"), tmp_path / "pta", product=product)
+    assert report["converged"] is True
+    (cr,) = report["reflectors"]
+    # The surveyed trihedral within 1 px of its prediction (the CLI's figures, docs/radiometry.md).
+    assert abs(cr["location_error_px"]["range"]) < 1.0 and abs(cr["location_error_px"]["azimuth"]) < 1.0
+    assert "hh_vv_phase_deg" in cr and "cross_pol_isolation_db" in cr
+    assert sorted(os.path.basename(p) for p in report["outputs"]) == ["pta.json", "pta_irf.png"]
+    decomposition = gissar.polsar(tmp_path / "pol", product=product, multilook=[5, 5])
+    assert all(os.path.exists(p) for p in decomposition["outputs"])
+    with pytest.raises(gissar.ConfigError, match="unknown key"):
+        gissar.pta(os.path.join(alos, "rio_branco_reflector.csv"), tmp_path / "x", product=product, upsample=4)
+
+
 def test_errors_become_python_exceptions():
     with pytest.raises(gissar.ConfigError, match="unknown key 'headin_deg'"):
         gissar.simulate(dem=DEM, headin_deg=0, depression_deg=40)
