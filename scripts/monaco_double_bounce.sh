@@ -7,13 +7,7 @@
 # sigma0, whole image: land, buildings and sea).
 # Usage: scripts/monaco_double_bounce.sh [BUILD_DIR]  (default: build)
 set -euo pipefail
-build=${1:-build}
-repo=$(cd "$(dirname "$0")/.." && pwd)
-gissar=$(find "$(realpath "$build")" -maxdepth 3 -type f -name gissar -perm -u+x | head -1)
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-"$gissar" scene build --dem "$repo/data/monaco/monaco_srtm3_dem.tif" --fill-nodata \
-  --osm "$repo/data/monaco/monaco.osm.gz" --out "$work/monaco" --quiet > /dev/null
+source "$(dirname "$0")/monaco_scene.sh"
 share() {  # double and triple shares (%) of a simulated GeoTIFF
   /usr/bin/python3 - "$1" <<'PY'
 import sys

@@ -296,6 +296,14 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
     throw InputError("processedCenterFrequency out of range (1 MHz .. 1 THz)", where);
   }
   p.wavelength_m = kSpeedOfLightMps / p.center_frequency_hz;
+  // Optional: the processed bandwidths (NaN when absent or not positive).
+  auto stated_bandwidth = [&](const std::string& path) {
+    if (!r.Exists(f, path)) return std::numeric_limits<double>::quiet_NaN();
+    const double v = r.Scalar(f, path);
+    return v > 0.0 ? v : std::numeric_limits<double>::quiet_NaN();
+  };
+  p.processed_range_bandwidth_hz = stated_bandwidth(freq + "/processedRangeBandwidth");
+  p.processed_azimuth_bandwidth_hz = stated_bandwidth(freq + "/processedAzimuthBandwidth");
   if (r.Exists(f, freq + "/listOfPolarizations")) {
     H5Id ds = r.OpenDataset(f, freq + "/listOfPolarizations");
     p.polarizations = r.Strings(ds.get(), "listOfPolarizations", false);
@@ -510,6 +518,12 @@ void WriteRslcProduct(const fs::path& path, const RslcProduct& product) {
   H5Id freq = Group(swaths.get(), "frequencyA", where);
   WriteDoubles(freq.get(), "slantRange", product.slant_range_m, {hsize_t(product.cols())}, "meters", where);
   WriteDoubles(freq.get(), "processedCenterFrequency", {product.center_frequency_hz}, {}, "Hz", where);
+  if (!std::isnan(product.processed_range_bandwidth_hz)) {
+    WriteDoubles(freq.get(), "processedRangeBandwidth", {product.processed_range_bandwidth_hz}, {}, "Hz", where);
+  }
+  if (!std::isnan(product.processed_azimuth_bandwidth_hz)) {
+    WriteDoubles(freq.get(), "processedAzimuthBandwidth", {product.processed_azimuth_bandwidth_hz}, {}, "Hz", where);
+  }
   H5Id meta = Group(slc.get(), "metadata", where);
   if (!product.orbit.time_s.empty()) {
     H5Id orbit = Group(meta.get(), "orbit", where);

@@ -15,6 +15,7 @@
 
 #include <complex>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,6 +66,12 @@ struct RslcProduct {
   std::vector<double> slant_range_m;        // strictly increasing, uniform
   double center_frequency_hz = 0.0;         // processedCenterFrequency
   double wavelength_m = 0.0;                // c / center_frequency_hz
+  // swaths/frequencyX/processedRangeBandwidth and processedAzimuthBandwidth
+  // (Hz) where the product states them (positive); NaN where it does not
+  // (the impulse response's resolutions of `simulate --product` follow them,
+  // pipeline/product_simulate.h).
+  double processed_range_bandwidth_hz = std::numeric_limits<double>::quiet_NaN();
+  double processed_azimuth_bandwidth_hz = std::numeric_limits<double>::quiet_NaN();
   bool look_left = false;                   // identification/lookDirection
   RslcOrbit orbit;
   RslcAttitude attitude;                    // empty when the product has none
@@ -123,7 +130,8 @@ RslcProduct ReadRslcProduct(const std::filesystem::path& path, const RslcReadOpt
 
 // Writes a minimal NISAR-layout RSLC (LSAR, SLC group, frequencyA) holding
 // the grid, orbit (omitted when `product.orbit` is empty), look direction,
-// centre frequency and the amplitude as a complex64 layer with zero phase.
+// centre frequency, the processed bandwidths (when not NaN) and the
+// amplitude as a complex64 layer with zero phase.
 // For tests and synthetic data. Throws IoError on failure.
 void WriteRslcProduct(const std::filesystem::path& path, const RslcProduct& product);
 

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
+
 #include <complex>
 #include <fstream>
 #include <numeric>
@@ -137,6 +140,36 @@ TEST(RslcProductTest, WriterRoundTrip) {
   EXPECT_EQ(q.orbit.time_s, p.orbit.time_s);
   EXPECT_EQ(q.amplitude, p.amplitude);
   EXPECT_NEAR(q.wavelength_m, 0.0554658, 1e-7);
+}
+
+// The processed bandwidths (swaths/frequencyA/processedRangeBandwidth and
+// processedAzimuthBandwidth, Hz) where a product states them, NaN where it
+// does not; the writer keeps them. Values as gdalmdiminfo prints them:
+// SanAnd 20000000 and 40.5514151995046532; the ALOS chip 20000000 and 1200.
+TEST(RslcProductTest, ProcessedBandwidthsWhereTheProductStatesThem) {
+  const RslcProduct sanand = ReadRslcProduct(DataPath("uavsar/SanAnd_129.h5"), {"A", "HH", false});
+  std::printf("[ measured ] SanAnd processed bandwidths: range %.6f Hz, azimuth %.16g Hz\n",
+              sanand.processed_range_bandwidth_hz, sanand.processed_azimuth_bandwidth_hz);
+  EXPECT_EQ(sanand.processed_range_bandwidth_hz, 20000000.0);
+  EXPECT_NEAR(sanand.processed_azimuth_bandwidth_hz, 40.5514151995046532, 1e-12);
+  const RslcProduct alos =
+      ReadRslcProduct(DataPath("alos_rio_branco/calib_RSLC_ALPSRP025826990_RIO_BRANCO_CR.h5"), {"A", "HH", false});
+  std::printf("[ measured ] ALOS chip processed bandwidths: range %.6f Hz, azimuth %.6f Hz\n",
+              alos.processed_range_bandwidth_hz, alos.processed_azimuth_bandwidth_hz);
+  EXPECT_EQ(alos.processed_range_bandwidth_hz, 20000000.0);
+  EXPECT_EQ(alos.processed_azimuth_bandwidth_hz, 1200.0);
+  const auto dir = MakeTempDir();
+  RslcProduct p = Synthetic();
+  WriteRslcProduct(dir / "none.h5", p);
+  const RslcProduct none = ReadRslcProduct(dir / "none.h5");
+  EXPECT_TRUE(std::isnan(none.processed_range_bandwidth_hz));
+  EXPECT_TRUE(std::isnan(none.processed_azimuth_bandwidth_hz));
+  p.processed_range_bandwidth_hz = 14e6;
+  p.processed_azimuth_bandwidth_hz = 1100.0;
+  WriteRslcProduct(dir / "stated.h5", p);
+  const RslcProduct stated = ReadRslcProduct(dir / "stated.h5");
+  EXPECT_EQ(stated.processed_range_bandwidth_hz, 14e6);
+  EXPECT_EQ(stated.processed_azimuth_bandwidth_hz, 1100.0);
 }
 
 // A product over the memory budget is refused from its shape, before the

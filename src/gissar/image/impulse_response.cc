@@ -52,7 +52,8 @@ double Amplitude(SpectralWindow window, double x) {
   return sum / kSteps;
 }
 
-// Half-power width of |Amplitude|^2 in units of 1/bandwidth.
+}  // namespace
+
 double UnitHalfPowerWidth(SpectralWindow window) {
   const double peak = Amplitude(window, 0.0);
   double lo = 0.0, hi = 2.0;
@@ -63,8 +64,6 @@ double UnitHalfPowerWidth(SpectralWindow window) {
   }
   return 2.0 * lo;
 }
-
-}  // namespace
 
 SpectralWindow ParseSpectralWindow(const std::string& text, const std::string& option) {
   if (text == "none") return SpectralWindow::kNone;

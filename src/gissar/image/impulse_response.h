@@ -17,6 +17,12 @@ enum class SpectralWindow { kNone, kHamming, kTaylor };
 SpectralWindow ParseSpectralWindow(const std::string& text, const std::string& option);
 std::string ToString(SpectralWindow window);
 
+// The 3 dB (half-power) width of |IFT(window over a band B)|^2 in units of
+// 1 / B: 0.886 for "none" (a sinc), wider for the tapered windows. A band
+// of B Hz (range: metres c / (2 B)) has the resolution
+// UnitHalfPowerWidth(window) / B.
+double UnitHalfPowerWidth(SpectralWindow window);
+
 // Samples of the 1-D intensity impulse response whose 3 dB (half-power)
 // width is `resolution_px` pixels: |IFT(window over a rectangular band)|^2,
 // its band scaled so the main lobe's half-power width is exactly the

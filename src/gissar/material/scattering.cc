@@ -173,23 +173,13 @@ SpecularChain TraceSpecularChain(const Eigen::Vector3d& line_of_sight, const std
     }
     const double cos_i = -d.dot(n);
     if (!(cos_i > 0.0)) throw InputError("the wave meets the face from behind or at grazing (d . n >= 0)", at);
-    const Eigen::Vector3d d_out = d + 2.0 * cos_i * n;
-    Eigen::Vector3d s = d.cross(n);
-    if (s.norm() < 1e-12) {
-      s = HvBasis(d).h;  // normal incidence: any direction across d (r_v = -r_h there)
-    } else {
-      s.normalize();
-    }
-    const Eigen::Vector3d p_in = s.cross(d);
-    const Eigen::Vector3d p_out = s.cross(d_out);
     FresnelAmplitudes r = PerfectConductorAmplitudes();
     if (!b.perfect_conductor) {
       CheckPermittivity(b.permittivity, at.c_str());
       r = FresnelFromCos(b.permittivity, std::min(1.0, cos_i));
     }
-    const Eigen::Matrix3cd m = r.r_h * (s * s.transpose()).cast<cd>() + r.r_v * (p_out * p_in.transpose()).cast<cd>();
-    field = m * field;
-    d = d_out.normalized();
+    field = SpecularReflectionOperator(d, n, r) * field;
+    d = (d + 2.0 * cos_i * n).normalized();
   }
   excess -= d.dot(bounces.back().point_m - phase_centre_m);
 

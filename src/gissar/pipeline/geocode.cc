@@ -405,8 +405,13 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   p.observation_direction = sensor::ToString(geometry.options().look_side);
   p.range_spacing_m = geometry.range_spacing_m();
   p.azimuth_spacing_m = geometry.azimuth_spacing_m();
-  if (sim_options.value("range_resolution_m", 0.0) > 0) p.range_resolution_m = sim_options["range_resolution_m"].get<double>();
-  if (sim_options.value("azimuth_resolution_m", 0.0) > 0) p.azimuth_resolution_m = sim_options["azimuth_resolution_m"].get<double>();
+  // null: not set (SimulateRequest: none on an idealised geometry).
+  for (const auto& [key, field] : {std::pair{"range_resolution_m", &p.range_resolution_m},
+                                   std::pair{"azimuth_resolution_m", &p.azimuth_resolution_m}}) {
+    if (sim_options.contains(key) && sim_options[key].is_number() && sim_options[key].get<double>() > 0) {
+      *field = sim_options[key].get<double>();
+    }
+  }
   p.incidence_deg = geometry.IncidenceDeg(geometry.u0());
   p.off_nadir_deg = 90.0 - geometry.options().depression_deg;
   p.look_azimuth_deg = geometry.options().heading_deg + (geometry.options().look_side == sensor::LookSide::kRight ? 90.0 : -90.0);

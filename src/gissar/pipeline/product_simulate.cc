@@ -40,12 +40,6 @@ void CheckProductOptions(const SimulateRequest& o) {
   if (!o.contributions.empty()) {
     throw ConfigError("contributions are not recorded on a radar grid", fixed_by + "/--contributions");
   }
-  if (o.coherent && material::ParsePolarizationList(o.polarization, "--polarization").size() > 1) {
-    // The re-projected returns carry one power each, not the channels' joint
-    // phasors: a coherent product grid renders one channel per run.
-    throw ConfigError("a coherent product grid renders one channel per run (several channels: detected only)",
-                      fixed_by + "/--coherent/--polarization");
-  }
   if (o.center_lonlat || o.center_map) {
     throw ConfigError("the radar grid fixes the scene centre", fixed_by + "/--center");
   }
@@ -225,6 +219,29 @@ void ConvertPixelRadiometryCoherent(render::SarImage& image, const std::vector<f
 
 }  // namespace
 
+ProductResolutions ResolveProductResolutions(const SimulateRequest& options, const geo::RslcProduct& product,
+                                             double ground_speed_mps) {
+  ProductResolutions r;
+  const double unit = image::UnitHalfPowerWidth(image::ParseSpectralWindow(options.psf_window, "--psf-window"));
+  if (!std::isnan(options.range_resolution_m)) {
+    r.range_m = options.range_resolution_m;
+    r.range_source = "--range-resolution";
+  } else if (product.processed_range_bandwidth_hz > 0.0) {
+    r.range_bandwidth_hz = product.processed_range_bandwidth_hz;
+    r.range_m = unit * geo::kSpeedOfLightMps / (2.0 * r.range_bandwidth_hz);
+    r.range_source = "processedRangeBandwidth";
+  }
+  if (!std::isnan(options.azimuth_resolution_m)) {
+    r.azimuth_m = options.azimuth_resolution_m;
+    r.azimuth_source = "--azimuth-resolution";
+  } else if (product.processed_azimuth_bandwidth_hz > 0.0 && ground_speed_mps > 0.0) {
+    r.azimuth_bandwidth_hz = product.processed_azimuth_bandwidth_hz;
+    r.azimuth_m = unit * ground_speed_mps / r.azimuth_bandwidth_hz;
+    r.azimuth_source = "processedAzimuthBandwidth";
+  }
+  return r;
+}
+
 ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
   auto say = [&](const std::string& line) { reporter.Info("simulate: " + line); };
   ProductSimulation sim;
@@ -273,9 +290,17 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   say(std::to_string(sim.image.geolocated) + " pixels geolocated, " + std::to_string(sim.image.contributions) +
       " returns re-projected");
 
-  image::SensorEffects response;  // the impulse response on the product's pixel spacings
-  response.range_resolution_px = options.range_resolution_m / sim.grid.dr_m;
-  response.azimuth_resolution_px = options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m;
+  // The impulse response on the product's pixel spacings: the request's
+  // resolutions, or the product's processed bandwidths.
+  sim.resolutions = ResolveProductResolutions(options, p, sim.ground_speed_mps);
+  image::SensorEffects response;
+  response.range_resolution_px = sim.resolutions.range_m / sim.grid.dr_m;
+  response.azimuth_resolution_px = sim.resolutions.azimuth_m / sim.image.tracing_geometry.azimuth_spacing_m;
+  char line[200];
+  std::snprintf(line, sizeof line, "impulse response %.3f m (%s) x %.3f m (%s), window %s", sim.resolutions.range_m,
+                sim.resolutions.range_source.c_str(), sim.resolutions.azimuth_m, sim.resolutions.azimuth_source.c_str(),
+                options.psf_window.c_str());
+  say(line);
   response.window = image::ParseSpectralWindow(options.psf_window, "--psf-window");
   response.wavelength_m = p.wavelength_m;
   CheckImpulseResponsePixels(response.range_resolution_px, response.azimuth_resolution_px);
@@ -351,6 +376,28 @@ nlohmann::json ProductJson(const ProductSimulation& sim) {
             {"height", g.height}}}};
 }
 
+// The impulse response applied and where each resolution came from.
+nlohmann::json ImpulseResponseJson(const ProductSimulation& sim, const SimulateRequest& options) {
+  const ProductResolutions& r = sim.resolutions;
+  auto bandwidth = [](double hz) { return hz > 0.0 ? nlohmann::json(hz) : nlohmann::json(nullptr); };
+  auto stated = [](double hz) { return std::isnan(hz) ? nlohmann::json(nullptr) : nlohmann::json(hz); };
+  return {{"range_resolution_m", r.range_m},
+          {"azimuth_resolution_m", r.azimuth_m},
+          {"range_resolution_px", r.range_m / sim.grid.dr_m},
+          {"azimuth_resolution_px", r.azimuth_m / sim.image.tracing_geometry.azimuth_spacing_m},
+          {"window", options.psf_window},
+          {"range_resolution_source", r.range_source},
+          {"azimuth_resolution_source", r.azimuth_source},
+          {"range_bandwidth_hz", bandwidth(r.range_bandwidth_hz)},
+          {"azimuth_bandwidth_hz", bandwidth(r.azimuth_bandwidth_hz)},
+          {"product_processed_range_bandwidth_hz", stated(sim.product.processed_range_bandwidth_hz)},
+          {"product_processed_azimuth_bandwidth_hz", stated(sim.product.processed_azimuth_bandwidth_hz)},
+          {"ground_speed_mps", sim.ground_speed_mps},
+          {"rule", "3 dB widths: --range-resolution / --azimuth-resolution when given, else the product's processed "
+                   "bandwidth: UnitHalfPowerWidth(window) c / (2 B_r) and UnitHalfPowerWidth(window) v_ground / "
+                   "B_az (0.886 with no window), else none"}};
+}
+
 geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateRequest& options) {
   geo::Metadata m;
   m["GISSAR_GEOMETRY"] = "product radar grid: row = zero-Doppler azimuth line, column = slant-range bin";
@@ -392,6 +439,8 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
   const fs::path json = outputs.Add(options.out_prefix + ".json");
   const fs::path slc_tif = options.coherent ? outputs.Add(options.out_prefix + "_slc.tif") : fs::path();
+  const fs::path pauli_png =
+      options.coherent && HasPauliChannels(options) ? outputs.Add(options.out_prefix + "_pauli.png") : fs::path();
 
   ProductSimulation sim = SimulateProduct(options, false, reporter);
   // NaN where the pixel has no ground point on the terrain (declared no-data, mask 255).
@@ -401,6 +450,8 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
   geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
   const std::string unit = image::RadiometryUnit(options.db);
+  // Channel 0 is `image`; the others follow (several channels).
+  std::vector<render::SarImage> channel_images;
   if (sim.other_channels.empty()) {
     raster.bands.push_back(image.intensity);
     raster.band_names.push_back("total");
@@ -412,7 +463,7 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
     // Several channels (as `simulate` writes them): each channel's total,
     // then each channel's bounce counts; NaN where the pixel has no ground
     // point, as the first channel.
-    std::vector<render::SarImage> channel_images = {image};
+    channel_images.push_back(image);
     for (render::SarImage c : sim.other_channels) {
       if (c.footprint.size() == c.intensity.size()) MarkOutsideFootprint(c, sim.image.image.footprint);
       channel_images.push_back(std::move(c));
@@ -450,25 +501,21 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   // GDAL geolocation arrays: gdalwarp -geoloc places the image from the longitude and latitude bands.
   raster.georeference.geolocation = geo::LonLatGeolocation(lon_band, lat_band);
   geo::WriteFloatGeoTiff(tif, raster);
+  nlohmann::json pauli_record;  // the Pauli quicklook's looks and stretch
   if (options.coherent) {
     // The complex total and the complex image of each bounce count, as
     // `gissar simulate --coherent` writes them; located by the geolocation
     // arrays of PREFIX.tif beside it (bands 6 and 7).
     geo::Metadata slc_metadata = metadata;
     slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
-    slc_metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
-                                   "2-5 add up to band 1 before thermal noise)";
     slc_metadata["GISSAR_PHASE"] = "exp(-j 4 pi R / lambda), R = true slant range (geo2rdr on the product orbit)";
-    std::vector<geo::ComplexBand> slc_bands = {{&image.real, &image.imag, "total"}};
-    std::vector<float> no_return;  // a layer with no return (none here: every layer is rendered)
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      if (image.bounce_real[layer].size() != image.real.size()) {
-        if (no_return.empty()) no_return = NoReturnPlane(image, /*db=*/false);
-        slc_bands.push_back({&no_return, &no_return, layer_names[layer]});
-      } else {
-        slc_bands.push_back({&image.bounce_real[layer], &image.bounce_imag[layer], layer_names[layer]});
-      }
-    }
+    // As `gissar simulate --coherent` writes them: one channel: the total
+    // and its bounce bands; several: each channel's total, then each
+    // channel's bounce bands.
+    std::vector<render::SarImage*> slc_images = {&image};
+    for (size_t k = 1; k < channel_images.size(); ++k) slc_images.push_back(&channel_images[k]);
+    std::vector<float> no_return;  // a layer with no return
+    const std::vector<geo::ComplexBand> slc_bands = SlcBands(slc_images, sim.channels, no_return, slc_metadata);
     // Georeference: GDAL geolocation arrays = bands 6/7 of PREFIX.tif (its
     // absolute path: GDAL 3.6 opens X_DATASET as given), and, for when the
     // files are moved apart, a lattice of up to 8 x 8 GCPs at pixel centres
@@ -491,6 +538,10 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
     }
     geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
                              slc_georeference, /*nodata_nan=*/true, options.overviews);
+    if (!pauli_png.empty()) {
+      const std::vector<const render::SarImage*> images(slc_images.begin(), slc_images.end());
+      WritePauliQuicklook(pauli_png, sim.channels, images, &pauli_record);
+    }
   }
   image::DbStretch stretch;
   geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);
@@ -512,16 +563,26 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
     provenance["coherent"] = {
         {"phase", "exp(-j 4 pi R / lambda): R = true slant range of each return (geo2rdr on the product orbit; "
                   "multi-bounce: plus the path excess) and of each reflector's phase centre"},
-        {"rough_surface", "seeded random micro-phase per return and pixel (expected intensity = incoherent image)"},
-        {"impulse_response",
-         {{"range_resolution_m", options.range_resolution_m},
-          {"azimuth_resolution_m", options.azimuth_resolution_m},
-          {"range_resolution_px", options.range_resolution_m / sim.grid.dr_m},
-          {"azimuth_resolution_px", options.azimuth_resolution_m / sim.image.tracing_geometry.azimuth_spacing_m},
-          {"window", options.psf_window}}},
+        {"rough_surface", sim.other_channels.empty()
+                              ? "seeded random micro-phase per return and pixel (expected intensity = incoherent image)"
+                              : "per return and pixel, three seeded phases shared by the channels: HH exp(j phi1), "
+                                "VV conj(rho) exp(j phi1) + sqrt(1 - |rho|^2) exp(j phi2), HV = VH exp(j phi3) "
+                                "(rho: the class's HH-VV correlation)"},
+        {"mirror_paths", sim.other_channels.empty()
+                             ? "path phase, twice the amplitude of one path (the path and its reverse)"
+                             : "sqrt(P) (S_c + S^T_c) with the path phase (Fresnel chain of the path and its reverse)"},
+        {"impulse_response", ImpulseResponseJson(sim, options)},
         {"wavelength_m", sim.product.wavelength_m},
         {"seed", options.seed}};
   }
+  if (!sim.other_channels.empty()) {
+    provenance["polarimetry"] = {
+        {"channels", material::ToString(sim.channels)},
+        {"model", "one polarimetric pass per channel (VH = HV by reciprocity), one seed: scattering matrices per "
+                  "return (docs/radiometry.md, Polarimetry in the renderer)"}};
+    if (!pauli_record.is_null()) provenance["polarimetry"]["pauli_quicklook"] = pauli_record;
+  }
+  provenance["impulse_response"] = ImpulseResponseJson(sim, options);
   provenance["radiometry"] = {
       {"quantity", options.radiometry},
       {"scale", options.db ? "dB" : "linear"},
@@ -650,6 +711,11 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   SimulateRequest beta0 = options.simulate;
   beta0.radiometry = "beta0";
   beta0.db = false;
+  // validate offers no resolutions: it compares the simulation without an
+  // impulse response (not the product's processed bandwidths; with them the
+  // San Andreas r dB falls from 0.139 to 0.132 at 3 x 3 looks).
+  if (std::isnan(beta0.range_resolution_m)) beta0.range_resolution_m = 0.0;
+  if (std::isnan(beta0.azimuth_resolution_m)) beta0.azimuth_resolution_m = 0.0;
   const ProductSimulation sim = SimulateProduct(beta0, true, reporter);
   const int width = sim.grid.cols, height = sim.grid.rows;
   const size_t n = size_t(width) * height;

@@ -35,6 +35,24 @@ geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_a
 // The product's radar grid (times, ranges, look side, wavelength).
 sensor::RadarGrid RadarGridOf(const geo::RslcProduct& product);
 
+// The impulse response's 3 dB resolutions of a product simulation (range:
+// slant metres; azimuth: metres along the ground at the scene) and where
+// each comes from: the request's value when it sets one (source
+// "--range-resolution" / "--azimuth-resolution"; 0 = none); else the
+// product's processed bandwidth where it states one (RslcProduct::
+// processed_range_bandwidth_hz, _azimuth_; source "processedRangeBandwidth" /
+// "processedAzimuthBandwidth"): the 3 dB width of the request's spectral
+// window over that band, image::UnitHalfPowerWidth(window) c / (2 B_r) and
+// image::UnitHalfPowerWidth(window) v_ground / B_az (0.886 c / (2 B_r) with
+// no window); else none (0, source "none").
+struct ProductResolutions {
+  double range_m = 0.0, azimuth_m = 0.0;
+  std::string range_source = "none", azimuth_source = "none";
+  double range_bandwidth_hz = 0.0, azimuth_bandwidth_hz = 0.0;  // the product's, when used (else 0)
+};
+ProductResolutions ResolveProductResolutions(const SimulateRequest& options, const geo::RslcProduct& product,
+                                             double ground_speed_mps);
+
 // A product simulated in memory: the product (with its real amplitude when
 // read), the terrain description and the rendered image and geolocation.
 struct ProductSimulation {
@@ -49,6 +67,7 @@ struct ProductSimulation {
   nlohmann::json terrain;       // Terrain::description
   nlohmann::json frame;         // local frame origin
   double ground_speed_mps = 0;  // azimuth pixel spacing / line time
+  ProductResolutions resolutions;  // of the impulse response applied
 };
 
 // Loads options.product and the terrain, renders the product grid and
@@ -57,8 +76,8 @@ struct ProductSimulation {
 // conversion from beta0 (ellipsoid incidence of the pixel's ground point),
 // thermal noise and dB. Coherent (options.coherent): the complex image of
 // render::RenderProduct convolved with the amplitude impulse response of
-// --range-resolution / --azimuth-resolution (on the product's pixel
-// spacings), the reflectors added as phasors exp(-j 4 pi R / lambda) (R
+// ResolveProductResolutions (--range-resolution / --azimuth-resolution, or
+// the product's processed bandwidths; on the product's pixel spacings), the reflectors added as phasors exp(-j 4 pi R / lambda) (R
 // their geo2rdr range) with the same response, no simulated speckle (the
 // phasors make it), then per pixel the conversion from beta0 (complex
 // planes by the square root of the factor), complex thermal noise on the
@@ -74,7 +93,11 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
 // four_or_more, |z|^2 in the output radiometry, linear; GEOLOCATION arrays
 // = bands 6 and 7 of PREFIX.tif by its absolute path, and up to 8 x 8 GCPs),
 // which `gissar pta --image`
-// measures on the product's own grid.
+// measures on the product's own grid. Several channels: PREFIX.tif and
+// PREFIX_slc.tif hold each channel's total, then each channel's bounce
+// bands (SlcBands), and a coherent run with HH, VV and HV or VH also writes
+// PREFIX_pauli.png (WritePauliQuicklook), as `gissar simulate` does. The
+// sidecar's impulse_response records the resolutions and their sources.
 SimulateResult RunProductSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 struct ValidateRequest {

@@ -12,6 +12,9 @@
 #include "gissar/geo/orbit_file.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/warp.h"
+#include "gissar/image/impulse_response.h"
+#include "gissar/pipeline/alos_testing.h"
+#include "gissar/pipeline/pta.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 #include "gissar/util/utc_time.h"
@@ -363,24 +366,18 @@ TEST(OrbitSimulateTest, OrbitOptionsAreCheckedTogether) {
 // Several channels on a real quad-pol product's grid (ALOS-1 Rio Branco
 // chip, its surveyed trihedral on a flat dark DEM): bands per channel, the
 // trihedral in HH and VV alike and absent from HV (S = I), VH = HV; a
-// product without the channels, and coherent quad on a product, refused.
+// product without the channels refused.
 TEST(ProductSimulateTest, QuadChannelsOnARealQuadPolGrid) {
   const fs::path dir = MakeTempDir();
-  const double lon0 = -68.1728216904995, lat0 = -9.71311741457592;
-  const std::string tm = "+proj=tmerc +lat_0=" + std::to_string(lat0) + " +lon_0=" + std::to_string(lon0) +
-                         " +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
-  const fs::path dem = dir / "flat.tif";
-  geo::WriteDemGeoTiff(dem, std::vector<float>(201 * 201, 0.0f), 201, 201, {-1507.5, 15.0, 0.0, 1507.5, 0.0, -15.0},
-                       tm);
-  const fs::path materials = dir / "dark.json";
-  std::ofstream(materials) << R"({"default": {"sigma0_db": [[0, -60], [90, -60]]}})";
+  const fs::path dem = alos_testing::WriteFlatDem(dir);
+  const fs::path materials = alos_testing::WriteDarkMaterials(dir, -60.0);
   SimulateRequest sim;
-  sim.product = DataPath("alos_rio_branco/calib_RSLC_ALPSRP025826990_RIO_BRANCO_CR.h5").string();
+  sim.product = alos_testing::ProductPath().string();
   sim.dem = dem.string();
-  sim.vertical_datum = "ellipsoid";
-  sim.sea = "off";
+  sim.vertical_datum = alos_testing::kVerticalDatum;
+  sim.sea = alos_testing::kSea;
   sim.materials = materials.string();
-  sim.reflectors = DataPath("alos_rio_branco/rio_branco_reflector.csv").string();
+  sim.reflectors = alos_testing::ReflectorsPath().string();
   sim.bounces = 1;
   sim.polarization = "quad";
   sim.out_prefix = (dir / "quad").string();
@@ -416,9 +413,119 @@ TEST(ProductSimulateTest, QuadChannelsOnARealQuadPolGrid) {
     EXPECT_NE(std::string(e.what()).find("not VV"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(fs::exists(dir / "sanand.tif"));
+}
+
+// Coherent quad on the ALOS chip's quad-pol grid (its surveyed trihedral on
+// flat -80 dB ground, one bounce, the ALOS PLR resolutions of
+// PtaTest.SimulatedTrihedralOnTheAlosProductGrid): PREFIX_slc.tif holds one
+// complex band per channel, then each channel's bounce bands, and the Pauli
+// quicklook is written; `pta --image` on it measures the trihedral's
+// S_HH = S_VV: HH/VV 0 dB +- 0.1, 0 deg +- 1, HV more than 30 dB below HH.
+TEST(ProductSimulateTest, CoherentQuadTrihedralOnTheAlosGrid) {
+  const fs::path dir = MakeTempDir();
+  SimulateRequest sim;
+  sim.product = alos_testing::ProductPath().string();
+  sim.dem = alos_testing::WriteFlatDem(dir).string();
+  sim.vertical_datum = alos_testing::kVerticalDatum;
+  sim.sea = alos_testing::kSea;
+  sim.materials = alos_testing::WriteDarkMaterials(dir, -80.0).string();
+  sim.reflectors = alos_testing::ReflectorsPath().string();
+  sim.bounces = 1;
   sim.coherent = true;
-  sim.out_prefix = (dir / "coherent").string();
-  EXPECT_THROW(sim.Check(), ConfigError);
+  sim.polarization = "quad";
+  sim.radiometry = "sigma0";
+  sim.range_resolution_m = 0.886 * geo::kSpeedOfLightMps / (2.0 * 14e6);
+  sim.azimuth_resolution_m = 4.5;
+  sim.psf_window = "none";
+  sim.out_prefix = (dir / "sim").string();
+  RunSimulate(sim, "test");
+  const geo::ComplexRaster slc = geo::ReadComplexRaster(dir / "sim_slc.tif");
+  ASSERT_EQ(slc.bands.size(), 4u + 16u);
+  EXPECT_EQ(slc.band_names[0], "HH");
+  EXPECT_EQ(slc.band_names[1], "HV");
+  EXPECT_EQ(slc.band_names[3], "VV");
+  EXPECT_EQ(slc.band_names[4], "HH_single");
+  EXPECT_EQ(slc.band_names[19], "VV_four_or_more");
+  EXPECT_EQ(slc.bands[1], slc.bands[2]);  // VH = HV
+  EXPECT_TRUE(fs::exists(dir / "sim_pauli.png"));
+  nlohmann::json side;
+  std::ifstream(dir / "sim.json") >> side;
+  EXPECT_EQ(side["polarimetry"]["channels"], "quad");
+  EXPECT_EQ(side["impulse_response"]["range_resolution_source"], "--range-resolution");
+  PtaRequest r;
+  r.image = (dir / "sim_slc.tif").string();
+  r.reflectors = alos_testing::ReflectorsPath().string();
+  r.out_prefix = (dir / "pta").string();
+  const PtaResult result = RunPta(r, "test");
+  ASSERT_EQ(result.measured, 1) << result.report.dump(2);
+  const nlohmann::json& m = result.report["reflectors"][0];
+  const double ratio = m["hh_vv_ratio_db"].get<double>(), phase = m["hh_vv_phase_deg"].get<double>();
+  const double isolation = m["cross_pol_isolation_db"].get<double>();
+  std::printf("[ measured ] coherent quad trihedral on the ALOS grid: HH/VV %.4f dB, %.4f deg, cross-pol isolation "
+              "%.1f dB, RCS %.3f dBsm (physical optics %.3f)\n",
+              ratio, phase, isolation, m["rcs_dbsm"].get<double>(), m["rcs_expected_dbsm"].get<double>());
+  EXPECT_NEAR(ratio, 0.0, 0.1);
+  EXPECT_NEAR(phase, 0.0, 1.0);
+  EXPECT_GT(isolation, 30.0);
+  EXPECT_NEAR(m["rcs_dbsm"].get<double>(), m["rcs_expected_dbsm"].get<double>(), 0.3);
+}
+
+// The impulse response's resolutions of a product simulation: the
+// request's when it sets them (0 = none), else the product's processed
+// bandwidths (SanAnd: 20 MHz, 40.551 Hz): 0.886 c / (2 B_r) and 0.886 v / B_az
+// with no window, wider with Hamming; none where the product states none.
+// End to end on SanAnd: the sidecar records the resolutions and their source.
+TEST(ProductSimulateTest, ResolutionsFollowTheProductsProcessedBandwidths) {
+  const geo::RslcProduct sanand =
+      geo::ReadRslcProduct(DataPath("uavsar/SanAnd_129.h5"), {"A", "HH", /*read_amplitude=*/false});
+  SimulateRequest o;
+  const double v = 230.0;  // a ground speed, m/s
+  const double unit = image::UnitHalfPowerWidth(image::SpectralWindow::kNone);
+  EXPECT_NEAR(unit, 0.886, 0.001);
+  ProductResolutions r = ResolveProductResolutions(o, sanand, v);
+  EXPECT_NEAR(r.range_m, unit * geo::kSpeedOfLightMps / (2.0 * 20e6), 1e-9);
+  EXPECT_NEAR(r.azimuth_m, unit * v / 40.5514151995046532, 1e-9);
+  EXPECT_EQ(r.range_source, "processedRangeBandwidth");
+  EXPECT_EQ(r.azimuth_source, "processedAzimuthBandwidth");
+  o.psf_window = "hamming";
+  const ProductResolutions hamming = ResolveProductResolutions(o, sanand, v);
+  EXPECT_GT(hamming.range_m, 1.4 * r.range_m);  // Hamming: 1.30 / B against 0.886 / B
+  o.psf_window = "none";
+  o.range_resolution_m = 0.0;  // set: none
+  o.azimuth_resolution_m = 3.0;
+  r = ResolveProductResolutions(o, sanand, v);
+  EXPECT_EQ(r.range_m, 0.0);
+  EXPECT_EQ(r.range_source, "--range-resolution");
+  EXPECT_EQ(r.azimuth_m, 3.0);
+  EXPECT_EQ(r.azimuth_source, "--azimuth-resolution");
+  geo::RslcProduct silent = sanand;
+  silent.processed_range_bandwidth_hz = silent.processed_azimuth_bandwidth_hz = std::nan("");
+  r = ResolveProductResolutions(SimulateRequest(), silent, v);
+  EXPECT_EQ(r.range_m, 0.0);
+  EXPECT_EQ(r.azimuth_m, 0.0);
+  EXPECT_EQ(r.range_source, "none");
+  // End to end: the sidecar's impulse response and options (null: not set).
+  const fs::path dir = MakeTempDir();
+  SimulateRequest s;
+  s.product = DataPath("uavsar/SanAnd_129.h5").string();
+  s.dem = DataPath("uavsar/SanAnd_dem.tif").string();
+  s.out_prefix = (dir / "sim").string();
+  RunSimulate(s, "test");
+  nlohmann::json side;
+  std::ifstream(dir / "sim.json") >> side;
+  const nlohmann::json& ir = side["impulse_response"];
+  const double ground_speed = ir["ground_speed_mps"].get<double>();
+  std::printf("[ measured ] SanAnd impulse response from the product: %.3f m (%s) x %.3f m (%s), ground speed "
+              "%.2f m/s, %.3f x %.3f px\n",
+              ir["range_resolution_m"].get<double>(), ir["range_resolution_source"].get<std::string>().c_str(),
+              ir["azimuth_resolution_m"].get<double>(), ir["azimuth_resolution_source"].get<std::string>().c_str(),
+              ground_speed, ir["range_resolution_px"].get<double>(), ir["azimuth_resolution_px"].get<double>());
+  EXPECT_TRUE(side["options"]["range_resolution_m"].is_null());
+  EXPECT_EQ(ir["range_resolution_source"], "processedRangeBandwidth");
+  EXPECT_EQ(ir["azimuth_resolution_source"], "processedAzimuthBandwidth");
+  EXPECT_NEAR(ir["range_resolution_m"].get<double>(), unit * geo::kSpeedOfLightMps / (2.0 * 20e6), 1e-9);
+  EXPECT_NEAR(ir["azimuth_resolution_m"].get<double>(), unit * ground_speed / 40.5514151995046532, 1e-9);
+  EXPECT_EQ(ir["product_processed_range_bandwidth_hz"].get<double>(), 20e6);
 }
 
 }  // namespace

@@ -55,6 +55,10 @@ struct Prediction {
   double col = 0.0, row = 0.0;
   Eigen::Vector3d to_sensor_enu = Eigen::Vector3d::UnitZ();  // unit, from the apex
   double azimuth_spacing_m = 0.0;
+  // Products: the apex's zero-Doppler time (s), slant range (m) and the
+  // sensor's position then (ECEF, m).
+  double zero_doppler_time_s = 0.0, slant_range_m = 0.0;
+  Eigen::Vector3d sensor_ecef_m = Eigen::Vector3d::Zero();
   std::optional<double> beta0_factor;  // |s|^2 -> beta0; unset: uncalibrated
   json geometry;                        // what the sidecar records of the prediction
 };
@@ -90,6 +94,44 @@ void CheckInside(const Prediction& p, int width, int height, const std::string& 
                   grid.c_str(), p.col, p.row, width, height);
     throw InputError(text, where);
   }
+}
+
+// The reflector apex `target` (ECEF, at lon/lat degrees) predicted on the
+// product's grid by zero-Doppler geo2rdr on its orbit: pixel, direction to
+// the sensor, along-track ground spacing, and the sidecar's geometry record
+// (zero-Doppler time, slant range, ground speed, look angles). Throws
+// InputError at `where` when the apex has no zero-Doppler time or lies on
+// the unlit side of the track.
+Prediction PredictOnProduct(const geo::RslcProduct& p, const sensor::Orbit& orbit, const Eigen::Vector3d& target,
+                            double lon_deg, double lat_deg, const std::string& where) {
+  const double t_mid = 0.5 * (p.zero_doppler_time_s.front() + p.zero_doppler_time_s.back());
+  const auto rc = sensor::Geo2Rdr(orbit, target, t_mid);
+  if (!rc) throw InputError("reflector has no zero-Doppler time on the product's orbit", where);
+  const sensor::LookSide side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
+  if (!sensor::IsOnSide(orbit, target, rc->time_s, side)) {
+    throw InputError("reflector lies on the unlit side of the track (the product looks " +
+                         std::string(p.look_left ? "left" : "right") + ")",
+                     where);
+  }
+  Prediction out;
+  out.row = (rc->time_s - p.zero_doppler_time_s.front()) / p.azimuth_spacing_s();
+  out.col = (rc->range_m - p.slant_range_m.front()) / p.range_spacing_m();
+  const sensor::OrbitState state = orbit.Interpolate(rc->time_s);
+  out.to_sensor_enu = EnuOfEcefVector(lon_deg, lat_deg, state.position_m - target).normalized();
+  // Along-track pixel spacing on the ground at the reflector: the zero-
+  // Doppler point moves at |v| |X| / |P| (geocentric radii).
+  const double ground_speed = state.velocity_mps.norm() * target.norm() / state.position_m.norm();
+  out.azimuth_spacing_m = ground_speed * p.azimuth_spacing_s();
+  out.geometry = {{"zero_doppler_time_s", rc->time_s},
+                  {"slant_range_m", rc->range_m},
+                  {"ground_speed_mps", ground_speed},
+                  {"look_elevation_deg", std::asin(std::clamp(out.to_sensor_enu.z(), -1.0, 1.0)) / kDeg},
+                  {"look_azimuth_deg",
+                   std::fmod(std::atan2(out.to_sensor_enu.x(), out.to_sensor_enu.y()) / kDeg + 360.0, 360.0)}};
+  out.zero_doppler_time_s = rc->time_s;
+  out.slant_range_m = rc->range_m;
+  out.sensor_ecef_m = state.position_m;
+  return out;
 }
 
 Source ProductSource(const PtaRequest& request) {
@@ -151,32 +193,9 @@ Source ProductSource(const PtaRequest& request) {
     const geo::RslcProduct& p = *product;
     const double height = ground_height + spec.apex_height_m;
     const Eigen::Vector3d target = geo::LocalFrame::EcefFromGeodetic(spec.lon_deg, spec.lat_deg, height);
-    const double t_mid = 0.5 * (p.zero_doppler_time_s.front() + p.zero_doppler_time_s.back());
-    const auto rc = sensor::Geo2Rdr(*orbit, target, t_mid);
-    if (!rc) throw InputError("reflector has no zero-Doppler time on the product's orbit", where);
-    const sensor::LookSide side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
-    if (!sensor::IsOnSide(*orbit, target, rc->time_s, side)) {
-      throw InputError("reflector lies on the unlit side of the track (the product looks " +
-                           std::string(p.look_left ? "left" : "right") + ")",
-                       where);
-    }
-    Prediction out;
-    out.row = (rc->time_s - p.zero_doppler_time_s.front()) / p.azimuth_spacing_s();
-    out.col = (rc->range_m - p.slant_range_m.front()) / p.range_spacing_m();
-    const sensor::OrbitState state = orbit->Interpolate(rc->time_s);
-    out.to_sensor_enu = EnuOfEcefVector(spec.lon_deg, spec.lat_deg, state.position_m - target).normalized();
-    // Along-track pixel spacing on the ground at the reflector: the zero-
-    // Doppler point moves at |v| |X| / |P| (geocentric radii).
-    const double ground_speed = state.velocity_mps.norm() * target.norm() / state.position_m.norm();
-    out.azimuth_spacing_m = ground_speed * p.azimuth_spacing_s();
-    if (p.beta0_lut) out.beta0_factor = p.beta0_lut->At(rc->time_s, rc->range_m);
-    out.geometry = {{"zero_doppler_time_s", rc->time_s},
-                    {"slant_range_m", rc->range_m},
-                    {"apex_height_above_ellipsoid_m", height},
-                    {"ground_speed_mps", ground_speed},
-                    {"look_elevation_deg", std::asin(std::clamp(out.to_sensor_enu.z(), -1.0, 1.0)) / kDeg},
-                    {"look_azimuth_deg",
-                     std::fmod(std::atan2(out.to_sensor_enu.x(), out.to_sensor_enu.y()) / kDeg + 360.0, 360.0)}};
+    Prediction out = PredictOnProduct(p, *orbit, target, spec.lon_deg, spec.lat_deg, where);
+    if (p.beta0_lut) out.beta0_factor = p.beta0_lut->At(out.zero_doppler_time_s, out.slant_range_m);
+    out.geometry["apex_height_above_ellipsoid_m"] = height;
     return out;
   };
   return s;
@@ -305,42 +324,21 @@ void ProductGridPrediction(const PtaRequest& request, const json& sidecar, const
     const std::vector<render::SceneReflector> placed = PlaceReflectorRows({spec}, csv, terrain->frame, height);
     const Eigen::Vector3d apex_llh = terrain->frame.GeodeticFromEnu(placed.at(0).apex_enu);
     const Eigen::Vector3d target = geo::LocalFrame::EcefFromGeodetic(apex_llh.x(), apex_llh.y(), apex_llh.z());
-    const double t_mid = 0.5 * (p.zero_doppler_time_s.front() + p.zero_doppler_time_s.back());
-    const auto rc = sensor::Geo2Rdr(*orbit, target, t_mid);
-    if (!rc) throw InputError("reflector has no zero-Doppler time on the product's orbit", where);
-    const sensor::LookSide side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
-    if (!sensor::IsOnSide(*orbit, target, rc->time_s, side)) {
-      throw InputError("reflector lies on the unlit side of the track (the product looks " +
-                           std::string(p.look_left ? "left" : "right") + ")",
-                       where);
-    }
-    Prediction out;
-    out.row = (rc->time_s - p.zero_doppler_time_s.front()) / p.azimuth_spacing_s();
-    out.col = (rc->range_m - p.slant_range_m.front()) / p.range_spacing_m();
-    const sensor::OrbitState state = orbit->Interpolate(rc->time_s);
-    out.to_sensor_enu = EnuOfEcefVector(apex_llh.x(), apex_llh.y(), state.position_m - target).normalized();
-    const double ground_speed = state.velocity_mps.norm() * target.norm() / state.position_m.norm();
-    out.azimuth_spacing_m = ground_speed * p.azimuth_spacing_s();
+    Prediction out = PredictOnProduct(p, *orbit, target, apex_llh.x(), apex_llh.y(), where);
     // Ellipsoid incidence at the reflector's ground point (the radiometry
     // of the pixels around it): the geodetic normal there against the line
     // of sight (EnuOfEcefVector's up is that normal).
     const Eigen::Vector3d ground = geo::LocalFrame::EcefFromGeodetic(apex_llh.x(), apex_llh.y(),
                                                                      apex_llh.z() - spec.apex_height_m);
     const double incidence =
-        std::acos(std::clamp(EnuOfEcefVector(apex_llh.x(), apex_llh.y(), state.position_m - ground).normalized().z(),
+        std::acos(std::clamp(EnuOfEcefVector(apex_llh.x(), apex_llh.y(), out.sensor_ecef_m - ground).normalized().z(),
                              -1.0, 1.0));
     out.beta0_factor = radiometry == "beta0"    ? 1.0
                        : radiometry == "sigma0" ? 1.0 / std::sin(incidence)
                                                 : std::cos(incidence) / std::sin(incidence);
-    out.geometry = {{"zero_doppler_time_s", rc->time_s},
-                    {"slant_range_m", rc->range_m},
-                    {"apex_enu_m", {placed[0].apex_enu.x(), placed[0].apex_enu.y(), placed[0].apex_enu.z()}},
-                    {"apex_height_above_ellipsoid_m", apex_llh.z()},
-                    {"ground_speed_mps", ground_speed},
-                    {"incidence_deg", incidence / kDeg},
-                    {"look_elevation_deg", std::asin(std::clamp(out.to_sensor_enu.z(), -1.0, 1.0)) / kDeg},
-                    {"look_azimuth_deg",
-                     std::fmod(std::atan2(out.to_sensor_enu.x(), out.to_sensor_enu.y()) / kDeg + 360.0, 360.0)}};
+    out.geometry["apex_enu_m"] = {placed[0].apex_enu.x(), placed[0].apex_enu.y(), placed[0].apex_enu.z()};
+    out.geometry["apex_height_above_ellipsoid_m"] = apex_llh.z();
+    out.geometry["incidence_deg"] = incidence / kDeg;
     return out;
   };
 }

@@ -12,6 +12,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/rslc_product.h"
 #include "gissar/geo/warp.h"
+#include "gissar/pipeline/alos_testing.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/sensor/range_doppler.h"
 #include "gissar/util/error.h"
@@ -25,7 +26,7 @@ using nlohmann::json;
 using testing::DataPath;
 using testing::MakeTempDir;
 
-const char* kAlos = "alos_rio_branco/calib_RSLC_ALPSRP025826990_RIO_BRANCO_CR.h5";
+const char* kAlos = alos_testing::kProduct;
 constexpr double kSpeedOfLight = 299792458.0;
 const char* kHeader = "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n";
 
@@ -282,20 +283,14 @@ TEST(PtaTest, SimulatedCoherentTrihedralHasItsClosedFormRcs) {
 // the sinc's -13.26 dB sidelobes in both cuts.
 TEST(PtaTest, SimulatedTrihedralOnTheAlosProductGrid) {
   const fs::path dir = MakeTempDir();
-  const char* csv = "alos_rio_branco/rio_branco_reflector.csv";
-  const double lon0 = -68.1728216904995, lat0 = -9.71311741457592;
-  const std::string tm = "+proj=tmerc +lat_0=" + std::to_string(lat0) + " +lon_0=" + std::to_string(lon0) +
-                         " +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
-  const fs::path dem = dir / "flat.tif";  // 3 km x 3 km at 15 m, 0 m above the ellipsoid
-  geo::WriteDemGeoTiff(dem, std::vector<float>(201 * 201, 0.0f), 201, 201, {-1507.5, 15.0, 0.0, 1507.5, 0.0, -15.0},
-                       tm);
-  const fs::path materials = dir / "dark.json";
-  std::ofstream(materials) << R"({"default": {"sigma0_db": [[0, -80], [90, -80]]}})";
+  const char* csv = alos_testing::kReflectors;
+  const fs::path dem = alos_testing::WriteFlatDem(dir);  // 3 km x 3 km at 15 m, 0 m above the ellipsoid
+  const fs::path materials = alos_testing::WriteDarkMaterials(dir, -80.0);
   SimulateRequest sim;
   sim.product = DataPath(kAlos).string();
   sim.dem = dem.string();
-  sim.vertical_datum = "ellipsoid";
-  sim.sea = "off";  // the ellipsoid lies below EGM96 sea level here: not the `sea` class, the dark default
+  sim.vertical_datum = alos_testing::kVerticalDatum;
+  sim.sea = alos_testing::kSea;  // the ellipsoid lies below EGM96 sea level here: not the `sea` class, the dark default
   sim.materials = materials.string();
   sim.reflectors = DataPath(csv).string();
   sim.coherent = true;

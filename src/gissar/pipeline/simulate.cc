@@ -98,10 +98,12 @@ void SimulateRequest::Check() const {
   if (probe.azimuth_spacing_m == 0.0) probe.azimuth_spacing_m = 1.0;
   probe.Check();
   RenderOptionsOf(*this).Check();
-  if (!(range_resolution_m >= 0.0) || !std::isfinite(range_resolution_m)) {
+  // NaN: not set (none, or a product's stated bandwidths).
+  if (!std::isnan(range_resolution_m) && (!(range_resolution_m >= 0.0) || !std::isfinite(range_resolution_m))) {
     throw ConfigError("range resolution must be >= 0 metres", "--range-resolution");
   }
-  if (!(azimuth_resolution_m >= 0.0) || !std::isfinite(azimuth_resolution_m)) {
+  if (!std::isnan(azimuth_resolution_m) &&
+      (!(azimuth_resolution_m >= 0.0) || !std::isfinite(azimuth_resolution_m))) {
     throw ConfigError("azimuth resolution must be >= 0 metres", "--azimuth-resolution");
   }
   image::ParseSpectralWindow(psf_window, "--psf-window");
@@ -172,8 +174,9 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["materials"] = materials;
   j["reflectors"] = reflectors;
   j["contributions"] = contributions;
-  j["range_resolution_m"] = range_resolution_m;
-  j["azimuth_resolution_m"] = azimuth_resolution_m;
+  j["range_resolution_m"] = std::isnan(range_resolution_m) ? nlohmann::json(nullptr) : nlohmann::json(range_resolution_m);
+  j["azimuth_resolution_m"] =
+      std::isnan(azimuth_resolution_m) ? nlohmann::json(nullptr) : nlohmann::json(azimuth_resolution_m);
   j["psf_window"] = psf_window;
   j["speckle_looks"] = speckle_looks;
   j["nesz_db"] = std::isnan(nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(nesz_db);
@@ -244,8 +247,13 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "materials") set(materials);
     else if (key == "reflectors") set(reflectors);
     else if (key == "contributions") set(contributions);
-    else if (key == "range_resolution_m") set(range_resolution_m);
-    else if (key == "azimuth_resolution_m") set(azimuth_resolution_m);
+    else if (key == "range_resolution_m") {
+      if (value.is_null()) range_resolution_m = std::numeric_limits<double>::quiet_NaN();
+      else set(range_resolution_m);
+    } else if (key == "azimuth_resolution_m") {
+      if (value.is_null()) azimuth_resolution_m = std::numeric_limits<double>::quiet_NaN();
+      else set(azimuth_resolution_m);
+    }
     else if (key == "psf_window") set(psf_window);
     else if (key == "speckle_looks") set(speckle_looks);
     else if (key == "nesz_db") {
@@ -998,8 +1006,8 @@ void CheckViewingGeometry(const sensor::SarGeometry& geometry, const scene::Tria
 void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
                         const sensor::SarGeometry& geometry) {
   image::SensorEffects effects;
-  effects.range_resolution_px = options.range_resolution_m / geometry.range_spacing_m();
-  effects.azimuth_resolution_px = options.azimuth_resolution_m / geometry.azimuth_spacing_m();
+  effects.range_resolution_px = options.RangeResolutionM() / geometry.range_spacing_m();
+  effects.azimuth_resolution_px = options.AzimuthResolutionM() / geometry.azimuth_spacing_m();
   effects.window = image::ParseSpectralWindow(options.psf_window, "--psf-window");
   effects.speckle_looks = options.speckle_looks;
   effects.nesz_db = options.nesz_db;
@@ -1095,8 +1103,8 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   out.geometry = sensor::SarGeometry::Covering(out.geometry_options, terrain.centre_enu, mesh.vertices);
   const sensor::SarGeometry& geometry = *out.geometry;
   CheckViewingGeometry(geometry, mesh, reporter);
-  CheckImpulseResponsePixels(options.range_resolution_m / geometry.range_spacing_m(),
-                             options.azimuth_resolution_m / geometry.azimuth_spacing_m());
+  CheckImpulseResponsePixels(options.RangeResolutionM() / geometry.range_spacing_m(),
+                             options.AzimuthResolutionM() / geometry.azimuth_spacing_m());
   CheckMemoryBudget(BytesPerImagePixel(options) * geometry.width() * double(geometry.height()) +
                         double(mesh.MemoryBytes()) * 3.0,
                     options.max_memory_bytes,
@@ -1202,7 +1210,8 @@ std::vector<std::string> ChannelNames(const std::vector<material::Polarization>&
   return names;
 }
 
-// Whether the request's channels give a Pauli vector: HH, VV and HV or VH.
+}  // namespace
+
 bool HasPauliChannels(const SimulateRequest& options) {
   const auto channels = material::ParsePolarizationList(options.polarization, "--polarization");
   auto has = [&](material::Polarization p) { return std::find(channels.begin(), channels.end(), p) != channels.end(); };
@@ -1210,26 +1219,60 @@ bool HasPauliChannels(const SimulateRequest& options) {
          (has(material::Polarization::kHV) || has(material::Polarization::kVH));
 }
 
-// The complex total of channel `pol` (nullptr when the run has none).
-const render::SarImage* ChannelImage(const SimulatedImage& simulated, material::Polarization pol) {
-  for (size_t k = 0; k < simulated.channels.size(); ++k) {
-    if (simulated.channels[k] == pol) return k == 0 ? &simulated.image : &simulated.other_channels[k - 1];
+std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& images,
+                                       const std::vector<material::Polarization>& channels,
+                                       std::vector<float>& no_return, geo::Metadata& metadata) {
+  GISSAR_CHECK(!images.empty());
+  const bool several = images.size() > 1;
+  auto channel_name = [&](size_t k) {
+    return k < channels.size() ? material::ToString(channels[k]) : std::string("VV");
+  };
+  const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
+  std::vector<geo::ComplexBand> slc_bands;
+  for (size_t k = 0; k < images.size(); ++k) {
+    slc_bands.push_back({&images[k]->real, &images[k]->imag, several ? channel_name(k) : "total"});
   }
-  return nullptr;
+  for (size_t k = 0; k < images.size(); ++k) {
+    render::SarImage& c = *images[k];
+    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      const std::string name = several ? channel_name(k) + "_" + layer_names[layer] : layer_names[layer];
+      if (c.bounce_real[layer].size() != c.real.size()) {
+        if (no_return.empty()) no_return = NoReturnPlane(*images[0], /*db=*/false);
+        slc_bands.push_back({&no_return, &no_return, name});
+      } else {
+        slc_bands.push_back({&c.bounce_real[layer], &c.bounce_imag[layer], name});
+      }
+    }
+  }
+  if (several) {
+    std::string bands_text;
+    for (size_t k = 0; k < slc_bands.size(); ++k) {
+      bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + slc_bands[k].name;
+    }
+    metadata["GISSAR_BANDS"] = bands_text + " (complex; each channel's bounce bands add up to its total "
+                                            "before thermal noise)";
+    metadata["GISSAR_POLARIZATIONS"] = material::ToString(channels);
+  } else {
+    metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
+                               "2-5 add up to band 1 before thermal noise)";
+  }
+  return slc_bands;
 }
 
-// Writes the Pauli RGB (image::PauliRgb: R = |HH - VV|, G = |HV + VH|, B =
-// |HH + VV|, each / sqrt 2, one common dB stretch from the 2nd to the 98th
-// percentile) of the multilooked coherency (at least 2 x 2 looks, more to
-// keep the longer side <= kQuicklookMaxSidePx) of a coherent run, and
-// records the looks and the stretch. A missing cross-polarised channel is
-// taken from the other (reciprocity).
-void WritePauliQuicklook(const fs::path& path, const SimulatedImage& simulated, nlohmann::json* record) {
+void WritePauliQuicklook(const fs::path& path, const std::vector<material::Polarization>& channels,
+                         const std::vector<const render::SarImage*>& images, nlohmann::json* record) {
   using material::Polarization;
-  const render::SarImage* hh = ChannelImage(simulated, Polarization::kHH);
-  const render::SarImage* vv = ChannelImage(simulated, Polarization::kVV);
-  const render::SarImage* hv = ChannelImage(simulated, Polarization::kHV);
-  const render::SarImage* vh = ChannelImage(simulated, Polarization::kVH);
+  GISSAR_CHECK(channels.size() == images.size());
+  auto channel_image = [&](Polarization pol) -> const render::SarImage* {
+    for (size_t k = 0; k < channels.size(); ++k) {
+      if (channels[k] == pol) return images[k];
+    }
+    return nullptr;
+  };
+  const render::SarImage* hh = channel_image(Polarization::kHH);
+  const render::SarImage* vv = channel_image(Polarization::kVV);
+  const render::SarImage* hv = channel_image(Polarization::kHV);
+  const render::SarImage* vh = channel_image(Polarization::kVH);
   if (!hv) hv = vh;
   if (!vh) vh = hv;
   GISSAR_CHECK(hh && vv && hv && vh);
@@ -1259,6 +1302,8 @@ void WritePauliQuicklook(const fs::path& path, const SimulatedImage& simulated, 
              {"channels", "R = |HH - VV| / sqrt 2, G = |HV + VH| / sqrt 2, B = |HH + VV| / sqrt 2 (multilooked "
                           "coherency T22, T33, T11; one dB stretch for the three)"}};
 }
+
+namespace {
 
 // Per channel: the share of the total power (summed over the footprint,
 // before the sensor stage's noise) in each bounce layer: the double-bounce
@@ -1476,40 +1521,14 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     // The complex total, then the complex image of each bounce count: they
     // add up to the total (before thermal noise). Several channels: each
     // channel's complex total, then each channel's bounce counts.
-    std::vector<geo::ComplexBand> slc_bands;
-    for (size_t k = 0; k < channel_images.size(); ++k) {
-      slc_bands.push_back({&channel_images[k]->real, &channel_images[k]->imag, several ? channel_name(k) : "total"});
-    }
     std::vector<float> no_return;  // the real and imaginary parts of a layer with no return
-    for (size_t k = 0; k < channel_images.size(); ++k) {
-      render::SarImage& c = *channel_images[k];
-      for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-        const std::string name = several ? channel_name(k) + "_" + layer_names[layer] : layer_names[layer];
-        if (c.bounce_real[layer].empty()) {
-          if (no_return.empty()) no_return = NoReturnPlane(image, /*db=*/false);
-          slc_bands.push_back({&no_return, &no_return, name});
-        } else {
-          slc_bands.push_back({&c.bounce_real[layer], &c.bounce_imag[layer], name});
-        }
-      }
-    }
-    if (several) {
-      std::string bands_text;
-      for (size_t k = 0; k < slc_bands.size(); ++k) {
-        bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + slc_bands[k].name;
-      }
-      slc_metadata["GISSAR_BANDS"] = bands_text + " (complex; each channel's bounce bands add up to its total "
-                                                  "before thermal noise)";
-      slc_metadata["GISSAR_POLARIZATIONS"] = material::ToString(simulated.channels);
-    } else {
-      slc_metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
-                                     "2-5 add up to band 1 before thermal noise)";
-    }
+    const std::vector<geo::ComplexBand> slc_bands = SlcBands(channel_images, simulated.channels, no_return, slc_metadata);
     geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
                              raster.georeference, /*nodata_nan=*/true, options.overviews);
     lap("slc");
     if (!reserved.pauli_png.empty()) {
-      WritePauliQuicklook(reserved.pauli_png, simulated, &pauli_record);
+      const std::vector<const render::SarImage*> images(channel_images.begin(), channel_images.end());
+      WritePauliQuicklook(reserved.pauli_png, simulated.channels, images, &pauli_record);
       lap("pauli");
     }
   }
@@ -1639,8 +1658,8 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     p.observation_direction = sensor::ToString(geometry_options.look_side);
     p.range_spacing_m = geometry.range_spacing_m();
     p.azimuth_spacing_m = geometry.azimuth_spacing_m();
-    p.range_resolution_m = options.range_resolution_m;
-    p.azimuth_resolution_m = options.azimuth_resolution_m;
+    p.range_resolution_m = options.RangeResolutionM();
+    p.azimuth_resolution_m = options.AzimuthResolutionM();
     p.looks_equivalent_number = options.speckle_looks;
     p.incidence_deg = geometry.IncidenceDeg(geometry.u0());
     p.off_nadir_deg = 90.0 - geometry_options.depression_deg;

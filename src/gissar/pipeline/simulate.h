@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <limits>
@@ -144,9 +145,15 @@ struct SimulateRequest {
   // as benchmarks count them.
   bool adaptive_sampling = true;
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
-  // spectral window ("none", "hamming", "taylor").
-  double range_resolution_m = 0.0;
-  double azimuth_resolution_m = 0.0;
+  // spectral window ("none", "hamming", "taylor"). NaN (the default; null in
+  // JSON): not set: none, except on a product that states its processed
+  // bandwidths, whose resolutions then follow them (ProductResolutions,
+  // pipeline/product_simulate.h). RangeResolutionM() / AzimuthResolutionM():
+  // the value with NaN read as none (0).
+  double range_resolution_m = std::numeric_limits<double>::quiet_NaN();
+  double azimuth_resolution_m = std::numeric_limits<double>::quiet_NaN();
+  double RangeResolutionM() const { return std::isnan(range_resolution_m) ? 0.0 : range_resolution_m; }
+  double AzimuthResolutionM() const { return std::isnan(azimuth_resolution_m) ? 0.0 : azimuth_resolution_m; }
   std::string psf_window = "none";
   // Multiplicative L-look gamma speckle (0 = off) and thermal noise floor
   // (NESZ, dB sigma0; NaN = off), both seeded.
@@ -329,6 +336,30 @@ void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& i
 // is inside when the footprint is empty). Also the real and the imaginary
 // part of an empty complex layer (db false).
 std::vector<float> NoReturnPlane(const render::SarImage& image, bool db);
+
+// Whether the request's channels give a Pauli vector (HH, VV and HV or VH):
+// a coherent run then writes PREFIX_pauli.png.
+bool HasPauliChannels(const SimulateRequest& options);
+
+// The complex bands of PREFIX_slc.tif (channels[k] is images[k]): one
+// channel: the complex total, then one band per bounce count; several: each
+// channel's complex total (named by its channel), then each channel's
+// bounce bands (HH_single, ...). A layer the render left empty points to
+// `no_return` (NoReturnPlane of images[0], filled here). Sets
+// GISSAR_BANDS (and GISSAR_POLARIZATIONS for several) in `metadata`.
+std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& images,
+                                       const std::vector<material::Polarization>& channels,
+                                       std::vector<float>& no_return, geo::Metadata& metadata);
+
+// Writes the Pauli RGB (image::PauliRgb: R = |HH - VV|, G = |HV + VH|, B =
+// |HH + VV|, each / sqrt 2, one common dB stretch from the 2nd to the 98th
+// percentile) of the multilooked coherency (at least 2 x 2 looks, more to
+// keep the longer side <= kQuicklookMaxSidePx) of the complex channels
+// `images` (channels[k] is images[k]; HH, VV and HV or VH among them), and
+// records the looks and the stretch. A missing cross-polarised channel is
+// taken from the other (reciprocity).
+void WritePauliQuicklook(const std::filesystem::path& path, const std::vector<material::Polarization>& channels,
+                         const std::vector<const render::SarImage*>& images, nlohmann::json* record);
 
 // The tracer's options of a simulation: rays per cell, bounces, coherence,
 // wavelength, seed, contributions (when options.contributions is set) and

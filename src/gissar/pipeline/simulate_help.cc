@@ -61,8 +61,10 @@ const std::map<std::string, std::string>& SimulateFieldHelp() {
        "Canonical reflectors CSV: type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg"},
       {"contributions",
        "CSV with one row per return: azimuth, range, elevation, intensity, bounces, specular, hit, class"},
-      {"range_resolution_m", "Impulse response: 3 dB slant-range resolution, metres (0 = none)"},
-      {"azimuth_resolution_m", "Impulse response: 3 dB azimuth resolution, metres (0 = none)"},
+      {"range_resolution_m", "Impulse response: 3 dB slant-range resolution, metres (0 = none; not given: none, "
+                             "or with --product the product's processed range bandwidth when it states it)"},
+      {"azimuth_resolution_m", "Impulse response: 3 dB azimuth resolution, metres (0 = none; not given: none, "
+                               "or with --product the product's processed azimuth bandwidth when it states it)"},
       {"psf_window", "Spectral window: none, hamming or taylor"},
       {"speckle_looks", "Multiplicative L-look gamma speckle (0 = off)"},
       {"nesz_db", "Thermal noise floor (NESZ), dB sigma0"},

@@ -45,16 +45,54 @@ double MicroPhase(uint64_t seed, uint64_t index, uint64_t pixel) {
   return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
 }
 
+// The SplitMix64 finaliser.
+uint64_t Mix64(uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// Polarimetric passes: phase `which` (0: phi1, 1: phi2, 2: phi3 of RenderSar's
+// "Polarimetric passes") of the rough-surface return (ray_id, phase_key) in
+// product pixel `pixel`, uniform in [0, 2 pi). Keyed by the return's ray and
+// key, which every pass of the set records alike, so that the passes draw
+// the same phases for the same return and pixel.
+double PolarimetricMicroPhase(uint64_t seed, int which, uint64_t ray_id, uint64_t phase_key, uint64_t pixel) {
+  static constexpr uint64_t kKeys[3] = {0x632be59bd9b4e019ULL, 0x9e6c63d0676a9a99ULL, 0xd6e8feb86659fd93ULL};
+  uint64_t z = Mix64((seed ^ (kKeys[which] * (pixel + 1))) + 0x9e3779b97f4a7c15ULL * (ray_id + 1));
+  z = Mix64(z + 0x9e3779b97f4a7c15ULL * (phase_key + 1));
+  return 2.0 * M_PI * (double(z >> 11) * 0x1.0p-53);
+}
+
+// The unit micro-phasor of a polarimetric pass's rough-surface return in
+// product pixel `pixel` (RenderSar, "Polarimetric passes"): HH exp(j phi1),
+// VV conj(rho) exp(j phi1) + sqrt(1 - |rho|^2) exp(j phi2), HV and VH
+// exp(j phi3); rho = the contribution's recorded HH-VV correlation.
+std::complex<double> PolarimetricMicroPhasor(const Contribution& c, material::Polarization pol, uint64_t seed,
+                                             uint64_t pixel) {
+  auto e = [&](int which) { return std::polar(1.0, PolarimetricMicroPhase(seed, which, c.ray_id, c.phase_key, pixel)); };
+  switch (pol) {
+    case material::Polarization::kHH: return e(0);
+    case material::Polarization::kVV: {
+      const std::complex<double> rho(c.channel_amplitude);
+      return std::conj(rho) * e(0) + std::sqrt(std::max(0.0, 1.0 - std::norm(rho))) * e(1);
+    }
+    default: return e(2);
+  }
+}
+
 // Adds the phasor `value` at fractional pixel (col, row) to the complex
 // total (image.real/imag) and to bounce layer `layer`'s complex planes,
 // split over the four
 // neighbouring pixel centres with the square roots of the bilinear weights
 // (the power splits as the bilinear weights). With `random`, every pixel's
-// share turns by its own MicroPhase(seed, index, pixel): independent parts,
-// so the expected power of every pixel is its bilinear share, also after
-// any linear filter (the complex impulse response).
+// share is multiplied by its own unit micro-phasor micro(pixel) (single
+// channel: exp(j MicroPhase(seed, index, pixel))): independent parts, so the
+// expected power of every pixel is its bilinear share, also after any
+// linear filter (the complex impulse response).
+template <class MicroPhasor>
 void SplatPhasor(SarImage& image, int layer, double col, double row, std::complex<double> value, bool random,
-                 uint64_t seed, uint64_t index) {
+                 const MicroPhasor& micro) {
   const int width = image.width, height = image.height;
   const double c0f = std::floor(col), r0f = std::floor(row);
   const int c0 = static_cast<int>(c0f), r0 = static_cast<int>(r0f);
@@ -68,7 +106,7 @@ void SplatPhasor(SarImage& image, int layer, double col, double row, std::comple
       if (c < 0 || c >= width || w[dr][dc] <= 0.0) continue;
       const size_t k = size_t(r) * width + c;
       std::complex<double> z = value * std::sqrt(w[dr][dc]);
-      if (random) z *= std::polar(1.0, MicroPhase(seed, index, k));
+      if (random) z *= micro(uint64_t(k));
       const float re = static_cast<float>(z.real()), im = static_cast<float>(z.imag());
       image.real[k] += re;
       image.imag[k] += im;
@@ -231,10 +269,25 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
       // bounce stands for its path and the reversed one in phase
       // (RenderSar): twice the amplitude of the one path, whose power is
       // half of c.intensity.
+      //
+      // Polarimetric passes: the channel of the return's scattering matrix
+      // as RenderSar forms it: a first bounce's micro-phasor drawn jointly
+      // across the passes (PolarimetricMicroPhasor), a later bounce's
+      // recorded sqrt(P) (S_c + S^T_c).
       const std::complex<double> phasor = material::PathPhase(2.0 * at.range_m, options.wavelength_m);
-      const double amplitude =
-          c.bounces == 1 ? std::sqrt(double(c.intensity)) : 2.0 * std::sqrt(0.5 * double(c.intensity));
-      SplatPhasor(image, layer, at.col, at.row, amplitude * phasor, c.bounces == 1, options.seed, k);
+      if (options.polarimetric) {
+        const std::complex<double> value =
+            c.bounces == 1 ? std::sqrt(double(c.intensity)) * phasor
+                           : std::complex<double>(c.channel_amplitude) * phasor;
+        SplatPhasor(image, layer, at.col, at.row, value, c.bounces == 1, [&](uint64_t pixel) {
+          return PolarimetricMicroPhasor(c, options.polarization, options.seed, pixel);
+        });
+      } else {
+        const double amplitude =
+            c.bounces == 1 ? std::sqrt(double(c.intensity)) : 2.0 * std::sqrt(0.5 * double(c.intensity));
+        SplatPhasor(image, layer, at.col, at.row, amplitude * phasor, c.bounces == 1,
+                    [&](uint64_t pixel) { return std::polar(1.0, MicroPhase(options.seed, k, pixel)); });
+      }
     }
     ++out.contributions;
   }

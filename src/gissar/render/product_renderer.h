@@ -71,6 +71,16 @@ sensor::HeightFunction SceneHeightFunction(const EmbreeScene& embree, const scen
 // bounce carries only its path phase, with twice the amplitude of one path
 // (the path and its reverse add in phase, as in RenderSar). image.intensity
 // is the detected complex total; bounce_layers stay the incoherent sums.
+// Polarimetric passes (options.polarimetric, one channel per call, one seed
+// for the set): the channel of each return's scattering matrix with
+// RenderSar's joint statistics (Contribution::channel_amplitude): a first
+// bounce's micro-phasor mixes three phases drawn from (seed, the return's
+// ray and key, pixel), the same in every pass (HH exp(j phi1), VV
+// conj(rho) exp(j phi1) + sqrt(1 - |rho|^2) exp(j phi2), HV exp(j phi3));
+// a later bounce is sqrt(P) (S_c + S^T_c) with its path phase. So the passes'
+// HH-VV correlation is the class's rho and a dihedral's HH and VV are
+// opposite. (The phases differ from a single-channel pass's, which are
+// keyed by the return's index: same statistics, other draws.)
 ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                            const material::MaterialTable& materials, const geo::LocalFrame& frame,
                            const sensor::Orbit& orbit, const sensor::RadarGrid& grid,

@@ -509,8 +509,10 @@ material::ScatteringMatrix ClosedChainMatrix(const ChainField& field, const Vect
 
 // The polarimetric terms of one return (RenderSar, "Polarimetric passes").
 struct PolarimetricTerms {
-  // First bounce, coherent: the micro-phasor of the channel.
+  // First bounce, coherent: the micro-phasor of the channel, and the
+  // class's HH-VV correlation it was mixed with (recorded contributions).
   MicroPhasorMix mix;
+  std::complex<double> rho{0.0, 0.0};
   // Later bounces: |S_c|^2 + |S^T_c|^2 (the path and its reversed path;
   // replaces the single-channel reciprocal factor 2) and S_c + S^T_c (their
   // coherent sum; replaces the amplitude factor 2).
@@ -881,16 +883,19 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
     return double(sigma0_tables[id < sigma0_tables.size() ? id : 0].Fast(static_cast<float>(cos_in)));
   };
   // Polarimetric passes (see the header): the HH-VV correlation tables are
-  // needed only by a coherent VV pass's micro-phasors.
+  // needed only by a VV pass's micro-phasors (coherent, or recorded for a
+  // coherent re-projection).
   const bool polarimetric = options.polarimetric;
-  const bool uses_rho = polarimetric && options.coherent && options.polarization == material::Polarization::kVV;
+  const bool uses_rho = polarimetric && (options.coherent || options.record_contributions) &&
+                        options.polarization == material::Polarization::kVV;
   const HhVvCorrelationTables rho_tables =
       uses_rho ? HhVvCorrelationTables(materials, options.wavelength_m) : HhVvCorrelationTables();
   // The terms of a first-bounce return of class `id` at cos(shading
   // incidence) `cos_shade`.
   auto first_bounce_terms = [&](scene::ClassId id, double cos_shade) {
     PolarimetricTerms terms;
-    terms.mix = MixOfChannel(options.polarization, uses_rho ? rho_tables(id, cos_shade) : std::complex<double>());
+    terms.rho = uses_rho ? rho_tables(id, cos_shade) : std::complex<double>();
+    terms.mix = MixOfChannel(options.polarization, terms.rho);
     return terms;
   };
 
@@ -1171,6 +1176,13 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               c.specular = specular;
               c.hit_enu = p.cast<float>();
               c.class_id = hit_class;
+              if (pol != nullptr) {  // what a coherent re-projection needs (Contribution)
+                const std::complex<double> a =
+                    bounce > 1 ? std::sqrt(path_power) * pol->mirror_amplitude : pol->rho;
+                c.channel_amplitude = std::complex<float>(a);
+                c.ray_id = ray_id;
+                c.phase_key = static_cast<uint16_t>(phase_key);
+              }
               block_contributions[b].push_back(c);
             }
           };

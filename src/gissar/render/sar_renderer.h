@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <complex>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -132,6 +133,21 @@ struct Contribution {
   bool specular = false;     // the specular term dominated this return
   Eigen::Vector3f hit_enu = Eigen::Vector3f::Zero();  // last hit position
   uint8_t class_id = 0;      // class of the last hit
+  // Polarimetric passes only (RenderOptions::polarimetric; zero otherwise):
+  // what a coherent re-projection (RenderProduct) needs to form the pass's
+  // channel with the joint statistics of RenderSar's own phasors.
+  //  - A later bounce: channel_amplitude = sqrt(P) (S_c + S^T_c), the path
+  //    and its reversed path (RenderSar, "Polarimetric passes"), without the
+  //    path phase: |channel_amplitude|^2 is the coherent power of the two
+  //    paths (intensity = P (|S_c|^2 + |S^T_c|^2) their incoherent power).
+  //  - A first bounce: channel_amplitude = rho_hh_vv, the class's HH-VV
+  //    correlation at the hit (material::PolarimetricLaw; 0 unless the
+  //    pass is VV), and (ray_id, phase_key) the keys of its seeded micro-
+  //    phases, the same in every pass of the set (the return's index in
+  //    `contributions` is not: a channel whose sigma0 is 0 records none).
+  std::complex<float> channel_amplitude{0.0f, 0.0f};
+  uint64_t ray_id = 0;
+  uint16_t phase_key = 0;
 };
 
 // Bands of the output: total, then per bounce count.
