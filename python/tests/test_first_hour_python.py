@@ -49,8 +49,8 @@ def test_every_request_door_suggests():
         gissar.sequence("/nonexistent/q", 0, 60, frames=3, dem=DEM, depression_deg=40, range_spacing_mm=250)
     with pytest.raises(gissar.ConfigError, match=r"unknown key 'prodcut'; did you mean product\?"):
         gissar.locate_product(prodcut="x.h5")
-    with pytest.raises(gissar.ConfigError, match=r"unknown key 'sead'; did you mean seed\?"):
-        gissar.evaluate_trials(sead=3)
+    with pytest.raises(gissar.ConfigError, match=r"unknown key 'seeed'; did you mean seed\?"):
+        gissar.evaluate_trials(seeed=3)
     # gissar.locate's keywords (a ConfigError, not pybind11's TypeError listing the signature).
     with pytest.raises(gissar.ConfigError, match=r"unknown key 'search'; did you mean search_px\? \(gissar.locate\)"):
         gissar.locate("/nonexistent.gscene", np.zeros((8, 8)), {}, 30, 30, search=20)

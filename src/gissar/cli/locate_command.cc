@@ -8,6 +8,26 @@
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
+namespace {
+
+// The flags `locate` and `evaluate` share for a product's terrain and
+// multilook (LocateRequest and EvaluateRequest spell these fields alike).
+template <class Request>
+void AddProductTerrainFlags(CLI::App* cmd, Request& o) {
+  cmd->add_option("--looks-range", o.looks_range, "With --product: range looks of the multilook")->capture_default_str();
+  cmd->add_option("--looks-azimuth", o.looks_azimuth, "With --product: azimuth looks of the multilook")
+      ->capture_default_str();
+  cmd->add_option("--dem-oversample", o.dem_oversample, "Refine the DEM N x by cubic interpolation")->capture_default_str();
+  cmd->add_option("--reflectors", o.reflectors,
+                  "With --product: point landmarks, a reflectors CSV (type,lon,lat,apex_height_m,size_m,"
+                  "boresight_azimuth_deg,boresight_elevation_deg): rendered in the references; one in the image "
+                  "fixes along and cross track where the terrain is flat (up and heading from the prior)");
+  cmd->add_option("--sea", o.sea, "auto or off: the terrain's sea (auto: DEM cells at or below sea level "
+                                  "connected to its border)")->capture_default_str();
+}
+
+}  // namespace
+
 void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
   {
     auto o = std::make_shared<LocateRequest>();
@@ -32,9 +52,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
                     "With --product: INS one-sigma vertical error, m")->capture_default_str();
     cmd->add_option("--prior-sigma-heading", o->prior_sigma_heading_deg,
                     "With --product: INS one-sigma track-angle error, deg")->capture_default_str();
-    cmd->add_option("--looks-range", o->looks_range, "With --product: range looks of the multilook")->capture_default_str();
-    cmd->add_option("--looks-azimuth", o->looks_azimuth, "With --product: azimuth looks of the multilook")->capture_default_str();
-    cmd->add_option("--dem-oversample", o->dem_oversample, "Refine the DEM N x by cubic interpolation")->capture_default_str();
+    AddProductTerrainFlags(cmd, *o);
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
     cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
@@ -83,9 +101,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
                     "A real RSLC product (HDF5): trials displace its annotated track (docs/navigation.md)");
     cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
     cmd->add_option("--polarization", o->polarization, "Product layer (HH, HV, VH, VV)")->capture_default_str();
-    cmd->add_option("--looks-range", o->looks_range, "With --product: range looks of the multilook")->capture_default_str();
-    cmd->add_option("--looks-azimuth", o->looks_azimuth, "With --product: azimuth looks of the multilook")->capture_default_str();
-    cmd->add_option("--dem-oversample", o->dem_oversample, "Refine the DEM N x by cubic interpolation")->capture_default_str();
+    AddProductTerrainFlags(cmd, *o);
     cmd->add_option("--trials", o->trials, "Trials")->capture_default_str();
     cmd->add_option("--seed", o->seed, "Seed")->capture_default_str();
     cmd->add_option("--trial-first", o->trial_first,

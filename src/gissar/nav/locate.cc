@@ -291,7 +291,7 @@ void LocateOptions::Check() const {
   if (!(reference_floor > 0.0) || !std::isfinite(reference_floor)) throw ConfigError("must be > 0", "reference_floor");
 }
 
-sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model) {
+sensor::SarGeometryOptions AffineGeometryOptions(const NavPose& pose, const SensorModel& model) {
   sensor::SarGeometryOptions o;
   o.heading_deg = pose.heading_deg;
   o.depression_deg = pose.depression_deg;
@@ -302,8 +302,12 @@ sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model) {
   o.mode = sensor::ProjectionMode::kAffine;
   o.width = model.width;
   o.height = model.height;
-  return sensor::SarGeometry(o, pose.centre_enu, (model.width - 1) / 2.0, (model.height - 1) / 2.0,
-                             model.width, model.height);
+  return o;
+}
+
+sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model) {
+  return sensor::SarGeometry(AffineGeometryOptions(pose, model), pose.centre_enu, (model.width - 1) / 2.0,
+                             (model.height - 1) / 2.0, model.width, model.height);
 }
 
 std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& embree,

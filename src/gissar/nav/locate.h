@@ -78,8 +78,15 @@ struct NavScene {
   const material::MaterialTable* materials = nullptr;
   double rays_per_cell = 4.0;
   int bounces = 1;
+  // Point landmarks (reflectors placed on the terrain, ENU): rendered in the
+  // references of a product fix, where they drive the fix
+  // (nav/product_locate.h); the affine fix (Locate) does not use them.
+  const std::vector<render::SceneReflector>* landmarks = nullptr;
 };
 
+// The affine geometry options of `pose` seen by `model` (heading,
+// depression, slant range, look side, spacings, size; kAffine).
+sensor::SarGeometryOptions AffineGeometryOptions(const NavPose& pose, const SensorModel& model);
 // The affine geometry of `pose` with Xc at the image centre.
 sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model);
 

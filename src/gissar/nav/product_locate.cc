@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gissar/image/quicklook.h"
+#include "gissar/image/radiometry.h"
 #include "gissar/render/product_renderer.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
@@ -71,7 +72,10 @@ class TrackResection {
     return r;
   }
 
-  std::optional<Resection> Solve(const Eigen::Vector4d& start) const {
+  // `estimated`: the components solved for; the others stay at `start`
+  // (held at the prior) and enter the covariance with the prior's sigma.
+  std::optional<Resection> Solve(const Eigen::Vector4d& start,
+                                 const std::array<bool, 4>& estimated = {true, true, true, true}) const {
     Resection out;
     out.theta = start;
     for (int i = 0; i < static_cast<int>(points_.size()); ++i) out.used.push_back(i);
@@ -97,7 +101,15 @@ class TrackResection {
           normal(k, k) += 1.0 / (sigma[k] * sigma[k]);
           rhs[k] -= out.theta[k] / (sigma[k] * sigma[k]);
         }
-        const Eigen::Vector4d delta = normal.ldlt().solve(rhs);
+        Eigen::Matrix4d solve = normal;
+        for (int k = 0; k < 4; ++k) {
+          if (estimated[k]) continue;
+          solve.row(k).setZero();
+          solve.col(k).setZero();
+          solve(k, k) = 1.0;
+          rhs[k] = 0.0;
+        }
+        const Eigen::Vector4d delta = solve.ldlt().solve(rhs);
         out.theta += delta;
         if (std::abs(delta[0]) + std::abs(delta[1]) + std::abs(delta[2]) < 1e-3 && std::abs(delta[3]) < 1e-6) break;
       }
@@ -123,7 +135,31 @@ class TrackResection {
     for (int k = 0; k < 4; ++k) data(k, k) -= 1.0 / sigma2[k];
     Eigen::Matrix4d scaled = data / scale;
     for (int k = 0; k < 4; ++k) scaled(k, k) += 1.0 / sigma2[k];
-    out.covariance = scaled.inverse();
+    std::vector<int> e, h;
+    for (int k = 0; k < 4; ++k) (estimated[k] ? e : h).push_back(k);
+    if (h.empty()) {
+      out.covariance = scaled.inverse();
+      return out;
+    }
+    // Held components: the estimate of the others is conditional on their
+    // prior values, x_e = f(x_h); its error takes theirs through
+    // B = -N_ee^-1 D_eh: C_ee = N_ee^-1 + B S_h B^T, C_eh = B S_h, C_hh = S_h.
+    const int ne = static_cast<int>(e.size()), nh = static_cast<int>(h.size());
+    Eigen::MatrixXd n_ee(ne, ne), d_eh(ne, nh), s_h = Eigen::MatrixXd::Zero(nh, nh);
+    for (int i = 0; i < ne; ++i) {
+      for (int j = 0; j < ne; ++j) n_ee(i, j) = scaled(e[i], e[j]);
+      for (int j = 0; j < nh; ++j) d_eh(i, j) = data(e[i], h[j]);
+    }
+    for (int j = 0; j < nh; ++j) s_h(j, j) = sigma2[h[j]];
+    const Eigen::MatrixXd n_inv = ne > 0 ? Eigen::MatrixXd(n_ee.inverse()) : Eigen::MatrixXd(0, 0);
+    const Eigen::MatrixXd b = -n_inv * d_eh;
+    const Eigen::MatrixXd c_ee = n_inv + b * s_h * b.transpose(), c_eh = b * s_h;
+    out.covariance.setZero();
+    for (int i = 0; i < ne; ++i) {
+      for (int j = 0; j < ne; ++j) out.covariance(e[i], e[j]) = c_ee(i, j);
+      for (int j = 0; j < nh; ++j) out.covariance(e[i], h[j]) = out.covariance(h[j], e[i]) = c_eh(i, j);
+    }
+    for (int j = 0; j < nh; ++j) out.covariance(h[j], h[j]) = s_h(j, j);
     return out;
   }
 
@@ -273,6 +309,10 @@ void ProductLocateOptions::Check() const {
   need(min_peak_margin >= 0.0, "min_peak_margin");
   need(min_peak_ncc >= 0.0 && min_peak_ncc < 1.0, "min_peak_ncc");
   need(reference_floor > 0.0, "reference_floor");
+  need(min_reference_contrast_db >= 0.0, "min_reference_contrast_db");
+  need(min_landmark_contrast_db >= 0.0, "min_landmark_contrast_db");
+  need(min_landmark_margin_db >= 0.0, "min_landmark_margin_db");
+  need(landmark_sigma_px > 0.0, "landmark_sigma_px");
 }
 
 TrackFrame TrackFrameAt(const sensor::Orbit& orbit, double time_s) {
@@ -366,6 +406,18 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
   ro.rays_per_cell = scene.rays_per_cell;
   ro.max_bounces = scene.bounces;
   ro.wavelength_m = grid.wavelength_m;
+  if (scene.landmarks != nullptr) ro.reflectors = *scene.landmarks;
+  // A reference: the terrain's returns plus the landmarks' point returns
+  // (an impulse response of one pixel of the reference's grid).
+  auto render_reference = [&](const sensor::Orbit& orbit, const sensor::RadarGrid& g) {
+    render::ProductImage img = render::RenderProduct(*scene.embree, *scene.mesh, *scene.materials, frame, orbit, g, ro);
+    if (!img.image.points.empty()) {
+      image::SensorEffects psf;
+      psf.range_resolution_px = psf.azimuth_resolution_px = 1.0;
+      image::AddPointIntensities(img.image, psf);
+    }
+    return img;
+  };
 
   Eigen::Vector4d theta = Eigen::Vector4d::Zero();
   double last_update_px = std::numeric_limits<double>::infinity();
@@ -373,6 +425,164 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
     result.converged = false;
     result.failure_reason = why;
   };
+  auto finish = [&]() {
+    result.correction = TrackOffset::FromVector(theta);
+    result.track = DisplaceTrack(prior_track, track_frame, result.correction);
+    result.sensor_ecef = result.track.ToOrbit().Interpolate(result.fix_time_s).position_m;
+    result.seconds = clock.ElapsedSeconds();
+    return result;
+  };
+
+  // Landmark mode (see the header): the landmarks whose search window at
+  // the prior meets the observed image.
+  if (scene.landmarks != nullptr && !scene.landmarks->empty()) {
+    const double az_full_m = azimuth_m / la;
+    const int half_rows = static_cast<int>(std::ceil(k * std::hypot(sigma[0], centre_range_m * sigma[3] * kDeg) / az_full_m)) + 2;
+    const int half_cols = static_cast<int>(std::ceil(k * std::hypot(sigma[1], sigma[2]) / full.dr_m)) + 2;
+    std::vector<ControlPoint> points;
+    std::vector<int> owners;  // index in result.landmarks of each control point
+    bool any_in_image = false;
+    for (const render::SceneReflector& landmark : *scene.landmarks) {
+      LandmarkRecord rec;
+      rec.row = landmark.row;
+      const Eigen::Vector3d llh = frame.GeodeticFromEnu(landmark.apex_enu);
+      const Eigen::Vector3d ecef = geo::LocalFrame::EcefFromGeodetic(llh[0], llh[1], llh[2]);
+      const auto rc = sensor::Geo2Rdr(prior_orbit, ecef, result.fix_time_s);
+      if (!rc) {
+        rec.note = "no zero-Doppler time on the prior track";
+        result.landmarks.push_back(rec);
+        continue;
+      }
+      const double pr = (rc->time_s - full.t0_s) / full.dt_s, pc = (rc->range_m - full.r0_m) / full.dr_m;
+      rec.predicted_px = {pc, pr};
+      const int r0 = std::max(0, static_cast<int>(std::floor(pr)) - half_rows);
+      const int r1 = std::min(full.rows - 1, static_cast<int>(std::ceil(pr)) + half_rows);
+      const int c0 = std::max(0, static_cast<int>(std::floor(pc)) - half_cols);
+      const int c1 = std::min(full.cols - 1, static_cast<int>(std::ceil(pc)) + half_cols);
+      if (r1 - r0 < 2 || c1 - c0 < 2) {
+        rec.note = "outside the image at the prior track";
+        result.landmarks.push_back(rec);
+        continue;
+      }
+      rec.in_image = any_in_image = true;
+      auto value = [&](int y, int x) {
+        const float v = observed.intensity[size_t(y) * full.cols + x];
+        return std::isfinite(v) && v > 0.0f ? double(v) : 0.0;
+      };
+      int bx = c0, by = r0;
+      std::vector<double> window;
+      for (int y = r0; y <= r1; ++y)
+        for (int x = c0; x <= c1; ++x) {
+          window.push_back(value(y, x));
+          if (value(y, x) > value(by, bx)) bx = x, by = y;
+        }
+      const double best = value(by, bx);
+      std::nth_element(window.begin(), window.begin() + window.size() / 2, window.end());
+      const double median = window[window.size() / 2];
+      double second = 0.0;
+      for (int y = r0; y <= r1; ++y)
+        for (int x = c0; x <= c1; ++x) {
+          if (std::abs(x - bx) > kPeakExclusionPx || std::abs(y - by) > kPeakExclusionPx) second = std::max(second, value(y, x));
+        }
+      rec.contrast_db = best > 0.0 && median > 0.0 ? 10.0 * std::log10(best / median) : 0.0;
+      rec.margin_db = best > 0.0 && second > 0.0 ? 10.0 * std::log10(best / second)
+                                                 : std::numeric_limits<double>::infinity();
+      char note[200] = "";
+      if (!(best > 0.0)) {
+        std::snprintf(note, sizeof note, "no signal in its search window");
+      } else if (bx == c0 || bx == c1 || by == r0 || by == r1) {
+        std::snprintf(note, sizeof note, "its brightest pixel is on the border of its search window or the image");
+      } else if (rec.contrast_db < options.min_landmark_contrast_db) {
+        std::snprintf(note, sizeof note, "no distinct peak (%.1f dB over the window's median < %.1f dB)",
+                      rec.contrast_db, options.min_landmark_contrast_db);
+      } else if (rec.margin_db < options.min_landmark_margin_db) {
+        std::snprintf(note, sizeof note, "ambiguous peak (%.1f dB over the next brightest pixel > 3 px away < %.1f dB)",
+                      rec.margin_db, options.min_landmark_margin_db);
+      }
+      if (note[0] != '\0') {
+        rec.note = note;
+        result.landmarks.push_back(rec);
+        continue;
+      }
+      // Sub-pixel peak: a parabola through the dB values of the neighbours.
+      auto db = [&](int y, int x) { return 10.0 * std::log10(std::max(value(y, x), best * 1e-6)); };
+      const double dx = ParabolicOffset(db(by, bx - 1), db(by, bx), db(by, bx + 1));
+      const double dy = ParabolicOffset(db(by - 1, bx), db(by, bx), db(by + 1, bx));
+      rec.peak_px = {bx + dx, by + dy};
+      rec.used = true;
+      ControlPoint cp;
+      cp.ground_ecef = ecef;
+      cp.time_s = full.TimeOfRow(by + dy);
+      cp.range_m = full.RangeOfCol(bx + dx);
+      points.push_back(cp);
+      owners.push_back(static_cast<int>(result.landmarks.size()));
+      result.landmarks.push_back(rec);
+    }
+    if (any_in_image) {
+      result.source = "landmarks";
+      result.from_image = {true, true, false, false};
+      result.iterations = 1;
+      if (points.empty()) {
+        std::string why = "no landmark in the image has a usable peak:";
+        for (const LandmarkRecord& rec : result.landmarks) {
+          if (rec.in_image) why += " row " + std::to_string(rec.row) + ": " + rec.note + ";";
+        }
+        why.pop_back();
+        fail(why);
+        return finish();
+      }
+      const TrackResection resection(prior_track, track_frame, full, points, options, options.landmark_sigma_px);
+      const auto solved = resection.Solve(theta, result.from_image);
+      if (!solved) {
+        fail("geo2rdr failed for a landmark (it lies outside the orbit's span)");
+        return finish();
+      }
+      theta = solved->theta;
+      result.covariance = solved->covariance;
+      result.control_points = static_cast<int>(solved->used.size());
+      std::vector<int> all(points.size());
+      for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+      const auto residuals = resection.Residuals(theta, all);
+      double sum = 0.0;
+      for (size_t i = 0; residuals && i < points.size(); ++i) {
+        // Residuals are predicted minus observed (time, range) pixels.
+        result.landmarks[owners[i]].residual_px = {-(*residuals)[2 * i + 1], -(*residuals)[2 * i]};
+        sum += (*residuals)[2 * i] * (*residuals)[2 * i] + (*residuals)[2 * i + 1] * (*residuals)[2 * i + 1];
+      }
+      result.rms_px = residuals ? std::sqrt(sum / points.size()) : std::numeric_limits<double>::infinity();
+      // The references at the prior and at the fix (landmarks rendered):
+      // whole-image NCC at zero shift, for the record.
+      auto zero_shift_ncc = [&](const Eigen::Vector4d& at, double* contrast) {
+        const sensor::Orbit orbit = DisplaceTrack(prior_track, track_frame, TrackOffset::FromVector(at)).ToOrbit();
+        const render::ProductImage ref = render_reference(orbit, grid);
+        ++result.renders;
+        const cv::Mat ref_log = LogIntensity(ref.image.intensity, width, height, options.filter_px, options.reference_floor);
+        if (contrast != nullptr) {
+          cv::Scalar mean, sd;
+          cv::meanStdDev(ref_log, mean, sd);
+          *contrast = sd[0];
+        }
+        cv::Mat ncc;
+        cv::matchTemplate(ref_log, observed_log, ncc, cv::TM_CCOEFF_NORMED);
+        return double(ncc.at<float>(0, 0));
+      };
+      try {
+        result.prior_similarity = zero_shift_ncc(Eigen::Vector4d::Zero(), &result.reference_contrast_db);
+        result.similarity = zero_shift_ncc(theta, nullptr);
+      } catch (const InputError&) {
+        // No reference (the DEM does not reach the grid): the landmarks still fix the track.
+      }
+      result.peak_ncc = result.peak_margin = std::numeric_limits<double>::quiet_NaN();
+      if (!(result.rms_px <= options.max_rms_px)) {
+        fail("the landmarks disagree (resection RMS " + std::to_string(result.rms_px) + " px > " +
+             std::to_string(options.max_rms_px) + ")");
+      } else {
+        result.converged = true;
+      }
+      return finish();
+    }
+  }
+
   for (int it = 0; it < options.max_iterations; ++it) {
     const TrackVectors track = DisplaceTrack(prior_track, track_frame, TrackOffset::FromVector(theta));
     const sensor::Orbit orbit = track.ToOrbit();
@@ -389,7 +599,7 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
     }
     std::optional<render::ProductImage> ref;
     try {
-      ref = render::RenderProduct(*scene.embree, *scene.mesh, *scene.materials, frame, orbit, ref_grid, ro);
+      ref = render_reference(orbit, ref_grid);
     } catch (const InputError& e) {
       fail(std::string("no reference at this track: ") + e.what());
       break;
@@ -398,6 +608,20 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
     result.iterations = it + 1;
     const int rw = ref_grid.cols, rh = ref_grid.rows;
     const cv::Mat ref_log = LogIntensity(ref->image.intensity, rw, rh, options.filter_px, options.reference_floor);
+    if (it == 0) {
+      cv::Scalar mean, sd;
+      cv::meanStdDev(ref_log, mean, sd);
+      result.reference_contrast_db = sd[0];
+      if (sd[0] < options.min_reference_contrast_db) {
+        char why[300];
+        std::snprintf(why, sizeof why,
+                      "the reference has no structure to match (its log intensity varies by %.2f dB < %.2f dB: "
+                      "flat terrain and no landmark in the image; give point landmarks, --reflectors)",
+                      sd[0], options.min_reference_contrast_db);
+        fail(why);
+        break;
+      }
+    }
     // Whole-image shift: the observed image slid over the padded reference;
     // ncc(v, u) scores the observed pixel (x, y) on reference pixel (x + u, y + v).
     cv::Mat ncc;
@@ -483,9 +707,6 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
     theta = solved->theta;
     if (last_update_px < 0.1 && it > 0) break;
   }
-  result.correction = TrackOffset::FromVector(theta);
-  result.track = DisplaceTrack(prior_track, track_frame, result.correction);
-  result.sensor_ecef = result.track.ToOrbit().Interpolate(result.fix_time_s).position_m;
   if (result.failure_reason.empty()) {
     if (result.rms_px > options.max_rms_px) {
       fail("the image shift is not a track offset (resection RMS " + std::to_string(result.rms_px) + " px > " +
@@ -499,8 +720,7 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
       result.converged = true;
     }
   }
-  result.seconds = clock.ElapsedSeconds();
-  return result;
+  return finish();
 }
 
 }  // namespace gissar::nav

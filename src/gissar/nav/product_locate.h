@@ -23,11 +23,26 @@
 // estimate), so unobserved directions stay at the prior and the covariance
 // says so.
 //
+// Point landmarks (NavScene::landmarks: corner reflectors and any reflectors
+// CSV row, placed on the terrain) are rendered in every reference. Where one
+// falls in the observed image they drive the fix (LocateProduct, "landmark
+// mode"): the brightest pixel of the observed image in the prior's search
+// window around the landmark's predicted pixel (geo2rdr on the current
+// track), with a sub-pixel (parabolic, dB) peak, is the landmark's observed
+// zero-Doppler time and slant range; the along- and cross-track offsets are
+// resected from those (MAP), while up and heading, which a point (or a few
+// points) on flat ground cannot separate from them, are held at the prior
+// (their covariance is the prior's; the cross-track estimate carries the
+// prior's vertical error through the line of sight). docs/navigation.md
+// ("Landmarks where the terrain is flat").
+//
 // Failures: bad options throw ConfigError; an observed image of the wrong
 // size throws InputError; a fix without enough consistent matches returns
 // `converged == false` with a reason (never throws for image content).
 #pragma once
 
+#include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -36,6 +51,7 @@
 
 #include "gissar/geo/local_frame.h"
 #include "gissar/nav/locate.h"
+#include "gissar/render/sar_renderer.h"
 #include "gissar/sensor/range_doppler.h"
 
 namespace gissar::nav {
@@ -122,8 +138,37 @@ struct ProductLocateOptions {
   // this much (an ambiguous peak: no fix).
   double min_peak_margin = 0.02;
   double reference_floor = 1e-4;  // as LocateOptions::reference_floor (linear intensity)
+  // A reference whose log intensity (after the box filter) varies less than
+  // this (standard deviation, dB) has nothing to match (flat terrain and no
+  // landmark in the image): no fix, whatever the correlation says.
+  double min_reference_contrast_db = 0.5;
+  // Landmark mode: a landmark's observed peak must exceed the median of its
+  // search window by min_landmark_contrast_db and the brightest pixel more
+  // than 3 px from it by min_landmark_margin_db; its one-sigma localisation
+  // error (full-resolution pixels) weighs it in the resection.
+  double min_landmark_contrast_db = 10.0;
+  double min_landmark_margin_db = 3.0;
+  double landmark_sigma_px = 0.3;
   void Check() const;  // ConfigError naming the field
 };
+
+// One landmark of a fix (ProductLocateResult::landmarks).
+struct LandmarkRecord {
+  int row = 0;             // the reflectors CSV row (render::SceneReflector::row)
+  bool in_image = false;   // its search window at the prior track meets the observed image
+  bool used = false;       // carried into the resection
+  // Full-resolution (range, azimuth) pixels: predicted at the prior track,
+  // the observed peak, and observed minus predicted at the fix (NaN: none).
+  Eigen::Vector2d predicted_px = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector2d peak_px = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector2d residual_px = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double contrast_db = std::numeric_limits<double>::quiet_NaN();  // peak over the window's median
+  double margin_db = std::numeric_limits<double>::quiet_NaN();    // peak over the best pixel > 3 px away
+  std::string note;        // why it was not used (empty when used)
+};
+
+// Names of the four components of a TrackOffset, in order.
+inline constexpr const char* kTrackComponents[4] = {"along", "cross", "up", "heading"};
 
 struct ProductLocateResult {
   bool converged = false;
@@ -146,6 +191,16 @@ struct ProductLocateResult {
   Eigen::Vector2d ncc_shift_px = Eigen::Vector2d::Zero();
   double cell_m = 0.0;        // larger pixel spacing of the multilooked image (m)
   double seconds = 0.0;
+  // What drove the fix: "relief" (the whole-image shift) or "landmarks".
+  std::string source = "relief";
+  // Which components of `correction` the image constrained (true) and which
+  // were held at the prior (false: its covariance row is the prior's). The
+  // relief fix estimates all four (MAP, regularised by the prior); the
+  // landmark fix along and cross only.
+  std::array<bool, 4> from_image = {true, true, true, true};
+  std::vector<LandmarkRecord> landmarks;  // every landmark of the scene
+  // Standard deviation of the first reference's log intensity (dB).
+  double reference_contrast_db = std::numeric_limits<double>::quiet_NaN();
 };
 
 // `scene` and `frame`: the terrain (ENU of `frame`). Throws InputError when

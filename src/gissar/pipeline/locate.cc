@@ -98,13 +98,25 @@ scene::TriangleMesh SmoothedTerrain(const scene::TriangleMesh& mesh, double lamb
   return out;
 }
 
-SimulateRequest TerrainOptions(const std::string& scene, const std::string& dem, const std::string& vertical_datum) {
+SimulateRequest TerrainOptions(const std::string& scene, const std::string& dem, const std::string& vertical_datum,
+                               const std::string& sea) {
   SimulateRequest so;
   so.scene = scene;
   so.dem = dem;
   so.vertical_datum = vertical_datum;
+  so.sea = sea;
   so.fill_nodata = true;
   return so;
+}
+
+// --sea auto/off; --reflectors with a product (or an orbit) only.
+void CheckSeaAndReflectors(const std::string& sea, const std::string& reflectors, bool track) {
+  if (sea != "auto" && sea != "off") throw ConfigError("must be auto or off", "--sea");
+  if (!reflectors.empty() && !track) {
+    throw ConfigError("point landmarks drive fixes of a --product (or --orbit) only; an --image with a --prior "
+                      "does not take them",
+                      "--reflectors");
+  }
 }
 
 void CheckSceneOrDem(const std::string& scene, const std::string& dem, const std::string& vertical_datum) {
@@ -298,6 +310,7 @@ DatabaseFix FixFromDatabase(const ReferenceDatabase& db, const std::vector<senso
 
 void LocateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
+  CheckSeaAndReflectors(sea, reflectors, UsesTrack());
   CheckDatabaseOptions(database, database_fallback, database_heading_tolerance_deg);
   if (UsesTrack()) {
     if (!database.empty()) {
@@ -331,7 +344,7 @@ void LocateRequest::Check() const {
     }
     nav::ParseShiftMatcher(matcher, "--matcher");
     if (bounces < 1 || bounces > 16) throw ConfigError("must be in [1, 16]", "--bounces");
-    CheckOutputsAreNotInputs({out, composite_png}, {product, orbit, radar_grid, image, scene, dem});
+    CheckOutputsAreNotInputs({out, composite_png}, {product, orbit, radar_grid, image, scene, dem, reflectors});
     return;
   }
   if (image.empty()) throw ConfigError("required", "--image");
@@ -375,6 +388,8 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
     else if (key == "looks_range") set(looks_range);
     else if (key == "looks_azimuth") set(looks_azimuth);
     else if (key == "dem_oversample") set(dem_oversample);
+    else if (key == "reflectors") set(reflectors);
+    else if (key == "sea") set(sea);
     else if (key == "database") set(database);
     else if (key == "database_fallback") set(database_fallback);
     else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
@@ -385,7 +400,7 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
                                   "bounces", "rays_per_cell", "product", "orbit", "radar_grid", "frequency",
                                   "polarization", "prior_offset_track", "prior_heading_offset_deg",
                                   "prior_sigma_horizontal_m", "prior_sigma_vertical_m", "prior_sigma_heading_deg",
-                                  "looks_range", "looks_azimuth", "dem_oversample", "database",
+                                  "looks_range", "looks_azimuth", "dem_oversample", "reflectors", "sea", "database",
                                   "database_fallback", "database_heading_tolerance_deg"}),
           source);
     }
@@ -453,7 +468,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   std::vector<float> observed = raster.bands.at(0);
   for (float& v : observed) if (!std::isfinite(v)) v = 0.0f;
 
-  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum), reporter);
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea), reporter);
   const render::EmbreeScene embree(terrain.mesh);
   nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
   std::optional<nav::NavPose> start;
@@ -557,6 +572,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
 
 void EvaluateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
+  CheckSeaAndReflectors(sea, reflectors, !product.empty());
   if (trials < 1 || trials > kMaxTrials) throw ConfigError("must be in [1, 100000]", "--trials");
   if (out_prefix.empty() && product.empty()) throw ConfigError("required", "--out");
   if (!(spacing_m > 0)) throw ConfigError("must be > 0", "--spacing");
@@ -618,7 +634,8 @@ nlohmann::json EvaluateRequest::ToJson() const {
           {"bounces", bounces}, {"rays_per_cell", rays_per_cell}, {"reference_floor", reference_floor},
           {"trial_first", trial_first}, {"trial_count", trial_count}, {"product", product},
           {"frequency", frequency}, {"polarization", polarization}, {"looks_range", looks_range},
-          {"looks_azimuth", looks_azimuth}, {"dem_oversample", dem_oversample}, {"database", database},
+          {"looks_azimuth", looks_azimuth}, {"dem_oversample", dem_oversample}, {"reflectors", reflectors},
+          {"sea", sea}, {"database", database},
           {"database_fallback", database_fallback},
           {"database_heading_tolerance_deg", database_heading_tolerance_deg}, {"database_fixes", database_fixes}};
 }
@@ -691,6 +708,8 @@ void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "looks_range") set(looks_range);
     else if (key == "looks_azimuth") set(looks_azimuth);
     else if (key == "dem_oversample") set(dem_oversample);
+    else if (key == "reflectors") set(reflectors);
+    else if (key == "sea") set(sea);
     else if (key == "database") set(database);
     else if (key == "database_fallback") set(database_fallback);
     else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
@@ -747,7 +766,7 @@ const std::vector<nav::Matcher>& ComparedMatchers() {
 
 EvaluateSetup PrepareEvaluation(const EvaluateRequest& options, Reporter& reporter) {
   EvaluateSetup s;
-  s.terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum), reporter);
+  s.terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea), reporter);
   s.embree = std::make_unique<render::EmbreeScene>(s.terrain.mesh);
   s.observed_mesh = SmoothedTerrain(s.terrain.mesh, options.dem_smoothing);
   s.observed_embree = std::make_unique<render::EmbreeScene>(s.observed_mesh);

@@ -89,6 +89,17 @@ struct LocateRequest {
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;
+  // Point landmarks (docs/navigation.md "Landmarks where the terrain is
+  // flat"): a reflectors CSV (docs/conventions.md "Reflectors"), placed on
+  // the terrain as `simulate --reflectors` places them, rendered in the
+  // references; where one falls in the image it drives the fix (along and
+  // cross track; up and heading from the prior). With a product or an orbit
+  // only; none of them in the image (on the annotated track) is an
+  // InputError naming the file.
+  std::string reflectors;
+  // The terrain's sea (docs/conventions.md): "auto" or "off" (a flat DEM
+  // at the ellipsoid below the geoid would otherwise be sea).
+  std::string sea = "auto";
   // A reference database (docs/navigation.md "Fixes from a reference
   // database"): a corridor's PREFIX_catalog.json built from the same
   // --dem/--scene (SHA-256 checked). The fix matches the observed image
@@ -165,6 +176,9 @@ struct EvaluateRequest {
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;
+  // LocateRequest::reflectors and ::sea (reflectors with a product only).
+  std::string reflectors;
+  std::string sea = "auto";
   // Fixes from a reference database (LocateRequest::database): the trials'
   // true poses are drawn around its stored poses (a stored pose, heading and
   // depression +- 2 deg, image centre +- 15 % of the footprint along and

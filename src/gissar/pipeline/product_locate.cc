@@ -13,7 +13,9 @@
 #include "gissar/geo/rslc_product.h"
 #include "gissar/image/composite.h"
 #include "gissar/image/contact_sheet.h"
+#include "gissar/image/radiometry.h"
 #include "gissar/nav/product_locate.h"
+#include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/product_renderer.h"
@@ -34,6 +36,7 @@ struct ProductFix {
   nav::TrackVectors truth;  // the product's annotated track
   Terrain terrain;
   std::unique_ptr<render::EmbreeScene> embree;
+  std::vector<render::SceneReflector> landmarks;  // --reflectors placed on the terrain
   nav::NavScene scene;
 };
 
@@ -43,7 +46,37 @@ struct ProductInputs {
   int dem_oversample = 1;
   double rays_per_cell = 4.0;
   int bounces = 1;
+  std::string reflectors, sea = "auto";
 };
+
+// Throws InputError naming `csv` when no landmark falls in the observed
+// image seen from the annotated track (zero-Doppler geo2rdr).
+void CheckLandmarksInImage(const ProductFix& fix, const std::string& csv) {
+  const sensor::RadarGrid& g = fix.observation.grid;
+  const sensor::Orbit orbit = fix.truth.ToOrbit();
+  const double t_mid = g.TimeOfRow(0.5 * (g.rows - 1));
+  std::string nearest;
+  double nearest_px = std::numeric_limits<double>::infinity();
+  for (const render::SceneReflector& landmark : fix.landmarks) {
+    const Eigen::Vector3d llh = fix.terrain.frame.GeodeticFromEnu(landmark.apex_enu);
+    const auto rc = sensor::Geo2Rdr(orbit, geo::LocalFrame::EcefFromGeodetic(llh[0], llh[1], llh[2]), t_mid);
+    if (!rc) continue;
+    const double row = (rc->time_s - g.t0_s) / g.dt_s, col = (rc->range_m - g.r0_m) / g.dr_m;
+    if (row >= 0.0 && row <= g.rows - 1.0 && col >= 0.0 && col <= g.cols - 1.0) return;
+    const double outside = std::hypot(std::max({0.0, -col, col - (g.cols - 1.0)}),
+                                      std::max({0.0, -row, row - (g.rows - 1.0)}));
+    if (outside < nearest_px) {
+      nearest_px = outside;
+      char text[160];
+      std::snprintf(text, sizeof text, "; nearest: row %d at range %.1f, azimuth %.1f px", landmark.row, col, row);
+      nearest = text;
+    }
+  }
+  throw InputError("none of its " + std::to_string(fix.landmarks.size()) + " reflectors falls in the image (" +
+                       std::to_string(g.cols) + " x " + std::to_string(g.rows) + " px) seen from the annotated track" +
+                       nearest,
+                   csv);
+}
 
 std::unique_ptr<ProductFix> LoadProductFix(const ProductInputs& in, Reporter& reporter) {
   auto fix = std::make_unique<ProductFix>();
@@ -70,15 +103,7 @@ std::unique_ptr<ProductFix> LoadProductFix(const ProductInputs& in, Reporter& re
     }
   }
   const geo::RslcProduct& p = fix->product;
-  sensor::RadarGrid& grid = fix->observation.grid;
-  grid.t0_s = p.zero_doppler_time_s.front();
-  grid.dt_s = p.azimuth_spacing_s();
-  grid.rows = p.rows();
-  grid.r0_m = p.slant_range_m.front();
-  grid.dr_m = p.range_spacing_m();
-  grid.cols = p.cols();
-  grid.look_side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
-  grid.wavelength_m = p.wavelength_m;
+  fix->observation.grid = RadarGridOf(p);
   fix->observation.intensity.resize(p.amplitude.size());
   for (size_t i = 0; i < p.amplitude.size(); ++i) fix->observation.intensity[i] = p.amplitude[i] * p.amplitude[i];
   fix->truth = {p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps};
@@ -89,10 +114,20 @@ std::unique_ptr<ProductFix> LoadProductFix(const ProductInputs& in, Reporter& re
   terrain_options.dem = in.dem;
   terrain_options.vertical_datum = in.vertical_datum;
   terrain_options.dem_oversample = in.dem_oversample;
+  terrain_options.sea = in.sea;
+  terrain_options.reflectors = in.reflectors;
   terrain_options.fill_nodata = true;
   fix->terrain = LoadTerrain(terrain_options, reporter);
   fix->embree = std::make_unique<render::EmbreeScene>(fix->terrain.mesh);
-  fix->scene = {&fix->terrain.mesh, fix->embree.get(), &fix->terrain.materials, in.rays_per_cell, in.bounces};
+  fix->landmarks = fix->terrain.reflectors;  // a scene's own
+  if (!in.reflectors.empty()) {
+    const auto placed = PlaceReflectors(terrain_options, fix->terrain, *fix->embree);
+    fix->landmarks.insert(fix->landmarks.end(), placed.begin(), placed.end());
+    CheckLandmarksInImage(*fix, in.reflectors);
+    reporter.Info("locate: " + std::to_string(placed.size()) + " point landmarks from " + in.reflectors);
+  }
+  fix->scene = {&fix->terrain.mesh, fix->embree.get(), &fix->terrain.materials, in.rays_per_cell, in.bounces,
+                fix->landmarks.empty() ? nullptr : &fix->landmarks};
   return fix;
 }
 
@@ -154,15 +189,47 @@ nlohmann::json FixJson(const ProductFix& fix, const nav::ProductLocateResult& r,
         {"prior_track_angle_error_deg", heading_error(prior_orbit)}}}};
 }
 
+// Which pose components the image constrained and which the prior held.
+nlohmann::json PoseComponentsJson(const nav::ProductLocateResult& r) {
+  nlohmann::json from_image = nlohmann::json::array(), from_prior = nlohmann::json::array();
+  for (int k = 0; k < 4; ++k) (r.from_image[k] ? from_image : from_prior).push_back(nav::kTrackComponents[k]);
+  return {{"from_image", from_image}, {"from_prior", from_prior}};
+}
+
+nlohmann::json NumberOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json LandmarksJson(const nav::ProductLocateResult& r) {
+  nlohmann::json out = nlohmann::json::array();
+  auto px = [](const Eigen::Vector2d& v) {
+    return v.allFinite() ? nlohmann::json{{"range", v.x()}, {"azimuth", v.y()}} : nlohmann::json(nullptr);
+  };
+  for (const nav::LandmarkRecord& l : r.landmarks) {
+    out.push_back({{"id", l.row},
+                   {"in_image", l.in_image},
+                   {"used", l.used},
+                   {"predicted_px", px(l.predicted_px)},
+                   {"peak_px", px(l.peak_px)},
+                   {"residual_px", px(l.residual_px)},
+                   {"contrast_db", NumberOrNull(l.contrast_db)},
+                   {"margin_db", NumberOrNull(l.margin_db)},
+                   {"note", l.note.empty() ? nlohmann::json(nullptr) : nlohmann::json(l.note)}});
+  }
+  return out;
+}
+
 nlohmann::json ResultJson(const nav::ProductLocateResult& r) {
   return {{"converged", r.converged},
+          {"fix_source", r.source},
+          {"pose_components", PoseComponentsJson(r)},
+          {"landmarks", LandmarksJson(r)},
+          {"reference_contrast_db", NumberOrNull(r.reference_contrast_db)},
           {"reason", r.converged ? nlohmann::json(nullptr) : nlohmann::json(r.failure_reason)},
           {"iterations", r.iterations},
           {"renders", r.renders},
           {"control_points", r.control_points},
-          {"peak_margin", std::isfinite(r.peak_margin) ? nlohmann::json(r.peak_margin) : nlohmann::json(nullptr)},
-          {"resection_rms_px", r.rms_px},
-          {"peak_ncc", r.peak_ncc},
+          {"peak_margin", NumberOrNull(r.peak_margin)},
+          {"resection_rms_px", NumberOrNull(r.rms_px)},
+          {"peak_ncc", NumberOrNull(r.peak_ncc)},
           {"first_shift_range_azimuth_px", {r.first_shift_px.x(), r.first_shift_px.y()}},
           {"ncc_shift_at_fix_range_azimuth_px", {r.ncc_shift_px.x(), r.ncc_shift_px.y()}},
           {"similarity_ncc", r.similarity},
@@ -184,9 +251,15 @@ std::vector<float> ReferenceIntensity(const ProductFix& fix, const nav::TrackVec
   ro.rays_per_cell = fix.scene.rays_per_cell;
   ro.max_bounces = fix.scene.bounces;
   ro.wavelength_m = grid.wavelength_m;
-  return render::RenderProduct(*fix.embree, fix.terrain.mesh, fix.terrain.materials, fix.terrain.frame,
-                               track.ToOrbit(), grid, ro)
-      .image.intensity;
+  ro.reflectors = fix.landmarks;
+  render::ProductImage img = render::RenderProduct(*fix.embree, fix.terrain.mesh, fix.terrain.materials,
+                                                   fix.terrain.frame, track.ToOrbit(), grid, ro);
+  if (!img.image.points.empty()) {
+    image::SensorEffects psf;  // the landmarks: one pixel's impulse response
+    psf.range_resolution_px = psf.azimuth_resolution_px = 1.0;
+    image::AddPointIntensities(img.image, psf);
+  }
+  return img.image.intensity;
 }
 
 }  // namespace
@@ -204,7 +277,8 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
   const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
                                    options.dem, options.vertical_datum, options.orbit, options.radar_grid,
-                                   options.image, options.dem_oversample, options.rays_per_cell, options.bounces},
+                                   options.image, options.dem_oversample, options.rays_per_cell, options.bounces,
+                                   options.reflectors, options.sea},
                                   reporter);
   const nav::TrackOffset offset{options.prior_offset_track[0], options.prior_offset_track[1],
                                 options.prior_offset_track[2], options.prior_heading_offset_deg};
@@ -241,6 +315,7 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
     report["inputs"]["radar_grid"] = InputFileRecord(options.radar_grid);
     report["inputs"]["image"] = InputFileRecord(options.image);
   }
+  if (!options.reflectors.empty()) report["inputs"]["reflectors"] = InputFileRecord(options.reflectors);
   report.update(ResultJson(r));
   if (!composite.empty()) {
     // Full-resolution grid; the real image box-filtered by the looks (speckle).
@@ -265,7 +340,7 @@ std::vector<nlohmann::json> ProductEvaluateTrials(const EvaluateRequest& options
   options.Check();
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
                                    options.dem, options.vertical_datum, "", "", "", options.dem_oversample,
-                                   options.rays_per_cell, options.bounces},
+                                   options.rays_per_cell, options.bounces, options.reflectors, options.sea},
                                   reporter);
   // Prior errors: given, or from the footprint of the multilooked image.
   const sensor::RadarGrid& g = fix->observation.grid;
@@ -298,6 +373,8 @@ std::vector<nlohmann::json> ProductEvaluateTrials(const EvaluateRequest& options
     const double cells = error_m / r.cell_m;
     const bool success = r.converged && cells <= options.success_cells;
     const auto acu = e.at("along_cross_up_m");
+    const double along_cells = std::abs(acu[0].get<double>()) / r.cell_m;
+    const double cross_cells = std::abs(acu[1].get<double>()) / r.cell_m;
     char row[512];
     std::snprintf(row, sizeof row, "%d,%d,%d,%.3f,%.4f,%.3f,%.3f,%.3f,%.5f,%.3f,%.3f,%.3f,%.5f,%.4f,%.4f,%.4f,%.3f,", k,
                   int(success), int(r.converged), error_m, cells, acu[0].get<double>(), acu[1].get<double>(),
@@ -310,6 +387,7 @@ std::vector<nlohmann::json> ProductEvaluateTrials(const EvaluateRequest& options
                              {"success", success},
                              {"position_error_m", error_m},
                              {"position_error_cells", cells},
+                             {"along_cross_error_cells", {along_cells, cross_cells}},
                              {"seconds", r.seconds},
                              {"prior_errors", prior_errors},
                              {"vertical_datum", VerticalDatumRecord(fix->terrain)},
@@ -331,10 +409,15 @@ nlohmann::json ProductSummariseTrials(const EvaluateRequest& options, std::vecto
     }
   }
   std::vector<double> errors_m, errors_cells, seconds;
-  int successes = 0, converged = 0;
+  int successes = 0, converged = 0, within_one_cell = 0, by_landmarks = 0;
   for (const nlohmann::json& r : records) {
     successes += r.at("success").get<bool>();
     converged += r.at("converged").get<bool>();
+    if (r.at("converged").get<bool>() && r.contains("along_cross_error_cells")) {
+      const auto& ac = r.at("along_cross_error_cells");
+      within_one_cell += ac[0].get<double>() <= 1.0 && ac[1].get<double>() <= 1.0;
+    }
+    by_landmarks += r.value("fix_source", std::string()) == "landmarks";
     errors_m.push_back(r.at("position_error_m").get<double>());
     errors_cells.push_back(r.at("position_error_cells").get<double>());
     seconds.push_back(r.at("seconds").get<double>());
@@ -376,6 +459,11 @@ nlohmann::json ProductSummariseTrials(const EvaluateRequest& options, std::vecto
           {"resolution_cell_m", records.front().at("cell_m")},
           {"success_rate", double(successes) / n},
           {"converged_rate", double(converged) / n},
+          {"refused", n - converged},
+          // Converged with along- and cross-track errors both within one cell
+          // (the landmark fix's measure: up and heading are the prior's).
+          {"within_one_cell_along_cross_rate", double(within_one_cell) / n},
+          {"fixes_by_landmarks", by_landmarks},
           {"position_error_m", {{"median", percentile(errors_m, 0.5)}, {"p95", percentile(errors_m, 0.95)}}},
           {"position_error_cells", {{"median", percentile(errors_cells, 0.5)}, {"p95", percentile(errors_cells, 0.95)}}},
           {"seconds_per_fix", {{"median", percentile(seconds, 0.5)}, {"p95", percentile(seconds, 0.95)}}},
@@ -394,7 +482,7 @@ nlohmann::json WriteProductEvaluation(const EvaluateRequest& options, const std:
   options.Check();
   if (options.out_prefix.empty()) throw ConfigError("required", "--out");
   CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
-                           {options.product, options.scene, options.dem});
+                           {options.product, options.scene, options.dem, options.reflectors});
   AtomicOutputs outputs;
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");
   const fs::path csv_path = outputs.Add(options.out_prefix + "_trials.csv");
@@ -406,6 +494,7 @@ nlohmann::json WriteProductEvaluation(const EvaluateRequest& options, const std:
   summary["seconds"] = seconds;
   summary["inputs"] = {{"product", InputFileRecord(options.product)},
                        {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}};
+  if (!options.reflectors.empty()) summary["inputs"]["reflectors"] = InputFileRecord(options.reflectors);
   summary["options"] = options.ToJson();
   summary["vertical_datum"] = records.front().at("vertical_datum");
   std::string csv = "trial,success,converged,position_error_m,position_error_cells,along_error_m,cross_error_m,"

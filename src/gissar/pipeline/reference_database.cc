@@ -209,18 +209,20 @@ sensor::SarGeometry ItemGeometryInFrame(const StoredReferenceItem& item, const g
   const Eigen::Vector3d centre = carry(item.centre_enu);
   const Eigen::Vector3d l = (carry(item.centre_enu + 1000.0 * item.look_direction) - centre).normalized();
   const Eigen::Vector3d h = (carry(item.centre_enu + 1000.0 * item.flight_direction) - centre).normalized();
-  sensor::SarGeometryOptions o;
-  o.heading_deg = std::atan2(h.x(), h.y()) / kDeg;
-  if (o.heading_deg < 0) o.heading_deg += 360.0;
-  o.depression_deg = std::asin(std::clamp(-l.z(), -1.0, 1.0)) / kDeg;
-  o.look_side = item.look_side;
-  o.slant_range_m = item.slant_range_m;
-  o.range_spacing_m = item.range_spacing_m;
-  o.azimuth_spacing_m = item.azimuth_spacing_m;
-  o.mode = sensor::ProjectionMode::kAffine;
-  o.width = item.width;
-  o.height = item.height;
-  return sensor::SarGeometry(o, centre, item.u0, item.v0, item.width, item.height);
+  nav::NavPose pose;
+  pose.heading_deg = std::atan2(h.x(), h.y()) / kDeg;
+  if (pose.heading_deg < 0) pose.heading_deg += 360.0;
+  pose.depression_deg = std::asin(std::clamp(-l.z(), -1.0, 1.0)) / kDeg;
+  pose.slant_range_m = item.slant_range_m;
+  pose.centre_enu = centre;
+  nav::SensorModel model;
+  model.range_spacing_m = item.range_spacing_m;
+  model.azimuth_spacing_m = item.azimuth_spacing_m;
+  model.width = item.width;
+  model.height = item.height;
+  model.look_side = item.look_side;
+  return sensor::SarGeometry(nav::AffineGeometryOptions(pose, model), centre, item.u0, item.v0, item.width,
+                             item.height);
 }
 
 std::vector<ReferenceChoice> CoveringReferences(const ReferenceDatabase& database,
