@@ -194,6 +194,20 @@ say "corridor on Dask: 50 poses with 1 and 2 workers, --threads 1"
 PY=$(sed -n 's/^Python_EXECUTABLE:FILEPATH=//p' "$B/CMakeCache.txt")
 PYTHONPATH="$B/python" run corridor "${PY:-python3}" "$ROOT/bench/corridor_bench.py" --json "$R/corridor.json"
 
+say "gissar view: a 202-pose corridor in headless chromium (bench/view_bench.py)"
+if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then
+  uptime > "$R/view_load.txt"
+  PYTHONPATH="$B/python" run view_bench "${PY:-python3}" "$ROOT/bench/view_bench.py" --gissar "$GISSAR" \
+    --json "$R/view.json"
+else
+  say "chromium not installed: gissar view bench skipped"
+fi
+
+say "pose fixes from stored references against rendered ones, 200 trials (bench/database_bench.py)"
+uptime > "$R/database_load.txt"
+PYTHONPATH="$B/python" run database_bench "${PY:-python3}" "$ROOT/bench/database_bench.py" --gissar "$GISSAR" \
+  --trials 200 --json "$R/database.json"
+
 uptime > "$R/load_end.txt"
 END=$(date +%s)
 echo $((END - START)) > "$R/bench_seconds.txt"

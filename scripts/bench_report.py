@@ -475,6 +475,70 @@ if os.path.exists(os.path.join(R, "corridor.json")):
         speedup, verdict(speedup >= 1.7), est[-1] / est[0]))
     w("")
 
+# ---------------------------------------------------------------- gissar view
+if os.path.exists(os.path.join(R, "view.json")):
+    v = load("view.json")
+    w("## `gissar view`: a %d-pose corridor in headless Chromium" % v["poses"])
+    w("")
+    w("bench/view_bench.py: a real corridor catalogue (`%s`, %.1f s), shown by `gissar view CATALOG "
+      "--no-browser` in headless Chromium %s (selenium, window %s), each time with a cold render cache. First "
+      "paint: navigation start to the map's first complete render with every footprint and the hillshade "
+      "(the page's `data-ready-ms`; warm: the same page loaded again). Click to image: a real click at a "
+      "footprint's centre to the complete render with that pose's image on the map (`data-image-ms`; "
+      "selenium's view in the last column). On demand: the pose has no geocoded image, the viewer geocodes it "
+      "(gissar's geocode, cached); stored: after `%s` (%.1f s, no pose simulated again)." % (
+          v["corridor_command"], v["corridor_s"], v["chromium"], v["window"], v["geocode_command"],
+          v["geocode_s"]))
+    w("Load average when it ended: %s (%d cores, %s)." % (
+        ", ".join("%.2f" % x for x in v["load_average"]), v["cores"], v["machine"]))
+    w("")
+    w("| geocoded images | footprints drawn | first paint cold s | first paint warm s | click to image median s | max s | selenium median s |")
+    w("|---|---|---|---|---|---|---|")
+    import statistics as _st
+    for label, key in (("on demand", "on_demand"), ("stored (`--geocode`)", "stored")):
+        m = v[key]
+        w("| %s | %d | %.2f | %.2f | %.2f | %.2f | %.2f |" % (
+            label, m["footprints"], m["first_paint_cold_s"], m["first_paint_warm_s"],
+            _st.median(m["click_to_image_s"]), max(m["click_to_image_s"]),
+            _st.median(m["click_to_image_selenium_s"])))
+    w("")
+    w("Command: `PYTHONPATH=build/python python3 " + re.sub(r" --json \S+", "", commands["view_bench"].split(" ", 1)[1])
+      + "` (docs/view.md).")
+    w("")
+    worst_paint = max(v[k]["first_paint_cold_s"] for k in ("on_demand", "stored"))
+    worst_click = max(max(v[k]["click_to_image_s"]) for k in ("on_demand", "stored"))
+    w("Targets: first paint ≤ 2 s: worst %.2f s (%s); image ≤ 1 s after a click: worst %.2f s (%s)." % (
+        worst_paint, verdict(worst_paint <= 2.0), worst_click, verdict(worst_click <= 1.0)))
+    w("")
+
+# ---------------------------------------------------------------- reference database
+if os.path.exists(os.path.join(R, "database.json")):
+    d = load("database.json")
+    w("## Pose fixes from stored references against rendered ones (`evaluate --database`)")
+    w("")
+    w("bench/database_bench.py: the database of docs/navigation.md (`%s`: %d of %d poses done, %.1f s), then "
+      "`gissar evaluate --database PREFIX_catalog.json --no-compare` with the same seed twice: the stored "
+      "references and `--database-fixes render` (on the fly), so the same observed images and priors in both "
+      "rows. Seconds per fix: the evaluation's `seconds_per_fix` (terrain and references loaded once, "
+      "excluded). Load average when it ended: %s (%d cores)." % (
+          d["corridor_command"], d["done"], d["poses"], d["corridor_s"],
+          ", ".join("%.2f" % x for x in d["load_average"]), d["cores"]))
+    w("")
+    w("| fixes | trials | success | median error (cells) | p95 error (cells) | s per fix median | s per fix p95 | run wall s |")
+    w("|---|---|---|---|---|---|---|---|")
+    for r in d["rows"]:
+        e, sp = r["position_error_cells"], r["seconds_per_fix"]
+        w("| %s | %d | %.1f %% | %.2f | %.2f | %.3f | %.3f | %.1f |" % (
+            "stored references" if r["fixes"] == "stored" else "on the fly (`--database-fixes render`)",
+            r["trials"], 100 * r["success_rate"], e["median"], e["p95"], sp["median"], sp["p95"], r["wall_s"]))
+    w("")
+    ratio = d["ratio_render_over_stored"]
+    w("Commands: " + "; ".join("`%s`" % r["command"] for r in d["rows"]) + ".")
+    w("")
+    w("Target (issue 45): ≥ 10× fewer seconds per fix from stored references: median %.1f×, p95 %.1f× (%s)." % (
+        ratio["median"], ratio["p95"], verdict(ratio["median"] >= 10.0)))
+    w("")
+
 # ---------------------------------------------------------------- profiles
 notes = os.path.join(ROOT, "bench", "PROFILES.md")
 if os.path.exists(notes):

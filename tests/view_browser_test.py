@@ -77,6 +77,8 @@ class BrowserTest(unittest.TestCase):
         cls.simulation = vc.build_simulate(os.path.join(cls.work, "simulate"))
         cls.fix = vc.build_locate(os.path.join(cls.work, "locate"))
         cls.evaluation = vc.build_evaluate(os.path.join(cls.work, "evaluate"))
+        cls.geocoded = vc.build_corridor(os.path.join(cls.work, "geocoded"), missing_one=False, geocode=True)
+        cls.scene_simulation = vc.build_scene_simulation(os.path.join(cls.work, "scene"))
         from selenium import webdriver
         from selenium.webdriver.chrome.service import Service
         browser, driver = vc.chromium_paths()
@@ -127,6 +129,46 @@ class BrowserTest(unittest.TestCase):
         description = self.driver.execute_script("return fetch('/api/view.json').then(r => r.json())")
         statuses = [f["properties"]["status"] for f in description["footprints"]["features"]]
         self.assertEqual(statuses.count("missing"), 1, f"the pose without its image is shown as missing: {statuses}")
+        self.assertEqual(description["footprints"]["features"][0]["properties"]["image"].get("geocoded"),
+                         "on demand", "a pose without a geocoded image is geocoded on demand")
+        self.click_first_footprint(catalog, description)
+        if SCREENSHOT:
+            self.driver.save_screenshot(SCREENSHOT)
+
+    def test_corridor_geocoded(self):
+        """`gissar corridor --geocode`: the page lays the stored geocoded image on the map."""
+        self.open(self.geocoded)
+        with open(self.geocoded) as f:
+            catalog = json.load(f)
+        description = self.driver.execute_script("return fetch('/api/view.json').then(r => r.json())")
+        first = description["footprints"]["features"][0]["properties"]["image"]
+        self.assertEqual(first.get("geocoded"), "stored")
+        self.assertEqual(first.get("geotiff"), "/files/" + catalog["gissar:poses"][0]["geocoded"])
+        self.click_first_footprint(catalog, description)
+
+    def test_scene_classes(self):
+        """A simulation of a scene: its classes drawn as a base layer with a legend; the toggle hides them."""
+        self.open(self.scene_simulation)
+        vc.wait_for(lambda: self.driver.execute_script("return document.body.dataset.classesLoaded"), 20)
+        data = self.dataset()
+        self.assertEqual(data.get("classesLoaded"), "1", "the class layer's picture loaded")
+        self.assertGreaterEqual(int(data.get("classes", "0")), 2, "the legend names the scene's classes")
+        from selenium.webdriver.common.by import By
+        legend = self.driver.find_element(By.ID, "class-legend").text
+        self.assertIn("forest", legend)
+        size = self.driver.execute_script("return window.gissarView.map.getSize()")
+        frame = [[0, 0], [size[0] - 1, 0], [size[0] - 1, size[1] - 1], [0, size[1] - 1]]
+        before = self.driver.execute_script(PIXELS_JS, frame, 6)
+        self.driver.find_element(By.ID, "classes-toggle").click()
+        vc.wait_for(lambda: not self.driver.execute_script("return window.gissarView.classLayer.getVisible()"), 5)
+        time.sleep(0.5)
+        after = self.driver.execute_script(PIXELS_JS, frame, 6)
+        changed = sum(1 for a, b in zip(before, after) if a != b)
+        vc.log(f"class layer toggle: {changed} of {len(after)} sampled pixels changed")
+        self.assertGreater(changed, 20, "the class layer covers part of the map")
+        self.assert_no_console_errors()
+
+    def click_first_footprint(self, catalog, description):
         # The first footprint: a point inside it and no other footprint, then a real click there.
         rings = [f["geometry"]["coordinates"][0] for f in description["footprints"]["features"]]
         first = rings[0]
@@ -159,8 +201,6 @@ class BrowserTest(unittest.TestCase):
         vc.log(f"{changed} of {len(after)} sampled pixels inside the first footprint changed")
         self.assertGreater(changed, 0.3 * len(after), "the image covers the footprint")
         self.assert_no_console_errors()
-        if SCREENSHOT:
-            self.driver.save_screenshot(SCREENSHOT)
 
     def test_simulate_mask_toggle(self):
         self.open(self.simulation)

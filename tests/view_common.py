@@ -36,9 +36,10 @@ def run(*args, timeout=600, cwd=None):
     return subprocess.run([ARGS["gissar"], *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
 
 
-def build_corridor(directory, missing_one=True):
-    """A 4-pose corridor (2 poses x headings 90/270, 32 x 32 px) plus one skipped pose: returns the catalogue
-    path. With missing_one, the last pose's image is deleted afterwards (shown as missing)."""
+def build_corridor(directory, missing_one=True, geocode=False):
+    """A 4-pose corridor (2 poses x headings 90/270, 32 x 32 px): returns the catalogue path. With
+    missing_one, the last pose's image is deleted afterwards (shown as missing); with geocode, `--geocode`
+    writes each pose's geocoded image."""
     os.makedirs(directory, exist_ok=True)
     route = os.path.join(directory, "route.csv")
     with open(route, "w") as f:
@@ -47,7 +48,8 @@ def build_corridor(directory, missing_one=True):
     out = os.path.join(directory, "db")
     r = run("corridor", "--route", route, "--dem", dem, "--pose-step", "1000", "--headings", "90,270",
             "--width", "32", "--height", "32", "--range-spacing", "90", "--azimuth-spacing", "90",
-            "--rays-per-cell", "1", "--workers", "2", "--threads", "1", "--quiet", "--out", out)
+            "--rays-per-cell", "1", "--workers", "2", "--threads", "1", "--quiet", "--out", out,
+            *(["--geocode"] if geocode else []))
     if r.returncode != 0:
         raise RuntimeError(f"gissar corridor failed ({r.returncode}): {r.stderr}")
     if missing_one:
@@ -67,6 +69,25 @@ def build_simulate(directory):
             "--range-spacing", "60", "--azimuth-spacing", "60", "--out", out, "--quiet")
     if r.returncode != 0:
         raise RuntimeError(f"gissar simulate failed ({r.returncode}): {r.stderr}")
+    return out
+
+
+def build_scene_simulation(directory):
+    """A scene of Andorra with its OpenStreetMap classes (`gissar scene build`) and a small simulation of it:
+    the simulation's prefix (its sidecar names the .gscene, whose classes the page draws)."""
+    os.makedirs(directory, exist_ok=True)
+    data = os.path.join(ARGS["source"], "data", "andorra")
+    scene = os.path.join(directory, "andorra")
+    r = run("scene", "build", "--dem", os.path.join(data, "andorra_srtm3_dem_filled.tif"), "--vectors",
+            os.path.join(data, "andorra_osm.gpkg"), "--out", scene, "--quiet")
+    if r.returncode != 0:
+        raise RuntimeError(f"gissar scene build failed ({r.returncode}): {r.stderr}")
+    out = os.path.join(directory, "sim")
+    r = run("simulate", "--scene", scene + ".gscene", "--heading", "0", "--depression", "40", "--slant-range",
+            "15000", "--range-spacing", "60", "--azimuth-spacing", "60", "--width", "96", "--height", "96",
+            "--rays-per-cell", "1", "--out", out, "--quiet")
+    if r.returncode != 0:
+        raise RuntimeError(f"gissar simulate --scene failed ({r.returncode}): {r.stderr}")
     return out
 
 

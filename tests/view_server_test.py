@@ -35,6 +35,7 @@ class ServerTest(unittest.TestCase):
         with open(cls.catalog) as f:
             catalog = json.load(f)
         cls.first = catalog["gissar:poses"][0]
+        cls.last = catalog["gissar:poses"][-1]
         # The first pose's quicklook PNG becomes a symlink to the secret: named, but leading out.
         cls.linked = f"db_{cls.first['id']}_quicklook.png"
         os.unlink(os.path.join(cls.dir, cls.linked))
@@ -124,6 +125,30 @@ class ServerTest(unittest.TestCase):
             status, headers, body = self.request("GET", f"/render/{key}.png")
             self.assertEqual((status, headers["Content-Type"], body[:4]), (200, "image/png", b"\x89PNG"), key)
         self.assertEqual(self.request("GET", "/render/nothing.png")[0], 404)
+
+    def test_on_demand_geocode_cached(self):
+        """A pose without a geocoded image is geocoded on demand (gissar's geocode), cached in the cache
+        directory's geocoded/ under a name keyed by the image, never beside the catalogue."""
+        key = f"pose_{self.first['id']}"
+        status, _, body = self.request("GET", f"/render/{key}.json")
+        self.assertEqual(status, 200)
+        self.assertEqual(json.loads(body).get("via"), "geocode (on demand, cached)", body)
+        cached = os.listdir(os.path.join(self.server.cache, "geocoded"))
+        self.assertTrue(any(n.endswith(".tif") for n in cached), cached)
+        self.assertFalse([n for n in os.listdir(self.dir) if "geocoded" in n], "nothing written beside it")
+        status, _, body = self.request("GET", f"/render/{key}_mask.png")
+        self.assertEqual((status, body[:4]), (200, b"\x89PNG"))
+
+    def test_missing_files_listed(self):
+        """The pose whose image was deleted is described as missing (the page draws it), not an error."""
+        status, _, body = self.request("GET", "/api/view.json")
+        self.assertEqual(status, 200)
+        features = json.loads(body)["footprints"]["features"]
+        missing = {f["properties"]["id"]: f["properties"] for f in features
+                   if f["properties"]["status"] == "missing"}
+        last = f"db_{self.last['id']}.tif"
+        self.assertIn(self.last["id"], missing)
+        self.assertIn(last, missing[self.last["id"]]["reason"])
 
     # Refusals -------------------------------------------------------------------------------------------------
     def test_methods_other_than_get_and_head(self):
@@ -244,6 +269,43 @@ class CommandTest(unittest.TestCase):
                 proc.kill()
             proc.stdout.close()
             proc.stderr.close()
+
+
+class GeocodedCorridorTest(unittest.TestCase):
+    """`gissar corridor --geocode`: each pose's geocoded image is named in the catalogue and served as is."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.work = tempfile.mkdtemp(prefix="gissar-view-geocoded-")
+        cls.catalog = vc.build_corridor(os.path.join(cls.work, "corridor"), missing_one=False, geocode=True)
+        with open(cls.catalog) as f:
+            cls.poses = json.load(f)["gissar:poses"]
+        cls.server = vc.Server(cls.catalog)
+
+    @classmethod
+    def tearDownClass(cls):
+        status = cls.server.stop()
+        shutil.rmtree(cls.work, ignore_errors=True)
+        assert status == 0, f"gissar view exits {status} on Ctrl-C"
+
+    def test_stored_geocoded_image_used(self):
+        c = http.client.HTTPConnection("127.0.0.1", self.server.port, timeout=30)
+        c.request("GET", "/api/view.json")
+        description = json.loads(c.getresponse().read())
+        for feature, pose in zip(description["footprints"]["features"], self.poses):
+            image = feature["properties"]["image"]
+            self.assertEqual(image.get("geocoded"), "stored", pose["id"])
+            self.assertEqual(image.get("geotiff"), "/files/" + pose["geocoded"])
+        first = description["footprints"]["features"][0]["properties"]["image"]
+        for url in (first["render_info"], first["geotiff"], first["mask"]):
+            c.request("GET", url)
+            r = c.getresponse()
+            r.read()
+            self.assertEqual(r.status, 200, url)
+        c.request("GET", first["render_info"])
+        info = json.loads(c.getresponse().read())
+        self.assertNotIn("via", info, "a stored geocoded image needs no geocode on demand")
+        self.assertFalse(os.path.isdir(os.path.join(self.server.cache, "geocoded")))
 
 
 if __name__ == "__main__":

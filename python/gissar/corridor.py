@@ -175,6 +175,8 @@ def make_parser():
     _required(g.add_argument("--out", metavar="PREFIX", dest="out_prefix",
                              help="Output prefix: PREFIX_<id>.* per pose, PREFIX_catalog.json, "
                                   "PREFIX_index.csv"))
+    _switch(g, "--geocode", "geocode", "Also write each done pose's image in map geometry, PREFIX_<id>_geocoded.tif "
+            "(as gissar geocode; named in the catalogue; gissar view lays it on the map)", False)
     c = p.add_argument_group("cluster")
     c.add_argument("--scheduler", metavar="ADDRESS", help="Address of a running Dask scheduler (tcp://host:8786); default: an "
                                        "embedded LocalCluster")
@@ -284,7 +286,8 @@ def run(argv):
         args.route, dem=args.dem, scene=args.scene, pose_step_m=args.pose_step_m,
         headings_deg=args.headings_deg, out_prefix=args.out_prefix, width=args.width, height=args.height,
         scheduler=args.scheduler, workers=args.workers, threads=args.threads, retries=args.retries,
-        hash_inputs=args.hash_inputs, progress=not quiet, log=log, report_summary=False, **keywords)
+        hash_inputs=args.hash_inputs, progress=not quiet, log=log, report_summary=False,
+        geocode=bool(args.geocode), **keywords)
     print(args.out_prefix + "_catalog.json")
     print(args.out_prefix + "_index.csv")
     # The run's result, on stdout even with --quiet; why poses were skipped, on stderr even with --quiet.

@@ -485,6 +485,15 @@ def _simulate_pose(task):
     with open(stac_path, encoding="utf-8") as f:
         item = json.load(f)
     item = _join_item(item, task)
+    if task.get("geocode"):
+        try:
+            geocoded = _geocode_pose(prefix, item)
+        except gissar.Error as e:
+            _write_atomic(stac_path, json.dumps(item, indent=2) + "\n")
+            return dict(base, status="failed", reason=f"geocode: {type(e).__name__}: {e}",
+                        seconds=time.perf_counter() - start, cpu_seconds=_cpu_seconds() - cpu,
+                        peak_rss_bytes=_peak_rss_bytes())
+        outputs += geocoded
     _write_atomic(stac_path, json.dumps(item, indent=2) + "\n")
     files = [os.path.basename(p) for p in outputs]
     seconds = time.perf_counter() - start
@@ -493,6 +502,51 @@ def _simulate_pose(task):
     _write_atomic(_marker_path(prefix), json.dumps(marker, indent=2) + "\n")
     return dict(base, status="done", files=files + [os.path.basename(_marker_path(prefix))], item=item,
                 seconds=seconds, cpu_seconds=_cpu_seconds() - cpu, peak_rss_bytes=_peak_rss_bytes())
+
+
+#: Suffix of a pose's geocoded image (`gissar corridor --geocode`): PREFIX_<id>_geocoded.tif (+ .json, _stac.json).
+GEOCODED_SUFFIX = "_geocoded"
+
+
+def _geocode_pose(prefix, item):
+    """`gissar geocode` of a pose's image (gissar.geocode, the library's exact back-geocoding onto the
+    simulation's own terrain) to PREFIX_<id>_geocoded.tif; adds it to the pose's STAC Item as the asset
+    ``geocoded``. Returns the files written."""
+    out = prefix + GEOCODED_SUFFIX
+    da = gissar.geocode(prefix + ".tif", out)
+    outputs = [os.fspath(p) for p in da.attrs.get("outputs", [])]
+    del da
+    item.setdefault("assets", {})["geocoded"] = {
+        "href": os.path.basename(out + ".tif"), "type": "image/tiff; application=geotiff",
+        "title": "the image in map geometry (gissar geocode)", "roles": ["data"]}
+    return outputs
+
+
+def _geocode_cached_pose(task):
+    """A pose found complete by a --geocode run whose geocoded image is missing: geocode it (no new
+    simulation); the done-marker gains the geocoded files."""
+    start, cpu = time.perf_counter(), _cpu_seconds()
+    limit_threads(task["threads"])
+    prefix = task["out_prefix"]
+    base = {"id": task["id"], "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    stac_path = prefix + "_stac.json"
+    with open(stac_path, encoding="utf-8") as f:
+        item = json.load(f)
+    try:
+        geocoded = _geocode_pose(prefix, item)
+    except gissar.Error as e:
+        return dict(base, status="failed", reason=f"geocode: {type(e).__name__}: {e}",
+                    seconds=time.perf_counter() - start, cpu_seconds=_cpu_seconds() - cpu,
+                    peak_rss_bytes=_peak_rss_bytes())
+    _write_atomic(stac_path, json.dumps(item, indent=2) + "\n")
+    marker = dict(task["marker"])
+    marker["files"] = [f for f in marker.get("files", []) if GEOCODED_SUFFIX + "." not in f
+                       and not f.endswith(GEOCODED_SUFFIX + "_stac.json")]
+    marker["files"] += [os.path.basename(p) for p in geocoded]
+    _write_atomic(_marker_path(prefix), json.dumps(marker, indent=2) + "\n")
+    return dict(base, status="done", cached=True,
+                files=marker["files"] + [os.path.basename(_marker_path(prefix))], item=item,
+                seconds=marker.get("seconds"), cpu_seconds=_cpu_seconds() - cpu, peak_rss_bytes=_peak_rss_bytes())
 
 
 def _join_item(item, task):
@@ -673,7 +727,8 @@ def _skip_reasons(records, extent, *, width, height, range_spacing_m, azimuth_sp
 
 def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, scene=None, width=None, height=None,
                    client=None, scheduler=None, workers=None, threads_per_worker=1, threads=None, retries=2,
-                   hash_inputs="sha256", progress=True, log=None, report_summary=True, **simulate_keywords):
+                   hash_inputs="sha256", progress=True, log=None, report_summary=True, geocode=False,
+                   **simulate_keywords):
     """Builds (or completes) a reference-image database along a route: ``gissar corridor`` in Python.
 
     route: GeoJSON/CSV path or [(lon, lat), ...] (see read_route); pose_step_m: spacing of the poses along the
@@ -692,7 +747,10 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
     cores of a worker otherwise). retries: Dask retries of a task whose worker died. hash_inputs: 'sha256'
     (the inputs' contents, default) or 'stat' (path, size, mtime: for inputs too large to read once per run).
     progress: True (a tqdm bar on stderr), a callable(stage, done, total) or None; log: callable(str) for the
-    information lines (dashboard address, summary) or None.
+    information lines (dashboard address, summary) or None. geocode: also write each done pose's image in map
+    geometry, PREFIX_<id>_geocoded.tif (gissar.geocode on the pose's own terrain; named by the pose's
+    ``geocoded`` key in the catalogue and its Item's ``geocoded`` asset); a re-run with geocode=True geocodes
+    the poses already complete that have none, without simulating them again.
 
     Returns the catalogue (the STAC Collection written to PREFIX_catalog.json, a dict); its
     ``gissar:summary`` counts the poses done (simulated now or found complete), skipped (footprint outside the
@@ -781,6 +839,16 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
         prefix = f"{out_prefix}_{pose['id']}"
         key = _pose_key(dict(request, pose_id=pose["id"]), inputs, hash_inputs)
         marker = _marker_matches(prefix, key)
+        task = {"id": pose["id"], "pose": pose, "request": request, "out_prefix": prefix,
+                "key": key, "threads": threads, "depression_deg": depression_deg,
+                "slant_range_m": slant_range_m, "look_side": look_side,
+                "collection_id": collection_id, "catalog_path": catalog_path, "geocode": bool(geocode)}
+        if marker is not None and geocode and not (
+                os.path.basename(prefix + GEOCODED_SUFFIX + ".tif") in marker.get("files", [])
+                and os.path.isfile(prefix + GEOCODED_SUFFIX + ".tif")):
+            record.update(status="done", cached=True)
+            tasks.append((record, dict(task, marker=marker, geocode_only=True)))
+            continue
         if marker is not None:
             record.update(status="done", cached=True, files=marker["files"] + [os.path.basename(_marker_path(prefix))],
                           seconds=marker.get("seconds"))
@@ -790,10 +858,7 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
             except (OSError, ValueError):
                 record["item"] = None
             continue
-        tasks.append((record, {"id": pose["id"], "pose": pose, "request": request, "out_prefix": prefix,
-                               "key": key, "threads": threads, "depression_deg": depression_deg,
-                               "slant_range_m": slant_range_m, "look_side": look_side,
-                               "collection_id": collection_id, "catalog_path": catalog_path}))
+        tasks.append((record, task))
 
     worker_count = 0
     peak_rss = 0
@@ -813,7 +878,8 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
             say(f"corridor: {len(tasks)} poses to simulate on {worker_count} workers ({client.scheduler.address})")
             futures = {}
             for record, task in tasks:
-                future = client.submit(_simulate_pose, task, key=f"gissar-pose-{task['id']}-{uuid.uuid4().hex[:8]}",
+                function = _geocode_cached_pose if task.get("geocode_only") else _simulate_pose
+                future = client.submit(function, task, key=f"gissar-pose-{task['id']}-{uuid.uuid4().hex[:8]}",
                                        retries=retries, pure=False)
                 futures[future] = record
             report = _progress_reporter(progress, len(futures))
@@ -827,7 +893,8 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
                         result = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
                     record.update(status=result["status"], reason=result.get("reason", ""),
                                   files=result.get("files", []), item=result.get("item"),
-                                  seconds=result.get("seconds"), worker=result.get("worker"), cached=False)
+                                  seconds=result.get("seconds"), worker=result.get("worker"),
+                                  cached=bool(result.get("cached")))
                     peak_rss = max(peak_rss, int(result.get("peak_rss_bytes") or 0))
                     cpu_seconds += float(result.get("cpu_seconds") or 0.0)
                     task_seconds += float(result.get("seconds") or 0.0)
@@ -931,6 +998,9 @@ def _catalogue(records, *, collection_id, catalog_path, route, pose_step_m, head
             entry["reason"] = r["reason"]
         if r["status"] == "done":
             entry["cached"] = bool(r.get("cached"))
+            geocoded = f"{collection_id}_{r['id']}{GEOCODED_SUFFIX}.tif"
+            if geocoded in r["files"]:
+                entry["geocoded"] = geocoded
         poses.append(entry)
     summary = {"poses": len(records), "done": len(done), "cached": sum(1 for r in done if r.get("cached")),
                "simulated": sum(1 for r in done if not r.get("cached")),

@@ -31,7 +31,7 @@ def build_corridor(route: Route, *, pose_step_m: float, headings_deg: Union[floa
                    width: Optional[int] = ..., height: Optional[int] = ..., client: Any = ..., scheduler: Optional[str] = ...,
                    workers: Optional[int] = ..., threads_per_worker: int = ..., threads: Optional[int] = ...,
                    retries: int = ..., hash_inputs: str = ..., progress: CorridorProgress = ...,
-                   log: Optional[Callable[[str], Any]] = ..., report_summary: bool = ..., depression_deg: float = ..., slant_range_m: float = ...,
+                   log: Optional[Callable[[str], Any]] = ..., report_summary: bool = ..., geocode: bool = ..., depression_deg: float = ..., slant_range_m: float = ...,
                    range_spacing_m: float = ..., azimuth_spacing_m: float = ..., look_side: str = ...,
                    rays_per_cell: float = ..., bounces: int = ..., speckle_looks: float = ..., seed: int = ...,
                    **simulate_keywords: Any) -> Dict[str, Any]: ...

@@ -198,6 +198,57 @@ def _ellipse_ring(lon, lat, cov_ac, track_deg, k=math.sqrt(5.991464547107979), n
     return ring, k * math.sqrt(l1), k * math.sqrt(l2)
 
 
+_CORE_LOCK = threading.Lock()
+
+
+def _core_module():
+    """gissar's compiled module (geocode, load_scene). Run as `gissar view`, only the extension itself is
+    loaded (0.5 s), not the package's Python side (xarray, pandas: 2 s of imports competing with the first
+    page load); registered as gissar._core, so a later `import gissar` reuses it."""
+    with _CORE_LOCK:
+        module = sys.modules.get("gissar._core")
+        if module is not None:
+            return module
+        if "gissar" not in sys.modules:
+            import importlib.machinery
+            import importlib.util
+            here = os.path.dirname(os.path.abspath(__file__))
+            for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+                path = os.path.join(here, "_core" + suffix)
+                if os.path.isfile(path):
+                    spec = importlib.util.spec_from_file_location("gissar._core", path)
+                    module = importlib.util.module_from_spec(spec)
+                    sys.modules["gissar._core"] = module
+                    try:
+                        spec.loader.exec_module(module)
+                    except BaseException:
+                        del sys.modules["gissar._core"]
+                        raise
+                    return module
+        from gissar import _core
+        return _core
+
+
+def _preload_core():
+    try:
+        _core_module()
+    except Exception:  # noqa: BLE001 (geocode then falls back to the GCP warp)
+        pass
+
+
+def _scene_dem(scene):
+    """The DEM a scene was built from (its build sidecar PREFIX.json beside PREFIX.gscene), for the hillshade."""
+    if not scene:
+        return None
+    doc = _read_json(scene[: -len(".gscene")] + ".json") or {}
+    inputs = doc.get("inputs") if isinstance(doc.get("inputs"), list) else []
+    for i in inputs:
+        path = i.get("path") if isinstance(i, dict) else None
+        if isinstance(path, str) and path.lower().endswith((".tif", ".tiff", ".vrt", ".img")) and os.path.isfile(path):
+            return path
+    return None
+
+
 def _feature(geometry, **properties):
     return {"type": "Feature", "geometry": geometry, "properties": properties}
 
@@ -220,11 +271,20 @@ class View:
                             "source": os.path.basename(self.json_path), "status_colours": STATUS_COLOURS}
         self._allow(os.path.basename(self.json_path))
         getattr(self, "_build_" + self.kind)()
-        dem = self._dem_path()
+        scene = self._scene_path()
+        dem = self._dem_path() or _scene_dem(scene)
+        base = {}
         if dem:
             self._render("hillshade.png", "hillshade", dem)
-            self.description["base"] = {"hillshade": "/render/hillshade.png",
-                                        "hillshade_info": "/render/hillshade.json"}
+            base.update(hillshade="/render/hillshade.png", hillshade_info="/render/hillshade.json")
+        if scene:
+            self._render("classes.png", "classes", scene)
+            base.update(classes="/render/classes.png", classes_info="/render/classes.json")
+        if base:
+            self.description["base"] = base
+        # gissar's compiled module takes half a second to load: loaded after the page's first render (not
+        # competing with the first paint), not on the first click.
+        self._preload = bool(scene) or any(spec[0] == "geocoded" for spec in self.renders.values())
 
     # files ---------------------------------------------------------------------------------------------------
     def _allow(self, name):
@@ -278,6 +338,31 @@ class View:
                     return full
         return None
 
+    def _scene_path(self):
+        """The .gscene the corridor, simulation or fix was made from (its class layer is drawn), or None."""
+        doc = self.doc
+        candidates = []
+        if self.kind == "corridor":
+            candidates.append(((doc.get("gissar:inputs") or {}).get("scene") or {}).get("path"))
+            candidates.append((doc.get("gissar:options") or {}).get("scene"))
+        else:
+            inputs = doc.get("inputs")
+            if isinstance(inputs, dict):
+                candidates += [v.get("path") if isinstance(v, dict) else v for k, v in inputs.items() if "scene" in k]
+            elif isinstance(inputs, list):
+                candidates += [i.get("path") for i in inputs if isinstance(i, dict)]
+            candidates.append((doc.get("options") or {}).get("scene"))
+            if self.kind == "geocode":
+                image = self._geocode_source_sidecar()
+                if image:
+                    candidates.append((image.get("options") or {}).get("scene"))
+        for c in candidates:
+            if isinstance(c, str) and c.endswith(".gscene"):
+                full = c if os.path.isabs(c) else os.path.join(self.root, c)
+                if os.path.isfile(full):
+                    return full
+        return None
+
     def _geocode_source_sidecar(self):
         image = (self.doc.get("options") or {}).get("image")
         if isinstance(image, str):
@@ -313,14 +398,26 @@ class View:
             base = f"{stem}_{pid}"
             image = {}
             tif = base + ".tif"
-            geocoded = [f for f in files if f.endswith("_geocoded.tif") or f.endswith("_map.tif")]
-            if tif in self.files:
-                image["render"] = self._render(f"pose_{pid}.png", "image", self.files[tif])
-                image["render_info"] = self._render(f"pose_{pid}.json", "image_info", self.files[tif])
-            if geocoded and geocoded[0] in self.files:
-                image["render"] = self._render(f"pose_{pid}.png", "image", self.files[geocoded[0]])
-                image["render_info"] = self._render(f"pose_{pid}.json", "image_info", self.files[geocoded[0]])
+            geocoded = [pose["geocoded"]] if isinstance(pose.get("geocoded"), str) else []
+            for g in geocoded:
+                self._allow(g)
+            geocoded += [f for f in files if f.endswith("_geocoded.tif") or f.endswith("_map.tif")]
+            geocoded = [g for g in geocoded if g in self.files]
+            if geocoded:
+                # `gissar corridor --geocode` wrote the pose's image in map geometry: shown as it is.
+                g = self.files[geocoded[0]]
+                image["render"] = self._render(f"pose_{pid}.png", "image", g)
+                image["render_info"] = self._render(f"pose_{pid}.json", "image_info", g)
+                image["mask"] = self._render(f"pose_{pid}_mask.png", "mask", g, "layover_shadow")
                 image["geotiff"] = "/files/" + urllib.parse.quote(geocoded[0])
+                image["geocoded"] = "stored"
+            elif tif in self.files:
+                # None stored: geocoded on demand (gissar's geocode, cached), else warped through its GCPs.
+                mask = self.files.get(base + "_mask.tif")
+                image["render"] = self._render(f"pose_{pid}.png", "geocoded", self.files[tif], "image", mask)
+                image["render_info"] = self._render(f"pose_{pid}.json", "image_info", self.files[tif])
+                image["mask"] = self._render(f"pose_{pid}_mask.png", "geocoded", self.files[tif], "mask", mask)
+                image["geocoded"] = "on demand"
             for name, key in ((base + ".png", "thumbnail"), (base + "_quicklook.png", "quicklook")):
                 if name in self.files:
                     image[key] = "/files/" + urllib.parse.quote(name)
@@ -501,6 +598,9 @@ class View:
             if not (os.path.isfile(png) and os.path.isfile(info)):
                 meta = _RENDERERS[what](png, *args)
                 _write_atomic(info, json.dumps(meta).encode())
+            if self._preload and ext == "png":
+                self._preload = False
+                threading.Thread(target=_preload_core, daemon=True).start()
         path = png if ext == "png" else info
         with open(path, "rb") as f:
             return f.read(), ("image/png" if ext == "png" else "application/json")
@@ -626,7 +726,8 @@ def _render_mask(out_path, image_path, band_name):
             if src.GetRasterBand(b).GetDescription() == band_name:
                 index = b
     m = src.GetRasterBand(index).ReadAsArray()
-    m = np.nan_to_num(m.astype("float64"), nan=0).astype("int64") & 3
+    m = np.nan_to_num(m.astype("float64"), nan=0).astype("int64")
+    m = np.where((m >= 0) & (m <= 3), m, 0)  # 255 = outside the footprint: not drawn
     colours = np.array([[0, 0, 0, 0], [255, 96, 0, 230], [0, 80, 255, 230], [230, 0, 230, 230]], dtype="uint8")
     rgba = colours[m]
     mem = _mem_like(src, [rgba[..., i] for i in range(4)], gdal.GDT_Byte)
@@ -665,7 +766,123 @@ def _render_hillshade(out_path, dem_path):
     return {"extent": extent, "source": os.path.basename(dem_path)}
 
 
-_RENDERERS = {"image": _render_image, "mask": _render_mask, "hillshade": _render_hillshade}
+#: Class colours of a scene (as `gissar scene build`'s PREFIX_classes.png: image/class_map.cc) and the order
+#: in which overlapping classes are painted (lowest priority first: scene_config.h's priorities).
+CLASS_COLOURS = {"default": "#d2be96", "water": "#286edc", "forest": "#288c3c", "urban": "#a0a0a0",
+                 "road": "#141414", "building": "#d23228", "sea": "#0f3282"}
+CLASS_PRIORITY = {"default": 0, "water": 4, "forest": 2, "urban": 3, "road": 5, "building": 6, "sea": 1}
+
+
+def _render_classes(out_path, scene_path):
+    """The scene's classes seen from above (every triangle filled with its class; bare terrain, `default`,
+    transparent over the hillshade), as RGBA in WGS84. The mesh is in the scene's ENU frame on WGS84: its
+    east/north are taken as an ellipsoidal orthographic projection at the ENU origin (within metres of the
+    true footprint over a scene some tens of km across), rasterised with GDAL (one multipolygon per class,
+    painted in class priority) and warped to WGS84."""
+    import struct
+
+    import numpy as np
+    from osgeo import gdal, ogr, osr
+    scene = _core_module().load_scene(scene_path)
+    v = np.asarray(scene["vertices_enu_m"], dtype="float64")[:, :2]
+    tri = np.asarray(scene["triangles"], dtype="int64")
+    cls = np.asarray(scene["classes"], dtype="int64")
+    names = list(scene["class_names"])
+    lon0, lat0 = scene["origin_lonlat_deg"]
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    cell = max(float(max(hi - lo)) / MAX_RENDER_PX, 1.0)
+    w, h = int(math.ceil((hi[0] - lo[0]) / cell)) + 1, int(math.ceil((hi[1] - lo[1]) / cell)) + 1
+    srs = osr.SpatialReference()
+    srs.ImportFromProj4(f"+proj=ortho +lat_0={lat0!r} +lon_0={lon0!r} +x_0=0 +y_0=0 +ellps=WGS84 +units=m "
+                        "+no_defs")
+    mem = gdal.GetDriverByName("MEM").Create("", w, h, 1, gdal.GDT_Byte)
+    mem.SetGeoTransform((lo[0], cell, 0.0, hi[1] + cell, 0.0, -cell))
+    mem.SetProjection(srs.ExportToWkt())
+    layer_ds = ogr.GetDriverByName("Memory").CreateDataSource("")
+    layer = layer_ds.CreateLayer("classes", srs, ogr.wkbMultiPolygon)
+    layer.CreateField(ogr.FieldDefn("value", ogr.OFTInteger))
+    present = {}
+    order = sorted(set(cls.tolist()), key=lambda c: CLASS_PRIORITY.get(names[c] if c < len(names) else "", 9))
+    for c in order:
+        name = names[c] if c < len(names) else f"class {c}"
+        sel = tri[cls == c]
+        present[name] = int(len(sel))
+        if name == "default" or not len(sel):
+            continue
+        # One WKB multipolygon of the class's triangles, built in one go: per polygon a header (byte order,
+        # type 3, 1 ring, 4 points) and the closed ring's four (x, y).
+        pts = v[np.concatenate([sel, sel[:, :1]], axis=1)]  # (n, 4, 2)
+        head = np.frombuffer(struct.pack("<BIII", 1, 3, 1, 4), dtype="uint8")
+        rec = np.empty((len(sel), 13 + 64), dtype="uint8")
+        rec[:, :13] = head
+        rec[:, 13:] = pts.reshape(len(sel), 8).astype("<f8").view("uint8").reshape(len(sel), 64)
+        wkb = struct.pack("<BII", 1, 6, len(sel)) + rec.tobytes()
+        feature = ogr.Feature(layer.GetLayerDefn())
+        feature.SetGeometryDirectly(ogr.CreateGeometryFromWkb(wkb))
+        feature.SetField("value", c + 1)
+        layer.CreateFeature(feature)
+    gdal.RasterizeLayer(mem, [1], layer, options=["ATTRIBUTE=value"])
+    index = mem.GetRasterBand(1).ReadAsArray().astype("int64")
+    palette = np.zeros((256, 4), dtype="uint8")
+    for c, name in enumerate(names):
+        colour = CLASS_COLOURS.get(name, "#ff00ff")
+        palette[c + 1] = [int(colour[1:3], 16), int(colour[3:5], 16), int(colour[5:7], 16),
+                          0 if name == "default" else 200]
+    rgba = palette[index]
+    out = gdal.GetDriverByName("MEM").Create("", w, h, 4, gdal.GDT_Byte)
+    out.SetGeoTransform(mem.GetGeoTransform())
+    out.SetProjection(mem.GetProjection())
+    for i in range(4):
+        out.GetRasterBand(i + 1).WriteArray(rgba[..., i])
+    out.GetRasterBand(4).SetColorInterpretation(gdal.GCI_AlphaBand)
+    warped = gdal.Warp("", out, format="MEM", dstSRS="EPSG:4326", resampleAlg="near", multithread=False)
+    extent = _png_of(out_path, warped)
+    legend = {n: CLASS_COLOURS.get(n, "#ff00ff") for n in names if present.get(n) and n != "default"}
+    return {"extent": extent, "legend": legend, "triangles": present, "source": os.path.basename(scene_path),
+            "cell_m": cell}
+
+
+def _geocoded_copy(cache, image_path):
+    """The map-geometry version of a slant-range image, made on demand with gissar's own geocode (the
+    `gissar geocode` of the library, on the simulation's own terrain) and kept in CACHE/geocoded/ under a
+    name keyed by the image's real path, size and modification time. Returns its path."""
+    st = os.stat(image_path)
+    ident = json.dumps([os.path.realpath(image_path), st.st_size, st.st_mtime_ns])
+    directory = os.path.join(cache, "geocoded")
+    os.makedirs(directory, exist_ok=True)
+    prefix = os.path.join(directory, hashlib.sha256(ident.encode()).hexdigest()[:24])
+    if not (os.path.isfile(prefix + ".tif") and os.path.isfile(prefix + ".json")):
+        _core_module().geocode(image_path, prefix, dem="", vertical_datum="", crs="", pixel_size_m=0.0,
+                      resampling="bilinear")
+    return prefix + ".tif"
+
+
+def _render_geocoded(out_path, image_path, part, mask_path):
+    """A pose's image (part 'image') or layover/shadow mask (part 'mask') without a stored geocoded image:
+    geocoded on demand (_geocoded_copy), else, when geocode cannot be used (its terrain moved or gone, the
+    gissar module not importable), the slant-range image warped through its GCPs (thin-plate spline) as
+    before, which the info records."""
+    try:
+        geocoded = _geocoded_copy(os.path.dirname(out_path), image_path)
+        via, reason = "geocode (on demand, cached)", None
+    except Exception as e:  # noqa: BLE001 (any geocode failure: fall back to the warp)
+        geocoded, via, reason = None, "GCP warp (thin-plate spline)", f"{type(e).__name__}: {e}"
+    if part == "image":
+        meta = _render_image(out_path, geocoded or image_path)
+    elif geocoded:
+        meta = _render_mask(out_path, geocoded, "layover_shadow")
+    elif mask_path:
+        meta = _render_mask(out_path, mask_path, None)
+    else:
+        raise OSError("no mask for this image")
+    meta["via"] = via
+    if reason:
+        meta["geocode_failed"] = reason
+    return meta
+
+
+_RENDERERS = {"image": _render_image, "mask": _render_mask, "hillshade": _render_hillshade,
+              "classes": _render_classes, "geocoded": _render_geocoded}
 
 
 # --------------------------------------------------------------------------------------------------------------

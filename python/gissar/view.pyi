@@ -9,6 +9,8 @@ MAX_HEADER_LINES: int
 SOCKET_TIMEOUT_S: float
 MAX_RENDER_PX: int
 STATUS_COLOURS: Dict[str, str]
+CLASS_COLOURS: Dict[str, str]
+CLASS_PRIORITY: Dict[str, int]
 
 class Usage(Exception): ...
 class BadInput(Exception): ...

@@ -560,3 +560,54 @@ def test_large_dem_corridor_runs_on_workers_with_less_memory_than_one_whole_dem_
         for name in ("total", "single", "double", "triple", "four_or_more"):
             assert np.array_equal(theirs[name], mine.sel(band=name).values, equal_nan=True), (pose["id"], name)
         assert np.array_equal(theirs["mask"], mine["mask"].values), pose["id"]
+
+
+def test_geocode_writes_one_georeferenced_image_per_done_pose(client, tmp_path):
+    """`gissar corridor --geocode` (build_corridor(geocode=True)): every done pose names its geocoded image
+    (PREFIX_<id>_geocoded.tif, gissar's geocode), which exists, is georeferenced in a projected CRS and carries
+    the layover/shadow band; the Item lists it. A --geocode re-run of a database built without it geocodes
+    the complete poses without simulating them again; a second re-run does nothing."""
+    from osgeo import gdal, osr
+    route = [(1.55, 42.55), (1.57, 42.55)]
+    args = dict(dem=DEM, pose_step_m=1000.0, headings_deg=[90.0, 270.0], out_prefix=str(tmp_path / "g"),
+                client=client, threads=1, progress=None, width=32, height=32, range_spacing_m=90.0,
+                azimuth_spacing_m=90.0, rays_per_cell=1.0)
+    plain = gd.build_corridor(route, **args)
+    assert all("geocoded" not in p for p in plain["gissar:poses"])
+    stamps = {p: os.stat(p).st_mtime_ns for p in glob.glob(str(tmp_path / "g_p*.tif"))}
+    catalog = gd.build_corridor(route, geocode=True, **args)
+    s = catalog["gissar:summary"]
+    assert s["simulated"] == 0 and s["done"] == 4 and s["cached"] == 4, s
+    assert {p: os.stat(p).st_mtime_ns for p in stamps} == stamps, "no pose simulated again"
+    for pose in catalog["gissar:poses"]:
+        assert pose["status"] == "done"
+        name = pose["geocoded"]
+        assert name == f"g_{pose['id']}_geocoded.tif" and name in pose["files"]
+        ds = gdal.Open(str(tmp_path / name))
+        assert ds is not None and ds.RasterXSize > 0
+        srs = osr.SpatialReference(wkt=ds.GetProjection())
+        assert srs.IsProjected() and srs.GetAuthorityCode(None) == "32631"
+        gt = ds.GetGeoTransform()
+        assert gt[1] > 0 and gt[5] < 0 and gt[2] == gt[4] == 0
+        names = [ds.GetRasterBand(b).GetDescription() for b in range(1, ds.RasterCount + 1)]
+        assert names[0] == "total" and "layover_shadow" in names
+        total = ds.GetRasterBand(1).ReadAsArray()
+        assert np.isfinite(total).sum() > 0.3 * total.size
+        with open(tmp_path / f"g_{pose['id']}_stac.json") as f:
+            assert json.load(f)["assets"]["geocoded"]["href"] == name
+    again = gd.build_corridor(route, geocode=True, **args)
+    assert again["gissar:summary"]["tasks_submitted"] == 0
+    assert [p.get("geocoded") for p in again["gissar:poses"]] == [p["geocoded"] for p in catalog["gissar:poses"]]
+    # From the start with --geocode (the command line): simulated and geocoded in one task per pose.
+    if "GISSAR_CLI" not in os.environ:
+        return
+    route_csv = tmp_path / "route.csv"
+    route_csv.write_text("lon,lat\n1.55,42.55\n1.57,42.55\n")
+    run = cli("--route", str(route_csv), "--dem", DEM, "--pose-step", "1000", "--headings", "90", "--width", "32",
+              "--height", "32", "--range-spacing", "90", "--azimuth-spacing", "90", "--rays-per-cell", "1",
+              "--scheduler", client.scheduler.address, "--threads", "1", "--quiet", "--geocode",
+              "--out", str(tmp_path / "c"))
+    assert run.returncode == 0, run.stderr
+    with open(tmp_path / "c_catalog.json") as f:
+        poses = json.load(f)["gissar:poses"]
+    assert poses and all(os.path.isfile(tmp_path / p["geocoded"]) for p in poses)

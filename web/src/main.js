@@ -39,6 +39,8 @@ const map = new Map({
 });
 
 const baseLayer = new ImageLayer({className: 'base', zIndex: 0});
+// The scene's classes from above (water, forest, urban, road, building, sea; bare terrain transparent).
+const classLayer = new ImageLayer({className: 'classes', zIndex: 1, opacity: 0.75});
 const footprintSource = new VectorSource();
 const colours = {};
 const footprintStyles = {};
@@ -104,7 +106,7 @@ const markerLayer = new VectorLayer({
     });
   },
 });
-map.getLayers().extend([baseLayer, footprintLayer, routeLayer, arrowLayer, markerLayer]);
+map.getLayers().extend([baseLayer, classLayer, footprintLayer, routeLayer, arrowLayer, markerLayer]);
 
 function staticLayer(url, extent, zIndex, opacity, className) {
   const source = new ImageStatic({url, imageExtent: extent, projection: 'EPSG:4326', interpolate: true});
@@ -115,6 +117,25 @@ async function showBase(base) {
   if (!base || !base.hillshade) return;
   const info = await getJSON(base.hillshade_info);
   baseLayer.setSource(new ImageStatic({url: base.hillshade, imageExtent: info.extent, projection: 'EPSG:4326'}));
+  return transformExtent(info.extent, 'EPSG:4326', 'EPSG:3857');
+}
+
+// The scene's class layer and its legend; resolves to its extent (EPSG:3857) once the picture has loaded.
+async function showClasses(base) {
+  if (!base || !base.classes) return null;
+  const info = await getJSON(base.classes_info);
+  const source = new ImageStatic({url: base.classes, imageExtent: info.extent, projection: 'EPSG:4326'});
+  const loaded = new Promise((resolve) => {
+    source.once('imageloadend', () => resolve(true));
+    source.once('imageloaderror', () => resolve(false));
+  });
+  classLayer.setSource(source);
+  $('classes-row').hidden = false;
+  $('class-legend').hidden = false;
+  $('class-legend').innerHTML = 'scene classes: ' + Object.entries(info.legend || {})
+    .map(([name, colour]) => `<span class="swatch" style="background:${colour}"></span>${name}`).join(' ');
+  body.dataset.classes = String(Object.keys(info.legend || {}).length);
+  loaded.then((ok) => { body.dataset.classesLoaded = ok ? '1' : 'error'; });
   return transformExtent(info.extent, 'EPSG:4326', 'EPSG:3857');
 }
 
@@ -182,7 +203,8 @@ function select(feature) {
   const shown = {id: p.id, status: p.status, reason: p.reason, heading_deg: p.heading_deg,
                  pose_lon_lat_deg: [p.lon_deg, p.lat_deg], distance_m: p.distance_m,
                  scene_centre_lon_lat_deg: p.center_lonlat_deg, time_utc: p.time_utc,
-                 options_sha256: p.options_sha256, files: p.files};
+                 options_sha256: p.options_sha256, files: p.files,
+                 geocoded: (p.image || {}).geocoded};
   $('selection').textContent = `pose ${p.id} (${p.status}${p.reason ? ': ' + p.reason : ''})`;
   setMetadata(shown);
   showImage(p.image || {}, p.id).catch((e) => { $('selection').textContent = String(e); });
@@ -204,6 +226,9 @@ $('mask').addEventListener('change', () => {
   if (state.maskLayer) state.maskLayer.setVisible($('mask').checked);
   map.once('rendercomplete', () => { body.dataset.maskShown = $('mask').checked ? '1' : '0'; });
   map.render();
+});
+$('classes-toggle').addEventListener('change', () => {
+  classLayer.setVisible($('classes-toggle').checked);
 });
 $('footprints-toggle').addEventListener('change', () => {
   footprintLayer.setVisible($('footprints-toggle').checked);
@@ -262,6 +287,12 @@ async function main() {
   } catch (e) {
     $('kind').textContent += ` (no hillshade: ${e.message})`;
   }
+  try {
+    const classExtent = await showClasses(description.base);
+    if (!baseExtent) baseExtent = classExtent;
+  } catch (e) {
+    $('kind').textContent += ` (no scene classes: ${e.message})`;
+  }
   if (description.image) {
     await showImage(description.image, description.title);
     if (isEmpty(extent) && state.imageExtent) extend(extent, transformExtent(state.imageExtent, 'EPSG:4326', 'EPSG:3857'));
@@ -286,7 +317,7 @@ async function main() {
 
 // For the tests and the benchmark (tests/view_browser_test.py): the map, its composite canvas and its layers.
 window.gissarView = {
-  map, footprintSource, markerSource,
+  map, footprintSource, markerSource, classLayer,
   pixelOf: (lon, lat) => map.getPixelFromCoordinate(fromLonLat([lon, lat])),
   composite: () => {
     const size = map.getSize();
