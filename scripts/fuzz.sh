@@ -13,7 +13,7 @@ SECONDS_EACH=${2:-60}
 NORMAL_BUILD=${3:-build}
 shift 3 || true
 FUZZERS=("$@")
-if [ ${#FUZZERS[@]} -eq 0 ]; then FUZZERS=(scene_config points_csv scene_file dem); fi
+if [ ${#FUZZERS[@]} -eq 0 ]; then FUZZERS=(scene_config points_csv scene_file dem sentinel1_xml); fi
 
 # clang and its fuzzer runtime are needed only here: installed on demand.
 if ! command -v clang++ >/dev/null ||
@@ -36,6 +36,12 @@ nice -n 19 cmake --build "$BUILD_DIR" -j"${JOBS:-1}" "${targets[@]}"
 seeds="$BUILD_DIR/seeds"
 rm -rf "$seeds"
 "$NORMAL_BUILD/tests/bad_inputs_driver" --catalogue tests/bad_inputs/cases --export-seeds "$seeds"
+# Sentinel-1 XML: the bundled annotations, calibration and noise files
+# (libFuzzer reads the first -max_len bytes of each, so these are truncated)
+# and small valid documents (fuzz/seeds/sentinel1_xml/).
+mkdir -p "$seeds/sentinel1_xml"
+find data/sentinel1 -name '*.xml' -exec cp {} "$seeds/sentinel1_xml/" \;
+cp fuzz/seeds/sentinel1_xml/*.xml "$seeds/sentinel1_xml/"  # small valid documents (whole within -max_len)
 
 export ASAN_OPTIONS="detect_leaks=1"
 export LSAN_OPTIONS="suppressions=$PWD/scripts/sanitizer/lsan.supp"

@@ -8,6 +8,7 @@ PACKAGES=(
   build-essential cmake pkg-config ninja-build   # ninja: the build trees' generator (Makefile)
   libgdal-dev gdal-bin libproj-dev proj-bin proj-data  # geo: raster/vector I/O, CRS, EGM96 grid
   libhdf5-dev                                  # geo: NISAR RSLC products (HDF5)
+  libxml2-dev                                  # geo: Sentinel-1 SAFE annotations (XML)
   libcgal-dev libgeos-dev                      # scene: triangulation, buffers
   libembree-dev                                # render: ray tracing (Embree 3)
   libeigen3-dev                                # linear algebra

@@ -1,22 +1,61 @@
 // `gissar validate` flags, bound to ValidateRequest (the --product flags of
-// `gissar simulate` are declared in simulate_command.cc).
+// `gissar simulate` are declared in simulate_command.cc), or, for a
+// Sentinel-1 SAFE, to Sentinel1ValidateRequest (the terrain-free geometry
+// proof on the product's geolocation grids, pipeline/validate_sentinel1.h).
 #include <memory>
 #include <sstream>
 
 #include "gissar/cli/command.h"
 #include "gissar/cli/headline.h"
 #include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/validate_sentinel1.h"
 
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
+
+namespace {
+
+std::string Fixed3(double v) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(3);
+  s << v;
+  return s.str();
+}
+
+// "validate: Sentinel-1 geolocation grid, N points: range rms .. px (max ..), azimuth rms .. px (max ..),
+// rdr2geo rms .. m (max ..): within targets | NOT within targets".
+std::string Sentinel1Headline(const nlohmann::json& report) {
+  const nlohmann::json& g = report.at("geolocation_grid");
+  auto px = [&](const char* axis) {
+    return "rms " + Fixed3(g.at(axis).at("rms").get<double>()) + " px (max " + Fixed3(g.at(axis).at("max").get<double>()) +
+           ")";
+  };
+  return "validate: Sentinel-1 geolocation grid, " + std::to_string(g.at("points").get<int>()) + " points in " +
+         std::to_string(report.at("swaths").size()) + " swath/polarisation(s): range " + px("range_px") + ", azimuth " +
+         px("azimuth_px") + ", rdr2geo rms " + Fixed3(g.at("ground_m").at("rms").get<double>()) + " m (max " +
+         Fixed3(g.at("ground_m").at("max").get<double>()) + "): " +
+         (report.at("passed").get<bool>() ? "within targets" : "NOT within targets (see the JSON per swath)");
+}
+
+}  // namespace
 
 void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   auto options = std::make_shared<ValidateRequest>();
   auto looks = std::make_shared<std::string>("1,3,5");
   CLI::App* cmd = root.add_subcommand(
       "validate",
-      "Simulate a real SAR product (NISAR RSLC HDF5) and compare with its image and a reference geolocation.");
-  cmd->add_option("--product", options->simulate.product, "NISAR-format RSLC product (HDF5)")->required();
+      "Simulate a real SAR product (NISAR RSLC HDF5) and compare with its image and a reference geolocation; "
+      "for a Sentinel-1 SAFE (without --dem/--scene), check gissar's geometry against its geolocation grids.");
+  cmd->add_option("--product", options->simulate.product,
+                  "NISAR-format RSLC product (HDF5) or Sentinel-1 SAFE (directory, manifest.safe or .zip)")
+      ->required();
+  auto s1 = std::make_shared<Sentinel1ValidateRequest>();
+  cmd->add_option("--orbit", s1->orbit,
+                  "Sentinel-1: state vectors (EOF, CSV or JSON) replacing the annotations' orbit");
+  cmd->add_option("--swath", s1->swath, "Sentinel-1: swath to check (IW1, ..., S3; default: every swath present)");
+  cmd->add_option("--polarization", s1->polarization,
+                  "Sentinel-1: polarisation to check (HH, HV, VH, VV; default: every one present)");
   AddSimulateOption(cmd, "dem", options->simulate.dem, false);
   AddSimulateOption(cmd, "scene", options->simulate.scene, false);
   AddSimulateSwitch(cmd, "fill_nodata", options->simulate.fill_nodata);
@@ -30,13 +69,36 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   AddSimulateOption(cmd, "rays_per_cell", options->simulate.rays_per_cell);
   AddSimulateOption(cmd, "bounces", options->simulate.bounces);
   cmd->add_option("--out", options->out_prefix,
-                  "Output prefix: PREFIX.json, PREFIX.md, PREFIX_side_by_side.png, PREFIX_histogram.png")
+                  "Output prefix: PREFIX.json, PREFIX.md, PREFIX_side_by_side.png, PREFIX_histogram.png (Sentinel-1: PREFIX.json)")
       ->required();
 
   auto max_memory = std::make_shared<std::string>();
   cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
 
   registry.Add(cmd, [=](const CommandContext& context) {
+    if (geo::IsSentinel1Path(options->simulate.product)) {
+      for (const auto& [value, flag] : {std::pair{options->simulate.dem, "--dem"},
+                                        {options->simulate.scene, "--scene"},
+                                        {options->reference_geolocation, "--reference-geolocation"}}) {
+        if (!value.empty()) {
+          throw ConfigError(
+              "simulating a Sentinel-1 product is not built yet: without terrain, validate checks its geometry "
+              "against the geolocation grids",
+              flag);
+        }
+      }
+      Sentinel1ValidateRequest request = *s1;
+      request.product = options->simulate.product;
+      request.out_prefix = options->out_prefix;
+      const Sentinel1ValidateResult result = RunSentinel1Validate(request, context.command_line, context.reporter);
+      for (const auto& path : result.outputs) context.out << path.string() << "\n";
+      context.out << Sentinel1Headline(result.report) << "\n";
+      return;
+    }
+    for (const auto& [value, flag] : {std::pair{s1->orbit, "--orbit"}, {s1->swath, "--swath"},
+                                      {s1->polarization, "--polarization"}}) {
+      if (!value.empty()) throw ConfigError("only for a Sentinel-1 product", flag);
+    }
     ValidateRequest resolved = *options;
     resolved.simulate.max_memory_bytes =
         MemoryBudgetBytes(*max_memory, context.force, resolved.simulate.max_memory_bytes);

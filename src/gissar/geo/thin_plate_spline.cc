@@ -144,10 +144,19 @@ template <class V, class I>
 
 namespace internal {
 
+// GCC function multi-versioning; clang 14 (the fuzz build, scripts/fuzz.sh)
+// refuses a clone of two features, so there the kernels are compiled for
+// the baseline only.
+#if defined(__clang__)
+#define GISSAR_AVX2_FMA_CLONES
+#else
+#define GISSAR_AVX2_FMA_CLONES __attribute__((target_clones("avx2,fma", "default")))
+#endif
+
 // KernelSumsN four lanes at a time, compiled for AVX2 + FMA and for the
 // x86-64 baseline, the loader picking the one the CPU runs (GCC function
 // multi-versioning); eight lanes with AVX-512.
-__attribute__((target_clones("avx2,fma", "default"))) void KernelSums4(const double* xs, const double* ys,
+GISSAR_AVX2_FMA_CLONES void KernelSums4(const double* xs, const double* ys,
                                                                         const double* c0s, const double* c1s,
                                                                         size_t count, double qx, double qy,
                                                                         double* sums) {
@@ -174,7 +183,7 @@ void KernelSums(const double* xs, const double* ys, const double* c0s, const dou
 
 // out[j] = phi(|q - p_j|^2) for the `count` nodes (xs, ys): four at a time,
 // the tail one by one. Compiled as KernelSums is.
-__attribute__((target_clones("avx2,fma", "default"))) void KernelRow(const double* xs, const double* ys,
+GISSAR_AVX2_FMA_CLONES void KernelRow(const double* xs, const double* ys,
                                                                       size_t count, double qx_value,
                                                                       double qy_value, double* out) {
   const V4 qx = Broadcast<V4>(qx_value), qy = Broadcast<V4>(qy_value);

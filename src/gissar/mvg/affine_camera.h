@@ -1,7 +1,7 @@
 // The affine SAR camera P_SAR = C_SAR P_par G_perp (thesis section 3.4.3)
 // and its decomposition back into a SAR pose.
 //
-// Conventions (shared/testdata/affine/README.md, docs/geometry.md):
+// Conventions (tests/data/affine/README.md, docs/geometry.md):
 //  - world frame ENU (x East, y North, z Up), metres;
 //  - heading psi clockwise from North, flight direction h = [sin psi, cos psi, 0];
 //  - right-looking horizontal look r_h = [cos psi, -sin psi, 0] (left: -r_h);

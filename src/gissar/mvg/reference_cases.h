@@ -1,5 +1,5 @@
-// Test-only access to the shared affine reference cases
-// (shared/testdata/affine, computed by independent code; see its README).
+// Test-only access to the affine reference cases
+// (tests/data/affine, computed by independent code; see its README).
 #pragma once
 
 #include <filesystem>
