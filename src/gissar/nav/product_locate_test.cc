@@ -187,13 +187,19 @@ TEST(LocateProductTest, RecoversAKnownTrackOffset) {
   }
 }
 
-// Nothing to match (a flat plane): no fix, with a reason.
-TEST(LocateProductTest, FlatTerrainGivesNoFix) {
-  const geo::LocalFrame frame(7.4, 43.7, 0.0);
+// An 8 km square plane at height 0 (class 0): ground with nothing to match.
+scene::TriangleMesh FlatPlane() {
   scene::TriangleMesh mesh;
   mesh.vertices = {{-4000, -4000, 0}, {4000, -4000, 0}, {4000, 4000, 0}, {-4000, 4000, 0}};
   mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
   mesh.classes = {0, 0};
+  return mesh;
+}
+
+// Nothing to match (a flat plane): no fix, with a reason.
+TEST(LocateProductTest, FlatTerrainGivesNoFix) {
+  const geo::LocalFrame frame(7.4, 43.7, 0.0);
+  const scene::TriangleMesh mesh = FlatPlane();
   const render::EmbreeScene embree(mesh);
   const material::MaterialTable materials;
   const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
@@ -215,10 +221,7 @@ TEST(LocateProductTest, FlatTerrainGivesNoFix) {
 // the landmark has no peak: no fix, the reason naming its row.
 TEST(LocateProductTest, LandmarkFixesAlongAndCrossOnFlatGround) {
   const geo::LocalFrame frame(7.4, 43.7, 0.0);
-  scene::TriangleMesh mesh;
-  mesh.vertices = {{-4000, -4000, 0}, {4000, -4000, 0}, {4000, 4000, 0}, {-4000, 4000, 0}};
-  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
-  mesh.classes = {0, 0};
+  const scene::TriangleMesh mesh = FlatPlane();
   const render::EmbreeScene embree(mesh);
   const material::MaterialTable materials;
   auto [truth, observed] = StraightTrackGeometry(frame, 80);

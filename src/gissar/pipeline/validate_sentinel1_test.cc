@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "gissar/geo/sentinel1_testing.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 #include "gissar/util/utc_time.h"
@@ -17,9 +18,9 @@ namespace gissar::pipeline {
 namespace {
 namespace fs = std::filesystem;
 
-const char* kIwSlc = "sentinel1/S1B_IW_SLC__1SDV_20210401T052622_20210401T052650_026269_032297_EFA4.SAFE";
-const char* kIwGrd = "sentinel1/S1B_IW_GRDH_1SDV_20210401T052623_20210401T052648_026269_032297_ECC8.SAFE";
-const char* kSm = "sentinel1/S1A_S3_SLC__1SDV_20210401T152855_20210401T152914_037258_04638E_6001.SAFE";
+using geo::testing_s1::kIwGrd;
+using geo::testing_s1::kIwSlc;
+using geo::testing_s1::kSm;
 
 geo::Sentinel1Annotation Annotation(const char* safe, const std::string& swath, const std::string& pol) {
   const geo::Sentinel1Product p = geo::OpenSentinel1(testing::DataPath(safe));
