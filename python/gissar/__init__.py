@@ -154,6 +154,53 @@ def geocode(image, out_prefix, *, dem=None, vertical_datum="", crs=None, pixel_s
     return _adapt.map_dataarray(_os.fspath(out_prefix) + ".tif", r["outputs"])
 
 
+def open_product(path, *, swath=None, burst=None, polarization=None, radiometry=None, noise_removal=False,
+                 frequency=None):
+    """Open a real product's image as an xarray.Dataset (docs/sentinel1.md, "Images and calibration"), read
+    lazily: pixels are read (and calibrated) only for the part you index or load.
+
+    path: a Sentinel-1 SAFE (the NAME.SAFE directory, its manifest.safe, or a .zip holding it) or a NISAR-format
+    RSLC (HDF5). swath ('IW1', 'S3', 'IW' for a GRD; default the first one present), burst (1-based, IW/EW SLC;
+    default the whole swath), polarization ('VV', ...; default the first one present), frequency ('A' or 'B',
+    NISAR only). radiometry: None for the stored digital numbers, or 'sigma0', 'beta0', 'gamma0' for linear
+    calibrated power |DN|^2 / A^2 (A the product's LUT, interpolated bilinearly in line and pixel as ESA
+    specifies; NISAR: beta0 only, = LUT x |DN|^2, and only when the product states its beta0 LUT).
+    noise_removal: subtract the thermal noise power (range LUT x azimuth LUT) before dividing (needs a
+    radiometry; negative results are NaN).
+
+    Returns a Dataset with one data variable: 'slc' (complex64 DN of an SLC) or 'amplitude' (float32 DN of a GRD)
+    when radiometry is None, else the radiometry's name (float32 linear power); units '1', NaN no-data (DN 0,
+    samples outside a burst's valid window, negative after noise removal). Dims (azimuth_time, slant_range),
+    (azimuth_time, ground_range) for a GRD, or (line, pixel) for an IW/EW SLC swath of overlapping bursts;
+    coordinates azimuth_time (datetime64[ns] UTC, zero-Doppler), slant_range (m, one-way) or ground_range (m from
+    the first pixel), line and pixel (the measurement's numbering, Sentinel-1). Attributes: sensor, mission,
+    product, product_type, mode, swath, burst, polarization, orbit_pass, wavelength_m, look_side, radiometry,
+    noise_removal, calibration, nodata, azimuth_time_interval_s, azimuth_spacing_m, range_spacing_m (slant) or
+    ground_range_spacing_m, source_files, gissar_version and options (this call's arguments, JSON).
+
+    Errors: ValueError (gissar.ConfigError) for a bad argument (unknown swath, burst, polarization or radiometry
+    string, a keyword that does not apply to the product), gissar.InputError (ValueError) for an unreadable
+    product, FileNotFoundError/OSError (gissar.MissingFileError) for a product or a file of it that does not
+    exist (a measurement or calibration file the manifest lists but the SAFE lacks)."""
+    for name, value in (("swath", swath), ("polarization", polarization), ("radiometry", radiometry),
+                        ("frequency", frequency)):
+        if value is not None and not isinstance(value, str):
+            raise ConfigError(f"must be a string or None, got {type(value).__name__} ({name})")
+    if burst is not None and (isinstance(burst, bool) or not isinstance(burst, (int, _np_integer()))):
+        raise ConfigError(f"must be a burst number (1, 2, ...) or None, got {type(burst).__name__} (burst)")
+    if not isinstance(noise_removal, bool):
+        raise ConfigError(f"must be True or False, got {type(noise_removal).__name__} (noise_removal)")
+    arguments = {"path": _os.fspath(path), "swath": swath, "burst": None if burst is None else int(burst),
+                 "polarization": polarization, "radiometry": radiometry, "noise_removal": noise_removal,
+                 "frequency": frequency}
+    return _adapt.product_dataset(arguments)
+
+
+def _np_integer():
+    import numpy
+    return numpy.integer
+
+
 # ---------------------------------------------------------------- Scene
 
 _core_scene_build = _core.Scene.build
@@ -277,8 +324,10 @@ def locate_product(**kwargs):
     (product=path) or of an image on any sensor's track (orbit=, radar_grid=, image= paths), against dem= or
     scene=, from the annotated track moved by prior_offset_track=(along, cross, up) metres and
     prior_heading_offset_deg. Other keywords: prior_sigma_horizontal_m, prior_sigma_vertical_m,
-    prior_sigma_heading_deg, looks_range, looks_azimuth, dem_oversample, matcher (ncc, gradient, phase, mi),
-    frequency, polarization, vertical_datum, bounces, rays_per_cell, out and composite_png (files, optional).
+    prior_sigma_heading_deg, terrain_horizontal_sigma_m (the DEM's own horizontal error, added to the relief
+    fix's along/cross variance; default 6 m), looks_range, looks_azimuth, dem_oversample, matcher (ncc, gradient,
+    phase, mi), frequency, polarization, vertical_datum, bounces, rays_per_cell, reflectors, sea, out and
+    composite_png (files, optional).
     Returns the fix dict (converged, reason, fix.error_against_annotated_track, ...)."""
     paths = ("product", "orbit", "radar_grid", "image", "scene", "dem", "out", "composite_png")
     options = {k: (_os.fspath(v) if k in paths and v is not None else v) for k, v in kwargs.items()}

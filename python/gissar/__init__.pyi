@@ -127,6 +127,9 @@ def geocode(image: Union[PathLike, xr.DataArray], out_prefix: PathLike, *, dem: 
 def simulate_product(product: Optional[PathLike] = ..., *, orbit: PathLike = ..., radar_grid: PathLike = ..., dem: Optional[Raster] = ..., scene: Union[None, PathLike, Scene] = ...,
                      transform: Optional[Transform] = ..., crs: Optional[Crs] = ..., nodata: Optional[float] = ...,
                      progress: Progress = ..., **request: Any) -> xr.DataArray: ...
+def open_product(path: PathLike, *, swath: Optional[str] = ..., burst: Optional[int] = ...,
+                 polarization: Optional[str] = ..., radiometry: Optional[str] = ..., noise_removal: bool = ...,
+                 frequency: Optional[str] = ...) -> xr.Dataset: ...
 def load_scene(path: str) -> Dict[str, Any]: ...
 def build_scene(dem: Raster, out_prefix: PathLike, vectors: Sequence[PathLike] = ..., osm: PathLike = ...,
                 config: PathLike = ..., fill_nodata: bool = ..., vertical_datum: str = ..., *,

@@ -417,3 +417,141 @@ def map_dataarray(path, outputs):
                         "gissar_version": _core.version().split()[1]})
     image.name = "intensity"
     return image
+
+
+# ---------------------------------------------------------------- products in (gissar.open_product)
+
+def _product_array_class():
+    """ProductArray, defined on first use so that importing gissar does not import xarray's backends."""
+    global _ProductArray
+    if _ProductArray is not None:
+        return _ProductArray
+    # Created here, not at import; pickle finds it as gissar._adapt.ProductArray (the module's __getattr__).
+    from xarray.backends import BackendArray
+    from xarray.core import indexing
+
+    class ProductArray(BackendArray):
+        """A product's image, read window by window through gissar._core._OpenedProduct when indexed (xarray's
+        lazy backend protocol, outer indexing: integers, slices, integer arrays). Pickles by its arguments: the
+        product is opened again where it is unpickled."""
+
+        def __init__(self, arguments):
+            self._arguments = dict(arguments)
+            self._opened = _core._OpenedProduct(**self._arguments)
+            info = self._opened.info()
+            self.shape = (int(info["rows"]), int(info["cols"]))
+            self.dtype = np.dtype(info["dtype"])
+
+        def __getstate__(self):
+            return self._arguments
+
+        def __setstate__(self, arguments):
+            self.__init__(arguments)
+
+        def __getitem__(self, key):
+            # Negative-step slices are turned round here: some xarray versions (2023.01, Debian 12) decompose
+            # them one element off (xarray.core.indexing._decompose_slice).
+            post = None
+            if isinstance(key, (indexing.BasicIndexer, indexing.OuterIndexer)) and any(
+                    isinstance(k, slice) and (k.step or 1) < 0 for k in key.tuple):
+                fixed, post = [], []
+                for k, size in zip(key.tuple, self.shape):
+                    if isinstance(k, slice) and (k.step or 1) < 0:
+                        idx = range(*k.indices(size))
+                        fixed.append(slice(idx[-1], idx[0] + 1, -idx.step) if len(idx) else slice(0, 0))
+                        post.append(slice(None, None, -1))
+                    else:
+                        fixed.append(k)
+                        if not isinstance(k, (int, np.integer)):
+                            post.append(slice(None))
+                key = type(key)(tuple(fixed))
+            out = indexing.explicit_indexing_adapter(key, self.shape, indexing.IndexingSupport.OUTER, self._read)
+            return out if post is None else out[tuple(post)]
+
+        def _read(self, key):
+            # Outer indexing (per axis: an integer, a slice or an array of integers). The columns are read as
+            # one span; the lines as one block when they are dense, else one read per line selected (every
+            # 1000th line of a GRD reads 17 lines, not the 16 000 between them).
+            sels, keep = [], []
+            for k, size in zip(key, self.shape):
+                if isinstance(k, slice):
+                    sels.append(np.arange(size)[k])
+                    keep.append(True)
+                elif isinstance(k, (np.ndarray, list, tuple)):
+                    a = np.asarray(k, np.int64)
+                    sels.append(np.where(a < 0, a + size, a))
+                    keep.append(True)
+                else:
+                    i = int(k)
+                    sels.append(np.array([i + size if i < 0 else i]))
+                    keep.append(False)
+            rows, cols = sels
+            if rows.size == 0 or cols.size == 0:
+                out = np.empty((rows.size, cols.size), self.dtype)
+            else:
+                r0, r1 = int(rows.min()), int(rows.max()) + 1
+                c0, c1 = int(cols.min()), int(cols.max()) + 1
+                col_pick = _as_slice(cols - c0)
+                if r1 - r0 <= 2 * rows.size:  # dense: one block
+                    block = self._opened.read(r0, r1 - r0, c0, c1 - c0)
+                    row_pick = _as_slice(rows - r0)
+                    out = block[row_pick][:, col_pick]
+                else:
+                    lines, inverse = np.unique(rows, return_inverse=True)
+                    block = np.stack([self._opened.read(int(r), 1, c0, c1 - c0)[0] for r in lines])
+                    out = block[inverse][:, col_pick]
+            return out[tuple(slice(None) if kept else 0 for kept in keep)]
+
+        def __repr__(self):
+            return f"ProductArray({self._arguments['path']!r}, shape={self.shape}, dtype={self.dtype})"
+
+    ProductArray.__module__ = __name__
+    ProductArray.__qualname__ = "ProductArray"
+    _ProductArray = ProductArray
+    return ProductArray
+
+
+_ProductArray = None
+
+
+def _as_slice(index):
+    """`index` (sorted or not) as a slice when it is a run of consecutive integers, else itself."""
+    if index.size and index[0] >= 0 and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return slice(int(index[0]), int(index[0]) + index.size)
+    return index
+
+
+def __getattr__(name):
+    if name == "ProductArray":
+        return _product_array_class()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def product_dataset(arguments):
+    """gissar.open_product's Dataset: the image as a lazy data variable, its coordinates and attributes."""
+    import xarray as xr
+    from xarray.core import indexing
+    array = _product_array_class()(arguments)
+    info = array._opened.info()
+    dims = tuple(info["dims"])
+    row_dim, col_dim = dims
+    coords = {}
+    time = np.asarray(info["azimuth_time_ns"], np.int64).view("datetime64[ns]")
+    coords["azimuth_time"] = (row_dim, time, {"long_name": "zero-Doppler azimuth time (UTC)"})
+    if "line" in info:
+        coords["line"] = (row_dim, np.asarray(info["line"]),
+                          {"long_name": "measurement line (the annotations' line numbering, 0-based)"})
+        coords["pixel"] = (col_dim, np.asarray(info["pixel"]),
+                           {"long_name": "measurement sample (the annotations' pixel numbering, 0-based)"})
+    if "slant_range_m" in info:
+        coords["slant_range"] = (col_dim, np.asarray(info["slant_range_m"]),
+                                 {"units": "m", "long_name": "slant range (one-way)"})
+    if "ground_range_m" in info:
+        coords["ground_range"] = (col_dim, np.asarray(info["ground_range_m"]),
+                                  {"units": "m", "long_name": "ground range from the first pixel"})
+    attrs = dict(info["attrs"])
+    attrs["source_files"] = list(attrs["source_files"])
+    attrs.update(_provenance({k: v for k, v in arguments.items() if v is not None}))
+    var_attrs = {"units": "1", "long_name": info["long_name"], "radiometry": attrs["radiometry"]}
+    variable = xr.Variable(dims, indexing.LazilyIndexedArray(array), attrs=var_attrs)
+    return xr.Dataset({info["name"]: variable}, coords=coords, attrs=attrs)

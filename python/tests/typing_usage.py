@@ -66,3 +66,9 @@ def corridor(route: Path) -> int:
     summary: Dict[str, Any] = catalog["gissar:summary"]
     assert gd.pose_id(7, 90.0) == "p0007_h090" and cli.flag_of_field("heading_deg") == "--heading"
     return len(poses) + int(summary["done"]) + cli.main(["--help"])
+
+
+def open_product(safe: Path) -> float:
+    ds: xr.Dataset = gissar.open_product(safe, swath="IW1", burst=2, polarization="VV", radiometry="sigma0",
+                                         noise_removal=False)
+    return float(ds["sigma0"][0, 0])

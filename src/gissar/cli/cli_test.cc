@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -169,9 +170,10 @@ TEST(FmatrixCommandTest, DegenerateInputIsAClearError) {
 
 
 // The real executable with a shell command line; stdout and stderr captured.
-Outcome RunBinary(const std::string& arguments, const fs::path& dir) {
-  const std::string command = std::string(GISSAR_CLI_BINARY) + " " + arguments + " >" +
-                              (dir / "stdout.txt").string() + " 2>" + (dir / "stderr.txt").string();
+// Runs a shell command line, its stdout and stderr captured through files in `dir`.
+Outcome RunShell(const std::string& command_line, const fs::path& dir) {
+  const std::string command =
+      command_line + " >" + (dir / "stdout.txt").string() + " 2>" + (dir / "stderr.txt").string();
   const int raw = std::system(command.c_str());
   Outcome o;
   o.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -186,6 +188,10 @@ Outcome RunBinary(const std::string& arguments, const fs::path& dir) {
   fs::remove(dir / "stdout.txt");
   fs::remove(dir / "stderr.txt");
   return o;
+}
+
+Outcome RunBinary(const std::string& arguments, const fs::path& dir) {
+  return RunShell(std::string(GISSAR_CLI_BINARY) + " " + arguments, dir);
 }
 
 // `gissar corridor` is the Python package's command: the package is found
@@ -457,6 +463,87 @@ TEST(CommonFlagsTest, QuietLogLevelAndThreads) {
   o = RunBinary(kSmallSimulate + " --log-level error --out " + (dir / "e").string(), dir);
   EXPECT_EQ(o.status, 0);
   EXPECT_EQ(o.err, "");
+}
+
+// The old spelling --json FILE of fmatrix and resect names the JSON file
+// itself, as it did: `--json OUT_kvd.png --plot OUT` once wrote the KvD
+// picture over the fit (exit 0); the collision check sees the file --json
+// resolves to (exit 2, the warning and one error line, nothing written).
+TEST(CommonFlagsTest, OldJsonSpellingNamesTheFileAndCollides) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string matches = testing::TestDataPath("affine/case2_thesis_dpsi30_dep40_noisefree_points.csv").string();
+  Outcome o = RunBinary("fmatrix --matches " + matches + " --json " + (dir / "OUT_kvd.png").string() + " --plot " +
+                            (dir / "OUT").string(),
+                        dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err, "gissar: warning: --json is deprecated and will be removed; use --out\n"
+                   "gissar: error: --json and --plot name the same file " + (dir / "OUT_kvd.png").string() +
+                       " (--json/--plot)\n");
+  EXPECT_EQ(o.out, "");
+  EXPECT_EQ(CountEntries(dir), 0u);
+  // The file itself, without an extension added; with --plot elsewhere, both.
+  o = RunBinary("fmatrix --matches " + matches + " --json " + (dir / "fit").string() + " --plot " +
+                    (dir / "OUT").string() + " --quiet",
+                dir);
+  ASSERT_EQ(o.status, 0) << o.err;
+  EXPECT_EQ(o.out.rfind((dir / "fit").string() + "\n" + (dir / "OUT_kvd.png").string() + "\n", 0), 0u) << o.out;
+  nlohmann::json fit;
+  std::ifstream(dir / "fit") >> fit;
+  EXPECT_TRUE(fit["converged"].get<bool>());
+  EXPECT_EQ(fit["num_matches"].get<int>(), 50);
+  EXPECT_TRUE(fs::exists(dir / "OUT_kvd.png"));
+  EXPECT_FALSE(fs::exists(dir / "fit.json"));
+  // Both spellings at once, or neither: exit 2.
+  o = RunBinary("fmatrix --matches " + matches + " --json " + (dir / "a.json").string() + " --out " +
+                    (dir / "b").string() + " --log-level error",
+                dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err, "gissar: error: give the output once, as --out (--json/--out)\n");
+  o = RunBinary("fmatrix --matches " + matches, dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err, "gissar: error: an output file is required (--out)\n");
+  // resect: --json naming its input is refused like --out.
+  o = RunBinary("resect --points " + matches + " --json " + matches + " --log-level error", dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err, "gissar: error: output would overwrite the input " + matches + " (" + matches + ")\n");
+  EXPECT_EQ(CountEntries(dir), 2u);  // fit and OUT_kvd.png
+  // Commands that never had --json do not take it.
+  o = RunBinary(kSmallSimulate + " --json " + (dir / "s").string(), dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(CountEntries(dir), 2u);
+}
+
+// A full disk, for real: a 16 KiB tmpfs in a user and mount namespace
+// (skipped where unshare cannot make one). simulate and scene build exit 2
+// with one line saying there is no space, naming the output (never its
+// temporary), and leave nothing on the file system.
+TEST(FullDiskTest, SimulateAndSceneBuildSayNoSpaceNamingTheOutput) {
+  const fs::path dir = testing::MakeTempDir();
+  fs::create_directories(dir / "disk");
+  const std::string probe = "unshare --user --map-root-user --mount sh -c 'mount -t tmpfs -o size=16k tmpfs " +
+                            (dir / "disk").string() + "' >/dev/null 2>&1";
+  if (std::system(probe.c_str()) != 0) GTEST_SKIP() << "cannot mount a tmpfs in a user namespace here";
+  const std::string dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  const fs::path disk = dir / "disk";
+  for (const auto& [command, output] :
+       std::vector<std::pair<std::string, std::string>>{{kSmallSimulate + " --out " + (disk / "sim").string(), "sim."},
+                                                        {"scene build --dem " + dem + " --out " + (disk / "scene").string(),
+                                                         "scene."}}) {
+    // The command, then what is left on the tmpfs, in the namespace that holds it.
+    const std::string script = "mount -t tmpfs -o size=16k tmpfs " + disk.string() + " || exit 99; " +
+                               GISSAR_CLI_BINARY + " " + command + " --quiet; status=$?; ls -A " + disk.string() +
+                               " >" + (dir / "left.txt").string() + "; exit $status";
+    const Outcome o = RunShell("unshare --user --map-root-user --mount sh -c '" + script + "'", dir);
+    EXPECT_EQ(o.status, 2) << command;
+    EXPECT_EQ(CountLines(o.err), 1u) << o.err;
+    EXPECT_EQ(o.err.rfind("gissar: error: failed writing ", 0), 0u) << o.err;
+    EXPECT_NE(o.err.find(": no space left on the device holding " + disk.string() + " (" + (disk / output).string()),
+              std::string::npos)
+        << o.err;
+    EXPECT_EQ(o.err.find(".gs-"), std::string::npos) << o.err;
+    std::ifstream left(dir / "left.txt");
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(left), {}), "") << command;
+  }
 }
 
 // --force lifts the memory budget: a job refused under a tiny --max-memory runs.

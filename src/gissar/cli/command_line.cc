@@ -21,13 +21,13 @@ constexpr DeprecatedFlag kDeprecatedFlags[] = {
     {"--range-res", "--range-spacing"},
     {"--azimuth-res", "--azimuth-spacing"},
     {"--range", "--slant-range"},
-    {"--json", "--out"},  // fmatrix, resect: --out PREFIX writes PREFIX.json
     {"--scene-centre", "--center-enu"},  // resect
     {"--prior-horizontal", "--prior-error-horizontal"},  // evaluate
     {"--prior-vertical", "--prior-error-vertical"},
     {"--prior-heading", "--prior-error-heading"},
-    // fmatrix --res1/--res2 regroup their values: hidden options of fmatrix
-    // (cli/mvg_command.cc) warn with DeprecationWarning.
+    // fmatrix --res1/--res2 regroup their values, and fmatrix/resect --json
+    // FILE named the JSON file itself (not a prefix): hidden options of
+    // those commands (cli/mvg_command.cc) warn with DeprecationWarning.
 };
 
 // The command a command line names ("simulate", "scene build") and the

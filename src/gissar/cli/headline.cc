@@ -147,6 +147,10 @@ std::string EvaluateHeadline(const json& s) {
     line += "; bias along " + Fixed(check["along_m"]["error_mean"], 1) + " m (sd " +
             Fixed(check["along_m"]["error_sd"], 1) + "), cross " + Fixed(check["cross_m"]["error_mean"], 1) +
             " m (sd " + Fixed(check["cross_m"]["error_sd"], 1) + ")";
+    if (At(check, {"inside_95_region", "along_cross_rate"}).is_number()) {
+      line += ", " + Fixed(json(100.0 * check["inside_95_region"]["along_cross_rate"].get<double>()), 0) +
+              " % inside the stated 95 % ellipse";
+    }
   }
   line += "; " + Fixed(At(s, {"seconds_per_fix", "median"}), 2) + " s per fix";
   return line;

@@ -22,6 +22,9 @@ void AddProductTerrainFlags(CLI::App* cmd, Request& o) {
                   "With --product: point landmarks, a reflectors CSV (type,lon,lat,apex_height_m,size_m,"
                   "boresight_azimuth_deg,boresight_elevation_deg): rendered in the references; one in the image "
                   "fixes along and cross track where the terrain is flat (up and heading from the prior)");
+  cmd->add_option("--terrain-horizontal-sigma", o.terrain_horizontal_sigma_m,
+                  "With --product: the DEM's/scene's absolute horizontal error, one sigma per axis, m; added to a "
+                  "relief fix's along/cross variance (default: SRTM-class 1\" DEMs)")->capture_default_str();
   cmd->add_option("--sea", o.sea, "auto or off: the terrain's sea (auto: DEM cells at or below sea level "
                                   "connected to its border)")->capture_default_str();
 }
@@ -79,9 +82,12 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
         ->capture_default_str();
     cmd->add_option("--database-heading-tolerance", o->database_heading_tolerance_deg,
                     "Largest heading difference between the prior and a stored reference, deg")->capture_default_str();
+    auto max_memory = std::make_shared<std::string>();
+    cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {
       LocateRequest resolved = *o;
       resolved.out = PrefixedOutput(o->out, ".json");
+      resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
       const auto report = RunLocate(resolved, context.command_line, context.reporter);
       context.out << resolved.out << "\n";
       if (!resolved.composite_png.empty()) context.out << resolved.composite_png << "\n";
@@ -144,8 +150,11 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     auto floor = std::make_shared<bool>(true);
     AddSwitch(cmd, "reference-floor", *floor,
               "References with the observed noise floor (--nesz), or (--no-reference-floor) dark areas at -40 dB");
+    auto max_memory = std::make_shared<std::string>();
+    cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {
       EvaluateRequest r = *o;
+      r.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, r.max_memory_bytes);
       r.compare_matchers = *compare;
       r.reference_floor = *floor;
       const auto summary = RunEvaluate(r, context.command_line, context.reporter);

@@ -11,6 +11,20 @@
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
+namespace {
+
+// The JSON output of fmatrix and resect: --out PREFIX (PREFIX.json), or the
+// deprecated --json FILE, which named the file itself and keeps doing so for
+// one release (so that the outputs' collision checks see the file it writes).
+std::string JsonOutput(const std::string& out_prefix, const std::string& json_file, Reporter& reporter) {
+  if (json_file.empty()) return out_prefix.empty() ? "" : PrefixedOutput(out_prefix, ".json");
+  reporter.Warn(DeprecationWarning("--json", "--out"));
+  if (!out_prefix.empty()) throw ConfigError("give the output once, as --out", "--json/--out");
+  return json_file;
+}
+
+}  // namespace
+
 void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
   {
     auto o = std::make_shared<FmatrixRequest>();
@@ -33,14 +47,17 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--threshold", o->threshold_px, "RANSAC inlier threshold, pixels")->capture_default_str();
     AddSwitch(cmd, "ransac", *ransac, "RANSAC before the Gold Standard fit, or (--no-ransac) one fit to all matches");
     cmd->add_option("--seed", o->seed, "RANSAC seed")->capture_default_str();
-    cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the fit)")->required();
+    // Required, unless the deprecated --json FILE (hidden) names the file.
+    auto json_file = std::make_shared<std::string>();
+    cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the fit)");
+    cmd->add_option("--json", *json_file)->group("");
     cmd->add_option("--plot", o->plot_prefix, "Pictures: PREFIX_kvd.png (KvD diagram) and, with the images, "
                                               "PREFIX_epipolar.png (matches and epipolar lines)");
     cmd->add_option("--image1", o->image1, "Image 1 (any GDAL raster) for --plot");
     cmd->add_option("--image2", o->image2, "Image 2 for --plot");
     registry.Add(cmd, [=](const CommandContext& context) {
       FmatrixRequest r = *o;
-      r.json_out = PrefixedOutput(o->json_out, ".json");
+      r.json_out = JsonOutput(o->json_out, *json_file, context.reporter);
       r.robust = *ransac;
       if (!range_spacing->empty()) r.range_spacing_m = ParseNumberPair(*range_spacing, "--range-spacing");
       if (!azimuth_spacing->empty()) r.azimuth_spacing_m = ParseNumberPair(*azimuth_spacing, "--azimuth-spacing");
@@ -57,7 +74,17 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
         r.azimuth_spacing_m = Eigen::Vector2d(a.y(), b.y());
       }
       if (!depressions->empty()) r.depressions = ParseNumberPair(*depressions, "--depressions");
-      const auto out = RunFmatrix(r, context.command_line, context.reporter);
+      nlohmann::json out;
+      try {
+        out = RunFmatrix(r, context.command_line, context.reporter);
+      } catch (const ConfigError& e) {
+        // The JSON named by the old --json: the error names the flag given.
+        auto renamed = [](const std::string& text) {
+          return text.rfind("--out", 0) == 0 ? "--json" + text.substr(5) : text;
+        };
+        if (json_file->empty()) throw;
+        throw ConfigError(renamed(e.message()), renamed(e.where()));
+      }
       context.out << r.json_out << "\n";
       if (out.contains("pictures")) {
         for (const auto& p : out["pictures"]) context.out << p.get<std::string>() << "\n";
@@ -79,10 +106,12 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--points", o->points, "CSV with a header and columns X,Y,Z,x,y (ENU m, pixels)")->required();
     cmd->add_option("--center-enu", *center, "Scene centre Xc X,Y,Z (ENU m; default 0,0,0)")->delimiter(',')->expected(3);
     cmd->add_option("--slant-range", *range, "Measured slant range to Xc, metres: also gives the sensor position");
-    cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the camera)")->required();
+    auto json_file = std::make_shared<std::string>();  // deprecated --json FILE, as in fmatrix
+    cmd->add_option("--out", o->json_out, "Output prefix: PREFIX.json (the camera)");
+    cmd->add_option("--json", *json_file)->group("");
     registry.Add(cmd, [=](const CommandContext& context) {
       ResectRequest r = *o;
-      r.json_out = PrefixedOutput(o->json_out, ".json");
+      r.json_out = JsonOutput(o->json_out, *json_file, context.reporter);
       if (!center->empty()) r.center_enu_m = Eigen::Vector3d((*center)[0], (*center)[1], (*center)[2]);
       if (*range != 0.0) r.slant_range_m = *range;
       const auto out = RunResect(r, context.command_line, context.reporter);

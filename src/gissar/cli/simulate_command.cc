@@ -2,6 +2,7 @@
 #include <memory>
 
 #include "gissar/cli/command.h"
+#include "gissar/pipeline/sentinel1_simulate.h"
 #include "gissar/pipeline/simulate.h"
 
 namespace gissar::cli {
@@ -20,6 +21,18 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   AddSimulateOption(cmd, "product", options->product, false);
   AddSimulateOption(cmd, "orbit", options->orbit, false);
   AddSimulateOption(cmd, "radar_grid", options->radar_grid, false);
+  // Product selection (docs/conventions.md, "Products and sources"); not in
+  // the shared help table: they have no meaning for the corridor.
+  cmd->add_option("--frequency", options->frequency, "NISAR product: frequency band A or B (default: A)");
+  cmd->add_option("--swath", options->swath,
+                  "Sentinel-1 product: swath (IW1..IW3, EW1..EW5, S1..S6; default: the product's only swath)");
+  cmd->add_option("--burst", options->burst,
+                  "Sentinel-1 IW/EW SLC: burst N (1-based, per swath), simulated in its own zero-Doppler grid "
+                  "(required for IW/EW SLC; a GRD or stripmap product has none)");
+  auto product_window = std::make_shared<std::string>();
+  cmd->add_option("--product-window", *product_window,
+                  "Render a part of the product's grid: LINE,PIXEL,LINES,PIXELS in its own numbering (a burst's "
+                  "lines and samples, a GRD's lines and ground-range pixels)");
   AddSimulateOption(cmd, "dem_oversample", options->dem_oversample);
   AddSimulateOption(cmd, "vertical_units", options->vertical_units, false);
   AddSimulateOption(cmd, "vertical_datum", options->vertical_datum, false);
@@ -77,6 +90,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
     resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
     resolved.geometry.mode = sensor::ParseProjectionMode(*mode);
     resolved.geometry.look_side = sensor::ParseLookSide(*look);
+    if (!product_window->empty()) resolved.product_window_px = ParseProductWindow(*product_window);
     if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");
     if (!center_map->empty()) resolved.center_map = ParseNumberPair(*center_map, "--center-map");
     const SimulateResult result = RunSimulate(resolved, context.command_line, context.reporter);

@@ -1,6 +1,7 @@
 #include "gissar/geo/orbit_file.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -331,7 +332,8 @@ void WriteStateVectorsCsv(const fs::path& path, const StateVectors& vectors) {
                     p.x(), p.y(), p.z(), v.x(), v.y(), v.z());
       out << line;
     }
-    if (!out) throw IoError("write failed", path.string());
+    out.close();  // a full disk shows when the buffer is flushed
+    if (!out) throw WriteError("write failed", temporary, errno);
   }
   outputs.Commit();
 }

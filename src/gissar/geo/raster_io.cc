@@ -7,9 +7,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <sys/statvfs.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -23,6 +20,7 @@
 #include <memory>
 
 #include "gissar/geo/gdal_env.h"
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
 
@@ -35,9 +33,10 @@ struct GdalDatasetCloser {
 };
 using DatasetPtr = std::unique_ptr<GDALDataset, GdalDatasetCloser>;
 
-// Runs a writer of `path`; an IoError it throws on a full disk (see
-// OutOfSpace) says so instead of GDAL's message ("IO error writing tag data",
-// "TIFFRewriteDirectory:Error fetching directory count", ...).
+// Runs a writer of `path`; an IoError it throws on a full disk says so
+// (util's WriteError) instead of GDAL's message ("IO error writing tag data",
+// "TIFFRewriteDirectory:Error fetching directory count", ...), and any
+// IoError names the output, not its temporary (OutputPathOf).
 template <typename Write>
 void WithSpaceCheck(const fs::path& path, const char* what, Write&& write) {
   errno = 0;  // no stale errno from before the write
@@ -45,7 +44,8 @@ void WithSpaceCheck(const fs::path& path, const char* what, Write&& write) {
     write();
   } catch (const IoError& e) {
     const int error = errno;
-    if (OutOfSpace(error, path)) throw IoError(std::string(what) + ": " + NoSpaceMessage(path), path.string());
+    if (OutOfSpace(error, path)) throw WriteError(what, path, error);
+    if (e.where() == path.string()) throw IoError(e.message(), OutputPathOf(path).string());
     throw;
   }
 }
@@ -659,26 +659,6 @@ void WriteComplexGeoTiff(const fs::path& path, const std::vector<ComplexBand>& b
 
 void WritePng(const fs::path& path, const std::vector<uint8_t>& data, int width, int height, int channels) {
   WithSpaceCheck(path, "failed writing PNG", [&] { WritePngUnchecked(path, data, width, height, channels); });
-}
-
-bool OutOfSpace(int error, const fs::path& path) {
-  if (error == ENOSPC || error == EDQUOT) return true;
-  std::error_code ec;
-  fs::path dir = fs::absolute(path, ec).lexically_normal().parent_path();
-  if (ec || dir.empty()) dir = ".";
-  struct statvfs st {};
-  // Blocks free to unprivileged users; root may still use the reserved
-  // ones (f_bfree), and a write fails for it only when those are gone too.
-  // No block accounting (e.g. /proc), or read-only (squashfs reports no free block).
-  if (statvfs(dir.c_str(), &st) != 0 || st.f_blocks == 0 || (st.f_flag & ST_RDONLY) != 0) return false;
-  return (geteuid() == 0 ? st.f_bfree : st.f_bavail) == 0;
-}
-
-std::string NoSpaceMessage(const fs::path& path) {
-  std::error_code ec;
-  fs::path dir = fs::absolute(path, ec).lexically_normal().parent_path();
-  if (ec || dir.empty()) dir = fs::current_path(ec);
-  return "no space left on the device holding " + dir.string();
 }
 
 }  // namespace gissar::geo

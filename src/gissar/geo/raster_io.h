@@ -153,14 +153,9 @@ FloatRaster ReadFloatRaster(const std::filesystem::path& path);
 // Reads band 1 of a raster as uint8 (e.g. a mask). Throws InputError.
 std::vector<uint8_t> ReadByteRaster(const std::filesystem::path& path, int* width, int* height);
 
-// A full disk. Every writer above (and the scene writers) reports a failed
-// write as IoError("<what>: no space left on the device holding DIR", path)
-// when it ran out of space: `error`, errno right after the failure, is
-// ENOSPC or EDQUOT (also /dev/full), or the file system holding `path` has
-// no block left for this user (statvfs; GDAL's own errors do not carry
-// errno).
-bool OutOfSpace(int error, const std::filesystem::path& path);
-// "no space left on the device holding DIR" (DIR: the directory of `path`).
-std::string NoSpaceMessage(const std::filesystem::path& path);
+// A full disk: every writer above (and the scene writers) reports a failed
+// write as util's WriteError (atomic_output.h): IoError("<what>: no space
+// left on the device holding DIR", OUTPUT), OUTPUT the final output rather
+// than its temporary.
 
 }  // namespace gissar::geo

@@ -13,6 +13,7 @@
 #include <limits>
 #include <sstream>
 
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
@@ -348,6 +349,40 @@ TEST(RasterIoTest, AFullDiskSaysNoSpaceLeft) {
   EXPECT_FALSE(OutOfSpace(EACCES, dir / "x.tif"));
   EXPECT_FALSE(OutOfSpace(ENOENT, "/nonexistent/dir/x.tif"));
   EXPECT_EQ(NoSpaceMessage(dir / "sub" / ".." / "x.tif"), "no space left on the device holding " + dir.string());
+}
+
+// Outputs are written under temporary names (AtomicOutputs): a full disk
+// names the output the user asked for, not ".gs-...tmp". The failure is
+// injected by making each temporary a link to /dev/full.
+TEST(RasterIoTest, AFullDiskNamesTheOutputNotItsTemporary) {
+  const std::filesystem::path dir = testing::MakeTempDir();
+  AtomicOutputs outputs;
+  auto full = [&](const std::string& name) {
+    const std::filesystem::path temp = outputs.Add(dir / name);
+    std::filesystem::create_symlink("/dev/full", temp);
+    return temp;
+  };
+  auto error_of = [](const std::function<void()>& write) -> IoError {
+    try {
+      write();
+    } catch (const IoError& e) {
+      return e;
+    }
+    return IoError("no error", "");
+  };
+  const std::string expected = "no space left on the device holding " + dir.string();
+  const std::filesystem::path tif = full("sim.tif");
+  IoError e = error_of([&] { WriteFloatGeoTiff(tif, FloatRaster{4, 3, {std::vector<float>(12, 1.0f)}, {}, {}}); });
+  EXPECT_EQ(e.message(), "failed writing raster: " + expected);
+  EXPECT_EQ(e.where(), (dir / "sim.tif").string());
+  const std::filesystem::path png = full("sim.png");
+  e = error_of([&] { WritePng(png, std::vector<uint8_t>(12, 7), 4, 3, 1); });
+  EXPECT_EQ(e.message(), "failed writing PNG: " + expected);
+  EXPECT_EQ(e.where(), (dir / "sim.png").string());
+  const std::filesystem::path mask = full("sim_mask.tif");
+  e = error_of([&] { WriteByteGeoTiff(mask, std::vector<uint8_t>(12, 1), 4, 3, {}); });
+  EXPECT_EQ(e.message(), "failed writing raster: " + expected);
+  EXPECT_EQ(e.where(), (dir / "sim_mask.tif").string());
 }
 
 }  // namespace

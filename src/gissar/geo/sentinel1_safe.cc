@@ -677,6 +677,36 @@ Sentinel1Annotation ParseSentinel1Annotation(const std::string& xml, const std::
       a.range_conversion.push_back(std::move(c));
     }
   }
+  // Processed bands (optional: older or hand-made annotations may lack them).
+  const std::string proc_path = "imageAnnotation/processingInformation/swathProcParamsList";
+  if (const xmlNode* list =
+          Child(Child(Child(top, "imageAnnotation"), "processingInformation"), "swathProcParamsList")) {
+    const std::vector<const xmlNode*> params = Children(list, "swathProcParams");
+    for (size_t i = 0; i < params.size(); ++i) {
+      const std::string base = Reader::Item(proc_path, "swathProcParams", i);
+      Sentinel1SwathProcessing p;
+      p.swath = r.Text(params[i], "swath", base);
+      p.range_processing_bandwidth_hz = r.Number(params[i], "rangeProcessing/processingBandwidth", base);
+      p.range_look_bandwidth_hz = r.Number(params[i], "rangeProcessing/lookBandwidth", base);
+      p.range_looks = r.Int(params[i], "rangeProcessing/numberOfLooks", base);
+      p.range_window = r.Text(params[i], "rangeProcessing/windowType", base);
+      p.range_window_coefficient = r.Number(params[i], "rangeProcessing/windowCoefficient", base);
+      p.azimuth_processing_bandwidth_hz = r.Number(params[i], "azimuthProcessing/processingBandwidth", base);
+      p.azimuth_look_bandwidth_hz = r.Number(params[i], "azimuthProcessing/lookBandwidth", base);
+      p.azimuth_looks = r.Int(params[i], "azimuthProcessing/numberOfLooks", base);
+      p.azimuth_window = r.Text(params[i], "azimuthProcessing/windowType", base);
+      p.azimuth_window_coefficient = r.Number(params[i], "azimuthProcessing/windowCoefficient", base);
+      for (const auto& [value, name] :
+           {std::pair{p.range_processing_bandwidth_hz, "rangeProcessing/processingBandwidth"},
+            {p.range_look_bandwidth_hz, "rangeProcessing/lookBandwidth"},
+            {p.azimuth_processing_bandwidth_hz, "azimuthProcessing/processingBandwidth"},
+            {p.azimuth_look_bandwidth_hz, "azimuthProcessing/lookBandwidth"}}) {
+        if (!(value > 0.0)) throw InputError("must be > 0", r.Where(base + "/" + name));
+      }
+      a.processing.push_back(std::move(p));
+    }
+  }
+
   if (a.is_grd() && a.range_conversion.empty()) {
     throw InputError("a GRD annotation without slant/ground range polynomials",
                      r.Where("coordinateConversion/coordinateConversionList"));

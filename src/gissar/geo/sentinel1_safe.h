@@ -64,6 +64,19 @@ struct Sentinel1RangeConversion {
   std::vector<double> srgr, grsr;
 };
 
+// One swathProcParams of imageAnnotation/processingInformation/
+// swathProcParamsList (an SLC lists its swath; a GRD each swath it merged):
+// the bands the processor kept, Hz, and its looks. Resolution follows the
+// processing bandwidth in an SLC and the look bandwidth in a multilooked GRD.
+struct Sentinel1SwathProcessing {
+  std::string swath;
+  double range_processing_bandwidth_hz = 0.0, range_look_bandwidth_hz = 0.0;
+  double azimuth_processing_bandwidth_hz = 0.0, azimuth_look_bandwidth_hz = 0.0;
+  int range_looks = 1, azimuth_looks = 1;
+  std::string range_window, azimuth_window;  // windowType ("Hamming")
+  double range_window_coefficient = 0.0, azimuth_window_coefficient = 0.0;
+};
+
 // A LUT given as vectors at a few lines, each over a few pixels (the
 // calibration and the noise range vectors).
 struct Sentinel1LineVectors {
@@ -132,6 +145,8 @@ struct Sentinel1Annotation {
   std::vector<Sentinel1Burst> bursts;       // empty for SM and GRD
   std::vector<Sentinel1GridPoint> geolocation_grid;
   std::vector<Sentinel1RangeConversion> range_conversion;  // GRD only
+  // processingInformation/swathProcParamsList; empty when not annotated.
+  std::vector<Sentinel1SwathProcessing> processing;
 
   bool is_grd() const { return product_type == "GRD"; }
   // Slant-range sample spacing c / (2 fs), metres.

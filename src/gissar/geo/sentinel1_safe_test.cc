@@ -22,6 +22,7 @@ namespace fs = std::filesystem;
 using geo::testing_s1::kIwGrd;
 using geo::testing_s1::kIwSlc;
 using geo::testing_s1::kSm;
+using geo::testing_s1::ErrorOf;
 
 std::string Slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -41,16 +42,6 @@ fs::path CopySafe(const char* relative) {
   const fs::path dst = testing::MakeTempDir() / src.filename();
   fs::copy(src, dst, fs::copy_options::recursive);
   return dst;
-}
-
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.message() + " | " + e.where();
-  }
-  return "(no error)";
 }
 
 TEST(Sentinel1Safe, ReadsTheManifestOfAnIwSlc) {

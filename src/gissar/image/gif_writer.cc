@@ -2,8 +2,10 @@
 
 #include <gif_lib.h>
 
+#include <cerrno>
 #include <cstring>
 
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
 
@@ -14,11 +16,13 @@ void WriteAnimatedGif(const std::filesystem::path& path, const std::vector<std::
   GISSAR_CHECK(!frames.empty());
   int error = 0;
   GifFileType* gif = EGifOpenFileName(path.c_str(), false, &error);
-  if (gif == nullptr) throw IoError(std::string("cannot create GIF: ") + GifErrorString(error), path.string());
+  if (gif == nullptr) throw WriteError(std::string("cannot create GIF: ") + GifErrorString(error), path, errno);
+  // A full disk says so, naming the output (util's WriteError).
   auto fail = [&](const char* what) {
+    const int write_error = errno;
     int close_error = 0;
     EGifCloseFile(gif, &close_error);
-    throw IoError(std::string("failed writing GIF: ") + what, path.string());
+    throw WriteError(std::string("failed writing GIF: ") + what, path, write_error);
   };
   GifColorType grey[256];
   for (int i = 0; i < 256; ++i) grey[i] = {static_cast<GifByteType>(i), static_cast<GifByteType>(i), static_cast<GifByteType>(i)};
@@ -56,8 +60,9 @@ void WriteAnimatedGif(const std::filesystem::path& path, const std::vector<std::
       if (EGifPutLine(gif, line.data(), width) == GIF_ERROR) fail("frame data");
     }
   }
+  errno = 0;
   if (EGifCloseFile(gif, &error) == GIF_ERROR) {
-    throw IoError(std::string("failed closing GIF: ") + GifErrorString(error), path.string());
+    throw WriteError(std::string("failed closing GIF: ") + GifErrorString(error), path, errno);
   }
   // giflib creates the file owner-only (0600); give it ordinary permissions.
   std::error_code ec;

@@ -3,6 +3,7 @@
 #include <gif_lib.h>
 #include <gtest/gtest.h>
 
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
@@ -38,6 +39,26 @@ TEST(GifWriterTest, WritesEveryFrameLosslessly) {
 
 TEST(GifWriterTest, UnwritablePathIsAnIoError) {
   EXPECT_THROW(WriteAnimatedGif("/nonexistent/dir/x.gif", {std::vector<uint8_t>(4)}, 2, 2, 10), IoError);
+}
+
+// `sequence` writes PREFIX.gif under a temporary name: on a full disk the
+// error says so and names PREFIX.gif (the failure injected by making the
+// temporary a link to /dev/full, which fails every write with ENOSPC).
+TEST(GifWriterTest, AFullDiskSaysNoSpaceLeftNamingTheOutput) {
+  const std::filesystem::path dir = testing::MakeTempDir();
+  AtomicOutputs outputs;
+  const std::filesystem::path temp = outputs.Add(dir / "seq.gif");
+  std::filesystem::create_symlink("/dev/full", temp);
+  try {
+    WriteAnimatedGif(temp, {std::vector<uint8_t>(64 * 64, 9), std::vector<uint8_t>(64 * 64, 200)}, 64, 64, 10);
+    ADD_FAILURE() << "expected IoError";
+  } catch (const IoError& e) {
+    const std::string expected = ": no space left on the device holding " + dir.string();
+    ASSERT_GE(e.message().size(), expected.size()) << e.message();
+    EXPECT_EQ(e.message().substr(e.message().size() - expected.size()), expected) << e.message();
+    EXPECT_EQ(e.message().rfind("failed ", 0), 0u) << e.message();
+    EXPECT_EQ(e.where(), (dir / "seq.gif").string());
+  }
 }
 
 }  // namespace

@@ -173,13 +173,6 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
       for (int k = 0; k < classes; ++k) class_box.push_back(std::max(0.0f, box[k].at<float>(y, x)));
     }
   if (samples.size() < 64) return std::nullopt;
-  auto bilinear = [](const cv::Mat& m, double x, double y) {
-    const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-    const double fx = x - x0, fy = y - y0;
-    const float* r0 = m.ptr<float>(y0);
-    const float* r1 = m.ptr<float>(y0 + 1);
-    return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
-  };
   // Parameters: heading, depression (deg), u0, v0 (px), a_k (dB) per class.
   const int np = 4 + classes;
   Eigen::VectorXd q = Eigen::VectorXd::Zero(np);
@@ -190,9 +183,11 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
   KnownSpacingResection out;  // sigma stays zero: the pixels are correlated
   double rms = 0;
   Eigen::MatrixXd normal(np, np);
-  Eigen::VectorXd j(np), rhs(np), gains(classes);
-  std::vector<double> residual;
-  std::vector<Eigen::VectorXd> jac;
+  Eigen::VectorXd rhs(np), gains(classes);
+  // One row per used sample (filled in place, no allocation per pixel); the
+  // normal equations are then one weighted product J^T W J.
+  Eigen::MatrixXd jac(static_cast<Eigen::Index>(samples.size()), np);
+  Eigen::VectorXd residual(static_cast<Eigen::Index>(samples.size()));
   for (int it = 0; it < iterations; ++it) {
     const Eigen::Vector3d l = sensor::LookDirection(q[0], q[1], model.look_side);
     const Eigen::Vector3d hh = sensor::FlightDirection(q[0]);
@@ -200,8 +195,7 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
     const Eigen::Vector3d dl_dd = (sensor::LookDirection(q[0], q[1] + kEps, model.look_side) - l) / kEps;
     const Eigen::Vector3d dh_dh = (sensor::FlightDirection(q[0] + kEps) - hh) / kEps;
     for (int k = 0; k < classes; ++k) gains[k] = std::pow(10.0, q[4 + k] / 10.0);
-    residual.clear();
-    jac.clear();
+    Eigen::Index used = 0;
     for (size_t i = 0; i < samples.size(); ++i) {
       const Sample& s = samples[i];
       const double ox = s.c0.x() + q[2] + s.d.dot(l) / model.range_spacing_m;
@@ -210,33 +204,44 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
       const double* b = class_box.data() + i * classes;
       double sum = floor;
       for (int k = 0; k < classes; ++k) sum += gains[k] * b[k];
-      const double ogx = bilinear(gx, ox, oy), ogy = bilinear(gy, ox, oy);
+      // The observed log image and its gradients at (ox, oy): one set of
+      // bilinear weights for the three.
+      const int x0 = static_cast<int>(std::floor(ox)), y0 = static_cast<int>(std::floor(oy));
+      const double fx = ox - x0, fy = oy - y0;
+      const double w00 = (1 - fy) * (1 - fx), w01 = (1 - fy) * fx, w10 = fy * (1 - fx), w11 = fy * fx;
+      auto at = [&](const cv::Mat& m) {
+        const float* r0 = m.ptr<float>(y0) + x0;
+        const float* r1 = m.ptr<float>(y0 + 1) + x0;
+        return w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1];
+      };
+      const double ogx = at(gx), ogy = at(gy);
+      auto j = jac.row(used);
       j[0] = ogx * s.d.dot(dl_dh) / model.range_spacing_m + ogy * s.d.dot(dh_dh) / model.azimuth_spacing_m;
       j[1] = ogx * s.d.dot(dl_dd) / model.range_spacing_m;
       j[2] = ogx;
       j[3] = ogy;
       for (int k = 0; k < classes; ++k) j[4 + k] = -gains[k] * b[k] / sum;
-      residual.push_back(bilinear(obs_log, ox, oy) - kDbPerNeper * std::log(sum));
-      jac.push_back(j);
+      residual[used] = at(obs_log) - kDbPerNeper * std::log(sum);
+      ++used;
     }
-    const int used = static_cast<int>(residual.size());
     if (used < 64) return std::nullopt;
-    std::vector<double> a(residual.size());
-    for (size_t i = 0; i < a.size(); ++i) a[i] = std::abs(residual[i]);
+    const auto r = residual.head(used);
+    std::vector<double> a(static_cast<size_t>(used));
+    for (Eigen::Index i = 0; i < used; ++i) a[i] = std::abs(r[i]);
     std::nth_element(a.begin(), a.begin() + a.size() / 2, a.end());
     const double sigma = std::max(1.4826 * a[a.size() / 2], 1e-3);
     const double huber = 1.345 * sigma;
+    // Huber weights; the normal equations J^T W J and J^T W r in one pass of
+    // the (used x np) matrix.
+    const Eigen::VectorXd wt =
+        r.array().abs().unaryExpr([huber](double v) { return v <= huber ? 1.0 : huber / v; }).matrix();
+    const Eigen::MatrixXd weighted = wt.cwiseSqrt().asDiagonal() * jac.topRows(used);
     normal.setZero();
-    rhs.setZero();
-    double wsum = 0, wr2 = 0;
-    for (size_t i = 0; i < residual.size(); ++i) {
-      const double wt = std::abs(residual[i]) <= huber ? 1.0 : huber / std::abs(residual[i]);
-      normal.selfadjointView<Eigen::Lower>().rankUpdate(jac[i], wt);
-      rhs -= wt * residual[i] * jac[i];
-      wsum += wt;
-      wr2 += wt * residual[i] * residual[i];
-    }
+    normal.selfadjointView<Eigen::Lower>().rankUpdate(weighted.transpose());
     normal = normal.selfadjointView<Eigen::Lower>();
+    rhs = -(jac.topRows(used).transpose() * wt.cwiseProduct(r));
+    const double wsum = wt.sum();
+    const double wr2 = wt.dot(r.cwiseProduct(r));
     // The gains' prior, in units of the pixel residuals' variance.
     const double prior_weight = sigma * sigma / (kGainPriorDb * kGainPriorDb);
     for (int k = 0; k < classes; ++k) {

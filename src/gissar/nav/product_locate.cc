@@ -313,6 +313,7 @@ void ProductLocateOptions::Check() const {
   need(min_landmark_contrast_db >= 0.0, "min_landmark_contrast_db");
   need(min_landmark_margin_db >= 0.0, "min_landmark_margin_db");
   need(landmark_sigma_px > 0.0, "landmark_sigma_px");
+  need(terrain_horizontal_sigma_m >= 0.0 && std::isfinite(terrain_horizontal_sigma_m), "terrain_horizontal_sigma_m");
 }
 
 TrackFrame TrackFrameAt(const sensor::Orbit& orbit, double time_s) {
@@ -720,6 +721,11 @@ ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& 
       result.converged = true;
     }
   }
+  // The terrain's horizontal error moves the matched pattern as a whole: it
+  // adds to the along- and cross-track variance of the relief fix.
+  const double map_variance = options.terrain_horizontal_sigma_m * options.terrain_horizontal_sigma_m;
+  result.covariance(0, 0) += map_variance;
+  result.covariance(1, 1) += map_variance;
   return finish();
 }
 

@@ -149,6 +149,13 @@ struct ProductLocateOptions {
   double min_landmark_contrast_db = 10.0;
   double min_landmark_margin_db = 3.0;
   double landmark_sigma_px = 0.3;
+  // The terrain's (DEM's or scene's) own absolute horizontal error, one
+  // sigma per horizontal axis, metres. A relief fix matches the image
+  // against the terrain, so a terrain displaced by d reads as a track
+  // displaced by -d: this variance is added to the fix's along- and
+  // cross-track variances (isotropic, so in any horizontal frame). A landmark
+  // fix does not use it (the landmarks' own coordinates are surveyed).
+  double terrain_horizontal_sigma_m = 0.0;
   void Check() const;  // ConfigError naming the field
 };
 

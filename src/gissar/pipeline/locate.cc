@@ -1,6 +1,7 @@
 #include "gissar/pipeline/locate.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -99,8 +100,9 @@ scene::TriangleMesh SmoothedTerrain(const scene::TriangleMesh& mesh, double lamb
 }
 
 SimulateRequest TerrainOptions(const std::string& scene, const std::string& dem, const std::string& vertical_datum,
-                               const std::string& sea) {
+                               const std::string& sea, int64_t max_memory_bytes) {
   SimulateRequest so;
+  so.max_memory_bytes = max_memory_bytes;
   so.scene = scene;
   so.dem = dem;
   so.vertical_datum = vertical_datum;
@@ -125,7 +127,11 @@ void CheckSceneOrDem(const std::string& scene, const std::string& dem, const std
 }
 
 // The options of a product fix (LocateRequest/EvaluateRequest::product).
-void CheckProductOptions(const std::string& frequency, int looks_range, int looks_azimuth, int dem_oversample) {
+void CheckProductOptions(const std::string& frequency, int looks_range, int looks_azimuth, int dem_oversample,
+                         double terrain_horizontal_sigma_m) {
+  if (!(terrain_horizontal_sigma_m >= 0 && terrain_horizontal_sigma_m <= 1000)) {
+    throw ConfigError("must be in [0, 1000] m", "--terrain-horizontal-sigma");
+  }
   if (frequency != "A" && frequency != "B") throw ConfigError("must be A or B", "--frequency");
   if (looks_range < 1 || looks_range > 64 || looks_azimuth < 1 || looks_azimuth > 64) {
     throw ConfigError("must be in [1, 64]", "--looks-range/--looks-azimuth");
@@ -310,6 +316,7 @@ DatabaseFix FixFromDatabase(const ReferenceDatabase& db, const std::vector<senso
 
 void LocateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
+  if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
   CheckSeaAndReflectors(sea, reflectors, UsesTrack());
   CheckDatabaseOptions(database, database_fallback, database_heading_tolerance_deg);
   if (UsesTrack()) {
@@ -331,7 +338,7 @@ void LocateRequest::Check() const {
       throw ConfigError("a product's prior is its own track moved by --prior-offset-track and --prior-heading-offset",
                         "--product/--prior");
     }
-    CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample);
+    CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample, terrain_horizontal_sigma_m);
     if (prior_offset_track.size() != 3 ||
         !std::all_of(prior_offset_track.begin(), prior_offset_track.end(), [](double v) { return std::isfinite(v); })) {
       throw ConfigError("needs ALONG,CROSS,UP in metres", "--prior-offset-track");
@@ -390,6 +397,8 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
     else if (key == "dem_oversample") set(dem_oversample);
     else if (key == "reflectors") set(reflectors);
     else if (key == "sea") set(sea);
+    else if (key == "terrain_horizontal_sigma_m") set(terrain_horizontal_sigma_m);
+    else if (key == "max_memory_bytes") set(max_memory_bytes);
     else if (key == "database") set(database);
     else if (key == "database_fallback") set(database_fallback);
     else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
@@ -400,7 +409,8 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
                                   "bounces", "rays_per_cell", "product", "orbit", "radar_grid", "frequency",
                                   "polarization", "prior_offset_track", "prior_heading_offset_deg",
                                   "prior_sigma_horizontal_m", "prior_sigma_vertical_m", "prior_sigma_heading_deg",
-                                  "looks_range", "looks_azimuth", "dem_oversample", "reflectors", "sea", "database",
+                                  "looks_range", "looks_azimuth", "dem_oversample", "reflectors", "sea",
+                                  "terrain_horizontal_sigma_m", "max_memory_bytes", "database",
                                   "database_fallback", "database_heading_tolerance_deg"}),
           source);
     }
@@ -468,7 +478,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   std::vector<float> observed = raster.bands.at(0);
   for (float& v : observed) if (!std::isfinite(v)) v = 0.0f;
 
-  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea), reporter);
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes), reporter);
   const render::EmbreeScene embree(terrain.mesh);
   nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
   std::optional<nav::NavPose> start;
@@ -572,6 +582,7 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
 
 void EvaluateRequest::Check() const {
   CheckSceneOrDem(scene, dem, vertical_datum);
+  if (max_memory_bytes <= 0) throw ConfigError("memory limit must be positive", "--max-memory");
   CheckSeaAndReflectors(sea, reflectors, !product.empty());
   if (trials < 1 || trials > kMaxTrials) throw ConfigError("must be in [1, 100000]", "--trials");
   if (out_prefix.empty() && product.empty()) throw ConfigError("required", "--out");
@@ -597,7 +608,7 @@ void EvaluateRequest::Check() const {
     }
   }
   if (!product.empty()) {
-    CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample);
+    CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample, terrain_horizontal_sigma_m);
     nav::ParseShiftMatcher(matcher, "--matcher");
   } else {
     nav::ParseMatcher(matcher, "--matcher");
@@ -635,7 +646,8 @@ nlohmann::json EvaluateRequest::ToJson() const {
           {"trial_first", trial_first}, {"trial_count", trial_count}, {"product", product},
           {"frequency", frequency}, {"polarization", polarization}, {"looks_range", looks_range},
           {"looks_azimuth", looks_azimuth}, {"dem_oversample", dem_oversample}, {"reflectors", reflectors},
-          {"sea", sea}, {"database", database},
+          {"sea", sea}, {"terrain_horizontal_sigma_m", terrain_horizontal_sigma_m},
+          {"max_memory_bytes", max_memory_bytes}, {"database", database},
           {"database_fallback", database_fallback},
           {"database_heading_tolerance_deg", database_heading_tolerance_deg}, {"database_fixes", database_fixes}};
 }
@@ -710,6 +722,8 @@ void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "dem_oversample") set(dem_oversample);
     else if (key == "reflectors") set(reflectors);
     else if (key == "sea") set(sea);
+    else if (key == "terrain_horizontal_sigma_m") set(terrain_horizontal_sigma_m);
+    else if (key == "max_memory_bytes") set(max_memory_bytes);
     else if (key == "database") set(database);
     else if (key == "database_fallback") set(database_fallback);
     else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
@@ -766,7 +780,7 @@ const std::vector<nav::Matcher>& ComparedMatchers() {
 
 EvaluateSetup PrepareEvaluation(const EvaluateRequest& options, Reporter& reporter) {
   EvaluateSetup s;
-  s.terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea), reporter);
+  s.terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes), reporter);
   s.embree = std::make_unique<render::EmbreeScene>(s.terrain.mesh);
   s.observed_mesh = SmoothedTerrain(s.terrain.mesh, options.dem_smoothing);
   s.observed_embree = std::make_unique<render::EmbreeScene>(s.observed_mesh);
@@ -1104,7 +1118,7 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
   const std::vector<nlohmann::json> records = SortedRecords(unsorted);
   nlohmann::json stats = SummariseTrials(options, records);
   std::FILE* csv = std::fopen(csv_path.c_str(), "w");
-  if (csv == nullptr) throw IoError("cannot write", csv_path.string());
+  if (csv == nullptr) throw WriteError("cannot write the trials CSV", csv_path, errno);
   std::fprintf(csv, "%s\n", TrialsCsvHeader(options).c_str());
   std::vector<double> pos_cells;
   int successes = 0;
@@ -1113,7 +1127,10 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
     pos_cells.push_back(NumberOf(r.at("position_error_cells")));
     successes += r.at("success").get<bool>();
   }
-  if (std::fclose(csv) != 0) throw IoError("failed writing", csv_path.string());
+  const int write_error = std::ferror(csv) != 0 ? errno : 0;
+  if (std::fclose(csv) != 0 || write_error != 0) {
+    throw WriteError("failed writing the trials CSV", csv_path, write_error != 0 ? write_error : errno);
+  }
   const std::string title = fs::path(options.scene.empty() ? options.dem : options.scene).stem().string() + ": " +
                             std::to_string(records.size()) + " trials, " + std::to_string(successes) + " successes";
   WriteHistogram(png_path, pos_cells, options.success_cells, title);

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/util/memory_limit.h"
 #include "gissar/util/reporter.h"
 #include "gissar/nav/locate.h"
 
@@ -100,6 +101,15 @@ struct LocateRequest {
   // The terrain's sea (docs/conventions.md): "auto" or "off" (a flat DEM
   // at the ellipsoid below the geoid would otherwise be sea).
   std::string sea = "auto";
+  // The terrain's absolute horizontal error, one sigma per axis, metres
+  // (nav::ProductLocateOptions::terrain_horizontal_sigma_m): added to a
+  // relief fix's along/cross variance. Default: SRTM-class 1" DEMs, whose
+  // absolute geolocation error is 7.2-12.6 m at 90 % by continent
+  // (Rodriguez et al. 2006), i.e. about 6 m per axis at the worst.
+  double terrain_horizontal_sigma_m = 6.0;
+  // Memory budget of the terrain (DEM posts, scene file), bytes
+  // (SimulateRequest::max_memory_bytes; the CLI's --max-memory/--force).
+  int64_t max_memory_bytes = DefaultMemoryLimitBytes();
   // A reference database (docs/navigation.md "Fixes from a reference
   // database"): a corridor's PREFIX_catalog.json built from the same
   // --dem/--scene (SHA-256 checked). The fix matches the observed image
@@ -176,9 +186,12 @@ struct EvaluateRequest {
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;
-  // LocateRequest::reflectors and ::sea (reflectors with a product only).
+  // LocateRequest::reflectors, ::sea and ::terrain_horizontal_sigma_m
+  // (reflectors with a product only).
   std::string reflectors;
   std::string sea = "auto";
+  double terrain_horizontal_sigma_m = 6.0;
+  int64_t max_memory_bytes = DefaultMemoryLimitBytes();  // as LocateRequest's
   // Fixes from a reference database (LocateRequest::database): the trials'
   // true poses are drawn around its stored poses (a stored pose, heading and
   // depression +- 2 deg, image centre +- 15 % of the footprint along and

@@ -239,6 +239,72 @@ TEST(ProductLocateTest, EvaluateRunsSeededTrials) {
             s.at("trial_records")[1].at("fix").at("error_against_annotated_track"));
 }
 
+// The terrain's own horizontal error (issue 45: the SanAnd fixes sit 17 m
+// along track from the annotation, a displacement between the real image and
+// the 1" DEM that no matcher removes; docs/navigation.md): a relief fix adds
+// terrain_horizontal_sigma_m^2 to its along- and cross-track variances and
+// nothing else, and the fix itself does not move.
+TEST(ProductLocateTest, TerrainHorizontalSigmaAddsToTheReliefFixsAlongAndCrossVariance) {
+  const fs::path dir = MakeTempDir();
+  LocateRequest o = SanAndreas(dir);
+  o.prior_offset_track = {-60.0, 30.0, 0.0};
+  o.terrain_horizontal_sigma_m = 0.0;
+  const nlohmann::json without = RunLocate(o, "test");
+  o.terrain_horizontal_sigma_m = 8.0;
+  o.out = (dir / "with.json").string();
+  const nlohmann::json with = RunLocate(o, "test");
+  ASSERT_TRUE(without.at("converged").get<bool>()) << without.at("reason");
+  ASSERT_TRUE(with.at("converged").get<bool>()) << with.at("reason");
+  EXPECT_EQ(with.at("fix_source"), "relief");
+  EXPECT_EQ(with.at("terrain_horizontal_sigma_m").get<double>(), 8.0);
+  const nlohmann::json& a = without.at("fix").at("covariance_along_cross_up_heading");
+  const nlohmann::json& b = with.at("fix").at("covariance_along_cross_up_heading");
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      const double added = (i == j && i < 2) ? 64.0 : 0.0;
+      EXPECT_NEAR(b[i][j].get<double>() - a[i][j].get<double>(), added, 1e-9) << i << "," << j;
+    }
+  }
+  EXPECT_EQ(with.at("fix").at("correction"), without.at("fix").at("correction"));
+}
+
+// The covariance check counts the converged fixes whose error lies inside
+// their stated 95 % region: with a stated covariance diag(100, 100, 25) m^2,
+// an error of (20, 0, 0) m is at Mahalanobis distance^2 4 (inside the
+// horizontal ellipse, 5.991, and the 3-D ellipsoid, 7.815); (25, 0, 0) at
+// 6.25 (outside the ellipse, inside the ellipsoid); (0, 0, 15) at 0 and 9
+// (inside, outside). A refused trial does not count.
+TEST(ProductLocateTest, SummaryCountsTrialsInsideTheStated95PercentRegion) {
+  auto record = [](int trial, bool converged, double along, double cross, double up) {
+    nlohmann::json cov = nlohmann::json::array();
+    const double diag[4] = {100.0, 100.0, 25.0, 1e-4};
+    for (int i = 0; i < 4; ++i) {
+      nlohmann::json row = nlohmann::json::array();
+      for (int j = 0; j < 4; ++j) row.push_back(i == j ? diag[i] : 0.0);
+      cov.push_back(row);
+    }
+    const double error = std::sqrt(along * along + cross * cross + up * up);
+    return nlohmann::json{
+        {"trial", trial}, {"success", converged}, {"converged", converged}, {"position_error_m", error},
+        {"position_error_cells", error / 18.7}, {"seconds", 0.5}, {"cell_m", 18.7},
+        {"prior_errors", {{"horizontal_m", 100.0}}},
+        {"along_cross_error_cells", {std::abs(along) / 18.7, std::abs(cross) / 18.7}},
+        {"fix",
+         {{"sigma_along_cross_up_heading", {10.0, 10.0, 5.0, 0.01}},
+          {"covariance_along_cross_up_heading", cov},
+          {"error_against_annotated_track", {{"along_cross_up_m", {along, cross, up}}}}}}};
+  };
+  EvaluateRequest o;
+  o.product = "p.h5";
+  const nlohmann::json s = ProductSummariseTrials(
+      o, {record(0, true, 0, 0, 0), record(1, true, 20, 0, 0), record(2, true, 25, 0, 0), record(3, true, 0, 0, 15),
+          record(4, false, 500, 0, 0)});
+  const nlohmann::json& inside = s.at("covariance_check").at("inside_95_region");
+  EXPECT_EQ(inside.at("fixes").get<int>(), 4);
+  EXPECT_DOUBLE_EQ(inside.at("along_cross_rate").get<double>(), 0.75);
+  EXPECT_DOUBLE_EQ(inside.at("along_cross_up_rate").get<double>(), 0.75);
+}
+
 // Any sensor's track (--orbit/--radar-grid with --image): the SanAnd chip's
 // geometry given as a CSV of state vectors and a radar grid JSON, and as the
 // observed image gissar's own simulation on that grid (4-look speckle). With
@@ -325,6 +391,11 @@ TEST(ProductLocateTest, RejectsBadOptions) {
   o = SanAndreas(dir);
   o.looks_range = 0;
   expect_error(o, "--looks-range/--looks-azimuth");
+  o = SanAndreas(dir);
+  o.terrain_horizontal_sigma_m = -1.0;
+  expect_error(o, "--terrain-horizontal-sigma");
+  o.terrain_horizontal_sigma_m = std::nan("");
+  expect_error(o, "--terrain-horizontal-sigma");
   o = SanAndreas(dir);
   o.frequency = "C";
   expect_error(o, "--frequency");

@@ -1,6 +1,8 @@
 #include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/sentinel1_simulate.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -28,11 +30,38 @@ namespace gissar::pipeline {
 namespace fs = std::filesystem;
 
 void CheckProductOptions(const SimulateRequest& o) {
-  if (!o.product.empty() && (!o.orbit.empty() || !o.radar_grid.empty())) {
-    throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
+  const bool sentinel1 = IsSentinel1Request(o);
+  if (sentinel1) {
+    // A SAFE fixes its grid; --orbit replaces its annotation's orbit.
+    if (!o.radar_grid.empty()) throw ConfigError("a Sentinel-1 product fixes the radar grid", "--product/--radar-grid");
+    if (!o.frequency.empty()) {
+      throw ConfigError("a Sentinel-1 product has no frequency band (A/B are NISAR's): choose with --swath and "
+                        "--polarization",
+                        "--frequency");
+    }
+  } else {
+    if (!o.product.empty() && (!o.orbit.empty() || !o.radar_grid.empty())) {
+      throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
+    }
+    if (o.product.empty() && (o.orbit.empty() || o.radar_grid.empty())) {
+      throw ConfigError("an orbit needs a radar grid and a radar grid an orbit", "--orbit/--radar-grid");
+    }
+    if (!o.swath.empty()) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--swath");
+    if (o.burst != 0) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--burst");
+    if (!o.frequency.empty()) {
+      if (o.product.empty()) throw ConfigError("only for a NISAR product (--product FILE.h5)", "--frequency");
+      if (o.frequency != "A" && o.frequency != "B") {
+        throw ConfigError("expected A or B, got '" + o.frequency + "'", "--frequency");
+      }
+    }
   }
-  if (o.product.empty() && (o.orbit.empty() || o.radar_grid.empty())) {
-    throw ConfigError("an orbit needs a radar grid and a radar grid an orbit", "--orbit/--radar-grid");
+  if (o.burst < 0) throw ConfigError("bursts are numbered from 1, got " + std::to_string(o.burst), "--burst");
+  if (o.product_window_px) {
+    const auto& w = *o.product_window_px;
+    if (w[0] < 0 || w[1] < 0 || w[2] < 2 || w[3] < 2) {
+      throw ConfigError("expected LINE,PIXEL,LINES,PIXELS with LINE, PIXEL >= 0 and at least 2 lines and 2 pixels",
+                        "--product-window");
+    }
   }
   // The option that fixes the geometry, for the messages below.
   const std::string fixed_by = o.product.empty() ? "--orbit" : "--product";
@@ -98,12 +127,48 @@ void CheckProductHasChannels(const geo::RslcProduct& p, const std::vector<materi
 
 }  // namespace
 
+namespace {
+
+// Keeps the part `window` (first line, first pixel, lines, pixels) of a
+// product's grid and of its image layers. ConfigError naming
+// --product-window when it does not lie inside the grid.
+void CropProductGrid(geo::RslcProduct& p, const std::array<int, 4>& window, const std::string& where) {
+  const int rows = p.rows(), cols = p.cols();
+  if (int64_t(window[0]) + window[2] > rows || int64_t(window[1]) + window[3] > cols) {
+    throw ConfigError("window of lines " + std::to_string(window[0]) + "+" + std::to_string(window[2]) +
+                          ", pixels " + std::to_string(window[1]) + "+" + std::to_string(window[3]) +
+                          " outside the grid of " + std::to_string(rows) + " lines x " + std::to_string(cols) +
+                          " pixels (" + where + ")",
+                      "--product-window");
+  }
+  auto crop = [&](auto& layer) {
+    if (layer.size() != size_t(rows) * cols) return;
+    std::remove_reference_t<decltype(layer)> out(size_t(window[2]) * window[3]);
+    for (int i = 0; i < window[2]; ++i) {
+      std::copy_n(layer.begin() + (size_t(window[0] + i) * cols + window[1]), window[3],
+                  out.begin() + size_t(i) * window[3]);
+    }
+    layer = std::move(out);
+  };
+  crop(p.amplitude);
+  crop(p.slc);
+  p.zero_doppler_time_s = std::vector<double>(p.zero_doppler_time_s.begin() + window[0],
+                                              p.zero_doppler_time_s.begin() + window[0] + window[2]);
+  p.slant_range_m = std::vector<double>(p.slant_range_m.begin() + window[1],
+                                        p.slant_range_m.begin() + window[1] + window[3]);
+}
+
+}  // namespace
+
 geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
+  if (IsSentinel1Request(options)) return ReadSentinel1Source(options, reporter).grid;
   geo::RslcProduct product;
   geo::RslcReadOptions read;
+  read.frequency = options.frequency.empty() ? "A" : options.frequency;
   read.read_amplitude = read_amplitude;
   read.max_bytes = options.max_memory_bytes;  // checked from the shapes, before reading
-  read.bytes_per_pixel = 400.0;
+  // A window renders (and SimulateProduct checks) only its part of the grid.
+  read.bytes_per_pixel = options.product_window_px && !read_amplitude ? 0.0 : 400.0;
   if (!options.product.empty()) {
     product = geo::ReadRslcProduct(options.product, read);
   } else {
@@ -112,6 +177,10 @@ geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_a
     product.polarization = options.polarization;
     reporter.Info("simulate: orbit: " + std::to_string(vectors.utc_s.size()) + " state vectors (" + vectors.format +
                   ")");
+  }
+  if (options.product_window_px) {
+    CropProductGrid(product, *options.product_window_px,
+                    options.product.empty() ? options.radar_grid : options.product);
   }
   return product;
 }
@@ -245,13 +314,19 @@ ProductResolutions ResolveProductResolutions(const SimulateRequest& options, con
 ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
   auto say = [&](const std::string& line) { reporter.Info("simulate: " + line); };
   ProductSimulation sim;
-  sim.product = ReadProductGeometry(options, read_amplitude, reporter);
+  if (IsSentinel1Request(options)) {
+    auto source = std::make_shared<Sentinel1Source>(ReadSentinel1Source(options, reporter));
+    sim.product = source->grid;
+    sim.sentinel1 = std::move(source);
+  } else {
+    sim.product = ReadProductGeometry(options, read_amplitude, reporter);
+  }
   const geo::RslcProduct& p = sim.product;
   const sensor::Orbit orbit(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
   sim.grid = RadarGridOf(p);
   CheckMemoryBudget(400.0 * double(p.rows()) * p.cols(), options.max_memory_bytes,
                     "product grid of " + std::to_string(p.rows()) + " x " + std::to_string(p.cols()) + " pixels",
-                    "crop the product");
+                    "simulate a part of it (--product-window LINE,PIXEL,LINES,PIXELS)");
   say("product " + std::to_string(p.rows()) + " lines x " + std::to_string(p.cols()) + " range bins, " +
       (p.look_left ? "left" : "right") + "-looking, wavelength " + std::to_string(p.wavelength_m) + " m");
 
@@ -367,6 +442,7 @@ nlohmann::json ProductJson(const ProductSimulation& sim) {
           {"orbit_state_vectors", p.orbit.time_s.size()},
           {"orbit_type", p.orbit.type},
           {"orbit_interpolation", "cubic Hermite (positions and velocities)"},
+          {"sentinel1", sim.sentinel1 ? sim.sentinel1->ToJson() : nlohmann::json(nullptr)},
           {"tracing_geometry",
            {{"heading_deg", g.heading_deg},
             {"depression_deg", g.depression_deg},
@@ -424,6 +500,13 @@ geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateReques
   m["GISSAR_UNITS"] = options.radiometry + (options.db ? " (dB)" : " (linear, m2/m2)");
   m["GISSAR_RADIOMETRY"] = options.radiometry;
   m["GISSAR_VERSION"] = VersionString();
+  if (options.product_window_px) {
+    const auto& w = *options.product_window_px;
+    m["GISSAR_PRODUCT_WINDOW"] = std::to_string(w[0]) + "," + std::to_string(w[1]) + "," + std::to_string(w[2]) +
+                                 "," + std::to_string(w[3]) +
+                                 " (first line, first pixel, lines, pixels of the product's grid)";
+  }
+  if (sim.sentinel1) AddSentinel1Metadata(*sim.sentinel1, m);
   return m;
 }
 
@@ -442,7 +525,24 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   const fs::path pauli_png =
       options.coherent && HasPauliChannels(options) ? outputs.Add(options.out_prefix + "_pauli.png") : fs::path();
 
-  ProductSimulation sim = SimulateProduct(options, false, reporter);
+  // Sentinel-1: a GRD is rendered in slant range and resampled to its ground
+  // range pixels, in linear units (dB after the resampling).
+  SimulateRequest run = options;
+  if (IsSentinel1Request(options)) run.db = false;
+  ProductSimulation sim = SimulateProduct(run, false, reporter);
+  if (sim.sentinel1) {
+    if (sim.sentinel1->ground_range) ResampleToGroundRange(*sim.sentinel1, sim);
+    if (options.db) {
+      std::vector<render::SarImage*> images = {&sim.image.image};
+      for (render::SarImage& c : sim.other_channels) images.push_back(&c);
+      for (render::SarImage* im : images) {
+        image::ToDecibels(im->intensity);
+        for (auto& layer : im->bounce_layers) {
+          if (layer.size() == im->intensity.size()) image::ToDecibels(layer);
+        }
+      }
+    }
+  }
   // NaN where the pixel has no ground point on the terrain (declared no-data, mask 255).
   render::SarImage image = sim.image.image;
   if (image.footprint.size() == image.intensity.size()) MarkOutsideFootprint(image, sim.image.image.footprint);
@@ -551,10 +651,17 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
 
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
   provenance["inputs"] = nlohmann::json::array();
-  for (const std::string& input : {options.product, options.orbit, options.radar_grid}) {
-    if (!input.empty()) provenance["inputs"].push_back(InputFileRecord(input));
+  if (sim.sentinel1) {
+    // The product, the terrain (where `pta` finds them), then the orbit file.
+    provenance["inputs"].push_back(Sentinel1InputRecord(*sim.sentinel1));
+    provenance["inputs"].push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
+    if (!options.orbit.empty()) provenance["inputs"].push_back(InputFileRecord(options.orbit));
+  } else {
+    for (const std::string& input : {options.product, options.orbit, options.radar_grid}) {
+      if (!input.empty()) provenance["inputs"].push_back(InputFileRecord(input));
+    }
+    provenance["inputs"].push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
   }
-  provenance["inputs"].push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
   provenance["product"] = ProductJson(sim);
   provenance["terrain"] = sim.terrain;
   provenance["frame"] = sim.frame;
@@ -923,7 +1030,8 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   {
     std::ofstream out(md_path);
     out << md.str();
-    if (!out) throw IoError("cannot write report", md_path.string());
+    out.close();  // a full disk shows when the buffer is flushed
+    if (!out) throw WriteError("cannot write report", md_path, errno);
   }
   WriteJsonFile(report, json_path);
   outputs.Commit();

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,8 @@
 
 namespace gissar::pipeline {
 
+struct Sentinel1Source;  // sentinel1_simulate.h
+
 // The rules SimulateRequest::Check applies when `product` is set: the
 // trace engine, no idealised-geometry options (--center, --center-map,
 // --width, --height, --range-spacing, --azimuth-spacing) and no
@@ -25,10 +28,13 @@ namespace gissar::pipeline {
 void CheckProductOptions(const SimulateRequest& options);
 
 // The radar geometry a product simulation renders on: options.product (a
-// NISAR RSLC; its amplitude read with `read_amplitude`) or options.orbit
-// with options.radar_grid (geo::ProductFromOrbit, polarisation
-// options.polarization), checked against options.max_memory_bytes. Throws
-// the gissar::Error family.
+// NISAR RSLC of band options.frequency, its amplitude read with
+// `read_amplitude`; or a Sentinel-1 SAFE: ReadSentinel1Source's grid, no
+// image) or options.orbit with options.radar_grid (geo::ProductFromOrbit,
+// polarisation options.polarization), checked against
+// options.max_memory_bytes, cut to options.product_window_px when set
+// (ConfigError naming --product-window when it leaves the grid). Throws the
+// gissar::Error family.
 geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_amplitude,
                                      Reporter& reporter = NullReporter());
 
@@ -68,6 +74,10 @@ struct ProductSimulation {
   nlohmann::json frame;         // local frame origin
   double ground_speed_mps = 0;  // azimuth pixel spacing / line time
   ProductResolutions resolutions;  // of the impulse response applied
+  // A Sentinel-1 SAFE's selection and grids (sentinel1_simulate.h); null for
+  // NISAR products and orbit files. For a GRD, `image` is the slant-range
+  // rendering of sentinel1->grid until ResampleToGroundRange.
+  std::shared_ptr<const Sentinel1Source> sentinel1;
 };
 
 // Loads options.product and the terrain, renders the product grid and

@@ -7,6 +7,7 @@
 #include "gissar/pipeline/product_simulate.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <complex>
 #include <map>
@@ -79,7 +80,14 @@ void SimulateRequest::Check() const {
   if (dem_oversample != 1 && !scene.empty()) {
     throw ConfigError("a scene keeps the posts it was built with", "--dem-oversample");
   }
-  if (UsesProductGeometry()) CheckProductOptions(*this);
+  if (UsesProductGeometry()) {
+    CheckProductOptions(*this);
+  } else {
+    for (const auto& [given, flag] : {std::pair{!frequency.empty(), "--frequency"}, {!swath.empty(), "--swath"},
+                                      {burst != 0, "--burst"}, {product_window_px.has_value(), "--product-window"}}) {
+      if (given) throw ConfigError("selects a part of a product: only with --product", flag);
+    }
+  }
   if (engine != "trace" && engine != "raster") {
     throw ConfigError("engine must be 'trace' or 'raster', got '" + engine + "'", "--engine");
   }
@@ -139,6 +147,10 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["product"] = product;
   j["orbit"] = orbit;
   j["radar_grid"] = radar_grid;
+  j["frequency"] = frequency;
+  j["swath"] = swath;
+  j["burst"] = burst;
+  j["product_window_px"] = product_window_px ? nlohmann::json(*product_window_px) : nlohmann::json(nullptr);
   j["vertical_datum"] = vertical_datum;
   j["vertical_units"] = vertical_units;
   j["dem_oversample"] = dem_oversample;
@@ -208,6 +220,19 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
     else if (key == "product") set(product);
     else if (key == "orbit") set(orbit);
     else if (key == "radar_grid") set(radar_grid);
+    else if (key == "frequency") set(frequency);
+    else if (key == "swath") set(swath);
+    else if (key == "burst") set(burst);
+    else if (key == "product_window_px") {
+      if (value.is_null()) {
+        product_window_px.reset();
+      } else {
+        std::vector<int> v;
+        set(v);
+        if (v.size() != 4) throw ConfigError("key 'product_window_px' needs four integers", source);
+        product_window_px = std::array<int, 4>{v[0], v[1], v[2], v[3]};
+      }
+    }
     else if (key == "vertical_datum") set(vertical_datum);
     else if (key == "vertical_units") set(vertical_units);
     else if (key == "dem_oversample") set(dem_oversample);
@@ -503,14 +528,17 @@ Terrain TerrainFromScene(const SimulateRequest& options) {
 void WriteContributions(const fs::path& path, const std::vector<render::Contribution>& contributions,
                         const sensor::SarGeometry& geometry) {
   std::FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) throw IoError("cannot open contributions file", path.string());
+  if (f == nullptr) throw WriteError("cannot open contributions file", path, errno);
   std::fprintf(f, "azimuth_m,range_m,elevation_m,column,row,intensity,bounces,specular,x_enu_m,y_enu_m,z_enu_m,class\n");
   for (const render::Contribution& c : contributions) {
     std::fprintf(f, "%.4f,%.4f,%.4f,%.3f,%.3f,%.6g,%d,%d,%.3f,%.3f,%.3f,%d\n", c.azimuth_m, c.range_m, c.elevation_m,
                  geometry.ColumnOfRange(c.range_m), geometry.RowOfAlongTrack(c.azimuth_m), c.intensity, c.bounces,
                  c.specular ? 1 : 0, c.hit_enu.x(), c.hit_enu.y(), c.hit_enu.z(), c.class_id);
   }
-  if (std::fclose(f) != 0) throw IoError("failed writing contributions file", path.string());
+  const int write_error = std::ferror(f) != 0 ? errno : 0;
+  if (std::fclose(f) != 0 || write_error != 0) {
+    throw WriteError("failed writing contributions file", path, write_error != 0 ? write_error : errno);
+  }
 }
 
 }  // namespace

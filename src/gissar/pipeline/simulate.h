@@ -66,6 +66,19 @@ struct SimulateRequest {
   // `product` does, on that grid.
   std::string orbit;
   std::string radar_grid;
+  // Product selection (docs/conventions.md, "Products and sources"):
+  // --frequency A|B of a NISAR product ("" = A); --swath (IW1, ..., S3; "" =
+  // the product's only swath) and --burst N (1-based per swath; 0 = none) of
+  // a Sentinel-1 SAFE (pipeline/sentinel1_simulate.h). With a SAFE, `orbit`
+  // alone (no radar_grid) replaces the annotation's orbit.
+  std::string frequency;
+  std::string swath;
+  int burst = 0;
+  // A part of the product's grid to render (--product-window
+  // LINE,PIXEL,LINES,PIXELS, in the product's own numbering: a burst's lines,
+  // a GRD's lines and ground-range pixels): first line, first pixel, lines,
+  // pixels; none = the whole grid.
+  std::optional<std::array<int, 4>> product_window_px;
   // True when the image is rendered on a real radar grid (product or orbit).
   bool UsesProductGeometry() const { return !product.empty() || !orbit.empty() || !radar_grid.empty(); }
   // Vertical datum of the DEM heights (--vertical-datum): "" = from the

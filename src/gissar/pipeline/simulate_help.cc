@@ -6,10 +6,14 @@ const std::map<std::string, std::string>& SimulateFieldHelp() {
   static const std::map<std::string, std::string> kHelp = {
       {"dem", "DEM raster, any GDAL format and CRS"},
       {"scene", "Scene file from `gissar scene build` (instead of --dem)"},
-      {"product", "Real product (NISAR RSLC HDF5): render on its radar grid with its orbit (no --heading/--depression)"},
+      {"product",
+       "Real product: NISAR RSLC HDF5 (--frequency) or Sentinel-1 SAFE directory/.zip (--swath, --burst; a GRD is "
+       "resampled to its ground range; no real image is written): render on its radar grid with its orbit (no "
+       "--heading/--depression)"},
       {"orbit",
        "Any sensor's track: state vectors (CSV or JSON of UTC time, ECEF position and velocity, or an ESA .EOF orbit "
-       "file); with --radar-grid, instead of --heading/--depression"},
+       "file); with --radar-grid, instead of --heading/--depression; with a Sentinel-1 --product, replaces its "
+       "annotation's orbit"},
       {"radar_grid",
        "Radar grid JSON (starting_range_m, range_spacing_m, sensing_start_utc, azimuth_time_interval_s, width, "
        "length, look_side, wavelength_m) to render on with --orbit"},

@@ -21,11 +21,7 @@ namespace fs = std::filesystem;
 using geo::testing_s1::kIwGrd;
 using geo::testing_s1::kIwSlc;
 using geo::testing_s1::kSm;
-
-geo::Sentinel1Annotation Annotation(const char* safe, const std::string& swath, const std::string& pol) {
-  const geo::Sentinel1Product p = geo::OpenSentinel1(testing::DataPath(safe));
-  return geo::ReadSentinel1Annotation(p, p.Entry(swath, pol));
-}
+using geo::testing_s1::Annotation;
 
 void ExpectWithinTargets(const GeolocationGridAgreement& r, size_t points) {
   SCOPED_TRACE(r.swath + "/" + r.polarization + " " + r.ToJson().dump());

@@ -5,7 +5,7 @@
 #include <cstring>
 #include <fstream>
 
-#include "gissar/geo/raster_io.h"
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 
 namespace gissar::scene {
@@ -15,15 +15,13 @@ namespace {
 constexpr char kMagic[8] = {'G', 'I', 'S', 'S', 'A', 'R', 'S', 'C'};
 constexpr char kEndMagic[8] = {'G', 'S', 'C', 'N', 'E', 'N', 'D', '1'};
 
-// Closes `out` and throws IoError("<what>", path) when a write or the close
-// failed: on a full disk (geo::OutOfSpace), "<what>: no space left on the
-// device holding DIR".
+// Closes `out` and throws util's WriteError("<what>", path) when a write or
+// the close failed: on a full disk "<what>: no space left on the device
+// holding DIR", naming the output rather than its temporary.
 void CloseChecked(std::ofstream& out, const fs::path& path, const std::string& what) {
   out.close();
   if (out) return;
-  const int error = errno;
-  if (geo::OutOfSpace(error, path)) throw IoError(what + ": " + geo::NoSpaceMessage(path), path.string());
-  throw IoError(what, path.string());
+  throw WriteError(what, path, errno);
 }
 
 template <typename T>

@@ -6,6 +6,7 @@
 #include <functional>
 #include <sstream>
 
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
 
@@ -222,6 +223,23 @@ TEST(SceneIoTest, AFullDiskSaysNoSpaceLeft) {
     ADD_FAILURE() << "expected IoError";
   } catch (const IoError& e) {
     EXPECT_EQ(e.message(), "failed writing MTL" + expected);
+  }
+}
+
+// `scene build` writes PREFIX.gscene under a temporary name: on a full disk
+// the error names PREFIX.gscene and its directory (the failure injected by
+// making the temporary a link to /dev/full).
+TEST(SceneIoTest, AFullDiskNamesTheSceneFileNotItsTemporary) {
+  const fs::path dir = testing::MakeTempDir();
+  AtomicOutputs outputs;
+  const fs::path temp = outputs.Add(dir / "scene.gscene");
+  fs::create_symlink("/dev/full", temp);
+  try {
+    WriteScene(temp, Sample());
+    ADD_FAILURE() << "expected IoError";
+  } catch (const IoError& e) {
+    EXPECT_EQ(e.message(), "failed writing scene file: no space left on the device holding " + dir.string());
+    EXPECT_EQ(e.where(), (dir / "scene.gscene").string());
   }
 }
 

@@ -4,6 +4,7 @@
 #include <sched.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -401,6 +402,46 @@ void CheckOutputsAreNotInputs(const std::vector<fs::path>& outputs, const std::v
       }
     }
   }
+}
+
+fs::path OutputPathOf(const fs::path& path) {
+  const std::string text = path.string();
+  if (text.empty()) return path;
+  for (Node* n = g_head.load(); n != nullptr; n = n->next) {
+    // Output records only (the lock file's has no final path); a record
+    // being filled in or free is skipped, and one reused meanwhile is not
+    // trusted (its stage is read again after its paths).
+    if (n->stage.load() < kUnlink || n->final_path[0] == '\0' || text != n->temp) continue;
+    const std::string final_path = n->final_path;
+    if (n->stage.load() >= kUnlink && text == n->temp) return final_path;
+  }
+  return path;
+}
+
+bool OutOfSpace(int error, const fs::path& path) {
+  if (error == ENOSPC || error == EDQUOT) return true;
+  std::error_code ec;
+  fs::path dir = fs::absolute(path, ec).lexically_normal().parent_path();
+  if (ec || dir.empty()) dir = ".";
+  struct statvfs st {};
+  // Blocks free to unprivileged users; root may still use the reserved
+  // ones (f_bfree), and a write fails for it only when those are gone too.
+  // No block accounting (e.g. /proc), or read-only (squashfs reports no free block).
+  if (statvfs(dir.c_str(), &st) != 0 || st.f_blocks == 0 || (st.f_flag & ST_RDONLY) != 0) return false;
+  return (geteuid() == 0 ? st.f_bfree : st.f_bavail) == 0;
+}
+
+std::string NoSpaceMessage(const fs::path& path) {
+  std::error_code ec;
+  fs::path dir = fs::absolute(path, ec).lexically_normal().parent_path();
+  if (ec || dir.empty()) dir = fs::current_path(ec);
+  return "no space left on the device holding " + dir.string();
+}
+
+IoError WriteError(const std::string& what, const fs::path& path, int error) {
+  const std::string output = OutputPathOf(path).string();
+  if (OutOfSpace(error, path)) return IoError(what + ": " + NoSpaceMessage(path), output);
+  return IoError(what, output);
 }
 
 void InstallSignalCleanup() {

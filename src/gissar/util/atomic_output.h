@@ -32,6 +32,8 @@
 #include <string>
 #include <vector>
 
+#include "gissar/util/error.h"
+
 namespace gissar {
 
 class AtomicOutputs {
@@ -85,6 +87,26 @@ class AtomicOutputs {
 // reading anything.
 void CheckOutputsAreNotInputs(const std::vector<std::filesystem::path>& outputs,
                               const std::vector<std::string>& inputs);
+
+// The output a file being written stands for: the final path when `path` is
+// the temporary of an output registered with a live AtomicOutputs (Add()),
+// else `path` itself. Write errors name it, never the ".gs-...tmp" name.
+std::filesystem::path OutputPathOf(const std::filesystem::path& path);
+
+// A full disk: `error` (errno right after the failed write or close) is
+// ENOSPC or EDQUOT (also /dev/full), or the file system holding `path` has no
+// block left for this user (statvfs: GDAL's and giflib's errors carry no
+// errno).
+bool OutOfSpace(int error, const std::filesystem::path& path);
+// "no space left on the device holding DIR" (DIR: the directory of `path`).
+std::string NoSpaceMessage(const std::filesystem::path& path);
+
+// The error of a failed write or close of `path` (any file, or the temporary
+// of an AtomicOutputs output), `error` being errno right after it (0 when
+// unknown): IoError("<what>: no space left on the device holding DIR", OUT)
+// on a full disk (OutOfSpace), else IoError("<what>", OUT); OUT =
+// OutputPathOf(path). Every writer of outputs reports through it.
+IoError WriteError(const std::string& what, const std::filesystem::path& path, int error);
 
 // Installs SIGINT/SIGTERM/SIGHUP handlers that finish or undo the commit in
 // progress as described above, remove every live temporary and lock file, and

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
@@ -15,6 +16,7 @@
 #include <thread>
 
 #include "gissar/util/error.h"
+#include "gissar/util/provenance.h"
 #include "gissar/util/testing.h"
 
 namespace gissar {
@@ -279,6 +281,46 @@ TEST(AtomicOutputsTest, TwoOutputsNamingTheSameFileAreAConfigError) {
   }
   EXPECT_THROW(CheckOutputsAreNotInputs({dir / "x.json", dir / "sub" / ".." / "x.json"}, {}), ConfigError);
   EXPECT_EQ(CountEntries(dir), 0u);
+}
+
+// Writers get temporaries: their errors name the output the user asked for.
+// A full disk (errno ENOSPC or EDQUOT, or no free block on the file system)
+// says "no space left on the device holding DIR"; other failures keep their
+// message. Leaving nothing behind stays the destructor's job.
+TEST(AtomicOutputsTest, WriteErrorsNameTheOutputAndAFullDisk) {
+  const fs::path dir = testing::MakeTempDir();
+  fs::path temp;
+  {
+    AtomicOutputs outputs;
+    temp = outputs.Add(dir / "sim.json");
+    EXPECT_NE(temp, dir / "sim.json");
+    EXPECT_EQ(OutputPathOf(temp), dir / "sim.json");
+    EXPECT_EQ(OutputPathOf(dir / "other.json"), dir / "other.json");  // not an output's temporary
+    EXPECT_EQ(OutputPathOf(""), fs::path());
+    IoError e = WriteError("failed writing JSON output", temp, ENOSPC);
+    EXPECT_EQ(e.message(), "failed writing JSON output: no space left on the device holding " + dir.string());
+    EXPECT_EQ(e.where(), (dir / "sim.json").string());
+    e = WriteError("failed writing JSON output", temp, EDQUOT);
+    EXPECT_EQ(e.message(), "failed writing JSON output: no space left on the device holding " + dir.string());
+    e = WriteError("failed writing JSON output", temp, EIO);  // a disk with room: another failure
+    EXPECT_EQ(e.message(), "failed writing JSON output");
+    EXPECT_EQ(e.where(), (dir / "sim.json").string());
+    // The failure injected: the temporary a link to /dev/full (ENOSPC on
+    // every write), through the JSON writer every command uses.
+    fs::create_symlink("/dev/full", temp);
+    try {
+      WriteJsonFile(nlohmann::json{{"a", 1}}, temp);
+      ADD_FAILURE() << "expected IoError";
+    } catch (const IoError& error) {
+      EXPECT_EQ(error.message(), "failed writing JSON output: no space left on the device holding " + dir.string());
+      EXPECT_EQ(error.where(), (dir / "sim.json").string());
+    }
+  }
+  EXPECT_EQ(CountEntries(dir), 0u);
+  EXPECT_EQ(OutputPathOf(temp), temp);  // the outputs are gone: the path is only itself
+  EXPECT_FALSE(OutOfSpace(EACCES, dir / "x.tif"));
+  EXPECT_FALSE(OutOfSpace(ENOENT, "/nonexistent/dir/x.tif"));
+  EXPECT_EQ(NoSpaceMessage(dir / "sub" / ".." / "x.tif"), "no space left on the device holding " + dir.string());
 }
 
 }  // namespace

@@ -3,12 +3,14 @@
 #include <openssl/evp.h>
 
 #include <array>
+#include <cerrno>
 #include <ctime>
 #include <fstream>
 #include <iomanip>
 #include <memory>
 #include <sstream>
 
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/version.h"
 
@@ -54,11 +56,12 @@ nlohmann::json InputFileRecord(const fs::path& path) {
 }
 
 void WriteJsonFile(const nlohmann::json& value, const fs::path& path) {
+  errno = 0;
   std::ofstream out(path);
-  if (!out) throw IoError("cannot open JSON output for writing", path.string());
+  if (!out) throw WriteError("cannot open JSON output for writing", path, errno);
   out << value.dump(2) << "\n";
   out.close();
-  if (!out) throw IoError("failed writing JSON output", path.string());
+  if (!out) throw WriteError("failed writing JSON output", path, errno);
 }
 
 std::string UtcTimestamp() {

@@ -22,7 +22,8 @@ std::string Sha256OfFile(const std::filesystem::path& path);
 nlohmann::json InputFileRecord(const std::filesystem::path& path);
 
 // Writes `value` pretty-printed to `path` (a plain write: callers route it
-// through AtomicOutputs). Throws IoError on failure.
+// through AtomicOutputs). Throws IoError on failure (WriteError of
+// atomic_output.h: a full disk says "no space left", naming the output).
 void WriteJsonFile(const nlohmann::json& value, const std::filesystem::path& path);
 
 // Current UTC time as ISO 8601 ("2026-11-23T10:00:00Z").

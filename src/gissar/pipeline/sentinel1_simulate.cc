@@ -1,0 +1,427 @@
+#include "gissar/pipeline/sentinel1_simulate.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <sstream>
+
+#include "gissar/geo/orbit_file.h"
+#include "gissar/material/material.h"
+#include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/simulate.h"
+#include "gissar/util/check.h"
+#include "gissar/util/error.h"
+#include "gissar/util/provenance.h"
+#include "gissar/util/utc_time.h"
+
+namespace gissar::pipeline {
+
+namespace {
+
+std::string Upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string Join(const std::vector<std::string>& items) {
+  std::string out;
+  for (const std::string& s : items) out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+
+// The index of the record nearest in time to t (the earlier one at a tie):
+// the rule of geo::Sentinel1Annotation::SlantRangeOfGroundRange.
+size_t NearestRecord(const std::vector<geo::Sentinel1RangeConversion>& records, double t) {
+  size_t best = 0;
+  for (size_t k = 1; k < records.size(); ++k) {
+    if (std::abs(records[k].azimuth_time_s - t) < std::abs(records[best].azimuth_time_s - t)) best = k;
+  }
+  return best;
+}
+
+double Horner(const std::vector<double>& c, double x) {
+  double y = 0.0;
+  for (size_t k = c.size(); k-- > 0;) y = y * x + c[k];
+  return y;
+}
+
+}  // namespace
+
+bool IsSentinel1Request(const SimulateRequest& options) {
+  return !options.product.empty() && geo::IsSentinel1Path(options.product);
+}
+
+std::array<int, 4> ParseProductWindow(const std::string& text) {
+  std::array<int, 4> w{};
+  std::istringstream in(text);
+  char comma = 0;
+  std::string rest;
+  bool ok = static_cast<bool>(in >> w[0]);
+  for (int k = 1; k < 4 && ok; ++k) ok = (in >> comma >> w[k]) && comma == ',';
+  if (!ok || (in >> rest) || w[0] < 0 || w[1] < 0 || w[2] < 2 || w[3] < 2) {
+    throw ConfigError("expected LINE,PIXEL,LINES,PIXELS (integers; LINE, PIXEL >= 0, at least 2 lines and 2 pixels), "
+                      "got '" + text + "'",
+                      "--product-window");
+  }
+  return w;
+}
+
+Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& reporter) {
+  Sentinel1Source s;
+  s.product = geo::OpenSentinel1(options.product);
+  const geo::Sentinel1Product& product = s.product;
+  const std::vector<material::Polarization> channels =
+      material::ParsePolarizationList(options.polarization, "--polarization");
+
+  // The swath: --swath, or the product's only one.
+  std::string swath = Upper(options.swath);
+  if (swath.empty()) {
+    std::vector<std::string> swaths;
+    for (const geo::Sentinel1Entry& e : product.entries) {
+      if (std::find(swaths.begin(), swaths.end(), e.swath) == swaths.end()) swaths.push_back(e.swath);
+    }
+    if (swaths.size() > 1) {
+      throw InputError(product.name + " has swaths " + Join(swaths) + ": give one with --swath", "--swath");
+    }
+  }
+  // The first channel's annotation gives the geometry (every polarisation
+  // of a swath has the same); each channel must be a polarisation of it.
+  const geo::Sentinel1Entry& entry = product.Entry(swath, material::ToString(channels.front()));
+  for (const material::Polarization c : channels) {
+    const geo::Sentinel1Entry& other = product.Entry(entry.swath, material::ToString(c));
+    if (&other != &entry && !other.annotation_present) {
+      throw InputError("the SAFE lacks the annotation of " + other.swath + "/" + other.polarization + " (" +
+                           other.annotation_file + ")",
+                       "--polarization");
+    }
+  }
+  if (!entry.annotation_present) {
+    std::string present;
+    for (const geo::Sentinel1Entry& e : product.entries) {
+      if (e.annotation_present) present += (present.empty() ? "" : ", ") + e.swath + "/" + e.polarization;
+    }
+    throw InputError("the SAFE lacks the annotation of " + entry.swath + "/" + entry.polarization + " (" +
+                         entry.annotation_file + "); it has annotations for " +
+                         (present.empty() ? std::string("none") : present),
+                     "--swath/--polarization (" + product.name + ")");
+  }
+  s.annotation = geo::ReadSentinel1Annotation(product, entry);
+  geo::Sentinel1Annotation& a = s.annotation;
+  if (!options.orbit.empty()) {
+    const geo::StateVectors vectors = geo::ReadStateVectors(options.orbit);
+    geo::ReplaceSentinel1Orbit(a, product, vectors, options.orbit);
+    s.orbit_source = options.orbit;
+    reporter.Info("simulate: orbit: " + std::to_string(a.orbit.time_s.size()) + " state vectors of " + options.orbit +
+                  " (" + vectors.format + ") replace the annotation's");
+  }
+  s.ground_range = a.is_grd();
+  if (s.ground_range && options.coherent) {
+    throw ConfigError("a GRD is a detected, multilooked product: simulate it without --coherent (or simulate the SLC)",
+                      "--coherent");
+  }
+
+  // Burst (IW/EW SLC) and the full grid in the product's own numbering.
+  double first_time_s = a.first_line_time_s;
+  int lines = a.number_of_lines, pixels = a.number_of_samples;
+  if (!a.bursts.empty()) {
+    if (options.burst == 0) {
+      throw InputError("an " + a.mode + " SLC swath is simulated one burst at a time: give --burst N (" + a.swath +
+                           " has bursts 1-" + std::to_string(a.bursts.size()) + ")",
+                       "--burst (" + a.file + ")");
+    }
+    const geo::Sentinel1Burst& b = a.Burst(options.burst);
+    s.burst = b.number;
+    first_time_s = b.azimuth_time_s;
+    lines = a.lines_per_burst;
+    pixels = a.samples_per_burst > 0 ? a.samples_per_burst : a.number_of_samples;
+  } else if (options.burst != 0) {
+    a.Burst(options.burst);  // throws: a GRD or stripmap product has no bursts
+  }
+  s.full_size = {lines, pixels};
+  s.window = options.product_window_px ? *options.product_window_px : std::array<int, 4>{0, 0, lines, pixels};
+  const std::array<int, 4>& w = s.window;
+  const std::string grid_name = s.burst > 0 ? "burst " + std::to_string(s.burst) + " of " + a.swath
+                                            : (s.ground_range ? "GRD " : "swath ") + a.swath;
+  if (int64_t(w[0]) + w[2] > lines || int64_t(w[1]) + w[3] > pixels) {
+    throw ConfigError("window of lines " + std::to_string(w[0]) + "+" + std::to_string(w[2]) + ", pixels " +
+                          std::to_string(w[1]) + "+" + std::to_string(w[3]) + " outside " + grid_name + " (" +
+                          std::to_string(lines) + " lines x " + std::to_string(pixels) + " pixels, " + a.file + ")",
+                      "--product-window");
+  }
+
+  // The zero-Doppler slant-range grid rendered.
+  const double dt = a.azimuth_time_interval_s, dr = a.slant_range_spacing_m();
+  geo::RslcProduct& g = s.grid;
+  g.path = options.product;
+  g.mission = a.mission;
+  g.product_version = product.name;
+  g.epoch_utc = product.epoch_utc.substr(0, 19);
+  if (g.epoch_utc.size() > 10) g.epoch_utc[10] = ' ';
+  g.frequency = "";
+  g.polarization = a.polarization;
+  for (const char* pol : {"HH", "HV", "VH", "VV"}) {
+    for (const geo::Sentinel1Entry& e : product.entries) {
+      if (e.swath != entry.swath || e.polarization != pol) continue;
+      g.polarizations.push_back(pol);
+      if (e.annotation_present) g.stored_polarizations.push_back(pol);
+    }
+  }
+  g.zero_doppler_time_s.resize(size_t(w[2]));
+  for (int i = 0; i < w[2]; ++i) g.zero_doppler_time_s[size_t(i)] = first_time_s + double(w[0] + i) * dt;
+  if (!s.ground_range) {
+    const double r_first = a.SlantRangeOfTime(a.slant_range_time_s);
+    g.slant_range_m.resize(size_t(w[3]));
+    for (int j = 0; j < w[3]; ++j) g.slant_range_m[size_t(j)] = r_first + double(w[1] + j) * dr;
+  } else {
+    // Slant samples covering the window's ground-range pixels on every line
+    // (grsr increases with ground range), two samples of margin each side.
+    s.ground_spacing_m = a.range_pixel_spacing_m;
+    const double g_first = double(w[1]) * s.ground_spacing_m, g_last = double(w[1] + w[3] - 1) * s.ground_spacing_m;
+    double r_lo = std::numeric_limits<double>::infinity(), r_hi = -r_lo;
+    for (const double t : g.zero_doppler_time_s) {
+      r_lo = std::min(r_lo, a.SlantRangeOfGroundRange(g_first, t));
+      r_hi = std::max(r_hi, a.SlantRangeOfGroundRange(g_last, t));
+    }
+    const double r0 = r_lo - 2.0 * dr;
+    const int cols = static_cast<int>(std::ceil((r_hi - r0) / dr)) + 3;
+    g.slant_range_m.resize(size_t(cols));
+    for (int j = 0; j < cols; ++j) g.slant_range_m[size_t(j)] = r0 + double(j) * dr;
+  }
+  g.center_frequency_hz = a.radar_frequency_hz;
+  g.wavelength_m = a.wavelength_m;
+  g.look_left = a.look_left;
+  g.orbit = a.orbit;
+  if (s.orbit_source == "annotation") g.orbit.type = "annotation (" + a.file + ")";
+
+  // The impulse response's bands: an SLC's processing bandwidths, a GRD's
+  // look bandwidths (one look's band sets the resolution of the multilooked
+  // image) of its middle swath.
+  if (!a.processing.empty()) {
+    if (s.ground_range) {
+      const geo::Sentinel1SwathProcessing& p = a.processing[a.processing.size() / 2];
+      g.processed_range_bandwidth_hz = p.range_look_bandwidth_hz;
+      g.processed_azimuth_bandwidth_hz = p.azimuth_look_bandwidth_hz;
+      s.bandwidth_source = "lookBandwidth of " + p.swath + " (the middle swath of the GRD; " +
+                           std::to_string(p.range_looks) + " x " + std::to_string(p.azimuth_looks) +
+                           " range x azimuth looks)";
+    } else {
+      const auto it = std::find_if(a.processing.begin(), a.processing.end(),
+                                   [&](const geo::Sentinel1SwathProcessing& p) { return p.swath == a.swath; });
+      const geo::Sentinel1SwathProcessing& p = it != a.processing.end() ? *it : a.processing.front();
+      g.processed_range_bandwidth_hz = p.range_processing_bandwidth_hz;
+      g.processed_azimuth_bandwidth_hz = p.azimuth_processing_bandwidth_hz;
+      s.bandwidth_source = "processingBandwidth of " + p.swath;
+    }
+  }
+  reporter.Info("simulate: " + product.name + ": " + grid_name + " " + a.polarization + ", lines " +
+                std::to_string(w[0]) + "-" + std::to_string(w[0] + w[2] - 1) + ", pixels " + std::to_string(w[1]) +
+                "-" + std::to_string(w[1] + w[3] - 1) +
+                (s.ground_range ? " (ground range; rendered on " + std::to_string(g.slant_range_m.size()) +
+                                      " slant samples)"
+                                : std::string()));
+  return s;
+}
+
+nlohmann::json Sentinel1Source::ToJson() const {
+  const geo::Sentinel1Annotation& a = annotation;
+  auto utc = [&](double t) { return FormatUtc(product.epoch_unix_s + t); };
+  nlohmann::json j = {{"product", product.name},
+                      {"mission", product.mission},
+                      {"mode", product.mode},
+                      {"product_type", a.product_type},
+                      {"swath", a.swath},
+                      {"polarization", a.polarization},
+                      {"annotation", a.file},
+                      {"burst", burst > 0 ? nlohmann::json(burst) : nlohmann::json(nullptr)},
+                      {"orbit", {{"source", orbit_source}, {"state_vectors", a.orbit.time_s.size()}}}};
+  const double dt = a.azimuth_time_interval_s;
+  double first_time_s = a.first_line_time_s;
+  if (burst > 0) {
+    const geo::Sentinel1Burst& b = a.bursts[size_t(burst - 1)];
+    first_time_s = b.azimuth_time_s;
+    int first_valid = -1, last_valid = std::numeric_limits<int>::max();
+    for (int k = std::max(0, b.first_valid_line); k <= b.last_valid_line; ++k) {
+      first_valid = std::max(first_valid, b.first_valid_sample[size_t(k)]);
+      last_valid = std::min(last_valid, b.last_valid_sample[size_t(k)]);
+    }
+    j["burst_azimuth_time_utc"] = utc(b.azimuth_time_s);
+    j["burst_first_line_in_measurement"] = b.first_line;
+    j["valid_lines"] = b.first_valid_line >= 0 ? nlohmann::json{b.first_valid_line, b.last_valid_line}
+                                                : nlohmann::json(nullptr);
+    j["valid_samples"] = b.first_valid_line >= 0 ? nlohmann::json{first_valid, last_valid} : nlohmann::json(nullptr);
+    j["valid_note"] = "the whole burst grid is simulated; lines and samples outside valid_lines / valid_samples "
+                      "(annotation firstValidSample/lastValidSample, the samples valid on every valid line) are "
+                      "invalid in the real burst";
+  }
+  nlohmann::json grid = {
+      {"numbering", burst > 0       ? "lines of the burst (0 = its first line) and its range samples"
+                    : ground_range ? "lines and ground-range pixels of the GRD"
+                                   : "lines and range samples of the swath"},
+      {"lines", full_size[0]},
+      {"pixels", full_size[1]},
+      {"window", {{"first_line", window[0]}, {"first_pixel", window[1]}, {"lines", window[2]}, {"pixels", window[3]}}},
+      {"first_line_time_utc", utc(first_time_s + double(window[0]) * dt)},
+      {"azimuth_time_interval_s", dt},
+      {"slant_range_sample_spacing_m", a.slant_range_spacing_m()}};
+  if (ground_range) {
+    grid["ground_range_spacing_m"] = ground_spacing_m;
+    grid["first_ground_range_m"] = double(window[1]) * ground_spacing_m;
+    j["ground_range"] = {
+        {"rendered_slant_grid",
+         {{"lines", this->grid.rows()},
+          {"samples", this->grid.cols()},
+          {"first_slant_range_m", this->grid.slant_range_m.front()},
+          {"slant_range_spacing_m", a.slant_range_spacing_m()}}},
+        {"conversion",
+         "pixel p of line i: ground range G = p x rangePixelSpacing, slant range = grsr(G) of the coordinateConversion "
+         "record nearest in time to line i (as the annotated geolocation grid: docs/sentinel1.md), every band linear "
+         "between the two slant samples around it (mask: the nearer); resampled before dB"},
+        {"records", a.range_conversion.size()}};
+  } else {
+    grid["first_slant_range_m"] = this->grid.slant_range_m.front();
+  }
+  j["grid"] = grid;
+  j["impulse_response_bandwidths"] =
+      bandwidth_source.empty() ? nlohmann::json(nullptr) : nlohmann::json(bandwidth_source);
+  j["real_image"] = "none: simulate does not read the SAFE's measurement TIFFs; only the simulated image is written";
+  return j;
+}
+
+nlohmann::json Sentinel1InputRecord(const Sentinel1Source& source) {
+  namespace fs = std::filesystem;
+  const fs::path path(source.product.path);
+  std::error_code ec;
+  nlohmann::json record;
+  if (fs::is_directory(path, ec)) {
+    record = InputFileRecord(path / "manifest.safe");
+    record["hashed"] = "manifest.safe";
+  } else {
+    record = InputFileRecord(path);
+    record["hashed"] = path.filename().string();
+  }
+  record["path"] = fs::absolute(path).lexically_normal().string();
+  record["kind"] = "Sentinel-1 SAFE";
+  record["annotation"] = source.annotation.file;
+  return record;
+}
+
+void AddSentinel1Metadata(const Sentinel1Source& source, std::map<std::string, std::string>& m) {
+  const geo::Sentinel1Annotation& a = source.annotation;
+  const std::array<int, 4>& w = source.window;
+  m["GISSAR_SENTINEL1_PRODUCT"] = source.product.name;
+  m["GISSAR_SENTINEL1_SWATH"] = a.swath;
+  m["GISSAR_SENTINEL1_POLARIZATION"] = a.polarization;
+  if (source.burst > 0) m["GISSAR_SENTINEL1_BURST"] = std::to_string(source.burst);
+  m["GISSAR_SENTINEL1_GRID"] =
+      std::string(source.burst > 0       ? "burst lines and range samples"
+                  : source.ground_range ? "GRD lines and ground-range pixels"
+                                        : "swath lines and range samples") +
+      "; this image is lines " + std::to_string(w[0]) + "-" + std::to_string(w[0] + w[2] - 1) + ", pixels " +
+      std::to_string(w[1]) + "-" + std::to_string(w[1] + w[3] - 1) + " of " + std::to_string(source.full_size[0]) +
+      " x " + std::to_string(source.full_size[1]);
+  m["GISSAR_REAL_IMAGE"] = "none (the measurement is not read)";
+  if (source.ground_range) {
+    m["GISSAR_GEOMETRY"] = "Sentinel-1 GRD grid: row = zero-Doppler line, column = ground-range pixel (slant range by "
+                           "the annotation's grsr polynomials, record nearest in time)";
+    m.erase("GISSAR_FIRST_RANGE_M");
+    m.erase("GISSAR_RANGE_SPACING_M");
+    char buffer[64];
+    std::snprintf(buffer, sizeof buffer, "%.6f", double(w[1]) * source.ground_spacing_m);
+    m["GISSAR_FIRST_GROUND_RANGE_M"] = buffer;
+    std::snprintf(buffer, sizeof buffer, "%.9g", source.ground_spacing_m);
+    m["GISSAR_GROUND_RANGE_SPACING_M"] = buffer;
+  }
+}
+
+void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim) {
+  const geo::Sentinel1Annotation& a = source.annotation;
+  GISSAR_CHECK(source.ground_range && !a.range_conversion.empty());
+  const sensor::RadarGrid slant = sim.grid;
+  const int rows = source.window[2], cols = source.window[3], slant_cols = slant.cols;
+  GISSAR_CHECK(slant.rows == rows);
+  const size_t n_slant = size_t(rows) * slant_cols, n = size_t(rows) * cols;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+
+  // The bands to carry over: float (linear), double (linear), byte (nearest).
+  std::vector<render::SarImage*> images = {&sim.image.image};
+  for (render::SarImage& c : sim.other_channels) images.push_back(&c);
+  std::vector<std::vector<float>*> floats = {&sim.image.lon_deg, &sim.image.lat_deg, &sim.image.height_m};
+  std::vector<std::vector<uint8_t>*> bytes;
+  std::vector<uint8_t> byte_fill;  // outside the slant grid: mask "outside", footprint 0
+  for (render::SarImage* image : images) {
+    GISSAR_CHECK(image->real.empty());  // a GRD is simulated incoherently
+    floats.push_back(&image->intensity);
+    for (auto& layer : image->bounce_layers) {
+      if (layer.size() == n_slant) floats.push_back(&layer);
+    }
+    if (image->mask.size() == n_slant) {
+      bytes.push_back(&image->mask);
+      byte_fill.push_back(render::kMaskOutside);
+    }
+    if (image->footprint.size() == n_slant) {
+      bytes.push_back(&image->footprint);
+      byte_fill.push_back(0);
+    }
+  }
+  std::vector<std::vector<double>*> doubles = {&sim.image.lon_deg_exact, &sim.image.lat_deg_exact};
+  std::vector<std::vector<float>> float_out(floats.size(), std::vector<float>(n, nan));
+  std::vector<std::vector<double>> double_out(doubles.size(),
+                                              std::vector<double>(n, std::numeric_limits<double>::quiet_NaN()));
+  std::vector<std::vector<uint8_t>> byte_out;
+  for (const uint8_t fill : byte_fill) byte_out.emplace_back(n, fill);
+  for (auto* f : floats) GISSAR_CHECK(f->size() == n_slant);
+  for (auto* d : doubles) GISSAR_CHECK(d->size() == n_slant);
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, rows, 8), [&](const tbb::blocked_range<int>& range) {
+    for (int i = range.begin(); i != range.end(); ++i) {
+      const geo::Sentinel1RangeConversion& record =
+          a.range_conversion[NearestRecord(a.range_conversion, slant.TimeOfRow(i))];
+      for (int j = 0; j < cols; ++j) {
+        const double ground = double(source.window[1] + j) * source.ground_spacing_m;
+        const double c = slant.ColOfRange(Horner(record.grsr, ground - record.gr0_m));
+        if (!(c >= 0.0 && c <= double(slant_cols - 1))) continue;
+        const int c0 = std::min(static_cast<int>(std::floor(c)), slant_cols - 2);
+        const double f = c - c0;
+        const size_t k0 = size_t(i) * slant_cols + c0, out = size_t(i) * cols + j;
+        for (size_t b = 0; b < floats.size(); ++b) {
+          const float v0 = (*floats[b])[k0], v1 = (*floats[b])[k0 + 1];
+          float_out[b][out] = (std::isnan(v0) || std::isnan(v1)) ? nan : static_cast<float>((1.0 - f) * v0 + f * v1);
+        }
+        for (size_t b = 0; b < doubles.size(); ++b) {
+          const double v0 = (*doubles[b])[k0], v1 = (*doubles[b])[k0 + 1];
+          double_out[b][out] = (1.0 - f) * v0 + f * v1;  // NaN when either is
+        }
+        for (size_t b = 0; b < bytes.size(); ++b) byte_out[b][out] = (*bytes[b])[f < 0.5 ? k0 : k0 + 1];
+      }
+    }
+  });
+  for (size_t b = 0; b < floats.size(); ++b) *floats[b] = std::move(float_out[b]);
+  for (size_t b = 0; b < doubles.size(); ++b) *doubles[b] = std::move(double_out[b]);
+  for (size_t b = 0; b < bytes.size(); ++b) *bytes[b] = std::move(byte_out[b]);
+  // A ground point needs both neighbours (the float bands are NaN otherwise).
+  for (size_t k = 0; k < n; ++k) {
+    if (std::isnan(sim.image.height_m[k]) || std::isnan(sim.image.lon_deg[k])) {
+      sim.image.lon_deg[k] = sim.image.lat_deg[k] = sim.image.height_m[k] = nan;
+      sim.image.lon_deg_exact[k] = sim.image.lat_deg_exact[k] = std::numeric_limits<double>::quiet_NaN();
+    }
+  }
+  sim.image.geolocated = 0;
+  for (size_t k = 0; k < n; ++k) sim.image.geolocated += std::isfinite(sim.image.height_m[k]) ? 1 : 0;
+  for (render::SarImage* image : images) {
+    image->width = cols;
+    image->height = rows;
+    // Reflector returns: their ground-range pixel (rows are unchanged).
+    for (render::PointReturn& p : image->points) {
+      p.col = a.GroundRangeOfSlantRange(p.range_m, slant.TimeOfRow(p.row)) / source.ground_spacing_m -
+              double(source.window[1]);
+    }
+  }
+}
+
+}  // namespace gissar::pipeline
