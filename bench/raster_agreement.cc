@@ -61,7 +61,7 @@ int main(int argc, char** argv) {
     // The raster engine's terrain: the same posts, those outside the scene
     // (a DEM's collar, border voids) non-finite.
     pipeline::SimulateRequest raster_options = options;
-    raster_options.engine = "raster";
+    raster_options.engine = pipeline::SimulateEngine::kRaster;
     const pipeline::Terrain raster_terrain = pipeline::LoadTerrain(raster_options);
     Stopwatch raster_watch;
     const render::SarImage raster =

@@ -323,6 +323,13 @@ class PyReporter : public Reporter {
   }
   void Warn(const std::string& line) override {
     py::gil_scoped_acquire gil;
+    // gissar._adapt.run calls the core on a worker thread and gives its progress hook a list,
+    // `_gissar_warnings`: the texts go there and the calling thread issues them as warnings (the warnings
+    // module's state is process-wide, so capturing it per thread would break concurrent calls).
+    if (!progress_.is_none() && py::hasattr(progress_, "_gissar_warnings")) {
+      progress_.attr("_gissar_warnings").attr("append")(PythonNames(line));
+      return;
+    }
     if (PyErr_WarnEx(WarningType(), PythonNames(line).c_str(), 1) != 0) {
       // Warnings turned into errors (-W error): stop the run with it.
       cancelled_ = true;
@@ -1813,7 +1820,11 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
           throw ConfigError("need 0 <= low < high <= 100", "low_percentile/high_percentile");
         }
         image::DbStretch stretch;
-        const auto grey = image::DbQuicklook(im.values, low_percentile, high_percentile, &stretch);
+        std::vector<uint8_t> grey;
+        {
+          py::gil_scoped_release release;  // other Python threads run meanwhile (seconds for a large image)
+          grey = image::DbQuicklook(im.values, low_percentile, high_percentile, &stretch);
+        }
         return py::make_tuple(Image(grey, im.height, im.width), py::make_tuple(stretch.low_db, stretch.high_db));
       }, py::arg("intensity"), py::arg("low_percentile") = 2.0, py::arg("high_percentile") = 98.0,
       "dB quicklook of a linear intensity image: (grey (H, W) uint8, (low_db, high_db)); 10 log10 I mapped from "
@@ -1828,9 +1839,14 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         if (!std::isfinite(near_range_m) || !std::isfinite(azimuth_origin_m)) {
           throw ConfigError("axis origins must be finite", "near_range_m/azimuth_origin_m");
         }
-        return RgbArray(image::AnnotatedQuicklook(
-            im.values, im.width, im.height,
-            image::QuicklookAxes{near_range_m, range_spacing_m, azimuth_origin_m, azimuth_spacing_m}, title));
+        image::RgbImage picture;
+        {
+          py::gil_scoped_release release;
+          picture = image::AnnotatedQuicklook(
+              im.values, im.width, im.height,
+              image::QuicklookAxes{near_range_m, range_spacing_m, azimuth_origin_m, azimuth_spacing_m}, title);
+        }
+        return RgbArray(picture);
       }, py::arg("intensity"), py::arg("range_spacing_m"), py::arg("azimuth_spacing_m"), py::arg("title") = "",
       py::arg("near_range_m") = 0.0, py::arg("azimuth_origin_m") = 0.0,
       "dB quicklook with a slant-range axis (near_range_m = slant range of column 0) and an along-track axis "
@@ -1841,7 +1857,12 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         const FloatImage a = ToFloatImage(green, "gissar.composite: green");
         const FloatImage b = ToFloatImage(magenta, "gissar.composite: magenta");
         if (a.width != b.width || a.height != b.height) throw InputError("images differ in size", "gissar.composite");
-        return RgbArray(image::IntensityComposite(a.values, b.values, a.width, a.height));
+        image::RgbImage picture;
+        {
+          py::gil_scoped_release release;
+          picture = image::IntensityComposite(a.values, b.values, a.width, a.height);
+        }
+        return RgbArray(picture);
       }, py::arg("green"), py::arg("magenta"),
       "Green/magenta composite of two co-registered linear intensity images, each dB-stretched on its own: grey "
       "where they agree. (H, W, 3) uint8.");
@@ -1858,8 +1879,11 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) m3(r, c) = f.at(r, c);
         image::EpipolarPlotInput in;
-        in.image1 = image::DbQuicklook(a.values, 1.0, 99.0);
-        in.image2 = image::DbQuicklook(b.values, 1.0, 99.0);
+        {
+          py::gil_scoped_release release;
+          in.image1 = image::DbQuicklook(a.values, 1.0, 99.0);
+          in.image2 = image::DbQuicklook(b.values, 1.0, 99.0);
+        }
         in.width1 = a.width;
         in.height1 = a.height;
         in.width2 = b.width;
@@ -1876,7 +1900,12 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
           in.lines_in_2.push_back(mvg::EpipolarLineInImage2(m3, mt.p1));
           in.lines_in_1.push_back(mvg::EpipolarLineInImage1(m3, mt.p2));
         }
-        return RgbArray(image::DrawEpipolarPair(in));
+        image::RgbImage picture;
+        {
+          py::gil_scoped_release release;
+          picture = image::DrawEpipolarPair(in);
+        }
+        return RgbArray(picture);
       }, py::arg("image1"), py::arg("image2"), py::arg("x1"), py::arg("x2"), py::arg("F"), py::arg("inliers") = py::none(),
       "Image 1 | image 2 (dB quicklooks) with the matches x1 <-> x2 (N, 2 pixels): inliers green with their "
       "epipolar lines under F ([x2 y2 1] F [x1 y1 1]' = 0) in yellow, outliers red. (H, W, 3) uint8.");

@@ -15,6 +15,7 @@ from ._core import *  # noqa: F401,F403  (the compiled API)
 from ._core import (Cancelled, ConfigError, Error, GissarWarning, InputError, IoError,  # noqa: F401
                     MissingFileError, SarGeometry, Scene)
 from . import _adapt
+from ._adapt import ArrayTypeError  # noqa: F401
 
 #: The library version, as ``gissar --version`` prints it (``gissar 0.1.0 (describe)``: the middle word).
 __version__ = _core.version().split()[1]
@@ -147,6 +148,9 @@ def geocode(image, out_prefix, *, dem=None, vertical_datum="", crs=None, pixel_s
         if image == "(python).tif":
             raise ConfigError("the simulation wrote no files: give simulate(..., out_prefix=...) (image)")
     crs_text = "" if crs is None else _adapt._crs_text(crs, "crs")
+    if isinstance(dem, _np_ndarray()):
+        raise ConfigError("geocode takes the DEM as a path, a GDAL dataset or a rioxarray DataArray (a bare array "
+                          "has no georeferencing here: use rioxarray's .rio.write_transform/.rio.write_crs) (dem)")
     with _adapt.raster_path(dem, None, None, None, "dem") as dem_path:
         r = _core.geocode(_os.fspath(image), _os.fspath(out_prefix), dem=dem_path or "",
                           vertical_datum=vertical_datum, crs=crs_text, pixel_size_m=pixel_size_m,
@@ -199,6 +203,11 @@ def open_product(path, *, swath=None, burst=None, polarization=None, radiometry=
 def _np_integer():
     import numpy
     return numpy.integer
+
+
+def _np_ndarray():
+    import numpy
+    return numpy.ndarray
 
 
 # ---------------------------------------------------------------- Scene
@@ -272,18 +281,46 @@ _with_required_keywords(sequence, ["depression_deg"])
 
 # ---------------------------------------------------------------- images in
 
-def _images_in(core, names, module_doc_extra=" Images: NumPy arrays, xarray DataArrays (their 'total' band), "
-                                              "paths or GDAL datasets (band 1)."):
-    """Wraps a core function so that its image arguments (by position or keyword) take any image form."""
-    positions = {name: i for i, name in enumerate(names)}
+def _image(function):
+    return lambda value, name: _adapt.image_array(value, f"gissar.{function}: {name}")
+
+
+def _points(function, columns):
+    return lambda value, name: _adapt.points_values(value, f"gissar.{function}: {name}", columns)
+
+
+def _matrix(function, rows, columns, optional=False):
+    def convert(value, name):
+        if optional and value is None:
+            return None
+        return _adapt.matrix_values(value, f"gissar.{function}: {name}", rows, columns)
+    return convert
+
+
+def _pictures(function, many=False):
+    def convert(value, name):
+        what = f"gissar.{function}: {name}"
+        if many:
+            return [_adapt.uint8_values(v, f"{what}[{i}]") for i, v in enumerate(value)]
+        return _adapt.uint8_values(value, what)
+    return convert
+
+
+def _arrays_in(core, parameters, module_doc_extra=" Images: NumPy arrays, xarray DataArrays (their 'total' band), "
+                                                  "paths or GDAL datasets (band 1)."):
+    """Wraps a core function so that its array arguments (by position or keyword) are checked and converted in
+    Python first: `parameters` lists the core's leading parameters in order as (name, converter or None).
+    Converters take any image form or array layout and raise gissar.ArrayTypeError/InputError naming the
+    parameter (bool, complex, text, a wrong number of dimensions) instead of pybind11's signature listing."""
+    positions = {name: (i, convert) for i, (name, convert) in enumerate(parameters) if convert is not None}
 
     def wrapper(*args, **kwargs):
         args = list(args)
-        for name, i in positions.items():
+        for name, (i, convert) in positions.items():
             if i < len(args):
-                args[i] = _adapt.image_array(args[i], name)
+                args[i] = convert(args[i], name)
             elif name in kwargs:
-                kwargs[name] = _adapt.image_array(kwargs[name], name)
+                kwargs[name] = convert(kwargs[name], name)
         return core(*args, **kwargs)
 
     wrapper.__name__ = wrapper.__qualname__ = core.__name__
@@ -292,12 +329,39 @@ def _images_in(core, names, module_doc_extra=" Images: NumPy arrays, xarray Data
     return wrapper
 
 
-match_images = _images_in(_core.match_images, ["reference", "observed"])
-register_images = _images_in(_core.register_images, ["fixed", "moving"])
-quicklook = _images_in(_core.quicklook, ["intensity"])
-annotated_quicklook = _images_in(_core.annotated_quicklook, ["intensity"])
-composite = _images_in(_core.composite, ["green", "magenta"])
-epipolar_plot = _images_in(_core.epipolar_plot, ["image1", "image2"])
+match_images = _arrays_in(_core.match_images, [
+    ("reference", _image("match_images")), ("observed", _image("match_images")), ("matcher", None),
+    ("patch_px", None), ("step_px", None), ("search_px", None), ("filter_px", None), ("min_score", None),
+    ("warp", _matrix("match_images", 2, 3, optional=True))])
+register_images = _arrays_in(_core.register_images, [
+    ("fixed", _image("register_images")), ("moving", _image("register_images")),
+    ("fixed_px", _points("register_images", 2)), ("moving_px", _points("register_images", 2))])
+quicklook = _arrays_in(_core.quicklook, [("intensity", _image("quicklook"))])
+annotated_quicklook = _arrays_in(_core.annotated_quicklook, [("intensity", _image("annotated_quicklook"))])
+composite = _arrays_in(_core.composite, [("green", _image("composite")), ("magenta", _image("composite"))])
+epipolar_plot = _arrays_in(_core.epipolar_plot, [
+    ("image1", _image("epipolar_plot")), ("image2", _image("epipolar_plot")), ("x1", _points("epipolar_plot", 2)),
+    ("x2", _points("epipolar_plot", 2)), ("F", _matrix("epipolar_plot", 3, 3))])
+_NO_IMAGES = ""
+fmatrix = _arrays_in(_core.fmatrix, [("x1", _points("fmatrix", 2)), ("x2", _points("fmatrix", 2))], _NO_IMAGES)
+resect = _arrays_in(_core.resect, [("world_enu_m", _points("resect", 3)), ("pixels", _points("resect", 2))],
+                    _NO_IMAGES)
+register_points = _arrays_in(_core.register_points, [
+    ("fixed_px", _points("register_points", 2)), ("moving_px", _points("register_points", 2))], _NO_IMAGES)
+kvd = _arrays_in(_core.kvd, [("F", _matrix("kvd", 3, 3))], _NO_IMAGES)
+write_png = _arrays_in(_core.write_png, [("path", None), ("image", _pictures("write_png"))], _NO_IMAGES)
+write_gif = _arrays_in(_core.write_gif, [("path", None), ("frames", _pictures("write_gif", many=True))], _NO_IMAGES)
+side_by_side = _arrays_in(_core.side_by_side, [("panels", _pictures("side_by_side", many=True))], _NO_IMAGES)
+
+_core_project = SarGeometry.project
+
+
+def _project(self, points_enu_m):
+    return _core_project(self, _adapt.points_values(points_enu_m, "SarGeometry.project: points_enu_m", 3))
+
+
+_project.__doc__ = _core_project.__doc__
+SarGeometry.project = _project
 
 
 #: The keywords of gissar.locate after its positional arguments (gissar._core.locate's).
@@ -315,7 +379,7 @@ def locate(scene, image, prior, range_spacing_m, azimuth_spacing_m, **kwargs):
             raise ConfigError(f"{_core.unknown_key_message(name, list(_LOCATE_KEYWORDS))} (gissar.locate)")
     if not isinstance(scene, _core.Scene):
         scene = Scene(_os.fspath(scene))
-    return _core.locate(scene, _adapt.image_array(image, "image"), prior, range_spacing_m, azimuth_spacing_m,
+    return _core.locate(scene, _adapt.image_array(image, "gissar.locate: image"), prior, range_spacing_m, azimuth_spacing_m,
                         **kwargs)
 
 
@@ -330,14 +394,24 @@ def locate_product(**kwargs):
     composite_png (files, optional).
     Returns the fix dict (converged, reason, fix.error_against_annotated_track, ...)."""
     paths = ("product", "orbit", "radar_grid", "image", "scene", "dem", "out", "composite_png")
-    options = {k: (_os.fspath(v) if k in paths and v is not None else v) for k, v in kwargs.items()}
+    options = _paths(kwargs, paths)
     if "prior_offset_track" in options and options["prior_offset_track"] is not None:
         options["prior_offset_track"] = [float(v) for v in options["prior_offset_track"]]
     return _core.locate_product(options)
 
 
+def _fspath(value, name):
+    """os.fspath naming the parameter: an array where a file is expected (pta, polsar) is a clear error."""
+    try:
+        return _os.fspath(value)
+    except TypeError:
+        raise ArrayTypeError(f"must be a path (str or os.PathLike), got {type(value).__name__}"
+                             + (": write the array to a GeoTIFF first (e.g. simulate(..., out_prefix=...))"
+                                if hasattr(value, "__array__") else "") + f" ({name})") from None
+
+
 def _paths(kwargs, keys):
-    return {k: (_os.fspath(v) if k in keys and v is not None else v) for k, v in kwargs.items()}
+    return {k: (_fspath(v, k) if k in keys and v is not None else v) for k, v in kwargs.items()}
 
 
 def pta(reflectors, out_prefix, *, product=None, image=None, **kwargs):
@@ -372,8 +446,7 @@ def polsar(out_prefix, *, image=None, product=None, **kwargs):
 
 
 def _evaluate_options(kwargs):
-    return {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix", "product") and v is not None else v)
-            for k, v in kwargs.items()}
+    return _paths(kwargs, ("scene", "dem", "out_prefix", "product"))
 
 
 def evaluate_trials(**kwargs):

@@ -22,6 +22,90 @@ MASK_FLAG_VALUES = (0, 1, 2, 3, 255)
 MASK_FLAG_MEANINGS = "none layover shadow layover_and_shadow outside_footprint"
 
 
+# ---------------------------------------------------------------- arrays in
+
+class ArrayTypeError(_core.InputError, TypeError):
+    """An array argument whose values are not real numbers (bool, complex, text, other objects): both a
+    gissar.InputError (ValueError) and a TypeError."""
+
+
+ArrayTypeError.__module__ = "gissar"
+
+
+def real_array(value, what, *, ndim=2, dtype=np.float32, content="real numbers", shape_text=None, empty_ok=False,
+               complex_hint=""):
+    """`value` (an array, a DataArray, nested lists) as a C-contiguous array of the native `dtype` (float32 or
+    float64), after checking what the conversion would hide: bool, complex and non-numeric values are an
+    ArrayTypeError, a wrong number of dimensions (or an empty array) an InputError, both naming `what`.
+    Integers, float16/32/64 of either byte order and any memory layout (strides, Fortran order) are
+    converted; the values are those of `np.asarray(value).astype(dtype)`."""
+    if _is_dataarray(value):
+        value = value.values
+    if value is None:
+        raise ArrayTypeError(f"must be an array of {content}, got None ({what})")
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as e:  # e.g. ragged nested lists
+        raise ArrayTypeError(f"must be an array of {content}: {e} ({what})") from None
+    if a.dtype.kind == "O":
+        try:
+            a = a.astype(np.float64)
+        except (TypeError, ValueError):
+            raise ArrayTypeError(f"must be an array of {content}, got objects that are not numbers ({what})") from None
+    if a.dtype.kind == "b":
+        raise ArrayTypeError(f"must be an array of {content}, got a bool array (convert it explicitly, e.g. "
+                             f".astype(np.float32)) ({what})")
+    if a.dtype.kind == "c":
+        raise ArrayTypeError(f"must be an array of {content}, got complex values ({a.dtype}){complex_hint} ({what})")
+    if a.dtype.kind not in "iuf":
+        raise ArrayTypeError(f"must be an array of {content}, got dtype {a.dtype} ({what})")
+    if a.ndim != ndim or (a.size == 0 and not empty_ok):
+        shape = shape_text or f"a non-empty {ndim}-D array"
+        raise _core.InputError(f"must be {shape}, got {'an empty array of ' if a.size == 0 else ''}shape "
+                               f"{a.shape} ({what})")
+    return np.ascontiguousarray(a, dtype=dtype)
+
+
+def image_values(value, what):
+    """A 2-D image (rows = azimuth, columns = range) of real numbers as contiguous native float32."""
+    return real_array(value, what, content="real intensities",
+                      shape_text="a non-empty 2-D array (rows = azimuth, columns = range)",
+                      complex_hint=": give the intensity np.abs(z)**2")
+
+
+def points_values(value, what, columns):
+    """An (N, columns) array of real coordinates as contiguous native float64."""
+    a = real_array(value, what, dtype=np.float64, content="real coordinates", empty_ok=True,
+                   shape_text=f"an (N, {columns}) array")
+    if a.shape[1] != columns:
+        raise _core.InputError(f"must be an (N, {columns}) array, got shape {a.shape} ({what})")
+    return a
+
+
+def matrix_values(value, what, rows, columns):
+    """A rows x columns matrix of real numbers as contiguous native float64."""
+    a = real_array(value, what, dtype=np.float64, content="real numbers", shape_text=f"a {rows} x {columns} matrix")
+    if a.shape != (rows, columns):
+        raise _core.InputError(f"must be a {rows} x {columns} matrix, got shape {a.shape} ({what})")
+    return a
+
+
+def uint8_values(value, what):
+    """Picture pixels as contiguous uint8: uint8 itself, or integers all within 0..255 (converted exactly).
+    Floats are refused rather than truncated (0.7 would become 0)."""
+    if _is_dataarray(value):
+        value = value.values
+    a = np.asarray(value)
+    if a.dtype.kind == "u" and a.dtype.itemsize == 1:
+        return np.ascontiguousarray(a)
+    if a.dtype.kind in "iu" and (a.size == 0 or (int(a.min()) >= 0 and int(a.max()) <= 255)):
+        return np.ascontiguousarray(a, dtype=np.uint8)
+    if a.dtype.kind in "iu":
+        raise _core.InputError(f"pixel values must be within 0..255, got {int(a.min())}..{int(a.max())} ({what})")
+    raise ArrayTypeError(f"must be a uint8 array (0..255), got dtype {a.dtype}: scale floats yourself, e.g. "
+                         f"(np.clip(x, 0, 1) * 255).astype(np.uint8), or use gissar.quicklook ({what})")
+
+
 # ---------------------------------------------------------------- rasters in
 
 def _crs_text(crs, what):
@@ -42,12 +126,25 @@ def _transform_coefficients(transform, what):
         transform = transform.to_gdal()
     try:
         gt = [float(v) for v in transform]
-    except TypeError:
+    except (TypeError, ValueError):
         gt = []
     if len(gt) != 6:
         raise _core.ConfigError(f"needs GDAL's six coefficients (x0, dx, rx, y0, ry, dy) or an affine.Affine "
                                 f"({what})")
+    if not all(np.isfinite(gt)):
+        raise _core.ConfigError(f"coefficients must be finite, got {gt} ({what})")
+    if gt[1] * gt[5] - gt[2] * gt[4] == 0.0:
+        raise _core.ConfigError(f"is singular (a zero pixel size, or rows parallel to columns): {gt}; GDAL's order "
+                                f"is (x0, dx, rx, y0, ry, dy) ({what})")
     return gt
+
+
+def _nodata_value(nodata, what):
+    if nodata is None:
+        return None
+    if isinstance(nodata, (bool, np.bool_)) or not isinstance(nodata, (int, float, np.integer, np.floating)):
+        raise ArrayTypeError(f"must be a real number or None, got {type(nodata).__name__} ({what})")
+    return float(nodata)
 
 
 def _is_dataarray(value):
@@ -107,16 +204,18 @@ def raster_path(value, transform=None, crs=None, nodata=None, what="dem"):
         if crs is None:
             raise _core.ConfigError(f"the GDAL dataset has no CRS ({what})")
     elif isinstance(value, np.ndarray) or hasattr(value, "__array__"):
-        values = np.asarray(value)
+        values = value
         description = f"the `{what}` array"
         if transform is None or crs is None:
             raise _core.ConfigError(f"a DEM given as an array needs transform= and crs= ({what})")
     else:
         raise _core.ConfigError(f"must be a path, a GDAL dataset, a NumPy array or an xarray DataArray, got "
                                 f"{type(value).__name__} ({what})")
-    values = np.ascontiguousarray(values, dtype=np.float32)
-    if values.ndim != 2 or values.size == 0:
-        raise _core.ConfigError(f"must be a non-empty 2-D array of heights ({what})")
+    # Heights as native float32, C order (any layout, byte order, integer or float16/64 type converts; bool,
+    # complex and text are refused rather than turned into numbers).
+    values = real_array(values, what, content="real heights", shape_text="a non-empty 2-D array of heights",
+                        complex_hint=": heights are real")
+    nodata = _nodata_value(nodata, "nodata")
     gt = _transform_coefficients(transform, "transform")
     crs_text = _crs_text(crs, "crs")
     from osgeo import gdal, osr
@@ -147,22 +246,22 @@ def raster_path(value, transform=None, crs=None, nodata=None, what="dem"):
 
 
 def image_array(value, what):
-    """A 2-D image as NumPy from an array, a DataArray (its 'total' band when it has bands), a path or a GDAL
-    dataset (band 1)."""
+    """A 2-D image as contiguous native float32 from an array, a DataArray (its 'total' band when it has bands),
+    a path or a GDAL dataset (band 1); checked by image_values (`what` names the argument in errors)."""
     if _is_dataarray(value):
         if "band" in value.dims:
             value = value.sel(band="total") if "total" in list(value["band"].values) else value.isel(band=0)
-        return np.asarray(value.values)
-    if isinstance(value, (str, os.PathLike)):
+        value = value.values
+    elif isinstance(value, (str, os.PathLike)):
         from osgeo import gdal
         path = os.fspath(value)
         if not os.path.exists(path) and not path.startswith("/vsi"):
             raise _core.MissingFileError(f"image file does not exist ({what}: {path})")
         ds = gdal.Open(path)
-        return ds.GetRasterBand(1).ReadAsArray()
-    if _is_gdal_dataset(value):
-        return value.GetRasterBand(1).ReadAsArray()
-    return value
+        value = ds.GetRasterBand(1).ReadAsArray()
+    elif _is_gdal_dataset(value):
+        value = value.GetRasterBand(1).ReadAsArray()
+    return image_values(value, what)
 
 
 # ---------------------------------------------------------------- progress and Ctrl-C
@@ -211,31 +310,36 @@ def run(function, args, kwargs, progress):
         raise _core.ConfigError("progress must be a callable(stage, done, total), True (a tqdm bar) or None "
                                 "(progress)")
     interrupted = threading.Event()
+    outcome = {}
 
     def hook(stage, done, total):
-        if interrupted.is_set():
+        if interrupted.is_set() or "callback_error" in outcome:
             return False
         if user is not None:
-            answer = user(stage, done, total)
+            try:
+                answer = user(stage, done, total)
+            except BaseException as e:  # noqa: B902 (re-raised as itself by the calling thread)
+                # The callback's own exception stops the run (as a False would) and is what the call raises,
+                # not gissar.Cancelled: the core only sees the stop request.
+                outcome["callback_error"] = e
+                return False
             if answer is not None and not answer:
                 return False
         return True
 
-    outcome = {}
     # Completion is our own event: a Thread.join interrupted by KeyboardInterrupt can leave the thread looking
     # stopped while it still runs (CPython gh-90882).
     finished = threading.Event()
 
+    # The core's warnings are collected in this list (the core appends to a progress hook's
+    # `_gissar_warnings`) and issued from the calling thread (below), so that they point at the user's line
+    # and -W error / filters apply there. Not warnings.catch_warnings: it swaps process-wide state, which
+    # concurrent calls from several threads would leave swapped (later warnings lost).
+    hook._gissar_warnings = []
+
     def work():
         try:
-            # The core's warnings are recorded here and issued again from the calling thread (below), so
-            # that they point at the user's line, and -W error / filters apply there.
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                try:
-                    outcome["value"] = function(*args, progress=hook, **kwargs)
-                finally:
-                    outcome["warnings"] = list(caught)
+            outcome["value"] = function(*args, progress=hook, **kwargs)
         except BaseException as e:  # noqa: B902 (handed to the calling thread)
             outcome["error"] = e
         finally:
@@ -258,8 +362,17 @@ def run(function, args, kwargs, progress):
     finally:
         if hasattr(user, "close"):
             user.close()
-    for record in outcome.pop("warnings", []):
-        warnings.warn(record.message, record.category, stacklevel=_user_stacklevel())
+    for text in hook._gissar_warnings:
+        warnings.warn(text, _core.GissarWarning, stacklevel=_user_stacklevel())
+    if "callback_error" in outcome:
+        # The progress callback raised: that exception, whatever the core made of the stop (Cancelled, or a
+        # result when it had already finished its last report).
+        outcome.pop("error", None)
+        error = outcome.pop("callback_error")
+        try:
+            raise error
+        finally:
+            error = None
     if "error" in outcome:
         error = outcome.pop("error")
         try:

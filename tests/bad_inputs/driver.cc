@@ -2,7 +2,7 @@
 // case file against the real `gissar` binary, or checks the catalogue as a
 // whole.
 //
-//   bad_inputs_driver --gissar BIN --case FILE.case
+//   bad_inputs_driver --gissar BIN --case FILE.case [--help-cache DIR]
 //   bad_inputs_driver --gissar BIN --catalogue CASES_DIR
 //   bad_inputs_driver --catalogue CASES_DIR --export-seeds DIR   (fuzz seeds)
 //
@@ -470,6 +470,45 @@ std::set<std::string> ListedSubcommands(const std::string& help) {
   return names;
 }
 
+// `--help-cache DIR`: help texts shared by the cases of one build (each case
+// otherwise starts the binary once more per command level just to read its
+// help; under the sanitizers that start-up is most of a case's time). Keyed
+// by the binary's path, size and modification time, so a rebuilt binary is
+// asked again; written to a temporary name and renamed (cases run in
+// parallel). Without it, or when the cache cannot be written, the help is
+// simply run.
+fs::path g_help_cache;
+
+std::string HelpText(const std::vector<std::string>& with_help, const fs::path& capture_dir) {
+  fs::path cached;
+  if (!g_help_cache.empty()) {
+    struct stat st {};
+    if (stat(with_help[0].c_str(), &st) == 0) {
+      std::string key = with_help[0] + "|" + std::to_string(st.st_size) + "|" +
+                        std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec);
+      for (const std::string& a : with_help) key += "|" + a;
+      std::ostringstream name;
+      name << "help-" << std::hex << std::hash<std::string>{}(key) << ".txt";
+      cached = g_help_cache / name.str();
+      std::ifstream in(cached, std::ios::binary);
+      if (in) return std::string(std::istreambuf_iterator<char>(in), {});
+    }
+  }
+  const Outcome help = Run(with_help, capture_dir, 60.0, false);
+  if (!cached.empty() && help.status == 0 && !help.timed_out) {
+    std::error_code ec;
+    fs::create_directories(g_help_cache, ec);
+    const fs::path tmp = cached.string() + ".tmp." + std::to_string(getpid());
+    {
+      std::ofstream out(tmp, std::ios::binary);
+      out << help.out;
+    }
+    fs::rename(tmp, cached, ec);
+    if (ec) fs::remove(tmp, ec);
+  }
+  return help.out;
+}
+
 // The command path of `args` (e.g. {"scene", "build"}), checked against the
 // help of the binary; returns an error message, or "" when listed.
 std::string CheckCommandListed(const std::string& gissar, const std::vector<std::string>& args,
@@ -480,7 +519,7 @@ std::string CheckCommandListed(const std::string& gissar, const std::vector<std:
     if (!cache.count(help_args)) {
       std::vector<std::string> with_help = help_args;
       with_help.push_back("--help");
-      cache[help_args] = ListedSubcommands(Run(with_help, capture_dir, 60.0, false).out);
+      cache[help_args] = ListedSubcommands(HelpText(with_help, capture_dir));
     }
     const std::set<std::string> listed = cache[help_args];
     if (listed.empty()) return "";  // a leaf command: the rest are its arguments
@@ -757,6 +796,7 @@ int main(int argc, char** argv) {
     else if (flag == "--case") case_file = argv[i + 1];
     else if (flag == "--catalogue") catalogue = argv[i + 1];
     else if (flag == "--export-seeds") seeds = argv[i + 1];
+    else if (flag == "--help-cache") g_help_cache = argv[i + 1];
     else Die("unknown flag " + flag);
   }
   if (!seeds.empty() && !catalogue.empty()) return ExportSeeds(catalogue, seeds);

@@ -45,7 +45,7 @@ std::string OneLine(std::string text) {
 // Flags every command takes (docs/conventions.md, "Common flags").
 struct CommonFlags {
   bool quiet = false;
-  std::string log_level = "info";
+  std::string log_level = std::string(kLogLevels.Name(LogLevel::kInfo));
   int threads = 0;  // 0 = all cores
   bool force = false;
   std::string options_file;  // expanded before parsing (ExpandOptionsFile)
@@ -61,7 +61,7 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
     }
     if (sub->get_name() == "corridor") continue;  // its own flags (the Python command)
     AddSwitch(sub, "quiet", flags.quiet, "Only warnings and errors on stderr (same as --log-level warning)");
-    sub->add_option("--log-level", flags.log_level, "error, warning or info")->capture_default_str();
+    sub->add_option("--log-level", flags.log_level, kLogLevels.Alternatives())->capture_default_str();
     sub->add_option("--threads", flags.threads, "Worker threads (default: all cores)")
         ->check(CLI::NonNegativeNumber);
     AddSwitch(sub, "force", flags.force, "Run even when the job exceeds the memory budget (--max-memory)");

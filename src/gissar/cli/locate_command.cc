@@ -3,12 +3,22 @@
 
 #include "gissar/cli/command.h"
 #include "gissar/cli/headline.h"
+#include "gissar/material/material.h"
+#include "gissar/nav/matching.h"
+#include "gissar/nav/product_locate.h"
 #include "gissar/pipeline/locate.h"
+#include "gissar/sensor/sar_geometry.h"
 
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
 
 namespace {
+
+// The help of --matcher: the scene matchers, then a product's.
+std::string MatcherHelp() {
+  return nav::kMatchers.Alternatives() + " (--product: " + nav::kShiftMatchers.Alternatives() + ")";
+}
+std::string ProductLayerHelp() { return "Product layer (" + material::kPolarizations.List() + ")"; }
 
 // The flags `locate` and `evaluate` share for a product's terrain and
 // multilook (LocateRequest and EvaluateRequest spell these fields alike).
@@ -43,7 +53,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
                     "Or any sensor's state vectors (CSV, JSON, ESA .EOF) of the --image, fixed like a product");
     cmd->add_option("--radar-grid", o->radar_grid, "Radar grid JSON of the --image (with --orbit)");
     cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
-    cmd->add_option("--polarization", o->polarization, "Product layer (HH, HV, VH, VV)")->capture_default_str();
+    cmd->add_option("--polarization", o->polarization, ProductLayerHelp())->capture_default_str();
     cmd->add_option("--prior-offset-track", o->prior_offset_track,
                     "With --product: prior = annotated track moved ALONG,CROSS,UP metres (mid-scene velocity frame)")
         ->delimiter(',')->expected(3)->capture_default_str();
@@ -65,8 +75,10 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
                     "PNG: observed (green) over simulated (magenta) at the prior and at the fix");
     cmd->add_option("--range-spacing", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
     cmd->add_option("--azimuth-spacing", o->azimuth_spacing_m, "Azimuth pixel spacing, m (default: image metadata)");
-    cmd->add_option("--look", o->look, "right or left (default: image metadata, else right)");
-    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features (--product: ncc, gradient, phase or mi)")->capture_default_str();
+    cmd->add_option("--look", o->look,
+                    sensor::kLookSides.Alternatives() + " (default: image metadata, else " +
+                        sensor::ToString(sensor::LookSide::kRight) + ")");
+    cmd->add_option("--matcher", o->matcher, MatcherHelp())->capture_default_str();
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (prior uncertainty)")->capture_default_str();
     cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
     cmd->add_option("--dense-renders", o->dense_renders,
@@ -106,7 +118,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--product", o->product,
                     "A real RSLC product (HDF5): trials displace its annotated track (docs/navigation.md)");
     cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
-    cmd->add_option("--polarization", o->polarization, "Product layer (HH, HV, VH, VV)")->capture_default_str();
+    cmd->add_option("--polarization", o->polarization, ProductLayerHelp())->capture_default_str();
     AddProductTerrainFlags(cmd, *o);
     cmd->add_option("--trials", o->trials, "Trials")->capture_default_str();
     cmd->add_option("--seed", o->seed, "Seed")->capture_default_str();
@@ -128,7 +140,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--prior-error-heading", o->prior_error_heading_deg, "INS heading drift, +- deg (negative: 3, or 0.05 on a product)")->capture_default_str();
     cmd->add_option("--success-cells", o->success_cells, "Success: position error at most this many cells")->capture_default_str();
     cmd->add_option("--success-heading-deg", o->success_heading_deg, "Success: and heading error at most this, deg")->capture_default_str();
-    cmd->add_option("--matcher", o->matcher, "ncc, chamfer or features (--product: ncc, gradient, phase or mi)")->capture_default_str();
+    cmd->add_option("--matcher", o->matcher, MatcherHelp())->capture_default_str();
     AddSwitch(cmd, "compare", *compare, "Per-trial matcher comparison (--no-compare: skip it)");
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (0 = from the prior errors)")->capture_default_str();
     cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();

@@ -4,6 +4,7 @@
 #include "gissar/cli/command.h"
 #include "gissar/cli/headline.h"
 #include "gissar/cli/command_line.h"
+#include "gissar/mvg/registration.h"
 #include "gissar/pipeline/mvg_commands.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/util/error.h"
@@ -126,7 +127,7 @@ void AddMvgCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--fixed", o->fixed, "Fixed image (any GDAL raster)")->required();
     cmd->add_option("--moving", o->moving, "Moving image")->required();
     cmd->add_option("--points", o->points, "CSV x1,y1 (fixed), x2,y2 (moving)")->required();
-    cmd->add_option("--transform", o->transform, "similarity, affine, projective, poly2 or poly3")
+    cmd->add_option("--transform", o->transform, mvg::kTransformTypes.Alternatives())
         ->capture_default_str();
     cmd->add_option("--threshold", o->threshold_px, "Robust fit inlier threshold, pixels")->capture_default_str();
     AddSwitch(cmd, "ransac", *ransac, "Robust fit, or (--no-ransac) least squares on all pairs");

@@ -7,6 +7,7 @@
 
 #include "gissar/cli/command.h"
 #include "gissar/cli/headline.h"
+#include "gissar/material/material.h"
 #include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/validate_sentinel1.h"
 
@@ -55,7 +56,8 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
                   "Sentinel-1: state vectors (EOF, CSV or JSON) replacing the annotations' orbit");
   cmd->add_option("--swath", s1->swath, "Sentinel-1: swath to check (IW1, ..., S3; default: every swath present)");
   cmd->add_option("--polarization", s1->polarization,
-                  "Sentinel-1: polarisation to check (HH, HV, VH, VV; default: every one present)");
+                  "Sentinel-1: polarisation to check (" + material::kPolarizations.List() +
+                      "; default: every one present)");
   AddSimulateOption(cmd, "dem", options->simulate.dem, false);
   AddSimulateOption(cmd, "scene", options->simulate.scene, false);
   AddSimulateSwitch(cmd, "fill_nodata", options->simulate.fill_nodata);

@@ -12,8 +12,11 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   auto options = std::make_shared<SimulateRequest>();
   auto center = std::make_shared<std::string>();
   auto center_map = std::make_shared<std::string>();
-  auto mode = std::make_shared<std::string>("affine");
-  auto look = std::make_shared<std::string>("right");
+  // Enum fields are bound as their names (the default shown in --help) and
+  // parsed with their tables when the command runs.
+  auto mode = std::make_shared<std::string>(sensor::ToString(options->geometry.mode));
+  auto look = std::make_shared<std::string>(sensor::ToString(options->geometry.look_side));
+  auto engine = std::make_shared<std::string>(ToString(options->engine));
   CLI::App* cmd = root.add_subcommand(
       "simulate", "Simulate a SAR image (azimuth x slant range) of a DEM by ray tracing.");
   AddSimulateOption(cmd, "dem", options->dem, false);
@@ -51,7 +54,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   AddSimulateOption(cmd, "mode", *mode);
   AddSimulateOption(cmd, "width", options->geometry.width, false);
   AddSimulateOption(cmd, "height", options->geometry.height, false);
-  AddSimulateOption(cmd, "engine", options->engine);
+  AddSimulateOption(cmd, "engine", *engine);
   AddSimulateOption(cmd, "rays_per_cell", options->rays_per_cell);
   AddSimulateOption(cmd, "bounces", options->bounces);
   AddSimulateSwitch(cmd, "coherent", options->coherent);
@@ -90,6 +93,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
     resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
     resolved.geometry.mode = sensor::ParseProjectionMode(*mode);
     resolved.geometry.look_side = sensor::ParseLookSide(*look);
+    resolved.engine = kSimulateEngines.Parse(*engine, "--engine");
     if (!product_window->empty()) resolved.product_window_px = ParseProductWindow(*product_window);
     if (!center->empty()) resolved.center_lonlat = ParseNumberPair(*center, "--center");
     if (!center_map->empty()) resolved.center_map = ParseNumberPair(*center_map, "--center-map");

@@ -4,12 +4,7 @@
 
 namespace gissar::cli {
 
-LogLevel ParseLogLevel(const std::string& text) {
-  if (text == "error") return LogLevel::kError;
-  if (text == "warning") return LogLevel::kWarning;
-  if (text == "info") return LogLevel::kInfo;
-  throw ConfigError("log level must be error, warning or info, got '" + text + "'", "--log-level");
-}
+LogLevel ParseLogLevel(const std::string& text) { return kLogLevels.Parse(text, "--log-level"); }
 
 TerminalReporter::TerminalReporter(std::FILE* stream, LogLevel level, bool is_terminal)
     : stream_(stream), level_(level), is_terminal_(is_terminal) {}

@@ -8,13 +8,17 @@
 #include <mutex>
 #include <string>
 
+#include "gissar/util/enum_table.h"
 #include "gissar/util/reporter.h"
 
 namespace gissar::cli {
 
 enum class LogLevel { kError = 0, kWarning = 1, kInfo = 2 };
+inline constexpr auto kLogLevels = util::MakeEnumTable<LogLevel>(
+    "log level", {{LogLevel::kError, "error"}, {LogLevel::kWarning, "warning"}, {LogLevel::kInfo, "info"}});
 
-// "error", "warning" or "info"; throws ConfigError naming --log-level.
+// kLogLevels.Parse: "error", "warning" or "info"; throws ConfigError naming
+// --log-level and the levels otherwise.
 LogLevel ParseLogLevel(const std::string& text);
 
 class TerminalReporter : public Reporter {

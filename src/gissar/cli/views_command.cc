@@ -8,11 +8,14 @@ namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
 namespace {
 
-// Terrain and geometry flags shared with `simulate` (bound to `o`).
+// Terrain and geometry flags shared with `simulate` (bound to `o`); the
+// enum fields as their names, with the request's defaults.
 struct CommonFlags {
   std::shared_ptr<std::string> center = std::make_shared<std::string>();
-  std::shared_ptr<std::string> mode = std::make_shared<std::string>("affine");
-  std::shared_ptr<std::string> look = std::make_shared<std::string>("right");
+  std::shared_ptr<std::string> mode =
+      std::make_shared<std::string>(sensor::ToString(sensor::SarGeometryOptions().mode));
+  std::shared_ptr<std::string> look =
+      std::make_shared<std::string>(sensor::ToString(sensor::SarGeometryOptions().look_side));
   std::shared_ptr<std::string> max_memory = std::make_shared<std::string>();
 
   CLI::App* app = nullptr;

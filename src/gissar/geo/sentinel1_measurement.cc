@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <optional>
 
 #include <cpl_vsi.h>
 #include <gdal.h>
@@ -20,11 +21,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-std::string Lower(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
 
 bool VsiExists(const std::string& path) {
   VSIStatBufL st;
@@ -75,22 +71,14 @@ void CheckWindow(const Sentinel1Window& outer, const Sentinel1Window& w, const s
 }  // namespace
 
 Sentinel1Radiometry ParseSentinel1Radiometry(const std::string& text, const std::string& option) {
-  const std::string t = Lower(text);
-  if (t.empty() || t == "none") return Sentinel1Radiometry::kNone;
-  if (t == "sigma0") return Sentinel1Radiometry::kSigma0;
-  if (t == "beta0") return Sentinel1Radiometry::kBeta0;
-  if (t == "gamma0") return Sentinel1Radiometry::kGamma0;
-  throw ConfigError("unknown radiometry '" + text + "' (sigma0, beta0 or gamma0; none for the DN)", option);
+  const std::optional<Sentinel1Radiometry> found = kSentinel1Radiometries.Find(text);
+  if (!found) throw ConfigError(kSentinel1Radiometries.UnknownMessage(text) + " (none: the DN)", option);
+  return *found;
 }
 
 const char* ToString(Sentinel1Radiometry radiometry) {
-  switch (radiometry) {
-    case Sentinel1Radiometry::kSigma0: return "sigma0";
-    case Sentinel1Radiometry::kBeta0: return "beta0";
-    case Sentinel1Radiometry::kGamma0: return "gamma0";
-    case Sentinel1Radiometry::kNone: break;
-  }
-  return "none";
+  // The table's names are string literals: data() is NUL-terminated.
+  return kSentinel1Radiometries.Name(radiometry).data();
 }
 
 bool Sentinel1Window::Contains(const Sentinel1Window& w) const {

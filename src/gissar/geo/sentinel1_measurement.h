@@ -35,13 +35,23 @@
 #include <vector>
 
 #include "gissar/geo/sentinel1_safe.h"
+#include "gissar/util/enum_table.h"
 
 namespace gissar::geo {
 
 enum class Sentinel1Radiometry { kNone, kSigma0, kBeta0, kGamma0 };
+// kNone: the DN, uncalibrated; "" (no radiometry given) reads as none.
+inline constexpr auto kSentinel1Radiometries = util::MakeEnumTable<Sentinel1Radiometry>(
+    "radiometry",
+    {{Sentinel1Radiometry::kSigma0, "sigma0"},
+     {Sentinel1Radiometry::kBeta0, "beta0"},
+     {Sentinel1Radiometry::kGamma0, "gamma0"},
+     {Sentinel1Radiometry::kNone, "none"}},
+    {{Sentinel1Radiometry::kNone, ""}}, util::EnumCase::kInsensitive);
 
-// "sigma0", "beta0", "gamma0" (case-insensitive); "" or "none" is kNone.
-// Anything else: ConfigError naming `option` and the accepted values.
+// kSentinel1Radiometries.Parse: "sigma0", "beta0", "gamma0"
+// (case-insensitive); "" or "none" is kNone. Anything else: ConfigError
+// naming `option` and the accepted values.
 Sentinel1Radiometry ParseSentinel1Radiometry(const std::string& text, const std::string& option);
 // "none", "sigma0", "beta0", "gamma0".
 const char* ToString(Sentinel1Radiometry radiometry);

@@ -66,22 +66,10 @@ double UnitHalfPowerWidth(SpectralWindow window) {
 }
 
 SpectralWindow ParseSpectralWindow(const std::string& text, const std::string& option) {
-  if (text == "none") return SpectralWindow::kNone;
-  if (text == "hamming") return SpectralWindow::kHamming;
-  if (text == "taylor") return SpectralWindow::kTaylor;
-  throw ConfigError("window must be none, hamming or taylor, got '" + text + "'", option);
+  return kSpectralWindows.Parse(text, option);
 }
 
-std::string ToString(SpectralWindow window) {
-  switch (window) {
-    case SpectralWindow::kHamming:
-      return "hamming";
-    case SpectralWindow::kTaylor:
-      return "taylor";
-    default:
-      return "none";
-  }
-}
+std::string ToString(SpectralWindow window) { return std::string(kSpectralWindows.Name(window)); }
 
 std::vector<double> IntensityImpulseResponse(double resolution_px, SpectralWindow window,
                                              double half_width_res) {

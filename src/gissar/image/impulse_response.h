@@ -9,11 +9,16 @@
 #include <string>
 #include <vector>
 
+#include "gissar/util/enum_table.h"
+
 namespace gissar::image {
 
 enum class SpectralWindow { kNone, kHamming, kTaylor };
+inline constexpr auto kSpectralWindows = util::MakeEnumTable<SpectralWindow>(
+    "window", {{SpectralWindow::kNone, "none"}, {SpectralWindow::kHamming, "hamming"}, {SpectralWindow::kTaylor, "taylor"}});
 
-// "none", "hamming", "taylor"; throws ConfigError naming `option` otherwise.
+// kSpectralWindows.Parse: "none", "hamming", "taylor"; throws ConfigError
+// naming `option` and the windows otherwise.
 SpectralWindow ParseSpectralWindow(const std::string& text, const std::string& option);
 std::string ToString(SpectralWindow window);
 

@@ -29,6 +29,7 @@
 #include <Eigen/Core>
 
 #include "gissar/image/class_map.h"
+#include "gissar/util/enum_table.h"
 
 namespace gissar::image {
 
@@ -46,6 +47,9 @@ struct QuadPolImage {
 };
 
 enum class PolarimetricMatrix { kCovariance, kCoherency };
+// The names of `polsar --matrix` and its options key "matrix".
+inline constexpr auto kPolarimetricMatrices = util::MakeEnumTable<PolarimetricMatrix>(
+    "matrix", {{PolarimetricMatrix::kCovariance, "covariance"}, {PolarimetricMatrix::kCoherency, "coherency"}});
 
 // Number of real bands of a 3 x 3 Hermitian matrix image.
 inline constexpr int kPolarimetricBandCount = 9;

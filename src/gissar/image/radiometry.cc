@@ -9,19 +9,10 @@
 namespace gissar::image {
 
 Radiometry ParseRadiometry(const std::string& text, const std::string& option) {
-  if (text == "sigma0") return Radiometry::kSigma0;
-  if (text == "beta0") return Radiometry::kBeta0;
-  if (text == "gamma0") return Radiometry::kGamma0;
-  throw ConfigError("radiometry must be sigma0, beta0 or gamma0, got '" + text + "'", option);
+  return kRadiometries.Parse(text, option);
 }
 
-std::string ToString(Radiometry radiometry) {
-  switch (radiometry) {
-    case Radiometry::kBeta0: return "beta0";
-    case Radiometry::kGamma0: return "gamma0";
-    default: return "sigma0";
-  }
-}
+std::string ToString(Radiometry radiometry) { return std::string(kRadiometries.Name(radiometry)); }
 
 std::string RadiometryUnit(bool db) { return db ? "dB" : "m2/m2"; }
 

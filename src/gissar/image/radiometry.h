@@ -12,12 +12,16 @@
 
 #include "gissar/image/impulse_response.h"
 #include "gissar/render/sar_renderer.h"
+#include "gissar/util/enum_table.h"
 
 namespace gissar::image {
 
 enum class Radiometry { kSigma0, kBeta0, kGamma0 };
+inline constexpr auto kRadiometries = util::MakeEnumTable<Radiometry>(
+    "radiometry", {{Radiometry::kSigma0, "sigma0"}, {Radiometry::kBeta0, "beta0"}, {Radiometry::kGamma0, "gamma0"}});
 
-// "sigma0", "beta0", "gamma0"; throws ConfigError naming `option` otherwise.
+// kRadiometries.Parse: "sigma0", "beta0", "gamma0"; throws ConfigError
+// naming `option` and the quantities otherwise.
 Radiometry ParseRadiometry(const std::string& text, const std::string& option);
 std::string ToString(Radiometry radiometry);
 // Unit text for band metadata: "m2/m2" (linear) or "dB".

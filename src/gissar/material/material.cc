@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <optional>
 #include <stdexcept>
 
 #include "gissar/util/error.h"
@@ -209,13 +210,7 @@ double PathRcsPerArea(const std::vector<PathVertex>& vertices, int scatter, cons
 }
 
 Polarization ParsePolarization(const std::string& text, const std::string& option) {
-  std::string up = text;
-  for (char& c : up) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  if (up == "HH") return Polarization::kHH;
-  if (up == "HV") return Polarization::kHV;
-  if (up == "VH") return Polarization::kVH;
-  if (up == "VV") return Polarization::kVV;
-  throw ConfigError("polarization must be HH, HV, VH or VV, got '" + text + "'", option);
+  return kPolarizations.Parse(text, option);
 }
 
 std::vector<Polarization> ParsePolarizationList(const std::string& text, const std::string& option) {
@@ -227,13 +222,9 @@ std::vector<Polarization> ParsePolarizationList(const std::string& text, const s
   while (true) {
     const size_t comma = text.find(',', start);
     const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    Polarization pol;
-    try {
-      pol = ParsePolarization(item, option);
-    } catch (const ConfigError&) {
-      throw ConfigError("unknown channel '" + item + "': expected HH, HV, VH or VV, a comma list of them, or quad",
-                        option);
-    }
+    const std::optional<Polarization> found = kPolarizations.Find(item);
+    if (!found) throw ConfigError(kPolarizations.UnknownMessage(item) + ", a comma list of them, or quad", option);
+    const Polarization pol = *found;
     if (std::find(channels.begin(), channels.end(), pol) != channels.end()) {
       throw ConfigError("channel " + ToString(pol) + " is given twice in '" + text + "'", option);
     }
@@ -254,24 +245,9 @@ std::string ToString(const std::vector<Polarization>& channels) {
   return out;
 }
 
-std::string ToString(Polarization pol) {
-  switch (pol) {
-    case Polarization::kHH: return "HH";
-    case Polarization::kHV: return "HV";
-    case Polarization::kVH: return "VH";
-    default: return "VV";
-  }
-}
+std::string ToString(Polarization pol) { return std::string(kPolarizations.Name(pol)); }
 
-std::string ToString(ScatteringModel model) {
-  switch (model) {
-    case ScatteringModel::kTable: return "table";
-    case ScatteringModel::kOh: return "oh";
-    case ScatteringModel::kBragg: return "bragg";
-    case ScatteringModel::kWaterCloud: return "water_cloud";
-    default: return "lambert";
-  }
-}
+std::string ToString(ScatteringModel model) { return std::string(kScatteringModels.Name(model)); }
 
 std::complex<double> WaterPermittivity(double wavelength_m, double salinity_psu) {
   // Debye relaxation at 20 deg C; static permittivity and relaxation time
@@ -556,12 +532,9 @@ void ApplyOverrides(Material& m, const nlohmann::json& fields, const std::string
     if (key == "model") {
       if (!value.is_string()) throw ConfigError("'" + at + "' must be a string", source);
       const std::string s = value.get<std::string>();
-      if (s == "lambert") m.model = ScatteringModel::kLambert;
-      else if (s == "table") m.model = ScatteringModel::kTable;
-      else if (s == "oh") m.model = ScatteringModel::kOh;
-      else if (s == "bragg") m.model = ScatteringModel::kBragg;
-      else if (s == "water_cloud") m.model = ScatteringModel::kWaterCloud;
-      else throw ConfigError("'" + at + "' must be lambert, table, oh, bragg or water_cloud", source);
+      const std::optional<ScatteringModel> model = kScatteringModels.Find(s);
+      if (!model) throw ConfigError(kScatteringModels.UnknownMessage(s) + " at '" + at + "'", source);
+      m.model = *model;
       model_given = true;
     } else if (key == "sigma0_db") {
       if (!value.is_array() || value.empty()) {

@@ -32,12 +32,19 @@
 
 #include "gissar/scene/scene_config.h"
 #include "gissar/scene/triangle_mesh.h"
+#include "gissar/util/enum_table.h"
 
 namespace gissar::material {
 
 enum class Polarization { kHH, kHV, kVH, kVV };
-// "HH", "HV", "VH", "VV" (case-insensitive); throws ConfigError naming
-// `option` otherwise.
+// The channels, first letter transmit (docs/conventions.md, "Polarimetry");
+// read case-insensitively, written in capitals.
+inline constexpr auto kPolarizations = util::MakeEnumTable<Polarization>(
+    "channel",
+    {{Polarization::kHH, "HH"}, {Polarization::kHV, "HV"}, {Polarization::kVH, "VH"}, {Polarization::kVV, "VV"}},
+    util::EnumCase::kInsensitive);
+// kPolarizations.Parse: "HH", "HV", "VH", "VV" (case-insensitive); throws
+// ConfigError naming `option` and the channels otherwise.
 Polarization ParsePolarization(const std::string& text, const std::string& option);
 std::string ToString(Polarization pol);
 // The channels of a `--polarization` value (docs/conventions.md,
@@ -51,6 +58,13 @@ std::vector<Polarization> ParsePolarizationList(const std::string& text, const s
 std::string ToString(const std::vector<Polarization>& channels);
 
 enum class ScatteringModel { kLambert, kTable, kOh, kBragg, kWaterCloud };
+// The `model` key of a materials file.
+inline constexpr auto kScatteringModels = util::MakeEnumTable<ScatteringModel>(
+    "scattering model", {{ScatteringModel::kLambert, "lambert"},
+                         {ScatteringModel::kTable, "table"},
+                         {ScatteringModel::kOh, "oh"},
+                         {ScatteringModel::kBragg, "bragg"},
+                         {ScatteringModel::kWaterCloud, "water_cloud"}});
 std::string ToString(ScatteringModel model);
 
 // Relative permittivity of water by a single Debye relaxation at 20 deg C

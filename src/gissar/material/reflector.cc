@@ -24,21 +24,10 @@ std::string Trim(const std::string& s) {
 
 }  // namespace
 
-std::string ToString(ReflectorType type) {
-  switch (type) {
-    case ReflectorType::kTrihedralSquare: return "trihedral_square";
-    case ReflectorType::kDihedral: return "dihedral";
-    case ReflectorType::kPlate: return "plate";
-    default: return "trihedral";
-  }
-}
+std::string ToString(ReflectorType type) { return std::string(kReflectorTypes.Name(type)); }
 
 ReflectorType ParseReflectorType(const std::string& name, const std::string& where) {
-  if (name == "trihedral") return ReflectorType::kTrihedral;
-  if (name == "trihedral_square") return ReflectorType::kTrihedralSquare;
-  if (name == "dihedral") return ReflectorType::kDihedral;
-  if (name == "plate") return ReflectorType::kPlate;
-  throw InputError("unknown reflector type '" + name + "' (trihedral, trihedral_square, dihedral, plate)", where);
+  return kReflectorTypes.Parse<InputError>(name, where);
 }
 
 std::vector<ReflectorSpec> ReadReflectorsCsv(const std::string& path) {

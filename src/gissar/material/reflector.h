@@ -9,12 +9,20 @@
 
 #include <Eigen/Core>
 
+#include "gissar/util/enum_table.h"
+
 namespace gissar::material {
 
 enum class ReflectorType { kTrihedral, kTrihedralSquare, kDihedral, kPlate };
+// The `type` column of a reflectors CSV (docs/conventions.md).
+inline constexpr auto kReflectorTypes = util::MakeEnumTable<ReflectorType>(
+    "reflector type", {{ReflectorType::kTrihedral, "trihedral"},
+                       {ReflectorType::kTrihedralSquare, "trihedral_square"},
+                       {ReflectorType::kDihedral, "dihedral"},
+                       {ReflectorType::kPlate, "plate"}});
 std::string ToString(ReflectorType type);
-// The type named `name` (trihedral, trihedral_square, dihedral, plate).
-// Throws InputError naming `where` for any other name.
+// The type named `name` (kReflectorTypes). Throws InputError naming `where`
+// (the file row) and the types for any other name.
 ReflectorType ParseReflectorType(const std::string& name, const std::string& where);
 
 // One row of a reflectors CSV:

@@ -313,31 +313,10 @@ cv::Mat ToDisplay8U(const cv::Mat& image) {
 
 }  // namespace
 
-std::string ToString(TransformType type) {
-  switch (type) {
-    case TransformType::kSimilarity:
-      return "similarity";
-    case TransformType::kAffine:
-      return "affine";
-    case TransformType::kProjective:
-      return "projective";
-    case TransformType::kPolynomial2:
-      return "poly2";
-    case TransformType::kPolynomial3:
-      return "poly3";
-  }
-  return "unknown";
-}
+std::string ToString(TransformType type) { return std::string(kTransformTypes.Name(type)); }
 
-TransformType ParseTransformType(const std::string& text) {
-  for (TransformType t :
-       {TransformType::kSimilarity, TransformType::kAffine, TransformType::kProjective,
-        TransformType::kPolynomial2, TransformType::kPolynomial3}) {
-    if (text == ToString(t)) return t;
-  }
-  throw ConfigError(
-      "transform must be similarity, affine, projective, poly2 or poly3, got '" + text + "'",
-      "transform");
+TransformType ParseTransformType(const std::string& text, const std::string& option) {
+  return kTransformTypes.Parse(text, option);
 }
 
 int MinimumControlPoints(TransformType type) {

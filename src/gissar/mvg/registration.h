@@ -23,15 +23,23 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gissar/mvg/point_match.h"
+#include "gissar/util/enum_table.h"
 
 namespace gissar::mvg {
 
 enum class TransformType { kSimilarity, kAffine, kProjective, kPolynomial2, kPolynomial3 };
+inline constexpr auto kTransformTypes = util::MakeEnumTable<TransformType>(
+    "transform", {{TransformType::kSimilarity, "similarity"},
+                  {TransformType::kAffine, "affine"},
+                  {TransformType::kProjective, "projective"},
+                  {TransformType::kPolynomial2, "poly2"},
+                  {TransformType::kPolynomial3, "poly3"}});
 
 // "similarity", "affine", "projective", "poly2", "poly3".
 std::string ToString(TransformType type);
-// Inverse of ToString; throws ConfigError (where = "transform") otherwise.
-TransformType ParseTransformType(const std::string& text);
+// Inverse of ToString; throws ConfigError naming `option` and the
+// transforms otherwise.
+TransformType ParseTransformType(const std::string& text, const std::string& option = "transform");
 // Pairs needed to fit the transform: 2, 3, 4, 6, 10.
 int MinimumControlPoints(TransformType type);
 

@@ -41,21 +41,9 @@ std::vector<cv::Point> GridCentres(cv::Size size, int half, int step, const cv::
 
 }  // namespace
 
-Matcher ParseMatcher(const std::string& text, const std::string& option) {
-  if (text == "ncc") return Matcher::kNcc;
-  if (text == "chamfer") return Matcher::kChamfer;
-  if (text == "features") return Matcher::kFeatures;
-  throw ConfigError("unknown matcher '" + text + "' (ncc, chamfer, features)", option);
-}
+Matcher ParseMatcher(const std::string& text, const std::string& option) { return kMatchers.Parse(text, option); }
 
-std::string ToString(Matcher matcher) {
-  switch (matcher) {
-    case Matcher::kNcc: return "ncc";
-    case Matcher::kChamfer: return "chamfer";
-    case Matcher::kFeatures: return "features";
-  }
-  return "ncc";
-}
+std::string ToString(Matcher matcher) { return std::string(kMatchers.Name(matcher)); }
 
 void MatchOptions::Check() const {
   if (patch_px < 7 || patch_px % 2 == 0) throw ConfigError("must be odd and >= 7", "patch_px");

@@ -30,6 +30,8 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "gissar/util/enum_table.h"
+
 namespace gissar::nav {
 
 struct Correspondence {
@@ -39,7 +41,10 @@ struct Correspondence {
 };
 
 enum class Matcher { kNcc, kChamfer, kFeatures };
-// "ncc", "chamfer", "features"; throws ConfigError naming `option` otherwise.
+inline constexpr auto kMatchers = util::MakeEnumTable<Matcher>(
+    "matcher", {{Matcher::kNcc, "ncc"}, {Matcher::kChamfer, "chamfer"}, {Matcher::kFeatures, "features"}});
+// kMatchers.Parse: "ncc", "chamfer", "features"; throws ConfigError naming
+// `option` and the matchers otherwise.
 Matcher ParseMatcher(const std::string& text, const std::string& option);
 std::string ToString(Matcher matcher);
 

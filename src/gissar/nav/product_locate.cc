@@ -256,22 +256,10 @@ cv::Mat PhaseCorrelationScores(const cv::Mat& reference, const cv::Mat& observed
 }  // namespace
 
 ShiftMatcher ParseShiftMatcher(const std::string& text, const std::string& option) {
-  if (text == "ncc") return ShiftMatcher::kNcc;
-  if (text == "gradient") return ShiftMatcher::kGradient;
-  if (text == "phase") return ShiftMatcher::kPhase;
-  if (text == "mi") return ShiftMatcher::kMutualInformation;
-  throw ConfigError("unknown matcher '" + text + "' for a product (ncc, gradient, phase, mi)", option);
+  return kShiftMatchers.Parse(text, option);
 }
 
-std::string ToString(ShiftMatcher matcher) {
-  switch (matcher) {
-    case ShiftMatcher::kNcc: return "ncc";
-    case ShiftMatcher::kGradient: return "gradient";
-    case ShiftMatcher::kPhase: return "phase";
-    case ShiftMatcher::kMutualInformation: return "mi";
-  }
-  return "ncc";
-}
+std::string ToString(ShiftMatcher matcher) { return std::string(kShiftMatchers.Name(matcher)); }
 
 cv::Mat ShiftScores(ShiftMatcher matcher, const cv::Mat& reference, const cv::Mat& observed) {
   if (reference.type() != CV_32F || observed.type() != CV_32F || reference.rows < observed.rows ||

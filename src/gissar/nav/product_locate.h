@@ -51,6 +51,7 @@
 
 #include "gissar/geo/local_frame.h"
 #include "gissar/nav/locate.h"
+#include "gissar/nav/matching.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/sensor/range_doppler.h"
 
@@ -113,7 +114,13 @@ struct ProductObservation {
 //  - kMutualInformation: mutual information of the log images quantised to
 //    16 levels each (any monotone or non-monotone radiometric relation).
 enum class ShiftMatcher { kNcc, kGradient, kPhase, kMutualInformation };
-// "ncc", "gradient", "phase", "mi"; ConfigError naming `option` otherwise.
+inline constexpr auto kShiftMatchers = util::MakeEnumTable<ShiftMatcher>(
+    "matcher for a product", {{ShiftMatcher::kNcc, "ncc"},
+                              {ShiftMatcher::kGradient, "gradient"},
+                              {ShiftMatcher::kPhase, "phase"},
+                              {ShiftMatcher::kMutualInformation, "mi"}});
+// kShiftMatchers.Parse: "ncc", "gradient", "phase", "mi"; ConfigError
+// naming `option` and the matchers otherwise.
 ShiftMatcher ParseShiftMatcher(const std::string& text, const std::string& option);
 std::string ToString(ShiftMatcher matcher);
 // Score of every placement of `observed` inside `reference` (both CV_32F log

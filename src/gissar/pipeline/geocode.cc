@@ -100,7 +100,7 @@ Terrain LoadImageTerrain(const GeocodeRequest& request, const json& sidecar, con
   } else {
     o.dem = input;
   }
-  o.engine = "trace";  // a triangulated surface, as the simulation's
+  o.engine = SimulateEngine::kTrace;  // a triangulated surface, as the simulation's
   o.max_memory_bytes = request.max_memory_bytes;
   Terrain terrain = LoadTerrain(o, reporter);
   if (std::abs(terrain.frame.origin_lon_deg() - lon0) > 1e-9 || std::abs(terrain.frame.origin_lat_deg() - lat0) > 1e-9) {
@@ -139,8 +139,8 @@ json GeocodeRequest::ToJson() const {
 
 sensor::SarGeometry GeometryFromMetadata(const geo::Metadata& m, int width, int height, const std::string& source) {
   sensor::SarGeometryOptions o;
-  o.mode = sensor::ParseProjectionMode(MetadataText(m, "GISSAR_PROJECTION_MODE", source));
-  o.look_side = sensor::ParseLookSide(MetadataText(m, "GISSAR_LOOK_SIDE", source));
+  o.mode = sensor::ParseProjectionMode(MetadataText(m, "GISSAR_PROJECTION_MODE", source), source);
+  o.look_side = sensor::ParseLookSide(MetadataText(m, "GISSAR_LOOK_SIDE", source), source);
   o.heading_deg = MetadataNumber(m, "GISSAR_HEADING_DEG", source);
   o.depression_deg = MetadataNumber(m, "GISSAR_DEPRESSION_DEG", source);
   o.slant_range_m = MetadataNumber(m, "GISSAR_SLANT_RANGE_M", source);

@@ -66,7 +66,7 @@ struct RegisterRequest {
   std::string fixed;       // raster
   std::string moving;      // raster
   std::string points;      // CSV x1,y1 (fixed), x2,y2 (moving)
-  std::string transform = "affine";  // similarity|affine|projective|poly2|poly3
+  std::string transform = "affine";  // a name of mvg::kTransformTypes
   double threshold_px = 2.0;
   bool robust = true;
   std::string out_prefix;  // PREFIX.tif, PREFIX_composite.png, PREFIX.json

@@ -1,6 +1,7 @@
 #include "gissar/pipeline/polsar.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/rslc_product.h"
 #include "gissar/image/polarimetry.h"
+#include "gissar/material/material.h"
 #include "gissar/pipeline/field_names.h"
 #include "gissar/sensor/range_doppler.h"
 #include "gissar/util/atomic_output.h"
@@ -23,7 +25,12 @@ using json = nlohmann::json;
 
 namespace {
 
-constexpr const char* kChannels[4] = {"HH", "HV", "VH", "VV"};
+// The channel names in quad order, from material::kPolarizations.
+constexpr std::array<const char*, 4> kChannels = [] {
+  std::array<const char*, 4> out{};
+  for (size_t i = 0; i < out.size(); ++i) out[i] = material::kPolarizations.Entries()[i].name.data();
+  return out;
+}();
 
 std::string Upper(std::string text) {
   for (char& c : text) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
@@ -249,10 +256,7 @@ void PolsarRequest::Check() const {
                         "--multilook");
     }
   }
-  if (matrix != "covariance" && matrix != "coherency") {
-    throw ConfigError("must be covariance or coherency, got '" + matrix + "'", "--matrix");
-  }
-  const std::string kind = matrix == "covariance" ? "_C3.tif" : "_T3.tif";
+  const std::string kind = matrix == image::PolarimetricMatrix::kCovariance ? "_C3.tif" : "_T3.tif";
   CheckOutputsAreNotInputs({out_prefix + kind, out_prefix + "_HAalpha.tif", out_prefix + "_pauli.png",
                             out_prefix + ".json"},
                            {image, product});
@@ -260,7 +264,7 @@ void PolsarRequest::Check() const {
 
 json PolsarRequest::ToJson() const {
   return {{"image", image},   {"product", product},       {"frequency", frequency},
-          {"multilook", multilook}, {"matrix", matrix}, {"out_prefix", out_prefix},
+          {"multilook", multilook}, {"matrix", std::string(image::kPolarimetricMatrices.Name(matrix))}, {"out_prefix", out_prefix},
           {"max_memory_bytes", max_memory_bytes}};
 }
 
@@ -273,7 +277,11 @@ void PolsarRequest::ApplyJson(const json& values, const std::string& source) {
     else if (key == "product") set(product);
     else if (key == "frequency") set(frequency);
     else if (key == "multilook") set(multilook);
-    else if (key == "matrix") set(matrix);
+    else if (key == "matrix") {
+      std::string text;
+      set(text);
+      matrix = image::kPolarimetricMatrices.Parse(text, "--matrix");
+    }
     else if (key == "out_prefix") set(out_prefix);
     else if (key == "max_memory_bytes") set(max_memory_bytes);
     else throw ConfigError(UnknownKeyMessage(key, KeysOf(ToJson())), source);
@@ -283,8 +291,7 @@ void PolsarRequest::ApplyJson(const json& values, const std::string& source) {
 PolsarResult RunPolsar(const PolsarRequest& request, const std::string& command_line, Reporter& reporter) {
   request.Check();
   Stopwatch total;
-  const image::PolarimetricMatrix kind =
-      request.matrix == "covariance" ? image::PolarimetricMatrix::kCovariance : image::PolarimetricMatrix::kCoherency;
+  const image::PolarimetricMatrix kind = request.matrix;
   const std::string matrix_name = kind == image::PolarimetricMatrix::kCovariance ? "C3" : "T3";
   AtomicOutputs outputs;
   const fs::path out_matrix = outputs.Add(request.out_prefix + "_" + matrix_name + ".tif");

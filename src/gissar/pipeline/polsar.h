@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gissar/image/polarimetry.h"
 #include "gissar/util/memory_limit.h"
 #include "gissar/util/reporter.h"
 
@@ -27,7 +28,8 @@ struct PolsarRequest {
   // Looks R,A: R range samples (columns) x A azimuth lines (rows) per output
   // pixel, each >= 1 (required: {0, 0} = not given).
   std::vector<int> multilook = {0, 0};
-  std::string matrix = "covariance";  // covariance (C3) or coherency (T3)
+  // C3 or T3 (image::kPolarimetricMatrices; JSON "covariance"/"coherency").
+  image::PolarimetricMatrix matrix = image::PolarimetricMatrix::kCovariance;
   // PREFIX_C3.tif (or _T3.tif), PREFIX_HAalpha.tif, PREFIX_pauli.png, PREFIX.json.
   std::string out_prefix;
   int64_t max_memory_bytes = DefaultMemoryLimitBytes();

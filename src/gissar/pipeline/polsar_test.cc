@@ -79,7 +79,7 @@ TEST(PolsarTest, AlosQuadPolChipWritesNamedBandsAndHAalpha) {
               report["stretch"]["low_db"].get<double>(), report["stretch"]["high_db"].get<double>());
   // The coherency gives the same H/A/alpha (T3 = U C3 U^T).
   PolsarRequest t3 = AlosRequest(dir);
-  t3.matrix = "coherency";
+  t3.matrix = image::PolarimetricMatrix::kCoherency;
   t3.out_prefix = (dir / "t3").string();
   const PolsarResult coherency = RunPolsar(t3, "test");
   EXPECT_EQ(geo::ReadFloatRaster(dir / "t3_T3.tif").band_names[0], "T11");
@@ -162,9 +162,16 @@ TEST(PolsarTest, MissingChannelsAndBadOptionsNameTheInput) {
   PolsarRequest big = AlosRequest(out);
   big.multilook = {51, 5};
   expect_error(big, "exceed the 50 x 100 image", "RIO_BRANCO_CR.h5", false);
+  // An unknown matrix is refused where the name is read (options file,
+  // Python keyword; the CLI parses --matrix with the same table).
   PolsarRequest matrix = AlosRequest(out);
-  matrix.matrix = "mueller";
-  expect_error(matrix, "must be covariance or coherency", "--matrix", true);
+  try {
+    matrix.ApplyJson({{"matrix", "mueller"}}, "opts.json");
+    ADD_FAILURE() << "no error for matrix mueller";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(e.message().find("must be covariance or coherency"), std::string::npos) << e.what();
+    EXPECT_NE(e.where().find("--matrix"), std::string::npos) << e.what();
+  }
   PolsarRequest both = AlosRequest(out);
   both.image = single.image;
   expect_error(both, "give one of --image or --product", "--image/--product", true);

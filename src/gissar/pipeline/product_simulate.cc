@@ -65,7 +65,7 @@ void CheckProductOptions(const SimulateRequest& o) {
   }
   // The option that fixes the geometry, for the messages below.
   const std::string fixed_by = o.product.empty() ? "--orbit" : "--product";
-  if (o.engine != "trace") throw ConfigError("the radar grid needs the trace engine", fixed_by + "/--engine");
+  if (o.engine != SimulateEngine::kTrace) throw ConfigError("the radar grid needs the trace engine", fixed_by + "/--engine");
   if (!o.contributions.empty()) {
     throw ConfigError("contributions are not recorded on a radar grid", fixed_by + "/--contributions");
   }

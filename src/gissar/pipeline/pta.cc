@@ -1,6 +1,7 @@
 #include "gissar/pipeline/pta.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <fstream>
@@ -15,6 +16,8 @@
 #include "gissar/geo/rslc_product.h"
 #include "gissar/image/irf_plot.h"
 #include "gissar/image/point_target.h"
+#include "gissar/image/radiometry.h"
+#include "gissar/material/material.h"
 #include "gissar/material/reflector.h"
 #include "gissar/material/scattering.h"
 #include "gissar/pipeline/field_names.h"
@@ -35,7 +38,12 @@ using json = nlohmann::json;
 
 namespace {
 
-constexpr const char* kChannels[4] = {"HH", "HV", "VH", "VV"};
+// The channel names in quad order, from material::kPolarizations.
+constexpr std::array<const char*, 4> kChannels = [] {
+  std::array<const char*, 4> out{};
+  for (size_t i = 0; i < out.size(); ++i) out[i] = material::kPolarizations.Entries()[i].name.data();
+  return out;
+}();
 constexpr double kDeg = M_PI / 180.0;
 
 bool IsChannel(const std::string& name) {
@@ -226,7 +234,7 @@ std::shared_ptr<Terrain> SidecarTerrain(const json& sidecar, const std::string& 
   *input = sidecar["inputs"].at(index).at("path").get<std::string>();
   if (!o.scene.empty()) o.scene = *input;
   else o.dem = *input;
-  o.engine = "trace";
+  o.engine = SimulateEngine::kTrace;
   o.max_memory_bytes = max_memory_bytes;
   auto terrain = std::make_shared<Terrain>(LoadTerrain(o, reporter));
   const double lon0 = sidecar["frame"].value("origin_lon_deg", 0.0), lat0 = sidecar["frame"].value("origin_lat_deg", 0.0);
@@ -245,7 +253,7 @@ std::shared_ptr<Terrain> SidecarTerrain(const json& sidecar, const std::string& 
 // incidence of the pixel's ground point): beta0 = |z|^2 / (sin or tan of the
 // incidence of the reflector's ground point).
 void ProductGridPrediction(const PtaRequest& request, const json& sidecar, const std::string& sidecar_path,
-                           const geo::ComplexRaster& raster, const std::string& radiometry, SimulateRequest o,
+                           const geo::ComplexRaster& raster, image::Radiometry radiometry, SimulateRequest o,
                            Source& s, Reporter& reporter) {
   const json& inputs = sidecar["inputs"];
   const bool from_product = !o.product.empty();
@@ -283,11 +291,11 @@ void ProductGridPrediction(const PtaRequest& request, const json& sidecar, const
   s.wavelength_m = p.wavelength_m;
   s.polarimetric_expectation = false;
   s.calibrated = true;
-  s.calibration_note = "|z|^2 = " + radiometry + " (GISSAR_RADIOMETRY), per pixel; beta0 = " +
-                       (radiometry == "beta0"   ? std::string("|z|^2")
-                        : radiometry == "sigma0" ? std::string("|z|^2 / sin(incidence)")
+  s.calibration_note = "|z|^2 = " + image::ToString(radiometry) + " (GISSAR_RADIOMETRY), per pixel; beta0 = " +
+                       (radiometry == image::Radiometry::kBeta0   ? std::string("|z|^2")
+                        : radiometry == image::Radiometry::kSigma0 ? std::string("|z|^2 / sin(incidence)")
                                                  : std::string("|z|^2 cos / sin(incidence)")) +
-                       (radiometry == "beta0" ? std::string()
+                       (radiometry == image::Radiometry::kBeta0 ? std::string()
                                               : std::string(", incidence on the ellipsoid at the reflector's ground "
                                                             "point"));
   s.inputs.push_back(InputFileRecord(request.image));
@@ -299,7 +307,7 @@ void ProductGridPrediction(const PtaRequest& request, const json& sidecar, const
                    {"product", from_product ? o.product : o.orbit},
                    {"polarization", s.channel},
                    {"channels", json::array()},
-                   {"radiometry", radiometry},
+                   {"radiometry", image::ToString(radiometry)},
                    {"wavelength_m", p.wavelength_m},
                    {"width", raster.width},
                    {"height", raster.height},
@@ -333,8 +341,8 @@ void ProductGridPrediction(const PtaRequest& request, const json& sidecar, const
     const double incidence =
         std::acos(std::clamp(EnuOfEcefVector(apex_llh.x(), apex_llh.y(), out.sensor_ecef_m - ground).normalized().z(),
                              -1.0, 1.0));
-    out.beta0_factor = radiometry == "beta0"    ? 1.0
-                       : radiometry == "sigma0" ? 1.0 / std::sin(incidence)
+    out.beta0_factor = radiometry == image::Radiometry::kBeta0    ? 1.0
+                       : radiometry == image::Radiometry::kSigma0 ? 1.0 / std::sin(incidence)
                                                 : std::cos(incidence) / std::sin(incidence);
     out.geometry["apex_enu_m"] = {placed[0].apex_enu.x(), placed[0].apex_enu.y(), placed[0].apex_enu.z()};
     out.geometry["apex_height_above_ellipsoid_m"] = apex_llh.z();
@@ -405,10 +413,10 @@ Source ImageSource(const PtaRequest& request, Reporter& reporter) {
                          "' (PREFIX_slc.tif of `gissar simulate --coherent` expected)",
                      request.image);
   }
-  const std::string radiometry = MetadataValue(raster.metadata, "GISSAR_RADIOMETRY");
-  if (radiometry != "sigma0" && radiometry != "beta0" && radiometry != "gamma0") {
-    throw InputError("GISSAR_RADIOMETRY must be sigma0, beta0 or gamma0, got '" + radiometry + "'", request.image);
-  }
+  const std::string radiometry_text = MetadataValue(raster.metadata, "GISSAR_RADIOMETRY");
+  const std::optional<image::Radiometry> found = image::kRadiometries.Find(radiometry_text);
+  if (!found) throw InputError("GISSAR_RADIOMETRY: " + image::kRadiometries.UnknownMessage(radiometry_text), request.image);
+  const image::Radiometry radiometry = *found;
   if (o.UsesProductGeometry()) {
     ProductGridPrediction(request, sidecar, sidecar_path, raster, radiometry, o, s, reporter);
     return s;
@@ -423,9 +431,9 @@ Source ImageSource(const PtaRequest& request, Reporter& reporter) {
   s.wavelength_m = o.wavelength_m;
   s.polarimetric_expectation = false;
   s.calibrated = true;
-  s.calibration_note = "|z|^2 = " + radiometry + " (GISSAR_RADIOMETRY); beta0 = " +
-                       (radiometry == "beta0"   ? std::string("|z|^2")
-                        : radiometry == "sigma0" ? std::string("|z|^2 / sin(incidence) of the reflector's column")
+  s.calibration_note = "|z|^2 = " + image::ToString(radiometry) + " (GISSAR_RADIOMETRY); beta0 = " +
+                       (radiometry == image::Radiometry::kBeta0   ? std::string("|z|^2")
+                        : radiometry == image::Radiometry::kSigma0 ? std::string("|z|^2 / sin(incidence) of the reflector's column")
                                                  : std::string("|z|^2 cos / sin(incidence) of the reflector's column"));
   s.inputs.push_back(InputFileRecord(request.image));
   s.inputs.push_back(InputFileRecord(sidecar_path));
@@ -435,7 +443,7 @@ Source ImageSource(const PtaRequest& request, Reporter& reporter) {
                    {"terrain", input},
                    {"polarization", s.channel},
                    {"channels", json::array()},
-                   {"radiometry", radiometry},
+                   {"radiometry", image::ToString(radiometry)},
                    {"wavelength_m", o.wavelength_m},
                    {"width", raster.width},
                    {"height", raster.height},
@@ -462,8 +470,8 @@ Source ImageSource(const PtaRequest& request, Reporter& reporter) {
     out.to_sensor_enu = -geometry->RayDirectionTo(apex);
     out.azimuth_spacing_m = geometry->azimuth_spacing_m();
     const double incidence = geometry->IncidenceDeg(std::clamp(q.x(), 0.0, double(geometry->width() - 1))) * kDeg;
-    out.beta0_factor = radiometry == "beta0"    ? 1.0
-                       : radiometry == "sigma0" ? 1.0 / std::sin(incidence)
+    out.beta0_factor = radiometry == image::Radiometry::kBeta0    ? 1.0
+                       : radiometry == image::Radiometry::kSigma0 ? 1.0 / std::sin(incidence)
                                                 : std::cos(incidence) / std::sin(incidence);
     out.geometry = {{"apex_enu_m", {apex.x(), apex.y(), apex.z()}},
                     {"incidence_deg", incidence / kDeg},
@@ -483,7 +491,7 @@ void PtaRequest::Check() const {
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
   if (frequency != "A" && frequency != "B") throw ConfigError("must be A or B, got '" + frequency + "'", "--frequency");
   if (!polarization.empty() && !IsChannel(polarization)) {
-    throw ConfigError("unknown channel '" + polarization + "' (HH, HV, VH or VV)", "--polarization");
+    throw ConfigError(material::kPolarizations.UnknownMessage(polarization), "--polarization");
   }
   if (!std::isfinite(ground_height_m) || std::abs(ground_height_m) > 20000.0) {
     throw ConfigError("must be a height in metres within +-20 km of the ellipsoid", "--ground-height");

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/vertical_datum.h"
@@ -146,10 +147,12 @@ ReferenceDatabase ReadReferenceDatabase(const std::string& path) {
     if (!(item.depression_deg > 1.0 && item.depression_deg < 89.0)) r.Fail("must be in (1, 89) deg", r.Child("depression_deg"));
     item.slant_range_m = r.At("slant_range_m").Positive();
     const std::string look = r.At("look_side").String();
-    if (look != "right" && look != "left") r.Fail("must be right or left", r.Child("look_side"));
-    item.look_side = sensor::ParseLookSide(look);
-    const std::string mode = r.Has("projection_mode") ? r.At("projection_mode").String() : "affine";
-    if (mode != "affine") {
+    const std::optional<sensor::LookSide> side = sensor::kLookSides.Find(look);
+    if (!side) r.Fail(sensor::kLookSides.UnknownMessage(look), r.Child("look_side"));
+    item.look_side = *side;
+    const std::string affine = sensor::ToString(sensor::ProjectionMode::kAffine);
+    const std::string mode = r.Has("projection_mode") ? r.At("projection_mode").String() : affine;
+    if (mode != affine) {
       r.Fail("stored references must be affine images (projection mode '" + mode + "')", r.Child("projection_mode"));
     }
     item.frame_origin = r.At("frame_origin_lon_lat_h").Vector3();

@@ -57,6 +57,8 @@ Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& opti
   return {a, b};
 }
 
+std::string ToString(SimulateEngine engine) { return std::string(kSimulateEngines.Name(engine)); }
+
 void SimulateRequest::Check() const {
   if (dem.empty() == scene.empty()) {
     throw ConfigError("give exactly one terrain: a DEM or a scene", "--dem/--scene");
@@ -88,10 +90,7 @@ void SimulateRequest::Check() const {
       if (given) throw ConfigError("selects a part of a product: only with --product", flag);
     }
   }
-  if (engine != "trace" && engine != "raster") {
-    throw ConfigError("engine must be 'trace' or 'raster', got '" + engine + "'", "--engine");
-  }
-  if (engine == "raster") {
+  if (engine == SimulateEngine::kRaster) {
     if (!scene.empty()) throw ConfigError("the raster engine renders DEMs only (--dem)", "--engine");
     if (coherent) throw ConfigError("the raster engine is incoherent only", "--engine/--coherent");
     if (!contributions.empty()) {
@@ -171,7 +170,7 @@ nlohmann::json SimulateRequest::ToJson() const {
   j["mode"] = sensor::ToString(geometry.mode);
   j["width"] = geometry.width;
   j["height"] = geometry.height;
-  j["engine"] = engine;
+  j["engine"] = ToString(engine);
   j["rays_per_cell"] = rays_per_cell;
   j["bounces"] = bounces;
   j["coherent"] = coherent;
@@ -257,7 +256,11 @@ void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string&
       geometry.mode = sensor::ParseProjectionMode(text);
     } else if (key == "width") set(geometry.width);
     else if (key == "height") set(geometry.height);
-    else if (key == "engine") set(engine);
+    else if (key == "engine") {
+      std::string text;
+      set(text);
+      engine = kSimulateEngines.Parse(text, "--engine");
+    }
     else if (key == "rays_per_cell") set(rays_per_cell);
     else if (key == "bounces") set(bounces);
     else if (key == "coherent") set(coherent);
@@ -319,7 +322,7 @@ constexpr double kBytesPerCoherentImagePixel = 160.0;
 constexpr uint64_t kChannelSeedStride = 0x9e3779b97f4a7c15ULL;
 
 double BytesPerDemPost(const SimulateRequest& options) {
-  return options.engine == "trace" && !options.heightfield ? kBytesPerDemPostBvh : kBytesPerDemPost;
+  return options.engine == SimulateEngine::kTrace && !options.heightfield ? kBytesPerDemPostBvh : kBytesPerDemPost;
 }
 
 double BytesPerImagePixel(const SimulateRequest& options) {
@@ -392,7 +395,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
   t.centre = geo::ResolveSceneCentre(dem, options.center_lonlat, centre_map);
   t.frame = geo::LocalFrame(t.centre.lon_deg, t.centre.lat_deg, 0.0);
   t.centre_enu = t.frame.EnuFromGeodetic(t.centre.lon_deg, t.centre.lat_deg, t.centre.height_m);
-  if (options.engine == "raster") {
+  if (options.engine == SimulateEngine::kRaster) {
     t.mesh.vertices = geo::DemPostsInFrame(dem, t.frame);
     // Posts outside the scene: non-finite, so their cells draw nothing.
     for (size_t i = 0; i < outside.size(); ++i)
@@ -424,7 +427,7 @@ Terrain TerrainFromDem(const SimulateRequest& options, Reporter& reporter) {
     t.mesh = scene::MeshFromGrid(geo::DemPostsInFrame(dem, t.frame), dem.width, dem.height);
   }
   int64_t sea_triangles = 0;
-  if (!sea_posts.empty() && options.engine == "raster") {
+  if (!sea_posts.empty() && options.engine == SimulateEngine::kRaster) {
     // The raster engine's grid has no triangle list: classes per triangle in
     // MeshFromGrid's order (the triangle holding post (c, r), then the one
     // holding (c + 1, r + 1)), sea where all three posts are sea, as
@@ -658,7 +661,7 @@ DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) 
     plan.reason = "no --width/--height: the image covers the whole DEM";
     return plan;
   }
-  if (options.engine != "trace") {
+  if (options.engine != SimulateEngine::kTrace) {
     plan.reason = "the raster engine spaces its horizon lines from the whole grid";
     return plan;
   }
@@ -1121,7 +1124,7 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   step = Stopwatch();
   // The raster engine needs no BVH (and renders DEMs only: no scene centre
   // to place).
-  const bool raster_engine = options.engine == "raster";
+  const bool raster_engine = options.engine == SimulateEngine::kRaster;
   std::unique_ptr<render::EmbreeScene> embree;
   if (!raster_engine) {
     embree = std::make_unique<render::EmbreeScene>(mesh, TracedGrid(terrain, options));
@@ -1225,7 +1228,7 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
     ApplySensorEffects(out.other_channels[k], channel_options, geometry);
   }
   out.timings_s["sensor_effects"] = step.ElapsedSeconds();
-  out.timings_s[raster_engine ? "raster" : "trace"] = out.image.stats.trace_seconds;
+  out.timings_s[ToString(options.engine)] = out.image.stats.trace_seconds;
   if (!raster_engine) out.timings_s["mask"] = out.image.stats.mask_seconds;
   return out;
 }
@@ -1694,7 +1697,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     p.look_azimuth_deg = geometry_options.heading_deg + (geometry_options.look_side == sensor::LookSide::kRight ? 90.0 : -90.0);
     p.width = image.width;
     p.height = image.height;
-    p.lineage = "simulated by gissar simulate (" + options.engine + ", " + sensor::ToString(geometry.mode()) +
+    p.lineage = "simulated by gissar simulate (" + ToString(options.engine) + ", " + sensor::ToString(geometry.mode()) +
                 " projection) from " + fs::path(options.scene.empty() ? options.dem : options.scene).filename().string();
     const std::string tiff = "image/tiff; application=geotiff";
     auto final_of = [&](const fs::path& suffix) { return fs::path(options.out_prefix + suffix.string()); };

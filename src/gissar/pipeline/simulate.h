@@ -29,9 +29,19 @@
 #include "gissar/sensor/sar_geometry.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/memory_limit.h"
+#include "gissar/util/enum_table.h"
 #include "gissar/util/progress.h"
 
 namespace gissar::pipeline {
+
+// Image formation of `simulate`: kTrace (ray tracing, any terrain,
+// multi-bounce) or kRaster (DEM-raster: every DEM cell projected
+// analytically, single bounce, DEMs only; docs/geometry.md). Read and
+// written (options files, sidecars, Python) as "trace" / "raster".
+enum class SimulateEngine { kTrace, kRaster };
+inline constexpr auto kSimulateEngines =
+    util::MakeEnumTable<SimulateEngine>("engine", {{SimulateEngine::kTrace, "trace"}, {SimulateEngine::kRaster, "raster"}});
+std::string ToString(SimulateEngine engine);
 
 // Accepted range of --nesz (dB in image units): beyond 60 dB the noise
 // intensity 10^(NESZ/10) overflows a float pixel.
@@ -114,21 +124,19 @@ struct SimulateRequest {
   std::optional<Eigen::Vector2d> center_map;     // scene centre, DEM CRS units
   // Geometry; range/azimuth spacing 0 means "the DEM's post spacing".
   sensor::SarGeometryOptions geometry;
-  // Image formation: "trace" (ray tracing, any terrain, multi-bounce) or
-  // "raster" (DEM-raster: every DEM cell projected analytically, single
-  // bounce, DEMs only; docs/geometry.md).
-  std::string engine = "trace";
+  // Image formation (kSimulateEngines; JSON key "engine").
+  SimulateEngine engine = SimulateEngine::kTrace;
   double rays_per_cell = 4.0;
   int bounces = 3;                 // reflections followed per ray
   bool coherent = false;           // complex sum with phase 4 pi r / lambda
   double wavelength_m = 0.031;     // X band; selects the materials' sigma0 laws
-  // Channels (docs/conventions.md, "Polarimetry"): one of HH, HV, VH,
-  // VV (the materials' laws of that channel), a comma list ("HH,VV") or
-  // "quad". Several channels render one polarimetric pass each
+  // Channels (docs/conventions.md, "Polarimetry"): one of
+  // material::kPolarizations (the materials' laws of that channel), a comma
+  // list ("HH,VV") or "quad". Several channels render one polarimetric pass each
   // (render::RenderOptions::polarimetric): bands per channel in PREFIX.tif
   // and PREFIX_slc.tif, a Pauli quicklook for coherent quad runs.
   std::string polarization = "VV";
-  // Output radiometry (docs/radiometry.md): "sigma0", "beta0" or "gamma0",
+  // Output radiometry (docs/radiometry.md): a name of image::kRadiometries,
   // linear (m2/m2) or, with `db`, decibels.
   std::string radiometry = "sigma0";
   bool db = false;
@@ -158,7 +166,7 @@ struct SimulateRequest {
   // as benchmarks count them.
   bool adaptive_sampling = true;
   // Sensor impulse response: 3 dB resolutions in metres (0 = none) and the
-  // spectral window ("none", "hamming", "taylor"). NaN (the default; null in
+  // spectral window (a name of image::kSpectralWindows). NaN (the default; null in
   // JSON): not set: none, except on a product that states its processed
   // bandwidths, whose resolutions then follow them (ProductResolutions,
   // pipeline/product_simulate.h). RangeResolutionM() / AzimuthResolutionM():

@@ -1,5 +1,11 @@
 #include "gissar/pipeline/simulate_help.h"
 
+#include "gissar/image/impulse_response.h"
+#include "gissar/image/radiometry.h"
+#include "gissar/material/material.h"
+#include "gissar/pipeline/simulate.h"
+#include "gissar/sensor/sar_geometry.h"
+
 namespace gissar::pipeline {
 
 const std::map<std::string, std::string>& SimulateFieldHelp() {
@@ -30,25 +36,27 @@ const std::map<std::string, std::string>& SimulateFieldHelp() {
       {"fill_nodata", "Fill DEM no-data cells (GDAL FillNodata) instead of failing"},
       {"heading_deg", "Flight heading, degrees clockwise from north (required without --product/--orbit)"},
       {"depression_deg", "Depression angle at the scene centre, degrees in (0, 90) (required without --product/--orbit)"},
-      {"look_side", "Look side: right or left"},
+      {"look_side", "Look side: " + sensor::kLookSides.Alternatives()},
       {"center_lonlat", "Scene centre LON,LAT in degrees (default: DEM centre)"},
       {"center_map", "Scene centre X,Y in the DEM's CRS"},
       {"slant_range_m", "Slant range from the sensor to the scene centre, metres"},
       {"range_spacing_m", "Slant-range pixel spacing, metres (default: DEM post spacing)"},
       {"azimuth_spacing_m", "Azimuth pixel spacing, metres (default: DEM post spacing)"},
-      {"mode", "Projection: affine (parallel rays) or exact (flight line)"},
+      {"mode", "Projection: " + sensor::ToString(sensor::ProjectionMode::kAffine) + " (parallel rays) or " +
+                   sensor::ToString(sensor::ProjectionMode::kExact) + " (flight line)"},
       {"width", "Image columns (range); default: cover the scene"},
       {"height", "Image rows (azimuth); default: cover the scene"},
       {"engine",
-       "Image formation: trace (ray tracing) or raster (DEM-raster, single bounce and reflectors, DEMs only)"},
+       "Image formation: " + ToString(SimulateEngine::kTrace) + " (ray tracing) or " +
+           ToString(SimulateEngine::kRaster) + " (DEM-raster, single bounce and reflectors, DEMs only)"},
       {"rays_per_cell", "Rays per resolution cell on flat ground"},
       {"bounces", "Reflections followed per ray (1 = single bounce)"},
       {"coherent",
        "Coherent mode: complex sum per pixel (path phase 4 pi r / lambda, random micro-phase of rough surfaces), "
        "complex PSF; writes PREFIX_slc.tif"},
       {"wavelength_m", "Radar wavelength, metres (materials' sigma0 laws, coherent phase)"},
-      {"polarization", "Channels: HH, HV, VH or VV (the materials' sigma0 laws), a comma list (HH,VV) or quad; several channels give bands per channel and, with --coherent and quad, PREFIX_pauli.png"},
-      {"radiometry", "Output quantity: sigma0, beta0 or gamma0 (ellipsoid incidence; docs/radiometry.md)"},
+      {"polarization", "Channels: " + material::kPolarizations.Alternatives() + " (the materials' sigma0 laws), a comma list (HH,VV) or quad; several channels give bands per channel and, with --coherent and quad, PREFIX_pauli.png"},
+      {"radiometry", "Output quantity: " + image::kRadiometries.Alternatives() + " (ellipsoid incidence; docs/radiometry.md)"},
       {"db", "Write decibels (10 log10) instead of linear m2/m2 (no return: NaN)"},
       {"layers", "Also write PREFIX_layers.tif: local incidence (deg) and projected terrain area (m2) per pixel"},
       {"overviews",
@@ -69,7 +77,7 @@ const std::map<std::string, std::string>& SimulateFieldHelp() {
                              "or with --product the product's processed range bandwidth when it states it)"},
       {"azimuth_resolution_m", "Impulse response: 3 dB azimuth resolution, metres (0 = none; not given: none, "
                                "or with --product the product's processed azimuth bandwidth when it states it)"},
-      {"psf_window", "Spectral window: none, hamming or taylor"},
+      {"psf_window", "Spectral window: " + image::kSpectralWindows.Alternatives()},
       {"speckle_looks", "Multiplicative L-look gamma speckle (0 = off)"},
       {"nesz_db", "Thermal noise floor (NESZ), dB sigma0"},
       {"seed", "Seed of speckle and noise"},

@@ -112,7 +112,7 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
 TEST(SimulateTest, LargeImagesGetAMultilookedAnnotatedQuicklook) {
   const fs::path dir = testing::MakeTempDir();
   SimulateRequest options = AndorraOptions(dir, 0.0);
-  options.engine = "raster";
+  options.engine = SimulateEngine::kRaster;
   options.geometry.range_spacing_m = 12.0;
   options.geometry.azimuth_spacing_m = 12.0;
   const SimulateResult result = RunSimulate(options, "gissar simulate (test)");
@@ -280,7 +280,7 @@ TEST(SimulateTest, DemSeaFallbackInBothEngines) {
     for (const std::string mode : {"auto", "off"}) {
       SimulateRequest o;
       o.dem = dem.string();
-      o.engine = engine;
+      o.engine = kSimulateEngines.Parse(engine, "engine");
       o.sea = mode;
       o.bounces = 1;
       o.geometry.heading_deg = 0.0;
@@ -335,7 +335,7 @@ TEST(SimulateTest, RasterEngineRendersReflectorsLikeTheTracer) {
     SimulateRequest o;
     o.dem = dem.string();
     o.vertical_datum = "ellipsoid";
-    o.engine = engine;
+    o.engine = kSimulateEngines.Parse(engine, "engine");
     o.materials = materials.string();
     o.reflectors = csv.string();
     o.bounces = 1;
@@ -416,7 +416,7 @@ TEST(SimulateTest, ReprojectionCollarLeavesNoBrightColumnAtTheEdges) {
         o.scene = build.out_prefix + ".gscene";
       } else {
         o.dem = dem.string();
-        o.engine = engine;
+        o.engine = kSimulateEngines.Parse(engine, "engine");
       }
       o.bounces = 1;
       o.layers = true;
@@ -495,7 +495,7 @@ TEST(SimulateTest, FlatSquareIsNoDataOutsideItsFootprint) {
     SCOPED_TRACE(engine);
     SimulateRequest o;
     o.dem = dem.string();
-    o.engine = engine;
+    o.engine = kSimulateEngines.Parse(engine, "engine");
     o.bounces = 1;
     o.geometry.heading_deg = 45.0;
     o.geometry.depression_deg = 40.0;
@@ -765,7 +765,7 @@ TEST(SimulateTest, DemWindowFallsBackToTheWholeDemWithAReason) {
   EXPECT_FALSE(plan.applies);
   EXPECT_NE(plan.reason.find("--width"), std::string::npos);
   o.geometry.width = 64;
-  o.engine = "raster";
+  o.engine = SimulateEngine::kRaster;
   EXPECT_FALSE(PlanDemWindow(o).applies);
   SimulateRequest bad = o;
   bad.dem_window = "sometimes";

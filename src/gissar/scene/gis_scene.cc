@@ -577,333 +577,535 @@ double LineWidth(const std::map<std::string, std::string>& tags,
   return fallback_m;
 }
 
-GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
-                       const SceneConfig& config, Reporter& reporter, TerrainTriangulation triangulation) {
-  Stopwatch watch;
-  auto say = [&](const std::string& line) { reporter.Info("scene: " + line); };
-  // Progress over the build's steps (stage "scene build": each vector layer,
-  // the sea, the posts' triangulation, the constraints, the classes); a run
-  // cancelled through the reporter (Python's Ctrl-C) stops at the next step.
-  Progress progress("scene build", static_cast<int64_t>(config.layers.size()) + 5, reporter);
-  auto step = [&] {
+namespace {
+
+// ------------------------------------------------------- BuildGisScene state
+// Frames: the DEM's post lattice (col, row), its map CRS (dem.crs_wkt), and
+// the plan M: metres, ENU-aligned at the DEM centre, M = A * (col, row) (A =
+// GisScene::planar_from_cell, the Jacobian there). Everything in 2-D below is
+// in M unless said otherwise; heights are metres in the DEM's datum.
+
+// The class region of a face or directly triangulated cell group.
+struct Region {
+  ClassId cls = kClassDefault;
+  int building = -1;
+  bool outside = false;  // beyond the valid area: not in the scene
+};
+
+// State carried from phase to phase of BuildGisScene; each member names the
+// phase that fills it. Geos comes before every GEOS geometry member, so that
+// they are destroyed before its context.
+struct SceneBuildState {
+  SceneBuildState(const geo::Dem& dem_in, const geo::LocalFrame& frame_in, const SceneConfig& config_in,
+                  Reporter& reporter_in, TerrainTriangulation triangulation_in, GisScene& scene_in)
+      : dem(dem_in),
+        frame(frame_in),
+        config(config_in),
+        reporter(reporter_in),
+        triangulation(triangulation_in),
+        // Progress over the build's steps (stage "scene build": each vector
+        // layer, the sea, the posts' triangulation, the constraints, the
+        // classes); a run cancelled through the reporter (Python's Ctrl-C)
+        // stops at the next step.
+        progress("scene build", static_cast<int64_t>(config_in.layers.size()) + 5, reporter_in),
+        scene(scene_in),
+        stats(scene_in.stats),
+        crs(dem_in.crs_wkt),
+        W(dem_in.width),
+        H(dem_in.height),
+        cells_x(dem_in.width - 1),
+        cells_y(dem_in.height - 1) {}
+
+  void Say(const std::string& line) { reporter.Info("scene: " + line); }
+  void Step() {
     progress.Advance(1);
     ThrowIfCancelled(reporter, "scene build");
-  };
-  GisScene scene;
-  GisSceneStats& stats = scene.stats;
-  const Geos geos;
-
-  // Planar frame M: Jacobian of (col, row) -> ENU (x, y) at the DEM centre.
-  const geo::CrsTransform crs(dem.crs_wkt);
-  {
-    const double c = std::floor((dem.width - 1) / 2.0), r = std::floor((dem.height - 1) / 2.0);
-    std::vector<double> x, y;
-    for (const auto& [dc, dr] : {std::pair{0.0, 0.0}, {1.0, 0.0}, {0.0, 1.0}}) {
-      const Vector2d m = dem.MapFromPost(c + dc, r + dr);
-      x.push_back(m.x());
-      y.push_back(m.y());
-    }
-    crs.ToLonLat(x, y);
-    const Eigen::Vector3d p0 = frame.EnuFromGeodetic(x[0], y[0], 0.0);
-    const Eigen::Vector3d pc = frame.EnuFromGeodetic(x[1], y[1], 0.0);
-    const Eigen::Vector3d pr = frame.EnuFromGeodetic(x[2], y[2], 0.0);
-    scene.planar_from_cell.col(0) = (pc - p0).head<2>();
-    scene.planar_from_cell.col(1) = (pr - p0).head<2>();
   }
-  const Eigen::Matrix2d A = scene.planar_from_cell;
-  const Eigen::Matrix2d cell_from_planar = A.inverse();
-  // Over-sampled outlines (mean vertex spacing under 1 % of a DEM cell, e.g.
-  // a polygon of 10^6 vertices) are simplified (GEOS, topology preserved)
-  // to 1/1000 of a cell, the tolerance of the post snapping below: the mesh
-  // cannot use finer detail, and the triangulation would grow with it.
-  // Ordinary outlines (OSM vertices metres apart) are kept as they are, so
-  // that neighbours sharing a wall keep identical vertices.
-  const double cell_size_m = std::min(A.col(0).norm(), A.col(1).norm());
-  auto simplify_if_oversampled = [&](GeomPtr g) {
-    const int count = GEOSGetNumCoordinates_r(geos.ctx(), g.get());
-    double length = 0.0;
-    if (count < 1000 || GEOSLength_r(geos.ctx(), g.get(), &length) != 1) return g;
-    if (length / count >= 0.01 * cell_size_m) return g;
-    GeomPtr simple = Own(geos, GEOSTopologyPreserveSimplify_r(geos.ctx(), g.get(), 1e-3 * cell_size_m));
-    if (!simple || IsEmpty(geos, simple.get())) return g;
-    ++stats.simplified_outlines;
-    return simple;
-  };
-  auto to_planar = [&](const Vector2d& map_xy) {
+
+  // Inputs.
+  const geo::Dem& dem;
+  const geo::LocalFrame& frame;
+  const SceneConfig& config;
+  Reporter& reporter;
+  const TerrainTriangulation triangulation;
+  Stopwatch watch;
+  Progress progress;
+  GisScene& scene;  // the output
+  GisSceneStats& stats;
+  const Geos geos;
+  const geo::CrsTransform crs;
+  const int W, H;                // DEM posts
+  const int cells_x, cells_y;    // DEM cells
+  size_t CellAt(int c, int r) const { return size_t(r) * cells_x + c; }
+
+  // SetUpPlanarFrame: A (M from (col, row)), its inverse, the smaller cell side (m).
+  Eigen::Matrix2d A;
+  Eigen::Matrix2d cell_from_planar;
+  double cell_size_m = 0.0;
+  Vector2d ToPlanar(const Vector2d& map_xy) const {
     double c = 0, r = 0;
     dem.PostFromMap(map_xy.x(), map_xy.y(), &c, &r);
     return Vector2d(A * Vector2d(c, r));
-  };
-  const std::vector<Vector2d> extent_ring = {A * Vector2d(0, 0), A * Vector2d(dem.width - 1, 0),
-                                             A * Vector2d(dem.width - 1, dem.height - 1),
-                                             A * Vector2d(0, dem.height - 1), A * Vector2d(0, 0)};
-  GeomPtr extent = MakePolygon(geos, {extent_ring});
-  if (GEOSisValid_r(geos.ctx(), extent.get()) != 1) extent = Own(geos, GEOSMakeValid_r(geos.ctx(), extent.get()));
+  }
 
-  // Valid area: DEM no-data connected to the border (a reprojection collar,
-  // voids on the edge) is outside the scene unless it joins the sea (the
-  // --sea auto rule); a cell is in the scene when its four posts are.
-  const std::vector<uint8_t> dem_sea =
-      config.sea_auto ? SeaPostMask(dem, config.sea_level_m) : std::vector<uint8_t>();
-  const std::vector<uint8_t> outside = OutsidePostMask(dem, dem_sea);
-  stats.outside_posts = std::count(outside.begin(), outside.end(), uint8_t{1});
-  auto cell_valid = [&](int c, int r) {
+  // PrepareExtent: the DEM's rectangle (ring), the valid area (polygon) and
+  // the posts out of it.
+  std::vector<Vector2d> extent_ring;
+  GeomPtr extent;
+  PreparedPtr extent_prepared;
+  std::vector<uint8_t> dem_sea;  // per post: --sea auto's DEM sea, or empty
+  std::vector<uint8_t> outside;  // per post: out of the scene, or empty (none)
+  // A cell is in the scene when its four posts are.
+  bool CellValid(int c, int r) const {
     if (outside.empty()) return true;
     const size_t i = size_t(r) * dem.width + c;
     return !outside[i] && !outside[i + 1] && !outside[i + dem.width] && !outside[i + dem.width + 1];
-  };
-  if (!outside.empty()) {
-    // Union of row runs of valid cells.
-    std::vector<GeomPtr> runs;
-    for (int r = 0; r + 1 < dem.height; ++r) {
-      for (int c = 0; c + 1 < dem.width;) {
-        if (!cell_valid(c, r)) {
-          ++c;
-          continue;
-        }
-        int e = c;
-        while (e + 1 < dem.width && cell_valid(e, r)) ++e;
-        runs.push_back(MakePolygon(geos, {{A * Vector2d(c, r), A * Vector2d(e, r), A * Vector2d(e, r + 1),
-                                           A * Vector2d(c, r + 1), A * Vector2d(c, r)}}));
-        c = e;
-      }
-    }
-    extent = UnionAll(geos, runs);
-    if (IsEmpty(geos, extent.get())) throw InputError("the DEM has no valid cell", dem.source);
-    say(std::to_string(stats.outside_posts) + " no-data posts on the DEM border left out of the scene");
   }
-  const PreparedPtr extent_prepared(GEOSPrepare_r(geos.ctx(), extent.get()), PreparedDeleter{geos.ctx()});
 
-  // Vector layers -> clipped polygons per class (and individual buildings).
+  // ReadLayers: clipped polygons per class, buildings, coastlines.
   std::array<std::vector<GeomPtr>, kClassCount> parts;
   std::vector<Building> buildings;
-  std::vector<std::vector<Vector2d>> coast_lines;  // plan M, land on the left
+  std::vector<std::vector<Vector2d>> coast_lines;  // land on the left
   std::vector<GeomPtr> islands;                     // closed coastlines: land
-  for (const LayerSpec& layer : config.layers) {
-    const std::vector<geo::VectorFeature> features =
-        geo::ReadVectorLayer(layer.source, dem.crs_wkt);
-    const std::string name = layer.source.path + ", layer " +
-                             (layer.source.layer.empty() ? "(only)" : layer.source.layer);
-    if (features.empty()) {
-      scene.warnings.push_back("layer has no features: " + name);
-      continue;
-    }
-    int64_t repaired = 0, outside = 0, used = 0;
-    for (const geo::VectorFeature& feature : features) {
-      ++stats.features_read;
-      if (layer.kind == LayerKind::kCoastline) {
-        if (!config.sea_auto) continue;
-        ++stats.coastline_features;
-        for (const geo::LinePoints& line : feature.lines) {
-          std::vector<Vector2d> pts;
-          for (const Vector2d& p : line) pts.push_back(to_planar(p));
-          if (pts.size() >= 2) coast_lines.push_back(std::move(pts));
-        }
-        for (const geo::PolygonRings& polygon : feature.polygons) {
-          std::vector<std::vector<Vector2d>> rings;
-          for (const geo::Ring& ring : polygon) {
-            std::vector<Vector2d> pts;
-            for (const Vector2d& p : ring) pts.push_back(to_planar(p));
-            if (!pts.empty() && (pts.front() - pts.back()).norm() > 0) pts.push_back(pts.front());
-            rings.push_back(std::move(pts));
-          }
-          GeomPtr g = MakePolygon(geos, rings);
-          if (g && GEOSisValid_r(geos.ctx(), g.get()) != 1) {
-            g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
-          }
-          if (g) islands.push_back(std::move(g));
-        }
-        ++used;
-        continue;
-      }
-      std::vector<GeomPtr> pieces;
-      if (layer.kind == LayerKind::kLine) {
-        const double width = layer.line_width_m > 0
-                                 ? layer.line_width_m
-                                 : LineWidth(feature.fields, config.line_widths_m,
-                                             layer.class_id == kClassRoad ? config.default_road_width_m
-                                                                          : config.default_waterway_width_m);
-        for (const geo::LinePoints& line : feature.lines) {
-          std::vector<Vector2d> pts;
-          for (const Vector2d& p : line) pts.push_back(to_planar(p));
-          GeomPtr g = MakeLine(geos, pts);
-          if (!g) continue;
-          pieces.push_back(Own(geos, GEOSBuffer_r(geos.ctx(), g.get(), width / 2.0, 4)));
-        }
-      } else {
-        for (const geo::PolygonRings& polygon : feature.polygons) {
-          std::vector<std::vector<Vector2d>> rings;
-          for (const geo::Ring& ring : polygon) {
-            std::vector<Vector2d> pts;
-            for (const Vector2d& p : ring) pts.push_back(to_planar(p));
-            if (!pts.empty() && (pts.front() - pts.back()).norm() > 0) pts.push_back(pts.front());
-            rings.push_back(std::move(pts));
-          }
-          GeomPtr g = MakePolygon(geos, rings);
-          if (!g) {
-            ++repaired;
-            continue;
-          }
-          if (GEOSisValid_r(geos.ctx(), g.get()) != 1) {
-            ++repaired;
-            g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
-          }
-          if (g) pieces.push_back(std::move(g));
-        }
-      }
-      bool any_inside = false;
-      for (GeomPtr& piece : pieces) {
-        if (IsEmpty(geos, piece.get())) continue;
-        if (GEOSPreparedIntersects_r(geos.ctx(), extent_prepared.get(), piece.get()) != 1) continue;
-        GeomPtr clipped = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), piece.get(), extent.get())));
-        if (IsEmpty(geos, clipped.get())) continue;
-        clipped = simplify_if_oversampled(std::move(clipped));
-        any_inside = true;
-        if (config.densify_m > 0) {
-          clipped = Own(geos, GEOSDensify_r(geos.ctx(), clipped.get(), config.densify_m));
-        }
-        if (layer.kind == LayerKind::kBuilding) {
-          Building b;
-          b.height_m = BuildingHeight(feature.fields, config.building_default_height_m,
-                                      config.building_level_height_m);
-          b.footprint = Own(geos, GEOSGeom_clone_r(geos.ctx(), clipped.get()));
-          buildings.push_back(std::move(b));
-        }
-        parts[layer.class_id].push_back(std::move(clipped));
-      }
-      if (any_inside) {
-        ++used;
-      } else {
-        ++outside;
-      }
-    }
-    stats.repaired_geometries += repaired;
-    stats.features_outside += outside;
-    if (repaired > 0) {
-      scene.warnings.push_back(std::to_string(repaired) + " invalid geometries repaired (GEOS MakeValid) in " + name);
-    }
-    if (outside > 0) {
-      scene.warnings.push_back(std::to_string(outside) + " features outside the DEM dropped from " + name);
-    }
-    say(name + ": " + std::to_string(used) + " features");
-    step();
-  }
-  stats.buildings = static_cast<int64_t>(buildings.size());
 
-  // Sea: coastline ways closed against the extent (islands are land); else
-  // the DEM fallback below (per triangle, after the triangulation).
-  if (!coast_lines.empty() || !islands.empty()) {
-    GeomPtr sea = coast_lines.empty()
-                      ? Own(geos, GEOSGeom_clone_r(geos.ctx(), extent.get()))
-                      : CoastlineSea(geos, extent.get(), extent_ring, coast_lines, &stats.coastline_extended_ends);
-    if (sea && !islands.empty()) {
-      GeomPtr land = UnionAll(geos, islands);
-      if (land) sea = PolygonalPart(geos, Own(geos, GEOSDifference_r(geos.ctx(), sea.get(), land.get())));
-    }
-    if (sea) sea = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), sea.get(), extent.get())));
-    // Where a coastline had to be extended beyond the data, the extension is
-    // a guess: its sea is kept only where the DEM is low (the contour at 1 m
-    // above the sea level, interpolated between posts, so the shore follows
-    // the terrain rather than the post grid), except within 2 posts of the
-    // coastline as mapped, which is trusted over the DEM.
-    if (sea && stats.coastline_extended_ends > 0) {
-      std::vector<GeomPtr> keep;
-      for (const auto& polygon : geo::LowlandPolygons(dem, config.sea_level_m + 1.0)) {
-        std::vector<std::vector<Vector2d>> rings;
-        for (const geo::PostRing& ring : polygon) {
-          std::vector<Vector2d> pts;
-          for (const Vector2d& p : ring) pts.push_back(A * p);
-          rings.push_back(std::move(pts));
-        }
-        GeomPtr g = MakePolygon(geos, rings);
-        if (g && GEOSisValid_r(geos.ctx(), g.get()) != 1) {
-          g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
-        }
-        if (g) keep.push_back(std::move(g));
-      }
-      for (const auto& line : coast_lines) {
-        if (GeomPtr l = MakeLine(geos, line)) {
-          keep.push_back(Own(geos, GEOSBuffer_r(geos.ctx(), l.get(), 2.0 * cell_size_m, 8)));
-        }
-      }
-      double before = 0.0, after = 0.0;
-      GEOSArea_r(geos.ctx(), sea.get(), &before);
-      if (GeomPtr allowed = UnionAll(geos, keep)) {
-        sea = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), sea.get(), allowed.get())));
-      } else {
-        sea = nullptr;
-      }
-      if (sea) GEOSArea_r(geos.ctx(), sea.get(), &after);
-      stats.sea_trimmed_m2 = before - after;
-    }
-    double area = 0.0;
-    if (!IsEmpty(geos, sea.get())) {
-      GEOSArea_r(geos.ctx(), sea.get(), &area);
-      parts[kClassSea].push_back(std::move(sea));
-    }
-    if (stats.coastline_extended_ends > 0) {
-      scene.warnings.push_back(std::to_string(stats.coastline_extended_ends) +
-                               " coastline ends inside the DEM extended straight to its edge");
-    }
-    say("coastline: " + std::to_string(stats.coastline_features) + " features, sea " +
-        std::to_string(area / 1e6) + " km2");
-  }
-  step();
+  // ChooseDemSea: per post, the DEM's sea when no coastline gave one, or empty.
   std::vector<uint8_t> sea_posts;
-  if (config.sea_auto && coast_lines.empty() && islands.empty() && parts[kClassSea].empty()) {
-    sea_posts = dem_sea;
-    stats.sea_from_dem = std::find(sea_posts.begin(), sea_posts.end(), 1) != sea_posts.end();
-    if (!stats.sea_from_dem) sea_posts.clear();
-  }
-  auto cell_is_sea = [&](const Vector2d& centroid) {
+  bool CellIsSea(const Vector2d& centroid) const {
     const Vector2d cell = cell_from_planar * centroid;
     const int c = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
     const int r = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
     const size_t i = size_t(r) * dem.width + c;
     return sea_posts[i] && sea_posts[i + 1] && sea_posts[i + dem.width] && sea_posts[i + dem.width + 1];
-  };
+  }
 
-  // Class regions: union per class, then priority-resolved areas.
+  // ResolveClassRegions: union per class (prepared), classes by priority.
   std::array<GeomPtr, kClassCount> unions;
   std::array<PreparedPtr, kClassCount> prepared;
+  std::vector<int> order;
+
+  // MarkCdtCells, Triangulate: the cells triangulated by the CDT, the CDT
+  // (vertex info: post + 1 or 0; face info: region once flooded).
+  std::vector<uint8_t> in_cdt;
+  Cdt cdt;
+
+  // FloodRegions: the regions; per directly triangulated cell its region (-1: none).
+  std::vector<Region> regions;
+  std::vector<int32_t> cell_region;
+
+  // GroundVertices (then roofs, wall feet, wall crossings): vertex plan
+  // positions (M) and heights (m). Vertex r * W + c is post (c, r).
+  std::vector<Vector2d> planar;
+  std::vector<double> heights;
+
+  // GroupBuildings, RoofHeights: each building's block (its lowest building
+  // index) and each block's roof height (m).
+  std::vector<int> group;
+  std::vector<double> roof_height;
+  std::map<std::pair<int, int>, int> roof_index;  // (group, ground vertex) -> vertex
+  std::unordered_map<int, int> foot_index;        // ground vertex -> wall foot vertex
+  // The roof copy of ground vertex `ground` for block g.
+  int RoofVertex(int g, int ground) {
+    auto [it, inserted] = roof_index.emplace(std::make_pair(g, ground), 0);
+    if (inserted) {
+      it->second = static_cast<int>(planar.size());
+      planar.push_back(planar[ground]);
+      heights.push_back(roof_height[g]);
+    }
+    return it->second;
+  }
+  // Feet of walls on the ground: copies of the ground vertices, so that the
+  // terrain's smooth shading normals (per vertex) do not reach the walls.
+  int WallFoot(int ground) {
+    auto [it, inserted] = foot_index.emplace(ground, 0);
+    if (inserted) {
+      it->second = static_cast<int>(planar.size());
+      planar.push_back(planar[ground]);
+      heights.push_back(heights[ground]);
+    }
+    return it->second;
+  }
+
+  // Emit*: triangles (vertex indices) and their classes.
+  std::vector<Eigen::Vector3i> triangles;
+  std::vector<ClassId> classes;
+  bool column_cross_row_up = false;  // (col, row) turns counter-clockwise in M
+  double cell_triangle_area_m2 = 0.0;
+  // The two triangles of directly split cell (c, r) as vertex (= post)
+  // indices: MeshFromGrid's, split from post (c + 1, r) to (c, r + 1) and
+  // counter-clockwise in M (M is ENU-aligned: counter-clockwise seen from
+  // above, normals up).
+  std::array<Eigen::Vector3i, 2> CellTriangles(int c, int r) const {
+    return GridCellTriangles(W, c, r, column_cross_row_up);
+  }
+};
+
+// ------------------------------------------------------ extent and the posts
+
+// Takes the DEM (posts, CRS) and the local frame; gives A =
+// scene.planar_from_cell, the Jacobian of (col, row) -> ENU (x, y) in metres
+// at the DEM centre, its inverse, the smaller cell side (m), the lattice's
+// handedness in M and a grid triangle's area (m2).
+void SetUpPlanarFrame(SceneBuildState& s) {
+  const geo::Dem& dem = s.dem;
+  const double c = std::floor((dem.width - 1) / 2.0), r = std::floor((dem.height - 1) / 2.0);
+  std::vector<double> x, y;
+  for (const auto& [dc, dr] : {std::pair{0.0, 0.0}, {1.0, 0.0}, {0.0, 1.0}}) {
+    const Vector2d m = dem.MapFromPost(c + dc, r + dr);
+    x.push_back(m.x());
+    y.push_back(m.y());
+  }
+  s.crs.ToLonLat(x, y);
+  const Eigen::Vector3d p0 = s.frame.EnuFromGeodetic(x[0], y[0], 0.0);
+  const Eigen::Vector3d pc = s.frame.EnuFromGeodetic(x[1], y[1], 0.0);
+  const Eigen::Vector3d pr = s.frame.EnuFromGeodetic(x[2], y[2], 0.0);
+  s.scene.planar_from_cell.col(0) = (pc - p0).head<2>();
+  s.scene.planar_from_cell.col(1) = (pr - p0).head<2>();
+  s.A = s.scene.planar_from_cell;
+  s.cell_from_planar = s.A.inverse();
+  s.cell_size_m = std::min(s.A.col(0).norm(), s.A.col(1).norm());
+  s.column_cross_row_up = s.A.determinant() > 0.0;
+  s.cell_triangle_area_m2 = 0.5 * std::abs(s.A.determinant());
+}
+
+// Takes the DEM and A; gives the extent (the DEM's rectangle in M, or the
+// union of its valid cells), the posts outside the scene and --sea auto's
+// DEM sea posts. Valid area: DEM no-data connected to the border (a
+// reprojection collar, voids on the edge) is outside the scene unless it
+// joins the sea (the --sea auto rule); a cell is in the scene when its four
+// posts are.
+void PrepareExtent(SceneBuildState& s) {
+  const geo::Dem& dem = s.dem;
+  const Geos& geos = s.geos;
+  const Eigen::Matrix2d& A = s.A;
+  s.extent_ring = {A * Vector2d(0, 0), A * Vector2d(dem.width - 1, 0), A * Vector2d(dem.width - 1, dem.height - 1),
+                   A * Vector2d(0, dem.height - 1), A * Vector2d(0, 0)};
+  s.extent = MakePolygon(geos, {s.extent_ring});
+  if (GEOSisValid_r(geos.ctx(), s.extent.get()) != 1) {
+    s.extent = Own(geos, GEOSMakeValid_r(geos.ctx(), s.extent.get()));
+  }
+
+  s.dem_sea = s.config.sea_auto ? SeaPostMask(dem, s.config.sea_level_m) : std::vector<uint8_t>();
+  s.outside = OutsidePostMask(dem, s.dem_sea);
+  s.stats.outside_posts = std::count(s.outside.begin(), s.outside.end(), uint8_t{1});
+  if (!s.outside.empty()) {
+    // Union of row runs of valid cells.
+    std::vector<GeomPtr> runs;
+    for (int r = 0; r + 1 < dem.height; ++r) {
+      for (int c = 0; c + 1 < dem.width;) {
+        if (!s.CellValid(c, r)) {
+          ++c;
+          continue;
+        }
+        int e = c;
+        while (e + 1 < dem.width && s.CellValid(e, r)) ++e;
+        runs.push_back(MakePolygon(geos, {{A * Vector2d(c, r), A * Vector2d(e, r), A * Vector2d(e, r + 1),
+                                           A * Vector2d(c, r + 1), A * Vector2d(c, r)}}));
+        c = e;
+      }
+    }
+    s.extent = UnionAll(geos, runs);
+    if (IsEmpty(geos, s.extent.get())) throw InputError("the DEM has no valid cell", dem.source);
+    s.Say(std::to_string(s.stats.outside_posts) + " no-data posts on the DEM border left out of the scene");
+  }
+  s.extent_prepared = PreparedPtr(GEOSPrepare_r(geos.ctx(), s.extent.get()), PreparedDeleter{geos.ctx()});
+}
+
+// ---------------------------------------------------------- vector layers
+
+// Over-sampled outlines (mean vertex spacing under 1 % of a DEM cell, e.g.
+// a polygon of 10^6 vertices) are simplified (GEOS, topology preserved)
+// to 1/1000 of a cell, the tolerance of the post snapping below: the mesh
+// cannot use finer detail, and the triangulation would grow with it.
+// Ordinary outlines (OSM vertices metres apart) are kept as they are, so
+// that neighbours sharing a wall keep identical vertices.
+GeomPtr SimplifyIfOversampled(SceneBuildState& s, GeomPtr g) {
+  const Geos& geos = s.geos;
+  const int count = GEOSGetNumCoordinates_r(geos.ctx(), g.get());
+  double length = 0.0;
+  if (count < 1000 || GEOSLength_r(geos.ctx(), g.get(), &length) != 1) return g;
+  if (length / count >= 0.01 * s.cell_size_m) return g;
+  GeomPtr simple = Own(geos, GEOSTopologyPreserveSimplify_r(geos.ctx(), g.get(), 1e-3 * s.cell_size_m));
+  if (!simple || IsEmpty(geos, simple.get())) return g;
+  ++s.stats.simplified_outlines;
+  return simple;
+}
+
+// A polygon's rings (map coordinates, the DEM's CRS) in M, each closed.
+std::vector<std::vector<Vector2d>> PlanarRings(const SceneBuildState& s, const geo::PolygonRings& polygon) {
+  std::vector<std::vector<Vector2d>> rings;
+  for (const geo::Ring& ring : polygon) {
+    std::vector<Vector2d> pts;
+    for (const Vector2d& p : ring) pts.push_back(s.ToPlanar(p));
+    if (!pts.empty() && (pts.front() - pts.back()).norm() > 0) pts.push_back(pts.front());
+    rings.push_back(std::move(pts));
+  }
+  return rings;
+}
+
+// Takes a coastline feature (map coordinates); gives its ways to
+// coast_lines (M, land on the left) and its closed rings to islands (land).
+void AddCoastlineFeature(SceneBuildState& s, const geo::VectorFeature& feature) {
+  const Geos& geos = s.geos;
+  ++s.stats.coastline_features;
+  for (const geo::LinePoints& line : feature.lines) {
+    std::vector<Vector2d> pts;
+    for (const Vector2d& p : line) pts.push_back(s.ToPlanar(p));
+    if (pts.size() >= 2) s.coast_lines.push_back(std::move(pts));
+  }
+  for (const geo::PolygonRings& polygon : feature.polygons) {
+    GeomPtr g = MakePolygon(geos, PlanarRings(s, polygon));
+    if (g && GEOSisValid_r(geos.ctx(), g.get()) != 1) {
+      g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
+    }
+    if (g) s.islands.push_back(std::move(g));
+  }
+}
+
+// Takes a line or polygon feature (map coordinates); gives its polygons in
+// M, unclipped: lines buffered to their width (m), invalid polygons
+// repaired (counted in *repaired).
+std::vector<GeomPtr> FeaturePieces(SceneBuildState& s, const LayerSpec& layer, const geo::VectorFeature& feature,
+                                   int64_t* repaired) {
+  const Geos& geos = s.geos;
+  const SceneConfig& config = s.config;
+  std::vector<GeomPtr> pieces;
+  if (layer.kind == LayerKind::kLine) {
+    const double width = layer.line_width_m > 0
+                             ? layer.line_width_m
+                             : LineWidth(feature.fields, config.line_widths_m,
+                                         layer.class_id == kClassRoad ? config.default_road_width_m
+                                                                      : config.default_waterway_width_m);
+    for (const geo::LinePoints& line : feature.lines) {
+      std::vector<Vector2d> pts;
+      for (const Vector2d& p : line) pts.push_back(s.ToPlanar(p));
+      GeomPtr g = MakeLine(geos, pts);
+      if (!g) continue;
+      pieces.push_back(Own(geos, GEOSBuffer_r(geos.ctx(), g.get(), width / 2.0, 4)));
+    }
+  } else {
+    for (const geo::PolygonRings& polygon : feature.polygons) {
+      GeomPtr g = MakePolygon(geos, PlanarRings(s, polygon));
+      if (!g) {
+        ++*repaired;
+        continue;
+      }
+      if (GEOSisValid_r(geos.ctx(), g.get()) != 1) {
+        ++*repaired;
+        g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
+      }
+      if (g) pieces.push_back(std::move(g));
+    }
+  }
+  return pieces;
+}
+
+// Takes a feature's pieces (M); gives them clipped to the extent (simplified
+// when over-sampled, densified per config) to parts[class], and to
+// buildings for a building layer. Returns whether any piece was inside.
+bool AddClippedPieces(SceneBuildState& s, const LayerSpec& layer, const geo::VectorFeature& feature,
+                      std::vector<GeomPtr>& pieces) {
+  const Geos& geos = s.geos;
+  const SceneConfig& config = s.config;
+  bool any_inside = false;
+  for (GeomPtr& piece : pieces) {
+    if (IsEmpty(geos, piece.get())) continue;
+    if (GEOSPreparedIntersects_r(geos.ctx(), s.extent_prepared.get(), piece.get()) != 1) continue;
+    GeomPtr clipped = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), piece.get(), s.extent.get())));
+    if (IsEmpty(geos, clipped.get())) continue;
+    clipped = SimplifyIfOversampled(s, std::move(clipped));
+    any_inside = true;
+    if (config.densify_m > 0) {
+      clipped = Own(geos, GEOSDensify_r(geos.ctx(), clipped.get(), config.densify_m));
+    }
+    if (layer.kind == LayerKind::kBuilding) {
+      Building b;
+      b.height_m = BuildingHeight(feature.fields, config.building_default_height_m, config.building_level_height_m);
+      b.footprint = Own(geos, GEOSGeom_clone_r(geos.ctx(), clipped.get()));
+      s.buildings.push_back(std::move(b));
+    }
+    s.parts[layer.class_id].push_back(std::move(clipped));
+  }
+  return any_inside;
+}
+
+// Takes the vector layers (any CRS, read in the DEM's) and the extent; gives
+// clipped polygons per class (M), the buildings with their heights (m), the
+// coastlines and islands, and a warning per layer with repaired or dropped
+// features. One progress step per layer.
+void ReadLayers(SceneBuildState& s) {
+  for (const LayerSpec& layer : s.config.layers) {
+    const std::vector<geo::VectorFeature> features = geo::ReadVectorLayer(layer.source, s.dem.crs_wkt);
+    const std::string name = layer.source.path + ", layer " +
+                             (layer.source.layer.empty() ? "(only)" : layer.source.layer);
+    if (features.empty()) {
+      s.scene.warnings.push_back("layer has no features: " + name);
+      continue;
+    }
+    int64_t repaired = 0, outside = 0, used = 0;
+    for (const geo::VectorFeature& feature : features) {
+      ++s.stats.features_read;
+      if (layer.kind == LayerKind::kCoastline) {
+        if (!s.config.sea_auto) continue;
+        AddCoastlineFeature(s, feature);
+        ++used;
+        continue;
+      }
+      std::vector<GeomPtr> pieces = FeaturePieces(s, layer, feature, &repaired);
+      if (AddClippedPieces(s, layer, feature, pieces)) {
+        ++used;
+      } else {
+        ++outside;
+      }
+    }
+    s.stats.repaired_geometries += repaired;
+    s.stats.features_outside += outside;
+    if (repaired > 0) {
+      s.scene.warnings.push_back(std::to_string(repaired) + " invalid geometries repaired (GEOS MakeValid) in " +
+                                 name);
+    }
+    if (outside > 0) {
+      s.scene.warnings.push_back(std::to_string(outside) + " features outside the DEM dropped from " + name);
+    }
+    s.Say(name + ": " + std::to_string(used) + " features");
+    s.Step();
+  }
+  s.stats.buildings = static_cast<int64_t>(s.buildings.size());
+}
+
+// ------------------------------------------------------------------- sea
+
+// Where a coastline had to be extended beyond the data, the extension is
+// a guess: its sea is kept only where the DEM is low (the contour at 1 m
+// above the sea level, interpolated between posts, so the shore follows
+// the terrain rather than the post grid), except within 2 posts of the
+// coastline as mapped, which is trusted over the DEM. Takes the sea (M);
+// gives it trimmed (or null), the area removed in stats (m2).
+GeomPtr TrimExtendedSea(SceneBuildState& s, GeomPtr sea) {
+  const Geos& geos = s.geos;
+  std::vector<GeomPtr> keep;
+  for (const auto& polygon : geo::LowlandPolygons(s.dem, s.config.sea_level_m + 1.0)) {
+    std::vector<std::vector<Vector2d>> rings;
+    for (const geo::PostRing& ring : polygon) {
+      std::vector<Vector2d> pts;
+      for (const Vector2d& p : ring) pts.push_back(s.A * p);
+      rings.push_back(std::move(pts));
+    }
+    GeomPtr g = MakePolygon(geos, rings);
+    if (g && GEOSisValid_r(geos.ctx(), g.get()) != 1) {
+      g = PolygonalPart(geos, Own(geos, GEOSMakeValid_r(geos.ctx(), g.get())));
+    }
+    if (g) keep.push_back(std::move(g));
+  }
+  for (const auto& line : s.coast_lines) {
+    if (GeomPtr l = MakeLine(geos, line)) {
+      keep.push_back(Own(geos, GEOSBuffer_r(geos.ctx(), l.get(), 2.0 * s.cell_size_m, 8)));
+    }
+  }
+  double before = 0.0, after = 0.0;
+  GEOSArea_r(geos.ctx(), sea.get(), &before);
+  if (GeomPtr allowed = UnionAll(geos, keep)) {
+    sea = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), sea.get(), allowed.get())));
+  } else {
+    sea = nullptr;
+  }
+  if (sea) GEOSArea_r(geos.ctx(), sea.get(), &after);
+  s.stats.sea_trimmed_m2 = before - after;
+  return sea;
+}
+
+// Sea: coastline ways closed against the extent (islands are land); else
+// the DEM fallback (ChooseDemSea, per triangle after the triangulation).
+// Takes coast_lines, islands and the extent (M); gives the sea polygon to
+// parts[kClassSea].
+void BuildCoastlineSea(SceneBuildState& s) {
+  if (s.coast_lines.empty() && s.islands.empty()) return;
+  const Geos& geos = s.geos;
+  GeomPtr sea = s.coast_lines.empty() ? Own(geos, GEOSGeom_clone_r(geos.ctx(), s.extent.get()))
+                                      : CoastlineSea(geos, s.extent.get(), s.extent_ring, s.coast_lines,
+                                                     &s.stats.coastline_extended_ends);
+  if (sea && !s.islands.empty()) {
+    GeomPtr land = UnionAll(geos, s.islands);
+    if (land) sea = PolygonalPart(geos, Own(geos, GEOSDifference_r(geos.ctx(), sea.get(), land.get())));
+  }
+  if (sea) sea = PolygonalPart(geos, Own(geos, GEOSIntersection_r(geos.ctx(), sea.get(), s.extent.get())));
+  if (sea && s.stats.coastline_extended_ends > 0) sea = TrimExtendedSea(s, std::move(sea));
+  double area = 0.0;
+  if (!IsEmpty(geos, sea.get())) {
+    GEOSArea_r(geos.ctx(), sea.get(), &area);
+    s.parts[kClassSea].push_back(std::move(sea));
+  }
+  if (s.stats.coastline_extended_ends > 0) {
+    s.scene.warnings.push_back(std::to_string(s.stats.coastline_extended_ends) +
+                               " coastline ends inside the DEM extended straight to its edge");
+  }
+  s.Say("coastline: " + std::to_string(s.stats.coastline_features) + " features, sea " +
+        std::to_string(area / 1e6) + " km2");
+}
+
+// --sea auto without any sea polygon: the DEM's sea posts (dem_sea) become
+// sea_posts, which classify default-class triangles as sea when emitted.
+void ChooseDemSea(SceneBuildState& s) {
+  if (s.config.sea_auto && s.coast_lines.empty() && s.islands.empty() && s.parts[kClassSea].empty()) {
+    s.sea_posts = s.dem_sea;
+    s.stats.sea_from_dem = std::find(s.sea_posts.begin(), s.sea_posts.end(), 1) != s.sea_posts.end();
+    if (!s.stats.sea_from_dem) s.sea_posts.clear();
+  }
+}
+
+// ------------------------------------------------------ classes, buildings
+
+// Class regions: union per class, then priority-resolved areas. Takes
+// parts (consumed); gives unions (prepared), the classes in priority order
+// and each class's area (m2) in stats.region_area_m2.
+void ResolveClassRegions(SceneBuildState& s) {
+  const Geos& geos = s.geos;
+  GisSceneStats& stats = s.stats;
   for (int c = 0; c < kClassCount; ++c) {
-    unions[c] = UnionAll(geos, parts[c]);
-    if (unions[c]) {
-      prepared[c] = PreparedPtr(GEOSPrepare_r(geos.ctx(), unions[c].get()), PreparedDeleter{geos.ctx()});
+    s.unions[c] = UnionAll(geos, s.parts[c]);
+    if (s.unions[c]) {
+      s.prepared[c] = PreparedPtr(GEOSPrepare_r(geos.ctx(), s.unions[c].get()), PreparedDeleter{geos.ctx()});
     }
   }
-  std::vector<int> order(kClassCount);
-  for (int c = 0; c < kClassCount; ++c) order[c] = c;
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int a, int b) { return config.priority[a] > config.priority[b]; });
-  {
-    GeomPtr covered;
-    double covered_area = 0.0;
-    for (int c : order) {
-      if (c == kClassDefault || !unions[c]) continue;
-      GeomPtr region = covered ? Own(geos, GEOSDifference_r(geos.ctx(), unions[c].get(), covered.get()))
-                               : Own(geos, GEOSGeom_clone_r(geos.ctx(), unions[c].get()));
-      double area = 0.0;
-      if (region) GEOSArea_r(geos.ctx(), region.get(), &area);
-      stats.region_area_m2[c] = area;
-      covered_area += area;
-      covered = covered ? Own(geos, GEOSUnion_r(geos.ctx(), covered.get(), unions[c].get()))
-                        : Own(geos, GEOSGeom_clone_r(geos.ctx(), unions[c].get()));
-    }
-    double extent_area = 0.0;
-    GEOSArea_r(geos.ctx(), extent.get(), &extent_area);
-    stats.region_area_m2[kClassDefault] = extent_area - covered_area;
+  s.order.resize(kClassCount);
+  for (int c = 0; c < kClassCount; ++c) s.order[c] = c;
+  std::stable_sort(s.order.begin(), s.order.end(),
+                   [&](int a, int b) { return s.config.priority[a] > s.config.priority[b]; });
+  GeomPtr covered;
+  double covered_area = 0.0;
+  for (int c : s.order) {
+    if (c == kClassDefault || !s.unions[c]) continue;
+    GeomPtr region = covered ? Own(geos, GEOSDifference_r(geos.ctx(), s.unions[c].get(), covered.get()))
+                             : Own(geos, GEOSGeom_clone_r(geos.ctx(), s.unions[c].get()));
+    double area = 0.0;
+    if (region) GEOSArea_r(geos.ctx(), region.get(), &area);
+    stats.region_area_m2[c] = area;
+    covered_area += area;
+    covered = covered ? Own(geos, GEOSUnion_r(geos.ctx(), covered.get(), s.unions[c].get()))
+                      : Own(geos, GEOSGeom_clone_r(geos.ctx(), s.unions[c].get()));
   }
-  // Constraints: every class and building boundary, noded together by GEOS
-  // (all crossings become explicit vertices), so the triangulation never has
-  // to construct an intersection point and every segment is exactly a chain
-  // of mesh edges.
+  double extent_area = 0.0;
+  GEOSArea_r(geos.ctx(), s.extent.get(), &extent_area);
+  stats.region_area_m2[kClassDefault] = extent_area - covered_area;
+}
+
+// ------------------------------------------------------------ constraints
+
+// Constraints: every class and building boundary, noded together by GEOS
+// (all crossings become explicit vertices), so the triangulation never has
+// to construct an intersection point and every segment is exactly a chain
+// of mesh edges. Takes unions, buildings and the extent (M); gives
+// scene.boundary_segments (M, snapped to the posts) and the buildings'
+// prepared footprints.
+void NodeConstraints(SceneBuildState& s) {
+  const Geos& geos = s.geos;
+  const geo::Dem& dem = s.dem;
+  GisScene& scene = s.scene;
   {
     std::vector<GeomPtr> boundaries;
     for (int c = 1; c < kClassCount; ++c) {
-      if (unions[c]) boundaries.push_back(Own(geos, GEOSBoundary_r(geos.ctx(), unions[c].get())));
+      if (s.unions[c]) boundaries.push_back(Own(geos, GEOSBoundary_r(geos.ctx(), s.unions[c].get())));
     }
-    for (const Building& b : buildings) {
+    for (const Building& b : s.buildings) {
       boundaries.push_back(Own(geos, GEOSBoundary_r(geos.ctx(), b.footprint.get())));
     }
     std::vector<GEOSGeometry*> raw;
@@ -914,280 +1116,299 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       GeomPtr all = Own(geos, GEOSGeom_createCollection_r(geos.ctx(), GEOS_GEOMETRYCOLLECTION,
                                                           raw.data(), raw.size()));
       GeomPtr noded = Own(geos, GEOSUnaryUnion_r(geos.ctx(), all.get()));
-      if (!noded) throw Error("GEOS could not node the class boundaries", config.source);
+      if (!noded) throw Error("GEOS could not node the class boundaries", s.config.source);
       AppendBoundarySegments(geos, noded.get(), scene.boundary_segments);
     }
   }
-  for (Building& b : buildings) {
+  for (Building& b : s.buildings) {
     b.prepared = PreparedPtr(GEOSPrepare_r(geos.ctx(), b.footprint.get()), PreparedDeleter{geos.ctx()});
   }
-  if (!outside.empty()) AppendBoundarySegments(geos, extent.get(), scene.boundary_segments);
-  {
-    const double cell_m = std::min(A.col(0).norm(), A.col(1).norm());
-    // Ends on the scene's border (the DEM edge or the edge of its valid
-    // area: lattice lines next to a cell outside) also merge into a post
-    // along the border within 5 % of a cell, so that no sliver forms there.
-    auto on_border = [&](const Vector2d& cell) {
-      const double tol = 1e-3;
-      const bool on_col = std::abs(cell.x() - std::round(cell.x())) < tol;
-      const bool on_row = std::abs(cell.y() - std::round(cell.y())) < tol;
-      if (!on_col && !on_row) return false;
-      const int c = static_cast<int>(std::round(cell.x())), r = static_cast<int>(std::round(cell.y()));
-      if ((on_col && (c <= 0 || c >= dem.width - 1)) || (on_row && (r <= 0 || r >= dem.height - 1))) return true;
-      if (outside.empty()) return false;
-      const int fc = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
-      const int fr = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
-      if (on_col) return !cell_valid(std::max(0, c - 1), fr) || !cell_valid(std::min(dem.width - 2, c), fr);
-      return !cell_valid(fc, std::max(0, r - 1)) || !cell_valid(fc, std::min(dem.height - 2, r));
-    };
-    scene.boundary_segments =
-        SnapToPosts(scene.boundary_segments, A, dem.width, dem.height, 1e-3 * cell_m, on_border, 0.05);
-  }
-  stats.constraint_segments = static_cast<int64_t>(scene.boundary_segments.size());
+  if (!s.outside.empty()) AppendBoundarySegments(geos, s.extent.get(), scene.boundary_segments);
+  const double cell_m = std::min(s.A.col(0).norm(), s.A.col(1).norm());
+  // Ends on the scene's border (the DEM edge or the edge of its valid
+  // area: lattice lines next to a cell outside) also merge into a post
+  // along the border within 5 % of a cell, so that no sliver forms there.
+  auto on_border = [&](const Vector2d& cell) {
+    const double tol = 1e-3;
+    const bool on_col = std::abs(cell.x() - std::round(cell.x())) < tol;
+    const bool on_row = std::abs(cell.y() - std::round(cell.y())) < tol;
+    if (!on_col && !on_row) return false;
+    const int c = static_cast<int>(std::round(cell.x())), r = static_cast<int>(std::round(cell.y()));
+    if ((on_col && (c <= 0 || c >= dem.width - 1)) || (on_row && (r <= 0 || r >= dem.height - 1))) return true;
+    if (s.outside.empty()) return false;
+    const int fc = std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2);
+    const int fr = std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2);
+    if (on_col) return !s.CellValid(std::max(0, c - 1), fr) || !s.CellValid(std::min(dem.width - 2, c), fr);
+    return !s.CellValid(fc, std::max(0, r - 1)) || !s.CellValid(fc, std::min(dem.height - 2, r));
+  };
+  scene.boundary_segments =
+      SnapToPosts(scene.boundary_segments, s.A, dem.width, dem.height, 1e-3 * cell_m, on_border, 0.05);
+  s.stats.constraint_segments = static_cast<int64_t>(scene.boundary_segments.size());
+}
 
-  // Triangulation. A cell that no constraint touches lies inside one class
-  // region (every class and building boundary is a constraint): it is split
-  // directly into MeshFromGrid's two triangles (a DEM's own split; in a
-  // rectangular cell either diagonal is Delaunay). Only the cells that constraints touch go through
-  // CGAL's constrained Delaunay triangulation, with their posts, the
-  // constraints and the border between them and the other cells (also
-  // constrained), so that both parts meet edge to edge. A constraint vertex
-  // that splits such a border edge (a T-junction) sends the cell beyond it
-  // to the CDT as well, and the CDT is rebuilt. On a large DEM constraints
-  // touch a few percent of the cells; the CDT of every post
-  // (TerrainTriangulation::kEveryPost) took 3.9 GB and 30 s at 4096^2.
-  const int W = dem.width, H = dem.height;
-  const int cells_x = W - 1, cells_y = H - 1;
-  auto cell_at = [&](int c, int r) { return size_t(r) * cells_x + c; };
-  std::vector<uint8_t> in_cdt(size_t(cells_x) * cells_y, 0);
-  if (triangulation == TerrainTriangulation::kEveryPost) {
+// ---------------------------------------------------------- triangulation
+
+// Triangulation. A cell that no constraint touches lies inside one class
+// region (every class and building boundary is a constraint): it is split
+// directly into MeshFromGrid's two triangles (a DEM's own split; in a
+// rectangular cell either diagonal is Delaunay). Only the cells that constraints touch go through
+// CGAL's constrained Delaunay triangulation, with their posts, the
+// constraints and the border between them and the other cells (also
+// constrained), so that both parts meet edge to edge. A constraint vertex
+// that splits such a border edge (a T-junction) sends the cell beyond it
+// to the CDT as well, and the CDT is rebuilt. On a large DEM constraints
+// touch a few percent of the cells; the CDT of every post
+// (TerrainTriangulation::kEveryPost) took 3.9 GB and 30 s at 4096^2.
+//
+// MarkCdtCells takes the constraints (M); gives in_cdt (per cell: 1 for
+// the CDT).
+void MarkCdtCells(SceneBuildState& s) {
+  const int cells_x = s.cells_x, cells_y = s.cells_y;
+  std::vector<uint8_t>& in_cdt = s.in_cdt;
+  in_cdt.assign(size_t(cells_x) * cells_y, 0);
+  if (s.triangulation == TerrainTriangulation::kEveryPost) {
     for (int r = 0; r < cells_y; ++r) {
-      for (int c = 0; c < cells_x; ++c) in_cdt[cell_at(c, r)] = cell_valid(c, r);
+      for (int c = 0; c < cells_x; ++c) in_cdt[s.CellAt(c, r)] = s.CellValid(c, r);
     }
-  } else {
-    // Every cell whose closure a constraint comes within kTouch of (cell
-    // units; the post snapping moves points by 1e-3 cell at most).
-    constexpr double kTouch = 0.01;
-    auto mark = [&](const Vector2d& cell) {
-      const int c0 = std::max(0, static_cast<int>(std::floor(cell.x() - kTouch)));
-      const int c1 = std::min(cells_x - 1, static_cast<int>(std::floor(cell.x() + kTouch)));
-      const int r0 = std::max(0, static_cast<int>(std::floor(cell.y() - kTouch)));
-      const int r1 = std::min(cells_y - 1, static_cast<int>(std::floor(cell.y() + kTouch)));
-      for (int r = r0; r <= r1; ++r) {
-        for (int c = c0; c <= c1; ++c) {
-          if (cell_valid(c, r)) in_cdt[cell_at(c, r)] = 1;
-        }
+    return;
+  }
+  // Every cell whose closure a constraint comes within kTouch of (cell
+  // units; the post snapping moves points by 1e-3 cell at most).
+  constexpr double kTouch = 0.01;
+  auto mark = [&](const Vector2d& cell) {
+    const int c0 = std::max(0, static_cast<int>(std::floor(cell.x() - kTouch)));
+    const int c1 = std::min(cells_x - 1, static_cast<int>(std::floor(cell.x() + kTouch)));
+    const int r0 = std::max(0, static_cast<int>(std::floor(cell.y() - kTouch)));
+    const int r1 = std::min(cells_y - 1, static_cast<int>(std::floor(cell.y() + kTouch)));
+    for (int r = r0; r <= r1; ++r) {
+      for (int c = c0; c <= c1; ++c) {
+        if (s.CellValid(c, r)) in_cdt[s.CellAt(c, r)] = 1;
       }
-    };
-    for (const auto& [a, b] : scene.boundary_segments) {
-      const Vector2d ca = cell_from_planar * a, cb = cell_from_planar * b;
-      // Samples at most a quarter of a cell apart (a snapped segment lies in
-      // one cell; this does not rely on it).
-      const int n = 1 + static_cast<int>(std::ceil(4.0 * (cb - ca).lpNorm<Eigen::Infinity>()));
-      for (int k = 0; k <= n; ++k) mark(ca + (double(k) / n) * (cb - ca));
+    }
+  };
+  for (const auto& [a, b] : s.scene.boundary_segments) {
+    const Vector2d ca = s.cell_from_planar * a, cb = s.cell_from_planar * b;
+    // Samples at most a quarter of a cell apart (a snapped segment lies in
+    // one cell; this does not rely on it).
+    const int n = 1 + static_cast<int>(std::ceil(4.0 * (cb - ca).lpNorm<Eigen::Infinity>()));
+    for (int k = 0; k <= n; ++k) mark(ca + (double(k) / n) * (cb - ca));
+  }
+}
+
+// One CDT of the in_cdt cells: their posts (vertex info: post + 1), the
+// border of those cells and the constraints (M). Returns whether a
+// constraint split a border edge shared with a directly triangulated cell
+// (that cell then joins in_cdt); *cdt_posts gives the posts inserted.
+bool TriangulateCdtCells(SceneBuildState& s, int attempt, int64_t* cdt_posts) {
+  const int W = s.W, H = s.H, cells_x = s.cells_x, cells_y = s.cells_y;
+  std::vector<uint8_t>& in_cdt = s.in_cdt;
+  Cdt& cdt = s.cdt;
+  cdt.clear();
+  int64_t cdt_cells = 0;
+  for (uint8_t f : in_cdt) cdt_cells += f;
+  s.stats.cdt_cells = cdt_cells;
+  s.Say("triangulating " + std::to_string(cdt_cells) + " of " + std::to_string(int64_t{cells_x} * cells_y) +
+        " cells (those constraints touch) with " + std::to_string(s.stats.constraint_segments) +
+        " constraint segments; the other cells directly");
+  // Posts of the CDT's cells; their handles by post.
+  std::vector<int32_t> slot(size_t(W) * H, -1);
+  std::vector<std::pair<CdtPoint, PostInfo>> posts;
+  for (int r = 0; r < cells_y; ++r) {
+    for (int c = 0; c < cells_x; ++c) {
+      if (!in_cdt[s.CellAt(c, r)]) continue;
+      for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) slot[size_t(r + dr) * W + c + dc] = 0;
     }
   }
-  const int64_t total_cells = int64_t{cells_x} * cells_y;
+  for (int r = 0; r < H; ++r) {
+    for (int c = 0; c < W; ++c) {
+      if (slot[size_t(r) * W + c] < 0) continue;
+      const Vector2d m = s.A * Vector2d(c, r);
+      posts.emplace_back(CdtPoint(m.x(), m.y()), PostInfo{int64_t{r} * W + c + 1});
+    }
+  }
+  *cdt_posts = static_cast<int64_t>(posts.size());
+  cdt.insert(posts.begin(), posts.end());
+  std::vector<Cdt::Vertex_handle> handle(posts.size());
+  {
+    int32_t next = 0;
+    for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) {
+      slot[size_t(v->info().post - 1)] = next;
+      handle[size_t(next++)] = v;
+    }
+  }
+  if (attempt == 0) s.Step();
+  // The CDT's border: cell edges with a cell beyond that is not in the CDT
+  // (a directly triangulated cell, an invalid one, or none: the DEM's edge).
+  struct BorderEdge {
+    int64_t a, b;  // posts
+    int64_t beyond = -1;  // the directly triangulated cell beyond, or -1
+  };
+  std::vector<BorderEdge> border;
+  auto add_border = [&](int ca, int ra, int cb, int rb, int c_beyond, int r_beyond) {
+    BorderEdge e{int64_t{ra} * W + ca, int64_t{rb} * W + cb};
+    if (c_beyond >= 0 && r_beyond >= 0 && c_beyond < cells_x && r_beyond < cells_y) {
+      const size_t beyond = s.CellAt(c_beyond, r_beyond);
+      if (in_cdt[beyond]) return;
+      if (s.CellValid(c_beyond, r_beyond)) e.beyond = static_cast<int64_t>(beyond);
+    }
+    border.push_back(e);
+  };
+  for (int r = 0; r < cells_y; ++r) {
+    for (int c = 0; c < cells_x; ++c) {
+      if (!in_cdt[s.CellAt(c, r)]) continue;
+      add_border(c, r, c + 1, r, c, r - 1);
+      add_border(c, r + 1, c + 1, r + 1, c, r + 1);
+      add_border(c, r, c, r + 1, c - 1, r);
+      add_border(c + 1, r, c + 1, r + 1, c + 1, r);
+    }
+  }
+  for (const BorderEdge& e : border) {
+    cdt.insert_constraint(handle[size_t(slot[size_t(e.a)])], handle[size_t(slot[size_t(e.b)])]);
+  }
+  // Boundaries come as chains (a segment starts where the previous one
+  // ended): each end is located from the previous vertex's face, so the
+  // point location is a short walk and a polygon of 10^6 vertices
+  // triangulates in seconds (a walk from an arbitrary face crosses the
+  // fans of earlier constraints: quadratic).
+  Cdt::Vertex_handle previous;
+  Vector2d previous_point(std::numeric_limits<double>::quiet_NaN(), 0.0);
+  for (const auto& [a, b] : s.scene.boundary_segments) {
+    const Cdt::Face_handle hint = previous != Cdt::Vertex_handle() ? previous->face() : Cdt::Face_handle();
+    const Cdt::Vertex_handle va = a == previous_point ? previous : cdt.insert(CdtPoint(a.x(), a.y()), hint);
+    const Cdt::Vertex_handle vb = cdt.insert(CdtPoint(b.x(), b.y()), va->face());
+    if (va != vb) cdt.insert_constraint(va, vb);
+    previous = vb;
+    previous_point = b;
+  }
+  // Border edges shared with a directly triangulated cell must have stayed
+  // whole.
+  bool split = false;
+  for (const BorderEdge& e : border) {
+    if (e.beyond < 0 || cdt.is_edge(handle[size_t(slot[size_t(e.a)])], handle[size_t(slot[size_t(e.b)])])) continue;
+    in_cdt[size_t(e.beyond)] = 1;
+    split = true;
+  }
+  return split;
+}
 
-  Cdt cdt;
+// Takes in_cdt and the constraints; gives the CDT (rebuilt until no border
+// edge is split), the final in_cdt and the post and cell counts in stats.
+void Triangulate(SceneBuildState& s) {
   int64_t cdt_posts = 0;
   for (int attempt = 0;; ++attempt) {
-    cdt.clear();
-    int64_t cdt_cells = 0;
-    for (uint8_t f : in_cdt) cdt_cells += f;
-    stats.cdt_cells = cdt_cells;
-    say("triangulating " + std::to_string(cdt_cells) + " of " + std::to_string(total_cells) +
-        " cells (those constraints touch) with " + std::to_string(stats.constraint_segments) +
-        " constraint segments; the other cells directly");
-    // Posts of the CDT's cells; their handles by post.
-    std::vector<int32_t> slot(size_t(W) * H, -1);
-    std::vector<std::pair<CdtPoint, PostInfo>> posts;
-    for (int r = 0; r < cells_y; ++r) {
-      for (int c = 0; c < cells_x; ++c) {
-        if (!in_cdt[cell_at(c, r)]) continue;
-        for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) slot[size_t(r + dr) * W + c + dc] = 0;
-      }
-    }
-    for (int r = 0; r < H; ++r) {
-      for (int c = 0; c < W; ++c) {
-        if (slot[size_t(r) * W + c] < 0) continue;
-        const Vector2d m = A * Vector2d(c, r);
-        posts.emplace_back(CdtPoint(m.x(), m.y()), PostInfo{int64_t{r} * W + c + 1});
-      }
-    }
-    cdt_posts = static_cast<int64_t>(posts.size());
-    cdt.insert(posts.begin(), posts.end());
-    std::vector<Cdt::Vertex_handle> handle(posts.size());
-    {
-      int32_t next = 0;
-      for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) {
-        slot[size_t(v->info().post - 1)] = next;
-        handle[size_t(next++)] = v;
-      }
-    }
-    if (attempt == 0) step();
-    // The CDT's border: cell edges with a cell beyond that is not in the CDT
-    // (a directly triangulated cell, an invalid one, or none: the DEM's edge).
-    struct BorderEdge {
-      int64_t a, b;  // posts
-      int64_t beyond = -1;  // the directly triangulated cell beyond, or -1
-    };
-    std::vector<BorderEdge> border;
-    auto add_border = [&](int ca, int ra, int cb, int rb, int c_beyond, int r_beyond) {
-      BorderEdge e{int64_t{ra} * W + ca, int64_t{rb} * W + cb};
-      if (c_beyond >= 0 && r_beyond >= 0 && c_beyond < cells_x && r_beyond < cells_y) {
-        const size_t beyond = cell_at(c_beyond, r_beyond);
-        if (in_cdt[beyond]) return;
-        if (cell_valid(c_beyond, r_beyond)) e.beyond = static_cast<int64_t>(beyond);
-      }
-      border.push_back(e);
-    };
-    for (int r = 0; r < cells_y; ++r) {
-      for (int c = 0; c < cells_x; ++c) {
-        if (!in_cdt[cell_at(c, r)]) continue;
-        add_border(c, r, c + 1, r, c, r - 1);
-        add_border(c, r + 1, c + 1, r + 1, c, r + 1);
-        add_border(c, r, c, r + 1, c - 1, r);
-        add_border(c + 1, r, c + 1, r + 1, c + 1, r);
-      }
-    }
-    for (const BorderEdge& e : border) {
-      cdt.insert_constraint(handle[size_t(slot[size_t(e.a)])], handle[size_t(slot[size_t(e.b)])]);
-    }
-    // Boundaries come as chains (a segment starts where the previous one
-    // ended): each end is located from the previous vertex's face, so the
-    // point location is a short walk and a polygon of 10^6 vertices
-    // triangulates in seconds (a walk from an arbitrary face crosses the
-    // fans of earlier constraints: quadratic).
-    Cdt::Vertex_handle previous;
-    Vector2d previous_point(std::numeric_limits<double>::quiet_NaN(), 0.0);
-    for (const auto& [a, b] : scene.boundary_segments) {
-      const Cdt::Face_handle hint = previous != Cdt::Vertex_handle() ? previous->face() : Cdt::Face_handle();
-      const Cdt::Vertex_handle va = a == previous_point ? previous : cdt.insert(CdtPoint(a.x(), a.y()), hint);
-      const Cdt::Vertex_handle vb = cdt.insert(CdtPoint(b.x(), b.y()), va->face());
-      if (va != vb) cdt.insert_constraint(va, vb);
-      previous = vb;
-      previous_point = b;
-    }
-    // Border edges shared with a directly triangulated cell must have stayed
-    // whole.
-    bool split = false;
-    for (const BorderEdge& e : border) {
-      if (e.beyond < 0 || cdt.is_edge(handle[size_t(slot[size_t(e.a)])], handle[size_t(slot[size_t(e.b)])])) continue;
-      in_cdt[size_t(e.beyond)] = 1;
-      split = true;
-    }
-    if (!split) break;
-    ++stats.cdt_rebuilds;
+    if (!TriangulateCdtCells(s, attempt, &cdt_posts)) break;
+    ++s.stats.cdt_rebuilds;
     if (attempt >= 2) {
       // Never seen; the CDT of every valid cell has no such border.
-      for (int r = 0; r < cells_y; ++r) {
-        for (int c = 0; c < cells_x; ++c) in_cdt[cell_at(c, r)] = cell_valid(c, r);
+      for (int r = 0; r < s.cells_y; ++r) {
+        for (int c = 0; c < s.cells_x; ++c) s.in_cdt[s.CellAt(c, r)] = s.CellValid(c, r);
       }
     }
   }
-  stats.dem_posts = int64_t{W} * H;
-  stats.cdt_posts = cdt_posts;
-  stats.grid_cells = 0;
-  for (int r = 0; r < cells_y; ++r) {
-    for (int c = 0; c < cells_x; ++c) stats.grid_cells += !in_cdt[cell_at(c, r)] && cell_valid(c, r);
+  s.stats.dem_posts = int64_t{s.W} * s.H;
+  s.stats.cdt_posts = cdt_posts;
+  s.stats.grid_cells = 0;
+  for (int r = 0; r < s.cells_y; ++r) {
+    for (int c = 0; c < s.cells_x; ++c) s.stats.grid_cells += !s.in_cdt[s.CellAt(c, r)] && s.CellValid(c, r);
   }
+}
 
-  step();
-  // Regions: faces connected without crossing a constraint share a class.
-  struct Region {
-    ClassId cls = kClassDefault;
-    int building = -1;
-    bool outside = false;  // beyond the valid area: not in the scene
-  };
-  std::vector<Region> regions;
-  // Faces whose three vertices are DEM posts of one lattice row or column:
-  // along the hull the posts of a border row are collinear only up to the
-  // rounding of A * (col, row), and the exact predicates fill the gap with
-  // needle faces spanning many posts (in 3-D, curtains hanging between
-  // distant posts). They are not part of the scene and do not connect
-  // regions.
-  auto lattice_degenerate = [&](Cdt::Face_handle f) {
-    int64_t post[3];
-    bool all_posts = true;
-    Vector2d cell[3];
-    for (int k = 0; k < 3; ++k) {
-      post[k] = f->vertex(k)->info().post - 1;
-      all_posts &= post[k] >= 0;
-      cell[k] = cell_from_planar * Vector2d(f->vertex(k)->point().x(), f->vertex(k)->point().y());
+// ---------------------------------------------------------------- regions
+
+// Faces whose three vertices are DEM posts of one lattice row or column:
+// along the hull the posts of a border row are collinear only up to the
+// rounding of A * (col, row), and the exact predicates fill the gap with
+// needle faces spanning many posts (in 3-D, curtains hanging between
+// distant posts). They are not part of the scene and do not connect
+// regions.
+bool LatticeDegenerate(const SceneBuildState& s, Cdt::Face_handle f) {
+  const geo::Dem& dem = s.dem;
+  int64_t post[3];
+  bool all_posts = true;
+  Vector2d cell[3];
+  for (int k = 0; k < 3; ++k) {
+    post[k] = f->vertex(k)->info().post - 1;
+    all_posts &= post[k] >= 0;
+    cell[k] = s.cell_from_planar * Vector2d(f->vertex(k)->point().x(), f->vertex(k)->point().y());
+  }
+  if (all_posts) {
+    const int64_t w = dem.width;
+    if ((post[0] / w == post[1] / w && post[1] / w == post[2] / w) ||
+        (post[0] % w == post[1] % w && post[1] % w == post[2] % w)) {
+      return true;
     }
-    if (all_posts) {
-      const int64_t w = dem.width;
-      if ((post[0] / w == post[1] / w && post[1] / w == post[2] / w) ||
-          (post[0] % w == post[1] % w && post[1] % w == post[2] % w)) {
+  }
+  // All three on one border line of the DEM (with vertices inserted there).
+  for (int axis = 0; axis < 2; ++axis) {
+    for (const double line : {0.0, (axis == 0 ? dem.width : dem.height) - 1.0}) {
+      if (std::abs(cell[0][axis] - line) < 1e-6 && std::abs(cell[1][axis] - line) < 1e-6 &&
+          std::abs(cell[2][axis] - line) < 1e-6) {
         return true;
       }
     }
-    // All three on one border line of the DEM (with vertices inserted there).
-    for (int axis = 0; axis < 2; ++axis) {
-      for (const double line : {0.0, (axis == 0 ? dem.width : dem.height) - 1.0}) {
-        if (std::abs(cell[0][axis] - line) < 1e-6 && std::abs(cell[1][axis] - line) < 1e-6 &&
-            std::abs(cell[2][axis] - line) < 1e-6) {
-          return true;
-        }
-      }
+  }
+  return false;
+}
+
+// The class region of a point (M): priority order, then the building it is in.
+Region Classify(const SceneBuildState& s, const Vector2d& point_m) {
+  const Geos& geos = s.geos;
+  Region region;
+  if (!s.outside.empty()) {
+    const Vector2d cell = s.cell_from_planar * point_m;
+    region.outside = !s.CellValid(std::clamp(static_cast<int>(std::floor(cell.x())), 0, s.dem.width - 2),
+                                  std::clamp(static_cast<int>(std::floor(cell.y())), 0, s.dem.height - 2));
+  }
+  GeomPtr point = MakePoint(geos, point_m);
+  for (int c : s.order) {
+    if (region.outside) break;
+    if (c != kClassDefault && s.prepared[c] &&
+        GEOSPreparedContains_r(geos.ctx(), s.prepared[c].get(), point.get()) == 1) {
+      region.cls = static_cast<ClassId>(c);
+      break;
     }
-    return false;
-  };
-  // The class region of a point (M): priority order, then the building it is in.
-  auto classify = [&](const Vector2d& point_m) {
-    Region region;
-    if (!outside.empty()) {
-      const Vector2d cell = cell_from_planar * point_m;
-      region.outside = !cell_valid(std::clamp(static_cast<int>(std::floor(cell.x())), 0, dem.width - 2),
-                                   std::clamp(static_cast<int>(std::floor(cell.y())), 0, dem.height - 2));
-    }
-    GeomPtr point = MakePoint(geos, point_m);
-    for (int c : order) {
-      if (region.outside) break;
-      if (c != kClassDefault && prepared[c] &&
-          GEOSPreparedContains_r(geos.ctx(), prepared[c].get(), point.get()) == 1) {
-        region.cls = static_cast<ClassId>(c);
+  }
+  if (region.cls == kClassBuilding) {
+    for (size_t b = 0; b < s.buildings.size(); ++b) {
+      if (GEOSPreparedContains_r(geos.ctx(), s.buildings[b].prepared.get(), point.get()) == 1) {
+        region.building = static_cast<int>(b);
         break;
       }
     }
-    if (region.cls == kClassBuilding) {
-      for (size_t b = 0; b < buildings.size(); ++b) {
-        if (GEOSPreparedContains_r(geos.ctx(), buildings[b].prepared.get(), point.get()) == 1) {
-          region.building = static_cast<int>(b);
-          break;
-        }
-      }
-      if (region.building < 0) region.cls = kClassUrban;  // sliver between overlapping footprints
-    }
-    return region;
-  };
-  // CDT faces: -1 for a face of the CDT's cells (its centroid in one of
-  // them: a constraint vertex comes no nearer than kTouch to the border of
-  // the CDT's cells, so no centroid of a face on either side lies near it),
-  // -2 for the rest (the directly triangulated cells, the invalid area,
-  // beyond the hull, needles), dropped.
+    if (region.building < 0) region.cls = kClassUrban;  // sliver between overlapping footprints
+  }
+  return region;
+}
+
+// Regions of the CDT: faces connected without crossing a constraint share
+// a class. Face info: -1 for a face of the CDT's cells (its centroid in one
+// of them: a constraint vertex comes no nearer than kTouch to the border of
+// the CDT's cells, so no centroid of a face on either side lies near it),
+// -2 for the rest (the directly triangulated cells, the invalid area,
+// beyond the hull, needles), dropped; then the region of each -1 face.
+void FloodCdtRegions(SceneBuildState& s) {
+  Cdt& cdt = s.cdt;
   for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = -2;
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
-    if (lattice_degenerate(f)) {
-      ++stats.needle_faces;
+    if (LatticeDegenerate(s, f)) {
+      ++s.stats.needle_faces;
       continue;
     }
     const auto& p0 = f->vertex(0)->point();
     const auto& p1 = f->vertex(1)->point();
     const auto& p2 = f->vertex(2)->point();
     const Vector2d cell =
-        cell_from_planar * Vector2d((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0);
+        s.cell_from_planar * Vector2d((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0);
     const int c = static_cast<int>(std::floor(cell.x())), r = static_cast<int>(std::floor(cell.y()));
-    if (c >= 0 && r >= 0 && c < cells_x && r < cells_y && in_cdt[cell_at(c, r)]) f->info() = -1;
+    if (c >= 0 && r >= 0 && c < s.cells_x && r < s.cells_y && s.in_cdt[s.CellAt(c, r)]) f->info() = -1;
   }
   for (auto seed = cdt.finite_faces_begin(); seed != cdt.finite_faces_end(); ++seed) {
     if (seed->info() != -1) continue;
-    const int id = static_cast<int>(regions.size());
+    const int id = static_cast<int>(s.regions.size());
     const auto& p0 = seed->vertex(0)->point();
     const auto& p1 = seed->vertex(1)->point();
     const auto& p2 = seed->vertex(2)->point();
-    regions.push_back(classify(Vector2d((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0)));
+    s.regions.push_back(Classify(s, Vector2d((p0.x() + p1.x() + p2.x()) / 3.0, (p0.y() + p1.y() + p2.y()) / 3.0)));
     std::deque<Cdt::Face_handle> queue{seed};
     seed->info() = id;
     while (!queue.empty()) {
@@ -1201,78 +1422,91 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
       }
     }
   }
-  // Directly triangulated cells: connected groups (across cell edges, which
-  // no constraint touches) lie in one region each.
-  std::vector<int32_t> cell_region(size_t(cells_x) * cells_y, -1);
-  {
-    std::vector<std::pair<int, int>> stack;
-    for (int r0 = 0; r0 < cells_y; ++r0) {
-      for (int c0 = 0; c0 < cells_x; ++c0) {
-        if (in_cdt[cell_at(c0, r0)] || cell_region[cell_at(c0, r0)] >= 0 || !cell_valid(c0, r0)) continue;
-        const int id = static_cast<int>(regions.size());
-        regions.push_back(classify(A * Vector2d(c0 + 0.5, r0 + 0.5)));
-        cell_region[cell_at(c0, r0)] = id;
-        stack.assign(1, {c0, r0});
-        while (!stack.empty()) {
-          const auto [c, r] = stack.back();
-          stack.pop_back();
-          for (const auto& [nc, nr] : {std::pair{c - 1, r}, {c + 1, r}, {c, r - 1}, {c, r + 1}}) {
-            if (nc < 0 || nr < 0 || nc >= cells_x || nr >= cells_y) continue;
-            const size_t k = cell_at(nc, nr);
-            if (in_cdt[k] || cell_region[k] >= 0 || !cell_valid(nc, nr)) continue;
-            cell_region[k] = id;
-            stack.push_back({nc, nr});
-          }
+}
+
+// Directly triangulated cells: connected groups (across cell edges, which
+// no constraint touches) lie in one region each. Gives cell_region.
+void FloodCellRegions(SceneBuildState& s) {
+  const int cells_x = s.cells_x, cells_y = s.cells_y;
+  const std::vector<uint8_t>& in_cdt = s.in_cdt;
+  std::vector<int32_t>& cell_region = s.cell_region;
+  cell_region.assign(size_t(cells_x) * cells_y, -1);
+  std::vector<std::pair<int, int>> stack;
+  for (int r0 = 0; r0 < cells_y; ++r0) {
+    for (int c0 = 0; c0 < cells_x; ++c0) {
+      if (in_cdt[s.CellAt(c0, r0)] || cell_region[s.CellAt(c0, r0)] >= 0 || !s.CellValid(c0, r0)) continue;
+      const int id = static_cast<int>(s.regions.size());
+      s.regions.push_back(Classify(s, s.A * Vector2d(c0 + 0.5, r0 + 0.5)));
+      cell_region[s.CellAt(c0, r0)] = id;
+      stack.assign(1, {c0, r0});
+      while (!stack.empty()) {
+        const auto [c, r] = stack.back();
+        stack.pop_back();
+        for (const auto& [nc, nr] : {std::pair{c - 1, r}, {c + 1, r}, {c, r - 1}, {c, r + 1}}) {
+          if (nc < 0 || nr < 0 || nc >= cells_x || nr >= cells_y) continue;
+          const size_t k = s.CellAt(nc, nr);
+          if (in_cdt[k] || cell_region[k] >= 0 || !s.CellValid(nc, nr)) continue;
+          cell_region[k] = id;
+          stack.push_back({nc, nr});
         }
       }
     }
   }
-  // The region across edge i of CDT face f: its neighbour's, or across the
-  // CDT's border that of the directly triangulated cell beyond; -1 for none.
-  auto region_across = [&](Cdt::Face_handle f, int i) -> int {
-    const Cdt::Face_handle n = f->neighbor(i);
-    if (!cdt.is_infinite(n) && n->info() >= 0) return n->info();
-    const int64_t a = f->vertex(Cdt::ccw(i))->info().post - 1, b = f->vertex(Cdt::cw(i))->info().post - 1;
-    if (a < 0 || b < 0) return -1;
-    const int ca = static_cast<int>(a % W), ra = static_cast<int>(a / W);
-    const int cb = static_cast<int>(b % W), rb = static_cast<int>(b / W);
-    if (std::abs(ca - cb) + std::abs(ra - rb) != 1) return -1;
-    const std::array<std::pair<int, int>, 2> beside =
-        ra == rb ? std::array<std::pair<int, int>, 2>{{{std::min(ca, cb), ra - 1}, {std::min(ca, cb), ra}}}
-                 : std::array<std::pair<int, int>, 2>{{{ca - 1, std::min(ra, rb)}, {ca, std::min(ra, rb)}}};
-    for (const auto& [c, r] : beside) {
-      if (c < 0 || r < 0 || c >= cells_x || r >= cells_y || in_cdt[cell_at(c, r)]) continue;
-      if (cell_region[cell_at(c, r)] >= 0) return cell_region[cell_at(c, r)];
-    }
-    return -1;
-  };
+}
 
-  step();
-  // Vertices: ground vertices with DEM heights; roof copies per building.
-  // Every DEM post first, row-major (vertex r * W + c: the terrain grid of
-  // the directly split cells, GisScene::grid), then the vertices the
-  // constraints inserted; each CDT vertex's index lives in its info. Posts
-  // of no valid cell are in no triangle; they take their DEM height, or
-  // when it is no-data the lowest height of the scene's posts (finite, and
-  // inside the scene's bounds).
-  auto ground_index = [](const Cdt::Vertex_handle& v) { return v->info().ground; };
+// The region across edge i of CDT face f: its neighbour's, or across the
+// CDT's border that of the directly triangulated cell beyond; -1 for none.
+int RegionAcross(const SceneBuildState& s, Cdt::Face_handle f, int i) {
+  const int W = s.W, cells_x = s.cells_x, cells_y = s.cells_y;
+  const Cdt::Face_handle n = f->neighbor(i);
+  if (!s.cdt.is_infinite(n) && n->info() >= 0) return n->info();
+  const int64_t a = f->vertex(Cdt::ccw(i))->info().post - 1, b = f->vertex(Cdt::cw(i))->info().post - 1;
+  if (a < 0 || b < 0) return -1;
+  const int ca = static_cast<int>(a % W), ra = static_cast<int>(a / W);
+  const int cb = static_cast<int>(b % W), rb = static_cast<int>(b / W);
+  if (std::abs(ca - cb) + std::abs(ra - rb) != 1) return -1;
+  const std::array<std::pair<int, int>, 2> beside =
+      ra == rb ? std::array<std::pair<int, int>, 2>{{{std::min(ca, cb), ra - 1}, {std::min(ca, cb), ra}}}
+               : std::array<std::pair<int, int>, 2>{{{ca - 1, std::min(ra, rb)}, {ca, std::min(ra, rb)}}};
+  for (const auto& [c, r] : beside) {
+    if (c < 0 || r < 0 || c >= cells_x || r >= cells_y || s.in_cdt[s.CellAt(c, r)]) continue;
+    if (s.cell_region[s.CellAt(c, r)] >= 0) return s.cell_region[s.CellAt(c, r)];
+  }
+  return -1;
+}
+
+// --------------------------------------------------------------- vertices
+
+// Vertices: ground vertices with DEM heights (m). Every DEM post first,
+// row-major (vertex r * W + c: the terrain grid of the directly split
+// cells, GisScene::grid), then the vertices the constraints inserted
+// (bilinear DEM height); each CDT vertex's index lives in its info
+// (ground). Posts of no valid cell are in no triangle; they take their DEM
+// height, or when it is no-data the lowest height of the scene's posts
+// (finite, and inside the scene's bounds). Gives planar (M) and heights.
+void GroundVertices(SceneBuildState& s) {
+  const geo::Dem& dem = s.dem;
+  const SceneConfig& config = s.config;
+  const int W = s.W, H = s.H;
   std::vector<uint8_t> post_used(size_t(W) * H, 0);
-  for (int r = 0; r < cells_y; ++r) {
-    for (int c = 0; c < cells_x; ++c) {
-      if (!cell_valid(c, r)) continue;
+  for (int r = 0; r < s.cells_y; ++r) {
+    for (int c = 0; c < s.cells_x; ++c) {
+      if (!s.CellValid(c, r)) continue;
       for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) post_used[size_t(r + dr) * W + c + dc] = 1;
     }
   }
-  std::vector<Vector2d> planar(size_t(W) * H);
-  std::vector<double> heights(size_t(W) * H, std::numeric_limits<double>::quiet_NaN());
+  std::vector<Vector2d>& planar = s.planar;
+  std::vector<double>& heights = s.heights;
+  planar.resize(size_t(W) * H);
+  heights.assign(size_t(W) * H, std::numeric_limits<double>::quiet_NaN());
   double lowest = std::numeric_limits<double>::infinity();
   for (int r = 0; r < H; ++r) {
     for (int c = 0; c < W; ++c) {
       const size_t post = size_t(r) * W + c;
-      planar[post] = A * Vector2d(c, r);
+      planar[post] = s.A * Vector2d(c, r);
       double h = dem.heights_m[post];
       // A void that joined the sea lies at sea level.
-      if (!dem_sea.empty() && dem_sea[post] && !dem.nodata_mask.empty() && dem.nodata_mask[post]) {
+      if (!s.dem_sea.empty() && s.dem_sea[post] && !dem.nodata_mask.empty() && dem.nodata_mask[post]) {
         h = config.sea_level_m;
       }
       const bool nodata = !dem.nodata_mask.empty() && dem.nodata_mask[post] && h != config.sea_level_m;
@@ -1289,182 +1523,185 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     if (!post_used[post] && !std::isfinite(heights[post])) heights[post] = lowest;
   }
   std::vector<uint8_t>().swap(post_used);
-  for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) {
+  for (auto v = s.cdt.finite_vertices_begin(); v != s.cdt.finite_vertices_end(); ++v) {
     if (v->info().post > 0) {
       v->info().ground = static_cast<int>(v->info().post - 1);
       continue;
     }
-    ++stats.inserted_vertices;
+    ++s.stats.inserted_vertices;
     const Vector2d m(v->point().x(), v->point().y());
-    Vector2d cell = cell_from_planar * m;
+    Vector2d cell = s.cell_from_planar * m;
     cell.x() = std::clamp(cell.x(), 0.0, dem.width - 1.0);
     cell.y() = std::clamp(cell.y(), 0.0, dem.height - 1.0);
     v->info().ground = static_cast<int>(planar.size());
     planar.push_back(m);
     heights.push_back(*dem.InterpolateHeight(cell.x(), cell.y()));
   }
-  // The two triangles of directly split cell (c, r) as vertex (= post)
-  // indices: MeshFromGrid's, split from post (c + 1, r) to (c, r + 1) and
-  // counter-clockwise in M (M is ENU-aligned: counter-clockwise seen from
-  // above, normals up).
-  const bool column_cross_row_up = A.determinant() > 0.0;  // (col, row) turns counter-clockwise in M
-  auto cell_triangles = [&](int c, int r) { return GridCellTriangles(W, c, r, column_cross_row_up); };
-  const double cell_triangle_area_m2 = 0.5 * std::abs(A.determinant());
+}
 
-  // Building groups: footprints that share a mesh edge and have the same
-  // height tag merge into one block (one roof, no walls between them).
-  std::vector<int> group(buildings.size());
-  for (size_t b = 0; b < buildings.size(); ++b) group[b] = static_cast<int>(b);
+// -------------------------------------------------------------- buildings
+
+// Building groups: footprints that share a mesh edge and have the same
+// height tag merge into one block (one roof, no walls between them). Gives
+// group (per building: its block, the lowest building index in it).
+void GroupBuildings(SceneBuildState& s) {
+  std::vector<int>& group = s.group;
+  group.resize(s.buildings.size());
+  for (size_t b = 0; b < s.buildings.size(); ++b) group[b] = static_cast<int>(b);
   std::function<int(int)> find = [&](int b) { return group[b] == b ? b : group[b] = find(group[b]); };
-  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+  for (auto f = s.cdt.finite_faces_begin(); f != s.cdt.finite_faces_end(); ++f) {
     if (f->info() < 0) continue;
-    const int b = regions[f->info()].building;
+    const int b = s.regions[f->info()].building;
     if (b < 0) continue;
     for (int i = 0; i < 3; ++i) {
-      const int across = region_across(f, i);
+      const int across = RegionAcross(s, f, i);
       if (across < 0) continue;
-      const int o = regions[across].building;
-      if (o < 0 || o == b || buildings[o].height_m != buildings[b].height_m) continue;
+      const int o = s.regions[across].building;
+      if (o < 0 || o == b || s.buildings[o].height_m != s.buildings[b].height_m) continue;
       const int ra = find(b), rb = find(o);
       if (ra != rb) group[std::max(ra, rb)] = std::min(ra, rb);
     }
   }
-  for (size_t b = 0; b < buildings.size(); ++b) group[b] = find(static_cast<int>(b));
-  for (size_t b = 0; b < buildings.size(); ++b) {
-    if (group[b] != static_cast<int>(b)) ++stats.merged_buildings;
+  for (size_t b = 0; b < s.buildings.size(); ++b) group[b] = find(static_cast<int>(b));
+  for (size_t b = 0; b < s.buildings.size(); ++b) {
+    if (group[b] != static_cast<int>(b)) ++s.stats.merged_buildings;
   }
-  // Flat roof at the group's lowest ground contact + its height (OSM's
-  // `height` is measured from the lowest point where the building meets the
-  // ground).
-  std::vector<double> roof_height(buildings.size(), std::numeric_limits<double>::infinity());
-  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+}
+
+// Flat roof at the group's lowest ground contact + its height (OSM's
+// `height` is measured from the lowest point where the building meets the
+// ground). Gives roof_height (m, per block; infinite for a block with no
+// face).
+void RoofHeights(SceneBuildState& s) {
+  const std::vector<int>& group = s.group;
+  std::vector<double>& roof_height = s.roof_height;
+  roof_height.assign(s.buildings.size(), std::numeric_limits<double>::infinity());
+  for (auto f = s.cdt.finite_faces_begin(); f != s.cdt.finite_faces_end(); ++f) {
     if (f->info() < 0) continue;
-    const Region& region = regions[f->info()];
+    const Region& region = s.regions[f->info()];
     if (region.building < 0) continue;
     const int g = group[region.building];
-    for (int i = 0; i < 3; ++i) roof_height[g] = std::min(roof_height[g], heights[ground_index(f->vertex(i))]);
+    for (int i = 0; i < 3; ++i) roof_height[g] = std::min(roof_height[g], s.heights[f->vertex(i)->info().ground]);
   }
-  for (int r = 0; r < cells_y; ++r) {
-    for (int c = 0; c < cells_x; ++c) {
-      const int32_t id = cell_region[cell_at(c, r)];
-      if (id < 0 || regions[size_t(id)].building < 0) continue;
-      const int g = group[regions[size_t(id)].building];
+  for (int r = 0; r < s.cells_y; ++r) {
+    for (int c = 0; c < s.cells_x; ++c) {
+      const int32_t id = s.cell_region[s.CellAt(c, r)];
+      if (id < 0 || s.regions[size_t(id)].building < 0) continue;
+      const int g = group[s.regions[size_t(id)].building];
       for (const auto& [dc, dr] : {std::pair{0, 0}, {1, 0}, {0, 1}, {1, 1}}) {
-        roof_height[g] = std::min(roof_height[g], heights[size_t(r + dr) * W + c + dc]);
+        roof_height[g] = std::min(roof_height[g], s.heights[size_t(r + dr) * s.W + c + dc]);
       }
     }
   }
-  for (size_t b = 0; b < buildings.size(); ++b) {
-    if (group[b] == static_cast<int>(b) && std::isfinite(roof_height[b])) roof_height[b] += buildings[b].height_m;
+  for (size_t b = 0; b < s.buildings.size(); ++b) {
+    if (group[b] == static_cast<int>(b) && std::isfinite(roof_height[b])) roof_height[b] += s.buildings[b].height_m;
   }
-  std::map<std::pair<int, int>, int> roof_index;  // (group, ground vertex) -> vertex
-  auto roof_vertex = [&](int g, int ground) {
-    auto [it, inserted] = roof_index.emplace(std::make_pair(g, ground), 0);
-    if (inserted) {
-      it->second = static_cast<int>(planar.size());
-      planar.push_back(planar[ground]);
-      heights.push_back(roof_height[g]);
-    }
-    return it->second;
-  };
+}
 
-  // Feet of walls on the ground: copies of the ground vertices, so that the
-  // terrain's smooth shading normals (per vertex) do not reach the walls.
-  std::unordered_map<int, int> foot_index;
-  auto wall_foot = [&](int ground) {
-    auto [it, inserted] = foot_index.emplace(ground, 0);
-    if (inserted) {
-      it->second = static_cast<int>(planar.size());
-      planar.push_back(planar[ground]);
-      heights.push_back(heights[ground]);
-    }
-    return it->second;
-  };
-  std::vector<Eigen::Vector3i> triangles;
-  std::vector<ClassId> classes;
+// ---------------------------------------------------------------- triangles
+
+// First the directly split terrain cells, row-major, on the posts: the
+// mesh's terrain grid (GisScene::grid), which the ray tracer can trace as
+// a height field with the other cells as holes. Default-class cells on the
+// DEM's sea become sea; areas (m2) go to stats.
+void EmitGridCells(SceneBuildState& s) {
+  GisSceneStats& stats = s.stats;
   {
-    const size_t expected = size_t(2 * stats.grid_cells) + size_t(cdt.number_of_faces()) + size_t(1024);
-    triangles.reserve(expected);
-    classes.reserve(expected);
+    const size_t expected = size_t(2 * stats.grid_cells) + size_t(s.cdt.number_of_faces()) + size_t(1024);
+    s.triangles.reserve(expected);
+    s.classes.reserve(expected);
   }
-  // First the directly split terrain cells, row-major, on the posts: the
-  // mesh's terrain grid (GisScene::grid), which the ray tracer can trace as
-  // a height field with the other cells as holes.
-  for (int r = 0; r < cells_y; ++r) {
-    for (int c = 0; c < cells_x; ++c) {
-      const int32_t id = cell_region[cell_at(c, r)];
-      if (id < 0 || regions[size_t(id)].building >= 0) continue;
-      ClassId cls = regions[size_t(id)].cls;
-      if (cls == kClassDefault && !sea_posts.empty() && cell_is_sea(A * Vector2d(c + 0.5, r + 0.5))) {
+  for (int r = 0; r < s.cells_y; ++r) {
+    for (int c = 0; c < s.cells_x; ++c) {
+      const int32_t id = s.cell_region[s.CellAt(c, r)];
+      if (id < 0 || s.regions[size_t(id)].building >= 0) continue;
+      ClassId cls = s.regions[size_t(id)].cls;
+      if (cls == kClassDefault && !s.sea_posts.empty() && s.CellIsSea(s.A * Vector2d(c + 0.5, r + 0.5))) {
         cls = kClassSea;
-        stats.region_area_m2[kClassDefault] -= 2.0 * cell_triangle_area_m2;
-        stats.region_area_m2[kClassSea] += 2.0 * cell_triangle_area_m2;
+        stats.region_area_m2[kClassDefault] -= 2.0 * s.cell_triangle_area_m2;
+        stats.region_area_m2[kClassSea] += 2.0 * s.cell_triangle_area_m2;
       }
-      stats.mesh_area_m2[cls] += 2.0 * cell_triangle_area_m2;
-      for (const Eigen::Vector3i& t : cell_triangles(c, r)) {
-        triangles.push_back(t);
-        classes.push_back(cls);
+      stats.mesh_area_m2[cls] += 2.0 * s.cell_triangle_area_m2;
+      for (const Eigen::Vector3i& t : s.CellTriangles(c, r)) {
+        s.triangles.push_back(t);
+        s.classes.push_back(cls);
       }
-      ++scene.grid.cells;
+      ++s.scene.grid.cells;
     }
   }
-  scene.grid.width = W;
-  scene.grid.height = H;
-  // A wall triangle, ordered so that the horizontal part of its normal
-  // (computed in double precision from the plan coordinates and heights)
-  // points along `out` (a plan direction), or against it when `facing_out`
-  // is false. Vertical extent below 1 mm: dropped.
-  auto add_wall = [&](int p, int q, int r, const Vector2d& out, bool facing_out) {
-    const Eigen::Vector3d a(planar[p].x(), planar[p].y(), heights[p]);
-    const Eigen::Vector3d b(planar[q].x(), planar[q].y(), heights[q]);
-    const Eigen::Vector3d c(planar[r].x(), planar[r].y(), heights[r]);
-    const Eigen::Vector3d n = (b - a).cross(c - a);
-    if (n.norm() < 1e-6) return;
-    const double along = n.x() * out.x() + n.y() * out.y();
-    triangles.push_back((along > 0) == facing_out ? Eigen::Vector3i(p, q, r) : Eigen::Vector3i(p, r, q));
-    classes.push_back(kClassBuilding);
-  };
-  // The wall of edge a -> b (plan, counter-clockwise around its footprint:
-  // the footprint lies to the left) from the bottom vertices to the top
-  // vertices at ground vertices a and b. Where the bottom is above the top
-  // (ground higher than the roof on a slope) that section is the side of a
-  // pit and faces into the footprint; the edge is split where they cross.
-  auto add_edge_walls = [&](int a, int b, int bottom_a, int bottom_b, int top_a, int top_b) {
-    const Vector2d d = planar[b] - planar[a];
-    const Vector2d out(d.y(), -d.x());  // right of a -> b
-    const double ha = heights[top_a] - heights[bottom_a], hb = heights[top_b] - heights[bottom_b];
-    if (ha >= 0 && hb >= 0) {
-      add_wall(bottom_a, bottom_b, top_b, out, true);
-      add_wall(bottom_a, top_b, top_a, out, true);
-      return;
-    }
-    if (ha <= 0 && hb <= 0) {
-      stats.buried_wall_triangles += 2;
-      add_wall(bottom_a, bottom_b, top_b, out, false);
-      add_wall(bottom_a, top_b, top_a, out, false);
-      return;
-    }
-    // Crossing at fraction s along a -> b: one vertex on the top surface.
-    const double s = ha / (ha - hb);
-    const int c = static_cast<int>(planar.size());
-    planar.push_back(planar[a] + s * d);
-    heights.push_back(heights[top_a] + s * (heights[top_b] - heights[top_a]));
-    ++stats.buried_wall_triangles;
-    add_wall(bottom_a, c, top_a, out, ha > 0);
-    add_wall(c, bottom_b, top_b, out, hb > 0);
-  };
-  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+  s.scene.grid.width = s.W;
+  s.scene.grid.height = s.H;
+}
+
+// A wall triangle, ordered so that the horizontal part of its normal
+// (computed in double precision from the plan coordinates and heights)
+// points along `out` (a plan direction), or against it when `facing_out`
+// is false. Vertical extent below 1 mm: dropped.
+void AddWall(SceneBuildState& s, int p, int q, int r, const Vector2d& out, bool facing_out) {
+  const std::vector<Vector2d>& planar = s.planar;
+  const std::vector<double>& heights = s.heights;
+  const Eigen::Vector3d a(planar[p].x(), planar[p].y(), heights[p]);
+  const Eigen::Vector3d b(planar[q].x(), planar[q].y(), heights[q]);
+  const Eigen::Vector3d c(planar[r].x(), planar[r].y(), heights[r]);
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  if (n.norm() < 1e-6) return;
+  const double along = n.x() * out.x() + n.y() * out.y();
+  s.triangles.push_back((along > 0) == facing_out ? Eigen::Vector3i(p, q, r) : Eigen::Vector3i(p, r, q));
+  s.classes.push_back(kClassBuilding);
+}
+
+// The wall of edge a -> b (plan, counter-clockwise around its footprint:
+// the footprint lies to the left) from the bottom vertices to the top
+// vertices at ground vertices a and b. Where the bottom is above the top
+// (ground higher than the roof on a slope) that section is the side of a
+// pit and faces into the footprint; the edge is split where they cross.
+void AddEdgeWalls(SceneBuildState& s, int a, int b, int bottom_a, int bottom_b, int top_a, int top_b) {
+  std::vector<Vector2d>& planar = s.planar;
+  std::vector<double>& heights = s.heights;
+  const Vector2d d = planar[b] - planar[a];
+  const Vector2d out(d.y(), -d.x());  // right of a -> b
+  const double ha = heights[top_a] - heights[bottom_a], hb = heights[top_b] - heights[bottom_b];
+  if (ha >= 0 && hb >= 0) {
+    AddWall(s, bottom_a, bottom_b, top_b, out, true);
+    AddWall(s, bottom_a, top_b, top_a, out, true);
+    return;
+  }
+  if (ha <= 0 && hb <= 0) {
+    s.stats.buried_wall_triangles += 2;
+    AddWall(s, bottom_a, bottom_b, top_b, out, false);
+    AddWall(s, bottom_a, top_b, top_a, out, false);
+    return;
+  }
+  // Crossing at fraction f along a -> b: one vertex on the top surface.
+  const double f = ha / (ha - hb);
+  const int c = static_cast<int>(planar.size());
+  planar.push_back(planar[a] + f * d);
+  heights.push_back(heights[top_a] + f * (heights[top_b] - heights[top_a]));
+  ++s.stats.buried_wall_triangles;
+  AddWall(s, bottom_a, c, top_a, out, ha > 0);
+  AddWall(s, c, bottom_b, top_b, out, hb > 0);
+}
+
+// The CDT's faces in CGAL's order: terrain faces on the ground vertices
+// (default class on the DEM's sea becomes sea), building faces as roofs
+// on their block's roof copies with walls along the edges to the ground or
+// to a lower block. Faces outside the scene and terrain slivers narrower
+// than 10 micrometres are dropped; areas (m2) go to stats.
+void EmitCdtFaces(SceneBuildState& s) {
+  GisSceneStats& stats = s.stats;
+  const std::vector<Vector2d>& planar = s.planar;
+  for (auto f = s.cdt.finite_faces_begin(); f != s.cdt.finite_faces_end(); ++f) {
     if (f->info() < 0) {
       ++stats.dropped_faces;
       continue;
     }
-    const Region& region = regions[f->info()];
+    const Region& region = s.regions[f->info()];
     if (region.outside) {
       ++stats.dropped_faces;
       continue;
     }
     int g[3];
-    for (int i = 0; i < 3; ++i) g[i] = ground_index(f->vertex(i));
+    for (int i = 0; i < 3; ++i) g[i] = f->vertex(i)->info().ground;
     const double area =
         0.5 * std::abs((planar[g[1]] - planar[g[0]]).x() * (planar[g[2]] - planar[g[0]]).y() -
                        (planar[g[1]] - planar[g[0]]).y() * (planar[g[2]] - planar[g[0]]).x());
@@ -1477,165 +1714,238 @@ GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
     if (sliver && region.building < 0) continue;
     if (region.building < 0) {
       ClassId cls = region.cls;
-      if (cls == kClassDefault && !sea_posts.empty() &&
-          cell_is_sea((planar[g[0]] + planar[g[1]] + planar[g[2]]) / 3.0)) {
+      if (cls == kClassDefault && !s.sea_posts.empty() &&
+          s.CellIsSea((planar[g[0]] + planar[g[1]] + planar[g[2]]) / 3.0)) {
         cls = kClassSea;
         stats.region_area_m2[kClassDefault] -= area;
         stats.region_area_m2[kClassSea] += area;
       }
       stats.mesh_area_m2[cls] += area;
-      triangles.emplace_back(g[0], g[1], g[2]);
-      classes.push_back(cls);
+      s.triangles.emplace_back(g[0], g[1], g[2]);
+      s.classes.push_back(cls);
       continue;
     }
     stats.mesh_area_m2[region.cls] += area;
-    const int own = group[region.building];
+    const int own = s.group[region.building];
     if (!sliver) {
-      triangles.emplace_back(roof_vertex(own, g[0]), roof_vertex(own, g[1]), roof_vertex(own, g[2]));
-      classes.push_back(kClassBuilding);
+      s.triangles.emplace_back(s.RoofVertex(own, g[0]), s.RoofVertex(own, g[1]), s.RoofVertex(own, g[2]));
+      s.classes.push_back(kClassBuilding);
     }
     for (int i = 0; i < 3; ++i) {
       // CGAL faces are counter-clockwise in M (ENU-aligned): edge i runs
       // ccw(i) -> cw(i) with this face on its left.
       const int a = g[Cdt::ccw(i)], b = g[Cdt::cw(i)];
-      const int across = region_across(f, i);
-      const int other = across < 0 || regions[across].building < 0 ? -1 : group[regions[across].building];
+      const int across = RegionAcross(s, f, i);
+      const int other = across < 0 || s.regions[across].building < 0 ? -1 : s.group[s.regions[across].building];
       if (other == own) continue;
       if (other < 0) {
-        add_edge_walls(a, b, wall_foot(a), wall_foot(b), roof_vertex(own, a), roof_vertex(own, b));
-      } else if (roof_height[other] < roof_height[own]) {
+        AddEdgeWalls(s, a, b, s.WallFoot(a), s.WallFoot(b), s.RoofVertex(own, a), s.RoofVertex(own, b));
+      } else if (s.roof_height[other] < s.roof_height[own]) {
         // A step between touching blocks: only the part above the lower
         // roof, on the higher block's side (the lower block emits nothing).
         ++stats.step_walls;
-        add_edge_walls(a, b, roof_vertex(other, a), roof_vertex(other, b), roof_vertex(own, a),
-                       roof_vertex(own, b));
+        AddEdgeWalls(s, a, b, s.RoofVertex(other, a), s.RoofVertex(other, b), s.RoofVertex(own, a),
+                     s.RoofVertex(own, b));
       }
     }
   }
-  // The directly split cells inside buildings: roofs (no walls: no
-  // footprint edge touches them).
-  for (int r = 0; r < cells_y; ++r) {
-    for (int c = 0; c < cells_x; ++c) {
-      const int32_t id = cell_region[cell_at(c, r)];
-      if (id < 0 || regions[size_t(id)].building < 0) continue;
-      const Region& region = regions[size_t(id)];
-      const int own = group[region.building];
-      stats.mesh_area_m2[region.cls] += 2.0 * cell_triangle_area_m2;
-      for (const Eigen::Vector3i& t : cell_triangles(c, r)) {
-        triangles.emplace_back(roof_vertex(own, t[0]), roof_vertex(own, t[1]), roof_vertex(own, t[2]));
-        classes.push_back(kClassBuilding);
+}
+
+// The directly split cells inside buildings: roofs (no walls: no
+// footprint edge touches them). Then the triangulation and the per-cell
+// tables are done with (memory for the 3-D positions).
+void EmitBuildingCellRoofs(SceneBuildState& s) {
+  for (int r = 0; r < s.cells_y; ++r) {
+    for (int c = 0; c < s.cells_x; ++c) {
+      const int32_t id = s.cell_region[s.CellAt(c, r)];
+      if (id < 0 || s.regions[size_t(id)].building < 0) continue;
+      const Region& region = s.regions[size_t(id)];
+      const int own = s.group[region.building];
+      s.stats.mesh_area_m2[region.cls] += 2.0 * s.cell_triangle_area_m2;
+      for (const Eigen::Vector3i& t : s.CellTriangles(c, r)) {
+        s.triangles.emplace_back(s.RoofVertex(own, t[0]), s.RoofVertex(own, t[1]), s.RoofVertex(own, t[2]));
+        s.classes.push_back(kClassBuilding);
       }
     }
   }
+  s.cdt.clear();
+  std::vector<uint8_t>().swap(s.in_cdt);
+  std::vector<int32_t>().swap(s.cell_region);
+}
 
-  // The triangulation and the per-cell tables are done with (memory for the
-  // 3-D positions below).
-  cdt.clear();
-  std::vector<uint8_t>().swap(in_cdt);
-  std::vector<int32_t>().swap(cell_region);
+// ------------------------------------------------------ sealing and 3-D
 
-  // The sea surface lies at the sea level: DEM heights over the sea (SRTM's
-  // noise, filled voids, a cliff smoothed over the 90 m posts) are not its
-  // shape, and tilted sea facets would glint. The shore as mapped (the
-  // vertices a sea face shares with the land) is at the sea level too,
-  // except where that would stand a terrain face steeper than 75 degrees (a
-  // DEM post high on a cliff a few metres from the mapped shore): such
-  // vertices keep their DEM height, repeated until no face is that steep
-  // (each round only restores heights, so it ends at worst where it began).
-  {
-    std::vector<uint8_t> lowered(heights.size(), 0);
-    const std::vector<double> dem_heights = heights;
+// The sea surface lies at the sea level: DEM heights over the sea (SRTM's
+// noise, filled voids, a cliff smoothed over the 90 m posts) are not its
+// shape, and tilted sea facets would glint. The shore as mapped (the
+// vertices a sea face shares with the land) is at the sea level too,
+// except where that would stand a terrain face steeper than 75 degrees (a
+// DEM post high on a cliff a few metres from the mapped shore): such
+// vertices keep their DEM height, repeated until no face is that steep
+// (each round only restores heights, so it ends at worst where it began).
+// Takes and gives heights (m).
+void SealSeaSurface(SceneBuildState& s) {
+  const double sea_level_m = s.config.sea_level_m;
+  const std::vector<Eigen::Vector3i>& triangles = s.triangles;
+  const std::vector<ClassId>& classes = s.classes;
+  const std::vector<Vector2d>& planar = s.planar;
+  std::vector<double>& heights = s.heights;
+  std::vector<uint8_t> lowered(heights.size(), 0);
+  const std::vector<double> dem_heights = heights;
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    if (classes[t] != kClassSea) continue;
+    for (int k = 0; k < 3; ++k) {
+      const size_t v = size_t(triangles[t][k]);
+      if (heights[v] != sea_level_m) {
+        heights[v] = sea_level_m;
+        lowered[v] = 1;
+      }
+    }
+  }
+  const double tan_max = std::tan(75.0 * M_PI / 180.0);
+  for (bool changed = true; changed;) {
+    changed = false;
     for (size_t t = 0; t < triangles.size(); ++t) {
-      if (classes[t] != kClassSea) continue;
+      if (classes[t] == kClassBuilding) continue;
+      const Eigen::Vector3i& tri = triangles[t];
+      if (!lowered[tri[0]] && !lowered[tri[1]] && !lowered[tri[2]]) continue;
+      const Vector2d e1 = planar[tri[1]] - planar[tri[0]], e2 = planar[tri[2]] - planar[tri[0]];
+      const double dh1 = heights[tri[1]] - heights[tri[0]], dh2 = heights[tri[2]] - heights[tri[0]];
+      // Normal (e1, dh1) x (e2, dh2): horizontal part over vertical part = tan(slope).
+      const double nz = e1.x() * e2.y() - e1.y() * e2.x();
+      const Vector2d nxy(e1.y() * dh2 - dh1 * e2.y(), dh1 * e2.x() - e1.x() * dh2);
+      if (nxy.norm() <= tan_max * std::abs(nz)) continue;
       for (int k = 0; k < 3; ++k) {
-        const size_t v = size_t(triangles[t][k]);
-        if (heights[v] != config.sea_level_m) {
-          heights[v] = config.sea_level_m;
-          lowered[v] = 1;
-        }
+        if (!lowered[tri[k]]) continue;
+        heights[tri[k]] = dem_heights[tri[k]];
+        lowered[tri[k]] = 0;
+        changed = true;
       }
     }
-    const double tan_max = std::tan(75.0 * M_PI / 180.0);
-    for (bool changed = true; changed;) {
-      changed = false;
-      for (size_t t = 0; t < triangles.size(); ++t) {
-        if (classes[t] == kClassBuilding) continue;
-        const Eigen::Vector3i& tri = triangles[t];
-        if (!lowered[tri[0]] && !lowered[tri[1]] && !lowered[tri[2]]) continue;
-        const Vector2d e1 = planar[tri[1]] - planar[tri[0]], e2 = planar[tri[2]] - planar[tri[0]];
-        const double dh1 = heights[tri[1]] - heights[tri[0]], dh2 = heights[tri[2]] - heights[tri[0]];
-        // Normal (e1, dh1) x (e2, dh2): horizontal part over vertical part = tan(slope).
-        const double nz = e1.x() * e2.y() - e1.y() * e2.x();
-        const Vector2d nxy(e1.y() * dh2 - dh1 * e2.y(), dh1 * e2.x() - e1.x() * dh2);
-        if (nxy.norm() <= tan_max * std::abs(nz)) continue;
-        for (int k = 0; k < 3; ++k) {
-          if (!lowered[tri[k]]) continue;
-          heights[tri[k]] = dem_heights[tri[k]];
-          lowered[tri[k]] = 0;
-          changed = true;
-        }
-      }
-    }
-    stats.sea_level_vertices = std::count(lowered.begin(), lowered.end(), 1);
   }
+  s.stats.sea_level_vertices = std::count(lowered.begin(), lowered.end(), 1);
+}
 
-  // 3-D positions: cell -> map -> WGS84 -> ENU at the vertex height.
+// 3-D positions: cell -> map -> WGS84 -> ENU at the vertex height. Takes
+// planar (M) and heights (m); gives scene.mesh.vertices (ENU, float).
+void PlaceVertices(SceneBuildState& s) {
+  const std::vector<Vector2d>& planar = s.planar;
   std::vector<double> x(planar.size()), y(planar.size());
   for (size_t i = 0; i < planar.size(); ++i) {
-    const Vector2d cell = cell_from_planar * planar[i];
-    const Vector2d map = dem.MapFromPost(cell.x(), cell.y());
+    const Vector2d cell = s.cell_from_planar * planar[i];
+    const Vector2d map = s.dem.MapFromPost(cell.x(), cell.y());
     x[i] = map.x();
     y[i] = map.y();
   }
-  crs.ToLonLat(x, y);
-  TriangleMesh& mesh = scene.mesh;
+  s.crs.ToLonLat(x, y);
+  TriangleMesh& mesh = s.scene.mesh;
   mesh.vertices.resize(planar.size());
   for (size_t i = 0; i < planar.size(); ++i) {
-    mesh.vertices[i] = frame.EnuFromGeodetic(x[i], y[i], heights[i]).cast<float>();
+    mesh.vertices[i] = s.frame.EnuFromGeodetic(x[i], y[i], s.heights[i]).cast<float>();
   }
-  // Terrain slivers narrower than 10 cm in plan that stand steeper than 80
-  // degrees or face down once placed (three nearly collinear vertices on a
-  // curved bilinear cell or on Earth's curvature): dropped, a gap no radar
-  // pixel resolves, so that only buildings are near-vertical.
-  {
-    const float cos80 = static_cast<float>(std::cos(80.0 * M_PI / 180.0));
-    size_t kept = 0;
-    for (size_t t = 0; t < triangles.size(); ++t) {
-      const Eigen::Vector3i& tri = triangles[t];
-      if (classes[t] != kClassBuilding) {
-        const Eigen::Vector3d a = mesh.vertices[tri[0]].cast<double>();
-        const Eigen::Vector3d n =
-            (mesh.vertices[tri[1]].cast<double>() - a).cross(mesh.vertices[tri[2]].cast<double>() - a);
-        double longest = 0.0;
-        for (int k = 0; k < 3; ++k) longest = std::max(longest, (planar[tri[k]] - planar[tri[(k + 1) % 3]]).norm());
-        const Vector2d e1 = planar[tri[1]] - planar[tri[0]], e2 = planar[tri[2]] - planar[tri[0]];
-        const double width = std::abs(e1.x() * e2.y() - e1.y() * e2.x()) / std::max(longest, 1e-12);
-        if (n.z() <= cos80 * n.norm() && width < 0.1) {
-          ++stats.steep_slivers;
-          // A grid cell's triangle (never this narrow): the mesh no longer
-          // starts with the grid.
-          if (t < size_t(2 * scene.grid.cells)) scene.grid = GridPrefix{};
-          continue;
-        }
+}
+
+// Terrain slivers narrower than 10 cm in plan that stand steeper than 80
+// degrees or face down once placed (three nearly collinear vertices on a
+// curved bilinear cell or on Earth's curvature): dropped, a gap no radar
+// pixel resolves, so that only buildings are near-vertical. Takes and
+// gives triangles and classes (the grid prefix is cleared if one goes).
+void DropSteepSlivers(SceneBuildState& s) {
+  const std::vector<Vector2d>& planar = s.planar;
+  const TriangleMesh& mesh = s.scene.mesh;
+  std::vector<Eigen::Vector3i>& triangles = s.triangles;
+  std::vector<ClassId>& classes = s.classes;
+  const float cos80 = static_cast<float>(std::cos(80.0 * M_PI / 180.0));
+  size_t kept = 0;
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = triangles[t];
+    if (classes[t] != kClassBuilding) {
+      const Eigen::Vector3d a = mesh.vertices[tri[0]].cast<double>();
+      const Eigen::Vector3d n =
+          (mesh.vertices[tri[1]].cast<double>() - a).cross(mesh.vertices[tri[2]].cast<double>() - a);
+      double longest = 0.0;
+      for (int k = 0; k < 3; ++k) longest = std::max(longest, (planar[tri[k]] - planar[tri[(k + 1) % 3]]).norm());
+      const Vector2d e1 = planar[tri[1]] - planar[tri[0]], e2 = planar[tri[2]] - planar[tri[0]];
+      const double width = std::abs(e1.x() * e2.y() - e1.y() * e2.x()) / std::max(longest, 1e-12);
+      if (n.z() <= cos80 * n.norm() && width < 0.1) {
+        ++s.stats.steep_slivers;
+        // A grid cell's triangle (never this narrow): the mesh no longer
+        // starts with the grid.
+        if (t < size_t(2 * s.scene.grid.cells)) s.scene.grid = GridPrefix{};
+        continue;
       }
-      triangles[kept] = triangles[t];
-      classes[kept] = classes[t];
-      ++kept;
     }
-    triangles.resize(kept);
-    classes.resize(kept);
+    triangles[kept] = triangles[t];
+    classes[kept] = classes[t];
+    ++kept;
   }
-  mesh.triangles = std::move(triangles);
+  triangles.resize(kept);
+  classes.resize(kept);
+}
+
+// Moves triangles, classes and planar into the scene; gives the triangle
+// counts per class and the build time in stats.
+void FinishScene(SceneBuildState& s) {
+  GisScene& scene = s.scene;
+  TriangleMesh& mesh = scene.mesh;
+  mesh.triangles = std::move(s.triangles);
   // The grid's orientation in ENU must be MeshFromGrid's (it is: M is the
   // ENU-aligned Jacobian of the grid).
   if (scene.grid.cells > 0 && !GridPrefixCells(mesh, scene.grid)) scene.grid = GridPrefix{};
-  mesh.classes = std::move(classes);
-  scene.planar = std::move(planar);
-  for (ClassId c : mesh.classes) ++stats.triangles[c];
-  stats.seconds = watch.ElapsedSeconds();
-  progress.Done();
-  say("built " + std::to_string(mesh.triangle_count()) + " triangles in " +
-      std::to_string(stats.seconds) + " s");
+  mesh.classes = std::move(s.classes);
+  scene.planar = std::move(s.planar);
+  for (ClassId c : mesh.classes) ++s.stats.triangles[c];
+  s.stats.seconds = s.watch.ElapsedSeconds();
+  s.progress.Done();
+  s.Say("built " + std::to_string(mesh.triangle_count()) + " triangles in " + std::to_string(s.stats.seconds) +
+        " s");
+}
+
+}  // namespace
+
+// The recipe. Frames and units: see SceneBuildState.
+GisScene BuildGisScene(const geo::Dem& dem, const geo::LocalFrame& frame,
+                       const SceneConfig& config, Reporter& reporter, TerrainTriangulation triangulation) {
+  GisScene scene;
+  SceneBuildState s(dem, frame, config, reporter, triangulation, scene);
+
+  // Extent and the posts inside it.
+  SetUpPlanarFrame(s);
+  PrepareExtent(s);
+  // Classes and buildings: each layer's features cleaned (MakeValid), roads
+  // and waterways buffered to their width, clipped to the extent.
+  ReadLayers(s);
+  // Sea: coastlines closed against the extent, else --sea auto's DEM sea.
+  BuildCoastlineSea(s);
+  s.Step();
+  ChooseDemSea(s);
+  // Class regions: union per class, areas resolved by priority.
+  ResolveClassRegions(s);
+  // Constraints: every class and building boundary noded by GEOS.
+  NodeConstraints(s);
+  // Triangulation: CGAL's constrained Delaunay triangulation of the cells
+  // constraints touch; the others split directly.
+  MarkCdtCells(s);
+  Triangulate(s);
+  s.Step();
+  // Regions: classes flooded across the faces and the cells.
+  FloodCdtRegions(s);
+  FloodCellRegions(s);
+  s.Step();
+  // Vertices: ground with DEM heights; blocks of buildings and their roofs.
+  GroundVertices(s);
+  GroupBuildings(s);
+  RoofHeights(s);
+  // Triangles: terrain grid, CDT faces with roofs and walls, roofs on cells.
+  EmitGridCells(s);
+  EmitCdtFaces(s);
+  EmitBuildingCellRoofs(s);
+  // Sealing: the sea at sea level; 3-D positions; steep slivers out.
+  SealSeaSurface(s);
+  PlaceVertices(s);
+  DropSteepSlivers(s);
+  // Statistics.
+  FinishScene(s);
   return scene;
 }
 

@@ -33,7 +33,7 @@ inline constexpr uint32_t kSceneFileVersion = 2;
 // read (material/reflector.h: the scene module keeps the type as its name)
 // and its phase centre placed on the scene's surface, ENU metres.
 struct StoredReflector {
-  std::string type;  // trihedral, trihedral_square, dihedral, plate (checked by the reader of the scene)
+  std::string type;  // a name of material::kReflectorTypes (checked by the reader of the scene)
   double lon_deg = 0.0, lat_deg = 0.0;
   double apex_height_m = 0.0;
   double size_m = 1.0;

@@ -51,22 +51,16 @@ Eigen::Vector3d LookDirection(double heading_deg, double depression_deg, LookSid
   return std::cos(dep) * r_h - std::sin(dep) * Eigen::Vector3d::UnitZ();
 }
 
-LookSide ParseLookSide(const std::string& text) {
-  if (text == "right") return LookSide::kRight;
-  if (text == "left") return LookSide::kLeft;
-  throw ConfigError("look side must be 'right' or 'left', got '" + text + "'", "--look");
+LookSide ParseLookSide(const std::string& text, const std::string& option) {
+  return kLookSides.Parse(text, option);
 }
 
-ProjectionMode ParseProjectionMode(const std::string& text) {
-  if (text == "affine") return ProjectionMode::kAffine;
-  if (text == "exact") return ProjectionMode::kExact;
-  throw ConfigError("mode must be 'affine' or 'exact', got '" + text + "'", "--mode");
+ProjectionMode ParseProjectionMode(const std::string& text, const std::string& option) {
+  return kProjectionModes.Parse(text, option);
 }
 
-std::string ToString(LookSide side) { return side == LookSide::kRight ? "right" : "left"; }
-std::string ToString(ProjectionMode mode) {
-  return mode == ProjectionMode::kAffine ? "affine" : "exact";
-}
+std::string ToString(LookSide side) { return std::string(kLookSides.Name(side)); }
+std::string ToString(ProjectionMode mode) { return std::string(kProjectionModes.Name(mode)); }
 
 void SarGeometryOptions::Check() const {
   // Bounds: a heading is an angle (headings drift past 360 in pose

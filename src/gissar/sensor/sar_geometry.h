@@ -22,14 +22,21 @@
 
 #include <Eigen/Core>
 
+#include "gissar/util/enum_table.h"
+
 namespace gissar::sensor {
 
 enum class LookSide { kRight, kLeft };
+inline constexpr auto kLookSides =
+    util::MakeEnumTable<LookSide>("look side", {{LookSide::kRight, "right"}, {LookSide::kLeft, "left"}});
 enum class ProjectionMode { kAffine, kExact };
+inline constexpr auto kProjectionModes = util::MakeEnumTable<ProjectionMode>(
+    "mode", {{ProjectionMode::kAffine, "affine"}, {ProjectionMode::kExact, "exact"}});
 
-// Parses "right"/"left" and "affine"/"exact"; throws ConfigError otherwise.
-LookSide ParseLookSide(const std::string& text);
-ProjectionMode ParseProjectionMode(const std::string& text);
+// The tables' Parse and Name: a name of the table, else ConfigError naming
+// `option` and the choices.
+LookSide ParseLookSide(const std::string& text, const std::string& option = "--look");
+ProjectionMode ParseProjectionMode(const std::string& text, const std::string& option = "--mode");
 std::string ToString(LookSide side);
 std::string ToString(ProjectionMode mode);
 
