@@ -219,7 +219,7 @@ def make_parser():
                    help="error, warning or info (default: info)")
     m.add_argument("--threads", metavar="N", type=int, default=None,
                    help="Threads of each simulation (default: cores / workers on the embedded cluster)")
-    _switch(m, "--force", "force", "Run even when the job exceeds the memory budget (--max-memory)", False)
+    _switch(m, "--force", "force", "Run even when the job exceeds the memory budget (--max-memory) or the 2^28-pixel image limit", False)
     m.add_argument("--options", metavar="FILE.json", help="JSON file of options: keys are the snake_case names (docs/conventions.md); "
                                      "flags on the command line win")
     return p

@@ -64,7 +64,7 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
     sub->add_option("--log-level", flags.log_level, kLogLevels.Alternatives())->capture_default_str();
     sub->add_option("--threads", flags.threads, "Worker threads (default: all cores)")
         ->check(CLI::NonNegativeNumber);
-    AddSwitch(sub, "force", flags.force, "Run even when the job exceeds the memory budget (--max-memory)");
+    AddSwitch(sub, "force", flags.force, "Run even when the job exceeds the memory budget (--max-memory) or the 2^28-pixel image limit");
     sub->add_option("--options", flags.options_file,
                     "JSON file of options: keys are the snake_case field names (docs/conventions.md); "
                     "flags on the command line win");

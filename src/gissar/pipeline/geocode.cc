@@ -13,6 +13,7 @@
 #include "gissar/pipeline/stac.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
+#include "gissar/util/memory_limit.h"
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
@@ -230,12 +231,9 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   const int width = int(std::lround((x_max - x_min) / px)), height = int(std::lround((y_max - y_min) / px));
   const int nbands_in = int(image.bands.size());
   const double bytes = double(width) * height * (nbands_in + 2) * 4.0 * 2.0;
-  if (double(width) * height > double(int64_t{1} << 28) || bytes > double(request.max_memory_bytes)) {
-    std::ostringstream text;
-    text << "the map grid would be " << width << " x " << height << " pixels (" << bytes / (1 << 20)
-         << " MiB): choose a larger --pixel-size";
-    throw ConfigError(text.str(), "--pixel-size");
-  }
+  const std::string grid_size = "the map grid of " + std::to_string(width) + " x " + std::to_string(height) + " pixels";
+  CheckImagePixels(width, height, request.max_memory_bytes, grid_size, "choose a larger --pixel-size", "--pixel-size");
+  CheckMemoryBudget(bytes, request.max_memory_bytes, grid_size, "choose a larger --pixel-size");
   const std::vector<double> geotransform{x_min, px, 0.0, y_max, 0.0, -px};
 
   // Points per output pixel.

@@ -201,6 +201,25 @@ TEST_P(GeocodeTest, FeaturesLandOnTheirMapPosition) {
   request.out_prefix = (dir / "map10").string();
   RunGeocode(request, "test");
   check_squares(geo::ReadFloatRaster(dir / "map10.tif"), "average 10 m");
+  // A map grid over 2^28 pixels (5 cm pixels over the scene's 1.4 km) is
+  // refused without --force, naming --pixel-size, and writes nothing.
+  {
+    GeocodeRequest fine = request;
+    fine.pixel_size_m = 0.05;
+    fine.resampling = "bilinear";
+    fine.out_prefix = (dir / "fine").string();
+    try {
+      RunGeocode(fine, "test");
+      ADD_FAILURE() << "expected ConfigError";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(e.message().find("is over the 2^28-pixel limit (268435456 pixels); choose a larger --pixel-size, or "
+                                 "run it anyway with --force"),
+                std::string::npos)
+          << e.message();
+      EXPECT_EQ(e.where(), "--pixel-size");
+    }
+    EXPECT_FALSE(fs::exists(dir / "fine.tif"));
+  }
 
   // References on the same grid, from the closed-form terrain, the class
   // map (the two squares) and the sensor track of the sidecar, not from

@@ -1136,6 +1136,12 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   CheckViewingGeometry(geometry, mesh, reporter);
   CheckImpulseResponsePixels(options.RangeResolutionM() / geometry.range_spacing_m(),
                              options.AzimuthResolutionM() / geometry.azimuth_spacing_m());
+  const bool sized = options.geometry.width > 0 || options.geometry.height > 0;
+  CheckImagePixels(geometry.width(), geometry.height(), options.max_memory_bytes,
+                   "image of " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
+                       " pixels",
+                   sized ? "give a smaller --width/--height" : "use coarser --range-spacing/--azimuth-spacing",
+                   sized ? (options.geometry.width > 0 ? "--width" : "--height") : "--range-spacing");
   CheckMemoryBudget(BytesPerImagePixel(options) * geometry.width() * double(geometry.height()) +
                         double(mesh.MemoryBytes()) * 3.0,
                     options.max_memory_bytes,

@@ -92,6 +92,9 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
   // One frame traced at a time (64 B per pixel, as simulate), plus every
   // frame's 8-bit quicklook and the RGB contact sheet kept for the end.
   const double pixels = double(width) * double(height);
+  CheckImagePixels(width, height, options.base.max_memory_bytes,
+                   "a frame of " + std::to_string(width) + " x " + std::to_string(height) + " pixels",
+                   "use coarser --range-spacing/--azimuth-spacing", "--range-spacing");
   CheckMemoryBudget(64.0 * pixels + 4.0 * pixels * options.frames + 3.0 * double(terrain.mesh.MemoryBytes()),
                     options.base.max_memory_bytes,
                     "sequence of " + std::to_string(options.frames) + " frames of " + std::to_string(width) + " x " +
@@ -194,6 +197,10 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
       ResolvedGeometry(options.base, terrain), terrain.centre_enu, terrain.mesh.vertices);
   // The SAR image (64 B per pixel, as simulate), two RGB ortho views, the
   // SAR quicklook and the side-by-side trio (about 3 x 3 B): 112 B per pixel.
+  CheckImagePixels(geometry.width(), geometry.height(), options.base.max_memory_bytes,
+                   "ortho views of " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
+                       " pixels",
+                   "use coarser --range-spacing/--azimuth-spacing", "--range-spacing");
   CheckMemoryBudget(112.0 * double(geometry.width()) * double(geometry.height()) +
                         3.0 * double(terrain.mesh.MemoryBytes()),
                     options.base.max_memory_bytes,

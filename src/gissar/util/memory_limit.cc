@@ -108,4 +108,12 @@ void CheckMemoryBudget(double needed_bytes, int64_t limit_bytes, const std::stri
                     "--max-memory");
 }
 
+void CheckImagePixels(double width, double height, int64_t limit_bytes, const std::string& what,
+                      const std::string& how_to_reduce, const std::string& option) {
+  if (width * height <= static_cast<double>(kUnforcedImagePixels) || limit_bytes >= kForcedMemoryLimitBytes) return;
+  throw ConfigError(what + " is over the 2^28-pixel limit (" + std::to_string(kUnforcedImagePixels) + " pixels); " +
+                        how_to_reduce + ", or run it anyway with --force",
+                    option);
+}
+
 }  // namespace gissar

@@ -38,4 +38,20 @@ std::string FormatBytes(double bytes);
 void CheckMemoryBudget(double needed_bytes, int64_t limit_bytes, const std::string& what,
                        const std::string& how_to_reduce);
 
+// Most pixels of an image a job makes unless --force (CONVENTIONS, "Memory
+// and size"): 2^28 (16384 x 16384).
+inline constexpr int64_t kUnforcedImagePixels = int64_t{1} << 28;
+
+// A memory budget at or above this is --force's (the CLI sets INT64_MAX,
+// the Python corridor 2^62): it lifts both the budget and the image-size
+// limit.
+inline constexpr int64_t kForcedMemoryLimitBytes = int64_t{1} << 62;
+
+// Throws ConfigError(where = `option`) when a `width` x `height` image is
+// over kUnforcedImagePixels and `limit_bytes` is not forced: "<what> is
+// over the 2^28-pixel limit (268435456 pixels); <how_to_reduce>, or run it
+// anyway with --force". Does nothing otherwise.
+void CheckImagePixels(double width, double height, int64_t limit_bytes, const std::string& what,
+                      const std::string& how_to_reduce, const std::string& option);
+
 }  // namespace gissar

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "gissar/util/error.h"
 #include "gissar/util/testing.h"
@@ -52,6 +53,25 @@ TEST(MemoryLimitTest, BudgetCheckSaysHowToReduceTheJob) {
   EXPECT_EQ(FormatBytes(100), "100 B");
   EXPECT_EQ(FormatBytes(1536), "1.5 KiB");
   EXPECT_EQ(FormatBytes(300.0 * (1 << 20)), "300 MiB");
+}
+
+// 16384 x 16384 = 2^28 pixels is the most without --force; one more row is
+// refused, naming the option, unless the budget is --force's.
+TEST(MemoryLimitTest, ImagesOver2To28PixelsNeedForce) {
+  const int64_t budget = int64_t{8} << 30;
+  EXPECT_NO_THROW(CheckImagePixels(16384, 16384, budget, "image", "use coarser spacing", "--width"));
+  try {
+    CheckImagePixels(16384, 16385, budget, "image of 16384 x 16385 pixels", "use coarser spacing", "--height");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message(),
+              "image of 16384 x 16385 pixels is over the 2^28-pixel limit (268435456 pixels); use coarser "
+              "spacing, or run it anyway with --force");
+    EXPECT_EQ(e.where(), "--height");
+  }
+  EXPECT_NO_THROW(CheckImagePixels(16384, 16385, kForcedMemoryLimitBytes, "image", "x", "--height"));
+  EXPECT_NO_THROW(CheckImagePixels(65536, 65536, std::numeric_limits<int64_t>::max(), "image", "x", "--height"));
+  EXPECT_THROW(CheckImagePixels(65536, 65536, kForcedMemoryLimitBytes - 1, "image", "x", "--height"), ConfigError);
 }
 
 TEST(MemoryLimitTest, CgroupV1AndV2LimitsAreRead) {
