@@ -385,6 +385,15 @@ std::unique_ptr<geo::MemoryRaster> TakeArrayDem(py::kwargs& kwargs) {
   if (transform.is_none() || crs.is_none()) {
     throw ConfigError("a DEM given as an array needs transform= and crs=", "gissar keyword 'dem'");
   }
+  // Only real numbers are heights: a bool, complex, text or object array is
+  // refused here too (the package's converters refuse it first, naming the
+  // parameter; this is the core's own guard for direct callers).
+  const char kind = py::array(kwargs["dem"]).dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u') {
+    throw InputError("must be an array of real heights, got dtype " +
+                         py::str(py::array(kwargs["dem"]).dtype()).cast<std::string>(),
+                     "gissar keyword 'dem'");
+  }
   const auto heights = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(kwargs["dem"]);
   if (!heights || heights.ndim() != 2) throw ConfigError("must be a 2-D array of heights", "gissar keyword 'dem'");
   std::vector<double> gt;
@@ -542,7 +551,7 @@ py::dict SimulateProduct(const std::string& product, py::kwargs kwargs) {
   out["zero_doppler_time_s"] = sim.product.zero_doppler_time_s;
   out["slant_range_m"] = sim.product.slant_range_m;
   out["wavelength_m"] = sim.product.wavelength_m;
-  out["look_side"] = sim.product.look_left ? "left" : "right";
+  out["look_side"] = sensor::ToString(sensor::LookSideOf(sim.product.look_left));
   out["options"] = JsonToPython(options.ToJson());
   return out;
 }
@@ -894,7 +903,7 @@ class OpenedProduct {
     info["dtype"] = is_complex() ? "complex64" : "float32";
     const std::string radiometry = geo::ToString(radiometry_);
     py::dict attrs;
-    attrs["look_side"] = (s1_ ? s1_->annotation().look_left : nisar_->look_left) ? "left" : "right";
+    attrs["look_side"] = sensor::ToString(sensor::LookSideOf(s1_ ? s1_->annotation().look_left : nisar_->look_left));
     attrs["radiometry"] = radiometry;
     std::vector<int64_t> time_ns(static_cast<size_t>(rows()));
     if (s1_) {
@@ -1380,7 +1389,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
       .def_property_readonly("slant_range_m", &sensor::SarGeometry::slant_range_m, "Slant range to the scene centre, m.")
       .def_property_readonly("look_side", [](const sensor::SarGeometry& g) { return sensor::ToString(g.options().look_side); })
       .def_property_readonly("mode", [](const sensor::SarGeometry& g) {
-        return g.mode() == sensor::ProjectionMode::kAffine ? "affine" : "exact";
+        return sensor::ToString(g.mode());
       })
       .def_property_readonly("scene_centre_enu_m", [](const sensor::SarGeometry& g) {
         return std::array<double, 3>{g.scene_centre().x(), g.scene_centre().y(), g.scene_centre().z()};
@@ -1400,7 +1409,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
             const sensor::SarGeometryOptions& o = g.options();
             return py::make_tuple(o.heading_deg, o.depression_deg, o.range_spacing_m, o.azimuth_spacing_m,
                                   sensor::ToString(o.look_side),
-                                  g.mode() == sensor::ProjectionMode::kAffine ? "affine" : "exact", o.slant_range_m,
+                                  sensor::ToString(g.mode()), o.slant_range_m,
                                   std::array<double, 3>{g.scene_centre().x(), g.scene_centre().y(), g.scene_centre().z()},
                                   g.u0(), g.v0(), g.width(), g.height());
           },
@@ -1454,7 +1463,7 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         o.vertical_datum = vertical_datum;
         o.crs = crs;
         o.pixel_size_m = pixel_size_m;
-        o.resampling = resampling;
+        o.resampling = pipeline::kGeocodeResamplings.Parse(resampling, "gissar.geocode: resampling");
         pipeline::GeocodeResult r;
         PyReporter reporter{py::none()};
         {

@@ -108,6 +108,16 @@ def test_dem_array_of_non_real_values_is_refused(case, values, text):
     _assert_refused(error, "dem", "must be an array of real heights", text)
 
 
+@pytest.mark.parametrize("dtype", [np.bool_, np.complex64, np.complex128, np.dtype("<U3"), object])
+def test_the_core_refuses_non_real_dem_arrays_itself(dtype):
+    """The private core, called directly (not through the package's converters), casts nothing either."""
+    values = np.ones((N, N), dtype=dtype) if dtype is not object else np.full((N, N), 1.0, dtype=object)
+    with pytest.raises(gissar.InputError) as error:
+        gissar._core.simulate(dem=values, transform=GT, crs=32631, **SIM)
+    assert "must be an array of real heights, got dtype" in str(error.value)
+    assert "dem" in str(error.value)
+
+
 @pytest.mark.parametrize("case, values, error_type, text", [
     ("empty_rows", np.zeros((0, N), np.float32), gissar.InputError, "got an empty array of shape (0, 48)"),
     ("empty_columns", np.zeros((N, 0), np.float32), gissar.InputError, "got an empty array of shape (48, 0)"),

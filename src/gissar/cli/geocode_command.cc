@@ -18,11 +18,13 @@ void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--vertical-datum", request->vertical_datum, kVerticalDatumHelp);
   cmd->add_option("--crs", request->crs, "Output CRS, e.g. EPSG:32631 (projected; default: UTM zone of the scene centre)");
   cmd->add_option("--pixel-size", request->pixel_size_m, "Output pixel size, m (default: the image's larger spacing)");
-  cmd->add_option("--resampling", request->resampling, "bilinear or average")->capture_default_str();
+  auto resampling = std::make_shared<std::string>(pipeline::kGeocodeResamplings.Name(request->resampling));
+  cmd->add_option("--resampling", *resampling, pipeline::kGeocodeResamplings.Alternatives())->capture_default_str();
   cmd->add_option("--max-memory", *max_memory, "Memory budget, e.g. 4G (default: 3/4 of RAM)");
   cmd->add_option("--out", request->out_prefix, "Output prefix: PREFIX.tif (map geometry), PREFIX.json, PREFIX_stac.json")->required();
   registry.Add(cmd, [=](const CommandContext& context) {
     pipeline::GeocodeRequest resolved = *request;
+    resolved.resampling = pipeline::kGeocodeResamplings.Parse(*resampling, "--resampling");
     RequirePositiveIfGiven(*cmd, "--pixel-size", resolved.pixel_size_m);
     resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
     const pipeline::GeocodeResult result = pipeline::RunGeocode(resolved, context.command_line, context.reporter);

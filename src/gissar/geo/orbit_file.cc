@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gissar/util/atomic_output.h"
+#include "gissar/geo/look_side.h"
 #include "gissar/util/error.h"
 #include "gissar/util/utc_time.h"
 
@@ -274,10 +275,9 @@ RadarGridSpec ReadRadarGrid(const fs::path& path) {
   grid.sensing_start_utc = doc["sensing_start_utc"].get<std::string>();
   ParseUtcSeconds(grid.sensing_start_utc, file + " sensing_start_utc");
   const nlohmann::json& look = doc["look_side"];
-  if (!look.is_string() || (look != "left" && look != "right")) {
-    throw InputError("'look_side' must be \"left\" or \"right\"", file);
-  }
-  grid.look_left = look == "left";
+  const std::optional<LookSide> side = look.is_string() ? kLookSides.Find(look.get<std::string>()) : std::nullopt;
+  if (!side) throw InputError("'look_side' must be " + kLookSides.Alternatives() + ", got " + look.dump(), file);
+  grid.look_left = *side == LookSide::kLeft;
   return grid;
 }
 

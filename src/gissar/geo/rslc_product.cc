@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "gissar/geo/look_side.h"
 #include "gissar/util/error.h"
 #include "gissar/util/utc_time.h"
 #include "gissar/util/memory_limit.h"
@@ -269,10 +270,9 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
   if (r.Exists(f, ident + "/productVersion")) p.product_version = r.String(f, ident + "/productVersion");
   std::string look = r.String(f, ident + "/lookDirection");
   std::transform(look.begin(), look.end(), look.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (look != "left" && look != "right") {
-    throw InputError("lookDirection must be 'left' or 'right', got '" + look + "'", where);
-  }
-  p.look_left = look == "left";
+  const std::optional<LookSide> side = kLookSides.Find(look);
+  if (!side) throw InputError("lookDirection must be " + kLookSides.Alternatives() + ", got '" + look + "'", where);
+  p.look_left = *side == LookSide::kLeft;
 
   // Radar grid.
   const std::string swaths = root + "/swaths";
@@ -509,7 +509,7 @@ void WriteRslcProduct(const fs::path& path, const RslcProduct& product) {
   H5Id science = Group(file.get(), "science", where);
   H5Id lsar = Group(science.get(), "LSAR", where);
   H5Id ident = Group(lsar.get(), "identification", where);
-  WriteString(ident.get(), "lookDirection", product.look_left ? "left" : "right", where);
+  WriteString(ident.get(), "lookDirection", std::string(kLookSides.Name(LookSideOf(product.look_left))), where);
   WriteString(ident.get(), "productVersion", product.product_version, where);
   WriteString(ident.get(), "missionId", product.mission, where);
   H5Id slc = Group(lsar.get(), "SLC", where);

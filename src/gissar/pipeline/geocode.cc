@@ -120,9 +120,6 @@ void GeocodeRequest::Check() const {
   }
   if (out_prefix.empty()) throw ConfigError("an output prefix is required", "--out");
   if (!(pixel_size_m >= 0.0) || !std::isfinite(pixel_size_m)) throw ConfigError("must be >= 0 (0 = automatic)", "--pixel-size");
-  if (resampling != "bilinear" && resampling != "average") {
-    throw ConfigError("must be bilinear or average, got '" + resampling + "'", "--resampling");
-  }
   const fs::path out_tif = fs::absolute(out_prefix + ".tif").lexically_normal();
   for (const std::string& input : {image, Stem(image) + ".json", Stem(image) + "_mask.tif", dem}) {
     if (input.empty()) continue;
@@ -135,7 +132,7 @@ void GeocodeRequest::Check() const {
 
 json GeocodeRequest::ToJson() const {
   return {{"image", image},     {"dem", dem},         {"vertical_datum", vertical_datum}, {"crs", crs},
-          {"pixel_size_m", pixel_size_m}, {"resampling", resampling}, {"out_prefix", out_prefix}};
+          {"pixel_size_m", pixel_size_m}, {"resampling", std::string(kGeocodeResamplings.Name(resampling))}, {"out_prefix", out_prefix}};
 }
 
 sensor::SarGeometry GeometryFromMetadata(const geo::Metadata& m, int width, int height, const std::string& source) {
@@ -238,7 +235,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
 
   // Points per output pixel.
   const double ground_range_m = geometry.range_spacing_m() / std::max(std::cos(geometry.options().depression_deg * M_PI / 180.0), 0.05);
-  const int k = request.resampling == "average"
+  const int k = request.resampling == GeocodeResampling::kAverage
                     ? std::clamp(int(std::ceil(px / std::min(ground_range_m, geometry.azimuth_spacing_m()) - 1e-9)), 1, 8)
                     : 1;
 
@@ -363,7 +360,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   out.metadata.erase("GISSAR_PIXEL_CONVENTION");
   out.metadata["GISSAR_GEOMETRY"] = "map (terrain-corrected by gissar geocode)";
   out.metadata["GISSAR_GEOCODE_SOURCE"] = fs::absolute(request.image).string();
-  out.metadata["GISSAR_GEOCODE_RESAMPLING"] = request.resampling + (k > 1 ? " (" + std::to_string(k) + "x" + std::to_string(k) + " points per pixel)" : "");
+  out.metadata["GISSAR_GEOCODE_RESAMPLING"] = std::string(kGeocodeResamplings.Name(request.resampling)) + (k > 1 ? " (" + std::to_string(k) + "x" + std::to_string(k) + " points per pixel)" : "");
   out.metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
   {
     std::string names;
@@ -418,7 +415,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   p.height = height;
   p.geotransform = geotransform;
   p.processing_level = "L2";
-  p.lineage = "terrain-corrected by gissar geocode (" + request.resampling + ") from " + fs::path(request.image).filename().string();
+  p.lineage = "terrain-corrected by gissar geocode (" + std::string(kGeocodeResamplings.Name(request.resampling)) + ") from " + fs::path(request.image).filename().string();
   const std::string tiff = "image/tiff; application=geotiff";
   p.assets = {{"image", request.out_prefix + ".tif", tiff,
                "Map-geometry bands: image bands, local incidence (deg), layover/shadow code", {"data"}},

@@ -21,10 +21,17 @@
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/sensor/sar_geometry.h"
+#include "gissar/util/enum_table.h"
 #include "gissar/util/memory_limit.h"
 #include "gissar/util/reporter.h"
 
 namespace gissar::pipeline {
+
+// How geocode fills an output pixel (--resampling), with its one table of
+// names: "bilinear" or "average".
+enum class GeocodeResampling { kBilinear, kAverage };
+inline constexpr auto kGeocodeResamplings = util::MakeEnumTable<GeocodeResampling>(
+    "resampling", {{GeocodeResampling::kBilinear, "bilinear"}, {GeocodeResampling::kAverage, "average"}});
 
 struct GeocodeRequest {
   // PREFIX.tif written by `gissar simulate` (slant-range geometry); its
@@ -43,9 +50,9 @@ struct GeocodeRequest {
   // Output pixel size in metres of the CRS; 0 = the image's larger pixel
   // spacing (slant range or azimuth).
   double pixel_size_m = 0.0;
-  // "bilinear" (one back-geocoded point per output pixel) or "average"
-  // (k x k points per output pixel, for outputs coarser than the image).
-  std::string resampling = "bilinear";
+  // kBilinear (one back-geocoded point per output pixel) or kAverage (k x k
+  // points per output pixel, for outputs coarser than the image).
+  GeocodeResampling resampling = GeocodeResampling::kBilinear;
   // Writes PREFIX.tif (map geometry), PREFIX.json and PREFIX_stac.json (STAC Item).
   std::string out_prefix;
   int64_t max_memory_bytes = DefaultMemoryLimitBytes();

@@ -197,7 +197,7 @@ TEST_P(GeocodeTest, FeaturesLandOnTheirMapPosition) {
   check_squares(map, "bilinear 5 m");
   // Average resampling onto 10 m pixels (2 x 2 points each).
   request.pixel_size_m = 10.0;
-  request.resampling = "average";
+  request.resampling = GeocodeResampling::kAverage;
   request.out_prefix = (dir / "map10").string();
   RunGeocode(request, "test");
   check_squares(geo::ReadFloatRaster(dir / "map10.tif"), "average 10 m");
@@ -206,7 +206,7 @@ TEST_P(GeocodeTest, FeaturesLandOnTheirMapPosition) {
   {
     GeocodeRequest fine = request;
     fine.pixel_size_m = 0.05;
-    fine.resampling = "bilinear";
+    fine.resampling = GeocodeResampling::kBilinear;
     fine.out_prefix = (dir / "fine").string();
     try {
       RunGeocode(fine, "test");
@@ -304,9 +304,16 @@ TEST(GeocodeRequestTest, CheckNamesTheFlag) {
     EXPECT_NE(std::string(e.what()).find("--image"), std::string::npos);
   }
   r.image = "a.tif";
-  r.resampling = "cubic";
-  EXPECT_THROW(r.Check(), ConfigError);
-  r.resampling = "average";
+  EXPECT_EQ(kGeocodeResamplings.Parse("average", "--resampling"), GeocodeResampling::kAverage);
+  EXPECT_EQ(kGeocodeResamplings.Name(GeocodeResampling::kBilinear), "bilinear");
+  try {
+    kGeocodeResamplings.Parse("cubic", "--resampling");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message(), "unknown resampling 'cubic': must be bilinear or average");
+    EXPECT_EQ(e.where(), "--resampling");
+  }
+  r.resampling = GeocodeResampling::kAverage;
   r.pixel_size_m = -1;
   EXPECT_THROW(r.Check(), ConfigError);
   r.pixel_size_m = 0;

@@ -332,7 +332,7 @@ json RunResect(const ResectRequest& options, const std::string& command_line, Re
               {"inputs", json::array({InputFileRecord(options.points)})},
               {"heading_deg", r->pose.heading_deg},
               {"depression_deg", r->pose.depression_deg},
-              {"look_side", r->pose.look_side == mvg::LookSide::kRight ? "right" : "left"},
+              {"look_side", sensor::ToString(r->pose.look_side)},
               {"range_spacing_m", r->pose.range_spacing_m},
               {"azimuth_spacing_m", r->pose.azimuth_spacing_m},
               {"u0", r->pose.u0},

@@ -136,7 +136,7 @@ QuadInput FromProduct(const PolsarRequest& request, int looks_range, int looks_a
   q.metadata["GISSAR_TIME_SPACING_S"] = Num(la * dt);
   q.metadata["GISSAR_FIRST_RANGE_M"] = Num(r0, "%.6f");
   q.metadata["GISSAR_RANGE_SPACING_M"] = Num(lr * dr, "%.9g");
-  q.metadata["GISSAR_LOOK_SIDE"] = p.look_left ? "left" : "right";
+  q.metadata["GISSAR_LOOK_SIDE"] = sensor::ToString(sensor::LookSideOf(p.look_left));
   q.metadata["GISSAR_WAVELENGTH_M"] = Num(p.wavelength_m);
   q.metadata["GISSAR_GCPS"] = "WGS84, zero-Doppler rdr2geo on the ellipsoid (height 0 m, no DEM)";
   // GCPs: a lattice of up to 6 x 6 output pixel centres on the ellipsoid.
@@ -164,7 +164,7 @@ QuadInput FromProduct(const PolsarRequest& request, int looks_range, int looks_a
                    {"zero_doppler_time_spacing_s", dt},
                    {"slant_range_spacing_m", dr},
                    {"wavelength_m", p.wavelength_m},
-                   {"look_side", p.look_left ? "left" : "right"},
+                   {"look_side", sensor::ToString(sensor::LookSideOf(p.look_left))},
                    {"beta0_lut", p.beta0_lut ? json(p.beta0_lut->dataset) : json(nullptr)}};
   return q;
 }

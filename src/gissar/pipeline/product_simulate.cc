@@ -328,7 +328,7 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
                     "product grid of " + std::to_string(p.rows()) + " x " + std::to_string(p.cols()) + " pixels",
                     "simulate a part of it (--product-window LINE,PIXEL,LINES,PIXELS)");
   say("product " + std::to_string(p.rows()) + " lines x " + std::to_string(p.cols()) + " range bins, " +
-      (p.look_left ? "left" : "right") + "-looking, wavelength " + std::to_string(p.wavelength_m) + " m");
+      sensor::ToString(sensor::LookSideOf(p.look_left)) + "-looking, wavelength " + std::to_string(p.wavelength_m) + " m");
 
   sim.channels = material::ParsePolarizationList(options.polarization, "--polarization");
   const bool polarimetric = sim.channels.size() > 1;
@@ -437,7 +437,7 @@ nlohmann::json ProductJson(const ProductSimulation& sim) {
           {"zero_doppler_time_spacing_s", sim.grid.dt_s},
           {"first_slant_range_m", sim.grid.r0_m},
           {"slant_range_spacing_m", sim.grid.dr_m},
-          {"look_side", p.look_left ? "left" : "right"},
+          {"look_side", sensor::ToString(sensor::LookSideOf(p.look_left))},
           {"wavelength_m", p.wavelength_m},
           {"orbit_state_vectors", p.orbit.time_s.size()},
           {"orbit_type", p.orbit.type},
@@ -493,7 +493,7 @@ geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateReques
   m["GISSAR_FIRST_RANGE_M"] = buffer;
   std::snprintf(buffer, sizeof buffer, "%.9g", sim.grid.dr_m);
   m["GISSAR_RANGE_SPACING_M"] = buffer;
-  m["GISSAR_LOOK_SIDE"] = sim.product.look_left ? "left" : "right";
+  m["GISSAR_LOOK_SIDE"] = sensor::ToString(sensor::LookSideOf(sim.product.look_left));
   const std::string datum = sim.frame.value("vertical_datum", std::string("ellipsoid"));
   m["GISSAR_VERTICAL_DATUM"] = datum != "ellipsoid" ? "DEM " + datum + " heights + geoid undulation"
                                                     : "DEM heights used as WGS84 ellipsoidal";

@@ -118,7 +118,7 @@ Prediction PredictOnProduct(const geo::RslcProduct& p, const sensor::Orbit& orbi
   const sensor::LookSide side = p.look_left ? sensor::LookSide::kLeft : sensor::LookSide::kRight;
   if (!sensor::IsOnSide(orbit, target, rc->time_s, side)) {
     throw InputError("reflector lies on the unlit side of the track (the product looks " +
-                         std::string(p.look_left ? "left" : "right") + ")",
+                         sensor::ToString(sensor::LookSideOf(p.look_left)) + ")",
                      where);
   }
   Prediction out;
@@ -192,7 +192,7 @@ Source ProductSource(const PtaRequest& request) {
                    {"slant_range_spacing_m", p.range_spacing_m()},
                    {"center_frequency_hz", p.center_frequency_hz},
                    {"wavelength_m", p.wavelength_m},
-                   {"look_side", p.look_left ? "left" : "right"},
+                   {"look_side", sensor::ToString(sensor::LookSideOf(p.look_left))},
                    {"ground_height_m", request.ground_height_m},
                    {"prediction", "zero-Doppler geo2rdr on the product's orbit (cubic Hermite state vectors)"}};
   auto orbit = std::make_shared<sensor::Orbit>(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
@@ -315,7 +315,7 @@ void ProductGridPrediction(const PtaRequest& request, const json& sidecar, const
                    {"zero_doppler_time_spacing_s", p.azimuth_spacing_s()},
                    {"first_slant_range_m", p.slant_range_m.front()},
                    {"slant_range_spacing_m", p.range_spacing_m()},
-                   {"look_side", p.look_left ? "left" : "right"},
+                   {"look_side", sensor::ToString(sensor::LookSideOf(p.look_left))},
                    {"prediction",
                     "the simulation's terrain (sidecar inputs) for the apex, zero-Doppler geo2rdr on the product's "
                     "orbit (cubic Hermite state vectors)"}};

@@ -794,6 +794,12 @@ GridHeightfield::GridHeightfield(const std::vector<Eigen::Vector3f>& posts, int 
     }
   }
   step_m_ = std::isfinite(spacing) && spacing > 0.0 ? 0.25 * spacing : 1.0;
+  corner_origin_ = Post(0, 0).head<2>();
+  Eigen::Matrix2d m;
+  m.col(0) = (Post(width - 1, 0).head<2>() - corner_origin_) / (width - 1);
+  m.col(1) = (Post(0, height - 1).head<2>() - corner_origin_) / (height - 1);
+  corner_affine_valid_ = std::abs(m.determinant()) > 0.0;
+  if (corner_affine_valid_) corner_inverse_ = m.inverse();
 }
 
 Eigen::Vector2d GridHeightfield::GridCoordinates(double x, double y) const {
@@ -809,7 +815,11 @@ Eigen::Vector2d GridHeightfield::GridCoordinates(double x, double y) const {
     if (!(std::abs(det) > 0.0)) return Eigen::Vector2d(std::numeric_limits<double>::quiet_NaN(), 0.0);
     return Eigen::Vector2d(Eigen::Vector2d(c0, r0) + m.inverse() * (q - p0));
   };
-  Eigen::Vector2d g = solve(0, 0, width_ - 1, height_ - 1);
+  // The corners' affine map is the same for every point: inverted once (the
+  // constructor), the same arithmetic as solve(0, 0, width - 1, height - 1).
+  Eigen::Vector2d g = corner_affine_valid_
+                          ? Eigen::Vector2d(Eigen::Vector2d(0, 0) + corner_inverse_ * (q - corner_origin_))
+                          : Eigen::Vector2d(std::numeric_limits<double>::quiet_NaN(), 0.0);
   for (int iteration = 0; iteration < 12 && g.allFinite(); ++iteration) {
     const int c0 = std::clamp(static_cast<int>(std::floor(std::clamp(g.x(), -1e9, 1e9))), 0, width_ - 2);
     const int r0 = std::clamp(static_cast<int>(std::floor(std::clamp(g.y(), -1e9, 1e9))), 0, height_ - 2);

@@ -113,6 +113,11 @@ class GridHeightfield {
   int width_, height_;
   double top_z_ = 0.0;       // highest post
   double step_m_ = 1.0;      // march step (horizontal metres)
+  // GridCoordinates' first guess: the affine map through the corner posts
+  // (0, 0), (width - 1, 0) and (0, height - 1), inverted.
+  Eigen::Vector2d corner_origin_ = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d corner_inverse_ = Eigen::Matrix2d::Zero();
+  bool corner_affine_valid_ = false;
 };
 
 // Returns of `reflectors` in the raster engine: render::ReflectorReturns

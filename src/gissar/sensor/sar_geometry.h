@@ -22,13 +22,14 @@
 
 #include <Eigen/Core>
 
+#include "gissar/geo/look_side.h"
 #include "gissar/util/enum_table.h"
 
 namespace gissar::sensor {
 
-enum class LookSide { kRight, kLeft };
-inline constexpr auto kLookSides =
-    util::MakeEnumTable<LookSide>("look side", {{LookSide::kRight, "right"}, {LookSide::kLeft, "left"}});
+using LookSide = geo::LookSide;  // geo/look_side.h: products read and write it too
+using geo::kLookSides;
+using geo::LookSideOf;
 enum class ProjectionMode { kAffine, kExact };
 inline constexpr auto kProjectionModes = util::MakeEnumTable<ProjectionMode>(
     "mode", {{ProjectionMode::kAffine, "affine"}, {ProjectionMode::kExact, "exact"}});
