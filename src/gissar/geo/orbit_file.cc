@@ -13,8 +13,8 @@
 #include <cpl_minixml.h>
 #include <nlohmann/json.hpp>
 
-#include "gissar/util/atomic_output.h"
 #include "gissar/geo/look_side.h"
+#include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/utc_time.h"
 

@@ -235,6 +235,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
 
   // Points per output pixel.
   const double ground_range_m = geometry.range_spacing_m() / std::max(std::cos(geometry.options().depression_deg * M_PI / 180.0), 0.05);
+  const std::string resampling(kGeocodeResamplings.Name(request.resampling));
   const int k = request.resampling == GeocodeResampling::kAverage
                     ? std::clamp(int(std::ceil(px / std::min(ground_range_m, geometry.azimuth_spacing_m()) - 1e-9)), 1, 8)
                     : 1;
@@ -360,7 +361,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   out.metadata.erase("GISSAR_PIXEL_CONVENTION");
   out.metadata["GISSAR_GEOMETRY"] = "map (terrain-corrected by gissar geocode)";
   out.metadata["GISSAR_GEOCODE_SOURCE"] = fs::absolute(request.image).string();
-  out.metadata["GISSAR_GEOCODE_RESAMPLING"] = std::string(kGeocodeResamplings.Name(request.resampling)) + (k > 1 ? " (" + std::to_string(k) + "x" + std::to_string(k) + " points per pixel)" : "");
+  out.metadata["GISSAR_GEOCODE_RESAMPLING"] = resampling + (k > 1 ? " (" + std::to_string(k) + "x" + std::to_string(k) + " points per pixel)" : "");
   out.metadata["GISSAR_MASK_CODES"] = "0 none, 1 layover, 2 shadow, 3 layover and shadow";
   {
     std::string names;
@@ -415,7 +416,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   p.height = height;
   p.geotransform = geotransform;
   p.processing_level = "L2";
-  p.lineage = "terrain-corrected by gissar geocode (" + std::string(kGeocodeResamplings.Name(request.resampling)) + ") from " + fs::path(request.image).filename().string();
+  p.lineage = "terrain-corrected by gissar geocode (" + resampling + ") from " + fs::path(request.image).filename().string();
   const std::string tiff = "image/tiff; application=geotiff";
   p.assets = {{"image", request.out_prefix + ".tif", tiff,
                "Map-geometry bands: image bands, local incidence (deg), layover/shadow code", {"data"}},
