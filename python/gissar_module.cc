@@ -57,6 +57,7 @@
 #include "gissar/render/embree_scene.h"
 #include "gissar/material/material.h"
 #include "gissar/render/sar_renderer.h"
+#include "gissar/util/atomic_output.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/util/reporter.h"
 #include "gissar/util/atomic_output.h"
@@ -1186,6 +1187,17 @@ class OpenedProduct {
   std::shared_ptr<const geo::RslcProduct> nisar_;
 };
 
+// The output-prefix lock of every gissar command (util/atomic_output.h), for the Python pipelines that
+// write sets of files under one prefix (the corridor): a second run on the prefix is refused at once.
+class PrefixLock {
+ public:
+  explicit PrefixLock(const std::string& prefix) { outputs_.emplace().LockPrefix(prefix); }
+  void Release() { outputs_.reset(); }
+
+ private:
+  std::optional<AtomicOutputs> outputs_;
+};
+
 }  // namespace
 
 PYBIND11_MODULE(_core, m) {
@@ -1945,6 +1957,15 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
   m.def("write_gif", &WriteGifFrames, py::arg("path"), py::arg("frames"), py::arg("delay_cs") = 50,
         "Write grey uint8 frames (a list of (H, W) arrays of one size) as a looping animated GIF, delay_cs "
         "hundredths of a second per frame.");
+  // The output-prefix lock of every gissar command (util/atomic_output.h), for the Python pipelines that
+  // write sets of files under one prefix (the corridor): a second run on the prefix is refused at once.
+  py::class_<PrefixLock>(m, "_PrefixLock",
+                         "An advisory lock on an output prefix (internal): IoError when another gissar run holds "
+                         "it; released by release(), on leaving a with-block, or when the object is destroyed.")
+      .def(py::init<const std::string&>(), py::arg("prefix"))
+      .def("__enter__", [](PrefixLock& self) -> PrefixLock& { return self; }, py::return_value_policy::reference)
+      .def("__exit__", [](PrefixLock& self, const py::args&) { self.Release(); })
+      .def("release", &PrefixLock::Release, "Release the lock now (idempotent).");
   py::class_<OpenedProduct, std::shared_ptr<OpenedProduct>>(m, "_OpenedProduct",
                                                              "A product opened by gissar.open_product (internal).")
       .def(py::init<const std::string&, const std::optional<std::string>&, const std::optional<int>&,

@@ -11,10 +11,10 @@ import argparse
 import difflib
 import json
 import math
-import os
 import re
 import signal
 import sys
+import warnings
 
 import gissar
 from gissar import ConfigError
@@ -319,6 +319,14 @@ def _raise_signal(signum, frame):
     raise _Signal(signum)
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """gissar's warnings as the other commands print them: one `gissar: warning: ...` line on stderr."""
+    if issubclass(category, gissar.GissarWarning):
+        print(f"gissar: warning: {_one_line(message)}", file=sys.stderr, flush=True)
+    else:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+
 def _one_line(text):
     return " ".join(str(text).split())
 
@@ -329,6 +337,7 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_signal)
+    warnings.showwarning = _show_warning
     try:
         return run(argv)
     except _Usage as e:

@@ -416,6 +416,67 @@ def _write_atomic(path, text):
         raise IoError(f"cannot write: {e.strerror} ({path})") from None
 
 
+#: The catalogue's own checksum: SHA-256 of its canonical JSON (sorted keys, no spaces) without this key.
+CHECKSUM_KEY = "gissar:checksum_sha256"
+
+
+def _catalogue_checksum(catalog):
+    body = {k: v for k, v in catalog.items() if k != CHECKSUM_KEY}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode("utf-8")).hexdigest()
+
+
+def _write_catalogue(path, catalog):
+    """Writes the catalogue with its checksum (atomically), so a re-run can tell an edited or truncated one."""
+    catalog[CHECKSUM_KEY] = _catalogue_checksum(catalog)
+    _write_atomic(path, json.dumps(catalog, indent=2) + "\n")
+
+
+def catalogue_damage(path):
+    """Why the catalogue at `path` is not as gissar wrote it ("truncated or not JSON: ...", "edited: ..."), or
+    None when it is intact or absent. Catalogues written before the checksum existed count as intact."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except FileNotFoundError:
+        return None
+    except OSError as e:
+        raise IoError(f"cannot read the catalogue: {e.strerror} ({path})") from None
+    try:
+        catalog = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as e:
+        return f"truncated or not JSON ({e}; {len(raw)} bytes)"
+    if not isinstance(catalog, dict):
+        return "not a catalogue (its JSON is not an object)"
+    stored = catalog.get(CHECKSUM_KEY)
+    if stored is None:
+        return None
+    if stored != _catalogue_checksum(catalog):
+        return "edited since gissar wrote it (its gissar:checksum_sha256 no longer matches its content)"
+    return None
+
+
+def _set_aside_damaged_catalogue(path):
+    """A damaged catalogue is never overwritten silently: it is renamed to PATH.damaged-<UTC time> (returned,
+    or None when the catalogue is intact or absent) and a GissarWarning says so; the run then rebuilds the
+    catalogue from the per-pose records (done-markers, Items), which hold everything it lists."""
+    damage = catalogue_damage(path)
+    if damage is None:
+        return None
+    kept = stamp = f"{path}.damaged-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}"
+    n = 1
+    while os.path.lexists(kept):
+        n += 1
+        kept = f"{stamp}-{n}"
+    try:
+        os.replace(path, kept)
+    except OSError as e:
+        raise IoError(f"the catalogue is {damage}, and cannot be set aside: {e.strerror} ({path})") from None
+    import warnings
+    warnings.warn(f"the catalogue was {damage}: kept as {os.path.basename(kept)} and rebuilt from the per-pose "
+                  f"records ({path})", gissar.GissarWarning, stacklevel=3)
+    return kept
+
+
 def _marker_path(prefix):
     return prefix + "_done.json"
 
@@ -662,6 +723,68 @@ def _start_client(client, scheduler, workers, threads_per_worker):
     return client, cluster, True
 
 
+def _scheduler_lost(client, error, wait_s=5.0):
+    """True when `error`, raised by a future's result(), means the client lost its scheduler (it died or the
+    network went): the client then cancels every future, or the result's transfer fails on a closed comm. A
+    few seconds are given for the client to notice the closed connection itself."""
+    from concurrent.futures import CancelledError
+    if not isinstance(error, (CancelledError, OSError)):
+        return False
+    deadline = time.monotonic() + wait_s
+    while True:
+        comm = getattr(client, "scheduler_comm", None)
+        if client.status != "running" or comm is None or comm.comm is None or comm.comm.closed():
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.1)
+
+
+def _close_quietly(client, cluster):
+    """Closes a client whose scheduler is gone: the client's own reconnection attempts are cancelled, which
+    Dask logs as tracebacks; they are not the user's concern (the error raised says what happened)."""
+    import logging
+    names = [name for name in logging.root.manager.loggerDict
+             if name.split(".")[0] in ("distributed", "asyncio", "tornado")]
+    loggers = [logging.getLogger(name) for name in sorted(set(names) | {"distributed", "asyncio", "tornado"})]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL + 1)
+    try:
+        client.close(timeout=5)
+        if cluster is not None:
+            cluster.close(timeout=5)
+    except Exception:  # noqa: BLE001 (the scheduler is gone; closing is best effort)
+        pass
+    finally:
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
+
+
+def _worker_memory_limits(client):
+    """The distinct memory limits (bytes, 0 = none) of the cluster's workers, from the scheduler."""
+    try:
+        workers = client.scheduler_info().get("workers", {}).values()
+        return sorted({int(w.get("memory_limit") or 0) for w in workers})
+    except Exception:  # noqa: BLE001 (only used to explain a failure)
+        return []
+
+
+def _failure_reason(error, memory_limits, what="simulated this pose"):
+    """A failed task's reason: the worker's error, or, when every worker that ran it died, what kills workers."""
+    from distributed import KilledWorker
+    if isinstance(error, KilledWorker):
+        attempts = getattr(error, "allowed_failures", None)
+        limits = [limit for limit in memory_limits if limit > 0]
+        limit_text = (" of " + " / ".join(f"{limit / 2 ** 20:.0f} MiB" for limit in limits) + " per worker"
+                      if limits else "")
+        return (f"KilledWorker: the worker process died each time it {what}"
+                f"{f' ({attempts + 1} attempts)' if isinstance(attempts, int) else ''}: killed by its nanny at the "
+                f"worker memory limit{limit_text}, or crashed (the workers' logs say which); give the workers more "
+                f"memory or simulate smaller images")
+    return f"{type(error).__name__}: {error}"
+
+
 #: The image side a corridor chooses when it is given no size (auto_image_size): at most, and at least.
 AUTO_SIZE_MAX_PX = 512
 AUTO_SIZE_MIN_PX = 64
@@ -816,130 +939,165 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
     directory = os.path.dirname(os.path.abspath(out_prefix))
     if not os.path.isdir(directory):
         raise IoError(f"the output directory does not exist ({directory})")
+    # One writer per database: a second run on this prefix is refused at once (IoError naming the prefix).
+    with gissar._core._PrefixLock(out_prefix):
+        _set_aside_damaged_catalogue(catalog_path)
+        records, tasks = [], []
+        for pose in poses:
+            record = {"pose": pose, "id": pose["id"], "status": None, "reason": "", "files": [], "item": None,
+                      "ring": predicted_footprint(pose, width, height, kw["range_spacing_m"], kw["azimuth_spacing_m"],
+                                                  depression_deg, look_side)}
+            records.append(record)
+            where = extent.outside(record["ring"])
+            if where is not None:
+                if _centre_outside(extent, pose):
+                    record.update(status="skipped", skip_kind="centre",
+                                  reason="scene centre outside the %s at lon %.5f, lat %.5f"
+                                  % (extent.kind, pose["center_lon_deg"], pose["center_lat_deg"]))
+                else:
+                    record.update(status="skipped", skip_kind="footprint",
+                                  reason="footprint leaves the %s at lon %.5f, lat %.5f"
+                                  % (extent.kind, where[0], where[1]))
+                continue
+            request = dict(kw, **terrain, center_lonlat=[pose["center_lon_deg"], pose["center_lat_deg"]],
+                           heading_deg=pose["heading_deg"], depression_deg=depression_deg, width=width, height=height)
+            prefix = f"{out_prefix}_{pose['id']}"
+            key = _pose_key(dict(request, pose_id=pose["id"]), inputs, hash_inputs)
+            marker = _marker_matches(prefix, key)
+            task = {"id": pose["id"], "pose": pose, "request": request, "out_prefix": prefix,
+                    "key": key, "threads": threads, "depression_deg": depression_deg,
+                    "slant_range_m": slant_range_m, "look_side": look_side,
+                    "collection_id": collection_id, "catalog_path": catalog_path, "geocode": bool(geocode)}
+            if marker is not None and geocode and not (
+                    os.path.basename(prefix + GEOCODED_SUFFIX + ".tif") in marker.get("files", [])
+                    and os.path.isfile(prefix + GEOCODED_SUFFIX + ".tif")):
+                record.update(status="done", cached=True)
+                tasks.append((record, dict(task, marker=marker, geocode_only=True)))
+                continue
+            if marker is not None:
+                record.update(status="done", cached=True, seconds=marker.get("seconds"),
+                              files=marker["files"] + [os.path.basename(_marker_path(prefix))])
+                try:
+                    with open(prefix + "_stac.json", encoding="utf-8") as f:
+                        record["item"] = json.load(f)
+                except (OSError, ValueError):
+                    record["item"] = None
+                continue
+            tasks.append((record, task))
 
-    records, tasks = [], []
-    for pose in poses:
-        record = {"pose": pose, "id": pose["id"], "status": None, "reason": "", "files": [], "item": None,
-                  "ring": predicted_footprint(pose, width, height, kw["range_spacing_m"], kw["azimuth_spacing_m"],
-                                              depression_deg, look_side)}
-        records.append(record)
-        where = extent.outside(record["ring"])
-        if where is not None:
-            if _centre_outside(extent, pose):
-                record.update(status="skipped", skip_kind="centre",
-                              reason="scene centre outside the %s at lon %.5f, lat %.5f"
-                              % (extent.kind, pose["center_lon_deg"], pose["center_lat_deg"]))
-            else:
-                record.update(status="skipped", skip_kind="footprint",
-                              reason="footprint leaves the %s at lon %.5f, lat %.5f"
-                              % (extent.kind, where[0], where[1]))
-            continue
-        request = dict(kw, **terrain, center_lonlat=[pose["center_lon_deg"], pose["center_lat_deg"]],
-                       heading_deg=pose["heading_deg"], depression_deg=depression_deg, width=width, height=height)
-        prefix = f"{out_prefix}_{pose['id']}"
-        key = _pose_key(dict(request, pose_id=pose["id"]), inputs, hash_inputs)
-        marker = _marker_matches(prefix, key)
-        task = {"id": pose["id"], "pose": pose, "request": request, "out_prefix": prefix,
-                "key": key, "threads": threads, "depression_deg": depression_deg,
-                "slant_range_m": slant_range_m, "look_side": look_side,
-                "collection_id": collection_id, "catalog_path": catalog_path, "geocode": bool(geocode)}
-        if marker is not None and geocode and not (
-                os.path.basename(prefix + GEOCODED_SUFFIX + ".tif") in marker.get("files", [])
-                and os.path.isfile(prefix + GEOCODED_SUFFIX + ".tif")):
-            record.update(status="done", cached=True)
-            tasks.append((record, dict(task, marker=marker, geocode_only=True)))
-            continue
-        if marker is not None:
-            record.update(status="done", cached=True, files=marker["files"] + [os.path.basename(_marker_path(prefix))],
-                          seconds=marker.get("seconds"))
+        worker_count = 0
+        peak_rss = 0
+        cpu_seconds = task_seconds = 0.0
+        lost_scheduler = None
+        if tasks:
+            from distributed import as_completed
+            client, cluster, owned = _start_client(client, scheduler, workers, threads_per_worker)
+            address = client.scheduler.address
             try:
-                with open(prefix + "_stac.json", encoding="utf-8") as f:
-                    record["item"] = json.load(f)
-            except (OSError, ValueError):
-                record["item"] = None
-            continue
-        tasks.append((record, task))
-
-    worker_count = 0
-    peak_rss = 0
-    cpu_seconds = task_seconds = 0.0
-    if tasks:
-        from distributed import as_completed
-        client, cluster, owned = _start_client(client, scheduler, workers, threads_per_worker)
-        try:
-            worker_count = len(client.scheduler_info().get("workers", {}))
-            if threads is None and cluster is not None:
-                cores = os.cpu_count() or 1
-                for _, task in tasks:
-                    task["threads"] = max(1, cores // max(1, worker_count))
-            link = _dashboard_link(client)
-            if link:
-                say(f"corridor: Dask dashboard at {link}")
-            say(f"corridor: {len(tasks)} poses to simulate on {worker_count} workers ({client.scheduler.address})")
-            futures = {}
-            for record, task in tasks:
-                function = _geocode_cached_pose if task.get("geocode_only") else _simulate_pose
-                future = client.submit(function, task, key=f"gissar-pose-{task['id']}-{uuid.uuid4().hex[:8]}",
-                                       retries=retries, pure=False)
-                futures[future] = record
-            report = _progress_reporter(progress, len(futures))
-            done = 0
-            try:
-                for future in as_completed(futures):
-                    record = futures[future]
-                    try:
-                        result = future.result()
-                    except Exception as e:  # noqa: BLE001 (the worker's error, after the retries)
-                        result = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
-                    record.update(status=result["status"], reason=result.get("reason", ""),
-                                  files=result.get("files", []), item=result.get("item"),
-                                  seconds=result.get("seconds"), worker=result.get("worker"),
-                                  cached=bool(result.get("cached")))
-                    peak_rss = max(peak_rss, int(result.get("peak_rss_bytes") or 0))
-                    cpu_seconds += float(result.get("cpu_seconds") or 0.0)
-                    task_seconds += float(result.get("seconds") or 0.0)
-                    done += 1
-                    report(done)
+                worker_count = len(client.scheduler_info().get("workers", {}))
+                memory_limits = _worker_memory_limits(client)
+                if threads is None and cluster is not None:
+                    cores = os.cpu_count() or 1
+                    for _, task in tasks:
+                        task["threads"] = max(1, cores // max(1, worker_count))
+                link = _dashboard_link(client)
+                if link:
+                    say(f"corridor: Dask dashboard at {link}")
+                say(f"corridor: {len(tasks)} poses to simulate on {worker_count} workers ({address})")
+                futures = {}
+                for record, task in tasks:
+                    function = _geocode_cached_pose if task.get("geocode_only") else _simulate_pose
+                    future = client.submit(function, task, key=f"gissar-pose-{task['id']}-{uuid.uuid4().hex[:8]}",
+                                           retries=retries, pure=False)
+                    futures[future] = (record, task)
+                report = _progress_reporter(progress, len(futures))
+                done = 0
+                unfinished = dict(futures)
+                try:
+                    for future in as_completed(futures):
+                        record, _ = futures[future]
+                        try:
+                            result = future.result()
+                        except Exception as e:  # noqa: BLE001 (the worker's error, after the retries)
+                            if _scheduler_lost(client, e):
+                                lost_scheduler = type(e).__name__
+                                break
+                            result = {"status": "failed", "reason": _failure_reason(e, memory_limits)}
+                        del unfinished[future]
+                        record.update(status=result["status"], reason=result.get("reason", ""),
+                                      files=result.get("files", []), item=result.get("item"),
+                                      seconds=result.get("seconds"), worker=result.get("worker"),
+                                      cached=bool(result.get("cached")))
+                        peak_rss = max(peak_rss, int(result.get("peak_rss_bytes") or 0))
+                        cpu_seconds += float(result.get("cpu_seconds") or 0.0)
+                        task_seconds += float(result.get("seconds") or 0.0)
+                        done += 1
+                        report(done)
+                finally:
+                    report.close()
+                    # Only what is still pending (an interrupted run): cancelling finished futures sends the
+                    # scheduler a message each, which can still be in flight when the client closes (a
+                    # "Future exception was never retrieved: TimeoutError" on stderr under load).
+                    if lost_scheduler is None:
+                        for future in futures:
+                            if not future.done():
+                                future.cancel()
+                if lost_scheduler is not None:
+                    # The poses whose results never arrived: those that finished before the scheduler went have
+                    # their done-marker (written last, on the worker); the others were not run.
+                    for record, task in unfinished.values():
+                        marker = _marker_matches(task["out_prefix"], task["key"])
+                        if marker is not None:
+                            record.update(status="done", cached=False, reason="",
+                                          files=marker["files"] + [os.path.basename(_marker_path(task["out_prefix"]))])
+                            try:
+                                with open(task["out_prefix"] + "_stac.json", encoding="utf-8") as f:
+                                    record["item"] = json.load(f)
+                            except (OSError, ValueError):
+                                record["item"] = None
+                        else:
+                            record.update(status="failed", files=[],
+                                          reason=f"not run: the Dask scheduler at {address} was lost mid-run")
             finally:
-                report.close()
-                # Only what is still pending (an interrupted run): cancelling finished futures sends the
-                # scheduler a message each, which can still be in flight when the client closes (a
-                # "Future exception was never retrieved: TimeoutError" on stderr under load).
-                for future in futures:
-                    if not future.done():
-                        future.cancel()
-        finally:
-            if owned:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
+                if owned and lost_scheduler is not None:
+                    _close_quietly(client, cluster)
+                elif owned:
+                    client.close()
+                    if cluster is not None:
+                        cluster.close()
 
-    wall_seconds = time.perf_counter() - started
-    catalog = _catalogue(records, collection_id=collection_id, catalog_path=catalog_path, route=route,
-                         pose_step_m=pose_step_m, headings_deg=headings_deg, width=width, height=height,
-                         keywords=kw, terrain=terrain, inputs=inputs, hash_inputs=hash_inputs,
-                         wall_seconds=wall_seconds, workers=worker_count, peak_rss=peak_rss,
-                         simulated=len(tasks), index_path=index_path, cpu_seconds=cpu_seconds,
-                         task_seconds=task_seconds, size_rule=size_rule,
-                         skip_reasons=_skip_reasons(records, extent, width=width, height=height,
-                                                    range_spacing_m=kw["range_spacing_m"],
-                                                    azimuth_spacing_m=kw["azimuth_spacing_m"],
-                                                    depression_deg=depression_deg, slant_range_m=slant_range_m,
-                                                    look_side=look_side, auto_size=auto_size))
-    failures = [r for r in records if r["status"] == "failed"]
-    bad_input = ("ConfigError", "InputError", "MissingFileError")
-    if failures and len(failures) == len(tasks) and all(r["reason"].startswith(bad_input) for r in failures):
-        # Every simulation refused its input: a bad request, reported like gissar.simulate's (nothing written).
-        kind, _, message = failures[0]["reason"].partition(": ")
-        raise {"ConfigError": ConfigError, "InputError": InputError,
-               "MissingFileError": gissar.MissingFileError}[kind](message)
-    _write_atomic(index_path, _index_csv(records))
-    _write_atomic(catalog_path, json.dumps(catalog, indent=2) + "\n")
-    if report_summary:
-        say(summary_line(catalog))
-        for line in catalog["gissar:summary"]["skip_reasons"]:
-            say("corridor: " + line)
-    return catalog
+        wall_seconds = time.perf_counter() - started
+        catalog = _catalogue(records, collection_id=collection_id, catalog_path=catalog_path, route=route,
+                             pose_step_m=pose_step_m, headings_deg=headings_deg, width=width, height=height,
+                             keywords=kw, terrain=terrain, inputs=inputs, hash_inputs=hash_inputs,
+                             wall_seconds=wall_seconds, workers=worker_count, peak_rss=peak_rss,
+                             simulated=len(tasks), index_path=index_path, cpu_seconds=cpu_seconds,
+                             task_seconds=task_seconds, size_rule=size_rule,
+                             skip_reasons=_skip_reasons(records, extent, width=width, height=height,
+                                                        range_spacing_m=kw["range_spacing_m"],
+                                                        azimuth_spacing_m=kw["azimuth_spacing_m"],
+                                                        depression_deg=depression_deg, slant_range_m=slant_range_m,
+                                                        look_side=look_side, auto_size=auto_size))
+        failures = [r for r in records if r["status"] == "failed"]
+        bad_input = ("ConfigError", "InputError", "MissingFileError")
+        if failures and len(failures) == len(tasks) and all(r["reason"].startswith(bad_input) for r in failures):
+            # Every simulation refused its input: a bad request, reported like gissar.simulate's (nothing written).
+            kind, _, message = failures[0]["reason"].partition(": ")
+            raise {"ConfigError": ConfigError, "InputError": InputError,
+                   "MissingFileError": gissar.MissingFileError}[kind](message)
+        _write_atomic(index_path, _index_csv(records))
+        _write_catalogue(catalog_path, catalog)
+        if lost_scheduler is not None:
+            s = catalog["gissar:summary"]
+            not_run = sum(1 for r in records if r["reason"].startswith("not run:"))
+            raise IoError(f"lost the Dask scheduler mid-run ({lost_scheduler}): {s['done']} of {s['poses']} poses are "
+                          f"done and kept, {not_run} were not run; run the same command again (with a running "
+                          f"scheduler) to resume ({address})")
+        if report_summary:
+            say(summary_line(catalog))
+            for line in catalog["gissar:summary"]["skip_reasons"]:
+                say("corridor: " + line)
+        return catalog
 
 
 def summary_line(catalog):

@@ -26,6 +26,9 @@ AUTO_SIZE_MIN_PX: int
 def auto_image_size(poses: Sequence[Dict[str, Any]], extent: Any, range_spacing_m: float, azimuth_spacing_m: float,
                     depression_deg: float, look_side: str, largest: int = ..., smallest: int = ...) -> int: ...
 def summary_line(catalog: Dict[str, Any]) -> str: ...
+#: The catalogue's key holding the SHA-256 of its canonical JSON without that key.
+CHECKSUM_KEY: str
+def catalogue_damage(path: PathLike) -> Optional[str]: ...
 def build_corridor(route: Route, *, pose_step_m: float, headings_deg: Union[float, Sequence[float]],
                    out_prefix: PathLike, dem: Optional[PathLike] = ..., scene: Union[None, PathLike, Scene] = ...,
                    width: Optional[int] = ..., height: Optional[int] = ..., client: Any = ..., scheduler: Optional[str] = ...,

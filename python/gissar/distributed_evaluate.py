@@ -14,6 +14,7 @@ import os as _os
 import time as _time
 
 from . import _core
+from . import distributed as _dist
 
 
 def _run_chunk(options, first, count):
@@ -33,8 +34,6 @@ def evaluate(*, client=None, scheduler=None, workers=None, chunk_trials=None, th
     size_px, spacing_m) on Dask and return the summary dict of the serial gissar.evaluate. chunk_trials: trials per
     task (default: trials spread evenly, about four tasks per worker). With out_prefix, writes PREFIX.json,
     PREFIX_trials.csv and PREFIX_hist.png like the serial run."""
-    from dask.distributed import Client, LocalCluster
-
     options = {k: (_os.fspath(v) if k in ("scene", "dem", "out_prefix", "product") and v is not None else v)
                for k, v in kwargs.items()}
     options.pop("trial_first", None)
@@ -42,28 +41,36 @@ def evaluate(*, client=None, scheduler=None, workers=None, chunk_trials=None, th
     defaults = _core.evaluate_request_defaults()
     trials = int(options.get("trials", defaults["trials"]))
     started = _time.monotonic()
-    owned = []
+    # The corridor's cluster handling (docs/distributed.md "Resuming and faults"): an unreachable scheduler
+    # is an IoError within 20 s, a lost scheduler or a chunk whose workers all died an IoError saying which.
+    client, cluster, owned = _dist._start_client(client, scheduler, workers, threads_per_worker)
+    lost = False
     try:
-        if client is None:
-            if scheduler is not None:
-                client = Client(scheduler)
-                owned.append(client)
-            else:
-                n = workers or _os.cpu_count() or 1
-                cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True,
-                                       dashboard_address=":0")
-                owned.append(cluster)
-                client = Client(cluster)
-                owned.insert(0, client)
         n_workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
         chunk = chunk_trials or max(1, -(-trials // (4 * n_workers)))
         chunks = trial_chunks(trials, chunk)
         futures = client.map(_run_chunk, [options] * len(chunks), [c[0] for c in chunks], [c[1] for c in chunks],
                              pure=False)
-        records = [record for part in client.gather(futures) for record in part]
+        records = []
+        for (first, count), future in zip(chunks, futures):
+            try:
+                records += future.result()
+            except Exception as e:  # noqa: BLE001 (gissar's own errors pass through unchanged)
+                if isinstance(e, _core.Error):
+                    raise
+                lost = _dist._scheduler_lost(client, e)
+                if lost:
+                    raise _core.IoError(f"lost the Dask scheduler mid-run ({type(e).__name__}): no summary; run "
+                                        f"again with a running scheduler ({client.scheduler.address})") from None
+                reason = _dist._failure_reason(e, _dist._worker_memory_limits(client), "ran these trials")
+                raise _core.IoError(f"trials {first}..{first + count - 1} failed: {reason}") from None
     finally:
-        for resource in owned:
-            resource.close()
+        if owned and lost:
+            _dist._close_quietly(client, cluster)
+        elif owned:
+            client.close()
+            if cluster is not None:
+                cluster.close()
     if options.get("out_prefix"):
         return _core.write_evaluation(options, records, _time.monotonic() - started)
     return _core.summarise_trials(options, records)
