@@ -116,6 +116,51 @@ class ServerTest(unittest.TestCase):
             self.assertEqual(status, 416, header)
             self.assertEqual(headers.get("Content-Range"), f"bytes */{n}", header)
 
+    def test_200_concurrent_range_requests_are_all_answered_in_bounded_memory(self):
+        """200 clients at once (a barrier releases them together), each asking for its own byte range of the
+        GeoTIFF: every one gets its 206 and exactly its bytes; the server's peak RSS (VmHWM) grows by less than
+        64 MiB (ranges are streamed in 64 KiB chunks, one thread per connection)."""
+        import random
+        import threading
+        n = len(self.tif_bytes)
+        rng = random.Random(7)
+        ranges = []
+        for _ in range(200):
+            start = rng.randrange(0, n - 1)
+            ranges.append((start, min(n - 1, start + rng.randrange(1, 1 << 20))))
+
+        def hwm_kib():
+            with open(f"/proc/{self.server.proc.pid}/status") as f:
+                return next(int(line.split()[1]) for line in f if line.startswith("VmHWM:"))
+
+        before = hwm_kib()
+        barrier = threading.Barrier(len(ranges))
+        results = [None] * len(ranges)
+
+        def fetch(i):
+            start, end = ranges[i]
+            barrier.wait(timeout=60)
+            try:
+                results[i] = self.request("GET", "/files/" + self.tif, {"Range": f"bytes={start}-{end}"})
+            except OSError as e:
+                results[i] = e
+
+        threads = [threading.Thread(target=fetch, args=(i,)) for i in range(len(ranges))]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout=120)
+        grown_kib = hwm_kib() - before
+        for (start, end), result in zip(ranges, results):
+            self.assertIsInstance(result, tuple, f"bytes={start}-{end}: {result!r}")
+            status, headers, body = result
+            self.assertEqual(status, 206)
+            self.assertEqual(headers["Content-Range"], f"bytes {start}-{end}/{n}")
+            self.assertEqual(body, self.tif_bytes[start:end + 1])
+        self.assertLess(grown_kib, 64 * 1024, f"peak RSS grew by {grown_kib} KiB")
+        print(f"200 concurrent range requests: all answered; peak RSS grew by {grown_kib / 1024:.1f} MiB",
+              file=sys.stderr)
+
     def test_rendered_images(self):
         for key in ("hillshade", f"pose_{self.first['id']}"):
             status, headers, body = self.request("GET", f"/render/{key}.json")

@@ -1142,23 +1142,25 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
                        " pixels",
                    sized ? "give a smaller --width/--height" : "use coarser --range-spacing/--azimuth-spacing",
                    sized ? (options.geometry.width > 0 ? "--width" : "--height") : "--range-spacing");
-  CheckMemoryBudget(BytesPerImagePixel(options) * geometry.width() * double(geometry.height()) +
-                        double(mesh.MemoryBytes()) * 3.0,
-                    options.max_memory_bytes,
-                    "image of " + std::to_string(geometry.width()) + " x " +
-                        std::to_string(geometry.height()) + " pixels",
-                    "use coarser --range-spacing/--azimuth-spacing, a smaller --width/--height");
-  if (!options.contributions.empty()) {
+  const double image_bytes = BytesPerImagePixel(options) * geometry.width() * double(geometry.height()) +
+                             double(mesh.MemoryBytes()) * 3.0;
+  const std::string image_what =
+      "image of " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) + " pixels";
+  const std::string image_how = "use coarser --range-spacing/--azimuth-spacing, a smaller --width/--height";
+  const auto waiting = [&reporter](const std::string& line) { reporter.Info("simulate: " + line); };
+  if (options.contributions.empty()) {
+    out.memory = ReserveMemory(image_bytes, options.max_memory_bytes, image_what, image_how,
+                               kDefaultMemoryWaitSeconds, DefaultMemoryLedgerPath(), waiting);
+  } else {
     // Every ray may return once per bounce, each return kept in memory.
+    CheckMemoryBudget(image_bytes, options.max_memory_bytes, image_what, image_how);
     const double returns = geometry.width() * double(geometry.height()) * options.rays_per_cell * options.bounces;
-    CheckMemoryBudget(returns * double(sizeof(render::Contribution)) +
-                          BytesPerImagePixel(options) * geometry.width() * double(geometry.height()) +
-                          double(mesh.MemoryBytes()) * 3.0,
-                      options.max_memory_bytes,
-                      "recording up to " + std::to_string(int64_t(returns)) +
-                          " contributions (--contributions)",
-                      "use fewer --rays-per-cell or --bounces, coarser spacings, or no --contributions");
+    out.memory = ReserveMemory(returns * double(sizeof(render::Contribution)) + image_bytes, options.max_memory_bytes,
+                               "recording up to " + std::to_string(int64_t(returns)) + " contributions (--contributions)",
+                               "use fewer --rays-per-cell or --bounces, coarser spacings, or no --contributions",
+                               kDefaultMemoryWaitSeconds, DefaultMemoryLedgerPath(), waiting);
   }
+  if (out.memory.waited_s() > 0.05) out.timings_s["memory_wait"] = out.memory.waited_s();
   {
     reporter.Info("simulate: image " + std::to_string(geometry.width()) + " x " + std::to_string(geometry.height()) +
         " pixels, " +
@@ -1727,6 +1729,8 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   timings["write_detail"] = write_detail;
   timings["total"] = total.ElapsedSeconds();
   provenance["timings_s"] = timings;
+  // The run's share of the machine's memory budget (util/memory_ledger.h; 0 with --force).
+  provenance["memory_reserved_bytes"] = static_cast<int64_t>(simulated.memory.bytes());
   return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
 }
 

@@ -28,6 +28,7 @@
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/sensor/sar_geometry.h"
 #include "gissar/util/atomic_output.h"
+#include "gissar/util/memory_ledger.h"
 #include "gissar/util/memory_limit.h"
 #include "gissar/util/enum_table.h"
 #include "gissar/util/progress.h"
@@ -402,6 +403,10 @@ struct SimulatedImage {
   std::vector<material::Polarization> channels;
   std::vector<render::SarImage> other_channels;
   nlohmann::json timings_s = nlohmann::json::object();
+  // This run's share of the machine's memory budget (util/memory_ledger.h),
+  // held while the image lives: concurrent gissar runs wait for it or are
+  // refused instead of exhausting the machine together.
+  MemoryReservation memory;
 };
 
 // Loads the terrain, places the scene centre, resolves and checks the
