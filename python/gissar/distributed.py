@@ -725,12 +725,13 @@ def _start_client(client, scheduler, workers, threads_per_worker):
 
 def _scheduler_lost(client, error, wait_s=5.0):
     """True when `error`, raised by a future's result(), means the client lost its scheduler (it died or the
-    network went): the client then cancels every future, or the result's transfer fails on a closed comm. A
-    few seconds are given for the client to notice the closed connection itself."""
+    network went): the client then cancels every future, or the result's transfer fails on a closed comm. For
+    those two errors a few seconds are given for the client to notice the closed connection itself; any other
+    error (the task's own, gissar's included) is checked at once."""
     from concurrent.futures import CancelledError
-    if not isinstance(error, (CancelledError, OSError)):
-        return False
-    deadline = time.monotonic() + wait_s
+    from distributed.comm.core import CommClosedError
+    wait = isinstance(error, (CancelledError, CommClosedError)) and not isinstance(error, gissar.Error)
+    deadline = time.monotonic() + (wait_s if wait else 0.0)
     while True:
         comm = getattr(client, "scheduler_comm", None)
         if client.status != "running" or comm is None or comm.comm is None or comm.comm.closed():
