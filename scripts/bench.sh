@@ -11,7 +11,8 @@
 # memory; the DEM-raster engine's cells/s on 4096^2 and a STREAM triad from
 # the same process; scene build (CDT) time and memory; raster/tracer agreement
 # on Andorra; POV-Ray side by side on a 1000 x 1000 heightfield; poses/s of
-# `gissar corridor` on Dask with 1 and 2 workers (bench/corridor_bench.py). Runs in a few
+# `gissar corridor` on Dask with 1 and 2 workers (bench/corridor_bench.py); the exact-geometry user path on
+# Andorra (500^2..4000^2, both engines) against sarsen's measured times. Runs in a few
 # minutes on 2 cores; the machine may be shared, so the load average is
 # recorded and ratios are always taken within one run.
 set -euo pipefail
@@ -187,6 +188,26 @@ EOF
     --slant-range 20000 --rays-per-cell "$RPC16" --bounces "$levels" --fixed-sampling --quiet --out "ours_pov16_$levels"
   cp "ours_pov16_$levels.json" "$R/"
   rm -f "pov16_$levels.png" "ours_pov16_$levels".tif "ours_pov16_$levels".png "ours_pov16_$levels"_*
+done
+
+say "exact geometry on Andorra, the user path of issue 47 (sarsen's times measured outside the project)"
+# Andorra's filled SRTM reprojected to UTM 31N, a 27 km square centred on it
+# at N x N posts (spacing 27000/N m); a straight track at 60 km slant range,
+# pixels of the post spacing, default outputs, both engines.
+run andorra_utm gdalwarp -q -overwrite -t_srs EPSG:32631 -r cubic \
+  "$ROOT/data/andorra/andorra_srtm3_dem_filled.tif" andorra_utm.tif
+for n in 500 1000 2000 4000; do
+  run "andorra_$n" gdalwarp -q -overwrite -r cubic -te 371472.23 4697824.76 398472.23 4724824.76 -ts "$n" "$n" \
+    andorra_utm.tif "andorra_$n.tif"
+  spacing=$(python3 -c "print(27000 / $n)")
+  for engine in raster trace; do
+    run "exact_${engine}_$n" "$GISSAR" simulate --dem "andorra_$n.tif" --vertical-datum ellipsoid --mode exact \
+      --heading -0.9438 --depression 45 --slant-range 60000 --range-spacing "$spacing" --azimuth-spacing "$spacing" \
+      --bounces 1 --engine "$engine" --quiet --out "exact_${engine}_$n"
+    cp "exact_${engine}_$n.json" "$R/"
+    rm -f "exact_${engine}_$n".* "exact_${engine}_$n"_*
+  done
+  rm -f "andorra_$n.tif"
 done
 
 say "corridor on Dask: 50 poses with 1 and 2 workers, --threads 1"

@@ -432,6 +432,46 @@ w("Target (issue 18): ≥ 3× POV-Ray at 1 M rays and ≥ 10× at 16 M rays, who
     ", ".join("%.1f×" % r for r in render_ratios["pov"]), ", ".join("%.1f×" % r for r in render_ratios["pov16"])))
 w("")
 
+# ---------------------------------------------------------------- exact geometry against sarsen
+#: sarsen's wall times for the same job on this machine (issue 47; sarsen is not installable here, so it was
+#: measured outside the project on the same inputs).
+SARSEN_S = {500: 2.5, 1000: 5.1, 2000: 8.5, 4000: 32.8}
+if os.path.exists(os.path.join(R, "exact_raster_500.time")):
+    w("## The user path: exact geometry on Andorra, side by side with sarsen")
+    w("")
+    w("Andorra's filled SRTM reprojected to UTM 31N (`gdalwarp -r cubic`), a 27 km square centred on it at")
+    w("N × N posts (spacing 27000/N m); `simulate --mode exact` (a straight track, zero-Doppler, 60 km slant")
+    w("range, depression 45 deg, heading -0.9438 deg), pixels of the post spacing, one bounce, default outputs")
+    w("(GeoTIFF with overviews, mask, quicklooks, sidecars). Whole process, wall time and peak RSS. sarsen")
+    w("(bopen/sarsen, the xarray/Dask DEM simulator) is not installable here (no Python package index): its times")
+    w("for the same job on this machine are those measured outside the project (issue 47), not in this run,")
+    w("so the ratios compare this run with those figures.")
+    w("")
+    w("| posts | image | raster s | raster × sarsen | trace s | trace × sarsen | sarsen s | peak RSS raster / trace | trace run: terrain / trace / mask / write s |")
+    w("|---|---|---|---|---|---|---|---|---|")
+    exact_ratios = {"raster": [], "trace": []}
+    for n in (500, 1000, 2000, 4000):
+        raster, raster_rss = wall_rss("exact_raster_%d" % n)
+        trace, trace_rss = wall_rss("exact_trace_%d" % n)
+        jr = load("exact_raster_%d.json" % n)
+        jt = load("exact_trace_%d.json" % n)
+        t = jt["timings_s"]
+        exact_ratios["raster"].append(SARSEN_S[n] / raster)
+        exact_ratios["trace"].append(SARSEN_S[n] / trace)
+        w("| %d² | %d × %d | %.2f | %.1f× | %.2f | %.1f× | %.1f | %.2f / %.2f GiB | %.2f / %.2f / %.2f / %.2f |" % (
+            n, jr["geometry"]["width"], jr["geometry"]["height"], raster, SARSEN_S[n] / raster, trace, SARSEN_S[n] / trace, SARSEN_S[n],
+            raster_rss / GIB, trace_rss / GIB, t.get("terrain", 0.0), t.get("trace", 0.0), t.get("mask", 0.0),
+            t.get("write", 0.0)))
+    w("")
+    w("Commands: " + ", ".join(cmd(k) for k in ("andorra_utm", "andorra_4000", "exact_raster_4000",
+                                               "exact_trace_4000")) + " (the other sizes alike).")
+    w("")
+    w("Target (issue 47): ≥ 10× sarsen with the raster engine and ≥ 5× with the tracer at every size. Reached "
+      "here: raster %s (%s), trace %s (%s)." % (
+          ", ".join("%.1f×" % r for r in exact_ratios["raster"]), verdict(min(exact_ratios["raster"]) >= 10.0),
+          ", ".join("%.1f×" % r for r in exact_ratios["trace"]), verdict(min(exact_ratios["trace"]) >= 5.0)))
+    w("")
+
 # ---------------------------------------------------------------- corridor
 if os.path.exists(os.path.join(R, "corridor.json")):
     c = load("corridor.json")
