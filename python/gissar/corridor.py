@@ -4,8 +4,9 @@ The C++ command line runs this module for `gissar corridor ARGS` (docs/distribut
 terrain, pose spacing, headings and cluster, then the sensor flags of `gissar simulate` (the kebab-case of the
 simulate request fields without their unit suffix, docs/conventions.md) and the common flags. Exit statuses:
 0 done; 2 bad input or usage (one `gissar: error:` line); 3 no result (every pose skipped: one `gissar: no
-result:` line per kind of skip, with the flags that fix it); 1 some poses failed (listed in the catalogue);
-130 after Ctrl-C, 128 + N after SIGTERM/SIGHUP (finished poses are kept: a re-run resumes).
+result:` line per kind of skip, with the flags that fix it); 1 some poses failed (listed in the catalogue;
+2 when one failed on a full disk: "no space left on the device holding DIR (FILE)"); 130 after Ctrl-C,
+128 + N after SIGTERM/SIGHUP (finished poses are kept: a re-run resumes).
 """
 import argparse
 import difflib
@@ -300,10 +301,13 @@ def run(argv):
     for line in summary["skip_reasons"]:
         print(f"gissar: warning: {line}", file=sys.stderr)
     if summary["failed"]:
-        first = next(p for p in catalog["gissar:poses"] if p["status"] == "failed")
+        failed = [p for p in catalog["gissar:poses"] if p["status"] == "failed"]
+        # A full disk is the run's error, not the poses': exit 2 like every command, naming a pose's output.
+        full = [p for p in failed if "no space left" in p.get("reason", "")]
+        first = (full or failed)[0]
         print(f"gissar: error: {summary['failed']} of {summary['poses']} poses failed, e.g. {first['id']}: "
               f"{first.get('reason', '')} ({args.out_prefix}_catalog.json)", file=sys.stderr)
-        return 1
+        return 2 if full else 1
     return 0
 
 

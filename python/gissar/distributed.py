@@ -17,6 +17,7 @@ request and the gissar version) and whose files all exist is not simulated again
 is replaced (the nanny restarts it) and Dask runs the task again (``retries``).
 """
 import csv
+import errno
 import glob
 import hashlib
 import io
@@ -413,6 +414,11 @@ def _write_atomic(path, text):
             os.unlink(tmp)
         except OSError:
             pass
+        if e.errno in (errno.ENOSPC, errno.EDQUOT):
+            # As the C++ writers say it (util/atomic_output.h WriteError): the final path, never the temporary.
+            kind = {".json": "JSON output", ".csv": "CSV output"}.get(os.path.splitext(path)[1], "output")
+            holder = os.path.dirname(os.path.abspath(path))
+            raise IoError(f"failed writing {kind}: no space left on the device holding {holder} ({path})") from None
         raise IoError(f"cannot write: {e.strerror} ({path})") from None
 
 

@@ -165,7 +165,7 @@ class RayAssigner {
       return;
     }
     // Sensor frame: x along l from the sensor, y along n.
-    const double tau = std::tan(RayE(j));
+    const double tau = rays_.tan_e != nullptr ? rays_.tan_e[j] : std::tan(RayE(j));
     const double ux = range0_ + u.xl, uy = u.e, dx = v.xl - u.xl, dy = v.e - u.e;
     const double denom = dy - tau * dx;
     const double lambda = denom != 0.0 ? std::clamp((tau * ux - uy) / denom, 0.0, 1.0) : 1.0;

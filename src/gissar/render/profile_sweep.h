@@ -86,6 +86,8 @@ class GridProfileSweep {
     double* depth_m;
     uint32_t* triangle;
     Eigen::Vector3f* normal;  // may be null
+    // Exact mode: tan(e0 + j * de) for j < count, or null (computed per ray).
+    const double* tan_e = nullptr;
   };
   // Trace for several lines, walked in lockstep (a stretch of each in turn:
   // neighbouring lines cross the same posts, which the next line then finds

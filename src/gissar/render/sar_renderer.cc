@@ -41,6 +41,11 @@ struct RayGrid {
   double ray_weight = 0.0;  // 1 / rays per cell
   double de_m = 0.0;        // across-range ray spacing, metres (exact: at the scene-centre range)
   double k_el = 1.0;        // rays per slant-range pixel on flat ground
+  // Exact mode: cos, sin and tan of e_j = e0 + j * de for every j (the same
+  // values std::cos/sin/tan give at each ray, computed once per image
+  // instead of once per ray: every azimuth line shares them).
+  std::vector<double> cos_e, sin_e, tan_e;
+  double E(int j) const { return e0 + j * de; }
 };
 
 RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box,
@@ -78,6 +83,17 @@ RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box
   grid.e0 = lo - grid.de;
   grid.n_el = static_cast<int>(std::ceil((hi - lo) / grid.de)) + 3;
   grid.back_off_m = back + 1.0;
+  if (g.mode() != sensor::ProjectionMode::kAffine) {
+    grid.cos_e.resize(size_t(grid.n_el));
+    grid.sin_e.resize(size_t(grid.n_el));
+    grid.tan_e.resize(size_t(grid.n_el));
+    for (int j = 0; j < grid.n_el; ++j) {
+      const double e = grid.E(j);
+      grid.cos_e[size_t(j)] = std::cos(e);
+      grid.sin_e[size_t(j)] = std::sin(e);
+      grid.tan_e[size_t(j)] = std::tan(e);
+    }
+  }
   return grid;
 }
 
@@ -104,8 +120,10 @@ double EntryDistance(const Vector3d& origin, const Vector3d& dir, const Eigen::A
 // metres), unit direction, and path length from the sensor to the origin.
 // Affine rays start on the origin plane behind the scene; exact rays where
 // they enter `box`. False when an exact ray misses `box`.
+// `cos_e`, `sin_e`: cos and sin of e (exact mode only).
 bool PrimaryRay(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::AlignedBox3d& box, double a,
-                double e, const Vector3d& sensor, Vector3d* origin, Vector3d* dir, double* travelled) {
+                double e, double cos_e, double sin_e, const Vector3d& sensor, Vector3d* origin, Vector3d* dir,
+                double* travelled) {
   const Vector3d& l = g.look_direction();
   const Vector3d& n = g.range_plane_normal();
   if (g.mode() == sensor::ProjectionMode::kAffine) {
@@ -114,12 +132,30 @@ bool PrimaryRay(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::
     *travelled = g.slant_range_m() - grid.back_off_m;
     return true;
   }
-  *dir = std::cos(e) * l + std::sin(e) * n;
+  *dir = cos_e * l + sin_e * n;
   const double entry = EntryDistance(sensor, *dir, box);
   if (!std::isfinite(entry)) return false;
   *travelled = std::max(0.0, entry - 1.0);
   *origin = sensor + *travelled * *dir;
   return true;
+}
+
+// A primary ray at any e (sub-rays between the grid's).
+bool PrimaryRay(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::AlignedBox3d& box, double a,
+                double e, const Vector3d& sensor, Vector3d* origin, Vector3d* dir, double* travelled) {
+  const bool affine = g.mode() == sensor::ProjectionMode::kAffine;
+  return PrimaryRay(g, grid, box, a, e, affine ? 1.0 : std::cos(e), affine ? 0.0 : std::sin(e), sensor, origin, dir,
+                    travelled);
+}
+
+// Primary ray j of the grid at along-track a.
+bool PrimaryRayAt(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::AlignedBox3d& box, double a, int j,
+                  const Vector3d& sensor, Vector3d* origin, Vector3d* dir, double* travelled) {
+  if (g.mode() == sensor::ProjectionMode::kAffine) {
+    return PrimaryRay(g, grid, box, a, grid.E(j), 1.0, 0.0, sensor, origin, dir, travelled);
+  }
+  return PrimaryRay(g, grid, box, a, grid.E(j), grid.cos_e[size_t(j)], grid.sin_e[size_t(j)], sensor, origin, dir,
+                    travelled);
 }
 
 // Accumulation band of image rows [row0, row0 + rows), `planes` planes of
@@ -1005,7 +1041,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
         for (int i = i0; i < i1; ++i) {
           const size_t at = size_t(i - i0) * grid.n_el;
           rays.push_back({grid.a0 + i * grid.da, grid.e0, grid.de, grid.n_el, &line_depth[at], &line_triangle[at],
-                          &line_normal[at]});
+                          &line_normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data()});
         }
         sweep->TraceLines(rays, line_swept.data());
         for (const uint8_t swept : line_swept) local_swept += swept;
@@ -1020,10 +1056,9 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
             const int j = j0 + k;
             valid[k] = 0;
             if (j >= grid.n_el) continue;
-            const double e = grid.e0 + j * grid.de;
             Vector3d origin, dir;
             double travelled;  // path length from the sensor to `origin`
-            if (!PrimaryRay(geometry, grid, box, a, e, sensor, &origin, &dir, &travelled)) continue;
+            if (!PrimaryRayAt(geometry, grid, box, a, j, sensor, &origin, &dir, &travelled)) continue;
             lane_origin[k] = origin;
             lane_dir[k] = dir;
             lane_travelled[k] = travelled;
@@ -1244,8 +1279,9 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
               }
               // Footprint: the neighbouring ray across range hits the same
               // plane s_e |N.v_e| / cos(theta_l) further in slant range.
-              const double e = grid.e0 + j * grid.de;
-              const Vector3d v_e = affine ? Vector3d(n) : Vector3d(-std::sin(e) * l + std::cos(e) * n);
+              const double e = grid.E(j);
+              const Vector3d v_e =
+                  affine ? Vector3d(n) : Vector3d(-grid.sin_e[size_t(j)] * l + grid.cos_e[size_t(j)] * n);
               const double s_e = affine ? grid.de_m : travelled * grid.de;
               box_cols = s_e * std::abs(normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
               box_rows = grid.da / geometry.azimuth_spacing_m();
@@ -1271,7 +1307,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
                   Vector3d o_b, d_b;
                   double trav_b;
                   if (line_triangle[below] != GridProfileSweep::kNoHit &&
-                      PrimaryRay(geometry, grid, box, a, grid.e0 + j_below * grid.de, sensor, &o_b, &d_b, &trav_b) &&
+                      PrimaryRayAt(geometry, grid, box, a, j_below, sensor, &o_b, &d_b, &trav_b) &&
                       line_normal[below].cast<double>().dot(d_b) < 0.0) {
                     const double t_b = affine ? line_depth[below] + grid.back_off_m : line_depth[below] - trav_b;
                     sub_start_ground = (o_b + t_b * d_b).dot(ground_look);
@@ -1523,10 +1559,9 @@ int64_t IntersectPrimaryRaysOnly(const EmbreeScene& embree, const scene::Triangl
             const int j = j0 + k;
             valid[k] = 0;
             if (j >= grid.n_el) continue;
-            const double e = grid.e0 + j * grid.de;
             Vector3d origin, dir;
             double travelled;
-            if (!PrimaryRay(geometry, grid, box, a, e, sensor, &origin, &dir, &travelled)) continue;
+            if (!PrimaryRayAt(geometry, grid, box, a, j, sensor, &origin, &dir, &travelled)) continue;
             packet.SetRay(k, origin.cast<float>(), dir.cast<float>());
             valid[k] = -1;
             any = true;
