@@ -23,4 +23,19 @@ class MemoryFile {
   std::string path_;
 };
 
+// A real file named `name` (e.g. "in.csv", for readers that go by the
+// extension) holding `data`, in a per-process directory under $TMPDIR
+// (/tmp), made once and reused; the file is removed on destruction.
+class NamedFile {
+ public:
+  NamedFile(const uint8_t* data, size_t size, const std::string& name);
+  ~NamedFile();
+  NamedFile(const NamedFile&) = delete;
+  NamedFile& operator=(const NamedFile&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
 }  // namespace gissar::fuzz

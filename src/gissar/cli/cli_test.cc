@@ -318,6 +318,22 @@ TEST(CommonFlagsTest, UnknownOptionsKeyNamesKeyAndFile) {
   EXPECT_EQ(CountEntries(dir), 1u);  // only bad.json
 }
 
+// Fuzzer finding (fuzz_options_json): a list flag's value nested 30,000
+// [ ] deep made CLI11 expand it level by level (gigabytes); a JSON list
+// nested as deep was dumped recursively. Both are ConfigErrors now.
+TEST(CommonFlagsTest, DeeplyNestedOptionsValueIsAClearError) {
+  const fs::path dir = testing::MakeTempDir();
+  const std::string deep = std::string(30000, '[') + std::string(30000, ']');
+  std::ofstream(dir / "text.json") << "{\"prior_offset_track\": \"" << deep << "\"}";
+  std::ofstream(dir / "list.json") << "{\"prior_offset_track\": [" << deep << "]}";
+  for (const char* name : {"text.json", "list.json"}) {
+    const Outcome o = RunBinary("locate --options " + (dir / name).string() + " --out " + (dir / "x").string(), dir);
+    EXPECT_EQ(o.status, 2) << name;
+    EXPECT_NE(o.err.find("key 'prior_offset_track'"), std::string::npos) << o.err;
+    EXPECT_NE(o.err.find(name), std::string::npos) << o.err;
+  }
+}
+
 TEST(CommonFlagsTest, DeprecatedSpellingWorksWithAWarning) {
   const fs::path dir = testing::MakeTempDir();
   const std::string dem = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();

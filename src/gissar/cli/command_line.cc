@@ -56,6 +56,18 @@ bool HasFlag(const std::vector<std::string>& args, const std::string& flag) {
 
 using pipeline::EditDistance;
 
+// The deepest nesting of [ ] in `text`. CLI11 (2.1) expands a "[a,b]" value
+// of a list flag recursively, copying the rest at each level: a value nested
+// thousands deep takes gigabytes.
+int BracketDepth(const std::string& text) {
+  int depth = 0, deepest = 0;
+  for (const char c : text) {
+    if (c == '[') deepest = std::max(deepest, ++depth);
+    if (c == ']' && depth > 0) --depth;
+  }
+  return deepest;
+}
+
 }  // namespace
 
 std::string DeprecationWarning(const std::string& old_flag, const std::string& replacement) {
@@ -122,6 +134,11 @@ void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
       text = value.get<std::string>();
     } else if (value.is_array()) {
       for (const auto& item : value) {
+        // A nested list or object is no flag value (and dumping a deeply
+        // nested one would overflow the stack).
+        if (!item.is_primitive() || item.is_null()) {
+          throw ConfigError("key '" + key + "' must be a list of strings, numbers or booleans", file);
+        }
         if (!text.empty()) text += ",";
         text += item.is_string() ? item.get<std::string>() : item.dump();
       }
@@ -129,6 +146,9 @@ void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
       text = value.dump();
     } else {
       throw ConfigError("key '" + key + "' must be a string, number, boolean or list", file);
+    }
+    if (BracketDepth(text) > 1) {
+      throw ConfigError("key '" + key + "' has nested [ ] (a list is [a,b] or a JSON list)", file);
     }
     expanded.push_back(flag);
     expanded.push_back(text);

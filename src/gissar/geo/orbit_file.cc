@@ -276,7 +276,13 @@ RadarGridSpec ReadRadarGrid(const fs::path& path) {
   ParseUtcSeconds(grid.sensing_start_utc, file + " sensing_start_utc");
   const nlohmann::json& look = doc["look_side"];
   const std::optional<LookSide> side = look.is_string() ? kLookSides.Find(look.get<std::string>()) : std::nullopt;
-  if (!side) throw InputError("'look_side' must be " + kLookSides.Alternatives() + ", got " + look.dump(), file);
+  if (!side) {
+    // Only a scalar is quoted: dumping a hostile file's deeply nested array
+    // recurses once per level and overflows the stack.
+    throw InputError("'look_side' must be " + kLookSides.Alternatives() + ", got " +
+                         (look.is_primitive() ? look.dump() : std::string("a JSON ") + look.type_name()),
+                     file);
+  }
   grid.look_left = *side == LookSide::kLeft;
   return grid;
 }

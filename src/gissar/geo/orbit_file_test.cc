@@ -128,6 +128,24 @@ TEST(OrbitFileTest, RadarGridAndOrbitMakeAProductGeometry) {
   ASSERT_EQ(p.orbit.position_m.size(), 5u);
 }
 
+// A look_side nested a million [ ] deep (2 MB) overflowed the stack when
+// the error message dumped it; only scalars are quoted now.
+TEST(OrbitFileTest, DeeplyNestedRadarGridValueIsAClearError) {
+  const auto dir = MakeTempDir();
+  const std::string deep = std::string(1000000, '[') + std::string(1000000, ']');
+  const std::string text =
+      "{\"starting_range_m\": 850000, \"range_spacing_m\": 2.3, \"sensing_start_utc\": \"2021-11-19T02:00:05\", "
+      "\"azimuth_time_interval_s\": 0.002, \"width\": 100, \"length\": 100, \"wavelength_m\": 0.0555, "
+      "\"look_side\": " + deep + "}";
+  try {
+    ReadRadarGrid(WriteFile(dir, "deep.json", text));
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'look_side' must be"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("a JSON array"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OrbitFileTest, OrbitMustCoverTheImageAndGridKeysAreChecked) {
   const auto dir = MakeTempDir();
   const StateVectors v = ReadStateVectors(TestDataPath("orbits/s1_poeorb_excerpt.EOF"));

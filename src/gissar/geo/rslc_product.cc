@@ -111,6 +111,11 @@ class Reader {
     H5Id type(H5Dget_type(ds.get()), H5Tclose);
     const H5T_class_t cls = H5Tget_class(type.get());
     if (cls != H5T_FLOAT && cls != H5T_INTEGER) throw InputError("dataset " + path + " is not numeric", file_);
+    // libhdf5 converts through a buffer of n stored values: a corrupt
+    // element size (gigabytes) is refused first.
+    if (H5Tget_size(type.get()) > 16) {
+      throw InputError("dataset " + path + " has " + std::to_string(H5Tget_size(type.get())) + "-byte numbers", file_);
+    }
     std::vector<double> values(n);
     if (n > 0 && H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0) {
       throw InputError("cannot read dataset " + path, file_);
@@ -133,6 +138,15 @@ class Reader {
     if (H5Tget_class(type.get()) != H5T_STRING) throw InputError(what + " is not a string", file_);
     H5Id space(is_attribute ? H5Aget_space(object) : H5Dget_space(object), H5Sclose);
     const hssize_t n = std::max<hssize_t>(1, H5Sget_simple_extent_npoints(space.get()));
+    // Metadata strings are short: a corrupt count or size (gigabytes from a
+    // 15 KB file) is refused before the buffer is allocated.
+    constexpr uint64_t kMaxStringBytes = uint64_t{64} << 20;
+    const uint64_t fixed_size = H5Tis_variable_str(type.get()) > 0 ? sizeof(char*) : H5Tget_size(type.get());
+    if (uint64_t(n) > kMaxStringBytes / std::max<uint64_t>(fixed_size, 1)) {
+      throw InputError(what + " declares " + std::to_string(n) + " strings of " + std::to_string(fixed_size) +
+                           " bytes (over 64 MiB): not a NISAR RSLC or a corrupt file",
+                       file_);
+    }
     std::vector<std::string> out;
     if (H5Tis_variable_str(type.get()) > 0) {
       H5Id mem(H5Tcopy(H5T_C_S1), H5Tclose);

@@ -525,7 +525,9 @@ void ApplyOverrides(Material& m, const nlohmann::json& fields, const std::string
   bool model_given = false;
   for (const auto& [key, value] : fields.items()) {
     const std::string at = where + "." + key;
-    auto number = [&]() {
+    // (The binding through an init-capture: clang 14, the fuzz build's
+    // compiler, cannot capture a structured binding.)
+    auto number = [&, &value = value]() {
       if (!value.is_number()) throw ConfigError("'" + at + "' must be a number", source);
       return value.get<double>();
     };
@@ -611,7 +613,9 @@ nlohmann::json ReadMaterialsFile(const std::string& path) {
     nlohmann::json j = nlohmann::json::parse(in);
     if (!j.is_object()) throw ConfigError("a materials file is an object of class name -> parameters", path);
     return j;
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // Not only parse_error: a number too large for a double ("1e999") is an
+    // out_of_range from the parser.
     throw ConfigError(std::string("not valid JSON: ") + e.what(), path);
   }
 }
