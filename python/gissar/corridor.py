@@ -11,6 +11,7 @@ result:` line per kind of skip, with the flags that fix it); 1 some poses failed
 import argparse
 import difflib
 import json
+import logging
 import math
 import re
 import signal
@@ -342,6 +343,11 @@ def main(argv=None):
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_signal)
     warnings.showwarning = _show_warning
+    # asyncio's own reports come from Dask's event loop, never from the command: above all "Future exception
+    # was never retrieved: TimeoutError", a close-time message to the scheduler that timed out under load
+    # after every pose was done. A pose's failure reaches the catalogue and the exit status through its
+    # future; Dask's own errors keep their loggers (distributed.*).
+    logging.getLogger("asyncio").setLevel(logging.CRITICAL + 1)
     try:
         return run(argv)
     except _Usage as e:
