@@ -51,6 +51,7 @@
 #include "gissar/geo/rslc_product.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
+#include "gissar/util/testing.h"
 
 namespace {
 namespace fs = std::filesystem;
@@ -261,6 +262,10 @@ bool MakeFixture(const std::string& name, const fs::path& dir) {
     p.look_left = true;
     p.amplitude.assign(12, 1.0f);
     gissar::geo::WriteRslcProduct(path, p);
+  } else if (name == "product_libhdf5_crash.h5") {
+    // A corrupt RSLC on which libhdf5 1.10.8 itself reads through a null
+    // pointer (tests/data/hostile_hdf5, a fuzzer finding).
+    WriteBytes(path, ReadBytes(gissar::testing::TestDataPath("hostile_hdf5/libhdf5_local_heap_segv.h5")));
   } else if (name == "dem_geo.tif") {
     gissar::geo::WriteDemGeoTiff(path, Hill(32, 32), 32, 32,
                                  {1.5, 1.0 / 1200, 0.0, 42.5, 0.0, -1.0 / 1200}, kWgs84);

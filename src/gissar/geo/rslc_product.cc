@@ -6,10 +6,12 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 
 #include "gissar/geo/look_side.h"
 #include "gissar/util/error.h"
+#include "gissar/util/isolated_call.h"
 #include "gissar/util/utc_time.h"
 #include "gissar/util/memory_limit.h"
 
@@ -248,13 +250,27 @@ double RslcProduct::range_spacing_m() const {
   return cols() > 1 ? (slant_range_m.back() - slant_range_m.front()) / (cols() - 1) : 0.0;
 }
 
-RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options) {
+namespace {
+
+// How much of the SLC layer ReadInProcess reads.
+enum class LayerRead {
+  kAsAsked,    // what RslcReadOptions asks (amplitude and/or complex, or nothing)
+  kEdgeLines,  // only its first and last lines (the probe: they walk the chunk index)
+};
+
+// The probe's limit: metadata and two lines take milliseconds, a hang
+// (a corrupt B-tree cycling) takes forever.
+constexpr double kProbeTimeoutS = 120.0;
+
+// Held by every use of libhdf5 here: no other thread of ours is inside the
+// library when the probe forks (the child would wait for its lock forever).
+std::mutex& Hdf5Mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, LayerRead layer_read) {
   const std::string where = path.string();
-  if (options.frequency != "A" && options.frequency != "B") {
-    throw ConfigError("frequency band must be A or B, got '" + options.frequency + "'", "--frequency");
-  }
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw InputError("product file not found", where);
   QuietHdf5 quiet;
   if (H5Fis_hdf5(where.c_str()) <= 0) throw InputError("not an HDF5 file (NISAR RSLC expected)", where);
   H5Id file(H5Fopen(where.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
@@ -419,6 +435,22 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
                          std::to_string(p.cols()) + " radar grid",
                      where);
   }
+  if (layer_read == LayerRead::kEdgeLines) {
+    H5Id type(H5Dget_type(ds.get()), H5Tclose);
+    if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) return p;
+    H5Id mem(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
+    H5Tinsert(mem.get(), "r", 0, H5T_NATIVE_FLOAT);
+    H5Tinsert(mem.get(), "i", sizeof(float), H5T_NATIVE_FLOAT);
+    std::vector<std::complex<float>> line(size_t(p.cols()));
+    for (const hsize_t row : {hsize_t{0}, hsize_t(p.rows() - 1)}) {
+      H5Id file_space(H5Dget_space(ds.get()), H5Sclose);
+      const hsize_t start[2] = {row, 0}, count[2] = {1, hsize_t(p.cols())};
+      H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
+      H5Id mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
+      H5Dread(ds.get(), mem.get(), mem_space.get(), file_space.get(), H5P_DEFAULT, line.data());
+    }
+    return p;
+  }
   if (options.read_amplitude || options.read_complex) {
     H5Id type(H5Dget_type(ds.get()), H5Tclose);
     if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) {
@@ -441,6 +473,37 @@ RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options
     if (options.read_complex) p.slc = std::move(slc);
   }
   return p;
+}
+
+}  // namespace
+
+RslcProduct ReadRslcProduct(const fs::path& path, const RslcReadOptions& options) {
+  const std::string where = path.string();
+  if (options.frequency != "A" && options.frequency != "B") {
+    throw ConfigError("frequency band must be A or B, got '" + options.frequency + "'", "--frequency");
+  }
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw InputError("product file not found", where);
+  // libhdf5 1.10 trusts a file's internal structure: a corrupt local heap or
+  // chunk index can make it read through a null pointer (fuzz_nisar_hdf5
+  // found such files: tests/data/hostile_hdf5). The metadata and the
+  // layer's edge lines are read first in a child process; its death becomes
+  // an InputError here, the caller left alive. A child that threw, or no
+  // child (fork failed), leaves the verdict to the read below.
+  const std::lock_guard<std::mutex> lock(Hdf5Mutex());
+  const IsolatedOutcome probe =
+      RunIsolated([&] { ReadInProcess(path, options, LayerRead::kEdgeLines); }, kProbeTimeoutS);
+  if (probe.kind == IsolatedOutcome::Kind::kCrashed) {
+    throw InputError("the HDF5 library crashed reading this file (" + probe.Describe(kProbeTimeoutS) +
+                         " in a probe process): a corrupt HDF5 file, not a readable NISAR RSLC",
+                     where);
+  }
+  if (probe.kind == IsolatedOutcome::Kind::kTimedOut) {
+    throw InputError("the HDF5 library gave " + probe.Describe(kProbeTimeoutS) +
+                         " reading this file's metadata (probe process): a corrupt HDF5 file",
+                     where);
+  }
+  return ReadInProcess(path, options, LayerRead::kAsAsked);
 }
 
 double RslcCalibrationLut::At(double time, double range) const {
@@ -516,6 +579,7 @@ H5Id Group(hid_t loc, const std::string& name, const std::string& where) {
 
 void WriteRslcProduct(const fs::path& path, const RslcProduct& product) {
   const std::string where = path.string();
+  const std::lock_guard<std::mutex> lock(Hdf5Mutex());
   QuietHdf5 quiet;
   H5Id file(H5Fcreate(where.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (!file.valid()) throw IoError("cannot create HDF5 file", where);

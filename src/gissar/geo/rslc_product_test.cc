@@ -236,5 +236,56 @@ TEST(Egm96GeoidTest, MatchesProjAtWinnipeg) {
   EXPECT_THROW(Egm96Geoid("/nonexistent/egm96_15.gtx"), InputError);
 }
 
+// Hostile files (tests/data/hostile_hdf5, found by fuzz_nisar_hdf5): each a
+// clear InputError naming the file, never a crash of the caller or an
+// allocation outside the budget. The message of the read, or "" when none.
+std::string HostileReadMessage(const std::string& name) {
+  RslcReadOptions options;
+  options.max_bytes = int64_t{64} << 20;
+  options.read_complex = true;
+  options.read_calibration = true;
+  const std::filesystem::path path = gissar::testing::TestDataPath("hostile_hdf5/" + name);
+  try {
+    ReadRslcProduct(path, options);
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    return e.what();
+  }
+  return "";
+}
+
+TEST(RslcProductTest, LibHdf5CrashOnCorruptLocalHeapIsAnInputError) {
+  // libhdf5 1.10.8 reads through a null pointer under H5Lexists on this file:
+  // the probe process dies (SIGSEGV, or exit 1 with a sanitizer's report).
+  const std::string message = HostileReadMessage("libhdf5_local_heap_segv.h5");
+  EXPECT_NE(message.find("HDF5 library crashed"), std::string::npos) << message;
+  EXPECT_NE(message.find("corrupt HDF5 file"), std::string::npos) << message;
+}
+
+TEST(RslcProductTest, LibHdf5CrashInAMutatedAlosChipIsAnInputError) {
+  const std::string message = HostileReadMessage("libhdf5_local_heap_segv_alos.h5");
+  EXPECT_NE(message.find("HDF5 library crashed"), std::string::npos) << message;
+}
+
+TEST(RslcProductTest, HugeStringCountIsRefusedBeforeAllocating) {
+  // A string attribute declaring 4 GiB of strings in a 15 KB file.
+  const std::string message = HostileReadMessage("oom_string_4gib.h5");
+  EXPECT_NE(message.find("over 64 MiB"), std::string::npos) << message;
+}
+
+TEST(RslcProductTest, HugeNumberElementSizeIsRefusedBeforeAllocating) {
+  // A numeric dataset whose element size is gigabytes (libhdf5 converts
+  // through a buffer of stored values).
+  const std::string message = HostileReadMessage("oom_number_size.h5");
+  EXPECT_NE(message.find("-byte numbers"), std::string::npos) << message;
+}
+
+TEST(RslcProductTest, HugeMetadataCacheEntryIsAnInputError) {
+  // libhdf5 asks malloc for 378 GB for a metadata-cache entry: glibc returns
+  // NULL and the read fails (a sanitizer's allocator aborts the probe
+  // instead): an InputError either way.
+  EXPECT_FALSE(HostileReadMessage("libhdf5_huge_metadata_allocation.h5").empty());
+}
+
 }  // namespace
 }  // namespace gissar::geo
