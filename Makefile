@@ -56,6 +56,7 @@ install-python: build
 # Rewrites the figures docs/tutorial.md quotes from a fresh run of the
 # tutorial (scripts/docs_numbers.py; the docs_tutorial test compares them).
 docs-numbers: build
+	@PYTHONPATH=$(BUILD_DIR)/python /usr/bin/python3 scripts/options_table.py --out docs/options.md
 	@mkdir -p out/tutorial
 	@PYTHONPATH=$(BUILD_DIR)/python /usr/bin/python3 examples/tutorial.py --out out/tutorial | tee out/tutorial/printed.txt
 	@/usr/bin/python3 scripts/docs_numbers.py --results out/tutorial/results.json \

@@ -29,7 +29,7 @@
 #include "gissar/pipeline/pta.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
-#include "gissar/pipeline/simulate_help.h"
+#include "gissar/pipeline/simulate_fields.h"
 #include "gissar/pipeline/views.h"
 #include "gissar/geo/memory_raster.h"
 #include "gissar/pipeline/field_names.h"
@@ -1261,6 +1261,26 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
   m.def("simulate_request_help", [] { return pipeline::SimulateFieldHelp(); },
         "{field: one-line help} of the simulate request fields the doors offer as flags or keywords (the text "
         "of `gissar simulate --help`, without defaults; simulate_request_defaults() gives those).");
+  m.def("simulate_request_fields", [] {
+        py::list fields;
+        const pipeline::SimulateRequest defaults;
+        for (const auto& field : pipeline::SimulateFields().fields()) {
+          py::dict d;
+          d["name"] = field.name;
+          d["flag"] = field.Flag();
+          d["help"] = field.help;
+          d["default"] = JsonToPython(field.get(defaults));
+          d["show_default"] = field.show_default;
+          fields.append(d);
+        }
+        return fields;
+      },
+        "The simulate request's field table (pipeline/simulate_fields.cc), in its order: one dict per field with "
+        "name (the keyword and options-file key), flag (the CLI's), help (one line; empty: no flag), default and "
+        "show_default. The corridor's flags and docs/options.md are made from it.");
+  m.def("flag_of_field", &pipeline::FlagOfField, py::arg("field"),
+        "The CLI flag of a request field: kebab case without the unit suffix (heading_deg -> --heading; "
+        "out_prefix -> --out, center_lonlat -> --center, look_side -> --look).");
   m.def("unknown_key_message", &pipeline::UnknownKeyMessage, py::arg("key"), py::arg("known"),
         "\"unknown key 'KEY'\" with \"; did you mean K?\" when a key of `known` is close (the same case, '-' for "
         "'_', the flag name without its unit suffix, or at most 2 edits): the message of every request's "

@@ -30,10 +30,11 @@ def _unit_of(name):
     return None
 
 
-def _with_request_signature(function, defaults, leading, trailing, summary, required=()):
+def _with_request_signature(function, defaults, leading, trailing, summary, required=(), help=None):
     """Gives `function` (a **kwargs wrapper of the core) the signature of its request: every field a
     keyword-only parameter with its default (`required` ones first, without a default: the core raises
-    ConfigError "is required (NAME)" without them, as the command line does), units in the docstring."""
+    ConfigError "is required (NAME)" without them, as the command line does), units and the request table's
+    one-line `help` ({name: text}) in the docstring."""
     params = [_inspect.Parameter(name, _inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default)
               for name, default in leading]
     params += [_inspect.Parameter(name, _inspect.Parameter.KEYWORD_ONLY) for name in required]
@@ -47,7 +48,8 @@ def _with_request_signature(function, defaults, leading, trailing, summary, requ
     for p in params:
         unit = _unit_of(p.name)
         given = "required" if p.default is _inspect.Parameter.empty else f"default {p.default!r}"
-        lines.append(f"    {p.name}: {given}" + (f" ({unit})" if unit else ""))
+        text = (help or {}).get(p.name)
+        lines.append(f"    {p.name}: {given}" + (f" ({unit})" if unit else "") + (f". {text}" if text else ""))
     function.__doc__ = "\n".join(lines)
     return function
 
@@ -123,7 +125,7 @@ _with_request_signature(
     simulate, _core.simulate_request_defaults(),
     leading=[("dem", None)],
     trailing=[("transform", None), ("crs", None), ("nodata", None), ("progress", None), ("out_prefix", None)],
-    summary=_SIMULATE_SUMMARY, required=("heading_deg", "depression_deg"))
+    summary=_SIMULATE_SUMMARY, required=("heading_deg", "depression_deg"), help=_core.simulate_request_help())
 simulate.__module__ = "gissar"
 
 

@@ -28,21 +28,14 @@ _HELP_COLUMN = 30
 _DEFAULT_NOT_SHOWN = ("range_spacing_m", "azimuth_spacing_m", "range_resolution_m", "azimuth_resolution_m",
                       "nesz_db", "vertical_units", "vertical_datum", "materials", "reflectors")
 #: Simulate request fields the corridor sets itself or does not offer (per-pose or single-file outputs).
-_NOT_FLAGS = ("dem", "scene", "product", "orbit", "radar_grid", "center_lonlat", "center_map", "heading_deg",
-              "out_prefix", "contributions", "max_memory_bytes", "width", "height")
-_UNITS = ("_deg", "_m", "_db", "_bytes", "_px", "_s")
-_SPECIAL_FLAGS = {"look_side": "--look", "out_prefix": "--out", "center_lonlat": "--center"}
+_NOT_FLAGS = ("dem", "scene", "product", "orbit", "radar_grid", "frequency", "swath", "burst", "product_window_px",
+              "center_lonlat", "center_map", "heading_deg", "out_prefix", "contributions", "max_memory_bytes", "width",
+              "height")
 
 
 def flag_of_field(field):
     """The flag of a request field (docs/conventions.md): kebab case without the unit suffix."""
-    if field in _SPECIAL_FLAGS:
-        return _SPECIAL_FLAGS[field]
-    for suffix in _UNITS:
-        if field.endswith(suffix):
-            field = field[: -len(suffix)]
-            break
-    return "--" + field.replace("_", "-")
+    return gissar._core.flag_of_field(field)
 
 
 class _Usage(Exception):

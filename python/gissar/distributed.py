@@ -747,6 +747,19 @@ def _scheduler_lost(client, error, wait_s=5.0):
         time.sleep(0.1)
 
 
+def _release_client(client, cluster, owned, lost):
+    """Closes a client (and its cluster) this call started (`owned`); quietly when its scheduler was `lost`. A
+    caller's own client is left as it is."""
+    if not owned:
+        return
+    if lost:
+        _close_quietly(client, cluster)
+        return
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
 def _close_quietly(client, cluster):
     """Closes a client whose scheduler is gone: the client's own reconnection attempts are cancelled, which
     Dask logs as tracebacks; they are not the user's concern (the error raised says what happened)."""
@@ -1066,12 +1079,7 @@ def build_corridor(route, *, pose_step_m, headings_deg, out_prefix, dem=None, sc
                             record.update(status="failed", files=[],
                                           reason=f"not run: the Dask scheduler at {address} was lost mid-run")
             finally:
-                if owned and lost_scheduler is not None:
-                    _close_quietly(client, cluster)
-                elif owned:
-                    client.close()
-                    if cluster is not None:
-                        cluster.close()
+                _release_client(client, cluster, owned, lost_scheduler is not None)
 
         wall_seconds = time.perf_counter() - started
         catalog = _catalogue(records, collection_id=collection_id, catalog_path=catalog_path, route=route,

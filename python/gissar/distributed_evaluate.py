@@ -65,12 +65,7 @@ def evaluate(*, client=None, scheduler=None, workers=None, chunk_trials=None, th
                 reason = _dist._failure_reason(e, _dist._worker_memory_limits(client), "ran these trials")
                 raise _core.IoError(f"trials {first}..{first + count - 1} failed: {reason}") from None
     finally:
-        if owned and lost:
-            _dist._close_quietly(client, cluster)
-        elif owned:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+        _dist._release_client(client, cluster, owned, lost)
     if options.get("out_prefix"):
         return _core.write_evaluation(options, records, _time.monotonic() - started)
     return _core.summarise_trials(options, records)

@@ -37,18 +37,6 @@ LONG_FLAGS = ["--dem", DEM, "--pose-step", "2000", "--headings", "80,100", "--wi
               "--range-spacing", "90", "--azimuth-spacing", "90", "--rays-per-cell", "1", "--depression", "40"]
 
 
-@pytest.fixture(scope="module")
-def client():
-    from distributed import Client, LocalCluster
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None)
-    c = Client(cluster)
-    c.wait_for_workers(2, timeout=120)
-    yield c
-    c.close()
-    cluster.close()
-
-
 def cli(*args, timeout=300):
     return subprocess.run([os.environ["GISSAR_CLI"], "corridor", *args], capture_output=True, text=True,
                           timeout=timeout)

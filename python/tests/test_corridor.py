@@ -35,18 +35,6 @@ IMAGE = dict(width=64, height=64, range_spacing_m=90.0, azimuth_spacing_m=90.0, 
 
 
 @pytest.fixture(scope="module")
-def client():
-    from distributed import Client, LocalCluster
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None)
-    c = Client(cluster)
-    c.wait_for_workers(2, timeout=120)
-    yield c
-    c.close()
-    cluster.close()
-
-
-@pytest.fixture(scope="module")
 def reference(client, tmp_path_factory):
     """The undisturbed corridor: (prefix, catalogue)."""
     prefix = str(tmp_path_factory.mktemp("corridor") / "ref")

@@ -2,6 +2,7 @@
 with a transform and a CRS or rioxarray DataArrays; xarray out with coordinates in metres, band names, units
 and masks with flag names; pickling through a process pool; read-only scene attributes; Ctrl-C; tqdm."""
 import concurrent.futures
+import inspect
 import multiprocessing
 import os
 import pathlib
@@ -292,3 +293,19 @@ def test_every_name_in_the_type_hints_exists():
     assert not missing, missing
     public = [n for n in dir(gissar) if not n.startswith("_") and callable(getattr(gissar, n))]
     assert not [n for n in public if n not in names], "not in the type hints (__init__.pyi)"
+
+
+def test_simulate_type_hints_name_only_request_fields():
+    """The .pyi's simulate keywords are fields of the request's table (a renamed or removed field fails here);
+    the others reach it through **request, as gissar.simulate's signature lists them all."""
+    import ast
+    hints = os.path.join(os.path.dirname(gissar.__file__), "__init__.pyi")
+    tree = ast.parse(open(hints).read())
+    stub = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "simulate")
+    named = [a.arg for a in stub.args.args + stub.args.kwonlyargs]
+    fields = {f["name"] for f in gissar._core.simulate_request_fields()}
+    doors = {"dem", "scene", "transform", "crs", "nodata", "progress", "out_prefix"}
+    assert stub.args.kwarg is not None and stub.args.kwarg.arg == "request"
+    assert not [n for n in named if n not in fields | doors]
+    signature = inspect.signature(gissar.simulate).parameters
+    assert not [f for f in fields if f not in signature and f not in ("max_memory_bytes",)]

@@ -6,17 +6,19 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <ostream>
 #include <sstream>
 #include <string>
 #include <utility>
+#include <variant>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "gissar/pipeline/field_names.h"
-#include "gissar/pipeline/simulate_help.h"
+#include "gissar/pipeline/simulate_fields.h"
 #include "gissar/util/error.h"
 #include "gissar/util/reporter.h"
 
@@ -107,17 +109,69 @@ inline CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool& valu
   return cmd->add_flag(names, value, help + (value ? " (default: on)" : " (default: off)"));
 }
 
-// A flag of a simulate request field (`field`, snake_case with its unit
-// suffix): the flag is pipeline::FlagOfField(field) and the help text
-// pipeline::SimulateHelp(field), the same in every command that offers it
-// (simulate, sequence, ortho, validate, corridor). The default is shown when
-// `show_default`.
-template <class T>
-CLI::Option* AddSimulateOption(CLI::App* cmd, const std::string& field, T& value, bool show_default = true) {
-  CLI::Option* option = cmd->add_option(pipeline::FlagOfField(field), value, pipeline::SimulateHelp(field));
-  if (show_default) option->capture_default_str();
-  return option;
-}
+// The flags of a request's fields (pipeline/request_fields.h), declared from
+// its table: the flag is the field's Flag(), the help its help text (with
+// "(default: X)" when the field shows its default), a bool field an on/off
+// switch (AddSwitch). Plain fields are bound to the request `target` points
+// to (CLI11 converts and checks their values); the others (enums, pairs,
+// windows) are kept as the text given and set by Apply() when the command
+// runs, so that their errors name the flag as every ConfigError does.
+// `target` must outlive the command line's parse (a member of the command's
+// shared request).
+template <class R>
+class RequestFlags {
+ public:
+  RequestFlags(CLI::App* cmd, const pipeline::FieldTable<R>& table, R* target)
+      : cmd_(cmd), table_(table), target_(target) {}
+
+  // Declares the flag of field `name` (a name the table lacks is a bug).
+  CLI::Option* Add(const std::string& name) {
+    const pipeline::RequestField<R>& field = table_.at(name);
+    const std::string flag = field.Flag();
+    const pipeline::FieldRef ref = field.ref(*target_);
+    if (bool* const* value = std::get_if<bool*>(&ref)) {
+      return AddSwitch(cmd_, flag.substr(2), **value, field.help, field.extra_negations);
+    }
+    CLI::Option* option = std::visit(
+        [&](auto pointer) -> CLI::Option* {
+          if constexpr (std::is_same_v<decltype(pointer), std::monostate>) {
+            auto& text = texts_.emplace_back(name, std::make_shared<std::string>()).second;
+            CLI::Option* o = cmd_->add_option(flag, *text, field.help);
+            if (field.show_default) o->default_str(field.get(*target_).template get<std::string>());
+            return o;
+          } else {
+            return cmd_->add_option(flag, *pointer, field.help);
+          }
+        },
+        ref);
+    if (field.show_default && !std::holds_alternative<std::monostate>(ref)) option->capture_default_str();
+    return option;
+  }
+  void Add(std::initializer_list<const char*> names) {
+    for (const char* name : names) Add(name);
+  }
+
+  // Sets the text fields given on the command line into `request` (the
+  // command's resolved copy); ConfigError naming the flag for a bad value.
+  void Apply(R& request) const {
+    for (const auto& [name, text] : texts_) {
+      const pipeline::RequestField<R>& field = table_.at(name);
+      const std::string flag = field.Flag();
+      if (cmd_->count(flag) == 0) continue;
+      field.set(request, field.from_text(*text, flag), flag, "command line");
+    }
+  }
+
+ private:
+  CLI::App* cmd_;
+  const pipeline::FieldTable<R>& table_;
+  R* target_;
+  std::vector<std::pair<std::string, std::shared_ptr<std::string>>> texts_;
+};
+
+// An on/off flag spelt and explained as the simulate request field `field`
+// (pipeline/simulate_fields.h) but bound to another request's bool (scene
+// build's --fill-nodata).
 inline CLI::Option* AddSimulateSwitch(CLI::App* cmd, const std::string& field, bool& value,
                                       const std::string& extra_negations = "") {
   const std::string flag = pipeline::FlagOfField(field);

@@ -58,18 +58,13 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--polarization", s1->polarization,
                   "Sentinel-1: polarisation to check (" + material::kPolarizations.List() +
                       "; default: every one present)");
-  AddSimulateOption(cmd, "dem", options->simulate.dem, false);
-  AddSimulateOption(cmd, "scene", options->simulate.scene, false);
-  AddSimulateSwitch(cmd, "fill_nodata", options->simulate.fill_nodata);
-  AddSimulateOption(cmd, "dem_oversample", options->simulate.dem_oversample);
-  AddSimulateOption(cmd, "vertical_units", options->simulate.vertical_units, false);
-  AddSimulateOption(cmd, "vertical_datum", options->simulate.vertical_datum, false);
+  auto simulate_flags = std::make_shared<RequestFlags<SimulateRequest>>(cmd, SimulateFields(), &options->simulate);
+  simulate_flags->Add({"dem", "scene", "fill_nodata", "dem_oversample", "vertical_units", "vertical_datum"});
   cmd->add_option("--reference-geolocation", options->reference_geolocation,
                   "Directory with a peer's per-pixel x.rdr, y.rdr, z.rdr (lon, lat, height; ISCE topo) and simamp.rdr");
   cmd->add_option("--looks", *looks, "Multilook sizes k of the k x k correlations, comma-separated")
       ->capture_default_str();
-  AddSimulateOption(cmd, "rays_per_cell", options->simulate.rays_per_cell);
-  AddSimulateOption(cmd, "bounces", options->simulate.bounces);
+  simulate_flags->Add({"rays_per_cell", "bounces"});
   cmd->add_option("--out", options->out_prefix,
                   "Output prefix: PREFIX.json, PREFIX.md, PREFIX_side_by_side.png, PREFIX_histogram.png (Sentinel-1: PREFIX.json)")
       ->required();

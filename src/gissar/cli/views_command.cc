@@ -8,45 +8,28 @@ namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
 namespace {
 
-// Terrain and geometry flags shared with `simulate` (bound to `o`); the
-// enum fields as their names, with the request's defaults.
+// Terrain and geometry flags shared with `simulate`, from its request's
+// table (bound to `o`).
 struct CommonFlags {
-  std::shared_ptr<std::string> center = std::make_shared<std::string>();
-  std::shared_ptr<std::string> mode =
-      std::make_shared<std::string>(sensor::ToString(sensor::SarGeometryOptions().mode));
-  std::shared_ptr<std::string> look =
-      std::make_shared<std::string>(sensor::ToString(sensor::SarGeometryOptions().look_side));
+  std::shared_ptr<RequestFlags<SimulateRequest>> flags;
   std::shared_ptr<std::string> max_memory = std::make_shared<std::string>();
-
   CLI::App* app = nullptr;
 
   void Add(CLI::App* cmd, SimulateRequest& o, bool with_heading) {
     app = cmd;
-    AddSimulateOption(cmd, "dem", o.dem, false);
-    AddSimulateOption(cmd, "scene", o.scene, false);
-    AddSimulateSwitch(cmd, "fill_nodata", o.fill_nodata);
-    AddSimulateOption(cmd, "vertical_datum", o.vertical_datum, false);
-    if (with_heading) AddSimulateOption(cmd, "heading_deg", o.geometry.heading_deg, false)->required();
-    AddSimulateOption(cmd, "depression_deg", o.geometry.depression_deg, false)->required();
-    AddSimulateOption(cmd, "look_side", *look);
-    AddSimulateOption(cmd, "center_lonlat", *center, false);
-    AddSimulateOption(cmd, "slant_range_m", o.geometry.slant_range_m);
-    AddSimulateOption(cmd, "range_spacing_m", o.geometry.range_spacing_m, false);
-    AddSimulateOption(cmd, "azimuth_spacing_m", o.geometry.azimuth_spacing_m, false);
+    flags = std::make_shared<RequestFlags<SimulateRequest>>(cmd, SimulateFields(), &o);
+    flags->Add({"dem", "scene", "fill_nodata", "vertical_datum"});
+    if (with_heading) flags->Add("heading_deg")->required();
+    flags->Add("depression_deg")->required();
+    flags->Add({"look_side", "center_lonlat", "slant_range_m", "range_spacing_m", "azimuth_spacing_m"});
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
-    AddSimulateOption(cmd, "rays_per_cell", o.rays_per_cell);
-    AddSimulateOption(cmd, "range_resolution_m", o.range_resolution_m, false);
-    AddSimulateOption(cmd, "azimuth_resolution_m", o.azimuth_resolution_m, false);
-    AddSimulateOption(cmd, "psf_window", o.psf_window);
-    AddSimulateOption(cmd, "speckle_looks", o.speckle_looks);
-    AddSimulateOption(cmd, "seed", o.seed);
+    flags->Add({"rays_per_cell", "range_resolution_m", "azimuth_resolution_m", "psf_window", "speckle_looks",
+                "seed"});
   }
   void Resolve(SimulateRequest& o, bool force) const {
+    flags->Apply(o);
     RequirePositiveIfGiven(*app, "--range-spacing", o.geometry.range_spacing_m);
     RequirePositiveIfGiven(*app, "--azimuth-spacing", o.geometry.azimuth_spacing_m);
-    o.geometry.mode = sensor::ParseProjectionMode(*mode);
-    o.geometry.look_side = sensor::ParseLookSide(*look);
-    if (!center->empty()) o.center_lonlat = ParseNumberPair(*center, "--center");
     o.max_memory_bytes = MemoryBudgetBytes(*max_memory, force, o.max_memory_bytes);
   }
 };
@@ -59,7 +42,7 @@ void AddViewCommands(CLI::App& root, CommandRegistry& registry) {
   CLI::App* seq = root.add_subcommand(
       "sequence", "Render a heading sequence (same depression and altitude) from one scene build.");
   sequence_flags->Add(seq, sequence->base, false);
-  AddSimulateOption(seq, "mode", *sequence_flags->mode);
+  sequence_flags->flags->Add("mode");
   seq->add_option("--heading-from", sequence->heading_from_deg, "First heading, degrees")->capture_default_str();
   seq->add_option("--heading-to", sequence->heading_to_deg, "Last heading, degrees")->capture_default_str();
   seq->add_option("--frames", sequence->frames, "Number of frames (>= 2)")->capture_default_str();

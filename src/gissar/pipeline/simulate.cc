@@ -1,5 +1,6 @@
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/field_names.h"
+#include "gissar/pipeline/simulate_fields.h"
 
 #include "gissar/pipeline/georeferencing.h"
 #include "gissar/pipeline/stac.h"
@@ -139,159 +140,10 @@ void SimulateRequest::Check() const {
   CheckOutputsAreNotInputs(outs, {dem, scene, product, orbit, radar_grid, materials, reflectors});
 }
 
-nlohmann::json SimulateRequest::ToJson() const {
-  nlohmann::json j;
-  j["dem"] = dem;
-  j["scene"] = scene;
-  j["product"] = product;
-  j["orbit"] = orbit;
-  j["radar_grid"] = radar_grid;
-  j["frequency"] = frequency;
-  j["swath"] = swath;
-  j["burst"] = burst;
-  j["product_window_px"] = product_window_px ? nlohmann::json(*product_window_px) : nlohmann::json(nullptr);
-  j["vertical_datum"] = vertical_datum;
-  j["vertical_units"] = vertical_units;
-  j["dem_oversample"] = dem_oversample;
-  j["sea"] = sea;
-  j["sea_level_m"] = sea_level_m;
-  j["dem_window"] = dem_window;
-  j["fill_nodata"] = fill_nodata;
-  j["center_lonlat"] = center_lonlat ? nlohmann::json{center_lonlat->x(), center_lonlat->y()}
-                                     : nlohmann::json(nullptr);
-  j["center_map"] = center_map ? nlohmann::json{center_map->x(), center_map->y()}
-                               : nlohmann::json(nullptr);
-  j["heading_deg"] = geometry.heading_deg;
-  j["depression_deg"] = geometry.depression_deg;
-  j["look_side"] = sensor::ToString(geometry.look_side);
-  j["slant_range_m"] = geometry.slant_range_m;
-  j["range_spacing_m"] = geometry.range_spacing_m;
-  j["azimuth_spacing_m"] = geometry.azimuth_spacing_m;
-  j["mode"] = sensor::ToString(geometry.mode);
-  j["width"] = geometry.width;
-  j["height"] = geometry.height;
-  j["engine"] = ToString(engine);
-  j["rays_per_cell"] = rays_per_cell;
-  j["bounces"] = bounces;
-  j["coherent"] = coherent;
-  j["wavelength_m"] = wavelength_m;
-  j["polarization"] = polarization;
-  j["radiometry"] = radiometry;
-  j["db"] = db;
-  j["layers"] = layers;
-  j["overviews"] = overviews;
-  j["heightfield"] = heightfield;
-  j["adaptive_sampling"] = adaptive_sampling;
-  j["materials"] = materials;
-  j["reflectors"] = reflectors;
-  j["contributions"] = contributions;
-  j["range_resolution_m"] = std::isnan(range_resolution_m) ? nlohmann::json(nullptr) : nlohmann::json(range_resolution_m);
-  j["azimuth_resolution_m"] =
-      std::isnan(azimuth_resolution_m) ? nlohmann::json(nullptr) : nlohmann::json(azimuth_resolution_m);
-  j["psf_window"] = psf_window;
-  j["speckle_looks"] = speckle_looks;
-  j["nesz_db"] = std::isnan(nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(nesz_db);
-  j["seed"] = seed;
-  j["out_prefix"] = out_prefix;
-  j["max_memory_bytes"] = max_memory_bytes;
-  return j;
-}
-
-namespace {
-
-std::optional<Eigen::Vector2d> PairOrNull(const nlohmann::json& value, const std::string& key,
-                                          const std::string& source) {
-  if (value.is_null()) return std::nullopt;
-  std::vector<double> v;
-  AssignField(v, value, key, source);
-  if (v.size() != 2) throw ConfigError("key '" + key + "' needs two numbers", source);
-  return Eigen::Vector2d(v[0], v[1]);
-}
-
-}  // namespace
+nlohmann::json SimulateRequest::ToJson() const { return SimulateFields().ToJson(*this); }
 
 void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
-  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
-  for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) { AssignField(field, value, key, source); };
-    if (key == "dem") set(dem);
-    else if (key == "scene") set(scene);
-    else if (key == "product") set(product);
-    else if (key == "orbit") set(orbit);
-    else if (key == "radar_grid") set(radar_grid);
-    else if (key == "frequency") set(frequency);
-    else if (key == "swath") set(swath);
-    else if (key == "burst") set(burst);
-    else if (key == "product_window_px") {
-      if (value.is_null()) {
-        product_window_px.reset();
-      } else {
-        std::vector<int> v;
-        set(v);
-        if (v.size() != 4) throw ConfigError("key 'product_window_px' needs four integers", source);
-        product_window_px = std::array<int, 4>{v[0], v[1], v[2], v[3]};
-      }
-    }
-    else if (key == "vertical_datum") set(vertical_datum);
-    else if (key == "vertical_units") set(vertical_units);
-    else if (key == "dem_oversample") set(dem_oversample);
-    else if (key == "sea") set(sea);
-    else if (key == "sea_level_m") set(sea_level_m);
-    else if (key == "dem_window") set(dem_window);
-    else if (key == "fill_nodata") set(fill_nodata);
-    else if (key == "center_lonlat") center_lonlat = PairOrNull(value, key, source);
-    else if (key == "center_map") center_map = PairOrNull(value, key, source);
-    else if (key == "heading_deg") set(geometry.heading_deg);
-    else if (key == "depression_deg") set(geometry.depression_deg);
-    else if (key == "look_side") {
-      std::string text;
-      set(text);
-      geometry.look_side = sensor::ParseLookSide(text);
-    } else if (key == "slant_range_m") set(geometry.slant_range_m);
-    else if (key == "range_spacing_m") set(geometry.range_spacing_m);
-    else if (key == "azimuth_spacing_m") set(geometry.azimuth_spacing_m);
-    else if (key == "mode") {
-      std::string text;
-      set(text);
-      geometry.mode = sensor::ParseProjectionMode(text);
-    } else if (key == "width") set(geometry.width);
-    else if (key == "height") set(geometry.height);
-    else if (key == "engine") {
-      std::string text;
-      set(text);
-      engine = kSimulateEngines.Parse(text, "--engine");
-    }
-    else if (key == "rays_per_cell") set(rays_per_cell);
-    else if (key == "bounces") set(bounces);
-    else if (key == "coherent") set(coherent);
-    else if (key == "wavelength_m") set(wavelength_m);
-    else if (key == "polarization") set(polarization);
-    else if (key == "radiometry") set(radiometry);
-    else if (key == "db") set(db);
-    else if (key == "layers") set(layers);
-    else if (key == "overviews") set(overviews);
-    else if (key == "heightfield") set(heightfield);
-    else if (key == "adaptive_sampling") set(adaptive_sampling);
-    else if (key == "materials") set(materials);
-    else if (key == "reflectors") set(reflectors);
-    else if (key == "contributions") set(contributions);
-    else if (key == "range_resolution_m") {
-      if (value.is_null()) range_resolution_m = std::numeric_limits<double>::quiet_NaN();
-      else set(range_resolution_m);
-    } else if (key == "azimuth_resolution_m") {
-      if (value.is_null()) azimuth_resolution_m = std::numeric_limits<double>::quiet_NaN();
-      else set(azimuth_resolution_m);
-    }
-    else if (key == "psf_window") set(psf_window);
-    else if (key == "speckle_looks") set(speckle_looks);
-    else if (key == "nesz_db") {
-      if (value.is_null()) nesz_db = std::numeric_limits<double>::quiet_NaN();
-      else set(nesz_db);
-    } else if (key == "seed") set(seed);
-    else if (key == "out_prefix") set(out_prefix);
-    else if (key == "max_memory_bytes") set(max_memory_bytes);
-    else throw ConfigError(UnknownKeyMessage(key, KeysOf(SimulateRequest().ToJson())), source);
-  }
+  SimulateFields().ApplyJson(*this, values, source);
 }
 
 namespace {
@@ -1492,6 +1344,30 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
       }
     }
   }
+  // The terrain layers (--layers, --incidence-band), computed once: NaN
+  // outside the imaged footprint.
+  std::optional<render::TerrainLayers> terrain_layers;
+  auto layers_of_terrain = [&]() -> const render::TerrainLayers& {
+    if (!terrain_layers) {
+      // The raster engine keeps the DEM as posts only: triangulate them as it does.
+      const bool posts_only = mesh.triangle_count() == 0 && terrain.grid_width > 1 && terrain.grid_height > 1;
+      terrain_layers = render::ComputeTerrainLayers(
+          posts_only ? scene::MeshFromGrid(mesh.vertices, terrain.grid_width, terrain.grid_height) : mesh, geometry);
+      for (size_t i = 0; i < image.footprint.size() && i < terrain_layers->local_incidence_deg.size(); ++i) {
+        if (!image.footprint[i]) {
+          terrain_layers->local_incidence_deg[i] = terrain_layers->projected_area_m2[i] =
+              std::numeric_limits<float>::quiet_NaN();
+        }
+      }
+    }
+    return *terrain_layers;
+  };
+  if (options.incidence_band) {
+    const Stopwatch layers_watch;
+    raster.bands.push_back(layers_of_terrain().local_incidence_deg);
+    raster.band_names.push_back("local_incidence");
+    timings["layers"] = layers_watch.ElapsedSeconds();
+  }
   auto give_back_bands = [&] {
     if (raster.bands.empty()) return;
     const size_t n = channel_images.size();
@@ -1513,7 +1389,9 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   } else {
     raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
   }
+  if (options.incidence_band) raster.metadata["GISSAR_BANDS"] += "; last: local incidence (deg)";
   raster.band_units.assign(raster.bands.size(), raster.band_unit);
+  if (options.incidence_band) raster.band_units.back() = "deg";
   // NaN outside the imaged footprint (ApplySensorEffects), declared.
   raster.nodata_nan = true;
   raster.overviews = options.overviews;
@@ -1573,10 +1451,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   }
   if (!reserved.layers_tif.empty()) {
     const Stopwatch layers_watch;
-    // The raster engine keeps the DEM as posts only: triangulate them as it does.
-    const bool posts_only = mesh.triangle_count() == 0 && terrain.grid_width > 1 && terrain.grid_height > 1;
-    const render::TerrainLayers layers = render::ComputeTerrainLayers(
-        posts_only ? scene::MeshFromGrid(mesh.vertices, terrain.grid_width, terrain.grid_height) : mesh, geometry);
+    const render::TerrainLayers& layers = layers_of_terrain();
     geo::FloatRaster out{image.width, image.height, {layers.local_incidence_deg, layers.projected_area_m2},
                          {"local_incidence", "projected_area"}, metadata};
     out.band_units = {"deg", "m2"};
@@ -1586,11 +1461,8 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
     out.metadata["GISSAR_BANDS"] =
         "1 local incidence (deg, area-weighted over the surfaces facing the radar), 2 projected area (m2 of "
         "terrain facing the radar in the pixel, occlusion ignored)";
-    for (size_t i = 0; i < image.footprint.size() && i < out.bands[0].size(); ++i) {
-      if (!image.footprint[i]) out.bands[0][i] = out.bands[1][i] = std::numeric_limits<float>::quiet_NaN();
-    }
     geo::WriteFloatGeoTiff(reserved.layers_tif, out);
-    timings["layers"] = layers_watch.ElapsedSeconds();
+    timings["layers"] = timings.value("layers", 0.0) + layers_watch.ElapsedSeconds();
     part = Stopwatch();
   }
   // The quicklooks were drawn meanwhile.

@@ -152,6 +152,11 @@ struct SimulateRequest {
   // band 1 local_incidence (deg), band 2 projected_area (m2 of terrain per
   // pixel), render::ComputeTerrainLayers; NaN outside the footprint.
   bool layers = false;
+  // Append the local incidence angle (degrees, as band 1 of
+  // PREFIX_layers.tif) as the last band of PREFIX.tif, named
+  // "local_incidence" with unit deg, so that one file carries the image and
+  // the angle a radiometric normalisation needs.
+  bool incidence_band = false;
   // Rasters over geo::kCogMinSidePx a side are Cloud-Optimized GeoTIFFs
   // with internal overviews; false leaves the overviews out (the COG layout
   // stays).

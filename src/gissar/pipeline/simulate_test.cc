@@ -545,6 +545,55 @@ TEST(SimulateTest, FlatSquareIsNoDataOutsideItsFootprint) {
 // it flies at about 0.87 km above the DEM centre (~2 km), below the 3 km
 // peaks: refused before rendering, nothing written. A grazing depression
 // in affine mode is only a warning.
+// --incidence-band (a field of the request's table, nothing else declared
+// by hand): PREFIX.tif gains a last band "local_incidence" in degrees; on
+// flat ground seen at 35 deg depression it is 90 - 35 = 55 deg in every
+// imaged pixel, NaN outside; the other bands are those of a run without it.
+TEST(SimulateTest, IncidenceBandIsTheLastBandOfTheImage) {
+  const fs::path dir = testing::MakeTempDir();
+  const char* tm = "+proj=tmerc +lat_0=43.7 +lon_0=7.4 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+  const std::vector<float> heights(81 * 81, 0.0f);
+  const fs::path dem = dir / "flat.tif";
+  geo::WriteDemGeoTiff(dem, heights, 81, 81, {-405.0, 10.0, 0.0, 405.0, 0.0, -10.0}, tm);
+  SimulateRequest o;
+  o.ApplyJson({{"dem", dem.string()}, {"heading_deg", 20.0}, {"depression_deg", 35.0}, {"bounces", 1},
+               {"range_spacing_m", 10.0}, {"azimuth_spacing_m", 10.0}, {"out_prefix", (dir / "plain").string()}},
+              "test");
+  RunSimulate(o, "test");
+  o.ApplyJson({{"incidence_band", true}, {"out_prefix", (dir / "with").string()}}, "test");
+  EXPECT_EQ(o.ToJson()["incidence_band"], true);
+  RunSimulate(o, "test");
+  const geo::FloatRaster plain = geo::ReadFloatRaster(dir / "plain.tif");
+  const geo::FloatRaster with = geo::ReadFloatRaster(dir / "with.tif");
+  ASSERT_EQ(with.bands.size(), plain.bands.size() + 1);
+  EXPECT_EQ(with.band_names.back(), "local_incidence");
+  ASSERT_EQ(with.band_units.size(), with.bands.size());
+  EXPECT_EQ(with.band_units.back(), "deg");
+  EXPECT_EQ(with.band_units.front(), plain.band_units.front());
+  for (size_t b = 0; b < plain.bands.size(); ++b) {
+    ASSERT_EQ(with.bands[b].size(), plain.bands[b].size());
+    for (size_t i = 0; i < plain.bands[b].size(); ++i) {
+      const float p = plain.bands[b][i], w = with.bands[b][i];
+      ASSERT_TRUE(p == w || (std::isnan(p) && std::isnan(w))) << "band " << b << " pixel " << i;
+    }
+  }
+  const std::vector<float>& incidence = with.bands.back();
+  int imaged = 0;
+  for (size_t i = 0; i < incidence.size(); ++i) {
+    if (std::isnan(plain.bands[0][i])) continue;
+    ++imaged;
+    // The "flat" DEM follows the ellipsoid: d metres from the centre the
+    // ground is tilted by d / R (570 m at the corners: 0.005 deg).
+    if (!std::isnan(incidence[i])) {
+      ASSERT_NEAR(incidence[i], 55.0, 0.006) << i;
+    }
+  }
+  EXPECT_GT(imaged, 1000);
+  const size_t middle = size_t(with.height / 2) * with.width + with.width / 2;
+  EXPECT_NEAR(incidence[middle], 55.0, 1e-3);
+  EXPECT_TRUE(std::isnan(incidence[0]));
+}
+
 TEST(SimulateTest, SensorBelowThePeaksIsRefusedAndGrazingWarned) {
   const fs::path dir = testing::MakeTempDir();
   SimulateRequest o = AndorraOptions(dir, 0.0);

@@ -1,0 +1,258 @@
+// One table per request (docs/architecture.md "Adding an option"): every
+// field of a request struct declared once, with its name, help text and how
+// it is read and written, and every door derived from that table:
+//   - the JSON options (ToJson: the sidecar's provenance record and
+//     `--options` files' keys; ApplyJson: options files, Python keywords);
+//   - the CLI flags and their help (cli/command.h RequestFlags binds the
+//     table's fields to a CLI11 subcommand);
+//   - the Python keywords and their help (gissar._core.*_request_defaults()
+//     and *_request_help(), which the Python package and the corridor read).
+// A new option is a member of the request, one row of its table, the code
+// that uses it and its test.
+//
+// Kinds of field:
+//   - plain: bool, int, int64_t, uint64_t, double or std::string, stored as
+//     is (a bool is an on/off switch at the CLI: --NAME and --no-NAME);
+//   - nullable number: a double whose NaN means "not set" (JSON null);
+//   - enum: stored as the enum, written and read as its name (util::EnumTable);
+//   - optional pair: std::optional<Eigen::Vector2d>, JSON [a, b] or null,
+//     CLI text "A,B";
+//   - optional integer window: std::optional<std::array<int, 4>>, JSON of
+//     four integers or null, CLI text "A,B,C,D".
+// Failures: reading a value of the wrong type or shape is a ConfigError
+// naming the key and the source (file, "Python keywords", "command line");
+// an unknown key is a ConfigError with a "did you mean" (UnknownKeyMessage).
+// A table with a name twice is a bug (GISSAR_CHECK).
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "gissar/pipeline/field_names.h"
+#include "gissar/util/check.h"
+#include "gissar/util/error.h"
+
+namespace gissar::pipeline {
+
+// Where a plain field is stored, for a door that binds it directly (the CLI
+// binds these with its own type conversion); monostate for the fields a
+// door takes as text (enums, pairs, windows, nullable numbers keep their
+// NaN default as a double).
+using FieldRef = std::variant<std::monostate, bool*, int*, int64_t*, uint64_t*, double*, std::string*>;
+
+template <class R>
+struct RequestField {
+  std::string name;  // snake_case with its unit suffix: JSON key, Python keyword, sidecar key
+  // One line for --help and docstrings, without the default (the doors add
+  // it); "" = offered by no door as a flag (e.g. max_memory_bytes, spelt
+  // --max-memory SIZE).
+  std::string help;
+  bool show_default = true;     // --help shows the default value
+  std::string extra_negations;  // a switch's older spellings of --no-NAME ("--fixed-sampling")
+  std::function<nlohmann::json(const R&)> get;
+  std::function<void(R&, const nlohmann::json&, const std::string& key, const std::string& source)> set;
+  std::function<FieldRef(R&)> ref;  // see FieldRef
+  // A text field's flag value as the JSON value `set` takes ("1,2" ->
+  // [1, 2]); ConfigError naming `flag` when malformed. Empty for plain fields.
+  std::function<nlohmann::json(const std::string& text, const std::string& flag)> from_text;
+
+  std::string Flag() const { return FlagOfField(name); }
+  bool IsSwitch(R& r) const { return std::holds_alternative<bool*>(ref(r)); }
+};
+
+template <class R>
+class FieldTable {
+ public:
+  explicit FieldTable(std::vector<RequestField<R>> fields) : fields_(std::move(fields)) {
+    std::set<std::string> seen;
+    for (const RequestField<R>& f : fields_) GISSAR_CHECK_MSG(seen.insert(f.name).second, "field twice: " << f.name);
+  }
+  const std::vector<RequestField<R>>& fields() const { return fields_; }
+  // The field `name`, or nullptr.
+  const RequestField<R>* Find(const std::string& name) const {
+    for (const RequestField<R>& f : fields_) {
+      if (f.name == name) return &f;
+    }
+    return nullptr;
+  }
+  // The field `name`; a name not in the table is a bug in the caller.
+  const RequestField<R>& at(const std::string& name) const {
+    const RequestField<R>* f = Find(name);
+    GISSAR_CHECK_MSG(f != nullptr, "no request field " << name);
+    return *f;
+  }
+  std::vector<std::string> Names() const {
+    std::vector<std::string> names;
+    for (const RequestField<R>& f : fields_) names.push_back(f.name);
+    return names;
+  }
+  // {name: value} of every field.
+  nlohmann::json ToJson(const R& r) const {
+    nlohmann::json j = nlohmann::json::object();
+    for (const RequestField<R>& f : fields_) j[f.name] = f.get(r);
+    return j;
+  }
+  // Sets the fields named by `values` (null: the field's "not set", or its
+  // default for a plain field); ConfigError naming the key and `source`.
+  void ApplyJson(R& r, const nlohmann::json& values, const std::string& source) const {
+    if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
+    for (const auto& [key, value] : values.items()) {
+      const RequestField<R>* f = Find(key);
+      if (f == nullptr) throw ConfigError(UnknownKeyMessage(key, Names()), source);
+      f->set(r, value, key, source);
+    }
+  }
+  // {name: help} of the fields a door offers (help not empty).
+  std::map<std::string, std::string> Help() const {
+    std::map<std::string, std::string> help;
+    for (const RequestField<R>& f : fields_) {
+      if (!f.help.empty()) help[f.name] = f.help;
+    }
+    return help;
+  }
+
+ private:
+  std::vector<RequestField<R>> fields_;
+};
+
+// Builders of the rows of a table of requests R. `access` is a function
+// R& -> T&: At(&R::member), or At(&R::outer, &Outer::member) for a member
+// of a member.
+// How a door's text becomes a field's JSON value (see RequestField::from_text).
+using TextReader = std::function<nlohmann::json(const std::string& text, const std::string& flag)>;
+
+template <class R>
+struct Fields {
+  // The accessor of a member of R, or of a member of a member of R.
+  template <class T>
+  static auto At(T R::*member) {
+    return [member](R& r) -> T& { return r.*member; };
+  }
+  template <class S, class T>
+  static auto At(S R::*outer, T S::*inner) {
+    return [outer, inner](R& r) -> T& { return (r.*outer).*inner; };
+  }
+
+  template <class Access>
+  static RequestField<R> Plain(std::string name, Access access, std::string help, bool show_default = true,
+                               std::string extra_negations = "") {
+    using T = std::remove_reference_t<decltype(access(std::declval<R&>()))>;
+    RequestField<R> f;
+    f.name = std::move(name);
+    f.help = std::move(help);
+    f.show_default = show_default;
+    f.extra_negations = std::move(extra_negations);
+    f.get = [access](const R& r) { return nlohmann::json(access(const_cast<R&>(r))); };
+    f.set = [access](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
+      AssignField(access(r), value, key, source);
+    };
+    f.ref = [access](R& r) { return FieldRef(&access(r)); };
+    static_assert(std::is_constructible_v<FieldRef, T*>, "a plain field is bool, int, int64, uint64, double or string");
+    return f;
+  }
+
+  // A double whose NaN means "not set" (JSON null).
+  template <class Access>
+  static RequestField<R> NullableNumber(std::string name, Access access, std::string help) {
+    RequestField<R> f = Plain(std::move(name), access, std::move(help), false);
+    f.get = [access](const R& r) {
+      const double v = access(const_cast<R&>(r));
+      return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v);
+    };
+    f.set = [access](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
+      if (value.is_null()) {
+        access(r) = std::numeric_limits<double>::quiet_NaN();
+      } else {
+        AssignField(access(r), value, key, source);
+      }
+    };
+    return f;
+  }
+
+  // An enum written and read as its name in `table` (parse errors name the
+  // field's flag, as the CLI spells it).
+  template <class Access, class Table>
+  static RequestField<R> Enum(std::string name, Access access, const Table& table, std::string help) {
+    RequestField<R> f;
+    f.name = std::move(name);
+    f.help = std::move(help);
+    const std::string flag = f.Flag();
+    f.get = [access, &table](const R& r) { return nlohmann::json(std::string(table.Name(access(const_cast<R&>(r))))); };
+    f.set = [access, &table, flag](R& r, const nlohmann::json& value, const std::string& key,
+                                   const std::string& source) {
+      std::string text;
+      AssignField(text, value, key, source);
+      access(r) = table.Parse(text, flag);
+    };
+    f.ref = [](R&) { return FieldRef(); };
+    f.from_text = [](const std::string& text, const std::string&) { return nlohmann::json(text); };
+    return f;
+  }
+
+  // std::optional<Eigen::Vector2d>: JSON [a, b] or null; CLI text read by `from_text` ("A,B").
+  template <class Access>
+  static RequestField<R> OptionalPair(std::string name, Access access, std::string help, TextReader from_text) {
+    RequestField<R> f;
+    f.name = std::move(name);
+    f.help = std::move(help);
+    f.show_default = false;
+    f.get = [access](const R& r) {
+      const std::optional<Eigen::Vector2d>& v = access(const_cast<R&>(r));
+      return v ? nlohmann::json{v->x(), v->y()} : nlohmann::json(nullptr);
+    };
+    f.set = [access](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
+      if (value.is_null()) {
+        access(r).reset();
+        return;
+      }
+      std::vector<double> v;
+      AssignField(v, value, key, source);
+      if (v.size() != 2) throw ConfigError("key '" + key + "' needs two numbers", source);
+      access(r) = Eigen::Vector2d(v[0], v[1]);
+    };
+    f.ref = [](R&) { return FieldRef(); };
+    f.from_text = std::move(from_text);
+    return f;
+  }
+
+  // std::optional<std::array<int, 4>>: JSON of four integers or null; CLI text read by `from_text`.
+  template <class Access>
+  static RequestField<R> OptionalWindow(std::string name, Access access, std::string help, TextReader from_text) {
+    RequestField<R> f;
+    f.name = std::move(name);
+    f.help = std::move(help);
+    f.show_default = false;
+    f.get = [access](const R& r) {
+      const std::optional<std::array<int, 4>>& v = access(const_cast<R&>(r));
+      return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+    };
+    f.set = [access](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
+      if (value.is_null()) {
+        access(r).reset();
+        return;
+      }
+      std::vector<int> v;
+      AssignField(v, value, key, source);
+      if (v.size() != 4) throw ConfigError("key '" + key + "' needs four integers", source);
+      access(r) = std::array<int, 4>{v[0], v[1], v[2], v[3]};
+    };
+    f.ref = [](R&) { return FieldRef(); };
+    f.from_text = std::move(from_text);
+    return f;
+  }
+};
+
+}  // namespace gissar::pipeline
