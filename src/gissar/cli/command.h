@@ -39,11 +39,6 @@ using CommandAction = std::function<void(const CommandContext&)>;
 // Throws ConfigError naming `flag` when the command line gave `flag` a
 // value that is not > 0 (pixel spacings, where 0 means "automatic" only when
 // the flag is omitted).
-// Help of --vertical-datum, on every command that reads a DEM.
-inline constexpr const char* kVerticalDatumHelp =
-    "Datum of the DEM heights: ellipsoid, egm96, egm2008 or EPSG:n of a vertical CRS (default: the file's "
-    "vertical CRS, else ellipsoid with a warning)";
-
 // Help of --max-memory, on every command that has a memory budget.
 inline constexpr const char* kMaxMemoryHelp =
     "Memory budget, e.g. 4G (default: 3/4 of physical memory); larger jobs fail early";

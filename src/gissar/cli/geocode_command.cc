@@ -15,7 +15,7 @@ void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--image", request->image, "PREFIX.tif of `gissar simulate` (PREFIX.json, PREFIX_mask.tif beside it)")
       ->required();
   cmd->add_option("--dem", request->dem, "DEM whose heights replace the simulation's terrain (default: the sidecar's)");
-  cmd->add_option("--vertical-datum", request->vertical_datum, kVerticalDatumHelp);
+  cmd->add_option("--vertical-datum", request->vertical_datum, pipeline::SimulateHelp("vertical_datum"));
   cmd->add_option("--crs", request->crs, "Output CRS, e.g. EPSG:32631 (projected; default: UTM zone of the scene centre)");
   cmd->add_option("--pixel-size", request->pixel_size_m, "Output pixel size, m (default: the image's larger spacing)");
   auto resampling = std::make_shared<std::string>(pipeline::kGeocodeResamplings.Name(request->resampling));

@@ -6,6 +6,7 @@
 #include "gissar/material/material.h"
 #include "gissar/nav/matching.h"
 #include "gissar/nav/product_locate.h"
+#include "gissar/pipeline/evaluate_fields.h"
 #include "gissar/pipeline/locate.h"
 #include "gissar/sensor/sar_geometry.h"
 
@@ -14,29 +15,20 @@ using namespace gissar::pipeline;  // the requests and Run functions this comman
 
 namespace {
 
-// The help of --matcher: the scene matchers, then a product's.
-std::string MatcherHelp() {
-  return nav::kMatchers.Alternatives() + " (--product: " + nav::kShiftMatchers.Alternatives() + ")";
-}
-std::string ProductLayerHelp() { return "Product layer (" + material::kPolarizations.List() + ")"; }
+// The help of a flag `locate` shares with `evaluate` (a product's terrain
+// and multilook, the matcher, the database): the evaluate table's text.
+const std::string& SharedHelp(const std::string& field) { return EvaluateFields().at(field).help; }
 
 // The flags `locate` and `evaluate` share for a product's terrain and
 // multilook (LocateRequest and EvaluateRequest spell these fields alike).
-template <class Request>
-void AddProductTerrainFlags(CLI::App* cmd, Request& o) {
-  cmd->add_option("--looks-range", o.looks_range, "With --product: range looks of the multilook")->capture_default_str();
-  cmd->add_option("--looks-azimuth", o.looks_azimuth, "With --product: azimuth looks of the multilook")
-      ->capture_default_str();
-  cmd->add_option("--dem-oversample", o.dem_oversample, "Refine the DEM N x by cubic interpolation")->capture_default_str();
-  cmd->add_option("--reflectors", o.reflectors,
-                  "With --product: point landmarks, a reflectors CSV (type,lon,lat,apex_height_m,size_m,"
-                  "boresight_azimuth_deg,boresight_elevation_deg): rendered in the references; one in the image "
-                  "fixes along and cross track where the terrain is flat (up and heading from the prior)");
+void AddProductTerrainFlags(CLI::App* cmd, LocateRequest& o) {
+  cmd->add_option("--looks-range", o.looks_range, SharedHelp("looks_range"))->capture_default_str();
+  cmd->add_option("--looks-azimuth", o.looks_azimuth, SharedHelp("looks_azimuth"))->capture_default_str();
+  cmd->add_option("--dem-oversample", o.dem_oversample, SharedHelp("dem_oversample"))->capture_default_str();
+  cmd->add_option("--reflectors", o.reflectors, SharedHelp("reflectors"));
   cmd->add_option("--terrain-horizontal-sigma", o.terrain_horizontal_sigma_m,
-                  "With --product: the DEM's/scene's absolute horizontal error, one sigma per axis, m; added to a "
-                  "relief fix's along/cross variance (default: SRTM-class 1\" DEMs)")->capture_default_str();
-  cmd->add_option("--sea", o.sea, "auto or off: the terrain's sea (auto: DEM cells at or below sea level "
-                                  "connected to its border)")->capture_default_str();
+                  SharedHelp("terrain_horizontal_sigma_m"))->capture_default_str();
+  cmd->add_option("--sea", o.sea, SharedHelp("sea"))->capture_default_str();
 }
 
 }  // namespace
@@ -52,8 +44,8 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--orbit", o->orbit,
                     "Or any sensor's state vectors (CSV, JSON, ESA .EOF) of the --image, fixed like a product");
     cmd->add_option("--radar-grid", o->radar_grid, "Radar grid JSON of the --image (with --orbit)");
-    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
-    cmd->add_option("--polarization", o->polarization, ProductLayerHelp())->capture_default_str();
+    cmd->add_option("--frequency", o->frequency, SharedHelp("frequency"))->capture_default_str();
+    cmd->add_option("--polarization", o->polarization, SharedHelp("polarization"))->capture_default_str();
     cmd->add_option("--prior-offset-track", o->prior_offset_track,
                     "With --product: prior = annotated track moved ALONG,CROSS,UP metres (mid-scene velocity frame)")
         ->delimiter(',')->expected(3)->capture_default_str();
@@ -68,7 +60,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     AddProductTerrainFlags(cmd, *o);
     cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
     cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
-    cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
+    cmd->add_option("--vertical-datum", o->vertical_datum, SharedHelp("vertical_datum"));
     cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md; with --image)");
     cmd->add_option("--out", o->out, "Output prefix: PREFIX.json (the fix)")->required();
     cmd->add_option("--composite", o->composite_png,
@@ -78,12 +70,11 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     cmd->add_option("--look", o->look,
                     sensor::kLookSides.Alternatives() + " (default: image metadata, else " +
                         sensor::ToString(sensor::LookSide::kRight) + ")");
-    cmd->add_option("--matcher", o->matcher, MatcherHelp())->capture_default_str();
+    cmd->add_option("--matcher", o->matcher, SharedHelp("matcher"))->capture_default_str();
     cmd->add_option("--search", o->search_px, "First-iteration search radius, px (prior uncertainty)")->capture_default_str();
-    cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
-    cmd->add_option("--dense-renders", o->dense_renders,
-                    "Renders of the dense stage (all-pixel fit with one gain per class; 0 = off)")->capture_default_str();
-    cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
+    cmd->add_option("--step", o->step_px, SharedHelp("step_px"))->capture_default_str();
+    cmd->add_option("--dense-renders", o->dense_renders, SharedHelp("dense_renders"))->capture_default_str();
+    cmd->add_option("--polish", o->polish_evaluations, SharedHelp("polish_evaluations"))->capture_default_str();
     cmd->add_option("--bounces", o->bounces, "Reflections per ray in the reference renders")->capture_default_str();
     cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell in the reference renders")->capture_default_str();
     cmd->add_option("--database", o->database,
@@ -93,7 +84,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
                     "No stored reference covers the prior: none (no fix, exit 3) or render (on the fly)")
         ->capture_default_str();
     cmd->add_option("--database-heading-tolerance", o->database_heading_tolerance_deg,
-                    "Largest heading difference between the prior and a stored reference, deg")->capture_default_str();
+                    SharedHelp("database_heading_tolerance_deg"))->capture_default_str();
     auto max_memory = std::make_shared<std::string>();
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {
@@ -109,66 +100,22 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
   }
   {
     auto o = std::make_shared<EvaluateRequest>();
-    auto compare = std::make_shared<bool>(true);
     CLI::App* cmd = root.add_subcommand(
         "evaluate", "Monte-Carlo evaluation of `locate`: success rate, position/heading errors, time per fix.");
-    cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
-    cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
-    cmd->add_option("--vertical-datum", o->vertical_datum, kVerticalDatumHelp);
-    cmd->add_option("--product", o->product,
-                    "A real RSLC product (HDF5): trials displace its annotated track (docs/navigation.md)");
-    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
-    cmd->add_option("--polarization", o->polarization, ProductLayerHelp())->capture_default_str();
-    AddProductTerrainFlags(cmd, *o);
-    cmd->add_option("--trials", o->trials, "Trials")->capture_default_str();
-    cmd->add_option("--seed", o->seed, "Seed")->capture_default_str();
-    cmd->add_option("--trial-first", o->trial_first,
-                    "Run trials from this index (trial k depends only on the seed and k)")->capture_default_str();
-    cmd->add_option("--trial-count", o->trial_count, "Run this many trials (-1: the rest)")->capture_default_str();
-    cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.json, PREFIX_trials.csv, PREFIX_hist.png")->required();
-    cmd->add_option("--spacing", o->spacing_m, "Pixel spacing (range = azimuth), m: the resolution cell")->capture_default_str();
-    cmd->add_option("--size", o->size_px, "Image side, pixels")->capture_default_str();
-    cmd->add_option("--slant-range", o->slant_range_m, "Slant range to the image centre, m")->capture_default_str();
-    cmd->add_option("--depression-min", o->depression_min_deg, "Smallest true depression, deg")->capture_default_str();
-    cmd->add_option("--depression-max", o->depression_max_deg, "Largest true depression, deg")->capture_default_str();
-    cmd->add_option("--looks", o->speckle_looks, "Speckle looks of the observed image (0 = none)")->capture_default_str();
-    cmd->add_option("--nesz", o->nesz_db, "Thermal noise of the observed image, dB")->capture_default_str();
-    cmd->add_option("--material-db", o->material_db, "Material mismatch, +- dB per class")->capture_default_str();
-    cmd->add_option("--dem-smoothing", o->dem_smoothing, "Laplacian weight of the observed terrain heights")->capture_default_str();
-    cmd->add_option("--prior-error-horizontal", o->prior_error_horizontal_m, "INS drift, +- m per horizontal axis (negative: 200, or the product footprint / 8)")->capture_default_str();
-    cmd->add_option("--prior-error-vertical", o->prior_error_vertical_m, "INS drift, +- m vertical (negative: 50, or the horizontal / 8)")->capture_default_str();
-    cmd->add_option("--prior-error-heading", o->prior_error_heading_deg, "INS heading drift, +- deg (negative: 3, or 0.05 on a product)")->capture_default_str();
-    cmd->add_option("--success-cells", o->success_cells, "Success: position error at most this many cells")->capture_default_str();
-    cmd->add_option("--success-heading-deg", o->success_heading_deg, "Success: and heading error at most this, deg")->capture_default_str();
-    cmd->add_option("--matcher", o->matcher, MatcherHelp())->capture_default_str();
-    AddSwitch(cmd, "compare", *compare, "Per-trial matcher comparison (--no-compare: skip it)");
-    cmd->add_option("--search", o->search_px, "First-iteration search radius, px (0 = from the prior errors)")->capture_default_str();
-    cmd->add_option("--step", o->step_px, "Grid step of the matched patches, px")->capture_default_str();
-    cmd->add_option("--dense-renders", o->dense_renders,
-                    "Renders of the dense stage (all-pixel fit with one gain per class; 0 = off)")->capture_default_str();
-    cmd->add_option("--polish", o->polish_evaluations, "Nelder-Mead renders after convergence (0 = off)")->capture_default_str();
-    cmd->add_option("--bounces", o->bounces, "Reflections per ray")->capture_default_str();
-    cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell")->capture_default_str();
-    cmd->add_option("--database", o->database,
-                    "Reference database PREFIX_catalog.json: trials around its stored poses, its image size and "
-                    "spacing; fixes from the stored references (docs/navigation.md)");
-    cmd->add_option("--database-fixes", o->database_fixes,
-                    "With --database: stored (match the stored references) or render (on the fly, same images)")
-        ->capture_default_str();
-    cmd->add_option("--database-fallback", o->database_fallback,
-                    "No stored reference covers the prior: none (no fix) or render (on the fly)")->capture_default_str();
-    cmd->add_option("--database-heading-tolerance", o->database_heading_tolerance_deg,
-                    "Largest heading difference between the prior and a stored reference, deg")->capture_default_str();
-    auto floor = std::make_shared<bool>(true);
-    AddSwitch(cmd, "reference-floor", *floor,
-              "References with the observed noise floor (--nesz), or (--no-reference-floor) dark areas at -40 dB");
+    // Every field of the request's table that has a help text is a flag
+    // (pipeline/evaluate_fields.cc), in the table's order.
+    auto flags = std::make_shared<RequestFlags<EvaluateRequest>>(cmd, EvaluateFields(), o.get());
+    for (const RequestField<EvaluateRequest>& field : EvaluateFields().fields()) {
+      if (field.help.empty()) continue;
+      CLI::Option* option = flags->Add(field.name);
+      if (field.name == "out_prefix") option->required();
+    }
     auto max_memory = std::make_shared<std::string>();
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {
       EvaluateRequest r = *o;
+      flags->Apply(r);
       r.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, r.max_memory_bytes);
-      r.compare_matchers = *compare;
-      r.reference_floor = *floor;
       const auto summary = RunEvaluate(r, context.command_line, context.reporter);
       context.out << r.out_prefix << ".json\n" << r.out_prefix << "_trials.csv\n";
       if (r.product.empty()) context.out << r.out_prefix << "_hist.png\n";

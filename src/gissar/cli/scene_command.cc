@@ -34,7 +34,7 @@ void AddSceneCommands(CLI::App& root, CommandRegistry& registry) {
   build->add_option("--sea-level", options->sea_level_m, "Sea level for --sea auto without coastline, metres (DEM heights; default 0)");
   build->add_option("--vertical-units", options->vertical_units,
                     "Unit of the DEM heights: m, ft or us-ft (default: the file's band unit or vertical CRS, else m)");
-  build->add_option("--vertical-datum", options->vertical_datum, kVerticalDatumHelp);
+  build->add_option("--vertical-datum", options->vertical_datum, pipeline::SimulateHelp("vertical_datum"));
   build->add_option("--dem-oversample", options->dem_oversample, "Refine the DEM N times (cubic) before meshing (default 1)");
   AddSwitch(build, "flat-shading", options->flat_shading, "No smooth per-vertex shading normals on the terrain");
   build->add_option("--reflectors", options->reflectors,

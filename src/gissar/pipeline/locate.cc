@@ -1,4 +1,5 @@
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/evaluate_fields.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -630,27 +631,7 @@ void EvaluateRequest::Check() const {
   }
 }
 
-nlohmann::json EvaluateRequest::ToJson() const {
-  return {{"scene", scene}, {"dem", dem}, {"vertical_datum", vertical_datum}, {"trials", trials}, {"seed", seed},
-          {"out_prefix", out_prefix}, {"spacing_m", spacing_m}, {"size_px", size_px},
-          {"slant_range_m", slant_range_m}, {"depression_min_deg", depression_min_deg},
-          {"depression_max_deg", depression_max_deg}, {"speckle_looks", speckle_looks},
-          {"nesz_db", std::isnan(nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(nesz_db)},
-          {"material_db", material_db}, {"dem_smoothing", dem_smoothing},
-          {"prior_error_horizontal_m", prior_error_horizontal_m}, {"prior_error_vertical_m", prior_error_vertical_m},
-          {"prior_error_heading_deg", prior_error_heading_deg}, {"success_cells", success_cells},
-          {"success_heading_deg", success_heading_deg}, {"matcher", matcher}, {"compare_matchers", compare_matchers},
-          {"search_px", search_px}, {"step_px", step_px}, {"dense_renders", dense_renders},
-          {"polish_evaluations", polish_evaluations},
-          {"bounces", bounces}, {"rays_per_cell", rays_per_cell}, {"reference_floor", reference_floor},
-          {"trial_first", trial_first}, {"trial_count", trial_count}, {"product", product},
-          {"frequency", frequency}, {"polarization", polarization}, {"looks_range", looks_range},
-          {"looks_azimuth", looks_azimuth}, {"dem_oversample", dem_oversample}, {"reflectors", reflectors},
-          {"sea", sea}, {"terrain_horizontal_sigma_m", terrain_horizontal_sigma_m},
-          {"max_memory_bytes", max_memory_bytes}, {"database", database},
-          {"database_fallback", database_fallback},
-          {"database_heading_tolerance_deg", database_heading_tolerance_deg}, {"database_fixes", database_fixes}};
-}
+nlohmann::json EvaluateRequest::ToJson() const { return EvaluateFields().ToJson(*this); }
 
 EvaluateRequest EvaluateRequest::Resolved() const {
   EvaluateRequest r = *this;
@@ -677,59 +658,7 @@ EvaluateRequest EvaluateRequest::Resolved() const {
 }
 
 void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
-  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
-  for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) { AssignField(field, value, key, source); };
-    if (value.is_null() && key != "nesz_db") continue;  // null keeps the default
-    if (key == "scene") set(scene);
-    else if (key == "dem") set(dem);
-    else if (key == "vertical_datum") set(vertical_datum);
-    else if (key == "trials") set(trials);
-    else if (key == "seed") set(seed);
-    else if (key == "out_prefix") set(out_prefix);
-    else if (key == "spacing_m") set(spacing_m);
-    else if (key == "size_px") set(size_px);
-    else if (key == "slant_range_m") set(slant_range_m);
-    else if (key == "depression_min_deg") set(depression_min_deg);
-    else if (key == "depression_max_deg") set(depression_max_deg);
-    else if (key == "speckle_looks") set(speckle_looks);
-    else if (key == "nesz_db") {
-      if (value.is_null()) nesz_db = std::numeric_limits<double>::quiet_NaN();
-      else set(nesz_db);
-    } else if (key == "material_db") set(material_db);
-    else if (key == "dem_smoothing") set(dem_smoothing);
-    else if (key == "prior_error_horizontal_m") set(prior_error_horizontal_m);
-    else if (key == "prior_error_vertical_m") set(prior_error_vertical_m);
-    else if (key == "prior_error_heading_deg") set(prior_error_heading_deg);
-    else if (key == "success_cells") set(success_cells);
-    else if (key == "success_heading_deg") set(success_heading_deg);
-    else if (key == "matcher") set(matcher);
-    else if (key == "compare_matchers") set(compare_matchers);
-    else if (key == "search_px") set(search_px);
-    else if (key == "step_px") set(step_px);
-    else if (key == "dense_renders") set(dense_renders);
-    else if (key == "polish_evaluations") set(polish_evaluations);
-    else if (key == "bounces") set(bounces);
-    else if (key == "rays_per_cell") set(rays_per_cell);
-    else if (key == "reference_floor") set(reference_floor);
-    else if (key == "trial_first") set(trial_first);
-    else if (key == "trial_count") set(trial_count);
-    else if (key == "product") set(product);
-    else if (key == "frequency") set(frequency);
-    else if (key == "polarization") set(polarization);
-    else if (key == "looks_range") set(looks_range);
-    else if (key == "looks_azimuth") set(looks_azimuth);
-    else if (key == "dem_oversample") set(dem_oversample);
-    else if (key == "reflectors") set(reflectors);
-    else if (key == "sea") set(sea);
-    else if (key == "terrain_horizontal_sigma_m") set(terrain_horizontal_sigma_m);
-    else if (key == "max_memory_bytes") set(max_memory_bytes);
-    else if (key == "database") set(database);
-    else if (key == "database_fallback") set(database_fallback);
-    else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
-    else if (key == "database_fixes") set(database_fixes);
-    else throw ConfigError(UnknownKeyMessage(key, KeysOf(EvaluateRequest().ToJson())), source);
-  }
+  EvaluateFields().ApplyJson(*this, values, source);
 }
 
 namespace {

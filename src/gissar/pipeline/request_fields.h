@@ -19,6 +19,9 @@
 //     CLI text "A,B";
 //   - optional integer window: std::optional<std::array<int, 4>>, JSON of
 //     four integers or null, CLI text "A,B,C,D".
+// JSON null: a nullable field's "not set"; for the others an error, or the
+// default kept in a table made with null_keeps_default (evaluate's: the
+// Python door passes None for keywords not given).
 // Failures: reading a value of the wrong type or shape is a ConfigError
 // naming the key and the source (file, "Python keywords", "command line");
 // an unknown key is a ConfigError with a "did you mean" (UnknownKeyMessage).
@@ -69,14 +72,29 @@ struct RequestField {
   // [1, 2]); ConfigError naming `flag` when malformed. Empty for plain fields.
   std::function<nlohmann::json(const std::string& text, const std::string& flag)> from_text;
 
-  std::string Flag() const { return FlagOfField(name); }
+  // The CLI flag: FlagOfField(name), or an older spelling the command kept
+  // (`flag_override`, e.g. evaluate's speckle_looks is --looks).
+  std::string flag_override;
+  // JSON null is this field's "not set" (nullable numbers, optional pairs and
+  // windows); for the other fields a table either refuses null or keeps the
+  // default (FieldTable's `null_keeps_default`).
+  bool accepts_null = false;
+
+  std::string Flag() const { return flag_override.empty() ? FlagOfField(name) : flag_override; }
+  RequestField&& WithFlag(std::string flag) && {
+    flag_override = std::move(flag);
+    return std::move(*this);
+  }
   bool IsSwitch(R& r) const { return std::holds_alternative<bool*>(ref(r)); }
 };
 
 template <class R>
 class FieldTable {
  public:
-  explicit FieldTable(std::vector<RequestField<R>> fields) : fields_(std::move(fields)) {
+  // `null_keeps_default`: ApplyJson skips a null value of a field that does
+  // not accept null (the request keeps its value), instead of refusing it.
+  explicit FieldTable(std::vector<RequestField<R>> fields, bool null_keeps_default = false)
+      : fields_(std::move(fields)), null_keeps_default_(null_keeps_default) {
     std::set<std::string> seen;
     for (const RequestField<R>& f : fields_) GISSAR_CHECK_MSG(seen.insert(f.name).second, "field twice: " << f.name);
   }
@@ -112,6 +130,7 @@ class FieldTable {
     for (const auto& [key, value] : values.items()) {
       const RequestField<R>* f = Find(key);
       if (f == nullptr) throw ConfigError(UnknownKeyMessage(key, Names()), source);
+      if (value.is_null() && !f->accepts_null && null_keeps_default_) continue;
       f->set(r, value, key, source);
     }
   }
@@ -126,6 +145,7 @@ class FieldTable {
 
  private:
   std::vector<RequestField<R>> fields_;
+  bool null_keeps_default_ = false;
 };
 
 // Builders of the rows of a table of requests R. `access` is a function
@@ -166,8 +186,10 @@ struct Fields {
 
   // A double whose NaN means "not set" (JSON null).
   template <class Access>
-  static RequestField<R> NullableNumber(std::string name, Access access, std::string help) {
-    RequestField<R> f = Plain(std::move(name), access, std::move(help), false);
+  static RequestField<R> NullableNumber(std::string name, Access access, std::string help,
+                                        bool show_default = false) {
+    RequestField<R> f = Plain(std::move(name), access, std::move(help), show_default);
+    f.accepts_null = true;
     f.get = [access](const R& r) {
       const double v = access(const_cast<R&>(r));
       return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v);
@@ -209,6 +231,7 @@ struct Fields {
     f.name = std::move(name);
     f.help = std::move(help);
     f.show_default = false;
+    f.accepts_null = true;
     f.get = [access](const R& r) {
       const std::optional<Eigen::Vector2d>& v = access(const_cast<R&>(r));
       return v ? nlohmann::json{v->x(), v->y()} : nlohmann::json(nullptr);
@@ -235,6 +258,7 @@ struct Fields {
     f.name = std::move(name);
     f.help = std::move(help);
     f.show_default = false;
+    f.accepts_null = true;
     f.get = [access](const R& r) {
       const std::optional<std::array<int, 4>>& v = access(const_cast<R&>(r));
       return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
