@@ -117,6 +117,7 @@ int RunCli(int argc, const char* const* argv, std::ostream& out, std::ostream& e
   app.require_subcommand(1);
   app.formatter(std::make_shared<HelpFormatter>());  // before the commands: they inherit it
   CommandRegistry registry;
+  ClearOptionKeyFlags();
   AddSimulateCommand(app, registry);
   AddSceneCommands(app, registry);
   AddViewCommands(app, registry);

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gissar/geo/raster_io.h"
+#include "gissar/pipeline/locate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/cli/command.h"
 #include "gissar/cli/corridor_command.h"
@@ -21,6 +22,7 @@
 namespace gissar::cli {
 namespace {
 namespace fs = std::filesystem;
+using pipeline::EvaluateRequest;
 using pipeline::SimulateRequest;
 
 struct Outcome {
@@ -361,6 +363,27 @@ TEST(CommonFlagsTest, OldEvaluatePriorSpellingsWarn) {
             std::string::npos) << o.err;
   EXPECT_NE(o.err.find("use --prior-error-heading"), std::string::npos) << o.err;
   EXPECT_NE(o.err.find("gissar: error: must be in [1, 100000] (--trials)"), std::string::npos) << o.err;
+}
+
+// Every key of an evaluate request (its sidecar's options) is an options-file
+// key, those whose flag kept an older spelling (speckle_looks: --looks,
+// compare_matchers: --compare, ...) included: the file below reaches the
+// request's own check, not "unknown key".
+TEST(CommonFlagsTest, EvaluateOptionsFileTakesEveryRequestKey) {
+  const fs::path dir = testing::MakeTempDir();
+  nlohmann::json options = EvaluateRequest().ToJson();
+  options["dem"] = testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string();
+  options["compare_matchers"] = false;
+  options["speckle_looks"] = 2.0;
+  options["trials"] = 0;
+  options.erase("out_prefix");
+  std::ofstream(dir / "evaluate.json") << options.dump();
+  const Outcome o = RunBinary("evaluate --options " + (dir / "evaluate.json").string() + " --out " +
+                                  (dir / "e").string(),
+                              dir);
+  EXPECT_EQ(o.status, 2);
+  EXPECT_EQ(o.err.find("unknown key"), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("must be in [1, 100000] (--trials)"), std::string::npos) << o.err;
 }
 
 // fmatrix --res1 R1,A1 --res2 R2,A2 = --range-spacing R1,R2 --azimuth-spacing

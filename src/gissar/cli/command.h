@@ -17,6 +17,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "gissar/cli/command_line.h"
 #include "gissar/pipeline/field_names.h"
 #include "gissar/pipeline/simulate_fields.h"
 #include "gissar/util/error.h"
@@ -123,6 +124,7 @@ class RequestFlags {
   CLI::Option* Add(const std::string& name) {
     const pipeline::RequestField<R>& field = table_.at(name);
     const std::string flag = field.Flag();
+    if (flag != pipeline::FlagOfField(name)) RegisterOptionKeyFlag(cmd_, name, flag);
     const pipeline::FieldRef ref = field.ref(*target_);
     if (bool* const* value = std::get_if<bool*>(&ref)) {
       return AddSwitch(cmd_, flag.substr(2), **value, field.help, field.extra_negations);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <map>
 
 #include <nlohmann/json.hpp>
 
@@ -91,6 +92,31 @@ std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* arg
 }
 
 
+namespace {
+
+std::map<const CLI::App*, std::map<std::string, std::string>>& OptionKeyFlags() {
+  static std::map<const CLI::App*, std::map<std::string, std::string>> flags;
+  return flags;
+}
+
+// The flag an options-file key names on `command`.
+std::string FlagOfOptionKey(const CLI::App* command, const std::string& key) {
+  const auto by_command = OptionKeyFlags().find(command);
+  if (by_command != OptionKeyFlags().end()) {
+    const auto flag = by_command->second.find(key);
+    if (flag != by_command->second.end()) return flag->second;
+  }
+  return pipeline::FlagOfField(key);
+}
+
+}  // namespace
+
+void RegisterOptionKeyFlag(const CLI::App* command, const std::string& key, const std::string& flag) {
+  OptionKeyFlags()[command][key] = flag;
+}
+
+void ClearOptionKeyFlags() { OptionKeyFlags().clear(); }
+
 void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
   std::string file;
   for (size_t i = 1; i < args.size(); ++i) {
@@ -118,7 +144,7 @@ void ExpandOptionsFile(CLI::App& app, std::vector<std::string>& args) {
   auto [command, insert_at] = LeafCommand(app, args);
   std::vector<std::string> expanded;
   for (const auto& [key, value] : values.items()) {
-    const std::string flag = pipeline::FlagOfField(key);
+    const std::string flag = FlagOfOptionKey(command, key);
     const CLI::Option* option = command->get_option_no_throw(flag);
     if (option == nullptr || key == "options") throw ConfigError("unknown key '" + key + "'", file);
     // A switch that is on by default has a negated form (--no-NAME).

@@ -19,6 +19,13 @@ std::string DeprecationWarning(const std::string& old_flag, const std::string& r
 std::vector<std::string> ReplaceDeprecatedFlags(int argc, const char* const* argv,
                                                 std::vector<std::string>& warnings);
 
+// Options-file keys whose flag is not FlagOfField(key) (a field that kept an
+// older flag: evaluate's speckle_looks is --looks): RequestFlags registers
+// them per command when it declares the flag; ExpandOptionsFile reads them.
+// ClearOptionKeyFlags forgets every command's (RunCli, before declaring).
+void RegisterOptionKeyFlag(const CLI::App* command, const std::string& key, const std::string& flag);
+void ClearOptionKeyFlags();
+
 // --options FILE.json: its keys (request field names) become flags placed
 // before the command line's own, which win. Unknown key = ConfigError naming
 // the key and the file. Booleans: true gives the flag, false omits it;
