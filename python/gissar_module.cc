@@ -1289,6 +1289,9 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "Internal (gissar._adapt): messages and warnings say `description` (e.g. \"the `dem` array\") instead of "
         "the virtual path `path` of an in-memory raster; an empty description forgets it.");
 
+  m.def("locate_request_defaults", [] { return JsonToPython(pipeline::LocateRequest().ToJson()); },
+        "The locate request's fields and their defaults (the keywords of gissar.locate_product; "
+        "pipeline/locate_fields.cc).");
   m.def("evaluate_request_defaults", [] { return JsonToPython(pipeline::EvaluateRequest().ToJson()); },
         "The evaluate request's fields and their defaults (the keywords of gissar.evaluate).");
   m.def("evaluate_trials", [](const py::dict& options) {

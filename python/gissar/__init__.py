@@ -393,7 +393,7 @@ def locate_product(**kwargs):
     prior_sigma_heading_deg, terrain_horizontal_sigma_m (the DEM's own horizontal error, added to the relief
     fix's along/cross variance; default 6 m), looks_range, looks_azimuth, dem_oversample, matcher (ncc, gradient,
     phase, mi), frequency, polarization, vertical_datum, bounces, rays_per_cell, reflectors, sea, out and
-    composite_png (files, optional).
+    composite_png (files, optional); every key of gissar._core.locate_request_defaults() (the request's table).
     Returns the fix dict (converged, reason, fix.error_against_annotated_track, ...)."""
     paths = ("product", "orbit", "radar_grid", "image", "scene", "dem", "out", "composite_png")
     options = _paths(kwargs, paths)

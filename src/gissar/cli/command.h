@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <iomanip>
 #include <memory>
 #include <optional>
 #include <ostream>
@@ -114,6 +115,23 @@ inline CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool& valu
 // runs, so that their errors name the flag as every ConfigError does.
 // `target` must outlive the command line's parse (a member of the command's
 // shared request).
+// A text field's default as its flag would take it: a name as is, a list as
+// "A,B,C", a number in its shortest form (0, 0.05).
+inline std::string DefaultText(const nlohmann::json& value) {
+  if (value.is_string()) return value.get<std::string>();
+  if (value.is_array()) {
+    std::string text;
+    for (const nlohmann::json& item : value) text += (text.empty() ? "" : ",") + DefaultText(item);
+    return text;
+  }
+  if (value.is_number_float()) {
+    std::ostringstream text;
+    text << std::setprecision(15) << value.get<double>();
+    return text.str();
+  }
+  return value.dump();
+}
+
 template <class R>
 class RequestFlags {
  public:
@@ -134,7 +152,7 @@ class RequestFlags {
           if constexpr (std::is_same_v<decltype(pointer), std::monostate>) {
             auto& text = texts_.emplace_back(name, std::make_shared<std::string>()).second;
             CLI::Option* o = cmd_->add_option(flag, *text, field.help);
-            if (field.show_default) o->default_str(field.get(*target_).template get<std::string>());
+            if (field.show_default) o->default_str(DefaultText(field.get(*target_)));
             return o;
           } else {
             return cmd_->add_option(flag, *pointer, field.help);

@@ -3,92 +3,31 @@
 
 #include "gissar/cli/command.h"
 #include "gissar/cli/headline.h"
-#include "gissar/material/material.h"
-#include "gissar/nav/matching.h"
-#include "gissar/nav/product_locate.h"
 #include "gissar/pipeline/evaluate_fields.h"
 #include "gissar/pipeline/locate.h"
-#include "gissar/sensor/sar_geometry.h"
+#include "gissar/pipeline/locate_fields.h"
 
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds
-
-namespace {
-
-// The help of a flag `locate` shares with `evaluate` (a product's terrain
-// and multilook, the matcher, the database): the evaluate table's text.
-const std::string& SharedHelp(const std::string& field) { return EvaluateFields().at(field).help; }
-
-// The flags `locate` and `evaluate` share for a product's terrain and
-// multilook (LocateRequest and EvaluateRequest spell these fields alike).
-void AddProductTerrainFlags(CLI::App* cmd, LocateRequest& o) {
-  cmd->add_option("--looks-range", o.looks_range, SharedHelp("looks_range"))->capture_default_str();
-  cmd->add_option("--looks-azimuth", o.looks_azimuth, SharedHelp("looks_azimuth"))->capture_default_str();
-  cmd->add_option("--dem-oversample", o.dem_oversample, SharedHelp("dem_oversample"))->capture_default_str();
-  cmd->add_option("--reflectors", o.reflectors, SharedHelp("reflectors"));
-  cmd->add_option("--terrain-horizontal-sigma", o.terrain_horizontal_sigma_m,
-                  SharedHelp("terrain_horizontal_sigma_m"))->capture_default_str();
-  cmd->add_option("--sea", o.sea, SharedHelp("sea"))->capture_default_str();
-}
-
-}  // namespace
 
 void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
   {
     auto o = std::make_shared<LocateRequest>();
     CLI::App* cmd = root.add_subcommand(
         "locate", "Pose fix from one SAR image: match to simulated SAR at the INS prior, resect, iterate.");
-    cmd->add_option("--image", o->image, "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)");
-    cmd->add_option("--product", o->product,
-                    "Or a real RSLC product (HDF5): fix its own track from a displaced prior (docs/navigation.md)");
-    cmd->add_option("--orbit", o->orbit,
-                    "Or any sensor's state vectors (CSV, JSON, ESA .EOF) of the --image, fixed like a product");
-    cmd->add_option("--radar-grid", o->radar_grid, "Radar grid JSON of the --image (with --orbit)");
-    cmd->add_option("--frequency", o->frequency, SharedHelp("frequency"))->capture_default_str();
-    cmd->add_option("--polarization", o->polarization, SharedHelp("polarization"))->capture_default_str();
-    cmd->add_option("--prior-offset-track", o->prior_offset_track,
-                    "With --product: prior = annotated track moved ALONG,CROSS,UP metres (mid-scene velocity frame)")
-        ->delimiter(',')->expected(3)->capture_default_str();
-    cmd->add_option("--prior-heading-offset", o->prior_heading_offset_deg,
-                    "With --product: and turned by this many degrees (clockwise)")->capture_default_str();
-    cmd->add_option("--prior-sigma-horizontal", o->prior_sigma_horizontal_m,
-                    "With --product: INS one-sigma horizontal error, m")->capture_default_str();
-    cmd->add_option("--prior-sigma-vertical", o->prior_sigma_vertical_m,
-                    "With --product: INS one-sigma vertical error, m")->capture_default_str();
-    cmd->add_option("--prior-sigma-heading", o->prior_sigma_heading_deg,
-                    "With --product: INS one-sigma track-angle error, deg")->capture_default_str();
-    AddProductTerrainFlags(cmd, *o);
-    cmd->add_option("--scene", o->scene, "Scene built by `gissar scene build`");
-    cmd->add_option("--dem", o->dem, "Or a DEM (bare terrain)");
-    cmd->add_option("--vertical-datum", o->vertical_datum, SharedHelp("vertical_datum"));
-    cmd->add_option("--prior", o->prior, "Prior pose JSON (docs/navigation.md; with --image)");
-    cmd->add_option("--out", o->out, "Output prefix: PREFIX.json (the fix)")->required();
-    cmd->add_option("--composite", o->composite_png,
-                    "PNG: observed (green) over simulated (magenta) at the prior and at the fix");
-    cmd->add_option("--range-spacing", o->range_spacing_m, "Slant-range pixel spacing, m (default: image metadata)");
-    cmd->add_option("--azimuth-spacing", o->azimuth_spacing_m, "Azimuth pixel spacing, m (default: image metadata)");
-    cmd->add_option("--look", o->look,
-                    sensor::kLookSides.Alternatives() + " (default: image metadata, else " +
-                        sensor::ToString(sensor::LookSide::kRight) + ")");
-    cmd->add_option("--matcher", o->matcher, SharedHelp("matcher"))->capture_default_str();
-    cmd->add_option("--search", o->search_px, "First-iteration search radius, px (prior uncertainty)")->capture_default_str();
-    cmd->add_option("--step", o->step_px, SharedHelp("step_px"))->capture_default_str();
-    cmd->add_option("--dense-renders", o->dense_renders, SharedHelp("dense_renders"))->capture_default_str();
-    cmd->add_option("--polish", o->polish_evaluations, SharedHelp("polish_evaluations"))->capture_default_str();
-    cmd->add_option("--bounces", o->bounces, "Reflections per ray in the reference renders")->capture_default_str();
-    cmd->add_option("--rays-per-cell", o->rays_per_cell, "Rays per cell in the reference renders")->capture_default_str();
-    cmd->add_option("--database", o->database,
-                    "Reference database PREFIX_catalog.json (gissar corridor, same --dem/--scene): match the stored "
-                    "reference covering the prior, no rendering (docs/navigation.md)");
-    cmd->add_option("--database-fallback", o->database_fallback,
-                    "No stored reference covers the prior: none (no fix, exit 3) or render (on the fly)")
-        ->capture_default_str();
-    cmd->add_option("--database-heading-tolerance", o->database_heading_tolerance_deg,
-                    SharedHelp("database_heading_tolerance_deg"))->capture_default_str();
+    // Every field of the request's table that has a help text is a flag
+    // (pipeline/locate_fields.cc), in the table's order.
+    auto flags = std::make_shared<RequestFlags<LocateRequest>>(cmd, LocateFields(), o.get());
+    for (const RequestField<LocateRequest>& field : LocateFields().fields()) {
+      if (field.help.empty()) continue;
+      CLI::Option* option = flags->Add(field.name);
+      if (field.name == "out") option->required();
+    }
     auto max_memory = std::make_shared<std::string>();
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {
       LocateRequest resolved = *o;
+      flags->Apply(resolved);
       resolved.out = PrefixedOutput(o->out, ".json");
       resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
       const auto report = RunLocate(resolved, context.command_line, context.reporter);

@@ -1,5 +1,6 @@
 #include "gissar/pipeline/locate.h"
 #include "gissar/pipeline/evaluate_fields.h"
+#include "gissar/pipeline/locate_fields.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -369,53 +370,10 @@ void LocateRequest::Check() const {
   CheckOutputsAreNotInputs({out, composite_png}, {image, scene, dem, prior});
 }
 
+nlohmann::json LocateRequest::ToJson() const { return LocateFields().ToJson(*this); }
+
 void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
-  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
-  for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) { AssignField(field, value, key, source); };
-    if (value.is_null()) continue;  // null keeps the default
-    if (key == "image") set(image);
-    else if (key == "scene") set(scene);
-    else if (key == "dem") set(dem);
-    else if (key == "vertical_datum") set(vertical_datum);
-    else if (key == "out") set(out);
-    else if (key == "composite_png") set(composite_png);
-    else if (key == "matcher") set(matcher);
-    else if (key == "bounces") set(bounces);
-    else if (key == "rays_per_cell") set(rays_per_cell);
-    else if (key == "product") set(product);
-    else if (key == "orbit") set(orbit);
-    else if (key == "radar_grid") set(radar_grid);
-    else if (key == "frequency") set(frequency);
-    else if (key == "polarization") set(polarization);
-    else if (key == "prior_offset_track") set(prior_offset_track);
-    else if (key == "prior_heading_offset_deg") set(prior_heading_offset_deg);
-    else if (key == "prior_sigma_horizontal_m") set(prior_sigma_horizontal_m);
-    else if (key == "prior_sigma_vertical_m") set(prior_sigma_vertical_m);
-    else if (key == "prior_sigma_heading_deg") set(prior_sigma_heading_deg);
-    else if (key == "looks_range") set(looks_range);
-    else if (key == "looks_azimuth") set(looks_azimuth);
-    else if (key == "dem_oversample") set(dem_oversample);
-    else if (key == "reflectors") set(reflectors);
-    else if (key == "sea") set(sea);
-    else if (key == "terrain_horizontal_sigma_m") set(terrain_horizontal_sigma_m);
-    else if (key == "max_memory_bytes") set(max_memory_bytes);
-    else if (key == "database") set(database);
-    else if (key == "database_fallback") set(database_fallback);
-    else if (key == "database_heading_tolerance_deg") set(database_heading_tolerance_deg);
-    else {
-      // The keys above (LocateRequest has no ToJson to list them).
-      throw ConfigError(
-          UnknownKeyMessage(key, {"image", "scene", "dem", "vertical_datum", "out", "composite_png", "matcher",
-                                  "bounces", "rays_per_cell", "product", "orbit", "radar_grid", "frequency",
-                                  "polarization", "prior_offset_track", "prior_heading_offset_deg",
-                                  "prior_sigma_horizontal_m", "prior_sigma_vertical_m", "prior_sigma_heading_deg",
-                                  "looks_range", "looks_azimuth", "dem_oversample", "reflectors", "sea",
-                                  "terrain_horizontal_sigma_m", "max_memory_bytes", "database",
-                                  "database_fallback", "database_heading_tolerance_deg"}),
-          source);
-    }
-  }
+  LocateFields().ApplyJson(*this, values, source);
 }
 
 nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {

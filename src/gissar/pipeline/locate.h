@@ -122,6 +122,8 @@ struct LocateRequest {
   double database_heading_tolerance_deg = 10.0;  // largest prior-to-reference heading difference
   bool UsesTrack() const { return !product.empty() || !orbit.empty() || !radar_grid.empty(); }
   void Check() const;
+  // The request as {snake_case field: value} (pipeline/locate_fields.cc).
+  nlohmann::json ToJson() const;
   // Sets the fields named by `values` ({snake_case field: value}: the Python
   // keywords of gissar.locate_product; null keeps the default); an unknown key
   // or a wrong type is a ConfigError naming `source`.

@@ -3,6 +3,7 @@
 // 128 x 128 images; ~1 s per fix),
 // and the real Sentinel-1 warp recovery.
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/locate_fields.h"
 
 #include <algorithm>
 #include <cmath>
@@ -220,6 +221,37 @@ TEST(Locate, DatabaseOptionsAreChecked) {
                      {"database_heading_tolerance_deg", 5.0}}, "test");
   EXPECT_EQ(applied.database_fallback, "render");
   EXPECT_EQ(applied.database_heading_tolerance_deg, 5.0);
+}
+
+// The locate request's table (locate_fields.cc): every field round-trips
+// through JSON (the Python keywords), null keeps the default, and the track
+// offset takes exactly three numbers, as JSON and as flag text.
+TEST(LocateFields, RoundTripNullAndTrackOffset) {
+  LocateRequest o;
+  o.image = "obs.tif";
+  o.prior = "prior.json";
+  o.look = "left";
+  o.search_px = 40;
+  o.prior_offset_track = {-60.0, 30.0, 5.0};
+  o.composite_png = "c.png";
+  LocateRequest round;
+  round.ApplyJson(o.ToJson(), "test");
+  EXPECT_EQ(round.ToJson(), o.ToJson());
+  EXPECT_EQ(round.prior_offset_track, (std::vector<double>{-60.0, 30.0, 5.0}));
+  EXPECT_EQ(round.look, "left");
+  LocateRequest kept;
+  kept.ApplyJson({{"search_px", nullptr}, {"matcher", nullptr}}, "test");
+  EXPECT_EQ(kept.search_px, LocateRequest().search_px);
+  EXPECT_EQ(kept.matcher, "ncc");
+  EXPECT_THROW(kept.ApplyJson({{"prior_offset_track", {1.0, 2.0}}}, "test"), ConfigError);
+  EXPECT_THROW(kept.ApplyJson({{"serch_px", 3}}, "test"), ConfigError);
+  const RequestField<LocateRequest>& offset = LocateFields().at("prior_offset_track");
+  EXPECT_EQ(offset.Flag(), "--prior-offset-track");
+  EXPECT_EQ(offset.from_text("0,30,-2.5", offset.Flag()), nlohmann::json({0.0, 30.0, -2.5}));
+  for (const char* bad : {"0,30", "0,30,", "0,x,1", "1,2,3,4", ""}) {
+    EXPECT_THROW(offset.from_text(bad, offset.Flag()), ConfigError) << bad;
+  }
+  EXPECT_EQ(LocateFields().at("composite_png").Flag(), "--composite");
 }
 
 TEST(Prior, UnknownKeyIsAConfigErrorNamingIt) {

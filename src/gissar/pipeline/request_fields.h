@@ -28,6 +28,7 @@
 // A table with a name twice is a bug (GISSAR_CHECK).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -221,6 +222,47 @@ struct Fields {
     };
     f.ref = [](R&) { return FieldRef(); };
     f.from_text = [](const std::string& text, const std::string&) { return nlohmann::json(text); };
+    return f;
+  }
+
+  // std::vector<double> of `count` numbers: JSON [a, b, ...]; CLI text "A,B,..." (ConfigError naming the
+  // flag: "needs N numbers A,B,..., got 'TEXT'").
+  template <class Access>
+  static RequestField<R> Numbers(std::string name, Access access, size_t count, std::string help) {
+    RequestField<R> f;
+    f.name = std::move(name);
+    f.help = std::move(help);
+    f.get = [access](const R& r) { return nlohmann::json(access(const_cast<R&>(r))); };
+    f.set = [access, count](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
+      std::vector<double> v;
+      AssignField(v, value, key, source);
+      if (v.size() != count) {
+        throw ConfigError("key '" + key + "' needs " + std::to_string(count) + " numbers", source);
+      }
+      access(r) = std::move(v);
+    };
+    f.ref = [](R&) { return FieldRef(); };
+    f.from_text = [count](const std::string& text, const std::string& flag) {
+      std::vector<double> v;
+      std::string item;
+      bool ok = !text.empty() && text.back() != ',';
+      for (size_t start = 0; ok && start <= text.size();) {
+        const size_t comma = std::min(text.find(',', start), text.size());
+        item = text.substr(start, comma - start);
+        try {
+          size_t used = 0;
+          v.push_back(std::stod(item, &used));
+          ok = used == item.size() && std::isfinite(v.back());
+        } catch (const std::exception&) {
+          ok = false;
+        }
+        start = comma + 1;
+      }
+      if (!ok || v.size() != count) {
+        throw ConfigError("needs " + std::to_string(count) + " comma-separated numbers, got '" + text + "'", flag);
+      }
+      return nlohmann::json(v);
+    };
     return f;
   }
 
