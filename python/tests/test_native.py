@@ -301,11 +301,11 @@ def test_simulate_type_hints_name_only_request_fields():
     import ast
     hints = os.path.join(os.path.dirname(gissar.__file__), "__init__.pyi")
     tree = ast.parse(open(hints).read())
-    stub = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "simulate")
-    named = [a.arg for a in stub.args.args + stub.args.kwonlyargs]
+    hinted = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "simulate")
+    named = [a.arg for a in hinted.args.args + hinted.args.kwonlyargs]
     fields = {f["name"] for f in gissar._core.simulate_request_fields()}
     doors = {"dem", "scene", "transform", "crs", "nodata", "progress", "out_prefix"}
-    assert stub.args.kwarg is not None and stub.args.kwarg.arg == "request"
+    assert hinted.args.kwarg is not None and hinted.args.kwarg.arg == "request"
     assert not [n for n in named if n not in fields | doors]
     signature = inspect.signature(gissar.simulate).parameters
     assert not [f for f in fields if f not in signature and f not in ("max_memory_bytes",)]

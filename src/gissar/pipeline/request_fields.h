@@ -269,51 +269,45 @@ struct Fields {
   // std::optional<Eigen::Vector2d>: JSON [a, b] or null; CLI text read by `from_text` ("A,B").
   template <class Access>
   static RequestField<R> OptionalPair(std::string name, Access access, std::string help, TextReader from_text) {
-    RequestField<R> f;
-    f.name = std::move(name);
-    f.help = std::move(help);
-    f.show_default = false;
-    f.accepts_null = true;
-    f.get = [access](const R& r) {
-      const std::optional<Eigen::Vector2d>& v = access(const_cast<R&>(r));
-      return v ? nlohmann::json{v->x(), v->y()} : nlohmann::json(nullptr);
-    };
-    f.set = [access](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
-      if (value.is_null()) {
-        access(r).reset();
-        return;
-      }
-      std::vector<double> v;
-      AssignField(v, value, key, source);
-      if (v.size() != 2) throw ConfigError("key '" + key + "' needs two numbers", source);
-      access(r) = Eigen::Vector2d(v[0], v[1]);
-    };
-    f.ref = [](R&) { return FieldRef(); };
-    f.from_text = std::move(from_text);
-    return f;
+    return OptionalList<double, 2>(std::move(name), access, std::move(help), std::move(from_text), "two numbers");
   }
 
   // std::optional<std::array<int, 4>>: JSON of four integers or null; CLI text read by `from_text`.
   template <class Access>
   static RequestField<R> OptionalWindow(std::string name, Access access, std::string help, TextReader from_text) {
+    return OptionalList<int, 4>(std::move(name), access, std::move(help), std::move(from_text), "four integers");
+  }
+
+ private:
+  // std::optional of N values of type Item (an Eigen vector, a std::array):
+  // JSON of N items or null ("key 'K' needs <needs>" otherwise).
+  template <class Item, size_t N, class Access>
+  static RequestField<R> OptionalList(std::string name, Access access, std::string help, TextReader from_text,
+                                      std::string needs) {
+    using Value = typename std::remove_reference_t<decltype(access(std::declval<R&>()))>::value_type;
     RequestField<R> f;
     f.name = std::move(name);
     f.help = std::move(help);
     f.show_default = false;
     f.accepts_null = true;
     f.get = [access](const R& r) {
-      const std::optional<std::array<int, 4>>& v = access(const_cast<R&>(r));
-      return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+      const std::optional<Value>& v = access(const_cast<R&>(r));
+      if (!v) return nlohmann::json(nullptr);
+      nlohmann::json items = nlohmann::json::array();
+      for (size_t i = 0; i < N; ++i) items.push_back(Item((*v)[i]));
+      return items;
     };
-    f.set = [access](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
+    f.set = [access, needs](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
       if (value.is_null()) {
         access(r).reset();
         return;
       }
-      std::vector<int> v;
+      std::vector<Item> v;
       AssignField(v, value, key, source);
-      if (v.size() != 4) throw ConfigError("key '" + key + "' needs four integers", source);
-      access(r) = std::array<int, 4>{v[0], v[1], v[2], v[3]};
+      if (v.size() != N) throw ConfigError("key '" + key + "' needs " + needs, source);
+      Value out;
+      for (size_t i = 0; i < N; ++i) out[i] = v[i];
+      access(r) = out;
     };
     f.ref = [](R&) { return FieldRef(); };
     f.from_text = std::move(from_text);
