@@ -52,34 +52,18 @@ TEST(ValidateSentinel1, IwGrdGridAgreesInGroundRangePixels) {
   }
 }
 
-TEST(ValidateSentinel1, StripmapGridAgreesInRangeAndNearTheOrbitVectors) {
-  // The S1A stripmap grid (945 points) meets the range target but not the
-  // azimuth one: gissar's zero-Doppler times differ from the annotated ones
-  // by up to 0.37 lines (0.19 ms of 0.519 ms lines), in a 10 s periodic
-  // pattern that vanishes at the orbit state vectors' times (every 10 s) and
-  // peaks between them. gissar's Hermite orbit agrees with an 8-point
-  // Lagrange interpolation of the same vectors to 0.2 mm, and the IW SLC and
-  // GRD grids (same vector spacing) agree to 0.02 lines, so the pattern is in
-  // how that product's grid was computed (docs/sentinel1.md). This test pins
-  // the measured figures so a regression shows.
-  const geo::Sentinel1Annotation a = Annotation(kSm, "S3", "VH");
-  const GeolocationGridAgreement r = CheckGeolocationGrid(a);
-  EXPECT_EQ(r.points, 945);
-  EXPECT_EQ(r.failures, 0);
-  EXPECT_LE(r.range_rms_px, kGridRmsMaxPx);
-  EXPECT_LE(r.range_max_px, kGridMaxMaxPx);
-  EXPECT_LE(r.azimuth_max_px, 0.40);
-  EXPECT_LE(r.ground_max_m, 1.4);
-  // Grid points within 0.3 s of a state vector: within the targets.
-  geo::Sentinel1Annotation near = a;
-  near.geolocation_grid.clear();
-  for (const geo::Sentinel1GridPoint& g : a.geolocation_grid) {
-    for (double t : a.orbit.time_s) {
-      if (std::abs(g.azimuth_time_s - t) < 0.3) near.geolocation_grid.push_back(g);
-    }
-  }
-  ASSERT_GE(near.geolocation_grid.size(), 20u);
-  ExpectWithinTargets(CheckGeolocationGrid(near), near.geolocation_grid.size());
+TEST(ValidateSentinel1, StripmapGridAgreesEverywhere) {
+  // The S1A stripmap grid (945 points). Its state vectors are not exactly each
+  // other's derivatives (about 1 cm/s), and ESA's processor puts the
+  // interpolated velocities in the Doppler equation: with the derivative of
+  // the Hermite position cubic instead, gissar's zero-Doppler times were late
+  // by up to 0.37 lines between vectors (0.259 rms; docs/sentinel1.md). With
+  // the velocities interpolated (sensor::Orbit) the grid agrees within the
+  // targets; measured 0.002 lines rms and 0.004 max.
+  const GeolocationGridAgreement r = CheckGeolocationGrid(Annotation(kSm, "S3", "VH"));
+  ExpectWithinTargets(r, 945u);
+  EXPECT_LE(std::abs(r.azimuth_mean_px), 0.01);
+  EXPECT_LE(r.ground_max_m, 1.0);
 }
 
 TEST(ValidateSentinel1, AnOrbitTimingErrorShowsAsItsAzimuthShift) {

@@ -40,10 +40,30 @@ OrbitState Orbit::Interpolate(double t) const {
   const double s2 = s * s, s3 = s2 * s;
   OrbitState state;
   state.position_m = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1;
-  state.velocity_mps =
-      ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h;
-  state.acceleration_mps2 =
-      ((12 * s - 6) * p0 + (6 * s - 4) * m0 + (-12 * s + 6) * p1 + (6 * s - 2) * m1) / (h * h);
+  if (time_s_.size() < kVelocityPoints) {
+    // Too few vectors for the velocity interpolation: the cubic's derivatives.
+    state.velocity_mps =
+        ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h;
+    state.acceleration_mps2 =
+        ((12 * s - 6) * p0 + (6 * s - 4) * m0 + (-12 * s + 6) * p1 + (6 * s - 2) * m1) / (h * h);
+    return state;
+  }
+  // Velocity: the Lagrange cubic through the velocities of the four nearest
+  // vectors (two each side of t where the orbit allows), and its derivative.
+  const size_t first = std::min(i > 0 ? i - 1 : size_t{0}, time_s_.size() - kVelocityPoints);
+  state.velocity_mps.setZero();
+  state.acceleration_mps2.setZero();
+  for (size_t j = first; j < first + kVelocityPoints; ++j) {
+    double basis = 1.0, derivative = 0.0;
+    for (size_t k = first; k < first + kVelocityPoints; ++k) {
+      if (k == j) continue;
+      const double inverse_gap = 1.0 / (time_s_[j] - time_s_[k]);
+      derivative = derivative * (t - time_s_[k]) * inverse_gap + basis * inverse_gap;
+      basis *= (t - time_s_[k]) * inverse_gap;
+    }
+    state.velocity_mps += basis * velocity_mps_[j];
+    state.acceleration_mps2 += derivative * velocity_mps_[j];
+  }
   return state;
 }
 

@@ -25,12 +25,22 @@ struct OrbitState {
   Eigen::Vector3d acceleration_mps2 = Eigen::Vector3d::Zero();
 };
 
-// State vectors interpolated by piecewise cubic Hermite polynomials: between
-// two consecutive vectors, the unique cubic matching both positions and both
-// velocities. Exact for any trajectory that is a cubic polynomial in time;
-// C1-continuous everywhere.
+// State vectors interpolated as focusing processors do. Position: piecewise
+// cubic Hermite polynomials (between two consecutive vectors, the unique cubic
+// matching both positions and both velocities; C1-continuous). Velocity (the
+// one the zero-Doppler condition uses): the Lagrange cubic through the
+// velocities of the four nearest vectors, not the derivative of the position
+// cubic; acceleration: that cubic's derivative. Real state vectors are not
+// exactly each other's derivatives (Sentinel-1 stripmap annotations: about
+// 1 cm/s), and ESA's processor puts the interpolated velocities in the Doppler
+// equation: with the position cubic's derivative instead, zero-Doppler times
+// move by up to 0.37 lines between vectors (docs/sentinel1.md). Both are exact
+// for a trajectory that is a cubic polynomial in time. With 2 or 3 vectors the
+// velocity is the position cubic's derivative.
 class Orbit {
  public:
+  static constexpr size_t kVelocityPoints = 4;
+
   // Throws InputError when there are fewer than 2 vectors, the lengths
   // differ, a value is not finite or the times are not strictly increasing.
   Orbit(std::vector<double> time_s, std::vector<Eigen::Vector3d> position_m,

@@ -41,6 +41,35 @@ TEST(OrbitTest, HermiteIsExactOnCubicTrajectory) {
   EXPECT_FALSE(orbit.Covers(35.01));
 }
 
+// Velocities that are not the positions' derivatives (as in real state
+// vectors, by millimetres per second): the orbit's velocity is the Lagrange
+// cubic through the given velocities, here a quadratic in time, reproduced
+// exactly with its derivative, while the position stays the Hermite cubic.
+// With two vectors the velocity is the position cubic's derivative.
+TEST(OrbitTest, VelocityInterpolatesTheGivenVelocities) {
+  const Vector3d p0(5144003.8, 4431712.6, -2003048.0), v0(2635.4, 148.0, 7119.2), w(1e-4, -2e-4, 3e-4);
+  std::vector<double> times = {0.0, 10.0, 20.0, 30.0, 40.0, 50.0};
+  std::vector<Vector3d> p, v;
+  for (double t : times) {
+    p.push_back(p0 + v0 * t);
+    v.push_back(v0 + w * t * t);
+  }
+  const Orbit orbit(times, p, v);
+  for (double t : {0.0, 3.0, 15.0, 27.5, 44.0, 50.0}) {
+    const OrbitState s = orbit.Interpolate(t);
+    EXPECT_LT((s.velocity_mps - (v0 + w * t * t)).norm(), 1e-9) << t;
+    EXPECT_LT((s.acceleration_mps2 - 2.0 * w * t).norm(), 1e-9) << t;
+  }
+  // At the vectors the position is the given one.
+  EXPECT_LT((orbit.Interpolate(20.0).position_m - p[2]).norm(), 1e-6);
+
+  const Orbit two({0.0, 10.0}, {p[0], p[1]}, {v[0], v[1]});
+  // The Hermite cubic between (p0, v0) and (p0 + 10 v0, v0 + 100 w) has at
+  // s = 1/2 the derivative 1.5 (p1 - p0) / h - (v_0 + v_1) / 4
+  // = 1.5 v0 - 0.25 (2 v0 + 100 w) = v0 - 25 w.
+  EXPECT_LT((two.Interpolate(5.0).velocity_mps - (v0 - 25.0 * w)).norm(), 1e-9);
+}
+
 TEST(OrbitTest, RejectsBadStateVectors) {
   const Vector3d z = Vector3d::Zero();
   EXPECT_THROW(Orbit({0.0}, {z}, {z}), InputError);
