@@ -8,6 +8,7 @@
 #include "gissar/material/material.h"
 #include "gissar/pipeline/polsar.h"
 #include "gissar/pipeline/pta.h"
+#include "gissar/pipeline/pta_fields.h"
 
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions these commands bind
@@ -61,31 +62,18 @@ void AddPolarimetryCommands(CLI::App& root, CommandRegistry& registry) {
     auto max_memory = std::make_shared<std::string>();
     CLI::App* cmd = root.add_subcommand(
         "pta", "Point-target analysis of surveyed reflectors in a complex image: location, resolution, PSLR/ISLR, RCS.");
-    cmd->add_option("--product", o->product, "NISAR RSLC product (HDF5): prediction by geo2rdr on its orbit");
-    cmd->add_option("--image", o->image,
-                    "Or PREFIX_slc.tif of `gissar simulate --coherent` (PREFIX.json beside it): its own geometry");
-    cmd->add_option("--reflectors", o->reflectors,
-                    "Reflectors CSV: type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg")
-        ->required();
-    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
-    cmd->add_option("--polarization", o->polarization,
-                    "Channel measured, HH/HV/VH/VV (default: HH; --image: the simulation's)");
-    cmd->add_option("--ground-height", o->ground_height_m,
-                    "With --product: ellipsoidal height of the ground under the reflectors, m")
-        ->capture_default_str();
-    cmd->add_option("--upsampling", o->upsampling, "Upsampling factor per axis of the target chip")->capture_default_str();
-    cmd->add_option("--search", o->search_px, "Search radius around the predicted position, px")->capture_default_str();
-    cmd->add_option("--chip-half-size", o->chip_half_size_px,
-                    "Half-size of the upsampled chip and of the energy box, px")
-        ->capture_default_str();
-    cmd->add_option("--detection-threshold", o->detection_threshold_db,
-                    "Found: brightest sample at least this far above the background, dB")
-        ->capture_default_str();
+    // Every field of the request's table that has a help text is a flag
+    // (pipeline/pta_fields.cc), in the table's order.
+    auto flags = std::make_shared<RequestFlags<PtaRequest>>(cmd, PtaFields(), o.get());
+    for (const RequestField<PtaRequest>& field : PtaFields().fields()) {
+      if (field.help.empty()) continue;
+      CLI::Option* option = flags->Add(field.name);
+      if (field.name == "reflectors" || field.name == "out_prefix") option->required();
+    }
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
-    cmd->add_option("--out", o->out_prefix, "Output prefix: PREFIX.json (measurements), PREFIX_irf.png (cuts)")
-        ->required();
     registry.Add(cmd, [=](const CommandContext& context) {
       PtaRequest resolved = *o;
+      flags->Apply(resolved);
       resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
       const PtaResult result = RunPta(resolved, context.command_line, context.reporter);
       for (const auto& path : result.outputs) context.out << path.string() << "\n";

@@ -14,6 +14,8 @@
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/rslc_product.h"
+#include "gissar/geo/sentinel1_measurement.h"
+#include "gissar/geo/sentinel1_safe.h"
 #include "gissar/image/irf_plot.h"
 #include "gissar/image/point_target.h"
 #include "gissar/image/radiometry.h"
@@ -24,6 +26,8 @@
 #include "gissar/pipeline/geocode.h"
 #include "gissar/pipeline/georeferencing.h"
 #include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/pta_fields.h"
+#include "gissar/pipeline/sentinel1_simulate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/sensor/range_doppler.h"
 #include "gissar/util/atomic_output.h"
@@ -204,6 +208,125 @@ Source ProductSource(const PtaRequest& request) {
     Prediction out = PredictOnProduct(p, *orbit, target, spec.lon_deg, spec.lat_deg, where);
     if (p.beta0_lut) out.beta0_factor = p.beta0_lut->At(out.zero_doppler_time_s, out.slant_range_m);
     out.geometry["apex_height_above_ellipsoid_m"] = height;
+    return out;
+  };
+  return s;
+}
+
+// A Sentinel-1 SLC: the reflectors predicted on the whole burst (IW/EW) or
+// swath (stripmap) grid, then only the window around them read (search
+// radius, chip and a margin of 8 px each side, clipped to the grid): the
+// image's DN as stored and, per reflector, beta0 = |DN|^2 / betaNought^2 with
+// the calibration LUT at its predicted pixel. A GRD (detected, no phase) is
+// refused.
+Source Sentinel1PtaSource(const PtaRequest& request, const std::vector<material::ReflectorSpec>& rows,
+                          Reporter& reporter) {
+  Sentinel1Selection selection;
+  selection.product = request.product;
+  selection.swath = request.swath;
+  selection.burst = request.burst;
+  selection.orbit = request.orbit;
+  selection.command = "pta";
+  selection.polarization = request.polarization;
+  if (selection.polarization.empty()) {
+    selection.polarization = geo::OpenSentinel1(request.product).Entry(Upper(request.swath), "").polarization;
+  }
+  const Sentinel1Source whole = ReadSentinel1Source(selection);
+  if (whole.ground_range) {
+    throw InputError("a GRD is detected (amplitude only, no phase): point-target analysis needs the SLC",
+                     "--product (" + whole.product.name + ")");
+  }
+  const std::string grid_name =
+      whole.burst > 0 ? "burst " + std::to_string(whole.burst) + " of " + whole.annotation.swath + " (" +
+                            std::to_string(whole.full_size[0]) + " lines)"
+                      : "swath " + whole.annotation.swath;
+  const double height = request.ground_height_m;
+  auto orbit = std::make_shared<sensor::Orbit>(whole.grid.orbit.time_s, whole.grid.orbit.position_m,
+                                               whole.grid.orbit.velocity_mps);
+  auto target_of = [height](const material::ReflectorSpec& spec) {
+    return geo::LocalFrame::EcefFromGeodetic(spec.lon_deg, spec.lat_deg, height + spec.apex_height_m);
+  };
+  // The window around every prediction on the whole grid.
+  const int margin = static_cast<int>(std::ceil(request.search_px)) + request.chip_half_size_px + 8;
+  double row_lo = std::numeric_limits<double>::infinity(), row_hi = -row_lo, col_lo = row_lo, col_hi = -row_lo;
+  for (const material::ReflectorSpec& spec : rows) {
+    const std::string where = request.reflectors + " row " + std::to_string(spec.row);
+    const Prediction p = PredictOnProduct(whole.grid, *orbit, target_of(spec), spec.lon_deg, spec.lat_deg, where);
+    CheckInside(p, whole.full_size[1], whole.full_size[0], grid_name, where);
+    row_lo = std::min(row_lo, p.row), row_hi = std::max(row_hi, p.row);
+    col_lo = std::min(col_lo, p.col), col_hi = std::max(col_hi, p.col);
+  }
+  const int line0 = std::max(0, static_cast<int>(std::floor(row_lo)) - margin);
+  const int pixel0 = std::max(0, static_cast<int>(std::floor(col_lo)) - margin);
+  const int line1 = std::min(whole.full_size[0], static_cast<int>(std::ceil(row_hi)) + margin + 1);
+  const int pixel1 = std::min(whole.full_size[1], static_cast<int>(std::ceil(col_hi)) + margin + 1);
+  selection.window_px = std::array<int, 4>{line0, pixel0, line1 - line0, pixel1 - pixel0};
+  auto source = std::make_shared<Sentinel1Source>(ReadSentinel1Source(selection, reporter));
+  const geo::Sentinel1Annotation& a = source->annotation;
+  const std::array<int, 4>& w = source->window;
+
+  // The window in the measurement's numbering (an IW/EW SLC's lines are the
+  // bursts' concatenated) and its calibration.
+  geo::Sentinel1ImageOptions image_options;
+  image_options.swath = a.swath;
+  image_options.polarization = a.polarization;
+  image_options.burst = source->burst;
+  image_options.radiometry = geo::Sentinel1Radiometry::kBeta0;
+  const geo::Sentinel1Image image = geo::Sentinel1Image::Open(request.product, image_options);
+  if (!image.measurement().is_complex()) {
+    throw InputError("the measurement is not complex: point-target analysis needs an SLC", image.measurement().file());
+  }
+  const int first_line = image.window().first_line + w[0];
+  const geo::Sentinel1Window read{first_line, w[1], w[2], w[3]};
+  auto lut = std::make_shared<geo::Sentinel1LineVectors>(
+      geo::Sentinel1CalibrationLut(*image.calibration(), geo::Sentinel1Radiometry::kBeta0, "pta"));
+
+  Source s;
+  s.channel = a.polarization;
+  s.width = w[3];
+  s.height = w[2];
+  s.channels[s.channel] = image.measurement().ReadDn(read);
+  s.range_spacing_m = source->grid.range_spacing_m();
+  s.wavelength_m = source->grid.wavelength_m;
+  s.calibrated = true;
+  s.calibration_note = "beta0 = |DN|^2 / betaNought^2, the LUT of " + image.calibration()->file +
+                       " bilinear in line and pixel (as ESA specifies) at the reflector's predicted pixel";
+  s.inputs.push_back(Sentinel1InputRecord(*source));
+  if (!request.orbit.empty()) s.inputs.push_back(InputFileRecord(request.orbit));
+  s.description = {{"kind", "Sentinel-1 " + a.product_type},
+                   {"file", request.product},
+                   {"sentinel1", source->ToJson()},
+                   {"polarization", s.channel},
+                   {"measurement", image.measurement().file()},
+                   {"window_read", {{"first_line", read.first_line},
+                                    {"first_sample", read.first_sample},
+                                    {"lines", read.lines},
+                                    {"samples", read.samples},
+                                    {"numbering", "the measurement's lines and samples"}}},
+                   {"rows", s.height},
+                   {"cols", s.width},
+                   {"first_zero_doppler_time_s", source->grid.zero_doppler_time_s.front()},
+                   {"zero_doppler_time_spacing_s", source->grid.azimuth_spacing_s()},
+                   {"first_slant_range_m", source->grid.slant_range_m.front()},
+                   {"slant_range_spacing_m", s.range_spacing_m},
+                   {"wavelength_m", s.wavelength_m},
+                   {"look_side", sensor::ToString(sensor::LookSideOf(source->grid.look_left))},
+                   {"ground_height_m", request.ground_height_m},
+                   {"prediction", "zero-Doppler geo2rdr on the product's orbit (" + source->orbit_source + ")"}};
+  reporter.Info("pta: read lines " + std::to_string(read.first_line) + "+" + std::to_string(read.lines) +
+                ", samples " + std::to_string(read.first_sample) + "+" + std::to_string(read.samples) + " of " +
+                image.measurement().file());
+  s.predict = [source, orbit, lut, first_line, w, target_of, height](const material::ReflectorSpec& spec,
+                                                                     const std::string& where) {
+    const geo::RslcProduct& p = source->grid;
+    Prediction out = PredictOnProduct(p, *orbit, target_of(spec), spec.lon_deg, spec.lat_deg, where);
+    const double a_beta = lut->At(first_line + out.row, w[1] + out.col);
+    if (!(a_beta > 0.0)) throw InputError("the betaNought LUT is not positive at the reflector", where);
+    out.beta0_factor = 1.0 / (a_beta * a_beta);
+    out.geometry["apex_height_above_ellipsoid_m"] = height + spec.apex_height_m;
+    out.geometry["measurement_line"] = first_line + out.row;
+    out.geometry["measurement_sample"] = w[1] + out.col;
+    out.geometry["beta_nought_lut"] = a_beta;
     return out;
   };
   return s;
@@ -496,6 +619,13 @@ void PtaRequest::Check() const {
   if (!std::isfinite(ground_height_m) || std::abs(ground_height_m) > 20000.0) {
     throw ConfigError("must be a height in metres within +-20 km of the ellipsoid", "--ground-height");
   }
+  const bool sentinel1 = !product.empty() && geo::IsSentinel1Path(product);
+  if (!sentinel1) {
+    if (!swath.empty()) throw ConfigError("goes with a Sentinel-1 --product (SAFE)", "--swath");
+    if (burst != 0) throw ConfigError("goes with a Sentinel-1 --product (SAFE)", "--burst");
+    if (!orbit.empty()) throw ConfigError("goes with a Sentinel-1 --product (SAFE)", "--orbit");
+  }
+  if (burst < 0) throw ConfigError("must be 1 or more (1-based), got " + std::to_string(burst), "--burst");
   if (!image.empty() && ground_height_m != 0.0) {
     throw ConfigError("goes with --product (an --image uses its simulation's terrain)", "--ground-height");
   }
@@ -513,45 +643,15 @@ void PtaRequest::Check() const {
     throw ConfigError("the upsampled chip (2 x chip half-size x upsampling) exceeds 4096 samples a side",
                       "--upsampling");
   }
-  std::vector<std::string> inputs{product, image, reflectors};
+  std::vector<std::string> inputs{product, image, reflectors, orbit};
   if (!image.empty()) inputs.push_back(SidecarOf(image));
   CheckOutputsAreNotInputs({out_prefix + ".json", out_prefix + "_irf.png"}, inputs);
 }
 
-json PtaRequest::ToJson() const {
-  return {{"product", product},
-          {"image", image},
-          {"reflectors", reflectors},
-          {"frequency", frequency},
-          {"polarization", polarization},
-          {"ground_height_m", ground_height_m},
-          {"upsampling", upsampling},
-          {"search_px", search_px},
-          {"chip_half_size_px", chip_half_size_px},
-          {"detection_threshold_db", detection_threshold_db},
-          {"out_prefix", out_prefix},
-          {"max_memory_bytes", max_memory_bytes}};
-}
+json PtaRequest::ToJson() const { return PtaFields().ToJson(*this); }
 
 void PtaRequest::ApplyJson(const json& values, const std::string& source) {
-  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
-  for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) { AssignField(field, value, key, source); };
-    if (value.is_null()) continue;
-    if (key == "product") set(product);
-    else if (key == "image") set(image);
-    else if (key == "reflectors") set(reflectors);
-    else if (key == "frequency") set(frequency);
-    else if (key == "polarization") set(polarization);
-    else if (key == "ground_height_m") set(ground_height_m);
-    else if (key == "upsampling") set(upsampling);
-    else if (key == "search_px") set(search_px);
-    else if (key == "chip_half_size_px") set(chip_half_size_px);
-    else if (key == "detection_threshold_db") set(detection_threshold_db);
-    else if (key == "out_prefix") set(out_prefix);
-    else if (key == "max_memory_bytes") set(max_memory_bytes);
-    else throw ConfigError(UnknownKeyMessage(key, KeysOf(ToJson())), source);
-  }
+  PtaFields().ApplyJson(*this, values, source);
 }
 
 PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Reporter& reporter) {
@@ -563,7 +663,10 @@ PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Rep
 
   const std::vector<material::ReflectorSpec> rows = material::ReadReflectorsCsv(request.reflectors);
   if (rows.empty()) throw InputError("the reflectors file holds no reflector", request.reflectors);
-  Source source = request.product.empty() ? ImageSource(request, reporter) : ProductSource(request);
+  Source source = !request.product.empty() && geo::IsSentinel1Path(request.product)
+                      ? Sentinel1PtaSource(request, rows, reporter)
+                  : request.product.empty() ? ImageSource(request, reporter)
+                                            : ProductSource(request);
   ThrowIfCancelled(reporter, "pta");
   const bool quad = std::all_of(std::begin(kChannels), std::end(kChannels),
                                 [&](const char* c) { return source.channels.count(c) > 0; });

@@ -4,7 +4,10 @@
 //
 // For each CSV row: the apex (phase centre) is predicted in the image --
 // a NISAR RSLC product (--product) through its orbit by zero-Doppler geo2rdr
-// (row = zero-Doppler time on the product grid, column = slant range), or
+// (row = zero-Doppler time on the product grid, column = slant range), a
+// Sentinel-1 SLC the same way on its burst's (IW/EW) or swath's (stripmap)
+// zero-Doppler grid, beta0 = |DN|^2 / betaNought^2 with ESA's LUT at the
+// predicted pixel (only the window around the predictions is read), or
 // the complex GeoTIFF of `gissar simulate --coherent` (--image PREFIX_slc.tif)
 // through the simulation's own geometry (its GISSAR_* metadata) and terrain
 // (its sidecar PREFIX.json) -- for a simulation on a real radar grid
@@ -36,12 +39,22 @@
 namespace gissar::pipeline {
 
 struct PtaRequest {
-  std::string product;     // NISAR RSLC HDF5
+  // NISAR RSLC HDF5, or a Sentinel-1 SLC (SAFE directory, manifest.safe or
+  // .zip; geo::IsSentinel1Path): an IW/EW burst or a stripmap swath, of
+  // which only the window around the predicted reflectors is read.
+  std::string product;
   std::string image;       // or PREFIX_slc.tif of `gissar simulate --coherent`
   std::string reflectors;  // reflectors CSV (material::ReadReflectorsCsv)
-  std::string frequency = "A";  // product band
-  // Channel measured: HH, HV, VH or VV. "" = HH for a product; for --image
-  // the band named so, else the simulation's own polarisation (band 1).
+  std::string frequency = "A";  // product band (NISAR)
+  // Sentinel-1 (pipeline/sentinel1_simulate.h, Sentinel1Selection): the
+  // swath ("" = the only one), the burst (1-based; required for an IW/EW
+  // SLC, refused otherwise) and state vectors replacing the annotation's.
+  std::string swath;
+  int burst = 0;
+  std::string orbit;
+  // Channel measured: HH, HV, VH or VV. "" = HH for a NISAR product, the
+  // swath's first polarisation for a SAFE; for --image the band named so,
+  // else the simulation's own polarisation (band 1).
   std::string polarization;
   // --product: ellipsoidal height (m) of the ground under the reflectors
   // (the apex lies apex_height_m above it); --image uses the simulation's
@@ -64,10 +77,12 @@ struct PtaRequest {
   // Throws ConfigError naming the flag for a missing or bad value (one of
   // --product / --image, --reflectors, --out, channel, upsampling 2..64,
   // search >= 0, chip half-size 4..256, detection threshold 0..100 dB,
+  // --swath/--burst/--orbit only with a Sentinel-1 --product, burst >= 0,
   // outputs not overwriting inputs).
   void Check() const;
   nlohmann::json ToJson() const;
-  // Keys of ToJson; ConfigError naming the key and `source` otherwise.
+  // Keys of ToJson (the table of pipeline/pta_fields.cc; null keeps the
+  // default); ConfigError naming the key and `source` otherwise.
   void ApplyJson(const nlohmann::json& values, const std::string& source);
 };
 

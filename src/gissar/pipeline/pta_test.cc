@@ -13,6 +13,7 @@
 #include "gissar/geo/rslc_product.h"
 #include "gissar/geo/warp.h"
 #include "gissar/pipeline/alos_testing.h"
+#include "gissar/pipeline/pta_fields.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/sensor/range_doppler.h"
 #include "gissar/util/error.h"
@@ -57,6 +58,50 @@ fs::path WriteCsv(const fs::path& path, const std::string& rows) {
 // The surveyed trihedral of the ALOS-1 quad-pol chip (data/alos_rio_branco),
 // predicted by zero-Doppler geo2rdr on the product's orbit: found within a
 // pixel of the prediction, every key of CONVENTIONS.md "Polarimetry" there.
+// The pta table: a round trip through JSON, null keeping the default (the
+// Python door's None), an unknown key named, the flags kept from before the
+// table (--ground-height, --search, --out), and the Sentinel-1 selection
+// refused with a NISAR product.
+TEST(PtaFields, RoundTripNullAndFlags) {
+  PtaRequest o;
+  o.product = "S1B.SAFE";
+  o.swath = "IW2";
+  o.burst = 4;
+  o.orbit = "orbit.EOF";
+  o.reflectors = "r.csv";
+  o.search_px = 12.0;
+  o.out_prefix = "out/p";
+  PtaRequest round;
+  round.ApplyJson(o.ToJson(), "test");
+  EXPECT_EQ(round.ToJson(), o.ToJson());
+  EXPECT_EQ(round.burst, 4);
+  PtaRequest kept;
+  kept.ApplyJson({{"upsampling", nullptr}, {"frequency", nullptr}}, "test");
+  EXPECT_EQ(kept.upsampling, PtaRequest().upsampling);
+  EXPECT_EQ(kept.frequency, "A");
+  try {
+    kept.ApplyJson({{"bursts", 2}}, "opts.json");
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("bursts"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("opts.json"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(PtaFields().at("ground_height_m").Flag(), "--ground-height");
+  EXPECT_EQ(PtaFields().at("search_px").Flag(), "--search");
+  EXPECT_EQ(PtaFields().at("chip_half_size_px").Flag(), "--chip-half-size");
+  EXPECT_EQ(PtaFields().at("out_prefix").Flag(), "--out");
+  PtaRequest nisar;
+  nisar.product = "rslc.h5";
+  nisar.reflectors = "r.csv";
+  nisar.out_prefix = "p";
+  nisar.Check();
+  nisar.burst = 2;
+  EXPECT_THROW(nisar.Check(), ConfigError);
+  nisar.burst = 0;
+  nisar.swath = "IW1";
+  EXPECT_THROW(nisar.Check(), ConfigError);
+}
+
 TEST(PtaTest, FindsTheRioBrancoCornerReflector) {
   const fs::path dir = MakeTempDir();
   const PtaResult result = RunPta(AlosRequest(dir), "test");

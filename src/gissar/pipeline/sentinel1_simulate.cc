@@ -72,7 +72,23 @@ std::array<int, 4> ParseProductWindow(const std::string& text) {
   return w;
 }
 
+Sentinel1Selection Sentinel1SelectionOf(const SimulateRequest& options) {
+  Sentinel1Selection s;
+  s.product = options.product;
+  s.swath = options.swath;
+  s.polarization = options.polarization;
+  s.burst = options.burst;
+  s.orbit = options.orbit;
+  s.window_px = options.product_window_px;
+  s.coherent = options.coherent;
+  return s;
+}
+
 Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& reporter) {
+  return ReadSentinel1Source(Sentinel1SelectionOf(options), reporter);
+}
+
+Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter& reporter) {
   Sentinel1Source s;
   s.product = geo::OpenSentinel1(options.product);
   const geo::Sentinel1Product& product = s.product;
@@ -117,7 +133,7 @@ Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& re
     const geo::StateVectors vectors = geo::ReadStateVectors(options.orbit);
     geo::ReplaceSentinel1Orbit(a, product, vectors, options.orbit);
     s.orbit_source = options.orbit;
-    reporter.Info("simulate: orbit: " + std::to_string(a.orbit.time_s.size()) + " state vectors of " + options.orbit +
+    reporter.Info(options.command + ": orbit: " + std::to_string(a.orbit.time_s.size()) + " state vectors of " + options.orbit +
                   " (" + vectors.format + ") replace the annotation's");
   }
   s.ground_range = a.is_grd();
@@ -144,7 +160,7 @@ Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& re
     a.Burst(options.burst);  // throws: a GRD or stripmap product has no bursts
   }
   s.full_size = {lines, pixels};
-  s.window = options.product_window_px ? *options.product_window_px : std::array<int, 4>{0, 0, lines, pixels};
+  s.window = options.window_px ? *options.window_px : std::array<int, 4>{0, 0, lines, pixels};
   const std::array<int, 4>& w = s.window;
   const std::string grid_name = s.burst > 0 ? "burst " + std::to_string(s.burst) + " of " + a.swath
                                             : (s.ground_range ? "GRD " : "swath ") + a.swath;
@@ -219,7 +235,7 @@ Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& re
       s.bandwidth_source = "processingBandwidth of " + p.swath;
     }
   }
-  reporter.Info("simulate: " + product.name + ": " + grid_name + " " + a.polarization + ", lines " +
+  reporter.Info(options.command + ": " + product.name + ": " + grid_name + " " + a.polarization + ", lines " +
                 std::to_string(w[0]) + "-" + std::to_string(w[0] + w[2] - 1) + ", pixels " + std::to_string(w[1]) +
                 "-" + std::to_string(w[1] + w[3] - 1) +
                 (s.ground_range ? " (ground range; rendered on " + std::to_string(g.slant_range_m.size()) +

@@ -28,6 +28,7 @@
 #include <array>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -73,6 +74,20 @@ struct Sentinel1Source {
   nlohmann::json ToJson() const;
 };
 
+// What of a SAFE a command reads: the request fields a Sentinel-1 source
+// takes (simulate's, pta's, ...), named as their flags.
+struct Sentinel1Selection {
+  std::string product;       // --product: the SAFE (directory, manifest.safe or .zip)
+  std::string swath;         // --swath: "" = the product's only swath
+  std::string polarization;  // --polarization: a channel list (material::ParsePolarizationList)
+  int burst = 0;             // --burst: 1-based; required for an IW/EW SLC, refused otherwise
+  std::string orbit;         // --orbit: state vectors replacing the annotation's ("" = keep them)
+  std::optional<std::array<int, 4>> window_px;  // --product-window LINE,PIXEL,LINES,PIXELS
+  bool coherent = false;     // --coherent: refused for a GRD
+  std::string command = "simulate";  // what the progress lines start with
+};
+Sentinel1Selection Sentinel1SelectionOf(const SimulateRequest& options);
+
 // Reads the SAFE of options.product for options.swath / burst /
 // polarization (the first channel of the list; every channel must have an
 // annotation in the swath), replaces the orbit with options.orbit when set
@@ -83,6 +98,7 @@ struct Sentinel1Source {
 // product, or an IW/EW SLC without --burst (listing its bursts); ConfigError
 // naming --product-window for a window outside the grid or --coherent for a
 // GRD (a detected product).
+Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter& reporter = NullReporter());
 Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& reporter = NullReporter());
 
 // The GRD step: resamples a simulation rendered on source.grid (slant range)
