@@ -46,8 +46,9 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   auto looks = std::make_shared<std::string>("1,3,5");
   CLI::App* cmd = root.add_subcommand(
       "validate",
-      "Simulate a real SAR product (NISAR RSLC HDF5) and compare with its image and a reference geolocation; "
-      "for a Sentinel-1 SAFE (without --dem/--scene), check gissar's geometry against its geolocation grids.");
+      "Simulate a real SAR product (NISAR RSLC HDF5, Sentinel-1 SAFE) and compare with its image (beta0) and a "
+      "reference geolocation; for a Sentinel-1 SAFE without --dem/--scene, check gissar's geometry against its "
+      "geolocation grids.");
   cmd->add_option("--product", options->simulate.product,
                   "NISAR-format RSLC product (HDF5) or Sentinel-1 SAFE (directory, manifest.safe or .zip)")
       ->required();
@@ -64,7 +65,7 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
                   "Directory with a peer's per-pixel x.rdr, y.rdr, z.rdr (lon, lat, height; ISCE topo) and simamp.rdr");
   cmd->add_option("--looks", *looks, "Multilook sizes k of the k x k correlations, comma-separated")
       ->capture_default_str();
-  simulate_flags->Add({"rays_per_cell", "bounces"});
+  simulate_flags->Add({"rays_per_cell", "bounces", "burst", "product_window_px"});
   cmd->add_option("--out", options->out_prefix,
                   "Output prefix: PREFIX.json, PREFIX.md, PREFIX_side_by_side.png, PREFIX_histogram.png (Sentinel-1: PREFIX.json)")
       ->required();
@@ -73,16 +74,14 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
 
   registry.Add(cmd, [=](const CommandContext& context) {
-    if (geo::IsSentinel1Path(options->simulate.product)) {
-      for (const auto& [value, flag] : {std::pair{options->simulate.dem, "--dem"},
-                                        {options->simulate.scene, "--scene"},
-                                        {options->reference_geolocation, "--reference-geolocation"}}) {
-        if (!value.empty()) {
-          throw ConfigError(
-              "simulating a Sentinel-1 product is not built yet: without terrain, validate checks its geometry "
-              "against the geolocation grids",
-              flag);
-        }
+    ValidateRequest resolved = *options;
+    simulate_flags->Apply(resolved.simulate);
+    const bool terrain = !resolved.simulate.dem.empty() || !resolved.simulate.scene.empty();
+    if (geo::IsSentinel1Path(resolved.simulate.product) && !terrain) {
+      // Without terrain: the geometry against the product's geolocation grids.
+      if (resolved.simulate.burst != 0) throw ConfigError("goes with --dem or --scene (a simulation)", "--burst");
+      if (resolved.simulate.product_window_px) {
+        throw ConfigError("goes with --dem or --scene (a simulation)", "--product-window");
       }
       Sentinel1ValidateRequest request = *s1;
       request.product = options->simulate.product;
@@ -92,11 +91,17 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
       context.out << Sentinel1Headline(result.report) << "\n";
       return;
     }
-    for (const auto& [value, flag] : {std::pair{s1->orbit, "--orbit"}, {s1->swath, "--swath"},
-                                      {s1->polarization, "--polarization"}}) {
-      if (!value.empty()) throw ConfigError("only for a Sentinel-1 product", flag);
+    if (geo::IsSentinel1Path(resolved.simulate.product)) {
+      // With terrain: the selection simulated and compared with the real image.
+      resolved.simulate.swath = s1->swath;
+      if (!s1->polarization.empty()) resolved.simulate.polarization = s1->polarization;
+      resolved.simulate.orbit = s1->orbit;
+    } else {
+      for (const auto& [value, flag] : {std::pair{s1->orbit, "--orbit"}, {s1->swath, "--swath"},
+                                        {s1->polarization, "--polarization"}}) {
+        if (!value.empty()) throw ConfigError("only for a Sentinel-1 product", flag);
+      }
     }
-    ValidateRequest resolved = *options;
     resolved.simulate.max_memory_bytes =
         MemoryBudgetBytes(*max_memory, context.force, resolved.simulate.max_memory_bytes);
     resolved.looks = ParseIntegerList(*looks, "--looks", "integer multilook sizes");

@@ -317,6 +317,14 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
   if (IsSentinel1Request(options)) {
     auto source = std::make_shared<Sentinel1Source>(ReadSentinel1Source(options, reporter));
     sim.product = source->grid;
+    if (read_amplitude) {
+      // The real image on the output grid (a GRD's: its ground-range pixels).
+      const std::vector<float> beta0 = ReadSentinel1Beta0(*source, options.product);
+      sim.product.amplitude.resize(beta0.size());
+      for (size_t k = 0; k < beta0.size(); ++k) {
+        sim.product.amplitude[k] = std::isfinite(beta0[k]) && beta0[k] > 0.0f ? std::sqrt(beta0[k]) : 0.0f;
+      }
+    }
     sim.sentinel1 = std::move(source);
   } else {
     sim.product = ReadProductGeometry(options, read_amplitude, reporter);
@@ -721,6 +729,11 @@ void ValidateRequest::Check() const {
   SimulateRequest probe = simulate;
   probe.out_prefix = out_prefix;
   probe.Check();
+  if (!reference_geolocation.empty() && IsSentinel1Request(simulate)) {
+    throw ConfigError("a peer's per-pixel geolocation (ISCE topo layers) goes with a NISAR product; a Sentinel-1 "
+                      "product's geometry is checked against its geolocation grids (validate without terrain)",
+                      "--reference-geolocation");
+  }
   std::vector<fs::path> outs;
   for (const char* suffix : {".json", ".md", "_side_by_side.png", "_histogram.png"}) outs.push_back(out_prefix + suffix);
   std::vector<std::string> ins = {simulate.product, simulate.dem, simulate.scene};
@@ -823,8 +836,12 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   // San Andreas r dB falls from 0.139 to 0.132 at 3 x 3 looks).
   if (std::isnan(beta0.range_resolution_m)) beta0.range_resolution_m = 0.0;
   if (std::isnan(beta0.azimuth_resolution_m)) beta0.azimuth_resolution_m = 0.0;
-  const ProductSimulation sim = SimulateProduct(beta0, true, reporter);
-  const int width = sim.grid.cols, height = sim.grid.rows;
+  ProductSimulation sim = SimulateProduct(beta0, true, reporter);
+  // A GRD: the simulation onto the GRD's ground-range pixels, where its real
+  // image is (a Sentinel-1 product's real image is read on the output grid).
+  if (sim.sentinel1 && sim.sentinel1->ground_range) ResampleToGroundRange(*sim.sentinel1, sim);
+  const int width = sim.image.image.width, height = sim.image.image.height;
+  GISSAR_CHECK(sim.product.amplitude.size() == size_t(width) * height);
   const size_t n = size_t(width) * height;
   const render::SarImage& image = sim.image.image;
   std::vector<float> real(n);
@@ -833,9 +850,9 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   for (size_t k = 0; k < n; ++k) valid[k] = std::isfinite(sim.image.height_m[k]) && real[k] > 0.0f ? 1 : 0;
 
   nlohmann::json report = ProvenanceHeader("validate", command_line, options.ToJson());
-  nlohmann::json inputs = nlohmann::json::array({InputFileRecord(options.simulate.product),
-                                                 InputFileRecord(options.simulate.scene.empty() ? options.simulate.dem
-                                                                                                : options.simulate.scene)});
+  nlohmann::json inputs = nlohmann::json::array(
+      {sim.sentinel1 ? Sentinel1InputRecord(*sim.sentinel1) : InputFileRecord(options.simulate.product),
+       InputFileRecord(options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)});
   report["product"] = ProductJson(sim);
   report["terrain"] = sim.terrain;
   report["frame"] = sim.frame;
@@ -952,6 +969,7 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   const std::vector<uint8_t> strip = image::SideBySide({real_grey, sim_grey, mask_grey}, width, height, 6, &strip_width);
   geo::WritePng(side_path, strip, strip_width, height, 1);
   std::vector<float> differences;
+  double level_db = std::numeric_limits<double>::quiet_NaN();
   {
     std::vector<double> a, b;
     for (int r0 = 0; r0 + kmax <= height; r0 += kmax) {
@@ -978,11 +996,18 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
       return v[v.size() / 2];
     };
     const double ma = median(a), mb = median(b);
+    level_db = mb - ma;
     for (size_t i = 0; i < a.size(); ++i) differences.push_back(static_cast<float>((a[i] - ma) - (b[i] - mb)));
   }
   std::vector<int64_t> counts;
   const std::vector<uint8_t> hist = image::HistogramPlot(differences, -15.0, 15.0, 60, 480, 200, &counts);
   geo::WritePng(hist_path, hist, 480, 200, 1);
+  // The radiometric level: real minus simulated, the medians of the k x k
+  // block means in dB (the calibration chains and the material model
+  // together; 0 for a real image that is the simulation).
+  report["level_difference_db"] = {{"looks", kmax},
+                                   {"real_minus_simulated_median_db", Number(level_db)},
+                                   {"blocks", static_cast<int64_t>(differences.size())}};
   report["difference_histogram"] = {{"looks", kmax},
                                     {"quantity", "simulated dB - real dB, each minus its median"},
                                     {"low_db", -15.0},
@@ -991,7 +1016,10 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   std::vector<std::string> names;
   for (const fs::path& p : outputs.final_paths()) names.push_back(fs::absolute(p).string());
   report["outputs"] = names;
-  report["side_by_side"] = "left: real |HH|^2 dB; middle: simulated dB; right: mask (white none, light grey layover, black shadow, dark grey both)";
+  report["real_image"] = sim.sentinel1 ? "beta0 = |DN|^2 / betaNought^2 (the SAFE's calibration LUT, bilinear), " +
+                                             sim.sentinel1->annotation.polarization
+                                       : "|s|^2 of the RSLC (beta0), " + sim.product.polarization;
+  report["side_by_side"] = std::string(sim.sentinel1 ? "left: real beta0 dB" : "left: real |HH|^2 dB") + "; middle: simulated dB; right: mask (white none, light grey layover, black shadow, dark grey both)";
   report["timings_s"] = {{"total", total.ElapsedSeconds()}};
 
   std::ostringstream md;

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "gissar/geo/orbit_file.h"
+#include "gissar/geo/sentinel1_measurement.h"
 #include "gissar/material/material.h"
 #include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/simulate.h"
@@ -353,6 +354,17 @@ void AddSentinel1Metadata(const Sentinel1Source& source, std::map<std::string, s
     std::snprintf(buffer, sizeof buffer, "%.9g", source.ground_spacing_m);
     m["GISSAR_GROUND_RANGE_SPACING_M"] = buffer;
   }
+}
+
+std::vector<float> ReadSentinel1Beta0(const Sentinel1Source& source, const std::string& product) {
+  geo::Sentinel1ImageOptions options;
+  options.swath = source.annotation.swath;
+  options.polarization = source.annotation.polarization;
+  options.burst = source.burst;
+  options.radiometry = geo::Sentinel1Radiometry::kBeta0;
+  const geo::Sentinel1Image image = geo::Sentinel1Image::Open(product, options);
+  const std::array<int, 4>& w = source.window;
+  return image.ReadFloat({image.window().first_line + w[0], w[1], w[2], w[3]});
 }
 
 void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim) {

@@ -30,6 +30,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -111,6 +112,15 @@ Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& re
 // reflector returns' columns moved to their ground-range pixels. Linear
 // (not dB) values. sim.grid keeps the slant grid rendered.
 void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim);
+
+// The real image of source.window, calibrated to beta0 (linear power,
+// |DN|^2 / betaNought^2 with ESA's LUT bilinear in line and pixel;
+// geo::Sentinel1Image): window lines x pixels, row-major, in the product's
+// own numbering (an IW/EW burst's lines, a GRD's ground-range pixels); NaN
+// where the DN is 0 or, in a burst, outside its valid samples. Throws what
+// geo::Sentinel1Image::Open throws (a missing measurement or calibration
+// file, named).
+std::vector<float> ReadSentinel1Beta0(const Sentinel1Source& source, const std::string& product);
 
 // The sidecar's input record of the SAFE: "path" (absolute, what --product
 // takes again), the bytes and SHA-256 of the .zip, or of manifest.safe for a
