@@ -22,12 +22,17 @@
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
 
+#include "gissar/pipeline/evaluate_fields.h"
 #include "gissar/pipeline/geocode.h"
+#include "gissar/pipeline/geocode_fields.h"
 #include "gissar/util/check.h"
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/locate_fields.h"
 #include "gissar/pipeline/polsar.h"
 #include "gissar/pipeline/pta.h"
+#include "gissar/pipeline/pta_fields.h"
 #include "gissar/pipeline/scene_build.h"
+#include "gissar/pipeline/scene_build_fields.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/simulate_fields.h"
 #include "gissar/pipeline/views.h"
@@ -141,6 +146,39 @@ nlohmann::json JsonOfFields(const py::dict& fields) {
     values[key] = JsonOf(value, key);
   }
   return values;
+}
+
+// The rows of a request's field table (pipeline/request_fields.h), in its
+// order: {name, flag, help, default, show_default} per field, the default
+// that of a request R().
+template <class R>
+py::list FieldRows(const pipeline::FieldTable<R>& table) {
+  py::list fields;
+  const R defaults;
+  for (const auto& field : table.fields()) {
+    py::dict d;
+    d["name"] = field.name;
+    d["flag"] = field.Flag();
+    d["help"] = field.help;
+    d["default"] = JsonToPython(field.get(defaults));
+    d["show_default"] = field.show_default;
+    fields.append(d);
+  }
+  return fields;
+}
+
+// The field table of `command` as FieldRows: "simulate", "evaluate",
+// "locate", "geocode" or "scene_build"; ConfigError naming the argument for
+// another name.
+py::list RequestFieldRows(const std::string& command) {
+  if (command == "simulate") return FieldRows(pipeline::SimulateFields());
+  if (command == "evaluate") return FieldRows(pipeline::EvaluateFields());
+  if (command == "locate") return FieldRows(pipeline::LocateFields());
+  if (command == "geocode") return FieldRows(pipeline::GeocodeFields());
+  if (command == "scene_build") return FieldRows(pipeline::SceneBuildFields());
+  if (command == "pta") return FieldRows(pipeline::PtaFields());
+  throw ConfigError("unknown request '" + command + "': must be simulate, evaluate, locate, geocode, scene_build or pta",
+                    "gissar.request_fields: command");
 }
 
 // A SimulateRequest from keyword arguments named like its fields (the keys
@@ -628,20 +666,11 @@ PyScene LoadPyScene(const std::string& path) {
   return s;
 }
 
-PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
-                     const std::string& osm, const std::string& config, bool fill_nodata,
-                     std::optional<std::array<int, 4>> window, bool export_obj, const std::string& vertical_datum,
-                     py::object progress) {
+// `gissar scene build` of the request's fields `options` (SceneBuildRequest
+// ToJson keys, read by its table: an unknown key names itself and `source`).
+PyScene BuildPyScene(const py::dict& options, py::object progress, const std::string& source) {
   pipeline::SceneBuildRequest o;
-  o.dem = dem;
-  o.vertical_datum = vertical_datum;
-  o.out_prefix = out_prefix;
-  o.vectors = vectors;
-  o.osm = osm;
-  o.config = config;
-  o.fill_nodata = fill_nodata;
-  o.window = window;
-  o.export_obj = export_obj;
+  o.ApplyJson(JsonOfFields(options), source);
   pipeline::SceneBuildResult r;
   if (!progress.is_none() && !PyCallable_Check(progress.ptr())) {
     throw ConfigError("progress must be a callable(stage, done, total) or None", "gissar keyword 'progress'");
@@ -651,7 +680,7 @@ PyScene BuildPyScene(const std::string& dem, const std::string& out_prefix, cons
     py::gil_scoped_release release;
     r = pipeline::RunSceneBuild(o, "python: gissar.Scene.build", reporter);
   }
-  PyScene s = LoadPyScene(out_prefix + ".gscene");
+  PyScene s = LoadPyScene(o.out_prefix + ".gscene");
   s.summary = JsonToPython(r.summary);
   return s;
 }
@@ -1261,23 +1290,15 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
   m.def("simulate_request_help", [] { return pipeline::SimulateFieldHelp(); },
         "{field: one-line help} of the simulate request fields the doors offer as flags or keywords (the text "
         "of `gissar simulate --help`, without defaults; simulate_request_defaults() gives those).");
-  m.def("simulate_request_fields", [] {
-        py::list fields;
-        const pipeline::SimulateRequest defaults;
-        for (const auto& field : pipeline::SimulateFields().fields()) {
-          py::dict d;
-          d["name"] = field.name;
-          d["flag"] = field.Flag();
-          d["help"] = field.help;
-          d["default"] = JsonToPython(field.get(defaults));
-          d["show_default"] = field.show_default;
-          fields.append(d);
-        }
-        return fields;
-      },
+  m.def("simulate_request_fields", [] { return RequestFieldRows("simulate"); },
         "The simulate request's field table (pipeline/simulate_fields.cc), in its order: one dict per field with "
         "name (the keyword and options-file key), flag (the CLI's), help (one line; empty: no flag), default and "
-        "show_default. The corridor's flags and docs/options.md are made from it.");
+        "show_default. The corridor's flags and docs/options.md are made from it. Same as "
+        "request_fields('simulate').");
+  m.def("request_fields", &RequestFieldRows, py::arg("command"),
+        "The field table of a command's request, in its order, as simulate_request_fields() gives simulate's: "
+        "command 'simulate', 'evaluate', 'locate', 'geocode', 'scene_build' or 'pta' (pipeline/<command>_fields.cc). "
+        "docs/options.md is made from them.");
   m.def("flag_of_field", &pipeline::FlagOfField, py::arg("field"),
         "The CLI flag of a request field: kebab case without the unit suffix (heading_deg -> --heading; "
         "out_prefix -> --out, center_lonlat -> --center, look_side -> --look).");
@@ -1488,17 +1509,9 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         "(WGS84 degrees, ellipsoidal m; NaN where none), 'real_amplitude': |SLC|, 'zero_doppler_time_s', "
         "'slant_range_m', 'wavelength_m', 'look_side', 'options'}. Same as `gissar simulate --product`.");
 
-  m.def("geocode", [](const std::string& image, const std::string& out_prefix, const std::string& dem,
-                      const std::string& vertical_datum, const std::string& crs, double pixel_size_m,
-                      const std::string& resampling) {
+  m.def("geocode", [](const py::dict& options) {
         pipeline::GeocodeRequest o;
-        o.image = image;
-        o.out_prefix = out_prefix;
-        o.dem = dem;
-        o.vertical_datum = vertical_datum;
-        o.crs = crs;
-        o.pixel_size_m = pixel_size_m;
-        o.resampling = pipeline::kGeocodeResamplings.Parse(resampling, "gissar.geocode: resampling");
+        o.ApplyJson(JsonOfFields(options), "gissar.geocode keyword");
         pipeline::GeocodeResult r;
         PyReporter reporter{py::none()};
         {
@@ -1511,11 +1524,12 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
         return py::dict(py::arg("outputs") = paths, py::arg("width") = r.width, py::arg("height") = r.height,
                         py::arg("geotransform") = r.geotransform, py::arg("crs") = r.crs,
                         py::arg("valid_pixels") = r.valid_pixels);
-      }, py::arg("image"), py::arg("out_prefix"), py::arg("dem") = "", py::arg("vertical_datum") = "",
-      py::arg("crs") = "", py::arg("pixel_size_m") = 0.0, py::arg("resampling") = "bilinear",
+      }, py::arg("options"),
       "`gissar geocode` (docs/georeferencing.md): a simulation's PREFIX.tif (with its sidecar and mask beside "
       "it) to map geometry: out_prefix.tif (the image's bands, local_incidence, layover_shadow), .json, "
-      "_stac.json. Returns {'outputs', 'width', 'height', 'geotransform', 'crs', 'valid_pixels'}.");
+      "_stac.json. options: the geocode request's fields as a dict (image, out_prefix, dem, vertical_datum, crs, "
+      "pixel_size_m, resampling; pipeline/geocode_fields.cc; None keeps a default). Returns {'outputs', 'width', "
+      "'height', 'geotransform', 'crs', 'valid_pixels'}.");
 
   m.def("load_scene", [](const std::string& path) {
         const scene::SceneFile s = scene::ReadScene(path);
@@ -1536,8 +1550,10 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
   m.def("build_scene", [](const std::string& dem, const std::string& out_prefix, const std::vector<std::string>& vectors,
                           const std::string& osm, const std::string& config, bool fill_nodata,
                           const std::string& vertical_datum) {
-        return BuildPyScene(dem, out_prefix, vectors, osm, config, fill_nodata, std::nullopt, false, vertical_datum,
-                            py::none()).summary;
+        py::dict options(py::arg("dem") = dem, py::arg("out_prefix") = out_prefix, py::arg("vectors") = vectors,
+                         py::arg("osm") = osm, py::arg("config") = config, py::arg("fill_nodata") = fill_nodata,
+                         py::arg("vertical_datum") = vertical_datum);
+        return BuildPyScene(options, py::none(), "gissar.build_scene keyword").summary;
       }, py::arg("dem"), py::arg("out_prefix"), py::arg("vectors") = std::vector<std::string>{},
       py::arg("osm") = "", py::arg("config") = "", py::arg("fill_nodata") = false, py::arg("vertical_datum") = "",
       "`gissar scene build`: writes PREFIX.gscene/.ply/_classes.png/.json, returns the summary.");
@@ -1660,10 +1676,9 @@ for _c in (Error, InputError, MissingFileError, ConfigError, IoError, Cancelled,
                       "A GIS scene: classified triangle mesh in a local ENU frame (metres), as built by "
                       "`gissar scene build` (docs/scene.md).")
       .def(py::init(&LoadPyScene), py::arg("path"), "Load a .gscene file.")
-      .def_static("build", &BuildPyScene, py::arg("dem"), py::arg("out_prefix"),
-                  py::arg("vectors") = std::vector<std::string>{}, py::arg("osm") = "", py::arg("config") = "",
-                  py::arg("fill_nodata") = false, py::arg("window") = py::none(), py::arg("export_obj") = false,
-                  py::arg("vertical_datum") = "", py::arg("progress") = py::none(),
+      .def_static("build", [](const py::dict& options, py::object progress) {
+                    return BuildPyScene(options, std::move(progress), "gissar.Scene.build keyword");
+                  }, py::arg("options"), py::arg("progress") = py::none(),
                   "`gissar scene build`: DEM (+ vector layers / OSM / config) -> PREFIX.gscene, .ply, "
                   "_classes.png (class map), _3d.png (3-D view), .json (and .obj/.mtl with export_obj). "
                   "window = (col, row, cols, rows) of the DEM; vertical_datum as --vertical-datum (\"\" = from the file). Returns the loaded Scene (its .summary holds "

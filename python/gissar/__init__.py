@@ -154,9 +154,9 @@ def geocode(image, out_prefix, *, dem=None, vertical_datum="", crs=None, pixel_s
         raise ConfigError("geocode takes the DEM as a path, a GDAL dataset or a rioxarray DataArray (a bare array "
                           "has no georeferencing here: use rioxarray's .rio.write_transform/.rio.write_crs) (dem)")
     with _adapt.raster_path(dem, None, None, None, "dem") as dem_path:
-        r = _core.geocode(_os.fspath(image), _os.fspath(out_prefix), dem=dem_path or "",
-                          vertical_datum=vertical_datum, crs=crs_text, pixel_size_m=pixel_size_m,
-                          resampling=resampling)
+        r = _core.geocode(dict(image=_os.fspath(image), out_prefix=_os.fspath(out_prefix), dem=dem_path or "",
+                               vertical_datum=vertical_datum, crs=crs_text, pixel_size_m=pixel_size_m,
+                               resampling=resampling))
     return _adapt.map_dataarray(_os.fspath(out_prefix) + ".tif", r["outputs"])
 
 
@@ -220,9 +220,10 @@ _core_scene_build = _core.Scene.build
 def _scene_build(dem, out_prefix, vectors=(), osm="", config="", fill_nodata=False, window=None, export_obj=False,
                  vertical_datum="", *, transform=None, crs=None, nodata=None, progress=None):
     with _adapt.raster_path(dem, transform, crs, nodata, "dem") as path:
-        return _adapt.run(_core_scene_build, (path, _os.fspath(out_prefix), [_os.fspath(v) for v in vectors],
-                                              _os.fspath(osm), _os.fspath(config), fill_nodata, window, export_obj,
-                                              vertical_datum), {}, progress)
+        options = dict(dem=path, out_prefix=_os.fspath(out_prefix), vectors=[_os.fspath(v) for v in vectors],
+                       osm=_os.fspath(osm), config=_os.fspath(config), fill_nodata=fill_nodata, window=window,
+                       export_obj=export_obj, vertical_datum=vertical_datum)
+        return _adapt.run(_core_scene_build, (options,), {}, progress)
 
 
 _scene_build.__doc__ = (_core_scene_build.__doc__ or "").split("\n\n")[-1].strip() + (

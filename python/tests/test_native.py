@@ -309,3 +309,29 @@ def test_simulate_type_hints_name_only_request_fields():
     assert not [n for n in named if n not in fields | doors]
     signature = inspect.signature(gissar.simulate).parameters
     assert not [f for f in fields if f not in signature and f not in ("max_memory_bytes",)]
+
+
+def test_request_fields_are_each_commands_table():
+    """request_fields(command) gives each table in its order: simulate's as simulate_request_fields(); the
+    geocode table's keys are gissar.geocode's keywords and its sidecar's options; the scene build table's flags
+    are those of `gissar scene build --help`; another name is a ConfigError naming it."""
+    assert gissar._core.request_fields("simulate") == gissar._core.simulate_request_fields()
+    geocode = gissar._core.request_fields("geocode")
+    assert [f["name"] for f in geocode] == ["image", "dem", "vertical_datum", "crs", "pixel_size_m", "resampling",
+                                           "out_prefix"]
+    assert set(inspect.signature(gissar.geocode).parameters) == {f["name"] for f in geocode}
+    assert next(f for f in geocode if f["name"] == "resampling")["default"] == "bilinear"
+    scene = {f["name"]: f for f in gissar._core.request_fields("scene_build")}
+    assert scene["export_obj"]["flag"] == "--obj" and scene["window"]["default"] is None
+    assert scene["vectors"]["default"] == [] and scene["max_memory_bytes"]["help"] == ""
+    assert set(scene) == set(inspect.signature(gissar.Scene.build).parameters) - {
+        "transform", "crs", "nodata", "progress"} | {"center_lonlat", "sea", "sea_level_m", "dem_oversample",
+                                                     "vertical_units", "flat_shading", "reflectors",
+                                                     "max_memory_bytes"}
+    for command in ("evaluate", "locate"):
+        assert {f["name"] for f in gissar._core.request_fields(command)} == set(
+            getattr(gissar._core, command + "_request_defaults")())
+    with pytest.raises(gissar.ConfigError, match="unknown request 'scene'"):
+        gissar._core.request_fields("scene")
+    with pytest.raises(gissar.ConfigError, match=r"unknown key 'pixel_size'; did you mean pixel_size_m\?"):
+        gissar._core.geocode({"image": "a.tif", "out_prefix": "m", "pixel_size": 10})

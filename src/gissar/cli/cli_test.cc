@@ -14,6 +14,7 @@
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/locate_fields.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/cli/command.h"
 #include "gissar/cli/corridor_command.h"
@@ -255,6 +256,32 @@ std::vector<float> FirstBand(const fs::path& tif) {
 const std::string kSmallSimulate =
     "simulate --dem " + testing::DataPath("andorra/andorra_srtm3_dem_filled.tif").string() +
     " --heading 0 --depression 40 --range-spacing 400 --azimuth-spacing 400";
+
+// RequestFlags::AddAll declares one flag per field with help, in the
+// table's order (the locate table: --composite and --polish its older
+// spellings, max_memory_bytes without help has none), and only the named
+// fields are required.
+TEST(RequestFlagsTest, AddAllDeclaresTheFieldsWithHelpInTableOrder) {
+  CLI::App app;
+  pipeline::LocateRequest request;
+  RequestFlags<pipeline::LocateRequest> flags(&app, pipeline::LocateFields(), &request);
+  flags.AddAll({"out"});
+  std::vector<std::string> expected;
+  for (const auto& field : pipeline::LocateFields().fields()) {
+    if (!field.help.empty()) expected.push_back(field.Flag());
+  }
+  std::vector<std::string> declared, required;
+  for (const CLI::Option* option : app.get_options()) {
+    if (option->get_name() == "--help") continue;
+    declared.push_back(option->get_name());
+    if (option->get_required()) required.push_back(option->get_name());
+  }
+  EXPECT_EQ(declared, expected);
+  EXPECT_EQ(expected.size(), pipeline::LocateFields().fields().size() - 1);  // all but max_memory_bytes
+  EXPECT_NE(std::find(declared.begin(), declared.end(), "--composite"), declared.end());
+  EXPECT_EQ(required, std::vector<std::string>{"--out"});
+  ClearOptionKeyFlags();
+}
 
 // --options FILE.json: keys are the request's snake_case names; the same
 // job as with flags gives the same image; flags on the command line win.

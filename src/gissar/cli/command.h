@@ -4,6 +4,7 @@
 // run when that subcommand was given.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <iomanip>
@@ -21,6 +22,7 @@
 #include "gissar/cli/command_line.h"
 #include "gissar/pipeline/field_names.h"
 #include "gissar/pipeline/simulate_fields.h"
+#include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/reporter.h"
 
@@ -165,6 +167,21 @@ class RequestFlags {
   void Add(std::initializer_list<const char*> names) {
     for (const char* name : names) Add(name);
   }
+  // Declares the flag of every field of the table that has a help text (the
+  // fields a door offers), in the table's order, and marks the fields named
+  // in `required` required (a name that is not among them is a bug).
+  void AddAll(std::initializer_list<std::string> required = {}) {
+    size_t marked = 0;
+    for (const pipeline::RequestField<R>& field : table_.fields()) {
+      if (field.help.empty()) continue;
+      CLI::Option* option = Add(field.name);
+      if (std::find(required.begin(), required.end(), field.name) != required.end()) {
+        option->required();
+        ++marked;
+      }
+    }
+    GISSAR_CHECK_MSG(marked == required.size(), "a required field has no flag in the table");
+  }
 
   // Sets the text fields given on the command line into `request` (the
   // command's resolved copy); ConfigError naming the flag for a bad value.
@@ -183,15 +200,6 @@ class RequestFlags {
   R* target_;
   std::vector<std::pair<std::string, std::shared_ptr<std::string>>> texts_;
 };
-
-// An on/off flag spelt and explained as the simulate request field `field`
-// (pipeline/simulate_fields.h) but bound to another request's bool (scene
-// build's --fill-nodata).
-inline CLI::Option* AddSimulateSwitch(CLI::App* cmd, const std::string& field, bool& value,
-                                      const std::string& extra_negations = "") {
-  const std::string flag = pipeline::FlagOfField(field);
-  return AddSwitch(cmd, flag.substr(2), value, pipeline::SimulateHelp(field), extra_negations);
-}
 
 // The help layout of every command: "--name, --no-name TYPE REQUIRED" on the
 // left, the description with "(default: X)" on the right (CLI11's own shows

@@ -1,9 +1,11 @@
-// `gissar geocode` flags (pipeline/geocode.h holds the request and the work).
+// `gissar geocode` flags, from the request's field table (pipeline/geocode.h
+// holds the request and the work).
 #include <memory>
 
 #include "gissar/cli/command.h"
 #include "gissar/cli/headline.h"
 #include "gissar/pipeline/geocode.h"
+#include "gissar/pipeline/geocode_fields.h"
 
 namespace gissar::cli {
 
@@ -12,19 +14,14 @@ void AddGeocodeCommand(CLI::App& root, CommandRegistry& registry) {
   auto max_memory = std::make_shared<std::string>();
   CLI::App* cmd = root.add_subcommand(
       "geocode", "Terrain-corrected map-geometry image of a gissar slant-range image (exact back-geocoding on its terrain).");
-  cmd->add_option("--image", request->image, "PREFIX.tif of `gissar simulate` (PREFIX.json, PREFIX_mask.tif beside it)")
-      ->required();
-  cmd->add_option("--dem", request->dem, "DEM whose heights replace the simulation's terrain (default: the sidecar's)");
-  cmd->add_option("--vertical-datum", request->vertical_datum, pipeline::SimulateHelp("vertical_datum"));
-  cmd->add_option("--crs", request->crs, "Output CRS, e.g. EPSG:32631 (projected; default: UTM zone of the scene centre)");
-  cmd->add_option("--pixel-size", request->pixel_size_m, "Output pixel size, m (default: the image's larger spacing)");
-  auto resampling = std::make_shared<std::string>(pipeline::kGeocodeResamplings.Name(request->resampling));
-  cmd->add_option("--resampling", *resampling, pipeline::kGeocodeResamplings.Alternatives())->capture_default_str();
+  // Every field of the request's table is a flag (pipeline/geocode_fields.cc),
+  // in the table's order; --max-memory SIZE is its own.
+  auto flags = std::make_shared<RequestFlags<pipeline::GeocodeRequest>>(cmd, pipeline::GeocodeFields(), request.get());
+  flags->AddAll({"image", "out_prefix"});
   cmd->add_option("--max-memory", *max_memory, "Memory budget, e.g. 4G (default: 3/4 of RAM)");
-  cmd->add_option("--out", request->out_prefix, "Output prefix: PREFIX.tif (map geometry), PREFIX.json, PREFIX_stac.json")->required();
   registry.Add(cmd, [=](const CommandContext& context) {
     pipeline::GeocodeRequest resolved = *request;
-    resolved.resampling = pipeline::kGeocodeResamplings.Parse(*resampling, "--resampling");
+    flags->Apply(resolved);
     RequirePositiveIfGiven(*cmd, "--pixel-size", resolved.pixel_size_m);
     resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
     const pipeline::GeocodeResult result = pipeline::RunGeocode(resolved, context.command_line, context.reporter);

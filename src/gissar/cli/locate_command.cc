@@ -18,11 +18,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     // Every field of the request's table that has a help text is a flag
     // (pipeline/locate_fields.cc), in the table's order.
     auto flags = std::make_shared<RequestFlags<LocateRequest>>(cmd, LocateFields(), o.get());
-    for (const RequestField<LocateRequest>& field : LocateFields().fields()) {
-      if (field.help.empty()) continue;
-      CLI::Option* option = flags->Add(field.name);
-      if (field.name == "out") option->required();
-    }
+    flags->AddAll({"out"});
     auto max_memory = std::make_shared<std::string>();
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {
@@ -44,11 +40,7 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     // Every field of the request's table that has a help text is a flag
     // (pipeline/evaluate_fields.cc), in the table's order.
     auto flags = std::make_shared<RequestFlags<EvaluateRequest>>(cmd, EvaluateFields(), o.get());
-    for (const RequestField<EvaluateRequest>& field : EvaluateFields().fields()) {
-      if (field.help.empty()) continue;
-      CLI::Option* option = flags->Add(field.name);
-      if (field.name == "out_prefix") option->required();
-    }
+    flags->AddAll({"out_prefix"});
     auto max_memory = std::make_shared<std::string>();
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {

@@ -65,11 +65,7 @@ void AddPolarimetryCommands(CLI::App& root, CommandRegistry& registry) {
     // Every field of the request's table that has a help text is a flag
     // (pipeline/pta_fields.cc), in the table's order.
     auto flags = std::make_shared<RequestFlags<PtaRequest>>(cmd, PtaFields(), o.get());
-    for (const RequestField<PtaRequest>& field : PtaFields().fields()) {
-      if (field.help.empty()) continue;
-      CLI::Option* option = flags->Add(field.name);
-      if (field.name == "reflectors" || field.name == "out_prefix") option->required();
-    }
+    flags->AddAll({"reflectors", "out_prefix"});
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
     registry.Add(cmd, [=](const CommandContext& context) {
       PtaRequest resolved = *o;

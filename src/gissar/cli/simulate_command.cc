@@ -15,10 +15,7 @@ void AddSimulateCommand(CLI::App& root, CommandRegistry& registry) {
   // Every field of the request's table that has a help text is a flag
   // (pipeline/simulate_fields.cc), in the table's order.
   auto flags = std::make_shared<RequestFlags<SimulateRequest>>(cmd, SimulateFields(), options.get());
-  for (const RequestField<SimulateRequest>& field : SimulateFields().fields()) {
-    if (!field.help.empty() && field.name != "out_prefix") flags->Add(field.name);
-  }
-  flags->Add("out_prefix")->required();
+  flags->AddAll({"out_prefix"});
   auto max_memory = std::make_shared<std::string>();
   cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
 

@@ -8,6 +8,7 @@
 
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/vertical_datum.h"
+#include "gissar/pipeline/geocode_fields.h"
 #include "gissar/pipeline/georeferencing.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/stac.h"
@@ -130,9 +131,10 @@ void GeocodeRequest::Check() const {
   }
 }
 
-json GeocodeRequest::ToJson() const {
-  return {{"image", image},     {"dem", dem},         {"vertical_datum", vertical_datum}, {"crs", crs},
-          {"pixel_size_m", pixel_size_m}, {"resampling", std::string(kGeocodeResamplings.Name(resampling))}, {"out_prefix", out_prefix}};
+json GeocodeRequest::ToJson() const { return GeocodeFields().ToJson(*this); }
+
+void GeocodeRequest::ApplyJson(const json& values, const std::string& source) {
+  GeocodeFields().ApplyJson(*this, values, source);
 }
 
 sensor::SarGeometry GeometryFromMetadata(const geo::Metadata& m, int width, int height, const std::string& source) {

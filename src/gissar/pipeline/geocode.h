@@ -60,8 +60,16 @@ struct GeocodeRequest {
   // Throws ConfigError naming the flag for a missing/invalid value, or when
   // an output would overwrite an input.
   void Check() const;
-  // {snake_case field: value}; the keys are the flags' names (FlagOfField).
+  // {snake_case field: value} of the fields of its table (geocode_fields.h;
+  // the sidecar's record, without max_memory_bytes); the keys are the flags'
+  // names (FlagOfField).
   nlohmann::json ToJson() const;
+  // Sets the fields named by `values` ({field: value}, as ToJson writes;
+  // null keeps the field's value). Throws ConfigError naming the key and
+  // `source` (an options file, "gissar.geocode keyword") for an unknown key,
+  // with "did you mean", or a value of the wrong type or an unknown
+  // resampling.
+  void ApplyJson(const nlohmann::json& values, const std::string& source);
 };
 
 struct GeocodeResult {

@@ -1,4 +1,5 @@
 #include "gissar/pipeline/geocode.h"
+#include "gissar/pipeline/geocode_fields.h"
 
 #include <gtest/gtest.h>
 
@@ -319,6 +320,50 @@ TEST(GeocodeRequestTest, CheckNamesTheFlag) {
   r.pixel_size_m = 0;
   r.out_prefix = "a";
   EXPECT_THROW(r.Check(), ConfigError);  // a.tif would be overwritten
+}
+
+// The geocode table (geocode_fields.cc) writes the sidecar's seven keys and
+// reads them back (the resampling by name, null keeps the default); an
+// unknown key or resampling is a ConfigError naming it and the source.
+TEST(GeocodeFields, RoundTripNullAndResampling) {
+  GeocodeRequest o;
+  o.image = "sim.tif";
+  o.dem = "dem.tif";
+  o.vertical_datum = "egm2008";
+  o.crs = "EPSG:32631";
+  o.pixel_size_m = 12.5;
+  o.resampling = GeocodeResampling::kAverage;
+  o.out_prefix = "map";
+  const nlohmann::json j = o.ToJson();
+  EXPECT_EQ(j, nlohmann::json({{"image", "sim.tif"}, {"dem", "dem.tif"}, {"vertical_datum", "egm2008"},
+                               {"crs", "EPSG:32631"}, {"pixel_size_m", 12.5}, {"resampling", "average"},
+                               {"out_prefix", "map"}}));
+  GeocodeRequest round;
+  round.ApplyJson(j, "test");
+  EXPECT_EQ(round.ToJson(), j);
+  EXPECT_EQ(round.resampling, GeocodeResampling::kAverage);
+  EXPECT_EQ(round.pixel_size_m, 12.5);
+  GeocodeRequest kept;
+  kept.ApplyJson({{"crs", nullptr}, {"resampling", nullptr}, {"pixel_size_m", nullptr}}, "test");
+  EXPECT_EQ(kept.ToJson(), GeocodeRequest().ToJson());
+  try {
+    kept.ApplyJson({{"pixel_size", 10.0}}, "gissar.geocode keyword");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message(), "unknown key 'pixel_size'; did you mean pixel_size_m?");
+    EXPECT_EQ(e.where(), "gissar.geocode keyword");
+  }
+  try {
+    kept.ApplyJson({{"resampling", "cubic"}}, "opts.json");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message(), "unknown resampling 'cubic': must be bilinear or average");
+    EXPECT_EQ(e.where(), "--resampling");
+  }
+  EXPECT_THROW(kept.ApplyJson({{"pixel_size_m", "ten"}}, "test"), ConfigError);
+  EXPECT_EQ(GeocodeFields().at("pixel_size_m").Flag(), "--pixel-size");
+  EXPECT_EQ(GeocodeFields().at("out_prefix").Flag(), "--out");
+  EXPECT_EQ(GeocodeFields().at("resampling").help, "bilinear or average");
 }
 
 TEST(GeocodeRequestTest, UtmZoneOfLongitudeLatitude) {

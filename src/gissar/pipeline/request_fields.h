@@ -11,8 +11,10 @@
 // that uses it and its test.
 //
 // Kinds of field:
-//   - plain: bool, int, int64_t, uint64_t, double or std::string, stored as
-//     is (a bool is an on/off switch at the CLI: --NAME and --no-NAME);
+//   - plain: bool, int, int64_t, uint64_t, double, std::string or a list of
+//     strings (std::vector<std::string>: JSON ["a", "b"], CLI --NAME A B),
+//     stored as is (a bool is an on/off switch at the CLI: --NAME and
+//     --no-NAME);
 //   - nullable number: a double whose NaN means "not set" (JSON null);
 //   - enum: stored as the enum, written and read as its name (util::EnumTable);
 //   - optional pair: std::optional<Eigen::Vector2d>, JSON [a, b] or null,
@@ -55,7 +57,8 @@ namespace gissar::pipeline {
 // binds these with its own type conversion); monostate for the fields a
 // door takes as text (enums, pairs, windows, nullable numbers keep their
 // NaN default as a double).
-using FieldRef = std::variant<std::monostate, bool*, int*, int64_t*, uint64_t*, double*, std::string*>;
+using FieldRef = std::variant<std::monostate, bool*, int*, int64_t*, uint64_t*, double*, std::string*,
+                              std::vector<std::string>*>;
 
 template <class R>
 struct RequestField {
@@ -181,7 +184,8 @@ struct Fields {
       AssignField(access(r), value, key, source);
     };
     f.ref = [access](R& r) { return FieldRef(&access(r)); };
-    static_assert(std::is_constructible_v<FieldRef, T*>, "a plain field is bool, int, int64, uint64, double or string");
+    static_assert(std::is_constructible_v<FieldRef, T*>,
+                  "a plain field is bool, int, int64, uint64, double, string or a list of strings");
     return f;
   }
 

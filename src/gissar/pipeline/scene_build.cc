@@ -11,6 +11,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/class_map.h"
 #include "gissar/image/mesh_view.h"
+#include "gissar/pipeline/scene_build_fields.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/material/material.h"
 #include "gissar/material/reflector.h"
@@ -112,24 +113,10 @@ void SceneBuildRequest::Check() const {
   CheckOutputsAreNotInputs(outs, inputs);
 }
 
-json SceneBuildRequest::ToJson() const {
-  return {{"dem", dem},
-          {"fill_nodata", fill_nodata},
-          {"window", window ? json(*window) : json(nullptr)},
-          {"vectors", vectors},
-          {"osm", osm},
-          {"config", config},
-          {"center_lonlat", center_lonlat ? json{center_lonlat->x(), center_lonlat->y()} : json(nullptr)},
-          {"out_prefix", out_prefix},
-          {"export_obj", export_obj},
-          {"sea", sea},
-          {"sea_level_m", sea_level_m},
-          {"dem_oversample", dem_oversample},
-          {"vertical_units", vertical_units},
-          {"vertical_datum", vertical_datum},
-          {"flat_shading", flat_shading},
-          {"reflectors", reflectors},
-          {"max_memory_bytes", max_memory_bytes}};
+json SceneBuildRequest::ToJson() const { return SceneBuildFields().ToJson(*this); }
+
+void SceneBuildRequest::ApplyJson(const json& values, const std::string& source) {
+  SceneBuildFields().ApplyJson(*this, values, source);
 }
 
 SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::string& command_line, Reporter& reporter) {

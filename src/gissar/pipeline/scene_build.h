@@ -58,7 +58,16 @@ struct SceneBuildRequest {
   // one of --config / --osm / --vectors, a positive memory budget, and no
   // output (PREFIX.*) that would overwrite an input.
   void Check() const;
+  // {snake_case field: value} of every field (scene_build_fields.h): the
+  // sidecar's record; the keys are the flags' names (FlagOfField; export_obj
+  // is --obj).
   nlohmann::json ToJson() const;
+  // Sets the fields named by `values` ({field: value}, as ToJson writes; null
+  // is "not set" for window and center_lonlat, else keeps the field's value).
+  // Throws ConfigError naming the key and `source` (an options file,
+  // "gissar.Scene.build keyword") for an unknown key, with "did you mean", or
+  // a value of the wrong type or shape.
+  void ApplyJson(const nlohmann::json& values, const std::string& source);
 };
 
 struct SceneBuildResult {

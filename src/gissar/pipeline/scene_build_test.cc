@@ -1,5 +1,6 @@
 #include "gissar/pipeline/image_probe_testing.h"
 #include "gissar/pipeline/scene_build.h"
+#include "gissar/pipeline/scene_build_fields.h"
 
 #include <gtest/gtest.h>
 
@@ -520,6 +521,64 @@ TEST(SceneBuildTest, SimulateDemTakesTheDatumFromTheFileOrTheFlag) {
     EXPECT_NE(std::string(e.what()).find("us_nga_egm08_25.tif"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("egm96.tif"), std::string::npos) << e.what();
   }
+}
+
+// The scene build table (scene_build_fields.cc) writes the sidecar's keys and
+// reads them back: the window and centre as lists (null: not set), the
+// vector files as a list of strings; null keeps a plain field's default; an
+// unknown key is a ConfigError naming it and the source.
+TEST(SceneBuildFields, RoundTripWindowCentreAndVectors) {
+  SceneBuildRequest o;
+  o.dem = "dem.tif";
+  o.fill_nodata = true;
+  o.window = std::array<int, 4>{10, 20, 300, 400};
+  o.vectors = {"water.gpkg", "roads.geojson"};
+  o.center_lonlat = Eigen::Vector2d(1.55, 42.51);
+  o.out_prefix = "s";
+  o.export_obj = true;
+  o.sea = "off";
+  o.sea_level_m = -1.5;
+  o.dem_oversample = 3;
+  o.vertical_units = "ft";
+  o.vertical_datum = "egm96";
+  o.flat_shading = true;
+  o.reflectors = "cr.csv";
+  o.max_memory_bytes = 123456789;
+  const nlohmann::json j = o.ToJson();
+  EXPECT_EQ(j.size(), 17u);
+  EXPECT_EQ(j.at("window"), nlohmann::json({10, 20, 300, 400}));
+  EXPECT_EQ(j.at("center_lonlat"), nlohmann::json({1.55, 42.51}));
+  EXPECT_EQ(j.at("vectors"), nlohmann::json({"water.gpkg", "roads.geojson"}));
+  EXPECT_EQ(j.at("export_obj"), true);
+  EXPECT_EQ(j.at("max_memory_bytes"), 123456789);
+  SceneBuildRequest round;
+  round.ApplyJson(j, "test");
+  EXPECT_EQ(round.ToJson(), j);
+  EXPECT_EQ(round.vectors, o.vectors);
+  EXPECT_EQ(*round.window, (std::array<int, 4>{10, 20, 300, 400}));
+  EXPECT_EQ(round.center_lonlat->y(), 42.51);
+  round.ApplyJson({{"window", nullptr}, {"center_lonlat", nullptr}, {"sea", nullptr}, {"dem_oversample", nullptr}},
+                  "test");
+  EXPECT_FALSE(round.window.has_value());
+  EXPECT_FALSE(round.center_lonlat.has_value());
+  EXPECT_EQ(round.sea, "off");
+  EXPECT_EQ(round.dem_oversample, 3);
+  EXPECT_EQ(SceneBuildRequest().ToJson().at("window"), nullptr);
+  try {
+    round.ApplyJson({{"vector", {"a.gpkg"}}}, "gissar.Scene.build keyword");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message(), "unknown key 'vector'; did you mean vectors?");
+    EXPECT_EQ(e.where(), "gissar.Scene.build keyword");
+  }
+  EXPECT_THROW(round.ApplyJson({{"window", {1, 2, 3}}}, "test"), ConfigError);
+  EXPECT_THROW(round.ApplyJson({{"vectors", "a.gpkg"}}, "test"), ConfigError);
+  const RequestField<SceneBuildRequest>& window = SceneBuildFields().at("window");
+  EXPECT_EQ(window.from_text("1,2,3,4", window.Flag()), nlohmann::json({1, 2, 3, 4}));
+  EXPECT_THROW(window.from_text("1,2,3", window.Flag()), ConfigError);
+  EXPECT_EQ(SceneBuildFields().at("export_obj").Flag(), "--obj");
+  EXPECT_EQ(SceneBuildFields().at("center_lonlat").Flag(), "--center");
+  EXPECT_EQ(SceneBuildFields().at("max_memory_bytes").help, "");
 }
 
 }  // namespace
