@@ -17,6 +17,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <unordered_map>
 
 #include "gissar/geo/vector_io.h"
@@ -172,120 +173,177 @@ GeomPtr MakePoint(const Geos& geos, const Vector2d& p) {
 }
 
 // ---------------------------------------------------------------- coastline
-// Sea from coastline ways (plan M; OSM: land on the left of the way).
-// Chains are merged head to tail keeping their direction; an end inside the
-// extent is extended straight, along the direction of the chain's last
-// 200 m, until it leaves the extent's bounding box (the extract ends there,
-// the coast goes on). The extent is cut along the chains and its boundary;
-// a face is sea when the coastline edges on its boundary have it on their
-// right (length-weighted vote), land when on their left; faces without a
-// coastline edge are land.
-GeomPtr CoastlineSea(const Geos& geos, const GEOSGeometry* extent, const std::vector<Vector2d>& extent_ring,
-                     const std::vector<std::vector<Vector2d>>& lines, int64_t* extended_ends) {
-  Vector2d lo = extent_ring[0], hi = extent_ring[0];
-  for (const Vector2d& p : extent_ring) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
+// Sea from coastline ways (plan M; OSM: land on the left of the way), in the
+// steps of CoastlineSea below: chains merged head to tail keeping their
+// direction (MergeCoastChains); an end inside the extent extended straight,
+// along the direction of the chain's last 200 m, until it leaves the
+// extent's bounding box (ExtendOpenEnds: the extract ends there, the coast
+// goes on); the extent cut along the chains and its boundary
+// (PolygonizeAlongChains); a face is sea when the coastline edges on its
+// boundary have it on their right (length-weighted vote, CoastVote), land
+// when on their left; faces without a coastline edge are land.
+
+// The axis-aligned bounding box of a ring (M) and its diagonal (m).
+struct PlanBox {
+  Vector2d lo, hi;
+  double diag = 0.0;
+};
+
+// Takes a non-empty ring; gives its bounding box.
+PlanBox BoxOf(const std::vector<Vector2d>& ring) {
+  PlanBox box;
+  box.lo = ring[0];
+  box.hi = ring[0];
+  for (const Vector2d& p : ring) {
+    box.lo = box.lo.cwiseMin(p);
+    box.hi = box.hi.cwiseMax(p);
   }
-  const double diag = (hi - lo).norm();
-  // Merge (directed).
+  box.diag = (box.hi - box.lo).norm();
+  return box;
+}
+
+// The vertices of a GEOS line string or linear ring, in order.
+std::vector<Vector2d> LinePoints(const Geos& geos, const GEOSGeometry* line) {
+  const GEOSCoordSequence* seq = GEOSGeom_getCoordSeq_r(geos.ctx(), line);
+  unsigned n = 0;
+  GEOSCoordSeq_getSize_r(geos.ctx(), seq, &n);
+  std::vector<Vector2d> pts(n);
+  for (unsigned i = 0; i < n; ++i) GEOSCoordSeq_getXY_r(geos.ctx(), seq, i, &pts[i].x(), &pts[i].y());
+  return pts;
+}
+
+// Takes coastline ways (M, land on the left); gives them merged head to tail
+// where one ends where another starts (GEOS's directed line merge, no way
+// reversed), chains of fewer than 2 vertices dropped. Fails (nullopt) when
+// no way has 2 vertices or GEOS cannot merge them.
+std::optional<std::vector<std::vector<Vector2d>>> MergeCoastChains(
+    const Geos& geos, const std::vector<std::vector<Vector2d>>& lines) {
   std::vector<GEOSGeometry*> raw;
   for (const auto& l : lines) {
     if (GeomPtr g = MakeLine(geos, l)) raw.push_back(g.release());
   }
-  if (raw.empty()) return nullptr;
+  if (raw.empty()) return std::nullopt;
   GeomPtr multi = Own(geos, GEOSGeom_createCollection_r(geos.ctx(), GEOS_MULTILINESTRING, raw.data(), raw.size()));
   GeomPtr merged = Own(geos, GEOSLineMergeDirected_r(geos.ctx(), multi.get()));
-  if (!merged) return nullptr;
+  if (!merged) return std::nullopt;
   std::vector<std::vector<Vector2d>> chains;
-  auto read_line = [&](const GEOSGeometry* g) {
-    const GEOSCoordSequence* seq = GEOSGeom_getCoordSeq_r(geos.ctx(), g);
-    unsigned n = 0;
-    GEOSCoordSeq_getSize_r(geos.ctx(), seq, &n);
-    std::vector<Vector2d> pts(n);
-    for (unsigned i = 0; i < n; ++i) GEOSCoordSeq_getXY_r(geos.ctx(), seq, i, &pts[i].x(), &pts[i].y());
-    if (pts.size() >= 2) chains.push_back(std::move(pts));
-  };
   for (int i = 0; i < GEOSGetNumGeometries_r(geos.ctx(), merged.get()); ++i) {
-    read_line(GEOSGetGeometryN_r(geos.ctx(), merged.get(), i));
+    std::vector<Vector2d> pts = LinePoints(geos, GEOSGetGeometryN_r(geos.ctx(), merged.get(), i));
+    if (pts.size() >= 2) chains.push_back(std::move(pts));
   }
+  return chains;
+}
+
+// Distance (m) from p along unit direction d to the box's boundary, capped at
+// the box's diagonal, plus 1 m so that the end lands outside.
+double ExitDistance(const PlanBox& box, const Vector2d& p, const Vector2d& d) {
+  double t = box.diag;
+  for (int k = 0; k < 2; ++k) {
+    if (d[k] > 1e-12) t = std::min(t, (box.hi[k] - p[k]) / d[k]);
+    if (d[k] < -1e-12) t = std::min(t, (box.lo[k] - p[k]) / d[k]);
+  }
+  return std::max(t, 0.0) + 1.0;
+}
+
+// Unit vector pointing out of a chain (>= 2 vertices) at its end (from_end)
+// or its start: from the vertex about 200 m back along the chain (the first
+// at or beyond 200 m, else the other end) to the end vertex. Zero when those
+// coincide.
+Vector2d DirectionOut(const std::vector<Vector2d>& pts, bool from_end) {
+  const Vector2d end = from_end ? pts.back() : pts.front();
+  double length = 0.0;
+  Vector2d q = end;
+  for (size_t k = 1; k < pts.size() && length < 200.0; ++k) {
+    const Vector2d& next = from_end ? pts[pts.size() - 1 - k] : pts[k];
+    length += (next - q).norm();
+    q = next;
+  }
+  const Vector2d d = end - q;
+  return d.norm() > 0 ? Vector2d(d / d.norm()) : Vector2d(0, 0);
+}
+
+// Takes the chains, the extent (M) and its bounding box; extends each end
+// of an open chain that lies inside the extent straight out of the box (a
+// vertex added before the start or after the end), start first. Closed
+// chains are left alone. Adds one to *extended_ends per end extended.
+void ExtendOpenEnds(const Geos& geos, const GEOSGeometry* extent, const PlanBox& box,
+                    std::vector<std::vector<Vector2d>>& chains, int64_t* extended_ends) {
   const PreparedPtr prepared(GEOSPrepare_r(geos.ctx(), extent), PreparedDeleter{geos.ctx()});
   auto inside = [&](const Vector2d& p) {
     GeomPtr point = MakePoint(geos, p);
     return GEOSPreparedIntersects_r(geos.ctx(), prepared.get(), point.get()) == 1;
   };
-  // Distance from p along unit direction d to the bounding box's boundary.
-  auto exit_distance = [&](const Vector2d& p, const Vector2d& d) {
-    double t = diag;
-    for (int k = 0; k < 2; ++k) {
-      if (d[k] > 1e-12) t = std::min(t, (hi[k] - p[k]) / d[k]);
-      if (d[k] < -1e-12) t = std::min(t, (lo[k] - p[k]) / d[k]);
-    }
-    return std::max(t, 0.0) + 1.0;
-  };
-  auto direction_back = [](const std::vector<Vector2d>& pts, bool from_end) {
-    // Unit vector pointing out of the chain at that end.
-    const Vector2d end = from_end ? pts.back() : pts.front();
-    double length = 0.0;
-    Vector2d q = end;
-    for (size_t k = 1; k < pts.size() && length < 200.0; ++k) {
-      const Vector2d& next = from_end ? pts[pts.size() - 1 - k] : pts[k];
-      length += (next - q).norm();
-      q = next;
-    }
-    const Vector2d d = end - q;
-    return d.norm() > 0 ? Vector2d(d / d.norm()) : Vector2d(0, 0);
-  };
   for (auto& chain : chains) {
     if ((chain.front() - chain.back()).norm() < 1e-9) continue;
     if (inside(chain.front())) {
-      const Vector2d d = direction_back(chain, false);
+      const Vector2d d = DirectionOut(chain, false);
       if (d.norm() > 0) {
-        chain.insert(chain.begin(), chain.front() + exit_distance(chain.front(), d) * d);
+        chain.insert(chain.begin(), chain.front() + ExitDistance(box, chain.front(), d) * d);
         ++*extended_ends;
       }
     }
     if (inside(chain.back())) {
-      const Vector2d d = direction_back(chain, true);
+      const Vector2d d = DirectionOut(chain, true);
       if (d.norm() > 0) {
-        chain.push_back(chain.back() + exit_distance(chain.back(), d) * d);
+        chain.push_back(chain.back() + ExitDistance(box, chain.back(), d) * d);
         ++*extended_ends;
       }
     }
   }
-  // Directed segments, hashed by the grid cells they pass through.
+}
+
+// The chains' directed segments (M), hashed by the grid cells (side: the
+// box's diagonal / 512, at least 1 mm) they pass through, so that a point's
+// nearby segments are found without a scan.
+struct CoastSegmentIndex {
   struct Segment {
     Vector2d s, t;
   };
-  std::vector<Segment> segments;
-  for (const auto& chain : chains) {
-    for (size_t k = 0; k + 1 < chain.size(); ++k) {
-      if ((chain[k + 1] - chain[k]).norm() > 0) segments.push_back({chain[k], chain[k + 1]});
+  using Key = std::pair<int64_t, int64_t>;
+
+  // Takes the (extended) chains and the extent's bounding box.
+  CoastSegmentIndex(const std::vector<std::vector<Vector2d>>& chains, const PlanBox& box)
+      : lo(box.lo), cell(std::max(box.diag / 512.0, 1e-3)) {
+    for (const auto& chain : chains) {
+      for (size_t k = 0; k + 1 < chain.size(); ++k) {
+        if ((chain[k + 1] - chain[k]).norm() > 0) segments.push_back({chain[k], chain[k + 1]});
+      }
+    }
+    for (size_t i = 0; i < segments.size(); ++i) {
+      const Vector2d d = segments[i].t - segments[i].s;
+      const int n = static_cast<int>(std::ceil(d.norm() / (0.5 * cell))) + 1;
+      Key last{std::numeric_limits<int64_t>::min(), 0};
+      for (int k = 0; k <= n; ++k) {
+        const Key c = KeyOf(segments[i].s + (double(k) / n) * d);
+        if (c == last) continue;
+        last = c;
+        auto& bucket = grid[c];
+        if (bucket.empty() || bucket.back() != static_cast<int>(i)) bucket.push_back(static_cast<int>(i));
+      }
     }
   }
-  const double cell = std::max(diag / 512.0, 1e-3);
-  auto key = [&](const Vector2d& p) {
+
+  // The grid cell holding p.
+  Key KeyOf(const Vector2d& p) const {
     return std::make_pair(static_cast<int64_t>(std::floor((p.x() - lo.x()) / cell)),
                           static_cast<int64_t>(std::floor((p.y() - lo.y()) / cell)));
-  };
-  std::map<std::pair<int64_t, int64_t>, std::vector<int>> grid;
-  for (size_t i = 0; i < segments.size(); ++i) {
-    const Vector2d d = segments[i].t - segments[i].s;
-    const int n = static_cast<int>(std::ceil(d.norm() / (0.5 * cell))) + 1;
-    std::pair<int64_t, int64_t> last{std::numeric_limits<int64_t>::min(), 0};
-    for (int k = 0; k <= n; ++k) {
-      const auto c = key(segments[i].s + (double(k) / n) * d);
-      if (c == last) continue;
-      last = c;
-      auto& bucket = grid[c];
-      if (bucket.empty() || bucket.back() != static_cast<int>(i)) bucket.push_back(static_cast<int>(i));
-    }
   }
-  // Node the chains with the extent boundary and polygonize.
+
+  Vector2d lo;
+  double cell;
+  std::vector<Segment> segments;
+  std::map<Key, std::vector<int>> grid;  // cell -> segments through it, ascending
+};
+
+// Takes the extent and the (extended) chains (M); gives the faces the
+// extent's boundary and the whole chains cut the plane into (the chains
+// cross the boundary: noding splits both there; the parts outside are
+// dangles that polygonizing drops). Fails (null) when GEOS cannot node or
+// polygonize them.
+GeomPtr PolygonizeAlongChains(const Geos& geos, const GEOSGeometry* extent,
+                              const std::vector<std::vector<Vector2d>>& chains) {
   std::vector<GEOSGeometry*> pieces;
   pieces.push_back(GEOSBoundary_r(geos.ctx(), extent));
-  // Whole chains (they cross the boundary: noding splits both there; the
-  // parts outside are dangles that polygonizing drops).
   for (const auto& chain : chains) {
     if (GeomPtr line = MakeLine(geos, chain)) pieces.push_back(line.release());
   }
@@ -293,54 +351,75 @@ GeomPtr CoastlineSea(const Geos& geos, const GEOSGeometry* extent, const std::ve
   GeomPtr noded = Own(geos, GEOSUnaryUnion_r(geos.ctx(), all.get()));
   if (!noded) return nullptr;
   const GEOSGeometry* noded_raw = noded.get();
-  GeomPtr faces = Own(geos, GEOSPolygonize_r(geos.ctx(), &noded_raw, 1));
+  return Own(geos, GEOSPolygonize_r(geos.ctx(), &noded_raw, 1));
+}
+
+// A ring's vertices oriented counter-clockwise (want_ccw) or clockwise.
+std::vector<Vector2d> OrientedRing(const Geos& geos, const GEOSGeometry* ring, bool want_ccw) {
+  std::vector<Vector2d> pts = LinePoints(geos, ring);
+  double area2 = 0.0;
+  for (size_t i = 0; i + 1 < pts.size(); ++i) area2 += pts[i].x() * pts[i + 1].y() - pts[i + 1].x() * pts[i].y();
+  if ((area2 > 0) != want_ccw) std::reverse(pts.begin(), pts.end());
+  return pts;
+}
+
+// Takes a face's rings, each with the face on its left (M); gives the
+// length-weighted vote (m) of the coastline segments its edges lie on (an
+// edge's midpoint within 0.1 mm of a segment near it, first such segment):
+// +length where the face is on the coast's left (land), -length where on its
+// right (sea). Edges on no coastline do not vote.
+double CoastVote(const CoastSegmentIndex& index, const std::vector<std::vector<Vector2d>>& rings) {
+  double vote = 0.0;
+  for (const auto& ring : rings) {
+    for (size_t k = 0; k + 1 < ring.size(); ++k) {
+      const Vector2d p = ring[k], q = ring[k + 1], m = 0.5 * (p + q);
+      const double len = (q - p).norm();
+      if (len <= 0) continue;
+      const auto centre = index.KeyOf(m);
+      std::vector<int> candidates;
+      for (int64_t di = -1; di <= 1; ++di) {
+        for (int64_t dj = -1; dj <= 1; ++dj) {
+          auto it = index.grid.find({centre.first + di, centre.second + dj});
+          if (it != index.grid.end()) candidates.insert(candidates.end(), it->second.begin(), it->second.end());
+        }
+      }
+      for (int i : candidates) {
+        const Vector2d st = index.segments[i].t - index.segments[i].s;
+        const double st_len = st.norm();
+        const Vector2d rel = m - index.segments[i].s;
+        const double along = rel.dot(st) / st_len;
+        const double off = std::abs(rel.x() * st.y() - rel.y() * st.x()) / st_len;
+        if (along < -1e-6 || along > st_len + 1e-6 || off > 1e-4) continue;
+        vote += (q - p).dot(st) > 0 ? len : -len;  // face on the left of the coast: land
+        break;
+      }
+    }
+  }
+  return vote;
+}
+
+// Takes the extent (polygon and ring, M) and the coastline ways (M, land on
+// their left); gives the sea: the union of the faces voted sea (null when
+// none, or when merging, noding or polygonizing fails). Adds the number of
+// chain ends extended to *extended_ends (counted even when it then fails).
+GeomPtr CoastlineSea(const Geos& geos, const GEOSGeometry* extent, const std::vector<Vector2d>& extent_ring,
+                     const std::vector<std::vector<Vector2d>>& lines, int64_t* extended_ends) {
+  const PlanBox box = BoxOf(extent_ring);
+  std::optional<std::vector<std::vector<Vector2d>>> chains = MergeCoastChains(geos, lines);
+  if (!chains) return nullptr;
+  ExtendOpenEnds(geos, extent, box, *chains, extended_ends);
+  const CoastSegmentIndex index(*chains, box);
+  GeomPtr faces = PolygonizeAlongChains(geos, extent, *chains);
   if (!faces) return nullptr;
   std::vector<GeomPtr> sea_faces;
-  auto ring_points = [&](const GEOSGeometry* ring, bool want_ccw) {
-    const GEOSCoordSequence* seq = GEOSGeom_getCoordSeq_r(geos.ctx(), ring);
-    unsigned n = 0;
-    GEOSCoordSeq_getSize_r(geos.ctx(), seq, &n);
-    std::vector<Vector2d> pts(n);
-    for (unsigned i = 0; i < n; ++i) GEOSCoordSeq_getXY_r(geos.ctx(), seq, i, &pts[i].x(), &pts[i].y());
-    double area2 = 0.0;
-    for (size_t i = 0; i + 1 < pts.size(); ++i) area2 += pts[i].x() * pts[i + 1].y() - pts[i + 1].x() * pts[i].y();
-    if ((area2 > 0) != want_ccw) std::reverse(pts.begin(), pts.end());
-    return pts;
-  };
   for (int f = 0; f < GEOSGetNumGeometries_r(geos.ctx(), faces.get()); ++f) {
     const GEOSGeometry* face = GEOSGetGeometryN_r(geos.ctx(), faces.get(), f);
     // Rings with the face on their left: shell counter-clockwise, holes clockwise.
-    std::vector<std::vector<Vector2d>> rings = {ring_points(GEOSGetExteriorRing_r(geos.ctx(), face), true)};
+    std::vector<std::vector<Vector2d>> rings = {OrientedRing(geos, GEOSGetExteriorRing_r(geos.ctx(), face), true)};
     for (int h = 0; h < GEOSGetNumInteriorRings_r(geos.ctx(), face); ++h) {
-      rings.push_back(ring_points(GEOSGetInteriorRingN_r(geos.ctx(), face, h), false));
+      rings.push_back(OrientedRing(geos, GEOSGetInteriorRingN_r(geos.ctx(), face, h), false));
     }
-    double vote = 0.0;
-    for (const auto& ring : rings) {
-      for (size_t k = 0; k + 1 < ring.size(); ++k) {
-        const Vector2d p = ring[k], q = ring[k + 1], m = 0.5 * (p + q);
-        const double len = (q - p).norm();
-        if (len <= 0) continue;
-        const auto centre = key(m);
-        std::vector<int> candidates;
-        for (int64_t di = -1; di <= 1; ++di) {
-          for (int64_t dj = -1; dj <= 1; ++dj) {
-            auto it = grid.find({centre.first + di, centre.second + dj});
-            if (it != grid.end()) candidates.insert(candidates.end(), it->second.begin(), it->second.end());
-          }
-        }
-        for (int i : candidates) {
-          const Vector2d st = segments[i].t - segments[i].s;
-          const double st_len = st.norm();
-          const Vector2d rel = m - segments[i].s;
-          const double along = rel.dot(st) / st_len;
-          const double off = std::abs(rel.x() * st.y() - rel.y() * st.x()) / st_len;
-          if (along < -1e-6 || along > st_len + 1e-6 || off > 1e-4) continue;
-          vote += (q - p).dot(st) > 0 ? len : -len;  // face on the left of the coast: land
-          break;
-        }
-      }
-    }
-    if (vote < 0) sea_faces.push_back(Own(geos, GEOSGeom_clone_r(geos.ctx(), face)));
+    if (CoastVote(index, rings) < 0) sea_faces.push_back(Own(geos, GEOSGeom_clone_r(geos.ctx(), face)));
   }
   return UnionAll(geos, sea_faces);
 }
