@@ -316,3 +316,92 @@ def test_validate_of_a_grd_without_its_calibration_names_the_file(tmp_path):
     assert r.returncode == 2
     assert "calibration" in r.stderr and "does not exist" in r.stderr
     assert not os.path.exists(tmp_path / "v.json")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# locate / evaluate --product S1.SAFE: the product's own track fixed from a displaced prior
+
+def rough_dem(path, lat, lon, height, seed=3):
+    """Twelve seeded sinusoidal ridges (wavelengths 150-900 m, amplitudes 20-70 m) around (lat, lon), on the
+    ellipsoid, 0.0003 deg posts: relief at the scale of the multilooked cells in every direction."""
+    n, step = 320, 0.0003
+    yy, xx = np.mgrid[0:n, 0:n]
+    x, y = xx * step * 76000.0, yy * step * 111000.0
+    rng = np.random.default_rng(seed)
+    z = np.full((n, n), height)
+    for _ in range(12):
+        wavelength, theta = rng.uniform(150, 900), rng.uniform(0, np.pi)
+        phase, amplitude = rng.uniform(0, 2 * np.pi), rng.uniform(20, 70)
+        z += amplitude * np.sin(2 * np.pi * (x * np.cos(theta) + y * np.sin(theta)) / wavelength + phase)
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), n, n, 1, gdal.GDT_Float32)
+    ds.SetGeoTransform([lon - n / 2 * step, step, 0, lat + n / 2 * step, 0, -step])
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4979)
+    ds.SetProjection(srs.ExportToWkt())
+    ds.GetRasterBand(1).WriteArray(z.astype(np.float32))
+    ds = None
+
+
+@pytest.fixture(scope="module")
+def observed_burst(tmp_path_factory):
+    """A copy of the IW SLC whose IW1 burst holds, in a 200 x 600 window, the simulation of that window on rough
+    terrain (the observed image; the annotated track is the truth)."""
+    tmp = tmp_path_factory.mktemp("s1locate")
+    safe = str(tmp / os.path.basename(SAFE))
+    shutil.copytree(SAFE, safe)
+    _, ann = annotation(safe)
+    burst, row, col, lat, lon, h, lines = grid_point_in_a_burst(ann)
+    dem = tmp / "rough.tif"
+    rough_dem(dem, lat, lon, h)
+    window = (int(row) - 100, int(col) - 300, 200, 600)
+    selection = ["--swath", "IW1", "--burst", str(burst), "--polarization", "VV"]
+    beta0 = simulate_window(safe, selection, window, dem, tmp / "observed")
+    dn = np.where(np.isfinite(beta0), np.round(np.sqrt(np.nan_to_num(beta0)) * first_beta_nought(safe)), 0)
+    tiff = glob.glob(os.path.join(safe, "measurement", "s1b-iw1-slc-vv-*.tiff"))[0]
+    write_dn(tiff, dn.astype(np.complex64), (burst - 1) * lines + window[0], window[1])
+    common = [*selection, "--product-window", ",".join(map(str, window)), "--dem", str(dem),
+              "--vertical-datum", "ellipsoid", "--looks-range", "6", "--looks-azimuth", "2"]
+    return dict(tmp=tmp, safe=safe, common=common)
+
+
+def test_locate_fixes_a_sentinel1_track_from_a_displaced_prior(observed_burst):
+    o = observed_burst
+    # A satellite's track angle is known to microradians; over a window seen from 800 km an along-track shift
+    # and a heading turn move the image alike, so the heading is held at the prior (docs/sentinel1.md).
+    out = str(o["tmp"] / "fix.json")
+    r = run("locate", "--product", o["safe"], *o["common"], "--prior-offset-track", "60,30,0",
+            "--prior-sigma-heading", "0.00001", "--out", out, "--quiet")
+    assert r.returncode == 0, r.stderr
+    fix = json.load(open(out))
+    assert fix["converged"] and fix["fix_source"] == "relief"
+    correction = fix["fix"]["correction"]
+    # The prior was 60 m ahead and 30 m right of the annotated track: the fix moves it back.
+    assert correction["along_m"] == pytest.approx(-60.0, abs=10.0)
+    assert correction["cross_m"] == pytest.approx(-30.0, abs=12.0)
+    assert "error against the annotated track" in r.stdout
+    error_m = float(r.stdout.split("error against the annotated track ")[1].split(" m")[0])
+    assert error_m < 15.0 < 67.0  # the prior's error is 67.1 m
+    assert fix["inputs"]["product"]["kind"] == "Sentinel-1 SAFE"
+
+
+def test_evaluate_runs_seeded_trials_on_a_sentinel1_burst(observed_burst):
+    o = observed_burst
+    out = o["tmp"] / "trials"
+    r = run("evaluate", "--product", o["safe"], *o["common"], "--prior-error-horizontal", "60",
+            "--prior-error-vertical", "5", "--prior-error-heading", "0", "--trials", "4", "--seed", "1",
+            "--out", str(out), "--quiet")
+    assert r.returncode == 0, r.stderr
+    summary = json.load(open(str(out) + ".json"))
+    assert summary["success_rate"] == 1.0
+    assert summary["position_error_cells"]["median"] < 0.6
+
+
+def test_locate_refuses_a_grd_and_a_selection_without_a_safe(tmp_path):
+    dem = tmp_path / "rough.tif"
+    rough_dem(dem, 46.9, 12.3, 2000.0)
+    r = run("locate", "--product", GRD, "--polarization", "VV", "--dem", str(dem), "--out", str(tmp_path / "f.json"),
+            "--quiet")
+    assert r.returncode == 2 and "slant-range grid" in r.stderr and "GRDH" in r.stderr
+    r = run("locate", "--product", os.path.join(ROOT, "data", "uavsar", "SanAnd_129.h5"), "--burst", "2",
+            "--dem", str(dem), "--out", str(tmp_path / "f.json"), "--quiet")
+    assert r.returncode == 2 and "--burst" in r.stderr

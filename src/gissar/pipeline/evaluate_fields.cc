@@ -3,6 +3,7 @@
 #include "gissar/material/material.h"
 #include "gissar/nav/matching.h"
 #include "gissar/nav/product_locate.h"
+#include "gissar/pipeline/sentinel1_simulate.h"
 #include "gissar/pipeline/simulate_fields.h"
 
 namespace gissar::pipeline {
@@ -21,10 +22,18 @@ const FieldTable<EvaluateRequest>& EvaluateFields() {
           F::Plain("dem", F::At(&R::dem), "Or a DEM (bare terrain)", false),
           F::Plain("vertical_datum", F::At(&R::vertical_datum), SimulateHelp("vertical_datum"), false),
           F::Plain("product", F::At(&R::product),
-                   "A real RSLC product (HDF5): trials displace its annotated track (docs/navigation.md)", false),
+                   "A real product (NISAR RSLC HDF5, Sentinel-1 SLC SAFE): trials displace its annotated track "
+                   "(docs/navigation.md)", false),
           F::Plain("frequency", F::At(&R::frequency), "Product band, A or B"),
           F::Plain("polarization", F::At(&R::polarization),
                    "Product layer (" + material::kPolarizations.List() + ")"),
+          F::Plain("swath", F::At(&R::swath),
+                   "Sentinel-1 --product: swath, e.g. IW2 (default: the product's only one)", false),
+          F::Plain("burst", F::At(&R::burst), "Sentinel-1 IW/EW SLC --product: burst, 1-based per swath", false),
+          F::OptionalWindow("product_window_px", F::At(&R::product_window_px),
+                            "Sentinel-1 --product: the part of the burst or swath fixed, LINE,PIXEL,LINES,PIXELS in "
+                            "its own numbering (default: all of it)",
+                            ProductWindowJson),
           F::Plain("looks_range", F::At(&R::looks_range), "With --product: range looks of the multilook"),
           F::Plain("looks_azimuth", F::At(&R::looks_azimuth), "With --product: azimuth looks of the multilook"),
           F::Plain("dem_oversample", F::At(&R::dem_oversample), "Refine the DEM N x by cubic interpolation"),

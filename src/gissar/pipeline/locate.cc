@@ -1,4 +1,6 @@
 #include "gissar/pipeline/locate.h"
+
+#include "gissar/geo/sentinel1_safe.h"
 #include "gissar/pipeline/evaluate_fields.h"
 #include "gissar/pipeline/locate_fields.h"
 
@@ -139,6 +141,18 @@ void CheckProductOptions(const std::string& frequency, int looks_range, int look
     throw ConfigError("must be in [1, 64]", "--looks-range/--looks-azimuth");
   }
   if (dem_oversample < 1 || dem_oversample > 16) throw ConfigError("must be in [1, 16]", "--dem-oversample");
+}
+
+// The Sentinel-1 selection goes with a SAFE --product only.
+void CheckSentinel1Selection(const std::string& product, const std::string& swath, int burst,
+                             const std::optional<std::array<int, 4>>& window) {
+  if (!product.empty() && geo::IsSentinel1Path(product)) {
+    if (burst < 0) throw ConfigError("must be 1 or more (1-based), got " + std::to_string(burst), "--burst");
+    return;
+  }
+  if (!swath.empty()) throw ConfigError("goes with a Sentinel-1 --product (SAFE)", "--swath");
+  if (burst != 0) throw ConfigError("goes with a Sentinel-1 --product (SAFE)", "--burst");
+  if (window) throw ConfigError("goes with a Sentinel-1 --product (SAFE)", "--product-window");
 }
 
 // Error histogram (position error in resolution cells) as an RGB PNG.
@@ -341,6 +355,7 @@ void LocateRequest::Check() const {
                         "--product/--prior");
     }
     CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample, terrain_horizontal_sigma_m);
+    CheckSentinel1Selection(product, swath, burst, product_window_px);
     if (prior_offset_track.size() != 3 ||
         !std::all_of(prior_offset_track.begin(), prior_offset_track.end(), [](double v) { return std::isfinite(v); })) {
       throw ConfigError("needs ALONG,CROSS,UP in metres", "--prior-offset-track");
@@ -568,6 +583,7 @@ void EvaluateRequest::Check() const {
   }
   if (!product.empty()) {
     CheckProductOptions(frequency, looks_range, looks_azimuth, dem_oversample, terrain_horizontal_sigma_m);
+    CheckSentinel1Selection(product, swath, burst, product_window_px);
     nav::ParseShiftMatcher(matcher, "--matcher");
   } else {
     nav::ParseMatcher(matcher, "--matcher");

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -82,6 +83,14 @@ struct LocateRequest {
   std::string radar_grid;
   std::string frequency = "A";
   std::string polarization = "HH";
+  // A Sentinel-1 SLC --product (a SAFE; pipeline/sentinel1_simulate.h): the
+  // swath ("" = the only one), the burst (1-based; required for an IW/EW
+  // SLC) and the window of the burst or swath fixed (LINE, PIXEL, LINES,
+  // PIXELS in its own numbering; unset = all of it). The observed image is
+  // beta0 = |DN|^2 / betaNought^2. Refused with another product.
+  std::string swath;
+  int burst = 0;
+  std::optional<std::array<int, 4>> product_window_px;
   std::vector<double> prior_offset_track = {0.0, 0.0, 0.0};
   double prior_heading_offset_deg = 0.0;
   double prior_sigma_horizontal_m = 60.0;
@@ -185,6 +194,10 @@ struct EvaluateRequest {
   std::string product;
   std::string frequency = "A";
   std::string polarization = "HH";
+  // LocateRequest's Sentinel-1 selection.
+  std::string swath;
+  int burst = 0;
+  std::optional<std::array<int, 4>> product_window_px;
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;

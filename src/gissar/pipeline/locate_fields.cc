@@ -2,6 +2,7 @@
 
 #include "gissar/geo/look_side.h"
 #include "gissar/pipeline/evaluate_fields.h"
+#include "gissar/pipeline/sentinel1_simulate.h"
 
 namespace gissar::pipeline {
 namespace {
@@ -21,13 +22,18 @@ const FieldTable<LocateRequest>& LocateFields() {
           F::Plain("image", F::At(&R::image), "Observed image (GeoTIFF, band 1 linear intensity, GISSAR_* metadata)",
                    false),
           F::Plain("product", F::At(&R::product),
-                   "Or a real RSLC product (HDF5): fix its own track from a displaced prior (docs/navigation.md)",
+                   "Or a real product (NISAR RSLC HDF5, Sentinel-1 SLC SAFE): fix its own track from a displaced prior "
+                   "(docs/navigation.md)",
                    false),
           F::Plain("orbit", F::At(&R::orbit),
                    "Or any sensor's state vectors (CSV, JSON, ESA .EOF) of the --image, fixed like a product", false),
           F::Plain("radar_grid", F::At(&R::radar_grid), "Radar grid JSON of the --image (with --orbit)", false),
           F::Plain("frequency", F::At(&R::frequency), Shared("frequency")),
           F::Plain("polarization", F::At(&R::polarization), Shared("polarization")),
+          F::Plain("swath", F::At(&R::swath), Shared("swath"), false),
+          F::Plain("burst", F::At(&R::burst), Shared("burst"), false),
+          F::OptionalWindow("product_window_px", F::At(&R::product_window_px), Shared("product_window_px"),
+                            ProductWindowJson),
           F::Numbers("prior_offset_track", F::At(&R::prior_offset_track), 3,
                      "With --product: prior = annotated track moved ALONG,CROSS,UP metres (mid-scene velocity "
                      "frame)"),

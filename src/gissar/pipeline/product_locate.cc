@@ -12,11 +12,13 @@
 #include "gissar/geo/orbit_file.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/rslc_product.h"
+#include "gissar/geo/sentinel1_safe.h"
 #include "gissar/image/composite.h"
 #include "gissar/image/contact_sheet.h"
 #include "gissar/image/radiometry.h"
 #include "gissar/nav/product_locate.h"
 #include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/sentinel1_simulate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/product_renderer.h"
@@ -43,6 +45,10 @@ struct ProductFix {
 
 struct ProductInputs {
   std::string product, frequency, polarization, scene, dem, vertical_datum;
+  // A Sentinel-1 SAFE's selection (LocateRequest::swath, burst, product_window_px).
+  std::string swath;
+  int burst = 0;
+  std::optional<std::array<int, 4>> window_px;
   std::string orbit, radar_grid, image;  // instead of the product (LocateRequest::orbit)
   int dem_oversample = 1;
   double rays_per_cell = 4.0;
@@ -80,13 +86,41 @@ void CheckLandmarksInImage(const ProductFix& fix, const std::string& csv) {
                    csv);
 }
 
+// A Sentinel-1 SLC as an observed product: the selection's zero-Doppler grid
+// and orbit (ReadSentinel1Source) with the real image calibrated to beta0 as
+// its amplitude (sqrt; 0 where no data). A GRD is refused: the fix needs a
+// slant-range grid.
+geo::RslcProduct ReadSentinel1Observation(const ProductInputs& in, Reporter& reporter) {
+  Sentinel1Selection selection;
+  selection.product = in.product;
+  selection.swath = in.swath;
+  selection.polarization = in.polarization;
+  selection.burst = in.burst;
+  selection.window_px = in.window_px;
+  selection.command = "locate";
+  const Sentinel1Source source = ReadSentinel1Source(selection, reporter);
+  if (source.ground_range) {
+    throw InputError("a GRD is in ground range: a pose fix needs the SLC's slant-range grid",
+                     "--product (" + source.product.name + ")");
+  }
+  geo::RslcProduct product = source.grid;
+  const std::vector<float> beta0 = ReadSentinel1Beta0(source, in.product);
+  product.amplitude.resize(beta0.size());
+  for (size_t k = 0; k < beta0.size(); ++k) {
+    product.amplitude[k] = std::isfinite(beta0[k]) && beta0[k] > 0.0f ? std::sqrt(beta0[k]) : 0.0f;
+  }
+  return product;
+}
+
 std::unique_ptr<ProductFix> LoadProductFix(const ProductInputs& in, Reporter& reporter) {
   auto fix = std::make_unique<ProductFix>();
   geo::RslcReadOptions read;
   read.frequency = in.frequency;
   read.polarization = in.polarization;
   read.read_amplitude = true;
-  if (!in.product.empty()) {
+  if (!in.product.empty() && geo::IsSentinel1Path(in.product)) {
+    fix->product = ReadSentinel1Observation(in, reporter);
+  } else if (!in.product.empty()) {
     fix->product = geo::ReadRslcProduct(in.product, read);
   } else {
     fix->product = geo::ProductFromOrbit(geo::ReadStateVectors(in.orbit), in.orbit, geo::ReadRadarGrid(in.radar_grid),
@@ -280,8 +314,9 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
   const fs::path out = options.out.empty() ? fs::path() : outputs.Add(options.out);
   const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
-                                   options.dem, options.vertical_datum, options.orbit, options.radar_grid,
-                                   options.image, options.dem_oversample, options.rays_per_cell, options.bounces,
+                                   options.dem, options.vertical_datum, options.swath, options.burst,
+                                   options.product_window_px, options.orbit, options.radar_grid, options.image,
+                                   options.dem_oversample, options.rays_per_cell, options.bounces,
                                    options.reflectors, options.sea, options.max_memory_bytes},
                                   reporter);
   const nav::TrackOffset offset{options.prior_offset_track[0], options.prior_offset_track[1],
@@ -315,7 +350,7 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
                            {"vertical_datum", VerticalDatumRecord(fix->terrain)},
                            {"inputs", {{"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}}}};
   if (!options.product.empty()) {
-    report["inputs"]["product"] = InputFileRecord(options.product);
+    report["inputs"]["product"] = ProductInputRecord(options.product);
   } else {
     report["inputs"]["orbit"] = InputFileRecord(options.orbit);
     report["inputs"]["radar_grid"] = InputFileRecord(options.radar_grid);
@@ -345,7 +380,8 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
 std::vector<nlohmann::json> ProductEvaluateTrials(const EvaluateRequest& options, Reporter& reporter) {
   options.Check();
   const auto fix = LoadProductFix({options.product, options.frequency, options.polarization, options.scene,
-                                   options.dem, options.vertical_datum, "", "", "", options.dem_oversample,
+                                   options.dem, options.vertical_datum, options.swath, options.burst,
+                                   options.product_window_px, "", "", "", options.dem_oversample,
                                    options.rays_per_cell, options.bounces, options.reflectors, options.sea,
                                    options.max_memory_bytes},
                                   reporter);
@@ -524,7 +560,7 @@ nlohmann::json WriteProductEvaluation(const EvaluateRequest& options, const std:
   summary["version"] = VersionString();
   summary["created_utc"] = UtcTimestamp();
   summary["seconds"] = seconds;
-  summary["inputs"] = {{"product", InputFileRecord(options.product)},
+  summary["inputs"] = {{"product", ProductInputRecord(options.product)},
                        {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)}};
   if (!options.reflectors.empty()) summary["inputs"]["reflectors"] = InputFileRecord(options.reflectors);
   summary["options"] = options.ToJson();

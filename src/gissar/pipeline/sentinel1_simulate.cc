@@ -73,6 +73,10 @@ std::array<int, 4> ParseProductWindow(const std::string& text) {
   return w;
 }
 
+nlohmann::json ProductWindowJson(const std::string& text, const std::string&) {
+  return nlohmann::json(ParseProductWindow(text));
+}
+
 Sentinel1Selection Sentinel1SelectionOf(const SimulateRequest& options) {
   Sentinel1Selection s;
   s.product = options.product;
@@ -310,13 +314,17 @@ nlohmann::json Sentinel1Source::ToJson() const {
   return j;
 }
 
-nlohmann::json Sentinel1InputRecord(const Sentinel1Source& source) {
+nlohmann::json ProductInputRecord(const std::string& product) {
   namespace fs = std::filesystem;
-  const fs::path path(source.product.path);
+  if (!geo::IsSentinel1Path(product)) return InputFileRecord(product);
+  const fs::path path(product);
   std::error_code ec;
   nlohmann::json record;
   if (fs::is_directory(path, ec)) {
     record = InputFileRecord(path / "manifest.safe");
+    record["hashed"] = "manifest.safe";
+  } else if (path.filename() == "manifest.safe") {
+    record = InputFileRecord(path);
     record["hashed"] = "manifest.safe";
   } else {
     record = InputFileRecord(path);
@@ -324,6 +332,11 @@ nlohmann::json Sentinel1InputRecord(const Sentinel1Source& source) {
   }
   record["path"] = fs::absolute(path).lexically_normal().string();
   record["kind"] = "Sentinel-1 SAFE";
+  return record;
+}
+
+nlohmann::json Sentinel1InputRecord(const Sentinel1Source& source) {
+  nlohmann::json record = ProductInputRecord(source.product.path);
   record["annotation"] = source.annotation.file;
   return record;
 }

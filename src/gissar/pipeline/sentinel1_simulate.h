@@ -126,6 +126,9 @@ std::vector<float> ReadSentinel1Beta0(const Sentinel1Source& source, const std::
 // takes again), the bytes and SHA-256 of the .zip, or of manifest.safe for a
 // directory ("hashed": which file), and the annotation read.
 nlohmann::json Sentinel1InputRecord(const Sentinel1Source& source);
+// The input record of a --product: ProductInputRecord's SAFE record (without
+// the annotation) for a SAFE, InputFileRecord for a file (a NISAR HDF5).
+nlohmann::json ProductInputRecord(const std::string& product);
 
 // GeoTIFF metadata of a Sentinel-1 simulation: GISSAR_SENTINEL1_PRODUCT,
 // _SWATH, _BURST, _POLARIZATION, _GRID (numbering and window) and
@@ -138,5 +141,8 @@ void AddSentinel1Metadata(const Sentinel1Source& source, std::map<std::string, s
 // pixel >= 0, at least 2 lines and 2 pixels). Throws ConfigError naming the
 // flag.
 std::array<int, 4> ParseProductWindow(const std::string& text);
+// ParseProductWindow as a request field's JSON value (request_fields.h's
+// TextReader of the product_window_px rows).
+nlohmann::json ProductWindowJson(const std::string& text, const std::string& flag);
 
 }  // namespace gissar::pipeline

@@ -17,10 +17,6 @@ nlohmann::json PairText(const std::string& text, const std::string& flag) {
   return nlohmann::json{v.x(), v.y()};
 }
 
-nlohmann::json WindowText(const std::string& text, const std::string&) {
-  return nlohmann::json(ParseProductWindow(text));
-}
-
 }  // namespace
 
 // Fields in the order of `gissar simulate --help` (simulate.h states what each means).
@@ -51,7 +47,7 @@ const FieldTable<SimulateRequest>& SimulateFields() {
       F::OptionalWindow("product_window_px", F::At(&SimulateRequest::product_window_px),
           "Render a part of the product's grid: LINE,PIXEL,LINES,PIXELS in its own numbering (a burst's lines and "
           "samples, a GRD's lines and ground-range pixels)",
-          WindowText),
+          ProductWindowJson),
       F::Plain("dem_oversample", F::At(&SimulateRequest::dem_oversample),
           "Refine the DEM this many times (cubic convolution) before meshing; for posts coarser than the pixels"),
       F::Plain("vertical_units", F::At(&SimulateRequest::vertical_units),
