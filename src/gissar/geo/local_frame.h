@@ -31,6 +31,13 @@ class LocalFrame {
   // ENU metres -> (lon_deg, lat_deg, height_m).
   Eigen::Vector3d GeodeticFromEnu(const Eigen::Vector3d& enu) const;
 
+  // ENU metres <-> ECEF metres (the frame's rigid transform: origin and
+  // rotation; exact, no geodetic round trip).
+  Eigen::Vector3d EcefFromEnu(const Eigen::Vector3d& enu) const { return origin_ecef_ + enu_from_ecef_.transpose() * enu; }
+  Eigen::Vector3d EnuFromEcef(const Eigen::Vector3d& ecef) const { return enu_from_ecef_ * (ecef - origin_ecef_); }
+  // An ECEF direction (a velocity, a line of sight) in ENU components.
+  Eigen::Vector3d EnuVectorFromEcef(const Eigen::Vector3d& v) const { return enu_from_ecef_ * v; }
+
   // WGS84 geodetic -> Earth-centred Earth-fixed metres, and back.
   static Eigen::Vector3d EcefFromGeodetic(double lon_deg, double lat_deg, double height_m);
   static Eigen::Vector3d GeodeticFromEcef(const Eigen::Vector3d& ecef);

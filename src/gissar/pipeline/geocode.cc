@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 
@@ -10,8 +11,11 @@
 #include "gissar/geo/vertical_datum.h"
 #include "gissar/pipeline/geocode_fields.h"
 #include "gissar/pipeline/georeferencing.h"
+#include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/sentinel1_simulate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/stac.h"
+#include "gissar/sensor/range_doppler.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/memory_limit.h"
@@ -86,8 +90,10 @@ Terrain LoadImageTerrain(const GeocodeRequest& request, const json& sidecar, con
   json options = sidecar["options"];
   for (const char* key : {"materials", "reflectors", "contributions", "out_prefix"}) options.erase(key);
   o.ApplyJson(options, sidecar_path);
-  if (!o.product.empty()) throw ConfigError("geocode of product-geometry images is not supported (they carry GEOLOCATION arrays: use gdalwarp -geoloc)", "--image");
-  const std::string input = sidecar["inputs"].at(0).at("path").get<std::string>();
+  // The terrain's input record: after the product's, or the orbit's and the
+  // radar grid's, on a real radar grid.
+  const size_t index = !o.product.empty() ? 1 : !o.orbit.empty() ? 2 : 0;
+  const std::string input = sidecar["inputs"].at(index).at("path").get<std::string>();
   const double lon0 = sidecar["frame"]["origin_lon_deg"].get<double>();
   const double lat0 = sidecar["frame"]["origin_lat_deg"].get<double>();
   if (!request.dem.empty()) {
@@ -155,6 +161,99 @@ sensor::SarGeometry GeometryFromMetadata(const geo::Metadata& m, int width, int 
                              width, height);
 }
 
+// How the image sees a terrain point, and what the outputs record of its
+// geometry: an idealised (affine or exact) SarGeometry, or a real radar
+// grid (a product's or an orbit's zero-Doppler grid, a Sentinel-1 burst,
+// swath or GRD window) through geo2rdr on its orbit.
+struct ImageProjection {
+  // Pixel (column, row; centres at integers) of an ENU point of the
+  // terrain's frame; NaN when the point has none (no zero-Doppler time).
+  std::function<Eigen::Vector2d(const Eigen::Vector3d& enu)> project;
+  // Unit vector (ENU) from the sensor to the point, for the local incidence.
+  std::function<Eigen::Vector3d(const Eigen::Vector3d& enu)> ray_to;
+  double range_spacing_m = 0.0, azimuth_spacing_m = 0.0;
+  double ground_range_spacing_m = 0.0;  // a range pixel on the ground, m (points per output pixel)
+  std::string mode;                     // provenance "projection_mode"
+  sensor::LookSide look_side = sensor::LookSide::kRight;
+  double incidence_deg = 0.0, off_nadir_deg = 0.0, look_azimuth_deg = 0.0;  // STAC, at the scene centre
+  double wavelength_m = 0.0;  // a real grid's (its product's band); 0: the simulation's options say
+};
+
+ImageProjection IdealisedProjection(const sensor::SarGeometry& geometry) {
+  ImageProjection p;
+  p.project = [geometry](const Eigen::Vector3d& v) { return geometry.Project(v); };
+  p.ray_to = [geometry](const Eigen::Vector3d& v) { return geometry.RayDirectionTo(v); };
+  p.range_spacing_m = geometry.range_spacing_m();
+  p.azimuth_spacing_m = geometry.azimuth_spacing_m();
+  p.ground_range_spacing_m =
+      geometry.range_spacing_m() / std::max(std::cos(geometry.options().depression_deg * M_PI / 180.0), 0.05);
+  p.mode = sensor::ToString(geometry.mode());
+  p.look_side = geometry.options().look_side;
+  p.incidence_deg = geometry.IncidenceDeg(geometry.u0());
+  p.off_nadir_deg = 90.0 - geometry.options().depression_deg;
+  p.look_azimuth_deg = geometry.options().heading_deg + (p.look_side == sensor::LookSide::kRight ? 90.0 : -90.0);
+  return p;
+}
+
+// The real radar grid a product simulation was rendered on (the request of
+// its sidecar, read again as simulate read it): row = (zero-Doppler time -
+// first line's) / line interval, column = (slant range - first sample's) /
+// spacing, or for a Sentinel-1 GRD the ground-range pixel of that slant
+// range (the product's srgr polynomials) minus the window's first pixel.
+ImageProjection RadarGridProjection(const SimulateRequest& o, const geo::LocalFrame& frame, Reporter& reporter) {
+  std::shared_ptr<const Sentinel1Source> s1;
+  geo::RslcProduct grid;
+  if (IsSentinel1Request(o)) {
+    s1 = std::make_shared<const Sentinel1Source>(ReadSentinel1Source(o, reporter));
+    grid = s1->grid;
+  } else {
+    grid = ReadProductGeometry(o, false, reporter);
+  }
+  auto orbit = std::make_shared<const sensor::Orbit>(grid.orbit.time_s, grid.orbit.position_m, grid.orbit.velocity_mps);
+  const double t0 = grid.zero_doppler_time_s.front(), dt = grid.azimuth_spacing_s();
+  const double r0 = grid.slant_range_m.front(), dr = grid.range_spacing_m();
+  const double t_mid = 0.5 * (t0 + grid.zero_doppler_time_s.back());
+  const bool ground = s1 && s1->ground_range;
+  ImageProjection p;
+  p.project = [=](const Eigen::Vector3d& enu) -> Eigen::Vector2d {
+    const auto rc = sensor::Geo2Rdr(*orbit, frame.EcefFromEnu(enu), t_mid);
+    if (!rc) return Eigen::Vector2d::Constant(std::nan(""));
+    const double col = ground ? s1->annotation.GroundRangeOfSlantRange(rc->range_m, rc->time_s) / s1->ground_spacing_m -
+                                    double(s1->window[1])
+                              : (rc->range_m - r0) / dr;
+    return {col, (rc->time_s - t0) / dt};
+  };
+  p.ray_to = [=](const Eigen::Vector3d& enu) -> Eigen::Vector3d {
+    const Eigen::Vector3d x = frame.EcefFromEnu(enu);
+    const auto rc = sensor::Geo2Rdr(*orbit, x, t_mid);
+    if (!rc) return Eigen::Vector3d::Constant(std::nan(""));
+    return frame.EnuVectorFromEcef(x - orbit->Interpolate(rc->time_s).position_m).normalized();
+  };
+  // The scene centre (the frame's origin) sets the figures of the metadata.
+  const Eigen::Vector3d centre = frame.EcefFromEnu(Eigen::Vector3d::Zero());
+  const auto rc = sensor::Geo2Rdr(*orbit, centre, t_mid);
+  if (!rc) throw InputError("the scene centre has no zero-Doppler time on the product's orbit", o.product);
+  const sensor::OrbitState state = orbit->Interpolate(rc->time_s);
+  const Eigen::Vector3d ray = p.ray_to(Eigen::Vector3d::Zero());
+  const double incidence = std::acos(std::clamp(-ray.z(), -1.0, 1.0));
+  const Eigen::Vector3d sensor_llh = geo::LocalFrame::GeodeticFromEcef(state.position_m);
+  const Eigen::Vector3d nadir =
+      (geo::LocalFrame::EcefFromGeodetic(sensor_llh.x(), sensor_llh.y(), sensor_llh.z() - 1.0) - state.position_m)
+          .normalized();
+  const Eigen::Vector3d los = (centre - state.position_m).normalized();
+  p.range_spacing_m = ground ? s1->ground_spacing_m : dr;
+  p.azimuth_spacing_m = state.velocity_mps.norm() * centre.norm() / state.position_m.norm() * dt;
+  p.ground_range_spacing_m = ground ? s1->ground_spacing_m : dr / std::max(std::sin(incidence), 0.05);
+  p.mode = std::string("radar grid (zero-Doppler geo2rdr on the orbit of ") +
+           (s1 ? "the Sentinel-1 " + std::string(s1->ground_range ? "GRD" : "SLC") : std::string("the product")) + ")";
+  p.look_side = sensor::LookSideOf(grid.look_left);
+  p.wavelength_m = grid.wavelength_m;
+  p.incidence_deg = incidence * 180.0 / M_PI;
+  p.off_nadir_deg = std::acos(std::clamp(nadir.dot(los), -1.0, 1.0)) * 180.0 / M_PI;
+  p.look_azimuth_deg = std::fmod(std::atan2(ray.x(), ray.y()) * 180.0 / M_PI + 360.0, 360.0);
+  return p;
+}
+
 std::string UtmCrsOf(double lon_deg, double lat_deg) {
   const int zone = std::clamp(int(std::floor((lon_deg + 180.0) / 6.0)) + 1, 1, 60);
   return "EPSG:" + std::to_string((lat_deg >= 0.0 ? 32600 : 32700) + zone);
@@ -176,7 +275,6 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   if (!fs::exists(mask_path)) throw InputError("the image's layover/shadow mask is missing", mask_path);
   const std::vector<uint8_t> mask = geo::ReadByteRaster(mask_path, &mask_w, &mask_h);
   if (mask_w != image.width || mask_h != image.height) throw InputError("mask size differs from the image's", mask_path);
-  const sensor::SarGeometry geometry = GeometryFromMetadata(image.metadata, image.width, image.height, request.image);
   json sidecar;
   {
     std::ifstream in(sidecar_path);
@@ -190,6 +288,20 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   const Terrain terrain = LoadImageTerrain(request, sidecar, sidecar_path, reporter);
   const geo::LocalFrame& frame = terrain.frame;
   const TerrainSurface surface(terrain);
+  // An idealised geometry (GISSAR_* metadata) or the real radar grid of a
+  // product simulation (its sidecar's request).
+  const bool radar_grid = !sidecar["options"].value("product", std::string()).empty() ||
+                          !sidecar["options"].value("orbit", std::string()).empty();
+  ImageProjection geometry;
+  if (radar_grid) {
+    SimulateRequest o;
+    json options = sidecar["options"];
+    for (const char* key : {"materials", "reflectors", "contributions", "out_prefix"}) options.erase(key);
+    o.ApplyJson(options, sidecar_path);
+    geometry = RadarGridProjection(o, frame, reporter);
+  } else {
+    geometry = IdealisedProjection(GeometryFromMetadata(image.metadata, image.width, image.height, request.image));
+  }
   ThrowIfCancelled(reporter, "geocode");
 
   // dB bands are resampled in linear power.
@@ -204,7 +316,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   const geo::CrsTransform transform(crs);
   if (transform.source_is_geographic()) throw ConfigError("the output CRS must be projected (metres): " + crs, "--crs");
   const double px = request.pixel_size_m > 0.0 ? request.pixel_size_m
-                                               : std::max(geometry.range_spacing_m(), geometry.azimuth_spacing_m());
+                                               : std::max(geometry.range_spacing_m, geometry.azimuth_spacing_m);
 
   // Extent: the terrain the image sees.
   std::vector<double> ex, ey;
@@ -214,8 +326,8 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
     for (size_t i = 0; i < vertices.size(); i += stride) {
       const Eigen::Vector3d v = vertices[i].cast<double>();
       if (!v.allFinite()) continue;
-      const Eigen::Vector2d p = geometry.Project(v);
-      if (p.x() < -0.5 || p.y() < -0.5 || p.x() > image.width - 0.5 || p.y() > image.height - 0.5) continue;
+      const Eigen::Vector2d p = geometry.project(v);
+      if (!p.allFinite() || p.x() < -0.5 || p.y() < -0.5 || p.x() > image.width - 0.5 || p.y() > image.height - 0.5) continue;
       const Eigen::Vector3d g = frame.GeodeticFromEnu(v);
       ex.push_back(g.x());
       ey.push_back(g.y());
@@ -236,10 +348,11 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   const std::vector<double> geotransform{x_min, px, 0.0, y_max, 0.0, -px};
 
   // Points per output pixel.
-  const double ground_range_m = geometry.range_spacing_m() / std::max(std::cos(geometry.options().depression_deg * M_PI / 180.0), 0.05);
   const std::string resampling(kGeocodeResamplings.Name(request.resampling));
   const int k = request.resampling == GeocodeResampling::kAverage
-                    ? std::clamp(int(std::ceil(px / std::min(ground_range_m, geometry.azimuth_spacing_m()) - 1e-9)), 1, 8)
+                    ? std::clamp(int(std::ceil(px / std::min(geometry.ground_range_spacing_m, geometry.azimuth_spacing_m) -
+                                               1e-9)),
+                                 1, 8)
                     : 1;
 
   // The terrain point (ENU) under WGS84 lon/lat: the height h at which
@@ -295,8 +408,8 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
         const size_t at = col * per_pixel + s;
         const Eigen::Vector3d p = ground(sx[at], sy[at]);
         if (!p.allFinite()) continue;
-        const Eigen::Vector2d q = geometry.Project(p);
-        if (q.x() < -0.5 || q.y() < -0.5 || q.x() > image.width - 0.5 || q.y() > image.height - 0.5) continue;
+        const Eigen::Vector2d q = geometry.project(p);
+        if (!q.allFinite() || q.x() < -0.5 || q.y() < -0.5 || q.x() > image.width - 0.5 || q.y() > image.height - 0.5) continue;
         ++seen;
         for (int b = 0; b < nbands_in; ++b) {
           const float v = Bilinear(image.bands[b], image.width, image.height, q.x(), q.y());
@@ -331,7 +444,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
       const double zy = (surface(p.x(), p.y() + d) - surface(p.x(), p.y() - d)) / (2.0 * d);
       if (!std::isfinite(zx) || !std::isfinite(zy)) continue;
       const Eigen::Vector3d normal = Eigen::Vector3d(-zx, -zy, 1.0).normalized();
-      const double c = std::clamp(-geometry.RayDirectionTo(p).dot(normal), -1.0, 1.0);
+      const double c = std::clamp(-geometry.ray_to(p).dot(normal), -1.0, 1.0);
       incidence[o] = float(std::acos(c) * 180.0 / M_PI);
     }
     for (int col : {first_valid, last_valid}) {
@@ -380,7 +493,7 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
                         {"pixel_size_m", px}, {"points_per_pixel", k * k}};
   provenance["vertical_datum"] = VerticalDatumRecord(terrain);
   provenance["terrain"] = request.dem.empty() ? "the simulation's own terrain (sidecar options)" : "--dem, in the simulation's frame";
-  provenance["projection_mode"] = sensor::ToString(geometry.mode());
+  provenance["projection_mode"] = geometry.mode;
   provenance["bands"] = out.band_names;
   provenance["band_units"] = out.band_units;
   provenance["nodata"] = "NaN";
@@ -397,12 +510,12 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   p.datetime_utc = provenance["created_utc"].get<std::string>();
   p.footprint_lonlat = footprint;
   const json& sim_options = sidecar["options"];
-  p.wavelength_m = sim_options.value("wavelength_m", 0.031);
+  p.wavelength_m = geometry.wavelength_m > 0.0 ? geometry.wavelength_m : sim_options.value("wavelength_m", 0.031);
   p.polarization = sim_options.value("polarization", std::string("VV"));
   p.product_type = "GEOCODED";
-  p.observation_direction = sensor::ToString(geometry.options().look_side);
-  p.range_spacing_m = geometry.range_spacing_m();
-  p.azimuth_spacing_m = geometry.azimuth_spacing_m();
+  p.observation_direction = sensor::ToString(geometry.look_side);
+  p.range_spacing_m = geometry.range_spacing_m;
+  p.azimuth_spacing_m = geometry.azimuth_spacing_m;
   // null: not set (SimulateRequest: none on an idealised geometry).
   for (const auto& [key, field] : {std::pair{"range_resolution_m", &p.range_resolution_m},
                                    std::pair{"azimuth_resolution_m", &p.azimuth_resolution_m}}) {
@@ -410,9 +523,9 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
       *field = sim_options[key].get<double>();
     }
   }
-  p.incidence_deg = geometry.IncidenceDeg(geometry.u0());
-  p.off_nadir_deg = 90.0 - geometry.options().depression_deg;
-  p.look_azimuth_deg = geometry.options().heading_deg + (geometry.options().look_side == sensor::LookSide::kRight ? 90.0 : -90.0);
+  p.incidence_deg = geometry.incidence_deg;
+  p.off_nadir_deg = geometry.off_nadir_deg;
+  p.look_azimuth_deg = geometry.look_azimuth_deg;
   if (crs.rfind("EPSG:", 0) == 0) p.proj_code = crs;
   p.width = width;
   p.height = height;

@@ -6,7 +6,10 @@
 // (the simulation's own mesh, reloaded from the sidecar's request, or the
 // DEM given with --dem, meshed in the simulation's frame) and projected into
 // the image with the image's own model (affine or exact, from the image's
-// GISSAR_* metadata). The slant-range bands are sampled there (bilinear), or
+// GISSAR_* metadata; for an image simulated on a real radar grid -- a NISAR
+// product, a Sentinel-1 burst, swath or GRD window, an orbit with a radar
+// grid -- zero-Doppler geo2rdr on the grid's orbit, the grid read again from
+// the sidecar's request). The slant-range bands are sampled there (bilinear), or
 // averaged over k x k such points per output pixel ("average", k = output
 // pixel / finest ground spacing of the image, at most 8). No interpolation
 // in map space is ever involved, so relief is followed exactly.
