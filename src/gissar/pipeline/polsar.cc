@@ -10,6 +10,7 @@
 
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/rslc_product.h"
+#include "gissar/geo/sentinel1_safe.h"
 #include "gissar/image/polarimetry.h"
 #include "gissar/material/material.h"
 #include "gissar/pipeline/field_names.h"
@@ -60,6 +61,18 @@ struct QuadInput {
 };
 
 QuadInput FromProduct(const PolsarRequest& request, int looks_range, int looks_azimuth) {
+  if (geo::IsSentinel1Path(request.product)) {
+    // Sentinel-1 transmits one polarisation (single or dual-pol products):
+    // no scattering matrix to decompose.
+    std::string channels;
+    for (const geo::Sentinel1Entry& e : geo::OpenSentinel1(request.product).entries) {
+      if (channels.find(e.polarization) == std::string::npos) channels += (channels.empty() ? "" : ", ") + e.polarization;
+    }
+    throw InputError("a Sentinel-1 product holds " + channels +
+                         " only: a quad-pol decomposition needs HH, HV, VH and VV (a NISAR or ALOS quad-pol RSLC, or "
+                         "`simulate --polarization quad --coherent`)",
+                     "--product (" + request.product + ")");
+  }
   QuadInput q;
   geo::RslcReadOptions options;
   options.frequency = request.frequency;
