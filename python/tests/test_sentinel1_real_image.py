@@ -405,3 +405,186 @@ def test_locate_refuses_a_grd_and_a_selection_without_a_safe(tmp_path):
     r = run("locate", "--product", os.path.join(ROOT, "data", "uavsar", "SanAnd_129.h5"), "--burst", "2",
             "--dem", str(dem), "--out", str(tmp_path / "f.json"), "--quiet")
     assert r.returncode == 2 and "--burst" in r.stderr
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# validate --radiometry / --noise-removal: the real image calibrated with the LUT named, the simulation alike
+
+def line_vectors_at(path, vector, tag, lines, pixels):
+    """The LUT `tag` of the `vector` elements of an IW1 VV annotation at measurement `lines` x `pixels`, interpolated
+    as the product specification says: linearly in pixel along the two vectors bracketing the line, then linearly
+    in line; beyond the table the nearest edge value."""
+    rows, along = [], []
+    for v in ET.parse(path).getroot().iter(vector):
+        rows.append(int(v.find("line").text))
+        along.append(np.interp(pixels, [float(x) for x in v.find("pixel").text.split()],
+                               [float(x) for x in v.find(tag).text.split()]))
+    rows, along = np.array(rows), np.array(along)
+    out = np.empty((len(lines), len(pixels)))
+    for i, line in enumerate(lines):
+        k = int(np.clip(np.searchsorted(rows, line, side="right") - 1, 0, len(rows) - 2))
+        f = float(np.clip((line - rows[k]) / (rows[k + 1] - rows[k]), 0.0, 1.0))
+        out[i] = (1.0 - f) * along[k] + f * along[k + 1]
+    return out
+
+
+def calibration_lut(safe, tag, lines, pixels):
+    """ESA's calibration LUT `tag` (sigmaNought, betaNought, gamma) of IW1 VV."""
+    path = glob.glob(os.path.join(safe, "annotation", "calibration", "calibration-s1b-iw1-slc-vv-*.xml"))[0]
+    return line_vectors_at(path, "calibrationVector", tag, lines, pixels)
+
+
+def noise_power(safe, lines, pixels):
+    """IW1 VV's thermal noise power: noiseRangeLut (bilinear) x noiseAzimuthLut (linear in line). This product has
+    one azimuth block, covering every line and sample (checked)."""
+    path = glob.glob(os.path.join(safe, "annotation", "calibration", "noise-s1b-iw1-slc-vv-*.xml"))[0]
+    blocks = list(ET.parse(path).getroot().iter("noiseAzimuthVector"))
+    assert len(blocks) == 1 and int(blocks[0].find("firstRangeSample").text) == 0
+    assert int(blocks[0].find("lastRangeSample").text) >= pixels[-1]
+    azimuth = np.interp(lines, [float(x) for x in blocks[0].find("line").text.split()],
+                        [float(x) for x in blocks[0].find("noiseAzimuthLut").text.split()])
+    return line_vectors_at(path, "noiseRangeVector", "noiseRangeLut", lines, pixels) * azimuth[:, None]
+
+
+def level_difference_db(simulated, real, height, k=3):
+    """validate's level_difference_db as docs/sentinel1.md defines it: over the k x k blocks whose pixels all have a
+    ground point and a positive real value, the median of 10 log10 of the real block sums minus that of the
+    simulated ones (the element at index n // 2 of each sorted list, as the report takes it)."""
+    valid = np.isfinite(height) & np.isfinite(real) & (np.nan_to_num(real) > 0)
+    a, b = [], []
+    for r0 in range(0, simulated.shape[0] - k + 1, k):
+        for c0 in range(0, simulated.shape[1] - k + 1, k):
+            if not valid[r0:r0 + k, c0:c0 + k].all():
+                continue
+            sa, sb = float(np.sum(simulated[r0:r0 + k, c0:c0 + k])), float(np.sum(real[r0:r0 + k, c0:c0 + k]))
+            if sa > 0 and sb > 0:
+                a.append(10 * math.log10(sa))
+                b.append(10 * math.log10(sb))
+    return sorted(b)[len(b) // 2] - sorted(a)[len(a) // 2], len(a)
+
+
+def simulate_window_in(radiometry, safe, selection, window, dem, out):
+    r = run("simulate", "--product", safe, *selection, "--product-window", ",".join(map(str, window)),
+            "--dem", str(dem), "--vertical-datum", "ellipsoid", "--radiometry", radiometry,
+            "--range-resolution", "0", "--azimuth-resolution", "0", "--out", str(out), "--quiet")
+    assert r.returncode == 0, r.stderr
+    return read_band(str(out) + ".tif")
+
+
+def validate_in(radiometry, safe, selection, window, dem, out):
+    r = run("validate", "--product", safe, *selection, "--product-window", ",".join(map(str, window)),
+            "--dem", str(dem), "--vertical-datum", "ellipsoid", "--looks", "1,3", "--radiometry", radiometry,
+            "--out", str(out), "--quiet")
+    assert r.returncode == 0, r.stderr
+    return json.load(open(str(out) + ".json"))
+
+
+def test_validate_radiometry_calibrates_the_real_image_with_the_lut_it_names(burst_scene):
+    s = burst_scene
+    window = s["window"]
+    lines = s["first_line"] + np.arange(window[2])
+    pixels = window[1] + np.arange(window[3])
+    a_sigma = calibration_lut(SAFE, "sigmaNought", lines, pixels)
+    a_gamma = calibration_lut(SAFE, "gamma", lines, pixels)
+    a_beta = first_beta_nought(SAFE)  # constant in this product (checked there)
+    assert a_sigma.max() - a_sigma.min() > 0.1  # sigmaNought is not: it is interpolated per pixel
+    # The real image: the simulation in sigma0 written as DN = round(sqrt(sigma0) x sigmaNought).
+    sigma0 = simulate_window_in("sigma0", SAFE, s["selection"], window, s["dem"], s["tmp"] / "sim_sigma0")
+    ds = gdal.Open(str(s["tmp"] / "sim_sigma0.tif"))
+    height = ds.GetRasterBand(8).ReadAsArray()  # band 8: height_m, NaN where a pixel has no ground point
+    ds = None
+    beta0 = read_band(s["tmp"] / "sim.tif")  # the fixture's beta0 simulation of the same window
+    dn = np.where(np.isfinite(sigma0), np.round(np.sqrt(np.nan_to_num(sigma0)) * a_sigma), 0)
+    safe = str(s["tmp"] / "sigma.SAFE")
+    shutil.copytree(SAFE, safe)
+    tiff = glob.glob(os.path.join(safe, "measurement", "s1b-iw1-slc-vv-*.tiff"))[0]
+    write_dn(tiff, dn.astype(np.complex64), s["first_line"], window[1])
+
+    # Compared in sigma0: the same pixels at the same level.
+    report = validate_in("sigma0", safe, s["selection"], window, s["dem"], s["tmp"] / "v_sigma0")
+    one, three = report["correlation"]
+    assert one["r_db"] > 0.999 and three["r_db"] > 0.999
+    level_sigma0 = report["level_difference_db"]["real_minus_simulated_median_db"]
+    assert level_sigma0 == pytest.approx(0.0, abs=0.02)
+    assert report["radiometry"]["quantity"] == "sigma0" and report["radiometry"]["noise_removal"] is False
+    assert report["real_image"].startswith("sigma0 = |DN|^2 / sigmaNought^2")
+    assert report["options"]["radiometry"] == "sigma0"
+    real = np.where(dn > 0, dn ** 2 / a_sigma ** 2, np.nan)
+    expected, blocks = level_difference_db(sigma0, real, height)
+    assert blocks == report["level_difference_db"]["blocks"]
+    assert level_sigma0 == pytest.approx(expected, abs=0.001)
+
+    # Compared in beta0 (and gamma0), the same real image: real beta0 = DN^2 / betaNought^2 = sigma0_sim x
+    # sigmaNought^2 / betaNought^2 (to the DN rounding), against the simulated beta0_sim = sigma0_sim / sin(theta_i),
+    # theta_i gissar's ellipsoid incidence of the pixel. Per pixel the ratio real / simulated is therefore
+    # rho = sigmaNought^2 / betaNought^2 x sin(theta_i), with sin(theta_i) = sigma0_sim / beta0_sim read from the
+    # two simulations; in gamma0 (gamma0_sim = sigma0_sim / cos(theta_i)) rho = sigmaNought^2 / gamma^2 x
+    # cos(theta_i). The level difference (the median of the real 3 x 3 block means in dB minus the median of the
+    # simulated ones) lies between the least and the largest 10 log10(rho) of the window (a block mean of
+    # real = rho x simulated is within rho's range times the simulated mean, and shifting every value by at least
+    # lo and at most hi dB shifts the median so), near its middle. ESA derives sigmaNought and gamma from betaNought
+    # with its own ellipsoid incidence (sigmaNought^2 = betaNought^2 / sin(theta_ESA), gamma^2 = sigmaNought^2 x
+    # cos(theta_ESA)), so rho is sin(theta_gissar) / sin(theta_ESA) (cos / cos in gamma0): near 1, and
+    # 10 log10(rho) measures how well the two incidences agree (31.12 against 31.10 degrees here).
+    ok = np.isfinite(beta0) & np.isfinite(sigma0) & (beta0 > 0) & (sigma0 > 0)
+    sin_incidence = np.where(ok, sigma0 / np.where(ok, beta0, 1.0), np.nan)
+    assert 0.2 < np.nanmedian(sin_incidence) < 0.8
+    for quantity, rho in (("beta0", a_sigma ** 2 / a_beta ** 2 * sin_incidence),
+                          ("gamma0", a_sigma ** 2 / a_gamma ** 2 * np.sqrt(1 - sin_incidence ** 2))):
+        rho_db = 10 * np.log10(rho)
+        lo, hi, middle = np.nanmin(rho_db), np.nanmax(rho_db), float(np.nanmedian(rho_db))
+        assert hi - lo < 0.02
+        report = validate_in(quantity, safe, s["selection"], window, s["dem"], s["tmp"] / ("v_" + quantity))
+        level = report["level_difference_db"]["real_minus_simulated_median_db"]
+        assert lo - 0.005 <= level <= hi + 0.005, (quantity, lo, hi, level)
+        assert level == pytest.approx(middle, abs=0.01)
+        assert report["correlation"][0]["r_db"] > 0.999
+        assert report["radiometry"]["quantity"] == quantity
+        lut = {"beta0": "betaNought", "gamma0": "gamma"}[quantity]
+        assert report["real_image"].startswith(f"{quantity} = |DN|^2 / {lut}^2")
+    # Had the beta0 real image been read with the sigmaNought LUT (or the simulation stayed in sigma0) the level
+    # would be off by 10 log10(sin theta_i), about -2.9 dB here: the figures above tell the LUTs apart.
+    assert 10 * np.log10(np.nanmedian(sin_incidence)) < -2.0
+
+    # With --noise-removal the real image is (DN^2 - N) / sigmaNought^2, N the noise LUTs (about 500 against a
+    # median DN^2 of about 6000): the level drops by the figure the test computes from the noise annotation.
+    r = run("validate", "--product", safe, *s["selection"], "--product-window", ",".join(map(str, window)),
+            "--dem", str(s["dem"]), "--vertical-datum", "ellipsoid", "--looks", "1,3", "--radiometry", "sigma0",
+            "--noise-removal", "--out", str(s["tmp"] / "v_noise"), "--quiet")
+    assert r.returncode == 0, r.stderr
+    report = json.load(open(str(s["tmp"] / "v_noise") + ".json"))
+    power = dn ** 2 - noise_power(SAFE, lines, pixels)
+    real = np.where((dn > 0) & (power >= 0), power / a_sigma ** 2, np.nan)
+    expected, blocks = level_difference_db(sigma0, real, height)
+    level = report["level_difference_db"]["real_minus_simulated_median_db"]
+    assert blocks == report["level_difference_db"]["blocks"]
+    assert level == pytest.approx(expected, abs=0.001) and level < level_sigma0 - 0.1
+    assert report["radiometry"]["noise_removal"] is True and report["options"]["noise_removal"] is True
+    assert report["real_image"].startswith("sigma0 = (|DN|^2 - N) / sigmaNought^2")
+    assert report["correlation"][1]["r_db"] > 0.99
+
+
+def test_validate_noise_removal_on_the_placeholder_leaves_no_valid_pixel(burst_scene):
+    """The bundled burst holds DN 2 (|DN|^2 = 4) under a thermal noise power of about 500: with --noise-removal
+    every real pixel is negative, hence no-data; validate says so, naming the flag, and writes nothing."""
+    s = burst_scene
+    out = s["tmp"] / "noise"
+    r = run("validate", "--product", SAFE, *s["selection"], "--product-window", ",".join(map(str, s["window"])),
+            "--dem", str(s["dem"]), "--vertical-datum", "ellipsoid", "--noise-removal", "--out", str(out), "--quiet")
+    assert r.returncode == 2, r.stderr
+    assert "no valid real pixel after noise removal" in r.stderr and "--noise-removal" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not glob.glob(str(out) + "*")
+
+
+def test_validate_radiometry_and_noise_removal_with_a_nisar_product_are_refused(tmp_path):
+    dem = tmp_path / "hills.tif"
+    hills_dem(dem, 35.0, -120.0, 500.0)
+    nisar = os.path.join(ROOT, "data", "uavsar", "SanAnd_129.h5")
+    for extra, flag, words in ((["--radiometry", "sigma0"], "--radiometry", "beta0"),
+                               (["--radiometry", "gamma0"], "--radiometry", "beta0"),
+                               (["--noise-removal"], "--noise-removal", "Sentinel-1")):
+        r = run("validate", "--product", nisar, "--dem", str(dem), *extra, "--out", str(tmp_path / "v"), "--quiet")
+        assert r.returncode == 2, r.stderr
+        assert flag in r.stderr and words in r.stderr
+        assert not os.path.exists(tmp_path / "v.json")

@@ -7,6 +7,7 @@
 
 #include "gissar/cli/command.h"
 #include "gissar/cli/headline.h"
+#include "gissar/image/radiometry.h"
 #include "gissar/material/material.h"
 #include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/validate_sentinel1.h"
@@ -46,7 +47,8 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   auto looks = std::make_shared<std::string>("1,3,5");
   CLI::App* cmd = root.add_subcommand(
       "validate",
-      "Simulate a real SAR product (NISAR RSLC HDF5, Sentinel-1 SAFE) and compare with its image (beta0) and a "
+      "Simulate a real SAR product (NISAR RSLC HDF5, Sentinel-1 SAFE) and compare with its image (beta0, or "
+      "--radiometry) and a "
       "reference geolocation; for a Sentinel-1 SAFE without --dem/--scene, check gissar's geometry against its "
       "geolocation grids.");
   cmd->add_option("--product", options->simulate.product,
@@ -66,6 +68,16 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   cmd->add_option("--looks", *looks, "Multilook sizes k of the k x k correlations, comma-separated")
       ->capture_default_str();
   simulate_flags->Add({"rays_per_cell", "bounces", "burst", "product_window_px"});
+  // validate's default quantity is beta0 (a NISAR RSLC's |s|^2), not
+  // simulate's sigma0: the flag's default is set before it is declared.
+  options->simulate.radiometry = "beta0";
+  simulate_flags->Add("radiometry")
+      ->description("Quantity compared: the real image calibrated with a Sentinel-1 product's sigmaNought, "
+                    "betaNought or gamma LUT, the simulation converted from beta0 with each pixel's ellipsoid "
+                    "incidence: " + image::kRadiometries.Alternatives() + " (a NISAR product: beta0 only, its |s|^2)");
+  AddSwitch(cmd, "noise-removal", options->noise_removal,
+            "Sentinel-1: subtract the thermal noise power (noiseRangeLut, times noiseAzimuthLut where given) from the real image's "
+            "|DN|^2 (negative: no-data)");
   cmd->add_option("--out", options->out_prefix,
                   "Output prefix: PREFIX.json, PREFIX.md, PREFIX_side_by_side.png, PREFIX_histogram.png (Sentinel-1: PREFIX.json)")
       ->required();
@@ -76,6 +88,7 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
   registry.Add(cmd, [=](const CommandContext& context) {
     ValidateRequest resolved = *options;
     simulate_flags->Apply(resolved.simulate);
+    resolved.radiometry = resolved.simulate.radiometry;  // beta0 unless --radiometry is given
     const bool terrain = !resolved.simulate.dem.empty() || !resolved.simulate.scene.empty();
     if (geo::IsSentinel1Path(resolved.simulate.product) && !terrain) {
       // Without terrain: the geometry against the product's geolocation grids.
@@ -83,6 +96,8 @@ void AddProductCommands(CLI::App& root, CommandRegistry& registry) {
       if (resolved.simulate.product_window_px) {
         throw ConfigError("goes with --dem or --scene (a simulation)", "--product-window");
       }
+      if (cmd->count("--radiometry") > 0) throw ConfigError("goes with --dem or --scene (a simulation)", "--radiometry");
+      if (resolved.noise_removal) throw ConfigError("goes with --dem or --scene (a simulation)", "--noise-removal");
       Sentinel1ValidateRequest request = *s1;
       request.product = options->simulate.product;
       request.out_prefix = options->out_prefix;

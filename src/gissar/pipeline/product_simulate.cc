@@ -15,6 +15,7 @@
 #include "gissar/geo/orbit_file.h"
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/reference_geolocation.h"
+#include "gissar/geo/sentinel1_measurement.h"
 #include "gissar/image/impulse_response.h"
 #include "gissar/image/radiometry.h"
 #include "gissar/image/quicklook.h"
@@ -312,22 +313,30 @@ ProductResolutions ResolveProductResolutions(const SimulateRequest& options, con
 }
 
 ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
+  RealImageOptions real;
+  real.read = read_amplitude;
+  return SimulateProduct(options, real, reporter);
+}
+
+ProductSimulation SimulateProduct(const SimulateRequest& options, const RealImageOptions& real, Reporter& reporter) {
   auto say = [&](const std::string& line) { reporter.Info("simulate: " + line); };
   ProductSimulation sim;
   if (IsSentinel1Request(options)) {
     auto source = std::make_shared<Sentinel1Source>(ReadSentinel1Source(options, reporter));
     sim.product = source->grid;
-    if (read_amplitude) {
+    if (real.read) {
       // The real image on the output grid (a GRD's: its ground-range pixels).
-      const std::vector<float> beta0 = ReadSentinel1Beta0(*source, options.product);
-      sim.product.amplitude.resize(beta0.size());
-      for (size_t k = 0; k < beta0.size(); ++k) {
-        sim.product.amplitude[k] = std::isfinite(beta0[k]) && beta0[k] > 0.0f ? std::sqrt(beta0[k]) : 0.0f;
+      const std::vector<float> power =
+          ReadSentinel1Calibrated(*source, options.product, geo::ParseSentinel1Radiometry(real.radiometry, "--radiometry"),
+                                  real.remove_noise);
+      sim.product.amplitude.resize(power.size());
+      for (size_t k = 0; k < power.size(); ++k) {
+        sim.product.amplitude[k] = std::isfinite(power[k]) && power[k] > 0.0f ? std::sqrt(power[k]) : 0.0f;
       }
     }
     sim.sentinel1 = std::move(source);
   } else {
-    sim.product = ReadProductGeometry(options, read_amplitude, reporter);
+    sim.product = ReadProductGeometry(options, real.read, reporter);
   }
   const geo::RslcProduct& p = sim.product;
   const sensor::Orbit orbit(p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps);
@@ -729,6 +738,19 @@ void ValidateRequest::Check() const {
   SimulateRequest probe = simulate;
   probe.out_prefix = out_prefix;
   probe.Check();
+  const image::Radiometry quantity = image::ParseRadiometry(radiometry, "--radiometry");
+  if (!IsSentinel1Request(simulate)) {
+    if (quantity != image::Radiometry::kBeta0) {
+      throw ConfigError("only beta0 with a NISAR product: its |s|^2 is beta0 (NISAR's calibration); sigma0 and "
+                        "gamma0 are calibrated with a Sentinel-1 product's LUTs",
+                        "--radiometry");
+    }
+    if (noise_removal) {
+      throw ConfigError("only for a Sentinel-1 product (gissar reads the thermal noise LUTs of a SAFE, not a NISAR "
+                        "product's noise)",
+                        "--noise-removal");
+    }
+  }
   if (!reference_geolocation.empty() && IsSentinel1Request(simulate)) {
     throw ConfigError("a peer's per-pixel geolocation (ISCE topo layers) goes with a NISAR product; a Sentinel-1 "
                       "product's geometry is checked against its geolocation grids (validate without terrain)",
@@ -746,6 +768,8 @@ void ValidateRequest::Check() const {
 nlohmann::json ValidateRequest::ToJson() const {
   nlohmann::json j = simulate.ToJson();
   j.erase("out_prefix");
+  j["radiometry"] = radiometry;  // the quantity compared, not simulate.radiometry
+  j["noise_removal"] = noise_removal;
   j["reference_geolocation"] = reference_geolocation;
   j["looks"] = looks;
   j["out_prefix"] = out_prefix;
@@ -827,16 +851,23 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
     reference = std::make_unique<geo::ReferenceGeolocation>(geo::ReadReferenceGeolocation(options.reference_geolocation));
   }
 
-  // An RSLC's |s|^2 is beta0 (NISAR's calibration): compare like with like.
-  SimulateRequest beta0 = options.simulate;
-  beta0.radiometry = "beta0";
-  beta0.db = false;
+  // Like with like: the simulation in the radiometry the real image is
+  // calibrated to (an RSLC's |s|^2 is beta0, NISAR's calibration; a SAFE's
+  // with the LUT of options.radiometry).
+  const std::string quantity = image::ToString(image::ParseRadiometry(options.radiometry, "--radiometry"));
+  SimulateRequest compared = options.simulate;
+  compared.radiometry = quantity;
+  compared.db = false;
   // validate offers no resolutions: it compares the simulation without an
   // impulse response (not the product's processed bandwidths; with them the
   // San Andreas r dB falls from 0.139 to 0.132 at 3 x 3 looks).
-  if (std::isnan(beta0.range_resolution_m)) beta0.range_resolution_m = 0.0;
-  if (std::isnan(beta0.azimuth_resolution_m)) beta0.azimuth_resolution_m = 0.0;
-  ProductSimulation sim = SimulateProduct(beta0, true, reporter);
+  if (std::isnan(compared.range_resolution_m)) compared.range_resolution_m = 0.0;
+  if (std::isnan(compared.azimuth_resolution_m)) compared.azimuth_resolution_m = 0.0;
+  RealImageOptions real_options;
+  real_options.read = true;
+  real_options.radiometry = quantity;
+  real_options.remove_noise = options.noise_removal;
+  ProductSimulation sim = SimulateProduct(compared, real_options, reporter);
   // A GRD: the simulation onto the GRD's ground-range pixels, where its real
   // image is (a Sentinel-1 product's real image is read on the output grid).
   if (sim.sentinel1 && sim.sentinel1->ground_range) ResampleToGroundRange(*sim.sentinel1, sim);
@@ -1016,10 +1047,28 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   std::vector<std::string> names;
   for (const fs::path& p : outputs.final_paths()) names.push_back(fs::absolute(p).string());
   report["outputs"] = names;
-  report["real_image"] = sim.sentinel1 ? "beta0 = |DN|^2 / betaNought^2 (the SAFE's calibration LUT, bilinear), " +
-                                             sim.sentinel1->annotation.polarization
-                                       : "|s|^2 of the RSLC (beta0), " + sim.product.polarization;
-  report["side_by_side"] = std::string(sim.sentinel1 ? "left: real beta0 dB" : "left: real |HH|^2 dB") + "; middle: simulated dB; right: mask (white none, light grey layover, black shadow, dark grey both)";
+  // The quantity on both sides: the real image's formula (the LUT, the noise
+  // subtracted or not) and the simulation's conversion from beta0.
+  std::string real_formula = "|s|^2 of the RSLC (beta0)";
+  if (sim.sentinel1) {
+    const std::string lut = quantity == "sigma0" ? "sigmaNought" : quantity == "gamma0" ? "gamma" : "betaNought";
+    real_formula = quantity + (options.noise_removal ? " = (|DN|^2 - N) / " : " = |DN|^2 / ") + lut +
+                   "^2 (the SAFE's calibration LUT, bilinear; " +
+                   (options.noise_removal ? "N the thermal noise power of the noise annotation, noiseRangeLut x "
+                                                            "noiseAzimuthLut where it has one, bilinear"
+                                          : "no noise removal") +
+                   ")";
+  }
+  report["radiometry"] = {
+      {"quantity", quantity},
+      {"noise_removal", options.noise_removal},
+      {"real", real_formula},
+      {"simulated", quantity == "beta0" ? "beta0 as rendered"
+                                        : quantity + " = beta0 x " + (quantity == "sigma0" ? "sin" : "tan") +
+                                              "(ellipsoid incidence of each pixel)"}};
+  report["real_image"] = real_formula + ", " + (sim.sentinel1 ? sim.sentinel1->annotation.polarization
+                                                              : sim.product.polarization);
+  report["side_by_side"] = std::string(sim.sentinel1 ? "left: real " + quantity + " dB" : "left: real |HH|^2 dB") + "; middle: simulated dB; right: mask (white none, light grey layover, black shadow, dark grey both)";
   report["timings_s"] = {{"total", total.ElapsedSeconds()}};
 
   std::ostringstream md;
@@ -1027,7 +1076,9 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   md << "Terrain: " << (options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)
      << " (vertical datum: " << sim.frame["vertical_datum"].get<std::string>() << ", source: "
      << sim.frame["vertical_datum_source"].get<std::string>() << "); grid " << height << " lines x " << width
-     << " range bins.\n\n## Correlation with the real amplitude\n\n";
+     << " range bins.\n\nCompared in " << quantity << ": real " << report["real_image"].get<std::string>()
+     << "; simulated " << report["radiometry"]["simulated"].get<std::string>()
+     << ".\n\n## Correlation with the real amplitude\n\n";
   md << "Multilook: k x k non-overlapping blocks; intensity (|SLC|^2, power) averaged for r (intensity) and "
         "r (dB) (10 log10 of the block mean), amplitude averaged for r (amplitude). Peer: simamp block means.\n\n";
   md << "| looks | blocks | r (dB) | r (intensity) | r (amplitude) | peer r (dB) | peer r (intensity) | peer r "

@@ -93,6 +93,25 @@ struct ProductSimulation {
 // planes by the square root of the factor), complex thermal noise on the
 // total and detection (image.intensity and bounce_layers the detected power
 // of the complex total and layers). Throws the gissar::Error family.
+//
+// `real` says whether and how the real image is read into
+// product.amplitude (the square root of its calibrated power, 0 where
+// no-data), before anything is rendered.
+struct RealImageOptions {
+  bool read = false;
+  // A Sentinel-1 SAFE: the LUT the real image is calibrated with
+  // (ReadSentinel1Calibrated; "sigma0", "beta0" or "gamma0", ConfigError
+  // naming --radiometry otherwise) and whether the thermal noise LUTs are
+  // subtracted (InputError naming --noise-removal when no pixel is left).
+  // A NISAR RSLC's |s|^2 is read as stored (beta0) whatever these say: its
+  // callers refuse other values (ValidateRequest::Check).
+  std::string radiometry = "beta0";
+  bool remove_noise = false;
+};
+ProductSimulation SimulateProduct(const SimulateRequest& options, const RealImageOptions& real,
+                                  Reporter& reporter = NullReporter());
+// The same with the real image in beta0, no noise removal (read_amplitude),
+// or none.
 ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_amplitude,
                                   Reporter& reporter = NullReporter());
 
@@ -112,12 +131,23 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
 
 struct ValidateRequest {
   SimulateRequest simulate;                // product, dem/scene, datum, rays, bounces, quiet
+  // The quantity compared (--radiometry; simulate.radiometry is not read):
+  // the real image calibrated to it and the simulation converted to it from
+  // beta0 with each pixel's ellipsoid incidence. "beta0" (the default: a
+  // NISAR RSLC's |s|^2 is beta0), "sigma0" or "gamma0" (a Sentinel-1 product
+  // only: its sigmaNought or gamma LUT).
+  std::string radiometry = "beta0";
+  // --noise-removal: a Sentinel-1 product's thermal noise LUTs subtracted
+  // from the real image (|DN|^2 - N; NaN where negative).
+  bool noise_removal = false;
   std::string reference_geolocation;       // directory with x.rdr, y.rdr, z.rdr (optional)
   std::vector<int> looks = {1, 3, 5};      // k of the k x k multilooks
   std::string out_prefix;                  // REPORT.json, .md, _side_by_side.png, _histogram.png
 
   // Throws ConfigError naming the option (product and terrain required,
-  // looks in [1, 64], outputs not overwriting inputs).
+  // looks in [1, 64], outputs not overwriting inputs, a radiometry of
+  // image::kRadiometries; with a NISAR product --radiometry other than beta0
+  // and --noise-removal).
   void Check() const;
   nlohmann::json ToJson() const;
 };
@@ -138,8 +168,10 @@ double MultilookPearson(const std::vector<float>& a, const std::vector<float>& b
                         bool db_a, bool db_b, const std::vector<uint8_t>& valid = {}, int64_t* blocks = nullptr);
 
 // `gissar validate`: simulates the product, compares with the real
-// amplitude (and the reference geolocation and peer simulation when
-// given) and writes the report files.
+// image in options.radiometry (and the reference geolocation and peer
+// simulation when given) and writes the report files; the report's
+// "radiometry" and "real_image" state the quantity, the LUT and the noise
+// removal.
 ValidateResult RunValidate(const ValidateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 }  // namespace gissar::pipeline

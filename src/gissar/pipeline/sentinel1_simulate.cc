@@ -369,15 +369,29 @@ void AddSentinel1Metadata(const Sentinel1Source& source, std::map<std::string, s
   }
 }
 
-std::vector<float> ReadSentinel1Beta0(const Sentinel1Source& source, const std::string& product) {
+std::vector<float> ReadSentinel1Calibrated(const Sentinel1Source& source, const std::string& product,
+                                           geo::Sentinel1Radiometry radiometry, bool remove_noise) {
+  if (radiometry == geo::Sentinel1Radiometry::kNone) {
+    throw ConfigError("the real image is compared calibrated: give sigma0, beta0 or gamma0", "--radiometry");
+  }
   geo::Sentinel1ImageOptions options;
   options.swath = source.annotation.swath;
   options.polarization = source.annotation.polarization;
   options.burst = source.burst;
-  options.radiometry = geo::Sentinel1Radiometry::kBeta0;
+  options.radiometry = radiometry;
+  options.remove_noise = remove_noise;
   const geo::Sentinel1Image image = geo::Sentinel1Image::Open(product, options);
   const std::array<int, 4>& w = source.window;
-  return image.ReadFloat({image.window().first_line + w[0], w[1], w[2], w[3]});
+  std::vector<float> values = image.ReadFloat({image.window().first_line + w[0], w[1], w[2], w[3]});
+  if (remove_noise && std::none_of(values.begin(), values.end(), [](float v) { return std::isfinite(v); })) {
+    throw InputError("no valid real pixel after noise removal: at every pixel of the window |DN|^2 is below the "
+                     "thermal noise power or the DN is no-data (lines " + std::to_string(w[0]) + "-" + std::to_string(w[0] + w[2] - 1) +
+                         ", pixels " + std::to_string(w[1]) + "-" + std::to_string(w[1] + w[3] - 1) + " of " +
+                         (source.burst > 0 ? "burst " + std::to_string(source.burst) + " of " : std::string()) +
+                         source.annotation.swath + " " + source.annotation.polarization + ")",
+                     "--noise-removal");
+  }
+  return values;
 }
 
 void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim) {

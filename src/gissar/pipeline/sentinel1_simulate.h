@@ -35,6 +35,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gissar/geo/rslc_product.h"
+#include "gissar/geo/sentinel1_measurement.h"
 #include "gissar/geo/sentinel1_safe.h"
 #include "gissar/util/reporter.h"
 
@@ -113,14 +114,26 @@ Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& re
 // (not dB) values. sim.grid keeps the slant grid rendered.
 void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim);
 
-// The real image of source.window, calibrated to beta0 (linear power,
-// |DN|^2 / betaNought^2 with ESA's LUT bilinear in line and pixel;
-// geo::Sentinel1Image): window lines x pixels, row-major, in the product's
-// own numbering (an IW/EW burst's lines, a GRD's ground-range pixels); NaN
-// where the DN is 0 or, in a burst, outside its valid samples. Throws what
-// geo::Sentinel1Image::Open throws (a missing measurement or calibration
-// file, named).
-std::vector<float> ReadSentinel1Beta0(const Sentinel1Source& source, const std::string& product);
+// The real image of source.window, calibrated to `radiometry` (sigma0,
+// beta0 or gamma0: linear power (|DN|^2 - N) / A^2, A the sigmaNought,
+// betaNought or gamma LUT, N = 0, or with `remove_noise` the thermal noise
+// power (noiseRangeLut, times noiseAzimuthLut where the noise annotation has
+// one); both bilinear in line and pixel as
+// ESA specifies; geo::Sentinel1Image): window lines x pixels, row-major, in
+// the product's own numbering (an IW/EW burst's lines, a GRD's ground-range
+// pixels); NaN where the DN is 0, in a burst outside its valid samples, and
+// with noise removal where |DN|^2 < N. Throws what
+// geo::Sentinel1Image::Open throws (a missing measurement, calibration or
+// noise file, named); ConfigError naming --radiometry for kNone; with
+// `remove_noise`, InputError naming --noise-removal when no pixel of the
+// window is left valid (the noise power above |DN|^2 everywhere).
+std::vector<float> ReadSentinel1Calibrated(const Sentinel1Source& source, const std::string& product,
+                                           geo::Sentinel1Radiometry radiometry, bool remove_noise);
+// ReadSentinel1Calibrated in beta0 without noise removal (the observed image
+// of locate/evaluate, the real image of a Python simulate_product).
+inline std::vector<float> ReadSentinel1Beta0(const Sentinel1Source& source, const std::string& product) {
+  return ReadSentinel1Calibrated(source, product, geo::Sentinel1Radiometry::kBeta0, false);
+}
 
 // The sidecar's input record of the SAFE: "path" (absolute, what --product
 // takes again), the bytes and SHA-256 of the .zip, or of manifest.safe for a
