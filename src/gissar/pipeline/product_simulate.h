@@ -80,6 +80,17 @@ struct ProductSimulation {
   std::shared_ptr<const Sentinel1Source> sentinel1;
 };
 
+// The GRD step: resamples a simulation rendered on source.grid (slant range)
+// onto the GRD's ground-range pixels of source.window: for line i, pixel j,
+// ground range G = (window[1] + j) x ground_spacing_m, slant range R =
+// grsr(G) with the record nearest to the line's time, and every band
+// (intensity, bounce layers, each further channel, lon/lat/height) taken
+// linearly between the two slant samples around R (NaN when either is NaN
+// or R lies outside the grid); mask and footprint from the nearer sample;
+// reflector returns' columns moved to their ground-range pixels. Linear
+// (not dB) values. sim.grid keeps the slant grid rendered.
+void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim);
+
 // Loads options.product and the terrain, renders the product grid and
 // applies the sensor effects. Incoherent: the intensity impulse response,
 // speckle, the reflectors' intensity responses, then per pixel the

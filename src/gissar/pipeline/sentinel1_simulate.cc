@@ -1,8 +1,5 @@
 #include "gissar/pipeline/sentinel1_simulate.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -14,7 +11,6 @@
 #include "gissar/geo/orbit_file.h"
 #include "gissar/geo/sentinel1_measurement.h"
 #include "gissar/material/material.h"
-#include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/util/check.h"
 #include "gissar/util/error.h"
@@ -34,22 +30,6 @@ std::string Join(const std::vector<std::string>& items) {
   std::string out;
   for (const std::string& s : items) out += (out.empty() ? "" : ", ") + s;
   return out;
-}
-
-// The index of the record nearest in time to t (the earlier one at a tie):
-// the rule of geo::Sentinel1Annotation::SlantRangeOfGroundRange.
-size_t NearestRecord(const std::vector<geo::Sentinel1RangeConversion>& records, double t) {
-  size_t best = 0;
-  for (size_t k = 1; k < records.size(); ++k) {
-    if (std::abs(records[k].azimuth_time_s - t) < std::abs(records[best].azimuth_time_s - t)) best = k;
-  }
-  return best;
-}
-
-double Horner(const std::vector<double>& c, double x) {
-  double y = 0.0;
-  for (size_t k = c.size(); k-- > 0;) y = y * x + c[k];
-  return y;
 }
 
 }  // namespace
@@ -394,89 +374,5 @@ std::vector<float> ReadSentinel1Calibrated(const Sentinel1Source& source, const 
   return values;
 }
 
-void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim) {
-  const geo::Sentinel1Annotation& a = source.annotation;
-  GISSAR_CHECK(source.ground_range && !a.range_conversion.empty());
-  const sensor::RadarGrid slant = sim.grid;
-  const int rows = source.window[2], cols = source.window[3], slant_cols = slant.cols;
-  GISSAR_CHECK(slant.rows == rows);
-  const size_t n_slant = size_t(rows) * slant_cols, n = size_t(rows) * cols;
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-
-  // The bands to carry over: float (linear), double (linear), byte (nearest).
-  std::vector<render::SarImage*> images = {&sim.image.image};
-  for (render::SarImage& c : sim.other_channels) images.push_back(&c);
-  std::vector<std::vector<float>*> floats = {&sim.image.lon_deg, &sim.image.lat_deg, &sim.image.height_m};
-  std::vector<std::vector<uint8_t>*> bytes;
-  std::vector<uint8_t> byte_fill;  // outside the slant grid: mask "outside", footprint 0
-  for (render::SarImage* image : images) {
-    GISSAR_CHECK(image->real.empty());  // a GRD is simulated incoherently
-    floats.push_back(&image->intensity);
-    for (auto& layer : image->bounce_layers) {
-      if (layer.size() == n_slant) floats.push_back(&layer);
-    }
-    if (image->mask.size() == n_slant) {
-      bytes.push_back(&image->mask);
-      byte_fill.push_back(render::kMaskOutside);
-    }
-    if (image->footprint.size() == n_slant) {
-      bytes.push_back(&image->footprint);
-      byte_fill.push_back(0);
-    }
-  }
-  std::vector<std::vector<double>*> doubles = {&sim.image.lon_deg_exact, &sim.image.lat_deg_exact};
-  std::vector<std::vector<float>> float_out(floats.size(), std::vector<float>(n, nan));
-  std::vector<std::vector<double>> double_out(doubles.size(),
-                                              std::vector<double>(n, std::numeric_limits<double>::quiet_NaN()));
-  std::vector<std::vector<uint8_t>> byte_out;
-  for (const uint8_t fill : byte_fill) byte_out.emplace_back(n, fill);
-  for (auto* f : floats) GISSAR_CHECK(f->size() == n_slant);
-  for (auto* d : doubles) GISSAR_CHECK(d->size() == n_slant);
-
-  tbb::parallel_for(tbb::blocked_range<int>(0, rows, 8), [&](const tbb::blocked_range<int>& range) {
-    for (int i = range.begin(); i != range.end(); ++i) {
-      const geo::Sentinel1RangeConversion& record =
-          a.range_conversion[NearestRecord(a.range_conversion, slant.TimeOfRow(i))];
-      for (int j = 0; j < cols; ++j) {
-        const double ground = double(source.window[1] + j) * source.ground_spacing_m;
-        const double c = slant.ColOfRange(Horner(record.grsr, ground - record.gr0_m));
-        if (!(c >= 0.0 && c <= double(slant_cols - 1))) continue;
-        const int c0 = std::min(static_cast<int>(std::floor(c)), slant_cols - 2);
-        const double f = c - c0;
-        const size_t k0 = size_t(i) * slant_cols + c0, out = size_t(i) * cols + j;
-        for (size_t b = 0; b < floats.size(); ++b) {
-          const float v0 = (*floats[b])[k0], v1 = (*floats[b])[k0 + 1];
-          float_out[b][out] = (std::isnan(v0) || std::isnan(v1)) ? nan : static_cast<float>((1.0 - f) * v0 + f * v1);
-        }
-        for (size_t b = 0; b < doubles.size(); ++b) {
-          const double v0 = (*doubles[b])[k0], v1 = (*doubles[b])[k0 + 1];
-          double_out[b][out] = (1.0 - f) * v0 + f * v1;  // NaN when either is
-        }
-        for (size_t b = 0; b < bytes.size(); ++b) byte_out[b][out] = (*bytes[b])[f < 0.5 ? k0 : k0 + 1];
-      }
-    }
-  });
-  for (size_t b = 0; b < floats.size(); ++b) *floats[b] = std::move(float_out[b]);
-  for (size_t b = 0; b < doubles.size(); ++b) *doubles[b] = std::move(double_out[b]);
-  for (size_t b = 0; b < bytes.size(); ++b) *bytes[b] = std::move(byte_out[b]);
-  // A ground point needs both neighbours (the float bands are NaN otherwise).
-  for (size_t k = 0; k < n; ++k) {
-    if (std::isnan(sim.image.height_m[k]) || std::isnan(sim.image.lon_deg[k])) {
-      sim.image.lon_deg[k] = sim.image.lat_deg[k] = sim.image.height_m[k] = nan;
-      sim.image.lon_deg_exact[k] = sim.image.lat_deg_exact[k] = std::numeric_limits<double>::quiet_NaN();
-    }
-  }
-  sim.image.geolocated = 0;
-  for (size_t k = 0; k < n; ++k) sim.image.geolocated += std::isfinite(sim.image.height_m[k]) ? 1 : 0;
-  for (render::SarImage* image : images) {
-    image->width = cols;
-    image->height = rows;
-    // Reflector returns: their ground-range pixel (rows are unchanged).
-    for (render::PointReturn& p : image->points) {
-      p.col = a.GroundRangeOfSlantRange(p.range_m, slant.TimeOfRow(p.row)) / source.ground_spacing_m -
-              double(source.window[1]);
-    }
-  }
-}
 
 }  // namespace gissar::pipeline

@@ -14,7 +14,8 @@
 //    numberOfSamples).
 //  - GRD: rendered on a slant-range grid with the GRD's own lines (same
 //    azimuth times) and slant samples of c / (2 fs) covering its ground-range
-//    pixels, then resampled to those pixels (ResampleToGroundRange) with the
+//    pixels, then resampled to those pixels (product_simulate.h,
+//    ResampleToGroundRange) with the
 //    product's grsr polynomials: the record nearest in time of each line, as
 //    geo::Sentinel1Annotation::SlantRangeOfGroundRange (docs/sentinel1.md
 //    says why not interpolated), linear in slant range.
@@ -42,7 +43,6 @@
 namespace gissar::pipeline {
 
 struct SimulateRequest;
-struct ProductSimulation;
 
 // True when options.product names a Sentinel-1 SAFE (geo::IsSentinel1Path).
 bool IsSentinel1Request(const SimulateRequest& options);
@@ -102,17 +102,6 @@ Sentinel1Selection Sentinel1SelectionOf(const SimulateRequest& options);
 // GRD (a detected product).
 Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter& reporter = NullReporter());
 Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& reporter = NullReporter());
-
-// The GRD step: resamples a simulation rendered on source.grid (slant range)
-// onto the GRD's ground-range pixels of source.window: for line i, pixel j,
-// ground range G = (window[1] + j) x ground_spacing_m, slant range R =
-// grsr(G) with the record nearest to the line's time, and every band
-// (intensity, bounce layers, each further channel, lon/lat/height) taken
-// linearly between the two slant samples around R (NaN when either is NaN
-// or R lies outside the grid); mask and footprint from the nearer sample;
-// reflector returns' columns moved to their ground-range pixels. Linear
-// (not dB) values. sim.grid keeps the slant grid rendered.
-void ResampleToGroundRange(const Sentinel1Source& source, ProductSimulation& sim);
 
 // The real image of source.window, calibrated to `radiometry` (sigma0,
 // beta0 or gamma0: linear power (|DN|^2 - N) / A^2, A the sigmaNought,
