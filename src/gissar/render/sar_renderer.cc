@@ -543,7 +543,7 @@ material::ScatteringMatrix ClosedChainMatrix(const ChainField& field, const Vect
   return ReadInReceiveBasis(out, to_radar);
 }
 
-// The polarimetric terms of one return (RenderSar, "Polarimetric passes").
+// The polarimetric terms of one return (TracePlan, "Polarimetric passes").
 struct PolarimetricTerms {
   // First bounce, coherent: the micro-phasor of the channel, and the
   // class's HH-VV correlation it was mixed with (recorded contributions).
@@ -575,7 +575,7 @@ constexpr double kSelfHitCos = 0.05;
 // are split into sub-rays (at most kMaxSubRays).
 constexpr double kMinSplitFootprintPx = 0.25;
 // A primary ray starts this far (metres of ground) before the hit of the
-// ray below it (RenderSar's skip_to_previous_hit): far beyond rounding.
+// ray below it (TracePlan::skip_to_previous_hit): far beyond rounding.
 constexpr double kSkipMarginM = 1.0;
 constexpr int kMaxSubRays = 64;
 
@@ -680,58 +680,47 @@ void RenderOptions::Check() const {
   }
 }
 
-std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
-                                             const scene::TriangleMesh& mesh,
-                                             const sensor::SarGeometry& geometry,
-                                             int64_t* shadow_rays, std::vector<uint8_t>* lit,
-                                             std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box,
-                                             bool profile_sweep, bool* swept) {
-  const int width = geometry.width(), height = geometry.height();
-  if (swept != nullptr) *swept = false;
-  auto unpack = [&](auto&& flag_at, size_t size) {
-    std::vector<uint8_t> mask(size);
-    if (lit != nullptr) lit->assign(size, 0);
-    if (covered != nullptr) covered->assign(size, 0);
-    for (size_t i = 0; i < size; ++i) {
-      const uint8_t f = flag_at(i);
-      mask[i] = f & (kMaskLayover | kMaskShadow);
-      if (lit != nullptr) (*lit)[i] = (f & kLitBit) != 0;
-      if (covered != nullptr) (*covered)[i] = (f & kCoveredBit) != 0;
-    }
-    return mask;
-  };
-  if (profile_sweep) {
-    std::vector<uint8_t> flags;
-    if (MaskByProfileSweep(embree, mesh, geometry, &flags)) {
-      if (shadow_rays != nullptr) *shadow_rays = 0;
-      if (swept != nullptr) *swept = true;
-      return unpack([&](size_t i) { return flags[i]; }, flags.size());
-    }
-  }
-  std::vector<std::atomic<uint8_t>> flags(size_t(width) * height);
-  for (auto& f : flags) f.store(0, std::memory_order_relaxed);
-  const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
-  const float eps = RayEpsilon(box);
-  const double far_affine = geometry.slant_range_m() + box.diagonal().norm();
-  std::atomic<int64_t> rays{0};
+namespace {
 
-  // SarGeometry::Project, with affine mode's arithmetic in line (the same
-  // operations in the same order: the same pixel coordinates): three calls
-  // per triangle were a third of the pass.
-  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
-  const Vector3d& xc = geometry.scene_centre();
-  const Vector3d& l = geometry.look_direction();
-  const Vector3d& h = geometry.flight_direction();
-  const double range0 = geometry.slant_range_m(), dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
-  const double u0 = geometry.u0(), v0 = geometry.v0();
-  auto project = [&](const Vector3d& p) -> Eigen::Vector2d {
-    if (!affine) return geometry.Project(p);
-    const double slant = range0 + (p - xc).dot(l);
-    return {(slant - range0) / dr + u0, (p - xc).dot(h) / da + v0};
-  };
-  // One task's pass over its triangles: the pixel centres each covers,
-  // their visibility rays 16 at a time (neighbouring pixel centres, one
-  // direction in affine mode: a coherent packet).
+// The mask's per-pixel flags (kMaskLayover, kMaskShadow, kLitBit,
+// kCoveredBit; `flag_at(i)` those of pixel i of `size`) unpacked: the mask
+// codes (returned), and `lit` and `covered` (each when not nullptr) 1 where
+// the flag is set, else 0.
+template <typename FlagAt>
+std::vector<uint8_t> UnpackMaskFlags(FlagAt&& flag_at, size_t size, std::vector<uint8_t>* lit,
+                                     std::vector<uint8_t>* covered) {
+  std::vector<uint8_t> mask(size);
+  if (lit != nullptr) lit->assign(size, 0);
+  if (covered != nullptr) covered->assign(size, 0);
+  for (size_t i = 0; i < size; ++i) {
+    const uint8_t f = flag_at(i);
+    mask[i] = f & (kMaskLayover | kMaskShadow);
+    if (lit != nullptr) (*lit)[i] = (f & kLitBit) != 0;
+    if (covered != nullptr) (*covered)[i] = (f & kCoveredBit) != 0;
+  }
+  return mask;
+}
+
+// RenderLayoverShadowMask's ray pass: every triangle of the mesh projected
+// into the image, each pixel centre it covers flagged turned away (shadow),
+// or by a visibility ray towards the radar shadowed or lit (and layover when
+// the surface faces away from the range plane's upward normal). Rays go 16
+// at a time (neighbouring pixel centres, one direction in affine mode: a
+// coherent packet). Flags are or-ed atomically: the result does not depend
+// on the order. `box` (ENU metres) sizes the rays' epsilon and affine
+// reach; the inputs must outlive the pass.
+class MaskRayPass {
+ public:
+  MaskRayPass(const EmbreeScene& embree, const scene::TriangleMesh& mesh, const sensor::SarGeometry& geometry,
+              const Eigen::AlignedBox3d& box, bool want_lit);
+
+  // Runs the pass over every triangle; returns the visibility rays cast.
+  int64_t Run();
+  // Pixel flags, row-major, width x height (after Run).
+  const std::vector<std::atomic<uint8_t>>& flags() const { return flags_; }
+
+ private:
+  // A pixel centre waiting for its visibility ray.
   struct Pending {
     size_t pixel;
     Vector3d point, to_radar;
@@ -740,6 +729,7 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
     size_t triangle;
     bool flipped;  // the surface faces away from the range plane's upward normal
   };
+  // One task's packet of up to 16 pending rays and its ray count.
   struct Task {
     Pending pending[16];
     int count = 0;
@@ -748,157 +738,335 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
     bool blocked[16];
     int64_t local_rays = 0;
   };
-  auto settle = [&](Task& task, const Pending& q, bool occluded) {
-    if (occluded && q.cos_in < kSelfHitCos) {
-      // Seen almost edge-on the surface may still hit itself
-      // beyond t_near by rounding: skip its own triangle once.
-      const auto hit = embree.Intersect(q.point.cast<float>(), q.to_radar.cast<float>(), q.t_near, q.t_far);
-      if (hit && hit->triangle == q.triangle) {
-        ++task.local_rays;
-        occluded = embree.Occluded(q.point.cast<float>(), q.to_radar.cast<float>(), hit->t + q.t_near, q.t_far);
-      }
+
+  Eigen::Vector2d Project(const Vector3d& p) const;
+  void Settle(Task& task, const Pending& q, bool occluded);
+  void Flush(Task& task);
+  void Triangle(Task& task, size_t t, const Vector3d v[3], const Eigen::Vector2d p[3]);
+  void Finish(Task& task);
+  size_t WalkGrid();
+  void WalkTriangles(size_t first);
+
+  const EmbreeScene& embree_;
+  const scene::TriangleMesh& mesh_;
+  const sensor::SarGeometry& geometry_;
+  const int width_, height_;
+  const bool want_lit_;
+  std::vector<std::atomic<uint8_t>> flags_;
+  const float eps_;
+  const double far_affine_;
+  std::atomic<int64_t> rays_{0};
+  // SarGeometry::Project's affine arithmetic (Project).
+  const bool affine_;
+  const Vector3d xc_, l_, h_;
+  const double range0_, dr_, da_, u0_, v0_;
+};
+
+MaskRayPass::MaskRayPass(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                         const sensor::SarGeometry& geometry, const Eigen::AlignedBox3d& box, bool want_lit)
+    : embree_(embree),
+      mesh_(mesh),
+      geometry_(geometry),
+      width_(geometry.width()),
+      height_(geometry.height()),
+      want_lit_(want_lit),
+      flags_(size_t(width_) * height_),
+      eps_(RayEpsilon(box)),
+      far_affine_(geometry.slant_range_m() + box.diagonal().norm()),
+      affine_(geometry.mode() == sensor::ProjectionMode::kAffine),
+      xc_(geometry.scene_centre()),
+      l_(geometry.look_direction()),
+      h_(geometry.flight_direction()),
+      range0_(geometry.slant_range_m()),
+      dr_(geometry.range_spacing_m()),
+      da_(geometry.azimuth_spacing_m()),
+      u0_(geometry.u0()),
+      v0_(geometry.v0()) {
+  for (auto& f : flags_) f.store(0, std::memory_order_relaxed);
+}
+
+int64_t MaskRayPass::Run() {
+  WalkTriangles(WalkGrid());
+  return rays_.load();
+}
+
+// SarGeometry::Project of `p` (ENU metres) to (column, row) pixels, with
+// affine mode's arithmetic in line (the same operations in the same order:
+// the same pixel coordinates): three calls per triangle were a third of
+// the pass.
+Eigen::Vector2d MaskRayPass::Project(const Vector3d& p) const {
+  if (!affine_) return geometry_.Project(p);
+  const double slant = range0_ + (p - xc_).dot(l_);
+  return {(slant - range0_) / dr_ + u0_, (p - xc_).dot(h_) / da_ + v0_};
+}
+
+// Pending centre `q`'s flags from its ray's verdict `occluded`.
+void MaskRayPass::Settle(Task& task, const Pending& q, bool occluded) {
+  if (occluded && q.cos_in < kSelfHitCos) {
+    // Seen almost edge-on the surface may still hit itself beyond t_near
+    // by rounding: skip its own triangle once.
+    const auto hit = embree_.Intersect(q.point.cast<float>(), q.to_radar.cast<float>(), q.t_near, q.t_far);
+    if (hit && hit->triangle == q.triangle) {
+      ++task.local_rays;
+      occluded = embree_.Occluded(q.point.cast<float>(), q.to_radar.cast<float>(), hit->t + q.t_near, q.t_far);
     }
-    uint8_t code = kMaskNone;
-    if (occluded) {
-      code = kMaskShadow;
-    } else {
-      if (lit != nullptr) flags[q.pixel].fetch_or(kLitBit, std::memory_order_relaxed);
-      if (q.flipped) code = kMaskLayover;
-    }
-    flags[q.pixel].fetch_or(code | kCoveredBit, std::memory_order_relaxed);
-  };
-  auto flush = [&](Task& task) {
-    for (int k = 0; k < 16; ++k) {
-      task.valid[k] = k < task.count ? -1 : 0;
-      if (k >= task.count) continue;
-      task.packet.SetRay(k, task.pending[k].point.cast<float>(), task.pending[k].to_radar.cast<float>());
-      task.packet.tnear[k] = task.pending[k].t_near;
-      task.packet.tfar[k] = task.pending[k].t_far;
-    }
-    embree.Occluded16(task.valid, task.packet, /*coherent=*/true, task.blocked);
-    for (int k = 0; k < task.count; ++k) settle(task, task.pending[k], task.blocked[k]);
-    task.count = 0;
-  };
-  // Triangle t with corners v (ENU) projected to p (pixels).
-  auto triangle = [&](Task& task, size_t t, const Vector3d v[3], const Eigen::Vector2d p[3]) {
-    const double area2 = (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
-    if (std::abs(area2) < 1e-12) return;  // seen edge-on: covers no pixel centre
-    const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].x(), p[1].x(), p[2].x()}))));
-    const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max({p[0].x(), p[1].x(), p[2].x()}))));
-    const int r_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].y(), p[1].y(), p[2].y()}))));
-    const int r_hi = std::min(height - 1, static_cast<int>(std::floor(std::max({p[0].y(), p[1].y(), p[2].y()}))));
-    if (c_lo > c_hi || r_lo > r_hi) return;  // no pixel centre inside its bounds
-    const Vector3d normal = mesh.Normal(t).cast<double>();
-    if (normal.isZero()) return;
-    for (int r = r_lo; r <= r_hi; ++r) {
-      for (int c = c_lo; c <= c_hi; ++c) {
-        // Barycentric coordinates of the pixel centre in the projected triangle.
-        const Eigen::Vector2d q(c, r);
-        const double w1 = ((q - p[0]).x() * (p[2] - p[0]).y() - (q - p[0]).y() * (p[2] - p[0]).x()) / area2;
-        const double w2 = ((p[1] - p[0]).x() * (q - p[0]).y() - (p[1] - p[0]).y() * (q - p[0]).x()) / area2;
-        const double w0 = 1.0 - w1 - w2;
-        constexpr double kTol = -1e-9;
-        if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
-        const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
-        const Vector3d dir = geometry.RayDirectionTo(point);
-        const size_t pixel = size_t(r) * width + c;
-        if (normal.dot(-dir) <= kMaskEdgeOnCos) {
-          // Turned away from the radar.
-          flags[pixel].fetch_or(kMaskShadow | kCoveredBit, std::memory_order_relaxed);
-          continue;
-        }
-        const double t_far =
-            geometry.mode() == sensor::ProjectionMode::kAffine
-                ? far_affine
-                : (geometry.SensorPosition(geometry.AlongTrack(point)) - point).norm();
-        ++task.local_rays;
-        // Leaving the surface at grazing incidence the ray climbs only
-        // cos(theta) per metre: start it where it has cleared the
-        // rounding of the surface itself (no self-shadowing).
-        const double cos_in = normal.dot(-dir);
-        const float t_near = eps / static_cast<float>(std::max(cos_in, 0.01));
-        task.pending[task.count++] = Pending{pixel, point, -dir, t_near, static_cast<float>(t_far), cos_in, t,
-                                             normal.dot(geometry.UpwardRangePlaneNormal(point)) < 0.0};
-        if (task.count == 16) flush(task);
-      }
-    }
-  };
-  auto finish = [&](Task& task) {
-    if (task.count > 0) flush(task);
-    rays.fetch_add(task.local_rays, std::memory_order_relaxed);
-  };
-  // A terrain grid without holes at the start of the mesh (a DEM's): its
-  // triangles row of cells by row of cells, every post projected once per
-  // row (a post is a corner of six triangles) instead of once per corner.
-  const int grid_w = embree.heightfield_grid_width(), grid_h = embree.heightfield_grid_height();
-  const bool whole_grid = grid_w >= 2 && embree.heightfield_cells() == int64_t(grid_w - 1) * (grid_h - 1);
-  const size_t grid_triangles = whole_grid ? size_t(2 * embree.heightfield_cells()) : 0;
-  if (whole_grid) {
-    tbb::parallel_for(tbb::blocked_range<int>(0, grid_h - 1, 8), [&](const tbb::blocked_range<int>& rows) {
-      Task task;
-      const size_t posts_across = size_t(grid_w);
-      std::vector<Eigen::Vector2d> below(posts_across), above(posts_across);
-      for (int c = 0; c < grid_w; ++c) {
-        below[size_t(c)] = project(mesh.vertices[size_t(rows.begin()) * grid_w + c].cast<double>());
-      }
-      for (int r = rows.begin(); r < rows.end(); ++r) {
-        for (int c = 0; c < grid_w; ++c) above[size_t(c)] = project(mesh.vertices[size_t(r + 1) * grid_w + c].cast<double>());
-        for (size_t t = size_t(2) * size_t(r) * (grid_w - 1); t < size_t(2) * size_t(r + 1) * (grid_w - 1); ++t) {
-          const Eigen::Vector3i tri = mesh.Triangle(t);
-          Vector3d v[3];
-          Eigen::Vector2d p[3];
-          for (int k = 0; k < 3; ++k) {
-            const size_t post = size_t(tri[k]);
-            v[k] = mesh.vertices[post].cast<double>();
-            p[k] = (post / size_t(grid_w) == size_t(r) ? below : above)[post % size_t(grid_w)];
-          }
-          triangle(task, t, v, p);
-        }
-        std::swap(below, above);
-      }
-      finish(task);
-    });
   }
-  tbb::parallel_for(tbb::blocked_range<size_t>(grid_triangles, mesh.triangle_count(), 4096),
+  uint8_t code = kMaskNone;
+  if (occluded) {
+    code = kMaskShadow;
+  } else {
+    if (want_lit_) flags_[q.pixel].fetch_or(kLitBit, std::memory_order_relaxed);
+    if (q.flipped) code = kMaskLayover;
+  }
+  flags_[q.pixel].fetch_or(code | kCoveredBit, std::memory_order_relaxed);
+}
+
+// The task's pending rays as one packet (rtcOccluded16), then settled.
+void MaskRayPass::Flush(Task& task) {
+  for (int k = 0; k < 16; ++k) {
+    task.valid[k] = k < task.count ? -1 : 0;
+    if (k >= task.count) continue;
+    task.packet.SetRay(k, task.pending[k].point.cast<float>(), task.pending[k].to_radar.cast<float>());
+    task.packet.tnear[k] = task.pending[k].t_near;
+    task.packet.tfar[k] = task.pending[k].t_far;
+  }
+  embree_.Occluded16(task.valid, task.packet, /*coherent=*/true, task.blocked);
+  for (int k = 0; k < task.count; ++k) Settle(task, task.pending[k], task.blocked[k]);
+  task.count = 0;
+}
+
+// Triangle t with corners v (ENU metres) projected to p (pixels): the pixel
+// centres it covers, turned away ones flagged at once, the others' rays
+// queued (flushed 16 at a time). Edge-on and normal-less triangles cover
+// nothing.
+void MaskRayPass::Triangle(Task& task, size_t t, const Vector3d v[3], const Eigen::Vector2d p[3]) {
+  const double area2 = (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
+  if (std::abs(area2) < 1e-12) return;  // seen edge-on: covers no pixel centre
+  const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].x(), p[1].x(), p[2].x()}))));
+  const int c_hi = std::min(width_ - 1, static_cast<int>(std::floor(std::max({p[0].x(), p[1].x(), p[2].x()}))));
+  const int r_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].y(), p[1].y(), p[2].y()}))));
+  const int r_hi = std::min(height_ - 1, static_cast<int>(std::floor(std::max({p[0].y(), p[1].y(), p[2].y()}))));
+  if (c_lo > c_hi || r_lo > r_hi) return;  // no pixel centre inside its bounds
+  const Vector3d normal = mesh_.Normal(t).cast<double>();
+  if (normal.isZero()) return;
+  for (int r = r_lo; r <= r_hi; ++r) {
+    for (int c = c_lo; c <= c_hi; ++c) {
+      // Barycentric coordinates of the pixel centre in the projected triangle.
+      const Eigen::Vector2d q(c, r);
+      const double w1 = ((q - p[0]).x() * (p[2] - p[0]).y() - (q - p[0]).y() * (p[2] - p[0]).x()) / area2;
+      const double w2 = ((p[1] - p[0]).x() * (q - p[0]).y() - (p[1] - p[0]).y() * (q - p[0]).x()) / area2;
+      const double w0 = 1.0 - w1 - w2;
+      constexpr double kTol = -1e-9;
+      if (w0 < kTol || w1 < kTol || w2 < kTol) continue;
+      const Vector3d point = w0 * v[0] + w1 * v[1] + w2 * v[2];
+      const Vector3d dir = geometry_.RayDirectionTo(point);
+      const size_t pixel = size_t(r) * width_ + c;
+      if (normal.dot(-dir) <= kMaskEdgeOnCos) {
+        // Turned away from the radar.
+        flags_[pixel].fetch_or(kMaskShadow | kCoveredBit, std::memory_order_relaxed);
+        continue;
+      }
+      const double t_far = geometry_.mode() == sensor::ProjectionMode::kAffine
+                               ? far_affine_
+                               : (geometry_.SensorPosition(geometry_.AlongTrack(point)) - point).norm();
+      ++task.local_rays;
+      // Leaving the surface at grazing incidence the ray climbs only
+      // cos(theta) per metre: start it where it has cleared the rounding
+      // of the surface itself (no self-shadowing).
+      const double cos_in = normal.dot(-dir);
+      const float t_near = eps_ / static_cast<float>(std::max(cos_in, 0.01));
+      task.pending[task.count++] = Pending{pixel, point, -dir, t_near, static_cast<float>(t_far), cos_in, t,
+                                           normal.dot(geometry_.UpwardRangePlaneNormal(point)) < 0.0};
+      if (task.count == 16) Flush(task);
+    }
+  }
+}
+
+// The task's last rays, and its ray count into the total.
+void MaskRayPass::Finish(Task& task) {
+  if (task.count > 0) Flush(task);
+  rays_.fetch_add(task.local_rays, std::memory_order_relaxed);
+}
+
+// A terrain grid without holes at the start of the mesh (a DEM's): its
+// triangles row of cells by row of cells, every post projected once per
+// row (a post is a corner of six triangles) instead of once per corner.
+// Returns the number of triangles walked (0: no such grid).
+size_t MaskRayPass::WalkGrid() {
+  const int grid_w = embree_.heightfield_grid_width(), grid_h = embree_.heightfield_grid_height();
+  const bool whole_grid = grid_w >= 2 && embree_.heightfield_cells() == int64_t(grid_w - 1) * (grid_h - 1);
+  if (!whole_grid) return 0;
+  tbb::parallel_for(tbb::blocked_range<int>(0, grid_h - 1, 8), [&](const tbb::blocked_range<int>& rows) {
+    Task task;
+    const size_t posts_across = size_t(grid_w);
+    std::vector<Eigen::Vector2d> below(posts_across), above(posts_across);
+    for (int c = 0; c < grid_w; ++c) {
+      below[size_t(c)] = Project(mesh_.vertices[size_t(rows.begin()) * grid_w + c].cast<double>());
+    }
+    for (int r = rows.begin(); r < rows.end(); ++r) {
+      for (int c = 0; c < grid_w; ++c) {
+        above[size_t(c)] = Project(mesh_.vertices[size_t(r + 1) * grid_w + c].cast<double>());
+      }
+      for (size_t t = size_t(2) * size_t(r) * (grid_w - 1); t < size_t(2) * size_t(r + 1) * (grid_w - 1); ++t) {
+        const Eigen::Vector3i tri = mesh_.Triangle(t);
+        Vector3d v[3];
+        Eigen::Vector2d p[3];
+        for (int k = 0; k < 3; ++k) {
+          const size_t post = size_t(tri[k]);
+          v[k] = mesh_.vertices[post].cast<double>();
+          p[k] = (post / size_t(grid_w) == size_t(r) ? below : above)[post % size_t(grid_w)];
+        }
+        Triangle(task, t, v, p);
+      }
+      std::swap(below, above);
+    }
+    Finish(task);
+  });
+  return size_t(2 * embree_.heightfield_cells());
+}
+
+// The mesh's triangles from `first` on, each corner projected.
+void MaskRayPass::WalkTriangles(size_t first) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(first, mesh_.triangle_count(), 4096),
                     [&](const tbb::blocked_range<size_t>& range) {
     Task task;
     for (size_t t = range.begin(); t != range.end(); ++t) {
-      const Eigen::Vector3i tri = mesh.Triangle(t);
-      const Vector3d v[3] = {mesh.vertices[tri[0]].cast<double>(),
-                             mesh.vertices[tri[1]].cast<double>(),
-                             mesh.vertices[tri[2]].cast<double>()};
-      const Eigen::Vector2d p[3] = {project(v[0]), project(v[1]), project(v[2])};
-      triangle(task, t, v, p);
+      const Eigen::Vector3i tri = mesh_.Triangle(t);
+      const Vector3d v[3] = {mesh_.vertices[tri[0]].cast<double>(),
+                             mesh_.vertices[tri[1]].cast<double>(),
+                             mesh_.vertices[tri[2]].cast<double>()};
+      const Eigen::Vector2d p[3] = {Project(v[0]), Project(v[1]), Project(v[2])};
+      Triangle(task, t, v, p);
     }
-    finish(task);
+    Finish(task);
   });
-  if (shadow_rays != nullptr) *shadow_rays = rays.load();
-  return unpack([&](size_t i) { return flags[i].load(std::memory_order_relaxed); }, flags.size());
 }
 
-SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
-                   const material::MaterialTable& materials, const sensor::SarGeometry& geometry,
-                   const RenderOptions& options) {
-  options.Check();
-  GISSAR_CHECK(mesh.classes.size() == mesh.triangle_count());
-  const size_t implicit_triangles = mesh.GridTriangleCount();
-  SarImage image;
-  image.width = geometry.width();
-  image.height = geometry.height();
-  const int width = image.width, height = image.height;
-  const Eigen::AlignedBox3d box = options.ray_box ? *options.ray_box : mesh.Bounds();
-  const RayGrid grid = MakeRayGrid(geometry, box, options.rays_per_cell);
-  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
-  const Vector3d& l = geometry.look_direction();
-  const Vector3d& n = geometry.range_plane_normal();
-  const Vector3d& xc = geometry.scene_centre();
-  const double range0 = geometry.slant_range_m();
-  const float eps = RayEpsilon(box);
-  const double far_affine = range0 + box.diagonal().norm();
-  const double wavenumber2 = 4.0 * M_PI / options.wavelength_m;  // phase per metre of slant range
-  const double inv_pixel_area = 1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m());
-  const double split_footprint_px = std::max(kMinSplitFootprintPx, 2.0 / grid.k_el);
-  const std::vector<material::Sigma0Table> sigma0_tables = materials.Tables(options.wavelength_m, options.polarization);
+}  // namespace
+
+std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
+                                             const scene::TriangleMesh& mesh,
+                                             const sensor::SarGeometry& geometry,
+                                             int64_t* shadow_rays, std::vector<uint8_t>* lit,
+                                             std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box,
+                                             bool profile_sweep, bool* swept) {
+  if (swept != nullptr) *swept = false;
+  if (profile_sweep) {
+    std::vector<uint8_t> flags;
+    if (MaskByProfileSweep(embree, mesh, geometry, &flags)) {
+      if (shadow_rays != nullptr) *shadow_rays = 0;
+      if (swept != nullptr) *swept = true;
+      return UnpackMaskFlags([&](size_t i) { return flags[i]; }, flags.size(), lit, covered);
+    }
+  }
+  const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
+  MaskRayPass pass(embree, mesh, geometry, box, lit != nullptr);
+  const int64_t rays = pass.Run();
+  if (shadow_rays != nullptr) *shadow_rays = rays;
+  const std::vector<std::atomic<uint8_t>>& flags = pass.flags();
+  return UnpackMaskFlags([&](size_t i) { return flags[i].load(std::memory_order_relaxed); }, flags.size(), lit,
+                         covered);
+}
+
+namespace {
+
+// ------------------------------------------------ RenderSar's phases
+//
+// RenderSar reads as its algorithm:
+//   TracePlan       set up: the ray grid, geometry constants, material
+//                   tables, the layout of the accumulation planes and of the
+//                   blocks of azimuth lines;
+//   TraceAccumulator the zeroed image planes the blocks add into;
+//   TraceBlocks     trace and splat, block by block in parallel
+//                   (BlockTracer: primary rays in 16-ray packets or from the
+//                   profile sweep, each ray's bounces, each return splatted
+//                   into the block's band, the band added into the planes);
+//   SplatOverflows  the returns that landed outside their block's band;
+//   ComposeImage    the output bands and statistics from the planes;
+//   MaskImage       reflectors, layover/shadow mask and footprint counts.
+
+// What tracing one image needs and keeps fixed: the inputs, the ray grid,
+// geometry constants (ENU metres), the material tables and the layout of
+// the accumulation planes and of the blocks. Building it is the set-up
+// phase: nothing image-sized is allocated; it throws what
+// MaterialTable::Tables throws and fails a GISSAR_CHECK when the blocks'
+// bands would overlap more than their neighbours'. The referenced inputs
+// must outlive it.
+struct TracePlan {
+  TracePlan(const EmbreeScene& embree_in, const scene::TriangleMesh& mesh_in,
+            const material::MaterialTable& materials_in, const sensor::SarGeometry& geometry_in,
+            const RenderOptions& options_in);
+
+  // sigma0 (linear m^2/m^2) of class `id` (unknown classes: class 0) at
+  // cos(local incidence) `cos_in`: the float table uniform in sqrt(1 - cos)
+  // (Sigma0Table::Fast: no arc cosine; within the angle table's own
+  // interpolation error of the law).
+  double Sigma0(scene::ClassId id, double cos_in) const {
+    return double(sigma0_tables[id < sigma0_tables.size() ? id : 0].Fast(static_cast<float>(cos_in)));
+  }
+
+  // The polarimetric terms of a first-bounce return of class `id` at
+  // cos(shading incidence) `cos_shade`.
+  PolarimetricTerms FirstBounceTerms(scene::ClassId id, double cos_shade) const {
+    PolarimetricTerms terms;
+    terms.rho = uses_rho ? rho_tables(id, cos_shade) : std::complex<double>();
+    terms.mix = MixOfChannel(options.polarization, terms.rho);
+    return terms;
+  }
+
+  // The cosine of the local incidence of a ray of unit direction `ray` at
+  // `point` (ENU metres) on `triangle` that the class's sigma0 law sees: from
+  // the smooth-terrain shading normal when the mesh has one (barycentrics of
+  // the point), else (or for a degenerate triangle) `cos_facet`, the facet's.
+  double ShadingCos(uint32_t triangle, const Vector3d& point, const Vector3d& ray, double cos_facet) const {
+    if (mesh.shading_normals.empty()) return cos_facet;
+    const Eigen::Vector3i tri = mesh.Triangle(triangle);
+    const Vector3d v0 = mesh.vertices[tri[0]].cast<double>();
+    const Vector3d e1 = mesh.vertices[tri[1]].cast<double>() - v0;
+    const Vector3d e2 = mesh.vertices[tri[2]].cast<double>() - v0;
+    const Vector3d w = point - v0;
+    const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2);
+    const double det = d11 * d22 - d12 * d12;
+    if (!(det > 0.0)) return cos_facet;
+    const double u = (d22 * w.dot(e1) - d12 * w.dot(e2)) / det;
+    const double v = (d11 * w.dot(e2) - d12 * w.dot(e1)) / det;
+    const Vector3d ns = mesh.ShadingNormal(triangle, float(u), float(v)).cast<double>();
+    return std::max(0.0, -ns.dot(ray));
+  }
+
+  // Along-track coordinate (metres) of azimuth line i of the ray grid.
+  double AlongTrackOfLine(int i) const { return grid.a0 + i * grid.da; }
+  // The real plane of bounce layer `layer`'s complex band (coherent mode;
+  // the imaginary one follows it).
+  int ComplexLayerPlane(int layer) const { return total_planes + used_layers + 2 * layer; }
+  // First image row of block b's band, and its row count: the rows its
+  // returns can reach (one further than its lines).
+  int BandRow0(int b) const {
+    return static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + b * rows_per_block * grid.da)));
+  }
+  int BandRows(int b) const {
+    const int i1 = std::min(grid.n_az, (b + 1) * rows_per_block);
+    return static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + (i1 - 1) * grid.da))) + 2 - BandRow0(b);
+  }
+
+  const EmbreeScene& embree;
+  const scene::TriangleMesh& mesh;
+  const material::MaterialTable& materials;
+  const sensor::SarGeometry& geometry;
+  const RenderOptions& options;
+  int width = 0, height = 0;      // image, pixels
+  size_t implicit_triangles = 0;  // the mesh's computed (not stored) grid triangles
+  Eigen::AlignedBox3d box;        // where rays are traced
+  RayGrid grid;
+  bool affine = false;
+  Vector3d l, n, xc;  // look direction, range-plane normal, scene centre
+  double range0 = 0.0;             // slant range of the scene centre, metres
+  float eps = 0.0f;                // RayEpsilon of the box
+  double far_affine = 0.0;         // affine mode: far end of a visibility ray, metres
+  double wavenumber2 = 0.0;        // phase per metre of slant range, 4 pi / lambda
+  double inv_pixel_area = 0.0;     // 1 / m^2
+  double split_footprint_px = 0.0; // adaptive sampling: first-bounce footprints wider are split
+  std::vector<material::Sigma0Table> sigma0_tables;
   // Primary rays of one azimuth line lie in one plane, ray j + 1 above ray
   // j when the range-plane normal points up (they share the origin plane,
   // or exact mode's sensor, and rise with e). Over a height field the first
@@ -906,585 +1074,858 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   // one that met the terrain from above passes over everything before that
   // hit, and starts there (Embree and the height field skip the tiles
   // before tnear). The hits, and the image, are the same bit for bit.
-  const Vector3d ground_look = Vector3d(l.x(), l.y(), 0.0).normalized();
-  const bool skip_to_previous_hit = options.skip_to_previous_hit && embree.HeightfieldOnly() && n.z() > 0.0;
+  Vector3d ground_look;  // the look direction's horizontal unit vector
+  bool skip_to_previous_hit = false;
   // Over a whole terrain grid and nothing else, the primary hits of each
   // azimuth line come from one walk along its profile (GridProfileSweep)
   // instead of a ray traversal each.
-  const std::optional<GridProfileSweep> sweep =
-      options.profile_sweep ? ProfileSweepOf(embree, mesh, geometry) : std::nullopt;
-  // The float table uniform in sqrt(1 - cos) (Sigma0Table::Fast: no arc
-  // cosine; within the angle table's own interpolation error of the law).
-  auto sigma0_of = [&](scene::ClassId id, double cos_in) {
-    return double(sigma0_tables[id < sigma0_tables.size() ? id : 0].Fast(static_cast<float>(cos_in)));
-  };
+  std::optional<GridProfileSweep> sweep;
   // Polarimetric passes (see the header): the HH-VV correlation tables are
   // needed only by a VV pass's micro-phasors (coherent, or recorded for a
   // coherent re-projection).
-  const bool polarimetric = options.polarimetric;
-  const bool uses_rho = polarimetric && (options.coherent || options.record_contributions) &&
-                        options.polarization == material::Polarization::kVV;
-  const HhVvCorrelationTables rho_tables =
-      uses_rho ? HhVvCorrelationTables(materials, options.wavelength_m) : HhVvCorrelationTables();
-  // The terms of a first-bounce return of class `id` at cos(shading
-  // incidence) `cos_shade`.
-  auto first_bounce_terms = [&](scene::ClassId id, double cos_shade) {
-    PolarimetricTerms terms;
-    terms.rho = uses_rho ? rho_tables(id, cos_shade) : std::complex<double>();
-    terms.mix = MixOfChannel(options.polarization, terms.rho);
-    return terms;
-  };
-
+  bool polarimetric = false;
+  bool uses_rho = false;
+  HhVvCorrelationTables rho_tables;
   // Planes: total intensity (coherent: real and imaginary amplitude), then
-  // one per bounce count that can occur (the others stay zero).
-  // Coherent mode adds a real and an imaginary plane per bounce count.
-  const int total_planes = options.coherent ? 2 : 1;
-  const int used_layers = std::min(options.max_bounces, kBounceLayers);
-  const int planes = total_planes + used_layers + (options.coherent ? 2 * used_layers : 0);
-  auto complex_layer_plane = [&](int layer) { return total_planes + used_layers + 2 * layer; };
+  // one per bounce count that can occur (the others stay zero). Coherent
+  // mode adds a real and an imaginary plane per bounce count.
+  int total_planes = 0, used_layers = 0, planes = 0;
+  // Blocks of 16 image rows' worth of azimuth ray lines (TraceBlocks).
+  int rows_per_block = 0, n_blocks = 0;
+};
 
-  // Tiles: blocks of 16 image rows' worth of azimuth ray rows, in parallel.
-  // Each accumulates into a band of image rows in its thread's buffer (plus
-  // an overflow list), added into the image when the block is done. A band
-  // shares rows only with its two neighbours (blocks are 16 rows tall, bands
-  // reach one row further), so every pixel sums at most two bands, and
-  // IEEE addition of two terms is commutative: the image does not depend on
-  // which finishes first. Overflows are added afterwards in block order. The
-  // result does not depend on the thread count or scheduling.
+TracePlan::TracePlan(const EmbreeScene& embree_in, const scene::TriangleMesh& mesh_in,
+                     const material::MaterialTable& materials_in, const sensor::SarGeometry& geometry_in,
+                     const RenderOptions& options_in)
+    : embree(embree_in), mesh(mesh_in), materials(materials_in), geometry(geometry_in), options(options_in),
+      sweep(options_in.profile_sweep ? ProfileSweepOf(embree_in, mesh_in, geometry_in) : std::nullopt) {
+  width = geometry.width();
+  height = geometry.height();
+  implicit_triangles = mesh.GridTriangleCount();
+  box = options.ray_box ? *options.ray_box : mesh.Bounds();
+  grid = MakeRayGrid(geometry, box, options.rays_per_cell);
+  affine = geometry.mode() == sensor::ProjectionMode::kAffine;
+  l = geometry.look_direction();
+  n = geometry.range_plane_normal();
+  xc = geometry.scene_centre();
+  range0 = geometry.slant_range_m();
+  eps = RayEpsilon(box);
+  far_affine = range0 + box.diagonal().norm();
+  wavenumber2 = 4.0 * M_PI / options.wavelength_m;
+  inv_pixel_area = 1.0 / (geometry.range_spacing_m() * geometry.azimuth_spacing_m());
+  split_footprint_px = std::max(kMinSplitFootprintPx, 2.0 / grid.k_el);
+  sigma0_tables = materials.Tables(options.wavelength_m, options.polarization);
+  ground_look = Vector3d(l.x(), l.y(), 0.0).normalized();
+  skip_to_previous_hit = options.skip_to_previous_hit && embree.HeightfieldOnly() && n.z() > 0.0;
+  polarimetric = options.polarimetric;
+  uses_rho = polarimetric && (options.coherent || options.record_contributions) &&
+             options.polarization == material::Polarization::kVV;
+  if (uses_rho) rho_tables = HhVvCorrelationTables(materials, options.wavelength_m);
+  total_planes = options.coherent ? 2 : 1;
+  used_layers = std::min(options.max_bounces, kBounceLayers);
+  planes = total_planes + used_layers + (options.coherent ? 2 * used_layers : 0);
   const int k_az = std::max(1, static_cast<int>(std::lround(grid.n_az / std::max(1, height))));
-  const int rows_per_block = 16 * k_az;
-  const int n_blocks = (grid.n_az + rows_per_block - 1) / rows_per_block;
-  auto band_row0 = [&](int b) {
-    return static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + b * rows_per_block * grid.da)));
-  };
-  auto band_rows = [&](int b) {
-    const int i1 = std::min(grid.n_az, (b + 1) * rows_per_block);
-    return static_cast<int>(std::floor(geometry.RowOfAlongTrack(grid.a0 + (i1 - 1) * grid.da))) + 2 - band_row0(b);
-  };
-  for (int b = 0; b + 2 < n_blocks; ++b) GISSAR_CHECK(band_row0(b) + band_rows(b) <= band_row0(b + 2));
-  // The planes are zeroed in parallel, one task per plane: for a large image
-  // the first touch of fresh pages is most of their cost.
-  std::vector<std::vector<float>> full(planes);
-  tbb::parallel_for(0, planes, [&](int p) { full[p].assign(size_t(width) * height, 0.0f); });
-  std::vector<std::vector<Band::Overflow>> block_overflow(n_blocks);
-  std::vector<std::vector<Contribution>> block_contributions(options.record_contributions ? n_blocks : 0);
-  tbb::enumerable_thread_specific<std::vector<float>> band_buffers;
-  struct SweptHits {
-    std::vector<uint8_t> swept;
-    std::vector<double> depth;
-    std::vector<uint32_t> triangle;
-    std::vector<Vector3f> normal;
-  };
-  tbb::enumerable_thread_specific<SweptHits> swept_buffers;
-  tbb::enumerable_thread_specific<LineProfiles> profile_buffers;
-  std::array<std::mutex, 64> row_locks;  // by image row modulo 64
-  std::atomic<int64_t> hits{0}, sub_rays{0}, swept_lines{0};
-  Reporter& reporter = options.reporter != nullptr ? *options.reporter : NullReporter();
-  Progress progress("simulate: tracing", n_blocks, reporter);
-  Stopwatch trace_watch;
+  rows_per_block = 16 * k_az;
+  n_blocks = (grid.n_az + rows_per_block - 1) / rows_per_block;
+  // A band shares rows only with its two neighbours (TraceBlocks).
+  for (int b = 0; b + 2 < n_blocks; ++b) GISSAR_CHECK(BandRow0(b) + BandRows(b) <= BandRow0(b + 2));
+}
 
-  tbb::parallel_for(tbb::blocked_range<int>(0, n_blocks, 1), [&](const tbb::blocked_range<int>& blocks) {
-    std::vector<float>& buffer = band_buffers.local();
+// The image planes being accumulated (TracePlan's layout, width x height
+// floats each, zeroed on construction in parallel, one task per plane: for
+// a large image the first touch of fresh pages is most of their cost) and
+// what the blocks hand over: the returns outside their band and the
+// recorded contributions, both per block (used in block order), and
+// counts. Blocks add their bands row by row under row_locks (by image row
+// modulo 64).
+struct TraceAccumulator {
+  explicit TraceAccumulator(const TracePlan& plan)
+      : image_planes(size_t(plan.planes)),
+        block_overflow(size_t(plan.n_blocks)),
+        block_contributions(plan.options.record_contributions ? size_t(plan.n_blocks) : 0) {
+    tbb::parallel_for(0, plan.planes,
+                      [&](int p) { image_planes[p].assign(size_t(plan.width) * plan.height, 0.0f); });
+  }
+
+  std::vector<std::vector<float>> image_planes;
+  std::vector<std::vector<Band::Overflow>> block_overflow;
+  std::vector<std::vector<Contribution>> block_contributions;
+  std::array<std::mutex, 64> row_locks;
+  std::atomic<int64_t> hits{0}, sub_rays{0}, swept_lines{0};
+};
+
+// A block's primary hits from the profile sweep, per line: whether the
+// sweep found them (else the line is traced), and per ray its depth
+// (GridProfileSweep::LineRays), triangle and facet normal.
+struct SweptHits {
+  std::vector<uint8_t> swept;
+  std::vector<double> depth;
+  std::vector<uint32_t> triangle;
+  std::vector<Vector3f> normal;
+};
+
+// A thread's buffers, kept from block to block (tens of MB: allocating
+// them per block cost page faults): the band's planes, the swept hits, the
+// range profiles of incoherent first-bounce returns, and per line its
+// sensor position and the ground coordinate skip_to_previous_hit starts at.
+struct BlockScratch {
+  std::vector<float> band;
+  SweptHits swept;
+  LineProfiles profiles;
+  std::vector<Vector3d> line_sensor;
+  std::vector<double> line_previous_hit;
+};
+
+// One packet of primary rays: lanes k = 0..15 are rays j0 + k of one
+// azimuth line. `valid` is Embree's mask (-1: traced; 64-byte aligned for
+// rtcIntersect16); per lane the ray's origin (ENU metres), unit direction
+// and path length from the sensor to the origin (metres), and, once hit,
+// the triangle's facet normal and class.
+struct Lanes {
+  RayPacket16 packet;
+  alignas(64) int valid[16];
+  Vector3d origin[16], dir[16];
+  double travelled[16];
+  Vector3f normal[16];
+  scene::ClassId class_id[16];
+};
+
+// A ray followed through its bounces: where it starts and where it goes
+// (ENU metres, unit direction), its path length from the sensor to
+// `origin` (metres), its beam cross-section at the first hit (m^2), the
+// product of the mirror shares so far, its id (line * n_el + j: the seed
+// of its micro-phases) and, in polarimetric passes, the field it carries.
+struct RayState {
+  Vector3d origin, dir;
+  double travelled = 0.0;
+  double area = 0.0;
+  double share = 1.0;
+  uint64_t id = 0;
+  ChainField field;
+};
+
+// Where a ray met a surface that faces it, and the way back to the radar.
+struct SurfaceHit {
+  Vector3d p;                               // the hit, ENU metres
+  Vector3d normal;                          // the facet's unit normal
+  double cos_in = 0.0;                      // -normal . dir, > 0
+  uint32_t triangle = 0;
+  scene::ClassId class_id = 0;
+  const material::Material* material = nullptr;
+  double along = 0.0;                       // along-track coordinate of p, metres
+  Vector3d to_radar;                        // unit
+  double back = 0.0;                        // path length p -> sensor, metres
+  Vector3d mirror;                          // dir + 2 cos_in normal (not normalised)
+};
+
+// What a hit returns to the radar: `value` is beta0 summed over the
+// footprint (later bounces: the path power P without its reversed path;
+// 0: nothing, or returned by sub-rays), the bistatic law's diffuse and
+// specular parts (first bounce: only with recorded contributions), the
+// first-bounce footprint in pixels (-1: a point) and the polarimetric terms.
+struct Shading {
+  double value = 0.0;
+  double diffuse_part = 0.0, specular_part = 0.0;
+  double box_cols = -1.0, box_rows = -1.0;
+  PolarimetricTerms terms;
+};
+
+// One return into the image (and the contributions): `value` as in
+// Shading, at slant range `range` and along-track `along` (metres, the
+// mean of the way out and back), footprint box_cols x box_rows (pixels;
+// box_cols < 0: a point), after `bounce` bounces at hit `p` (ENU metres) of
+// class `class_id`. `phase_key` picks the random micro-phase of
+// rough-surface returns; `specular`: the specular part dominates; `pol`
+// (polarimetric passes, else nullptr): the return's polarimetric terms.
+struct Return {
+  double value;
+  double range, along;
+  double box_cols, box_rows;
+  int bounce;
+  int phase_key;
+  Vector3d p;
+  scene::ClassId class_id;
+  bool specular;
+  const PolarimetricTerms* pol;
+};
+
+// Traces one block of azimuth lines [i0, i1) of the ray grid (block b:
+// lines b * rows_per_block on) into its band of image rows (TracePlan::
+// BandRow0/BandRows) in a thread's buffer, then adds the band into the
+// accumulator's planes. Primary rays go out 16 at a time along an azimuth
+// line (neighbouring origins, parallel or fanned directions: a coherent
+// packet); each lane's later bounces are then followed one ray at a time,
+// lanes in order, so returns are splatted in the same order as ray by ray.
+// The block's lines go out interleaved: packet row j0 of every line, then
+// the next packet row. Neighbouring lines meet the same terrain cells, so
+// each line finds the posts, the quadtree nodes and the mesh in cache where
+// the line before it left them.
+class BlockTracer {
+ public:
+  BlockTracer(const TracePlan& plan, TraceAccumulator& acc, BlockScratch& scratch, int block);
+
+  // Traces, splats and adds the block; adds its counts to the accumulator.
+  void Run();
+
+ private:
+  // Azimuth line i: its along-track coordinate a (metres), its sensor
+  // position (ENU metres), and whether the sweep found its primary hits.
+  struct Line {
+    int i;
+    double a;
+    const Vector3d& sensor;
+    bool swept;
+  };
+
+  void PrepareLines();
+  void TracePacket(int i, int j0);
+  bool CastPrimaryRays(const Line& line, int j0, double previous_hit_ground);
+  void FindFirstHits(const Line& line, int j0);
+  double HighestLaneGround() const;
+  void FollowRay(const Line& line, int j0, int k);
+  Shading ShadeFirstBounce(const Line& line, int j, const RayState& ray, const SurfaceHit& s);
+  void TraceSubRays(const Line& line, int j, uint64_t ray_id, double box_cols, double box_rows);
+  double SubRayStartGround(const Line& line, int j) const;
+  Shading ShadeLaterBounce(const RayState& ray, const SurfaceHit& s) const;
+  bool Reflect(RayState& ray, const SurfaceHit& s) const;
+  void Emit(const Return& r, int i, uint64_t ray_id);
+  void RecordContribution(const Return& r, double value, double path_power, uint64_t ray_id);
+  void FlushProfiles();
+  void MergeBand();
+
+  const TracePlan& plan_;
+  TraceAccumulator& acc_;
+  BlockScratch& scratch_;
+  const int block_;
+  const int i0_, i1_;      // the block's azimuth lines
+  const bool by_profile_;  // incoherent: first-bounce returns go through LineProfiles
+  Band band_;
+  Lanes lanes_;
+  int64_t hits_ = 0, sub_rays_ = 0, swept_lines_ = 0;
+};
+
+BlockTracer::BlockTracer(const TracePlan& plan, TraceAccumulator& acc, BlockScratch& scratch, int block)
+    : plan_(plan),
+      acc_(acc),
+      scratch_(scratch),
+      block_(block),
+      i0_(block * plan.rows_per_block),
+      i1_(std::min(plan.grid.n_az, i0_ + plan.rows_per_block)),
+      by_profile_(!plan.options.coherent) {
+  band_.planes = plan.planes;
+  band_.row0 = plan.BandRow0(block);
+  band_.rows = plan.BandRows(block);
+  scratch.band.assign(size_t(plan.planes) * band_.rows * plan.width, 0.0f);
+  band_.values = scratch.band.data();
+  band_.overflow = &acc.block_overflow[size_t(block)];
+  if (by_profile_) scratch.profiles.Reset(i1_ - i0_, plan.width);
+}
+
+void BlockTracer::Run() {
+  PrepareLines();
+  for (int j0 = 0; j0 < plan_.grid.n_el; j0 += 16) {
+    for (int i = i0_; i < i1_; ++i) TracePacket(i, j0);
+  }
+  FlushProfiles();
+  MergeBand();
+  acc_.hits.fetch_add(hits_, std::memory_order_relaxed);
+  acc_.sub_rays.fetch_add(sub_rays_, std::memory_order_relaxed);
+  acc_.swept_lines.fetch_add(swept_lines_, std::memory_order_relaxed);
+}
+
+// Per line of the block: the sensor position, no previous hit (-inf), and,
+// where the sweep applies, the primary hits of the whole line.
+void BlockTracer::PrepareLines() {
+  const RayGrid& grid = plan_.grid;
+  const int lines = i1_ - i0_;
+  scratch_.line_sensor.resize(size_t(lines));
+  for (int i = i0_; i < i1_; ++i) {
+    scratch_.line_sensor[size_t(i - i0_)] = plan_.geometry.SensorPosition(plan_.AlongTrackOfLine(i));
+  }
+  scratch_.line_previous_hit.assign(size_t(lines), -std::numeric_limits<double>::infinity());
+  if (!plan_.sweep) return;
+  SweptHits& s = scratch_.swept;
+  s.swept.resize(size_t(lines));
+  s.depth.resize(size_t(lines) * grid.n_el);
+  s.triangle.resize(size_t(lines) * grid.n_el);
+  s.normal.resize(size_t(lines) * grid.n_el);
+  std::vector<GridProfileSweep::LineRays> rays;
+  for (int i = i0_; i < i1_; ++i) {
+    const size_t at = size_t(i - i0_) * grid.n_el;
+    rays.push_back({plan_.AlongTrackOfLine(i), grid.e0, grid.de, grid.n_el, &s.depth[at], &s.triangle[at],
+                    &s.normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data()});
+  }
+  plan_.sweep->TraceLines(rays, s.swept.data());
+  for (const uint8_t swept : s.swept) swept_lines_ += swept;
+}
+
+// Packet row j0 of azimuth line i: its primary rays, their first hits, then
+// each hit lane's bounces.
+void BlockTracer::TracePacket(int i, int j0) {
+  const size_t line_index = size_t(i - i0_);
+  const Line line{i, plan_.AlongTrackOfLine(i), scratch_.line_sensor[line_index],
+                  plan_.sweep && scratch_.swept.swept[line_index]};
+  double& previous_hit_ground = scratch_.line_previous_hit[line_index];
+  if (!CastPrimaryRays(line, j0, previous_hit_ground)) return;
+  FindFirstHits(line, j0);
+  if (plan_.skip_to_previous_hit) previous_hit_ground = HighestLaneGround();
+  for (int k = 0; k < 16; ++k) {
+    if (lanes_.valid[k] == 0 || lanes_.packet.triangle[k] == RayPacket16::kNoHit) continue;
+    FollowRay(line, j0, k);
+  }
+}
+
+// Sets up the packet's lanes (rays j0 + k of `line` that exist and, in
+// exact mode, meet the box); with skip_to_previous_hit each starts at the
+// ground coordinate `previous_hit_ground` (metres along ground_look, less
+// kSkipMarginM; -inf: from its origin). False when no lane is valid.
+bool BlockTracer::CastPrimaryRays(const Line& line, int j0, double previous_hit_ground) {
+  const RayGrid& grid = plan_.grid;
+  RayPacket16& packet = lanes_.packet;
+  bool any = false;
+  for (int k = 0; k < 16; ++k) {
+    const int j = j0 + k;
+    lanes_.valid[k] = 0;
+    if (j >= grid.n_el) continue;
+    Vector3d origin, dir;
+    double travelled;  // path length from the sensor to `origin`
+    if (!PrimaryRayAt(plan_.geometry, grid, plan_.box, line.a, j, line.sensor, &origin, &dir, &travelled)) continue;
+    lanes_.origin[k] = origin;
+    lanes_.dir[k] = dir;
+    lanes_.travelled[k] = travelled;
+    packet.SetRay(k, origin.cast<float>(), dir.cast<float>());
+    if (plan_.skip_to_previous_hit && previous_hit_ground > -std::numeric_limits<double>::infinity()) {
+      // This ray passes above the previous packet's highest ray, so over
+      // all the terrain before that ray's hit: start it there (less
+      // kSkipMarginM of ground).
+      const double t_skip =
+          (previous_hit_ground - kSkipMarginM - origin.dot(plan_.ground_look)) / dir.dot(plan_.ground_look);
+      if (t_skip > 0.0) packet.tnear[k] = static_cast<float>(t_skip);
+    }
+    lanes_.valid[k] = -1;
+    any = true;
+  }
+  return any;
+}
+
+// The valid lanes' first hits (packet tfar, metres from the origin, and
+// triangle; kNoHit: a miss) from the sweep on a swept line, else from
+// Embree's rtcIntersect16; then the hit triangles' normals and classes.
+void BlockTracer::FindFirstHits(const Line& line, int j0) {
+  const RayGrid& grid = plan_.grid;
+  const scene::TriangleMesh& mesh = plan_.mesh;
+  RayPacket16& packet = lanes_.packet;
+  const SweptHits& swept_hits = scratch_.swept;
+  if (line.swept) {
+    const size_t at = size_t(line.i - i0_) * grid.n_el + size_t(j0);
+    for (int k = 0; k < 16; ++k) {
+      if (lanes_.valid[k] == 0) continue;
+      packet.triangle[k] = swept_hits.triangle[at + size_t(k)];
+      // Distance from the ray's origin: affine depths are along l from the
+      // scene centre, exact ones from the sensor.
+      const double depth = swept_hits.depth[at + size_t(k)];
+      packet.tfar[k] = static_cast<float>(plan_.affine ? depth + grid.back_off_m : depth - lanes_.travelled[k]);
+    }
+  } else {
+    plan_.embree.Intersect16(lanes_.valid, packet, /*coherent=*/true);
+  }
+  // The hit triangles' normals and classes for all lanes first, prefetched
+  // in two waves (triangles, then their vertices): the mesh is large and
+  // the lanes' triangles lie in different DEM rows, so their cache misses
+  // overlap instead of queueing. (A swept line's triangles are grid cells:
+  // their normals come from the posts the sweep has just read, not through
+  // the mesh.)
+  for (int k = 0; k < 16; ++k) {
+    if (lanes_.valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+    // (An implicit grid's triangles are computed, not read.)
+    const size_t t = packet.triangle[k];
+    if (!line.swept && t >= plan_.implicit_triangles) {
+      __builtin_prefetch(&mesh.triangles[t - plan_.implicit_triangles]);
+    }
+    __builtin_prefetch(&mesh.classes[t]);
+  }
+  for (int k = 0; k < 16 && !line.swept; ++k) {
+    if (lanes_.valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+    const Eigen::Vector3i tri = mesh.Triangle(packet.triangle[k]);
+    for (int corner = 0; corner < 3; ++corner) __builtin_prefetch(&mesh.vertices[tri[corner]]);
+  }
+  for (int k = 0; k < 16; ++k) {
+    if (lanes_.valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
+    lanes_.normal[k] = line.swept ? swept_hits.normal[size_t(line.i - i0_) * grid.n_el + size_t(j0 + k)]
+                                  : mesh.Normal(packet.triangle[k]);
+    lanes_.class_id[k] = mesh.classes[packet.triangle[k]];
+  }
+}
+
+// skip_to_previous_hit: the ground coordinate (metres along ground_look) of
+// the hit of the packet's highest ray (lane 15, rays rising with j) when it
+// met the terrain from above (a height field's faces point up): the next
+// packet's rays, all above it, can start there. -inf otherwise.
+double BlockTracer::HighestLaneGround() const {
+  const RayPacket16& packet = lanes_.packet;
+  if (lanes_.valid[15] != 0 && packet.triangle[15] != RayPacket16::kNoHit &&
+      lanes_.normal[15].cast<double>().dot(lanes_.dir[15]) < 0.0) {
+    return (lanes_.origin[15] + double(packet.tfar[15]) * lanes_.dir[15]).dot(plan_.ground_look);
+  }
+  return -std::numeric_limits<double>::infinity();
+}
+
+// Lane k (ray j0 + k of `line`, which hit) through up to max_bounces
+// bounces: at each hit facing the ray, its return (Emit), then on as the
+// mirror ray while its share of the power stays at or above 1e-9. Stops at
+// a miss or a back face (blocked).
+void BlockTracer::FollowRay(const Line& line, int j0, int k) {
+  const RayGrid& grid = plan_.grid;
+  const sensor::SarGeometry& geometry = plan_.geometry;
+  const scene::TriangleMesh& mesh = plan_.mesh;
+  const int j = j0 + k;
+  RayState ray;
+  ray.origin = lanes_.origin[k];
+  ray.dir = lanes_.dir[k];
+  ray.travelled = lanes_.travelled[k];
+  ray.id = uint64_t(line.i) * uint64_t(grid.n_el) + uint64_t(j);
+  if (plan_.polarimetric) ray.field = TransmitField(ray.dir);
+  for (int bounce = 1; bounce <= plan_.options.max_bounces; ++bounce) {
+    const auto hit = bounce == 1 ? std::optional<RayHit>(RayHit{lanes_.packet.tfar[k], lanes_.packet.triangle[k]})
+                                 : plan_.embree.Intersect(ray.origin.cast<float>(), ray.dir.cast<float>(), plan_.eps,
+                                                          std::numeric_limits<float>::infinity());
+    if (!hit) break;
+    if (bounce == 1) ++hits_;
+    SurfaceHit s;
+    s.p = ray.origin + double(hit->t) * ray.dir;
+    ray.travelled += hit->t;
+    s.normal = (bounce == 1 ? lanes_.normal[k] : mesh.Normal(hit->triangle)).cast<double>();
+    s.cos_in = -s.normal.dot(ray.dir);
+    if (s.cos_in <= 0.0) break;  // back face: blocked
+    s.triangle = hit->triangle;
+    s.class_id = bounce == 1 ? lanes_.class_id[k] : mesh.classes[hit->triangle];
+    s.material = &plan_.materials.Get(s.class_id);
+    // Beam cross-section: constant in affine mode, growing with range in
+    // exact mode (constant angular spacing).
+    if (bounce == 1) ray.area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * ray.travelled;
+    // Return to the radar from p.
+    s.along = geometry.AlongTrack(s.p);
+    s.to_radar = plan_.affine ? Vector3d(-plan_.l) : Vector3d((geometry.SensorPosition(s.along) - s.p).normalized());
+    s.back = plan_.affine ? plan_.range0 + (s.p - plan_.xc).dot(plan_.l)
+                          : (geometry.SensorPosition(s.along) - s.p).norm();
+    s.mirror = ray.dir + 2.0 * s.cos_in * s.normal;
+    const Shading shading = bounce == 1 ? ShadeFirstBounce(line, j, ray, s) : ShadeLaterBounce(ray, s);
+    if (shading.value > 0.0) {
+      Emit(Return{shading.value, 0.5 * (ray.travelled + s.back), 0.5 * (line.a + s.along), shading.box_cols,
+                  shading.box_rows, bounce, bounce, s.p, s.class_id, shading.specular_part > shading.diffuse_part,
+                  plan_.polarimetric ? &shading.terms : nullptr},
+           line.i, ray.id);
+    }
+    if (bounce == plan_.options.max_bounces) break;  // no mirror ray to follow
+    if (!Reflect(ray, s)) break;
+  }
+}
+
+// The first-bounce return of primary ray j of `line` at hit `s`: sigma0 at
+// the shading incidence times the surface area the ray covers, per pixel
+// area, and its footprint (pixels). Adaptive sampling: a footprint wider
+// than split_footprint_px is returned by sub-rays instead (TraceSubRays;
+// value 0).
+Shading BlockTracer::ShadeFirstBounce(const Line& line, int j, const RayState& ray, const SurfaceHit& s) {
+  const RayGrid& grid = plan_.grid;
+  const sensor::SarGeometry& geometry = plan_.geometry;
+  Shading shading;
+  // The local incidence of the class's sigma0 law comes from the
+  // smooth-terrain shading normal when the mesh has one; the footprint's
+  // geometry keeps the facet normal. (The sub-rays do the same at their
+  // own hits.)
+  const double cos_shade = plan_.ShadingCos(s.triangle, s.p, ray.dir, s.cos_in);
+  if (plan_.polarimetric) shading.terms = plan_.FirstBounceTerms(s.class_id, cos_shade);
+  const double cos_eff = std::max(s.cos_in, kMaskEdgeOnCos);
+  shading.value = plan_.Sigma0(s.class_id, cos_shade) * ray.area / cos_eff * plan_.inv_pixel_area;
+  if (plan_.options.record_contributions) {  // only for the `specular` flag of contributions
+    shading.diffuse_part = s.material->diffuse * s.cos_in;
+    shading.specular_part = s.material->Backscatter(s.cos_in) - shading.diffuse_part;
+  }
+  // Footprint: the neighbouring ray across range hits the same plane
+  // s_e |N.v_e| / cos(theta_l) further in slant range.
+  const Vector3d v_e = plan_.affine ? Vector3d(plan_.n)
+                                    : Vector3d(-grid.sin_e[size_t(j)] * plan_.l + grid.cos_e[size_t(j)] * plan_.n);
+  const double s_e = plan_.affine ? grid.de_m : ray.travelled * grid.de;
+  shading.box_cols = s_e * std::abs(s.normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
+  shading.box_rows = grid.da / geometry.azimuth_spacing_m();
+  if (plan_.options.adaptive_sampling && shading.box_cols > plan_.split_footprint_px) {
+    TraceSubRays(line, j, ray.id, shading.box_cols, shading.box_rows);
+    shading.value = 0.0;  // returned by the sub-rays
+  }
+  return shading;
+}
+
+// Adaptive sampling: a first-bounce footprint box_cols (pixels) wider than
+// split_footprint_px (a surface seen near grazing) is covered by sub-rays
+// across primary ray j's interval (at most kMaxSubRays), each with its own
+// hit, normal and share of the cross-section, so the surface's true relief,
+// not the plane of one triangle, decides where the power lands; each
+// returns its first bounce (Emit, phase key 1000 + q, footprint height
+// box_rows). The primary ray itself continues (multi-bounce).
+void BlockTracer::TraceSubRays(const Line& line, int j, uint64_t ray_id, double box_cols, double box_rows) {
+  const RayGrid& grid = plan_.grid;
+  const sensor::SarGeometry& geometry = plan_.geometry;
+  const scene::TriangleMesh& mesh = plan_.mesh;
+  const bool affine = plan_.affine;
+  const int subs = std::min(kMaxSubRays, static_cast<int>(std::ceil(box_cols / plan_.split_footprint_px)));
+  sub_rays_ += subs;
+  const double sub_start_ground = SubRayStartGround(line, j);
+  const double e = grid.E(j);
+  for (int q = 0; q < subs; ++q) {
+    const double e_q = e + grid.de * ((q + 0.5) / subs - 0.5);
+    Vector3d o_q, d_q;
+    double trav_q;
+    if (!PrimaryRay(geometry, grid, plan_.box, line.a, e_q, line.sensor, &o_q, &d_q, &trav_q)) continue;
+    float t_near_q = 0.0f;
+    if (sub_start_ground > -std::numeric_limits<double>::infinity()) {
+      const double t_skip =
+          (sub_start_ground - kSkipMarginM - o_q.dot(plan_.ground_look)) / d_q.dot(plan_.ground_look);
+      if (t_skip > 0.0) t_near_q = static_cast<float>(t_skip);
+    }
+    const auto h_q = plan_.embree.Intersect(o_q.cast<float>(), d_q.cast<float>(), t_near_q,
+                                            std::numeric_limits<float>::infinity());
+    if (!h_q) continue;
+    const Vector3d p_q = o_q + double(h_q->t) * d_q;
+    trav_q += h_q->t;
+    const Vector3d n_q = mesh.Normal(h_q->triangle).cast<double>();
+    const double cos_q = -n_q.dot(d_q);
+    if (cos_q <= 0.0) continue;
+    const double cos_q_eff = std::max(cos_q, kMaskEdgeOnCos);
+    const scene::ClassId class_q = mesh.classes[h_q->triangle];
+    const double area_q = affine ? grid.da * grid.de_m / subs : grid.da * grid.de / subs * trav_q;
+    const double cos_shade_q = plan_.ShadingCos(h_q->triangle, p_q, d_q, cos_q);
+    const double value_q = plan_.Sigma0(class_q, cos_shade_q) * area_q / cos_q_eff * plan_.inv_pixel_area;
+    if (!(value_q > 0.0)) continue;
+    const Vector3d v_q = affine ? Vector3d(plan_.n) : Vector3d(-std::sin(e_q) * plan_.l + std::cos(e_q) * plan_.n);
+    const double s_q = affine ? grid.de_m / subs : trav_q * grid.de / subs;
+    const double cols_q = s_q * std::abs(n_q.dot(v_q)) / cos_q_eff / geometry.range_spacing_m();
+    const double a_q = geometry.AlongTrack(p_q);
+    const double back_q =
+        affine ? plan_.range0 + (p_q - plan_.xc).dot(plan_.l) : (geometry.SensorPosition(a_q) - p_q).norm();
+    const PolarimetricTerms terms_q =
+        plan_.polarimetric ? plan_.FirstBounceTerms(class_q, cos_shade_q) : PolarimetricTerms();
+    Emit(Return{value_q, 0.5 * (trav_q + back_q), 0.5 * (line.a + a_q), cols_q, box_rows, 1, 1000 + q, p_q, class_q,
+                false, plan_.polarimetric ? &terms_q : nullptr},
+         line.i, ray_id);
+  }
+}
+
+// Where primary ray j's sub-rays may start (ground coordinate, metres
+// along ground_look; -inf: at their origins). On a swept line, the ray
+// below it (j - 1 when the range-plane normal points up, else j + 1) that
+// met the terrain from above has passed over everything before its hit,
+// and so does every sub-ray (all above it): they start there (less
+// kSkipMarginM of ground), as packets do with skip_to_previous_hit.
+double BlockTracer::SubRayStartGround(const Line& line, int j) const {
+  const RayGrid& grid = plan_.grid;
+  const SweptHits& swept_hits = scratch_.swept;
+  const int j_below = plan_.n.z() > 0.0 ? j - 1 : j + 1;
+  if (!line.swept || j_below < 0 || j_below >= grid.n_el) return -std::numeric_limits<double>::infinity();
+  const size_t below = size_t(line.i - i0_) * grid.n_el + size_t(j_below);
+  Vector3d o_b, d_b;
+  double trav_b;
+  if (swept_hits.triangle[below] != GridProfileSweep::kNoHit &&
+      PrimaryRayAt(plan_.geometry, grid, plan_.box, line.a, j_below, line.sensor, &o_b, &d_b, &trav_b) &&
+      swept_hits.normal[below].cast<double>().dot(d_b) < 0.0) {
+    const double t_b = plan_.affine ? swept_hits.depth[below] + grid.back_off_m : swept_hits.depth[below] - trav_b;
+    return (o_b + t_b * d_b).dot(plan_.ground_look);
+  }
+  return -std::numeric_limits<double>::infinity();
+}
+
+// A later bounce: the mirror chain so far ends at `s` and scatters back to
+// the radar (reciprocal bistatic law) when the way back is clear. Its
+// reversed path (radar -> this point -> the mirrors in reverse order ->
+// radar) has the same length and, by reciprocity, the same power
+// (material::PathRcsPerArea); the tracer does not follow it from the other
+// end, so Emit adds it: twice the power (incoherent), twice the amplitude
+// in phase (coherent). The value is the path's RCS: bistatic sigma0 times
+// the surface the ray's cross-section covers here (area / cos_in), times
+// the mirror reflectivities on the way (polarimetric passes: the mirror
+// coefficients only, the Fresnel amplitudes are in the chain's matrix),
+// per pixel area; a point (no footprint).
+Shading BlockTracer::ShadeLaterBounce(const RayState& ray, const SurfaceHit& s) const {
+  const material::Material& m = *s.material;
+  Shading shading;
+  const double cos_out = s.normal.dot(s.to_radar);
+  if (cos_out > 0.0 &&
+      !plan_.embree.Occluded(s.p.cast<float>(), s.to_radar.cast<float>(), plan_.eps,
+                             static_cast<float>(plan_.affine ? plan_.far_affine : s.back))) {
+    const double cos_spec = s.mirror.dot(s.to_radar);
+    shading.diffuse_part = m.BistaticSigma0(s.cos_in, cos_out, -1.0);
+    shading.specular_part = m.BistaticSigma0(s.cos_in, cos_out, cos_spec) - shading.diffuse_part;
+  }
+  shading.value = (shading.diffuse_part + shading.specular_part) * ray.area / std::max(s.cos_in, kMaskEdgeOnCos) *
+                  ray.share * plan_.inv_pixel_area;
+  if (plan_.polarimetric && shading.value > 0.0) {
+    shading.terms = MirrorTerms(ClosedChainMatrix(ray.field, ray.dir, s.to_radar, s.normal, shading.diffuse_part,
+                                                  shading.specular_part,
+                                                  m.EffectivePermittivity(plan_.options.wavelength_m)),
+                                plan_.options.polarization);
+  }
+  return shading;
+}
+
+// Continues `ray` from hit `s` as its mirror ray, with the class's Fresnel
+// mirror reflectivity at this incidence in its share. The radar's H/V
+// basis is projected on this surface's plane of incidence (walls seen
+// obliquely reflect part of V as TE); polarimetric passes carry the field
+// through it instead (the mirror coefficient in the share, the Fresnel
+// amplitudes in the field). False (the ray stops) when the mean power left
+// is below 1e-9.
+bool BlockTracer::Reflect(RayState& ray, const SurfaceHit& s) const {
+  const material::Material& m = *s.material;
+  if (plan_.polarimetric) {
+    ray.share *= m.mirror;
+    if (ray.share < 1e-9) return false;
+    ReflectChainField(ray.field, ray.dir, s.normal, s.cos_in, m.EffectivePermittivity(plan_.options.wavelength_m));
+    if (ray.share * 0.5 * ray.field.squaredNorm() < 1e-9) return false;
+  } else {
+    ray.share *= m.MirrorReflectivity(s.cos_in, ray.dir, s.mirror.normalized(), s.normal,
+                                      plan_.options.wavelength_m, plan_.options.polarization);
+    if (ray.share < 1e-9) return false;
+  }
+  ray.origin = s.p;
+  ray.dir = s.mirror.normalized();
+  return true;
+}
+
+// The splat: return `r` of ray `ray_id` of azimuth line i into the band
+// (its bounce layer and the total; incoherent first bounces through the
+// line's range profile), in coherent mode as phasors (rough-surface first
+// bounces: the seeded micro-phase; mirror paths: the path phase
+// exp(-j 4 pi R / lambda), material/scattering.h, docs/conventions.md),
+// and into the block's contributions when they are recorded. A
+// later-bounce return stands for its path and the reversed path (same
+// length, same power): twice the power; in coherent mode the two add in
+// phase. Returns outside the band go to its overflow.
+void BlockTracer::Emit(const Return& r, int i, uint64_t ray_id) {
+  const sensor::SarGeometry& geometry = plan_.geometry;
+  const int width = plan_.width;
+  Band& band = band_;
+  const double col = geometry.ColumnOfRange(r.range), row = geometry.RowOfAlongTrack(r.along);
+  const int layer = std::min(r.bounce, kBounceLayers) - 1;
+  const double box_cols = r.box_cols, box_rows = r.box_rows;
+  auto deposit = [&](int plane, double value) {
+    if (box_cols >= 0.0) {
+      SplatFootprint(band, width, plane, col, row, box_cols, box_rows, static_cast<float>(value));
+    } else {
+      Splat(band, width, plane, col, row, static_cast<float>(value));
+    }
+  };
+  const double reciprocal = r.bounce > 1 ? 2.0 : 1.0;
+  const bool mirror_matrix = r.pol != nullptr && r.bounce > 1;
+  const double path_power = r.value;  // P, before the reversed path
+  double value = r.value;
+  if (mirror_matrix) {
+    value *= r.pol->mirror_power;
+  } else {
+    value *= reciprocal;
+  }
+  if (by_profile_ && r.bounce == 1 && box_cols >= 0.0) {
+    // Into the line's range profile (its bounce layer and the total when
+    // the block is done).
+    scratch_.profiles.Add(i - i0_, col, box_cols, value);
+  } else if (!plan_.options.coherent && box_cols >= 0.0) {
+    // Its bounce layer and the total, from the same shares.
+    SplatFootprint2(band, width, plan_.total_planes + layer, 0, col, row, box_cols, box_rows,
+                    static_cast<float>(value));
+  } else {
+    deposit(plan_.total_planes + layer, value);
+  }
+  if (plan_.options.coherent) {
+    const double phase = -plan_.wavenumber2 * r.range;
+    const double amplitude = r.bounce > 1 ? 2.0 * std::sqrt(value / reciprocal) : std::sqrt(value);
+    // The same phasor into the total and into its bounce's complex band, so
+    // the complex bands add up to the complex total.
+    for (const int plane : {0, plan_.ComplexLayerPlane(layer)}) {
+      if (r.bounce == 1) {
+        SplatFootprintPhasors(band, width, plane, col, row, std::max(0.0, box_cols), box_rows, amplitude, phase,
+                              plan_.options.seed, ray_id, uint64_t(r.phase_key),
+                              r.pol != nullptr ? r.pol->mix : MicroPhasorMix());
+      } else if (mirror_matrix) {
+        // sqrt(P) (S_c + S^T_c) with the path phase.
+        const std::complex<double> z = std::sqrt(path_power) * r.pol->mirror_amplitude * std::polar(1.0, phase);
+        Splat(band, width, plane, col, row, static_cast<float>(z.real()), true);
+        Splat(band, width, plane + 1, col, row, static_cast<float>(z.imag()), true);
+      } else {
+        Splat(band, width, plane, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
+        Splat(band, width, plane + 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
+      }
+    }
+  } else if (box_cols < 0.0) {
+    deposit(0, value);
+  }
+  if (plan_.options.record_contributions) RecordContribution(r, value, path_power, ray_id);
+}
+
+// Return `r` as a contribution of the block: `value` its intensity (with
+// the reversed path), `path_power` P without it (later polarimetric
+// bounces' channel amplitude sqrt(P) (S_c + S^T_c)).
+void BlockTracer::RecordContribution(const Return& r, double value, double path_power, uint64_t ray_id) {
+  Contribution c;
+  c.azimuth_m = r.along;
+  c.range_m = r.range;
+  c.elevation_m = (r.p - plan_.xc).dot(plan_.n);
+  c.intensity = static_cast<float>(value);
+  c.bounces = static_cast<uint8_t>(r.bounce);
+  c.specular = r.specular;
+  c.hit_enu = r.p.cast<float>();
+  c.class_id = r.class_id;
+  if (r.pol != nullptr) {  // what a coherent re-projection needs (Contribution)
+    const std::complex<double> a = r.bounce > 1 ? std::sqrt(path_power) * r.pol->mirror_amplitude : r.pol->rho;
+    c.channel_amplitude = std::complex<float>(a);
+    c.ray_id = ray_id;
+    c.phase_key = static_cast<uint16_t>(r.phase_key);
+  }
+  acc_.block_contributions[size_t(block_)].push_back(c);
+}
+
+// Incoherent mode: every line's range profile of first-bounce returns into
+// its bounce layer and the total, at the line's row with the first-bounce
+// footprint's height (the ray spacing across azimuth).
+void BlockTracer::FlushProfiles() {
+  if (!by_profile_) return;
+  const double box_rows = plan_.grid.da / plan_.geometry.azimuth_spacing_m();
+  for (int i = i0_; i < i1_; ++i) {
+    scratch_.profiles.Flush(i - i0_, plan_.geometry.RowOfAlongTrack(plan_.AlongTrackOfLine(i)), box_rows, band_,
+                            plan_.total_planes, 0);
+  }
+}
+
+// The band into the image planes, one row at a time under its lock (rows
+// outside the image are dropped: their returns are in the overflow).
+void BlockTracer::MergeBand() {
+  const int width = plan_.width;
+  for (int r = 0; r < band_.rows; ++r) {
+    const int row = band_.row0 + r;
+    if (row < 0 || row >= plan_.height) continue;
+    std::lock_guard<std::mutex> lock(acc_.row_locks[size_t(row) % acc_.row_locks.size()]);
+    for (int plane = 0; plane < plan_.planes; ++plane) {
+      float* dst = acc_.image_planes[size_t(plane)].data() + size_t(row) * width;
+      const float* src = band_.values + (size_t(plane) * band_.rows + r) * width;
+      for (int c = 0; c < width; ++c) dst[c] += src[c];
+    }
+  }
+}
+
+// Trace phase: the plan's blocks in parallel, each a BlockTracer in its
+// thread's buffers, reporting progress on `reporter`. Each block
+// accumulates into a band of image rows (plus an overflow list) added into
+// the planes when the block is done. A band shares rows only with its two
+// neighbours (blocks are 16 rows tall, bands reach one row further), so
+// every pixel sums at most two bands, and IEEE addition of two terms is
+// commutative: the planes do not depend on which finishes first, on the
+// thread count or on scheduling. Throws when the reporter cancels.
+void TraceBlocks(const TracePlan& plan, TraceAccumulator& acc, Reporter& reporter) {
+  tbb::enumerable_thread_specific<BlockScratch> scratch;
+  Progress progress("simulate: tracing", plan.n_blocks, reporter);
+  tbb::parallel_for(tbb::blocked_range<int>(0, plan.n_blocks, 1), [&](const tbb::blocked_range<int>& blocks) {
+    BlockScratch& local = scratch.local();
     for (int b = blocks.begin(); b != blocks.end(); ++b) {
-      const int i0 = b * rows_per_block, i1 = std::min(grid.n_az, i0 + rows_per_block);
-      Band band;
-      band.planes = planes;
-      band.row0 = band_row0(b);
-      band.rows = band_rows(b);
-      buffer.assign(size_t(planes) * band.rows * width, 0.0f);
-      band.values = buffer.data();
-      band.overflow = &block_overflow[b];
-      int64_t local_hits = 0, local_sub_rays = 0, local_swept = 0;
-      // Incoherent first-bounce returns go through one range profile per
-      // line (LineProfiles).
-      const bool by_profile = !options.coherent;
-      LineProfiles& profiles = profile_buffers.local();
-      if (by_profile) profiles.Reset(i1 - i0, width);
-      // Primary rays go out 16 at a time along an azimuth row (neighbouring
-      // origins, parallel or fanned directions: a coherent packet); each
-      // lane's later bounces are then followed one ray at a time, lanes in
-      // order, so returns are splatted in the same order as ray by ray.
-      RayPacket16 packet;
-      alignas(64) int valid[16];  // Embree: the valid mask of rtcIntersect16 is 64-byte aligned
-      std::vector<Vector3d> line_sensor;
-      std::vector<double> line_previous_hit;
-      // The block's swept hits, in buffers each thread keeps (tens of MB:
-      // allocating them per block cost page faults).
-      SweptHits& swept_hits = swept_buffers.local();
-      std::vector<uint8_t>& line_swept = swept_hits.swept;
-      std::vector<double>& line_depth = swept_hits.depth;
-      std::vector<uint32_t>& line_triangle = swept_hits.triangle;
-      std::vector<Vector3f>& line_normal = swept_hits.normal;
-      Vector3d lane_origin[16], lane_dir[16];
-      Vector3f lane_normal[16];
-      scene::ClassId lane_class[16];
-      double lane_travelled[16];
-      // The block's azimuth lines go out interleaved: packet row j0 of
-      // every line, then the next packet row. Neighbouring lines meet the
-      // same terrain cells, so each line finds the posts, the quadtree
-      // nodes and the mesh in cache where the line before it left them
-      // (line after line, a whole line's terrain came between two visits).
-      const int lines = i1 - i0;
-      line_sensor.resize(size_t(lines));
-      for (int i = i0; i < i1; ++i) line_sensor[size_t(i - i0)] = geometry.SensorPosition(grid.a0 + i * grid.da);
-      // Per line: ground coordinate (along `ground_look`) of the first hit
-      // of its previous packet's highest ray when it met the terrain from
-      // above; -inf: none (see skip_to_previous_hit).
-      line_previous_hit.assign(size_t(lines), -std::numeric_limits<double>::infinity());
-      // The lines' primary hits by profile sweep, where it applies.
-      if (sweep) {
-        line_swept.resize(size_t(lines));
-        line_depth.resize(size_t(lines) * grid.n_el);
-        line_triangle.resize(size_t(lines) * grid.n_el);
-        line_normal.resize(size_t(lines) * grid.n_el);
-        std::vector<GridProfileSweep::LineRays> rays;
-        for (int i = i0; i < i1; ++i) {
-          const size_t at = size_t(i - i0) * grid.n_el;
-          rays.push_back({grid.a0 + i * grid.da, grid.e0, grid.de, grid.n_el, &line_depth[at], &line_triangle[at],
-                          &line_normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data()});
-        }
-        sweep->TraceLines(rays, line_swept.data());
-        for (const uint8_t swept : line_swept) local_swept += swept;
-      }
-      for (int j0 = 0; j0 < grid.n_el; j0 += 16) {
-        for (int i = i0; i < i1; ++i) {
-          const double a = grid.a0 + i * grid.da;
-          const Vector3d& sensor = line_sensor[size_t(i - i0)];
-          double& previous_hit_ground = line_previous_hit[size_t(i - i0)];
-          bool any = false;
-          for (int k = 0; k < 16; ++k) {
-            const int j = j0 + k;
-            valid[k] = 0;
-            if (j >= grid.n_el) continue;
-            Vector3d origin, dir;
-            double travelled;  // path length from the sensor to `origin`
-            if (!PrimaryRayAt(geometry, grid, box, a, j, sensor, &origin, &dir, &travelled)) continue;
-            lane_origin[k] = origin;
-            lane_dir[k] = dir;
-            lane_travelled[k] = travelled;
-            packet.SetRay(k, origin.cast<float>(), dir.cast<float>());
-            if (skip_to_previous_hit && previous_hit_ground > -std::numeric_limits<double>::infinity()) {
-              // This ray passes above the previous packet's highest ray, so
-              // over all the terrain before that ray's hit: start it there
-              // (less kSkipMarginM of ground).
-              const double t_skip =
-                  (previous_hit_ground - kSkipMarginM - origin.dot(ground_look)) / dir.dot(ground_look);
-              if (t_skip > 0.0) packet.tnear[k] = static_cast<float>(t_skip);
-            }
-            valid[k] = -1;
-            any = true;
-          }
-          if (!any) continue;
-          if (sweep && line_swept[size_t(i - i0)]) {
-            const size_t at = size_t(i - i0) * grid.n_el + size_t(j0);
-            for (int k = 0; k < 16; ++k) {
-              if (valid[k] == 0) continue;
-              packet.triangle[k] = line_triangle[at + size_t(k)];
-              // Distance from the ray's origin: affine depths are along l
-              // from the scene centre, exact ones from the sensor.
-              const double depth = line_depth[at + size_t(k)];
-              packet.tfar[k] = static_cast<float>(affine ? depth + grid.back_off_m : depth - lane_travelled[k]);
-            }
-          } else {
-            embree.Intersect16(valid, packet, /*coherent=*/true);
-          }
-          // The hit triangles' normals and classes for all lanes first,
-          // prefetched in two waves (triangles, then their vertices): the
-          // mesh is large and the lanes' triangles lie in different DEM
-          // rows, so their cache misses overlap instead of queueing.
-          // (A swept line's triangles are grid cells: their normals come
-          // from the posts the sweep has just read, not through the mesh.)
-          const bool swept = sweep && line_swept[size_t(i - i0)];
-          for (int k = 0; k < 16; ++k) {
-            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-            // (An implicit grid's triangles are computed, not read.)
-            const size_t t = packet.triangle[k];
-            if (!swept && t >= implicit_triangles) __builtin_prefetch(&mesh.triangles[t - implicit_triangles]);
-            __builtin_prefetch(&mesh.classes[t]);
-          }
-          for (int k = 0; k < 16 && !swept; ++k) {
-            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-            const Eigen::Vector3i tri = mesh.Triangle(packet.triangle[k]);
-            for (int corner = 0; corner < 3; ++corner) __builtin_prefetch(&mesh.vertices[tri[corner]]);
-          }
-          for (int k = 0; k < 16; ++k) {
-            if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-            lane_normal[k] = swept ? line_normal[size_t(i - i0) * grid.n_el + size_t(j0 + k)]
-                                   : mesh.Normal(packet.triangle[k]);
-            lane_class[k] = mesh.classes[packet.triangle[k]];
-          }
-          if (skip_to_previous_hit) {
-            // The highest ray of this packet (lane 15, rays rising with j)
-            // met the terrain from above (a height field's faces point up):
-            // the next packet's rays, all above it, can start at its hit.
-            previous_hit_ground = -std::numeric_limits<double>::infinity();
-            if (valid[15] != 0 && packet.triangle[15] != RayPacket16::kNoHit &&
-                lane_normal[15].cast<double>().dot(lane_dir[15]) < 0.0) {
-              previous_hit_ground = (lane_origin[15] + double(packet.tfar[15]) * lane_dir[15]).dot(ground_look);
-            }
-          }
-          for (int k = 0; k < 16; ++k) {
-          if (valid[k] == 0 || packet.triangle[k] == RayPacket16::kNoHit) continue;
-          const int j = j0 + k;
-          Vector3d origin = lane_origin[k], dir = lane_dir[k];
-          double travelled = lane_travelled[k];
-          double area = 0.0;   // beam cross-section of the ray at its first hit, m^2
-          double share = 1.0;  // product of the mirror shares so far
-          const uint64_t ray_id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
-          // Polarimetric passes: the field the mirror chain carries.
-          ChainField chain_field;
-          if (polarimetric) chain_field = TransmitField(dir);
-          // One return into the image (and the contributions): `value` is
-          // beta0 summed over its footprint; box_cols >= 0: the first-bounce
-          // footprint (pixels), else a point. `phase_key` picks the random
-          // micro-phase of rough-surface returns. `pol` (polarimetric passes,
-          // else nullptr): the return's polarimetric terms; a later bounce's
-          // `value` is then the path power P without the reversed path.
-          auto emit = [&](double value, double range, double along, double box_cols, double box_rows, int bounce,
-                          int phase_key, const Vector3d& p, scene::ClassId hit_class, bool specular,
-                          const PolarimetricTerms* pol) {
-            const double col = geometry.ColumnOfRange(range), row = geometry.RowOfAlongTrack(along);
-            const int layer = std::min(bounce, kBounceLayers) - 1;
-            auto deposit = [&](int plane) {
-              if (box_cols >= 0.0) {
-                SplatFootprint(band, width, plane, col, row, box_cols, box_rows, static_cast<float>(value));
-              } else {
-                Splat(band, width, plane, col, row, static_cast<float>(value));
-              }
-            };
-            // A later-bounce return stands for its path and the reversed
-            // path (same length, same power): twice the power; in coherent
-            // mode the two add in phase.
-            const double reciprocal = bounce > 1 ? 2.0 : 1.0;
-            const bool mirror_matrix = pol != nullptr && bounce > 1;
-            const double path_power = value;  // P, before the reversed path
-            if (mirror_matrix) {
-              value *= pol->mirror_power;
-            } else {
-              value *= reciprocal;
-            }
-            if (by_profile && bounce == 1 && box_cols >= 0.0) {
-              // Into the line's range profile (its bounce layer and the
-              // total when the block is done).
-              profiles.Add(i - i0, col, box_cols, value);
-            } else if (!options.coherent && box_cols >= 0.0) {
-              // Its bounce layer and the total, from the same shares.
-              SplatFootprint2(band, width, total_planes + layer, 0, col, row, box_cols, box_rows,
-                              static_cast<float>(value));
-            } else {
-              deposit(total_planes + layer);
-            }
-            if (options.coherent) {
-              // Rough-surface (first-bounce) returns: random micro-phase;
-              // mirror paths: deterministic path phase, exp(-j 4 pi R /
-              // lambda) (material/scattering.h, docs/conventions.md).
-              const double phase = -wavenumber2 * range;
-              const double amplitude = bounce > 1 ? 2.0 * std::sqrt(value / reciprocal) : std::sqrt(value);
-              // The same phasor into the total and into its bounce's complex
-              // band, so the complex bands add up to the complex total.
-              for (const int plane : {0, complex_layer_plane(layer)}) {
-                if (bounce == 1) {
-                  SplatFootprintPhasors(band, width, plane, col, row, std::max(0.0, box_cols), box_rows, amplitude,
-                                        phase, options.seed, ray_id, uint64_t(phase_key),
-                                        pol != nullptr ? pol->mix : MicroPhasorMix());
-                } else if (mirror_matrix) {
-                  // sqrt(P) (S_c + S^T_c) with the path phase.
-                  const std::complex<double> z =
-                      std::sqrt(path_power) * pol->mirror_amplitude * std::polar(1.0, phase);
-                  Splat(band, width, plane, col, row, static_cast<float>(z.real()), true);
-                  Splat(band, width, plane + 1, col, row, static_cast<float>(z.imag()), true);
-                } else {
-                  Splat(band, width, plane, col, row, static_cast<float>(amplitude * std::cos(phase)), true);
-                  Splat(band, width, plane + 1, col, row, static_cast<float>(amplitude * std::sin(phase)), true);
-                }
-              }
-            } else if (box_cols < 0.0) {
-              deposit(0);
-            }
-            if (options.record_contributions) {
-              Contribution c;
-              c.azimuth_m = along;
-              c.range_m = range;
-              c.elevation_m = (p - xc).dot(n);
-              c.intensity = static_cast<float>(value);
-              c.bounces = static_cast<uint8_t>(bounce);
-              c.specular = specular;
-              c.hit_enu = p.cast<float>();
-              c.class_id = hit_class;
-              if (pol != nullptr) {  // what a coherent re-projection needs (Contribution)
-                const std::complex<double> a =
-                    bounce > 1 ? std::sqrt(path_power) * pol->mirror_amplitude : pol->rho;
-                c.channel_amplitude = std::complex<float>(a);
-                c.ray_id = ray_id;
-                c.phase_key = static_cast<uint16_t>(phase_key);
-              }
-              block_contributions[b].push_back(c);
-            }
-          };
-          for (int bounce = 1; bounce <= options.max_bounces; ++bounce) {
-            const auto hit = bounce == 1 ? std::optional<RayHit>(RayHit{packet.tfar[k], packet.triangle[k]})
-                                         : embree.Intersect(origin.cast<float>(), dir.cast<float>(), eps,
-                                                            std::numeric_limits<float>::infinity());
-            if (!hit) break;
-            if (bounce == 1) ++local_hits;
-            const Vector3d p = origin + double(hit->t) * dir;
-            travelled += hit->t;
-            const Vector3d normal =
-                (bounce == 1 ? lane_normal[k] : mesh.Normal(hit->triangle)).cast<double>();
-            const double cos_in = -normal.dot(dir);
-            if (cos_in <= 0.0) break;  // back face: blocked
-            const scene::ClassId class_id = bounce == 1 ? lane_class[k] : mesh.classes[hit->triangle];
-            const material::Material& m = materials.Get(class_id);
-            // Beam cross-section: constant in affine mode, growing with
-            // range in exact mode (constant angular spacing).
-            if (bounce == 1) area = affine ? grid.da * grid.de_m : grid.da * grid.de * travelled;
-            // Return to the radar from p.
-            const double a_p = geometry.AlongTrack(p);
-            const Vector3d to_radar = affine ? Vector3d(-l) : Vector3d((geometry.SensorPosition(a_p) - p).normalized());
-            const double back = affine ? range0 + (p - xc).dot(l) : (geometry.SensorPosition(a_p) - p).norm();
-            const Vector3d mirror = dir + 2.0 * cos_in * normal;
-            double diffuse_part = 0.0, specular_part = 0.0;
-            double value = 0.0;
-            double box_cols = -1.0, box_rows = -1.0;
-            PolarimetricTerms terms;  // polarimetric passes
-            if (bounce == 1) {
-              // The local incidence of the class's sigma0 law comes from the
-              // smooth-terrain shading normal when the mesh has one
-              // (barycentrics of the hit point); the footprint's geometry
-              // keeps the facet normal.
-              // (The adaptive sub-rays below do the same at their own hits.)
-              auto shade = [&](uint32_t triangle, const Vector3d& point, const Vector3d& ray, double cos_facet) {
-                if (mesh.shading_normals.empty()) return cos_facet;
-                const Eigen::Vector3i tri = mesh.Triangle(triangle);
-                const Vector3d v0 = mesh.vertices[tri[0]].cast<double>();
-                const Vector3d e1 = mesh.vertices[tri[1]].cast<double>() - v0;
-                const Vector3d e2 = mesh.vertices[tri[2]].cast<double>() - v0;
-                const Vector3d w = point - v0;
-                const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2);
-                const double det = d11 * d22 - d12 * d12;
-                if (!(det > 0.0)) return cos_facet;
-                const double u = (d22 * w.dot(e1) - d12 * w.dot(e2)) / det;
-                const double v = (d11 * w.dot(e2) - d12 * w.dot(e1)) / det;
-                const Vector3d ns = mesh.ShadingNormal(triangle, float(u), float(v)).cast<double>();
-                return std::max(0.0, -ns.dot(ray));
-              };
-              const double cos_shade = shade(hit->triangle, p, dir, cos_in);
-              if (polarimetric) terms = first_bounce_terms(class_id, cos_shade);
-              // sigma0 times the surface area the ray covers, per pixel area.
-              const double cos_eff = std::max(cos_in, kMaskEdgeOnCos);
-              value = sigma0_of(class_id, cos_shade) * area / cos_eff * inv_pixel_area;
-              if (options.record_contributions) {  // only for the `specular` flag of contributions
-                diffuse_part = m.diffuse * cos_in;
-                specular_part = m.Backscatter(cos_in) - diffuse_part;
-              }
-              // Footprint: the neighbouring ray across range hits the same
-              // plane s_e |N.v_e| / cos(theta_l) further in slant range.
-              const double e = grid.E(j);
-              const Vector3d v_e =
-                  affine ? Vector3d(n) : Vector3d(-grid.sin_e[size_t(j)] * l + grid.cos_e[size_t(j)] * n);
-              const double s_e = affine ? grid.de_m : travelled * grid.de;
-              box_cols = s_e * std::abs(normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
-              box_rows = grid.da / geometry.azimuth_spacing_m();
-              if (options.adaptive_sampling && box_cols > split_footprint_px) {
-                // Adaptive sampling: a footprint wider than a pixel (a
-                // surface seen near grazing) is covered by sub-rays across
-                // the ray's interval, each with its own hit, normal and
-                // share of the cross-section, so the surface's true
-                // relief, not the plane of one triangle, decides where the
-                // power lands. The ray itself continues (multi-bounce).
-                const int subs = std::min(kMaxSubRays, static_cast<int>(std::ceil(box_cols / split_footprint_px)));
-                local_sub_rays += subs;
-                // On a swept line, the ray below this one (j - 1 when the
-                // range-plane normal points up, else j + 1) that met the
-                // terrain from above has passed over everything before its
-                // hit, and so does every sub-ray (all above it): they start
-                // there (less kSkipMarginM of ground), as packets do with
-                // skip_to_previous_hit.
-                double sub_start_ground = -std::numeric_limits<double>::infinity();
-                const int j_below = n.z() > 0.0 ? j - 1 : j + 1;
-                if (swept && j_below >= 0 && j_below < grid.n_el) {
-                  const size_t below = size_t(i - i0) * grid.n_el + size_t(j_below);
-                  Vector3d o_b, d_b;
-                  double trav_b;
-                  if (line_triangle[below] != GridProfileSweep::kNoHit &&
-                      PrimaryRayAt(geometry, grid, box, a, j_below, sensor, &o_b, &d_b, &trav_b) &&
-                      line_normal[below].cast<double>().dot(d_b) < 0.0) {
-                    const double t_b = affine ? line_depth[below] + grid.back_off_m : line_depth[below] - trav_b;
-                    sub_start_ground = (o_b + t_b * d_b).dot(ground_look);
-                  }
-                }
-                for (int q = 0; q < subs; ++q) {
-                  const double e_q = e + grid.de * ((q + 0.5) / subs - 0.5);
-                  Vector3d o_q, d_q;
-                  double trav_q;
-                  if (!PrimaryRay(geometry, grid, box, a, e_q, sensor, &o_q, &d_q, &trav_q)) continue;
-                  float t_near_q = 0.0f;
-                  if (sub_start_ground > -std::numeric_limits<double>::infinity()) {
-                    const double t_skip = (sub_start_ground - kSkipMarginM - o_q.dot(ground_look)) / d_q.dot(ground_look);
-                    if (t_skip > 0.0) t_near_q = static_cast<float>(t_skip);
-                  }
-                  const auto h_q = embree.Intersect(o_q.cast<float>(), d_q.cast<float>(), t_near_q,
-                                                    std::numeric_limits<float>::infinity());
-                  if (!h_q) continue;
-                  const Vector3d p_q = o_q + double(h_q->t) * d_q;
-                  trav_q += h_q->t;
-                  const Vector3d n_q = mesh.Normal(h_q->triangle).cast<double>();
-                  const double cos_q = -n_q.dot(d_q);
-                  if (cos_q <= 0.0) continue;
-                  const double cos_q_eff = std::max(cos_q, kMaskEdgeOnCos);
-                  const scene::ClassId class_q = mesh.classes[h_q->triangle];
-                  const double area_q = affine ? grid.da * grid.de_m / subs : grid.da * grid.de / subs * trav_q;
-                  const double cos_shade_q = shade(h_q->triangle, p_q, d_q, cos_q);
-                  const double value_q = sigma0_of(class_q, cos_shade_q) * area_q / cos_q_eff * inv_pixel_area;
-                  if (!(value_q > 0.0)) continue;
-                  const Vector3d v_q = affine ? Vector3d(n) : Vector3d(-std::sin(e_q) * l + std::cos(e_q) * n);
-                  const double s_q = affine ? grid.de_m / subs : trav_q * grid.de / subs;
-                  const double cols_q = s_q * std::abs(n_q.dot(v_q)) / cos_q_eff / geometry.range_spacing_m();
-                  const double a_q = geometry.AlongTrack(p_q);
-                  const double back_q =
-                      affine ? range0 + (p_q - xc).dot(l) : (geometry.SensorPosition(a_q) - p_q).norm();
-                  const PolarimetricTerms terms_q =
-                      polarimetric ? first_bounce_terms(class_q, cos_shade_q) : PolarimetricTerms();
-                  emit(value_q, 0.5 * (trav_q + back_q), 0.5 * (a + a_q), cols_q, box_rows, 1, 1000 + q, p_q,
-                       class_q, false, polarimetric ? &terms_q : nullptr);
-                }
-                value = 0.0;  // returned by the sub-rays
-              }
-            } else {
-              // The mirror chain so far ends here and scatters back to the
-              // radar (reciprocal bistatic law). Its reversed path (radar ->
-              // this point -> the mirrors in reverse order -> radar) has
-              // the same length and, by reciprocity, the same power
-              // (material::PathRcsPerArea); the tracer does not follow it
-              // from the other end, so it is added here: twice the power
-              // (incoherent), twice the amplitude in phase (coherent).
-              const double cos_out = normal.dot(to_radar);
-              if (cos_out > 0.0 &&
-                  !embree.Occluded(p.cast<float>(), to_radar.cast<float>(), eps,
-                                   static_cast<float>(affine ? far_affine : back))) {
-                const double cos_spec = mirror.dot(to_radar);
-                diffuse_part = m.BistaticSigma0(cos_in, cos_out, -1.0);
-                specular_part = m.BistaticSigma0(cos_in, cos_out, cos_spec) - diffuse_part;
-              }
-              // RCS of the path: bistatic sigma0 times the surface the ray's
-              // cross-section covers here (area / cos_in), times the mirror
-              // reflectivities on the way.
-              // (Polarimetric passes: `share` holds the mirror coefficients
-              // only, the Fresnel amplitudes are in the chain's matrix.)
-              value = (diffuse_part + specular_part) * area / std::max(cos_in, kMaskEdgeOnCos) * share * inv_pixel_area;
-              if (polarimetric && value > 0.0) {
-                terms = MirrorTerms(ClosedChainMatrix(chain_field, dir, to_radar, normal, diffuse_part,
-                                                      specular_part, m.EffectivePermittivity(options.wavelength_m)),
-                                    options.polarization);
-              }
-            }
-            if (value > 0.0) {
-              emit(value, 0.5 * (travelled + back), 0.5 * (a + a_p), box_cols, box_rows, bounce, bounce, p,
-                   mesh.classes[hit->triangle], specular_part > diffuse_part, polarimetric ? &terms : nullptr);
-            }
-            if (bounce == options.max_bounces) break;  // no mirror ray to follow
-            // Continue as the mirror ray, with the class's Fresnel mirror
-            // reflectivity at this incidence.
-            // The radar's H/V basis is projected on this surface's plane of
-            // incidence (walls seen obliquely reflect part of V as TE);
-            // polarimetric passes carry the field through it instead.
-            if (polarimetric) {
-              // The mirror coefficient in the share, the Fresnel amplitudes
-              // in the field; stop when the mean power left is below the cut.
-              share *= m.mirror;
-              if (share < 1e-9) break;
-              ReflectChainField(chain_field, dir, normal, cos_in, m.EffectivePermittivity(options.wavelength_m));
-              if (share * 0.5 * chain_field.squaredNorm() < 1e-9) break;
-            } else {
-              share *= m.MirrorReflectivity(cos_in, dir, mirror.normalized(), normal, options.wavelength_m,
-                                            options.polarization);
-              if (share < 1e-9) break;
-            }
-            origin = p;
-            dir = mirror.normalized();
-          }
-          }
-        }
-      }
-      if (by_profile) {
-        // The first-bounce footprint's height: the ray spacing across azimuth.
-        const double box_rows = grid.da / geometry.azimuth_spacing_m();
-        for (int i = i0; i < i1; ++i) {
-          profiles.Flush(i - i0, geometry.RowOfAlongTrack(grid.a0 + i * grid.da), box_rows, band, total_planes, 0);
-        }
-      }
-      // Into the image, one row at a time under its lock.
-      for (int r = 0; r < band.rows; ++r) {
-        const int row = band.row0 + r;
-        if (row < 0 || row >= height) continue;
-        std::lock_guard<std::mutex> lock(row_locks[size_t(row) % row_locks.size()]);
-        for (int plane = 0; plane < planes; ++plane) {
-          float* dst = full[plane].data() + size_t(row) * width;
-          const float* src = band.values + (size_t(plane) * band.rows + r) * width;
-          for (int c = 0; c < width; ++c) dst[c] += src[c];
-        }
-      }
-      hits.fetch_add(local_hits, std::memory_order_relaxed);
-      sub_rays.fetch_add(local_sub_rays, std::memory_order_relaxed);
-      swept_lines.fetch_add(local_swept, std::memory_order_relaxed);
+      BlockTracer(plan, acc, local, b).Run();
       progress.Advance(1);
       ThrowIfCancelled(reporter, "simulate: tracing");
     }
   });
   progress.Done();
+}
 
-  for (const auto& overflow : block_overflow) {
+// The returns that landed outside their block's band, into the planes in
+// block order (deterministic), clipped to the image.
+void SplatOverflows(const TracePlan& plan, TraceAccumulator& acc) {
+  for (const auto& overflow : acc.block_overflow) {
     for (const Band::Overflow& o : overflow) {
+      std::vector<float>& plane = acc.image_planes[size_t(o.plane)];
       if (o.box_cols >= 0.0) {
-        SplatBox(full[o.plane].data(), width, 0, height, o.col, o.row, o.box_cols, o.box_rows, o.value, /*clip=*/true);
+        SplatBox(plane.data(), plan.width, 0, plan.height, o.col, o.row, o.box_cols, o.box_rows, o.value,
+                 /*clip=*/true);
       } else {
-        SplatBilinear(full[o.plane], width, height, o.col, o.row, o.value, o.amplitude);
+        SplatBilinear(plane, plan.width, plan.height, o.col, o.row, o.value, o.amplitude);
       }
     }
   }
-  // Tracing phase: rays, shading, splatting and merging (not the assembly
-  // of the output planes below).
-  image.stats.trace_seconds = trace_watch.ElapsedSeconds();
-  image.stats.heightfield_cells = embree.heightfield_cells();
-  if (options.coherent) {
-    image.intensity.resize(size_t(width) * height);
-    for (size_t k = 0; k < image.intensity.size(); ++k) {
-      image.intensity[k] = full[0][k] * full[0][k] + full[1][k] * full[1][k];
+}
+
+// Compose phase: `image`'s size, bands (intensity; coherent: intensity
+// |z|^2 of the complex total, the complex total and the complex band per
+// bounce count; the intensity per bounce count, layers beyond max_bounces
+// empty), contributions (block order) and trace statistics, moved out of
+// `acc`'s planes.
+void ComposeImage(const TracePlan& plan, TraceAccumulator& acc, SarImage* image) {
+  std::vector<std::vector<float>>& full = acc.image_planes;
+  image->width = plan.width;
+  image->height = plan.height;
+  image->stats.heightfield_cells = plan.embree.heightfield_cells();
+  if (plan.options.coherent) {
+    image->intensity.resize(size_t(plan.width) * plan.height);
+    for (size_t k = 0; k < image->intensity.size(); ++k) {
+      image->intensity[k] = full[0][k] * full[0][k] + full[1][k] * full[1][k];
     }
-    image.real = std::move(full[0]);
-    image.imag = std::move(full[1]);
-    for (int layer = 0; layer < used_layers; ++layer) {
-      image.bounce_real[layer] = std::move(full[complex_layer_plane(layer)]);
-      image.bounce_imag[layer] = std::move(full[complex_layer_plane(layer) + 1]);
+    image->real = std::move(full[0]);
+    image->imag = std::move(full[1]);
+    for (int layer = 0; layer < plan.used_layers; ++layer) {
+      image->bounce_real[layer] = std::move(full[size_t(plan.ComplexLayerPlane(layer))]);
+      image->bounce_imag[layer] = std::move(full[size_t(plan.ComplexLayerPlane(layer)) + 1]);
     }
   } else {
-    image.intensity = std::move(full[0]);
+    image->intensity = std::move(full[0]);
   }
-  // Layers beyond max_bounces stay empty (no return of that order).
-  for (int layer = 0; layer < used_layers; ++layer) image.bounce_layers[layer] = std::move(full[total_planes + layer]);
-  for (auto& list : block_contributions) {
-    image.contributions.insert(image.contributions.end(), list.begin(), list.end());
+  for (int layer = 0; layer < plan.used_layers; ++layer) {
+    image->bounce_layers[layer] = std::move(full[size_t(plan.total_planes + layer)]);
   }
-  image.stats.rays = int64_t{grid.n_az} * grid.n_el;
-  image.stats.hits = hits.load();
-  image.stats.sub_rays = sub_rays.load();
-  image.stats.profile_swept_lines = swept_lines.load();
+  for (auto& list : acc.block_contributions) {
+    image->contributions.insert(image->contributions.end(), list.begin(), list.end());
+  }
+  image->stats.rays = int64_t{plan.grid.n_az} * plan.grid.n_el;
+  image->stats.hits = acc.hits.load();
+  image->stats.sub_rays = acc.sub_rays.load();
+  image->stats.profile_swept_lines = acc.swept_lines.load();
+}
 
-  Stopwatch mask_watch;
-  image.points = ReflectorReturns(embree, options.reflectors, geometry, options.wavelength_m,
-                                  polarimetric ? std::optional<material::Polarization>(options.polarization)
-                                               : std::nullopt);
+// Mask phase: the reflectors' point returns, the layover/shadow mask and
+// footprint (RenderLayoverShadowMask, by profile sweep where it applies)
+// and the count of lit pixels, and of those without a first-bounce return,
+// into `image` (its bounce layers composed).
+void MaskImage(const TracePlan& plan, SarImage* image) {
+  const RenderOptions& options = plan.options;
+  image->points = ReflectorReturns(plan.embree, options.reflectors, plan.geometry, options.wavelength_m,
+                                   plan.polarimetric ? std::optional<material::Polarization>(options.polarization)
+                                                     : std::nullopt);
   std::vector<uint8_t> lit;
   bool mask_swept = false;
-  image.mask = RenderLayoverShadowMask(embree, mesh, geometry, &image.stats.shadow_rays, &lit, &image.footprint,
-                                       options.ray_box ? &*options.ray_box : nullptr, options.profile_sweep,
-                                       &mask_swept);
-  if (mask_swept) image.stats.profile_swept_mask_rows = height;
+  image->mask = RenderLayoverShadowMask(plan.embree, plan.mesh, plan.geometry, &image->stats.shadow_rays, &lit,
+                                        &image->footprint, options.ray_box ? &*options.ray_box : nullptr,
+                                        options.profile_sweep, &mask_swept);
+  if (mask_swept) image->stats.profile_swept_mask_rows = plan.height;
   for (size_t q = 0; q < lit.size(); ++q) {
     if (!lit[q]) continue;
-    ++image.stats.footprint_pixels;
-    if (!(image.bounce_layers[0][q] > 0.0f)) ++image.stats.empty_footprint_pixels;
+    ++image->stats.footprint_pixels;
+    if (!(image->bounce_layers[0][q] > 0.0f)) ++image->stats.empty_footprint_pixels;
   }
+}
+
+}  // namespace
+
+SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                   const material::MaterialTable& materials, const sensor::SarGeometry& geometry,
+                   const RenderOptions& options) {
+  options.Check();
+  GISSAR_CHECK(mesh.classes.size() == mesh.triangle_count());
+  const TracePlan plan(embree, mesh, materials, geometry, options);
+  TraceAccumulator acc(plan);
+  Reporter& reporter = options.reporter != nullptr ? *options.reporter : NullReporter();
+  SarImage image;
+  Stopwatch trace_watch;
+  TraceBlocks(plan, acc, reporter);
+  SplatOverflows(plan, acc);
+  // Tracing phase: rays, shading, splatting and merging (not the assembly
+  // of the output planes).
+  image.stats.trace_seconds = trace_watch.ElapsedSeconds();
+  ComposeImage(plan, acc, &image);
+  Stopwatch mask_watch;
+  MaskImage(plan, &image);
   image.stats.mask_seconds = mask_watch.ElapsedSeconds();
   return image;
 }
