@@ -852,8 +852,8 @@ def _geocoded_copy(cache, image_path):
     os.makedirs(directory, exist_ok=True)
     prefix = os.path.join(directory, hashlib.sha256(ident.encode()).hexdigest()[:24])
     if not (os.path.isfile(prefix + ".tif") and os.path.isfile(prefix + ".json")):
-        _core_module().geocode(image_path, prefix, dem="", vertical_datum="", crs="", pixel_size_m=0.0,
-                      resampling="bilinear")
+        # The geocode request's fields (pipeline/geocode_fields.cc); the others keep their defaults.
+        _core_module().geocode({"image": image_path, "out_prefix": prefix, "resampling": "bilinear"})
     return prefix + ".tif"
 
 
