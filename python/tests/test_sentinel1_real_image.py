@@ -1,5 +1,5 @@
 """Sentinel-1 real images through `gissar pta` and `gissar validate --dem`, on copies of the bundled products
-(whose measurement TIFFs are constant placeholders, DN 2 + 0i) with known content written into them.
+(whose bundled measurement TIFFs hold a constant DN 2 + 0i, no scene) with known content written into them.
 
 pta: a point target written at a geolocation grid point is measured where the annotation alone puts that point.
 Every expected figure is derived here from the annotation XML and the injected target, not from gissar: the pixel
@@ -67,7 +67,7 @@ def grid_point_in_a_burst(ann):
 
 
 def inject_target(safe, line, sample):
-    """Adds AMPLITUDE x sinc(i - line) sinc(j - sample) to the placeholder over a (2 HALF + 1)^2 patch."""
+    """Adds AMPLITUDE x sinc(i - line) sinc(j - sample) to the constant image over a (2 HALF + 1)^2 patch."""
     tiff = glob.glob(os.path.join(safe, "measurement", "s1b-iw1-slc-vv-*.tiff"))[0]
     ds = gdal.Open(tiff, gdal.GA_Update)
     band = ds.GetRasterBand(1)
@@ -175,12 +175,9 @@ def test_bad_sentinel1_selections_are_errors_naming_the_flag(tmp_path, args, nam
 LINES, PIXELS = 120, 360   # the window compared
 
 
-def hills_dem(path, lat, lon, height):
-    """Smooth hills (+-180 m) around (lat, lon) on the ellipsoid, 0.0003 deg posts, 0.078 deg a side."""
-    n, step = 260, 0.0003
-    yy, xx = np.mgrid[0:n, 0:n]
-    x, y = xx * step * 85000.0, yy * step * 111000.0
-    z = height + 120 * np.sin(x / 450.0) * np.cos(y / 650.0) + 60 * np.sin((x + y) / 300.0)
+def write_ellipsoid_dem(path, z, lat, lon, step):
+    """Heights z (n x n, metres above the WGS84 ellipsoid, EPSG:4979) as a GeoTIFF centred on (lat, lon)."""
+    n = z.shape[0]
     ds = gdal.GetDriverByName("GTiff").Create(str(path), n, n, 1, gdal.GDT_Float32)
     ds.SetGeoTransform([lon - n / 2 * step, step, 0, lat + n / 2 * step, 0, -step])
     srs = osr.SpatialReference()
@@ -188,6 +185,15 @@ def hills_dem(path, lat, lon, height):
     ds.SetProjection(srs.ExportToWkt())
     ds.GetRasterBand(1).WriteArray(z.astype(np.float32))
     ds = None
+
+
+def hills_dem(path, lat, lon, height):
+    """Smooth hills (+-180 m) around (lat, lon) on the ellipsoid, 0.0003 deg posts, 0.078 deg a side."""
+    n, step = 260, 0.0003
+    yy, xx = np.mgrid[0:n, 0:n]
+    x, y = xx * step * 85000.0, yy * step * 111000.0
+    z = height + 120 * np.sin(x / 450.0) * np.cos(y / 650.0) + 60 * np.sin((x + y) / 300.0)
+    write_ellipsoid_dem(path, z, lat, lon, step)
 
 
 def read_band(path):
@@ -333,13 +339,7 @@ def rough_dem(path, lat, lon, height, seed=3):
         wavelength, theta = rng.uniform(150, 900), rng.uniform(0, np.pi)
         phase, amplitude = rng.uniform(0, 2 * np.pi), rng.uniform(20, 70)
         z += amplitude * np.sin(2 * np.pi * (x * np.cos(theta) + y * np.sin(theta)) / wavelength + phase)
-    ds = gdal.GetDriverByName("GTiff").Create(str(path), n, n, 1, gdal.GDT_Float32)
-    ds.SetGeoTransform([lon - n / 2 * step, step, 0, lat + n / 2 * step, 0, -step])
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(4979)
-    ds.SetProjection(srs.ExportToWkt())
-    ds.GetRasterBand(1).WriteArray(z.astype(np.float32))
-    ds = None
+    write_ellipsoid_dem(path, z, lat, lon, step)
 
 
 @pytest.fixture(scope="module")
@@ -564,7 +564,7 @@ def test_validate_radiometry_calibrates_the_real_image_with_the_lut_it_names(bur
     assert report["correlation"][1]["r_db"] > 0.99
 
 
-def test_validate_noise_removal_on_the_placeholder_leaves_no_valid_pixel(burst_scene):
+def test_validate_noise_removal_on_the_constant_image_leaves_no_valid_pixel(burst_scene):
     """The bundled burst holds DN 2 (|DN|^2 = 4) under a thermal noise power of about 500: with --noise-removal
     every real pixel is negative, hence no-data; validate says so, naming the flag, and writes nothing."""
     s = burst_scene

@@ -104,11 +104,7 @@ geo::RslcProduct ReadSentinel1Observation(const ProductInputs& in, Reporter& rep
                      "--product (" + source.product.name + ")");
   }
   geo::RslcProduct product = source.grid;
-  const std::vector<float> beta0 = ReadSentinel1Beta0(source, in.product);
-  product.amplitude.resize(beta0.size());
-  for (size_t k = 0; k < beta0.size(); ++k) {
-    product.amplitude[k] = std::isfinite(beta0[k]) && beta0[k] > 0.0f ? std::sqrt(beta0[k]) : 0.0f;
-  }
+  product.amplitude = AmplitudeOfPower(ReadSentinel1Beta0(source, in.product));
   return product;
 }
 

@@ -412,13 +412,8 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, const RealImag
     sim.product = source->grid;
     if (real.read) {
       // The real image on the output grid (a GRD's: its ground-range pixels).
-      const std::vector<float> power =
-          ReadSentinel1Calibrated(*source, options.product, geo::ParseSentinel1Radiometry(real.radiometry, "--radiometry"),
-                                  real.remove_noise);
-      sim.product.amplitude.resize(power.size());
-      for (size_t k = 0; k < power.size(); ++k) {
-        sim.product.amplitude[k] = std::isfinite(power[k]) && power[k] > 0.0f ? std::sqrt(power[k]) : 0.0f;
-      }
+      sim.product.amplitude = AmplitudeOfPower(ReadSentinel1Calibrated(
+          *source, options.product, geo::ParseSentinel1Radiometry(real.radiometry, "--radiometry"), real.remove_noise));
     }
     sim.sentinel1 = std::move(source);
   } else {

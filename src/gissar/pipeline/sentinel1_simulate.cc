@@ -53,6 +53,14 @@ std::array<int, 4> ParseProductWindow(const std::string& text) {
   return w;
 }
 
+std::vector<float> AmplitudeOfPower(const std::vector<float>& power) {
+  std::vector<float> amplitude(power.size());
+  for (size_t k = 0; k < power.size(); ++k) {
+    amplitude[k] = std::isfinite(power[k]) && power[k] > 0.0f ? std::sqrt(power[k]) : 0.0f;
+  }
+  return amplitude;
+}
+
 nlohmann::json ProductWindowJson(const std::string& text, const std::string&) {
   return nlohmann::json(ParseProductWindow(text));
 }

@@ -118,6 +118,9 @@ Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& re
 // window is left valid (the noise power above |DN|^2 everywhere).
 std::vector<float> ReadSentinel1Calibrated(const Sentinel1Source& source, const std::string& product,
                                            geo::Sentinel1Radiometry radiometry, bool remove_noise);
+// An RslcProduct amplitude layer from linear power: sqrt, 0 where the power
+// is NaN or not positive (the amplitude's no-data).
+std::vector<float> AmplitudeOfPower(const std::vector<float>& power);
 // ReadSentinel1Calibrated in beta0 without noise removal (the observed image
 // of locate/evaluate, the real image of a Python simulate_product).
 inline std::vector<float> ReadSentinel1Beta0(const Sentinel1Source& source, const std::string& product) {
