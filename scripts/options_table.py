@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Writes docs/options.md, the options of every request that has a field table (simulate, evaluate, locate,
-geocode, scene build), from those tables (src/gissar/pipeline/<command>_fields.cc, read through
+"""Writes docs/options.md, the options of every request (simulate, evaluate, locate, geocode, scene build, pta,
+sequence, ortho, matchpair, polsar, validate and the affine-camera commands), from their field tables (src/gissar/pipeline/<command>_fields.cc, read through
 gissar._core.request_fields(command)): one section per command, one row per field with its options-file key
 (and, where the Python door takes it, keyword), its flag, its default and its help. Nothing in it is written by
 hand: a new field of a table appears here when this runs (make docs-numbers), and the test `docs_options_table`
@@ -29,15 +29,29 @@ field without a flag is set through its own door (`max_memory_bytes`: `--max-mem
 suffix (`_m` metres, `_deg` degrees, `_db` decibels, `_px` pixels, `_bytes` bytes).
 """
 
-# (request_fields name, command line, Python function, what else takes the flags), in the page's order.
+# (request_fields name, command line, Python function or None, what else takes the flags, the table's file), in
+# the page's order. None: no Python function takes the keys; "arrays:NAME": gissar.NAME takes arrays instead.
+MVG = "src/gissar/pipeline/mvg_fields.cc"
 COMMANDS = [
     ("simulate", "gissar simulate", "simulate",
-     " (and, for the terrain and sensor fields, `sequence`, `ortho`, `validate` and `corridor`)"),
-    ("evaluate", "gissar evaluate", "evaluate", ""),
-    ("locate", "gissar locate", "locate_product", ""),
-    ("geocode", "gissar geocode", "geocode", ""),
-    ("scene_build", "gissar scene build", "Scene.build", ""),
-    ("pta", "gissar pta", "pta", ""),
+     " (and, for the terrain and sensor fields, `sequence`, `ortho`, `validate` and `corridor`)", None),
+    ("evaluate", "gissar evaluate", "evaluate", "", None),
+    ("locate", "gissar locate", "locate_product", "", None),
+    ("geocode", "gissar geocode", "geocode", "", None),
+    ("scene_build", "gissar scene build", "Scene.build", "", None),
+    ("sequence", "gissar sequence", "sequence", "; the rows it shares with simulate are simulate's",
+     "src/gissar/pipeline/views_fields.cc"),
+    ("ortho", "gissar ortho", None, "; the rows it shares with simulate are simulate's",
+     "src/gissar/pipeline/views_fields.cc"),
+    ("matchpair", "gissar matchpair", None, "", "src/gissar/pipeline/locate_fields.cc"),
+    ("pta", "gissar pta", "pta", "", None),
+    ("polsar", "gissar polsar", "polsar", "", None),
+    ("validate", "gissar validate", None, "; the rows it shares with simulate are simulate's", None),
+    ("fmatrix", "gissar fmatrix", "arrays:fmatrix", "", MVG),
+    ("resect", "gissar resect", "arrays:resect", "", MVG),
+    ("register", "gissar register", "arrays:register_images", "", MVG),
+    ("epipolar", "gissar epipolar", "arrays:epipolar_plot", "", MVG),
+    ("composite", "gissar composite", "arrays:composite", "", MVG),
 ]
 
 
@@ -68,6 +82,11 @@ def python_function(path):
 def keywords_sentence(fields, path):
     """Which keys the Python function `gissar.<path>` takes as keywords: all of them when it takes **kwargs or
     names every key, else the ones its signature names."""
+    if path is None:
+        return "No Python function takes these keys (the command line and options files do)."
+    if path.startswith("arrays:"):
+        return (f"`gissar.{path[7:]}` takes arrays (points, images, matrices) instead of these keys (the command "
+                "line and options files take them).")
     parameters = inspect.signature(python_function(path)).parameters
     names = [f["name"] for f in fields]
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters.values()) or all(
@@ -77,15 +96,17 @@ def keywords_sentence(fields, path):
     return f"`gissar.{path}` takes " + ", ".join(f"`{n}`" for n in taken) + " as keywords."
 
 
-def section(command, command_line, path, others):
+def section(command, command_line, path, others, source=None):
     fields = gissar._core.request_fields(command)
     rows = []
     for f in fields:
         flag = f"`{f['flag']}`" if f["help"] else "—"
+        if f["help"] and f.get("aliases"):
+            flag += "".join(f" (or `{a}`)" for a in f["aliases"].split(","))
         if f["help"] and isinstance(f["default"], bool):
             flag = f"`{f['flag']}`, `--no-{f['flag'][2:]}`"
         rows.append(f"| `{f['name']}` | {flag} | {default_text(f)} | {cell(f['help'] or 'set by its own door')} |")
-    source = f"src/gissar/pipeline/{command}_fields.cc"
+    source = source or f"src/gissar/pipeline/{command}_fields.cc"
     intro = textwrap.fill(f"The flags are those of `{command_line}`{others}. {keywords_sentence(fields, path)} "
                           f"The table: `{source}`.", width=115, break_on_hyphens=False, break_long_words=False)
     return (f"\n## {command_line[len('gissar '):]}\n\n{intro}\n\n"

@@ -2,8 +2,11 @@
 """`pip install --no-build-isolation --no-index .` works offline into a fresh virtual environment made with
 --system-site-packages, reusing the CMake build tree; then, from a directory outside the repository,
 `import gissar` works and `gissar.__version__` equals the version `gissar --version` prints; and the
-Python test suite (python/tests) passes against the installed package (run from outside the repository,
-without PYTHONPATH).
+tests of the package's doors pass against the installed package (run from outside the repository, without
+PYTHONPATH): the functions and their results (test_gissar.py), native threads, progress and Ctrl-C
+(test_native.py), lazily opened products (test_open_product.py) and the messages a new user meets
+(test_first_hour_python.py). The whole suite runs against the build tree as ctest's python_tests (the same
+compiled core and modules), so it is not run twice.
 
   check_install.py SOURCE_DIR BUILD_DIR GISSAR_BINARY
 """
@@ -11,6 +14,9 @@ import os
 import subprocess
 import sys
 import tempfile
+
+# The test files run against the installed package (see the docstring).
+INSTALLED_PACKAGE_TESTS = ("test_gissar.py", "test_native.py", "test_open_product.py", "test_first_hour_python.py")
 
 
 def main():
@@ -37,11 +43,12 @@ def main():
             problems.append(f"imported {out[1]}, not the installed package in {venv}")
         if not out[2].startswith("dem True"):
             problems.append(f"signature of gissar.simulate starts {out[2]}")
-        suite = subprocess.run([python, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                                os.path.join(source, "python", "tests")],
+        tests = os.path.join(source, "python", "tests")
+        suite = subprocess.run([python, "-m", "pytest", "-q", "-p", "no:cacheprovider"] +
+                               [os.path.join(tests, name) for name in INSTALLED_PACKAGE_TESTS],
                                env=dict(env, GISSAR_CLI=binary, GISSAR_SOURCE_DIR=source), cwd=elsewhere)
         if suite.returncode != 0:
-            problems.append(f"the test suite fails against the installed package (pytest exit {suite.returncode})")
+            problems.append(f"the package's tests fail against the installed package (pytest exit {suite.returncode})")
         for p in problems:
             print("check_install:", p, file=sys.stderr)
         print(f"check_install: gissar {out[0]} installed and imported from {out[1]}")

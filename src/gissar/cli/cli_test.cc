@@ -15,6 +15,11 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/pipeline/locate.h"
 #include "gissar/pipeline/locate_fields.h"
+#include "gissar/pipeline/mvg_fields.h"
+#include "gissar/pipeline/polsar_fields.h"
+#include "gissar/pipeline/simulate_fields.h"
+#include "gissar/pipeline/validate_fields.h"
+#include "gissar/pipeline/views_fields.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/cli/command.h"
 #include "gissar/cli/corridor_command.h"
@@ -281,6 +286,104 @@ TEST(RequestFlagsTest, AddAllDeclaresTheFieldsWithHelpInTableOrder) {
   EXPECT_NE(std::find(declared.begin(), declared.end(), "--composite"), declared.end());
   EXPECT_EQ(required, std::vector<std::string>{"--out"});
   ClearOptionKeyFlags();
+}
+
+// The rows added for the other commands' tables parse their text where the
+// flags parsed it before: an integer list with its older spelling
+// (polsar --looks), a three-number centre and an optional number (resect),
+// simulate's rows reached through a member (validate's --dem, --burst) and
+// the comparison's own (--radiometry, --looks); a malformed list names the
+// flag and what it needs.
+TEST(RequestFlagsTest, TablesOfTheOtherCommandsReadTheirFlags) {
+  {
+    CLI::App app;
+    pipeline::PolsarRequest request;
+    RequestFlags<pipeline::PolsarRequest> flags(&app, pipeline::PolsarFields(), &request);
+    flags.AddAll({"multilook", "out_prefix"});
+    app.parse("--looks 3,5 --matrix coherency --out x", false);
+    pipeline::PolsarRequest resolved = request;
+    flags.Apply(resolved);
+    EXPECT_EQ(resolved.multilook, (std::vector<int>{3, 5}));
+    EXPECT_EQ(resolved.matrix, image::PolarimetricMatrix::kCoherency);
+    EXPECT_EQ(resolved.out_prefix, "x");
+    CLI::App again;
+    pipeline::PolsarRequest bad;
+    RequestFlags<pipeline::PolsarRequest> bad_flags(&again, pipeline::PolsarFields(), &bad);
+    bad_flags.AddAll({"multilook", "out_prefix"});
+    again.parse("--multilook 3 --out x", false);
+    try {
+      bad_flags.Apply(bad);
+      ADD_FAILURE() << "one look accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.where(), "--multilook");
+      EXPECT_NE(e.message().find("two integers R,A"), std::string::npos) << e.message();
+    }
+  }
+  {
+    CLI::App app;
+    pipeline::ResectRequest request;
+    RequestFlags<pipeline::ResectRequest> flags(&app, pipeline::ResectFields(), &request);
+    flags.AddAll({"points"});
+    app.parse("--points p.csv --center-enu 1,2,-3.5 --slant-range 8000 --out r", false);
+    pipeline::ResectRequest resolved = request;
+    flags.Apply(resolved);
+    EXPECT_EQ(resolved.center_enu_m, Eigen::Vector3d(1, 2, -3.5));
+    ASSERT_TRUE(resolved.slant_range_m.has_value());
+    EXPECT_EQ(*resolved.slant_range_m, 8000.0);
+    EXPECT_EQ(pipeline::ResectFields().ToJson(resolved)["center_enu_m"], nlohmann::json({1.0, 2.0, -3.5}));
+  }
+  {
+    CLI::App app;
+    pipeline::ValidateRequest request;
+    RequestFlags<pipeline::ValidateRequest> flags(&app, pipeline::ValidateFields(), &request);
+    flags.AddAll({"product", "out_prefix"});
+    app.parse("--product p.h5 --dem d.tif --burst 2 --radiometry sigma0 --looks 2,4 --out v", false);
+    pipeline::ValidateRequest resolved = request;
+    flags.Apply(resolved);
+    EXPECT_EQ(resolved.simulate.product, "p.h5");
+    EXPECT_EQ(resolved.simulate.dem, "d.tif");
+    EXPECT_EQ(resolved.simulate.burst, 2);
+    EXPECT_EQ(resolved.radiometry, "sigma0");
+    EXPECT_EQ(resolved.looks, (std::vector<int>{2, 4}));
+    // The rows shared with simulate are simulate's: same key, flag and help.
+    EXPECT_EQ(pipeline::ValidateFields().at("dem").help, pipeline::SimulateFields().at("dem").help);
+    EXPECT_EQ(pipeline::ValidateFields().at("product_window_px").Flag(), "--product-window");
+  }
+  ClearOptionKeyFlags();
+}
+
+// Every table's ToJson is read back by its ApplyJson unchanged (the keys a
+// sidecar or an options file carries), and an unknown key is refused.
+TEST(RequestFlagsTest, EveryTableRoundTripsThroughJson) {
+  auto round_trip = [](const auto& table, auto request, const char* what) {
+    const nlohmann::json written = table.ToJson(request);
+    decltype(request) read;
+    table.ApplyJson(read, written, "test");
+    EXPECT_EQ(table.ToJson(read), written) << what;
+    EXPECT_THROW(table.ApplyJson(read, nlohmann::json{{"no_such_key", 1}}, "test"), ConfigError) << what;
+  };
+  pipeline::PolsarRequest polsar;
+  polsar.multilook = {2, 3};
+  round_trip(pipeline::PolsarFields(), polsar, "polsar");
+  pipeline::FmatrixRequest fmatrix;
+  fmatrix.range_spacing_m = Eigen::Vector2d(1.5, 2.5);
+  fmatrix.robust = false;
+  round_trip(pipeline::FmatrixFields(), fmatrix, "fmatrix");
+  pipeline::ResectRequest resect;
+  resect.slant_range_m = 900.0;
+  round_trip(pipeline::ResectFields(), resect, "resect");
+  round_trip(pipeline::RegisterFields(), pipeline::RegisterRequest(), "register");
+  round_trip(pipeline::EpipolarFields(), pipeline::EpipolarRequest(), "epipolar");
+  round_trip(pipeline::CompositeFields(), pipeline::CompositeRequest(), "composite");
+  pipeline::ValidateRequest validate;
+  validate.simulate.dem = "d.tif";
+  validate.looks = {2};
+  round_trip(pipeline::ValidateFields(), validate, "validate");
+  pipeline::SequenceRequest sequence;
+  sequence.frames = 4;
+  round_trip(pipeline::SequenceFields(), sequence, "sequence");
+  round_trip(pipeline::OrthoFields(), pipeline::OrthoRequest(), "ortho");
+  round_trip(pipeline::MatchPairFields(), pipeline::MatchPairRequest(), "matchpair");
 }
 
 // --options FILE.json: keys are the request's snake_case names; the same

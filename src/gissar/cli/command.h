@@ -70,31 +70,8 @@ inline std::string PrefixedOutput(const std::string& prefix, const std::string& 
   return prefix + extension;
 }
 
-// "3,5,7" -> {3, 5, 7}: a comma-separated list of integers given to `flag`;
-// throws ConfigError naming `flag` (and `expected`, e.g. "two integers R,A")
-// for an item that is not an integer, or when `count` > 0 items were
-// expected and another number was given.
-inline std::vector<int> ParseIntegerList(const std::string& text, const std::string& flag,
-                                         const std::string& expected, size_t count = 0) {
-  std::vector<int> values;
-  std::istringstream in(text);
-  std::string item;
-  bool ok = true;
-  while (ok && std::getline(in, item, ',')) {
-    try {
-      size_t used = 0;
-      const int k = std::stoi(item, &used);
-      ok = used == item.size();
-      values.push_back(k);
-    } catch (const std::exception&) {
-      ok = false;
-    }
-  }
-  if (!ok || values.empty() || (count > 0 && values.size() != count)) {
-    throw ConfigError("needs " + expected + ", got '" + text + "'", flag);
-  }
-  return values;
-}
+// ParseIntegerList (pipeline/field_names.h) for the flags still read here.
+using pipeline::ParseIntegerList;
 
 // An on/off option: accepted as --NAME and --no-NAME (the last one given
 // wins) on every command that has it, shown in --help as
@@ -153,11 +130,11 @@ class RequestFlags {
         [&](auto pointer) -> CLI::Option* {
           if constexpr (std::is_same_v<decltype(pointer), std::monostate>) {
             auto& text = texts_.emplace_back(name, std::make_shared<std::string>()).second;
-            CLI::Option* o = cmd_->add_option(flag, *text, field.help);
+            CLI::Option* o = cmd_->add_option(Names(field), *text, field.help);
             if (field.show_default) o->default_str(DefaultText(field.get(*target_)));
             return o;
           } else {
-            return cmd_->add_option(flag, *pointer, field.help);
+            return cmd_->add_option(Names(field), *pointer, field.help);
           }
         },
         ref);
@@ -195,6 +172,11 @@ class RequestFlags {
   }
 
  private:
+  // The flag and its other spellings, as CLI11 takes them ("--multilook,--looks").
+  static std::string Names(const pipeline::RequestField<R>& field) {
+    return field.aliases.empty() ? field.Flag() : field.Flag() + "," + field.aliases;
+  }
+
   CLI::App* cmd_;
   const pipeline::FieldTable<R>& table_;
   R* target_;

@@ -57,16 +57,11 @@ void AddNavCommands(CLI::App& root, CommandRegistry& registry) {
     auto o = std::make_shared<MatchPairRequest>();
     CLI::App* cmd = root.add_subcommand(
         "matchpair", "Recover a known affine warp between two real images with every matcher (RMS error, px).");
-    cmd->add_option("--fixed", o->fixed, "Fixed image")->required();
-    cmd->add_option("--moving", o->moving, "Moving image (same grid, another date)")->required();
-    cmd->add_option("--warp", o->warp, "Known warp ROT_DEG,SCALE,TX,TY applied to the moving image")->delimiter(',')->expected(4)->capture_default_str();
-    cmd->add_option("--patch", o->patch_px, "Patch side, px (odd)")->capture_default_str();
-    cmd->add_option("--step", o->step_px, "Grid step, px")->capture_default_str();
-    cmd->add_option("--search", o->search_px, "Search radius, px")->capture_default_str();
-    cmd->add_option("--filter", o->filter_px, "Speckle box filter, px")->capture_default_str();
-    cmd->add_option("--out", o->out, "Output prefix: PREFIX.json (errors per matcher)")->required();
+    auto flags = std::make_shared<RequestFlags<MatchPairRequest>>(cmd, MatchPairFields(), o.get());
+    flags->AddAll({"fixed", "moving", "out"});
     registry.Add(cmd, [=](const CommandContext& context) {
       MatchPairRequest resolved = *o;
+      flags->Apply(resolved);
       resolved.out = PrefixedOutput(o->out, ".json");
       RunMatchPair(resolved, context.command_line, context.reporter);
       context.out << resolved.out << "\n";

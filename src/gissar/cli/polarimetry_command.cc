@@ -5,8 +5,8 @@
 #include <sstream>
 
 #include "gissar/cli/command.h"
-#include "gissar/material/material.h"
 #include "gissar/pipeline/polsar.h"
+#include "gissar/pipeline/polsar_fields.h"
 #include "gissar/pipeline/pta.h"
 #include "gissar/pipeline/pta_fields.h"
 
@@ -79,29 +79,17 @@ void AddPolarimetryCommands(CLI::App& root, CommandRegistry& registry) {
   }
   {
     auto o = std::make_shared<PolsarRequest>();
-    auto looks = std::make_shared<std::string>();
     auto max_memory = std::make_shared<std::string>();
     CLI::App* cmd = root.add_subcommand(
         "polsar", "Polarimetric decomposition of a quad-pol SLC: C3 or T3, entropy/anisotropy/alpha, Pauli RGB.");
-    cmd->add_option("--image", o->image, "Complex GeoTIFF with bands named " + material::kPolarizations.List());
-    cmd->add_option("--product", o->product, "Or a NISAR RSLC product (HDF5) holding the four layers");
-    cmd->add_option("--frequency", o->frequency, "Product band, A or B")->capture_default_str();
-    cmd->add_option("--multilook,--looks", *looks, "R,A: range x azimuth looks averaged per output pixel")->required();
-    auto matrix = std::make_shared<std::string>(image::kPolarimetricMatrices.Name(o->matrix));
-    cmd->add_option("--matrix", *matrix,
-                    std::string(image::kPolarimetricMatrices.Name(image::PolarimetricMatrix::kCovariance)) +
-                        " (C3) or " +
-                        std::string(image::kPolarimetricMatrices.Name(image::PolarimetricMatrix::kCoherency)) +
-                        " (T3)")
-        ->capture_default_str();
+    // Every field of the request's table that has a help text is a flag
+    // (pipeline/polsar_fields.cc), in the table's order.
+    auto flags = std::make_shared<RequestFlags<PolsarRequest>>(cmd, PolsarFields(), o.get());
+    flags->AddAll({"multilook", "out_prefix"});
     cmd->add_option("--max-memory", *max_memory, kMaxMemoryHelp);
-    cmd->add_option("--out", o->out_prefix,
-                    "Output prefix: PREFIX_C3.tif (or _T3.tif), PREFIX_HAalpha.tif, PREFIX_pauli.png, PREFIX.json")
-        ->required();
     registry.Add(cmd, [=](const CommandContext& context) {
       PolsarRequest resolved = *o;
-      resolved.matrix = image::kPolarimetricMatrices.Parse(*matrix, "--matrix");
-      resolved.multilook = ParseIntegerList(*looks, "--multilook", "two integers R,A (range and azimuth looks)", 2);
+      flags->Apply(resolved);
       resolved.max_memory_bytes = MemoryBudgetBytes(*max_memory, context.force, resolved.max_memory_bytes);
       const PolsarResult result = RunPolsar(resolved, context.command_line, context.reporter);
       for (const auto& path : result.outputs) context.out << path.string() << "\n";

@@ -180,9 +180,10 @@ std::optional<double> Dem::InterpolateHeight(double col, double row) const {
          fr * ((1 - fc) * HeightAt(c0, r0 + 1) + fc * HeightAt(c0 + 1, r0 + 1));
 }
 
-Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
-  EnsureGdal();
-  const std::string where = path.string();
+namespace {
+
+// The raster at `path`, opened read-only, holding band `band`.
+DatasetPtr OpenDemRaster(const fs::path& path, const std::string& where, int band) {
   std::error_code ec;
   // GDAL virtual file systems (/vsimem/, /vsizip/...) are not on disk.
   const bool virtual_path = where.rfind("/vsi", 0) == 0;
@@ -192,13 +193,18 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   }
   DatasetPtr ds(GDALDataset::Open(where.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw InputError("not a raster GDAL can read", where);
-  if (options.band < 1 || options.band > ds->GetRasterCount()) {
-    throw InputError("raster has no band " + std::to_string(options.band), where);
+  if (band < 1 || band > ds->GetRasterCount()) {
+    throw InputError("raster has no band " + std::to_string(band), where);
   }
-  Dem dem;
-  dem.source = where;
-  dem.width = ds->GetRasterXSize();
-  dem.height = ds->GetRasterYSize();
+  return ds;
+}
+
+// The part of the raster read (options.window, else all of it): sets the
+// DEM's width and height, returns the first column and row.
+std::pair<int, int> ChooseWindow(GDALDataset& ds, const DemReadOptions& options, const std::string& where,
+                                 Dem& dem) {
+  dem.width = ds.GetRasterXSize();
+  dem.height = ds.GetRasterYSize();
   int col0 = 0, row0 = 0;
   if (options.window) {
     const auto [c, r, w, h] = *options.window;
@@ -218,6 +224,12 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
                          std::to_string(dem.height),
                      where);
   }
+  return {col0, row0};
+}
+
+// Refuses, from the header, a read over the memory budget: the posts, or
+// one GDAL block.
+void CheckReadBudget(GDALDataset& ds, const Dem& dem, const DemReadOptions& options, const std::string& where) {
   // In double: width * height * bytes_per_post may overflow 64 bits.
   const double bytes = double(dem.width) * double(dem.height) * double(options.bytes_per_post);
   if (bytes > double(options.max_bytes)) {
@@ -227,27 +239,32 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
                          " (--max-memory); use a window of it or resample it to coarser posts",
                      where);
   }
-  {
-    // GDAL reads a pixel-interleaved block for all bands at once: a tiny
-    // file declaring thousands of bands would need gigabytes for one block.
-    int block_x = 0, block_y = 0;
-    GDALRasterBand* first = ds->GetRasterBand(options.band);
-    first->GetBlockSize(&block_x, &block_y);
-    const char* interleave = ds->GetMetadataItem("INTERLEAVE", "IMAGE_STRUCTURE");
-    const int bands = interleave != nullptr && std::string(interleave) == "PIXEL" ? ds->GetRasterCount() : 1;
-    const double block_bytes = double(block_x) * double(block_y) * bands *
-                               GDALGetDataTypeSizeBytes(first->GetRasterDataType());
-    if (block_bytes > double(options.max_bytes)) {
-      throw InputError("raster of " + std::to_string(ds->GetRasterCount()) + " bands of " +
-                           std::to_string(block_x) + "x" + std::to_string(block_y) +
-                           "-cell blocks needs about " + FormatBytes(block_bytes) +
-                           " to read one block, over the memory limit of " +
-                           FormatBytes(double(options.max_bytes)) +
-                           " (--max-memory); extract the height band (gdal_translate -b N)",
-                       where);
-    }
+  // GDAL reads a pixel-interleaved block for all bands at once: a tiny
+  // file declaring thousands of bands would need gigabytes for one block.
+  int block_x = 0, block_y = 0;
+  GDALRasterBand* first = ds.GetRasterBand(options.band);
+  first->GetBlockSize(&block_x, &block_y);
+  const char* interleave = ds.GetMetadataItem("INTERLEAVE", "IMAGE_STRUCTURE");
+  const int bands = interleave != nullptr && std::string(interleave) == "PIXEL" ? ds.GetRasterCount() : 1;
+  const double block_bytes = double(block_x) * double(block_y) * bands *
+                             GDALGetDataTypeSizeBytes(first->GetRasterDataType());
+  if (block_bytes > double(options.max_bytes)) {
+    throw InputError("raster of " + std::to_string(ds.GetRasterCount()) + " bands of " +
+                         std::to_string(block_x) + "x" + std::to_string(block_y) +
+                         "-cell blocks needs about " + FormatBytes(block_bytes) +
+                         " to read one block, over the memory limit of " +
+                         FormatBytes(double(options.max_bytes)) +
+                         " (--max-memory); extract the height band (gdal_translate -b N)",
+                     where);
   }
-  if (ds->GetGeoTransform(dem.geotransform.data()) != CE_None) {
+}
+
+// The DEM's map geometry: geotransform (moved to the window's first post),
+// the whole raster's lattice, CRS and vertical datum; a geographic DEM is
+// checked over the whole raster. Returns the CRS (owned by `ds`).
+const OGRSpatialReference& ReadMapGeometry(GDALDataset& ds, int col0, int row0, const std::string& where,
+                                           Dem& dem) {
+  if (ds.GetGeoTransform(dem.geotransform.data()) != CE_None) {
     throw InputError("raster has no geotransform (not georeferenced)", where);
   }
   {
@@ -258,8 +275,8 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     }
   }
   dem.source_geotransform = dem.geotransform;
-  dem.source_width = ds->GetRasterXSize();
-  dem.source_height = ds->GetRasterYSize();
+  dem.source_width = ds.GetRasterXSize();
+  dem.source_height = ds.GetRasterYSize();
   dem.lattice_col0 = col0;
   dem.lattice_row0 = row0;
   dem.lattice_factor = 1;
@@ -270,64 +287,86 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
     g[0] = x0;
     g[3] = y0;
   }
-  const OGRSpatialReference* srs = ds->GetSpatialRef();
+  const OGRSpatialReference* srs = ds.GetSpatialRef();
   if (srs == nullptr) throw InputError("raster has no coordinate reference system", where);
   char* wkt = nullptr;
   srs->exportToWkt(&wkt);
   dem.crs_wkt = wkt != nullptr ? wkt : "";
   CPLFree(wkt);
   dem.file_vertical_datum =
-      VerticalDatumOfCrs(dem.crs_wkt, ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "");
+      VerticalDatumOfCrs(dem.crs_wkt, ds.GetDriver() != nullptr ? ds.GetDriver()->GetDescription() : "");
   if (srs->IsGeographic()) CheckGeographicExtent(dem, *srs);
+  return *srs;
+}
 
-  GDALRasterBand* band = ds->GetRasterBand(options.band);
+// The window's stored values, in double, with the band's no-data marking.
+struct RawHeights {
+  std::vector<double> values;
+  bool nodata_marked = false;  // `nodata` marks voids (else only non-finite values do)
+  double nodata = 0.0;
+
+  bool IsVoidAt(size_t i) const { return IsVoid(values[i], nodata_marked, nodata); }
+};
+
+RawHeights ReadRawHeights(GDALRasterBand& band, int col0, int row0, const Dem& dem, const std::string& where) {
+  RawHeights raw;
   int has_nodata = 0;
-  const double nodata = band->GetNoDataValue(&has_nodata);
-  std::vector<double> raw(size_t(dem.width) * dem.height);
-  if (band->RasterIO(GF_Read, col0, row0, dem.width, dem.height, raw.data(), dem.width,
-                     dem.height, GDT_Float64, 0, 0, nullptr) != CE_None) {
+  raw.nodata = band.GetNoDataValue(&has_nodata);
+  raw.values.resize(size_t(dem.width) * dem.height);
+  if (band.RasterIO(GF_Read, col0, row0, dem.width, dem.height, raw.values.data(), dem.width,
+                    dem.height, GDT_Float64, 0, 0, nullptr) != CE_None) {
     throw InputError("cannot read DEM heights: " + LastGdalMessage(), where);
   }
-  // The band's scale and offset (height = stored * scale + offset, e.g. an
-  // Int16 DEM in decimetres): applied to every cell that is not no-data (the
-  // no-data value is a stored value).
-  bool nodata_marked = has_nodata != 0;
+  raw.nodata_marked = has_nodata != 0;
+  return raw;
+}
+
+// The band's scale and offset (height = stored * scale + offset, e.g. an
+// Int16 DEM in decimetres): applied to every cell that is not no-data (the
+// no-data value is a stored value).
+void ApplyScaleAndOffset(GDALRasterBand& band, RawHeights& raw, const std::string& where) {
   int has_scale = 0, has_offset = 0;
-  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
+  const double scale = band.GetScale(&has_scale), offset = band.GetOffset(&has_offset);
   if ((has_scale && !(std::isfinite(scale) && scale != 0.0)) || (has_offset && !std::isfinite(offset))) {
     throw InputError("DEM band scale/offset must be finite with a non-zero scale", where);
   }
   if ((has_scale && scale != 1.0) || (has_offset && offset != 0.0)) {
     const double s = has_scale ? scale : 1.0, o = has_offset ? offset : 0.0;
-    for (double& v : raw) {
-      if (IsVoid(v, nodata_marked, nodata)) {
+    for (double& v : raw.values) {
+      if (IsVoid(v, raw.nodata_marked, raw.nodata)) {
         v = std::numeric_limits<double>::quiet_NaN();  // stays void after scaling
       } else {
         v = v * s + o;
       }
     }
-    nodata_marked = false;  // voids are NaN now; a scaled height may equal the stored no-data value
+    raw.nodata_marked = false;  // voids are NaN now; a scaled height may equal the stored no-data value
   }
-  // Vertical unit: the option, else the band's unit type, else the vertical
-  // axis of a compound CRS, else metres. Heights become metres here, before
-  // the range check (a DEM in feet is not silently read as metres).
-  {
-    const auto [metres, unit_source] = ResolveVerticalUnit(*band, *srs, options.vertical_units, where);
-    dem.vertical_unit_source = unit_source;
-    const std::optional<double> unit_metres = metres;
-    dem.vertical_unit_m = *unit_metres;
-    if (*unit_metres != 1.0) {
-      for (double& v : raw) {
-        if (!IsVoid(v, nodata_marked, nodata)) v *= *unit_metres;
-        else v = std::numeric_limits<double>::quiet_NaN();
-      }
-      nodata_marked = false;  // voids are NaN now (a converted height may equal the no-data value)
+}
+
+// Vertical unit: the option, else the band's unit type, else the vertical
+// axis of a compound CRS, else metres. Heights become metres here, before
+// the range check (a DEM in feet is not silently read as metres).
+void ConvertToMetres(GDALRasterBand& band, const OGRSpatialReference& srs, const DemReadOptions& options,
+                     const std::string& where, RawHeights& raw, Dem& dem) {
+  const auto [metres, unit_source] = ResolveVerticalUnit(band, srs, options.vertical_units, where);
+  dem.vertical_unit_source = unit_source;
+  dem.vertical_unit_m = metres;
+  if (metres != 1.0) {
+    for (double& v : raw.values) {
+      if (!IsVoid(v, raw.nodata_marked, raw.nodata)) v *= metres;
+      else v = std::numeric_limits<double>::quiet_NaN();
     }
+    raw.nodata_marked = false;  // voids are NaN now (a converted height may equal the no-data value)
   }
+}
+
+// Counts the voids; refuses heights outside [kMinHeightM, kMaxHeightM] and a
+// DEM without any valid height.
+int64_t CheckHeightRange(const RawHeights& raw, const std::string& where) {
   int64_t voids = 0, out_of_range = 0;
   double lowest = kMinHeightM, highest = kMaxHeightM;
-  for (double v : raw) {
-    if (IsVoid(v, nodata_marked, nodata)) {
+  for (double v : raw.values) {
+    if (IsVoid(v, raw.nodata_marked, raw.nodata)) {
       ++voids;
     } else if (v < kMinHeightM || v > kMaxHeightM) {
       ++out_of_range;
@@ -342,77 +381,111 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
          << "): an unmarked no-data value (set it with gdal_edit -a_nodata) or heights not in metres";
     throw InputError(text.str(), where);
   }
-  if (voids == static_cast<int64_t>(raw.size())) {
+  if (voids == static_cast<int64_t>(raw.values.size())) {
     throw InputError("DEM has no valid height (all " + std::to_string(voids) +
                          " cells are no-data)",
                      where);
   }
-  // Voids 4-connected to the raster border (through voids).
-  std::vector<uint8_t> border_void;
-  int64_t border_voids = 0;
-  if (voids > 0 && options.border_nodata_outside) {
-    const int w = dem.width, h = dem.height;
-    border_void.assign(raw.size(), 0);
-    std::vector<size_t> stack;
-    for (int r = 0; r < h; ++r) {
-      for (int c = 0; c < w; ++c) {
-        const size_t i = size_t(r) * w + c;
-        if ((r == 0 || c == 0 || r == h - 1 || c == w - 1) && IsVoid(raw[i], nodata_marked, nodata)) {
-          border_void[i] = 1;
-          stack.push_back(i);
-        }
-      }
-    }
-    while (!stack.empty()) {
-      const size_t i = stack.back();
-      stack.pop_back();
-      ++border_voids;
-      const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
-      const std::pair<int, int> next[4] = {{c - 1, r}, {c + 1, r}, {c, r - 1}, {c, r + 1}};
-      for (const auto& [nc, nr] : next) {
-        if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
-        const size_t j = size_t(nr) * w + nc;
-        if (!border_void[j] && IsVoid(raw[j], nodata_marked, nodata)) {
-          border_void[j] = 1;
-          stack.push_back(j);
-        }
+  return voids;
+}
+
+// Voids 4-connected to the raster border (through voids): 1 per such cell.
+struct BorderVoids {
+  std::vector<uint8_t> mask;  // empty when not searched
+  int64_t count = 0;
+};
+
+BorderVoids FindBorderVoids(const RawHeights& raw, int w, int h) {
+  BorderVoids border;
+  border.mask.assign(raw.values.size(), 0);
+  std::vector<size_t> stack;
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      const size_t i = size_t(r) * w + c;
+      if ((r == 0 || c == 0 || r == h - 1 || c == w - 1) && raw.IsVoidAt(i)) {
+        border.mask[i] = 1;
+        stack.push_back(i);
       }
     }
   }
-  if (voids - border_voids > 0 && !options.fill_nodata) {
-    throw InputError("DEM has " + std::to_string(voids - border_voids) + " no-data cells" +
-                         (border_voids > 0 ? " inside (" + std::to_string(border_voids) +
+  while (!stack.empty()) {
+    const size_t i = stack.back();
+    stack.pop_back();
+    ++border.count;
+    const int r = static_cast<int>(i / w), c = static_cast<int>(i % w);
+    const std::pair<int, int> next[4] = {{c - 1, r}, {c + 1, r}, {c, r - 1}, {c, r + 1}};
+    for (const auto& [nc, nr] : next) {
+      if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
+      const size_t j = size_t(nr) * w + nc;
+      if (!border.mask[j] && raw.IsVoidAt(j)) {
+        border.mask[j] = 1;
+        stack.push_back(j);
+      }
+    }
+  }
+  return border;
+}
+
+// The heights in float, voids marked in nodata_mask: border voids hold the
+// lowest valid height, interior voids are filled (FillVoids).
+void StoreHeights(const RawHeights& raw, int64_t voids, const BorderVoids& border, const DemReadOptions& options,
+                  const std::string& where, Dem& dem) {
+  constexpr float kVoid = -3.0e38f;
+  const size_t count = raw.values.size();
+  dem.heights_m.resize(count);
+  float lowest_valid = std::numeric_limits<float>::max();
+  for (size_t i = 0; i < count; ++i) {
+    dem.heights_m[i] = raw.IsVoidAt(i) ? kVoid : static_cast<float>(raw.values[i]);
+    if (dem.heights_m[i] != kVoid) lowest_valid = std::min(lowest_valid, dem.heights_m[i]);
+  }
+  if (voids == 0) return;
+  dem.nodata_mask.resize(count);
+  for (size_t i = 0; i < count; ++i) dem.nodata_mask[i] = raw.IsVoidAt(i) ? 1 : 0;
+  // Border no-data: keeps the lowest valid height so the grid stays finite; the scene leaves these posts out (nodata_mask), never fills them.
+  for (size_t i = 0; i < border.mask.size(); ++i) {
+    if (border.mask[i]) dem.heights_m[i] = lowest_valid;
+  }
+  if (voids > border.count) {
+    FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells, where);
+  }
+  int64_t left = 0;
+  for (float v : dem.heights_m) left += (v == kVoid || !std::isfinite(v)) ? 1 : 0;
+  if (left > 0) {
+    throw InputError(std::to_string(left) + " of " + std::to_string(voids) +
+                         " no-data cells are too far from valid heights to fill",
+                     where);
+  }
+  dem.filled_nodata_cells = voids - border.count;
+}
+
+}  // namespace
+
+Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
+  EnsureGdal();
+  const std::string where = path.string();
+  DatasetPtr ds = OpenDemRaster(path, where, options.band);
+  Dem dem;
+  dem.source = where;
+  const auto [col0, row0] = ChooseWindow(*ds, options, where, dem);
+  CheckReadBudget(*ds, dem, options, where);
+  const OGRSpatialReference& srs = ReadMapGeometry(*ds, col0, row0, where, dem);
+
+  GDALRasterBand& band = *ds->GetRasterBand(options.band);
+  RawHeights raw = ReadRawHeights(band, col0, row0, dem, where);
+  ApplyScaleAndOffset(band, raw, where);
+  ConvertToMetres(band, srs, options, where, raw, dem);
+  const int64_t voids = CheckHeightRange(raw, where);
+  BorderVoids border;
+  if (voids > 0 && options.border_nodata_outside) border = FindBorderVoids(raw, dem.width, dem.height);
+  if (voids - border.count > 0 && !options.fill_nodata) {
+    throw InputError("DEM has " + std::to_string(voids - border.count) + " no-data cells" +
+                         (border.count > 0 ? " inside (" + std::to_string(border.count) +
                                                  " more on its border are left out of the scene)"
                                            : std::string()) +
                          "; use --fill-nodata to interpolate them",
                      where);
   }
-  constexpr float kVoid = -3.0e38f;
-  dem.heights_m.resize(raw.size());
-  float lowest_valid = std::numeric_limits<float>::max();
-  for (size_t i = 0; i < raw.size(); ++i) {
-    dem.heights_m[i] = IsVoid(raw[i], nodata_marked, nodata) ? kVoid : static_cast<float>(raw[i]);
-    if (dem.heights_m[i] != kVoid) lowest_valid = std::min(lowest_valid, dem.heights_m[i]);
-  }
-  if (voids > 0) {
-    dem.nodata_mask.resize(raw.size());
-    for (size_t i = 0; i < raw.size(); ++i) dem.nodata_mask[i] = IsVoid(raw[i], nodata_marked, nodata) ? 1 : 0;
-    // Border no-data: keeps the lowest valid height so the grid stays finite; the scene leaves these posts out (nodata_mask), never fills them.
-    for (size_t i = 0; i < border_void.size(); ++i) {
-      if (border_void[i]) dem.heights_m[i] = lowest_valid;
-    }
-    if (voids > border_voids) {
-      FillVoids(dem.heights_m, dem.width, dem.height, kVoid, options.fill_max_search_cells, where);
-    }
-    int64_t left = 0;
-    for (float v : dem.heights_m) left += (v == kVoid || !std::isfinite(v)) ? 1 : 0;
-    if (left > 0) {
-      throw InputError(std::to_string(left) + " of " + std::to_string(voids) +
-                           " no-data cells are too far from valid heights to fill",
-                       where);
-    }
-    dem.filled_nodata_cells = voids - border_voids;
-  }
+  StoreHeights(raw, voids, border, options, where, dem);
   return dem;
 }
 

@@ -269,16 +269,17 @@ std::mutex& Hdf5Mutex() {
   return mutex;
 }
 
-RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, LayerRead layer_read) {
-  const std::string where = path.string();
-  QuietHdf5 quiet;
-  if (H5Fis_hdf5(where.c_str()) <= 0) throw InputError("not an HDF5 file (NISAR RSLC expected)", where);
-  H5Id file(H5Fopen(where.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!file.valid()) throw InputError("cannot open HDF5 file", where);
-  const Reader r(path, options.max_bytes);
-  const hid_t f = file.get();
+// The open product file and the reader of its datasets.
+struct RslcFile {
+  const Reader& r;
+  hid_t f;
+  const std::string& where;
+};
 
-  // /science/<band>/{SLC|RSLC}: LSAR or SSAR, older or newer product name.
+// The product's root group /science/<band>/{SLC|RSLC} (LSAR or SSAR, older
+// or newer product name) and its band group /science/<band>.
+std::pair<std::string, std::string> FindProductRoot(const RslcFile& file) {
+  const auto& [r, f, where] = file;
   std::string band_root, root;
   for (const char* band : {"LSAR", "SSAR"}) {
     for (const char* group : {"SLC", "RSLC"}) {
@@ -290,11 +291,12 @@ RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, 
     }
   }
   if (root.empty()) throw InputError("not a NISAR RSLC product: no /science/LSAR/SLC (or RSLC) group", where);
+  return {band_root, root};
+}
 
-  RslcProduct p;
-  p.path = where;
-  p.frequency = options.frequency;
-  p.polarization = options.polarization;
+// Mission, product version and look side.
+void ReadIdentification(const RslcFile& file, const std::string& band_root, RslcProduct& p) {
+  const auto& [r, f, where] = file;
   const std::string ident = band_root + "/identification";
   if (r.Exists(f, ident + "/missionId")) p.mission = r.String(f, ident + "/missionId");
   if (r.Exists(f, ident + "/productVersion")) p.product_version = r.String(f, ident + "/productVersion");
@@ -303,11 +305,16 @@ RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, 
   const std::optional<LookSide> side = kLookSides.Find(look);
   if (!side) throw InputError("lookDirection must be " + kLookSides.Alternatives() + ", got '" + look + "'", where);
   p.look_left = *side == LookSide::kLeft;
+}
 
-  // Radar grid.
-  const std::string swaths = root + "/swaths";
-  const std::string freq = swaths + "/frequency" + options.frequency;
-  if (!r.Exists(f, freq)) throw InputError("product has no frequency band " + options.frequency, where);
+// The radar grid of frequency group `freq`: zero-Doppler times, slant
+// ranges (checked against the memory budget), centre frequency, processed
+// bandwidths and listed polarisations. Returns the epoch of the grid's
+// times (seconds since the Unix epoch), the times of everything else being
+// taken to it.
+double ReadRadarGrid(const RslcFile& file, const std::string& swaths, const std::string& freq,
+                     const RslcReadOptions& options, RslcProduct& p) {
+  const auto& [r, f, where] = file;
   const std::string time_path = swaths + "/zeroDopplerTime";
   p.zero_doppler_time_s = r.Doubles(f, time_path);
   const double epoch = EpochSeconds(r.Units(f, time_path), where + ":" + time_path, &p.epoch_utc);
@@ -338,8 +345,13 @@ RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, 
     H5Id ds = r.OpenDataset(f, freq + "/listOfPolarizations");
     p.polarizations = r.Strings(ds.get(), "listOfPolarizations", false);
   }
+  return epoch;
+}
 
-  // Orbit.
+// The orbit's state vectors, their times taken to `epoch`; they must cover
+// the grid's times.
+void ReadOrbit(const RslcFile& file, const std::string& root, double epoch, RslcProduct& p) {
+  const auto& [r, f, where] = file;
   const std::string orbit = root + "/metadata/orbit";
   if (!r.Exists(f, orbit + "/time") || !r.Exists(f, orbit + "/position") || !r.Exists(f, orbit + "/velocity")) {
     throw InputError("product has no orbit (" + orbit + "/{time,position,velocity})", where);
@@ -361,8 +373,11 @@ RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, 
   if (p.orbit.time_s.front() > p.zero_doppler_time_s.front() || p.orbit.time_s.back() < p.zero_doppler_time_s.back()) {
     throw InputError("orbit does not cover the image's azimuth times", where);
   }
+}
 
-  // Attitude (optional).
+// The attitude quaternions and Euler angles, when the product has them.
+void ReadAttitude(const RslcFile& file, const std::string& root, double epoch, RslcProduct& p) {
+  const auto& [r, f, where] = file;
   const std::string att = root + "/metadata/attitude";
   if (r.Exists(f, att + "/time") && r.Exists(f, att + "/quaternions")) {
     p.attitude.time_s = r.Doubles(f, att + "/time");
@@ -372,55 +387,55 @@ RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, 
     for (size_t i = 0; i + 3 < q.size(); i += 4) p.attitude.quaternion.emplace_back(q[i], q[i + 1], q[i + 2], q[i + 3]);
     if (r.Exists(f, att + "/eulerAngles")) p.attitude.euler_deg = Rows3(r.Doubles(f, att + "/eulerAngles", 3));
   }
+}
 
-  for (const char* pol : {"HH", "HV", "VH", "VV"}) {
-    if (r.Exists(f, freq + "/" + pol)) p.stored_polarizations.push_back(pol);
+// The beta0 calibration LUT, when the product has one: its axes (times
+// taken to `epoch`) must match its shape and increase, its values be > 0.
+std::optional<RslcCalibrationLut> ReadBeta0Lut(const RslcFile& file, const std::string& root, double epoch) {
+  const auto& [r, f, where] = file;
+  const std::string cal = root + "/metadata/calibrationInformation";
+  const std::string values_path = cal + "/geometry/beta0";
+  if (!r.Exists(f, values_path)) return std::nullopt;
+  RslcCalibrationLut lut;
+  lut.dataset = values_path;
+  std::string axes = cal + "/geometry";
+  if (!r.Exists(f, axes + "/zeroDopplerTime") || !r.Exists(f, axes + "/slantRange")) axes = cal;
+  const std::string t_path = axes + "/zeroDopplerTime", r_path = axes + "/slantRange";
+  if (!r.Exists(f, t_path) || !r.Exists(f, r_path)) {
+    throw InputError("calibration LUT " + values_path + " has no zeroDopplerTime/slantRange axes", where);
   }
-
-  // The beta0 calibration LUT (optional).
-  if (options.read_calibration) {
-    const std::string cal = root + "/metadata/calibrationInformation";
-    const std::string values_path = cal + "/geometry/beta0";
-    if (r.Exists(f, values_path)) {
-      RslcCalibrationLut lut;
-      lut.dataset = values_path;
-      std::string axes = cal + "/geometry";
-      if (!r.Exists(f, axes + "/zeroDopplerTime") || !r.Exists(f, axes + "/slantRange")) axes = cal;
-      const std::string t_path = axes + "/zeroDopplerTime", r_path = axes + "/slantRange";
-      if (!r.Exists(f, t_path) || !r.Exists(f, r_path)) {
-        throw InputError("calibration LUT " + values_path + " has no zeroDopplerTime/slantRange axes", where);
+  lut.time_s = r.Doubles(f, t_path);
+  const double lut_epoch = EpochSeconds(r.Units(f, t_path), where + ":" + t_path, nullptr);
+  for (double& t : lut.time_s) t += lut_epoch - epoch;
+  lut.slant_range_m = r.Doubles(f, r_path);
+  H5Id lut_ds = r.OpenDataset(f, values_path);
+  const std::vector<hsize_t> lut_dims = r.Shape(lut_ds.get());
+  if (lut_dims.size() != 2 || lut_dims[0] != lut.time_s.size() || lut_dims[1] != lut.slant_range_m.size()) {
+    throw InputError("calibration LUT " + values_path + " does not match its " + std::to_string(lut.time_s.size()) +
+                         " x " + std::to_string(lut.slant_range_m.size()) + " axes",
+                     where);
+  }
+  if (lut.time_s.empty() || lut.slant_range_m.empty()) {
+    throw InputError("calibration LUT " + values_path + " is empty", where);
+  }
+  for (const std::vector<double>* axis : {&lut.time_s, &lut.slant_range_m}) {
+    for (size_t i = 1; i < axis->size(); ++i) {
+      if (!((*axis)[i] > (*axis)[i - 1])) {
+        throw InputError("axes of the calibration LUT " + values_path + " are not increasing", where);
       }
-      lut.time_s = r.Doubles(f, t_path);
-      const double lut_epoch = EpochSeconds(r.Units(f, t_path), where + ":" + t_path, nullptr);
-      for (double& t : lut.time_s) t += lut_epoch - epoch;
-      lut.slant_range_m = r.Doubles(f, r_path);
-      H5Id lut_ds = r.OpenDataset(f, values_path);
-      const std::vector<hsize_t> lut_dims = r.Shape(lut_ds.get());
-      if (lut_dims.size() != 2 || lut_dims[0] != lut.time_s.size() || lut_dims[1] != lut.slant_range_m.size()) {
-        throw InputError("calibration LUT " + values_path + " does not match its " + std::to_string(lut.time_s.size()) +
-                             " x " + std::to_string(lut.slant_range_m.size()) + " axes",
-                         where);
-      }
-      if (lut.time_s.empty() || lut.slant_range_m.empty()) {
-        throw InputError("calibration LUT " + values_path + " is empty", where);
-      }
-      for (const std::vector<double>* axis : {&lut.time_s, &lut.slant_range_m}) {
-        for (size_t i = 1; i < axis->size(); ++i) {
-          if (!((*axis)[i] > (*axis)[i - 1])) {
-            throw InputError("axes of the calibration LUT " + values_path + " are not increasing", where);
-          }
-        }
-      }
-      lut.values = r.Doubles(f, values_path);  // non-finite values are an InputError there
-      for (double v : lut.values) {
-        if (!(v > 0.0)) throw InputError("calibration LUT " + values_path + " holds a value <= 0", where);
-      }
-      p.beta0_lut = std::move(lut);
     }
   }
+  lut.values = r.Doubles(f, values_path);  // non-finite values are an InputError there
+  for (double v : lut.values) {
+    if (!(v > 0.0)) throw InputError("calibration LUT " + values_path + " holds a value <= 0", where);
+  }
+  return lut;
+}
 
-  // The SLC layer.
-  const std::string layer = freq + "/" + options.polarization;
+// The SLC layer `layer` (the asked polarisation), which must hold the grid's
+// rows x cols.
+H5Id OpenSlcLayer(const RslcFile& file, const std::string& layer, const RslcProduct& p) {
+  const auto& [r, f, where] = file;
   if (!r.Exists(f, layer)) {
     std::string stored;
     for (const std::string& pol : p.stored_polarizations) stored += (stored.empty() ? "" : ", ") + pol;
@@ -435,42 +450,89 @@ RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, 
                          std::to_string(p.cols()) + " radar grid",
                      where);
   }
-  if (layer_read == LayerRead::kEdgeLines) {
-    H5Id type(H5Dget_type(ds.get()), H5Tclose);
-    if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) return p;
-    H5Id mem(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
-    H5Tinsert(mem.get(), "r", 0, H5T_NATIVE_FLOAT);
-    H5Tinsert(mem.get(), "i", sizeof(float), H5T_NATIVE_FLOAT);
-    std::vector<std::complex<float>> line(size_t(p.cols()));
-    for (const hsize_t row : {hsize_t{0}, hsize_t(p.rows() - 1)}) {
-      H5Id file_space(H5Dget_space(ds.get()), H5Sclose);
-      const hsize_t start[2] = {row, 0}, count[2] = {1, hsize_t(p.cols())};
-      H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
-      H5Id mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
-      H5Dread(ds.get(), mem.get(), mem_space.get(), file_space.get(), H5P_DEFAULT, line.data());
-    }
-    return p;
+  return ds;
+}
+
+// The memory type of a complex sample: compound {float r, float i}.
+H5Id ComplexFloatType() {
+  H5Id mem(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
+  H5Tinsert(mem.get(), "r", 0, H5T_NATIVE_FLOAT);
+  H5Tinsert(mem.get(), "i", sizeof(float), H5T_NATIVE_FLOAT);
+  return mem;
+}
+
+// The probe's read: the layer's first and last lines (they walk the chunk
+// index); nothing is kept, and a layer that is not complex is left to the
+// real read.
+void ReadEdgeLines(hid_t ds, const RslcProduct& p) {
+  H5Id type(H5Dget_type(ds), H5Tclose);
+  if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) return;
+  H5Id mem = ComplexFloatType();
+  std::vector<std::complex<float>> line(size_t(p.cols()));
+  for (const hsize_t row : {hsize_t{0}, hsize_t(p.rows() - 1)}) {
+    H5Id file_space(H5Dget_space(ds), H5Sclose);
+    const hsize_t start[2] = {row, 0}, count[2] = {1, hsize_t(p.cols())};
+    H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
+    H5Id mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
+    H5Dread(ds, mem.get(), mem_space.get(), file_space.get(), H5P_DEFAULT, line.data());
   }
-  if (options.read_amplitude || options.read_complex) {
-    H5Id type(H5Dget_type(ds.get()), H5Tclose);
-    if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) {
-      throw InputError("SLC layer " + layer + " is not complex (compound r, i)", where);
+}
+
+// The whole complex layer, kept as amplitude and/or complex samples as the
+// options ask (non-finite amplitudes become 0).
+void ReadSlcSamples(hid_t ds, const std::string& layer, const RslcReadOptions& options, const std::string& where,
+                    RslcProduct& p) {
+  H5Id type(H5Dget_type(ds), H5Tclose);
+  if (H5Tget_class(type.get()) != H5T_COMPOUND || H5Tget_nmembers(type.get()) != 2) {
+    throw InputError("SLC layer " + layer + " is not complex (compound r, i)", where);
+  }
+  H5Id mem = ComplexFloatType();
+  std::vector<std::complex<float>> slc(size_t(p.rows()) * p.cols());
+  if (H5Dread(ds, mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, slc.data()) < 0) {
+    throw InputError("cannot read SLC layer " + layer + " (members must be named r and i)", where);
+  }
+  if (options.read_amplitude) {
+    p.amplitude.resize(slc.size());
+    for (size_t k = 0; k < slc.size(); ++k) {
+      const float a = std::abs(slc[k]);
+      p.amplitude[k] = std::isfinite(a) ? a : 0.0f;
     }
-    H5Id mem(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
-    H5Tinsert(mem.get(), "r", 0, H5T_NATIVE_FLOAT);
-    H5Tinsert(mem.get(), "i", sizeof(float), H5T_NATIVE_FLOAT);
-    std::vector<std::complex<float>> slc(size_t(p.rows()) * p.cols());
-    if (H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, slc.data()) < 0) {
-      throw InputError("cannot read SLC layer " + layer + " (members must be named r and i)", where);
-    }
-    if (options.read_amplitude) {
-      p.amplitude.resize(slc.size());
-      for (size_t k = 0; k < slc.size(); ++k) {
-        const float a = std::abs(slc[k]);
-        p.amplitude[k] = std::isfinite(a) ? a : 0.0f;
-      }
-    }
-    if (options.read_complex) p.slc = std::move(slc);
+  }
+  if (options.read_complex) p.slc = std::move(slc);
+}
+
+RslcProduct ReadInProcess(const fs::path& path, const RslcReadOptions& options, LayerRead layer_read) {
+  const std::string where = path.string();
+  QuietHdf5 quiet;
+  if (H5Fis_hdf5(where.c_str()) <= 0) throw InputError("not an HDF5 file (NISAR RSLC expected)", where);
+  H5Id handle(H5Fopen(where.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!handle.valid()) throw InputError("cannot open HDF5 file", where);
+  const Reader r(path, options.max_bytes);
+  const RslcFile file{r, handle.get(), where};
+  const auto [band_root, root] = FindProductRoot(file);
+
+  RslcProduct p;
+  p.path = where;
+  p.frequency = options.frequency;
+  p.polarization = options.polarization;
+  ReadIdentification(file, band_root, p);
+  const std::string swaths = root + "/swaths";
+  const std::string freq = swaths + "/frequency" + options.frequency;
+  if (!r.Exists(file.f, freq)) throw InputError("product has no frequency band " + options.frequency, where);
+  const double epoch = ReadRadarGrid(file, swaths, freq, options, p);
+  ReadOrbit(file, root, epoch, p);
+  ReadAttitude(file, root, epoch, p);
+  for (const char* pol : {"HH", "HV", "VH", "VV"}) {
+    if (r.Exists(file.f, freq + "/" + pol)) p.stored_polarizations.push_back(pol);
+  }
+  if (options.read_calibration) p.beta0_lut = ReadBeta0Lut(file, root, epoch);
+
+  const std::string layer = freq + "/" + options.polarization;
+  H5Id ds = OpenSlcLayer(file, layer, p);
+  if (layer_read == LayerRead::kEdgeLines) {
+    ReadEdgeLines(ds.get(), p);
+  } else if (options.read_amplitude || options.read_complex) {
+    ReadSlcSamples(ds.get(), layer, options, where, p);
   }
   return p;
 }

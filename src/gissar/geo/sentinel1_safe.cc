@@ -518,22 +518,19 @@ Sentinel1Product OpenSentinel1(const fs::path& path) {
   return product;
 }
 
-Sentinel1Annotation ParseSentinel1Annotation(const std::string& xml, const std::string& file, double epoch_unix_s) {
-  const XmlDoc doc = ParseXml(xml, file);
-  const xmlNode* top = xmlDocGetRootElement(doc.get());
-  if (!IsElement(top, "product")) {
-    throw InputError("root element is <" + std::string(reinterpret_cast<const char*>(top->name)) +
-                         ">, expected <product>",
-                     file);
-  }
-  if (epoch_unix_s == 0.0) {
-    const Reader probe(file, 0.0);
-    const std::string where = probe.Where("imageAnnotation/imageInformation/productFirstLineUtcTime");
-    epoch_unix_s = MidnightOf(probe.Text(top, "imageAnnotation/imageInformation/productFirstLineUtcTime", ""), where);
-  }
-  const Reader r(file, epoch_unix_s);
-  Sentinel1Annotation a;
-  a.file = file;
+namespace {
+
+// The epoch of an annotation's times when the caller gives none: midnight
+// UTC of the product's first line.
+double AnnotationEpoch(const xmlNode* top, const std::string& file) {
+  const Reader probe(file, 0.0);
+  const std::string where = probe.Where("imageAnnotation/imageInformation/productFirstLineUtcTime");
+  return MidnightOf(probe.Text(top, "imageAnnotation/imageInformation/productFirstLineUtcTime", ""), where);
+}
+
+// adsHeader and generalAnnotation/productInformation: mission, type, mode,
+// swath, polarisation, pass, radar frequency and range sampling rate.
+void ParseProductInformation(const Reader& r, const xmlNode* top, Sentinel1Annotation& a) {
   a.mission = r.Text(top, "adsHeader/missionId", "");
   a.product_type = r.Text(top, "adsHeader/productType", "");
   a.mode = r.Text(top, "adsHeader/mode", "");
@@ -547,7 +544,11 @@ Sentinel1Annotation ParseSentinel1Annotation(const std::string& xml, const std::
   if (!(a.radar_frequency_hz > 0.0)) throw InputError("must be > 0", r.Where(info_path + "/radarFrequency"));
   if (!(a.range_sampling_rate_hz > 0.0)) throw InputError("must be > 0", r.Where(info_path + "/rangeSamplingRate"));
   a.wavelength_m = kSpeedOfLightMps / a.radar_frequency_hz;
+}
 
+// imageAnnotation/imageInformation: first and last line times, the grid's
+// spacings and size.
+void ParseImageInformation(const Reader& r, const xmlNode* top, Sentinel1Annotation& a) {
   const std::string ii_path = "imageAnnotation/imageInformation";
   const xmlNode* ii = r.Node(top, ii_path, "");
   a.first_line_time_s = r.Time(ii, "productFirstLineUtcTime", ii_path);
@@ -568,8 +569,11 @@ Sentinel1Annotation ParseSentinel1Annotation(const std::string& xml, const std::
   if (!(a.last_line_time_s >= a.first_line_time_s)) {
     throw InputError("productLastLineUtcTime before productFirstLineUtcTime", r.Where(ii_path));
   }
+}
 
-  // Orbit.
+// generalAnnotation/orbitList: at least kMinStateVectors state vectors,
+// increasing in time, covering the first to the last line.
+void ParseOrbitList(const Reader& r, const xmlNode* top, Sentinel1Annotation& a) {
   const std::string orbit_path = "generalAnnotation/orbitList";
   const std::vector<const xmlNode*> orbits = Children(r.Node(top, orbit_path, ""), "orbit");
   a.orbit.type = "annotation";
@@ -595,48 +599,53 @@ Sentinel1Annotation ParseSentinel1Annotation(const std::string& xml, const std::
   if (a.orbit.time_s.front() > a.first_line_time_s || a.orbit.time_s.back() < a.last_line_time_s) {
     throw InputError("the orbit state vectors do not cover the product's first to last line", r.Where(orbit_path));
   }
+}
 
-  // Bursts.
+// swathTiming (TOPS SLC): lines and samples per burst, and each burst's
+// times, valid samples per line, first line and valid lines.
+void ParseSwathTiming(const Reader& r, const xmlNode* top, Sentinel1Annotation& a) {
   const xmlNode* timing = Child(top, "swathTiming");
-  if (timing != nullptr) {
-    const std::vector<const xmlNode*> bursts = Children(Child(timing, "burstList"), "burst");
-    if (!bursts.empty()) {
-      a.lines_per_burst = r.Int(timing, "linesPerBurst", "swathTiming");
-      a.samples_per_burst = r.Int(timing, "samplesPerBurst", "swathTiming");
-      if (a.lines_per_burst <= 0) throw InputError("must be > 0", r.Where("swathTiming/linesPerBurst"));
-    }
-    for (size_t i = 0; i < bursts.size(); ++i) {
-      const std::string base = Reader::Item("swathTiming/burstList", "burst", i);
-      Sentinel1Burst b;
-      b.number = static_cast<int>(i) + 1;
-      b.azimuth_time_s = r.Time(bursts[i], "azimuthTime", base);
-      b.sensing_time_s = r.Time(bursts[i], "sensingTime", base);
-      b.first_valid_sample = r.Ints(bursts[i], "firstValidSample", base);
-      b.last_valid_sample = r.Ints(bursts[i], "lastValidSample", base);
-      for (const auto& [list, name] : {std::pair{&b.first_valid_sample, "firstValidSample"},
-                                       {&b.last_valid_sample, "lastValidSample"}}) {
-        if (static_cast<int>(list->size()) != a.lines_per_burst) {
-          throw InputError(std::to_string(list->size()) + " values, linesPerBurst is " +
-                               std::to_string(a.lines_per_burst),
-                           r.Where(base + "/" + name));
-        }
-      }
-      // The lists hold lines_per_burst values each, so this stays far below 2^31.
-      b.first_line = static_cast<int>(static_cast<int64_t>(i) * a.lines_per_burst);
-      for (int k = 0; k < a.lines_per_burst; ++k) {
-        if (b.first_valid_sample[size_t(k)] >= 0) {
-          if (b.first_valid_line < 0) b.first_valid_line = k;
-          b.last_valid_line = k;
-        }
-      }
-      if (!a.bursts.empty() && !(b.azimuth_time_s > a.bursts.back().azimuth_time_s)) {
-        throw InputError("burst azimuth times not increasing", r.Where(base + "/azimuthTime"));
-      }
-      a.bursts.push_back(std::move(b));
-    }
+  if (timing == nullptr) return;
+  const std::vector<const xmlNode*> bursts = Children(Child(timing, "burstList"), "burst");
+  if (!bursts.empty()) {
+    a.lines_per_burst = r.Int(timing, "linesPerBurst", "swathTiming");
+    a.samples_per_burst = r.Int(timing, "samplesPerBurst", "swathTiming");
+    if (a.lines_per_burst <= 0) throw InputError("must be > 0", r.Where("swathTiming/linesPerBurst"));
   }
+  for (size_t i = 0; i < bursts.size(); ++i) {
+    const std::string base = Reader::Item("swathTiming/burstList", "burst", i);
+    Sentinel1Burst b;
+    b.number = static_cast<int>(i) + 1;
+    b.azimuth_time_s = r.Time(bursts[i], "azimuthTime", base);
+    b.sensing_time_s = r.Time(bursts[i], "sensingTime", base);
+    b.first_valid_sample = r.Ints(bursts[i], "firstValidSample", base);
+    b.last_valid_sample = r.Ints(bursts[i], "lastValidSample", base);
+    for (const auto& [list, name] : {std::pair{&b.first_valid_sample, "firstValidSample"},
+                                     {&b.last_valid_sample, "lastValidSample"}}) {
+      if (static_cast<int>(list->size()) != a.lines_per_burst) {
+        throw InputError(std::to_string(list->size()) + " values, linesPerBurst is " +
+                             std::to_string(a.lines_per_burst),
+                         r.Where(base + "/" + name));
+      }
+    }
+    // The lists hold lines_per_burst values each, so this stays far below 2^31.
+    b.first_line = static_cast<int>(static_cast<int64_t>(i) * a.lines_per_burst);
+    for (int k = 0; k < a.lines_per_burst; ++k) {
+      if (b.first_valid_sample[size_t(k)] >= 0) {
+        if (b.first_valid_line < 0) b.first_valid_line = k;
+        b.last_valid_line = k;
+      }
+    }
+    if (!a.bursts.empty() && !(b.azimuth_time_s > a.bursts.back().azimuth_time_s)) {
+      throw InputError("burst azimuth times not increasing", r.Where(base + "/azimuthTime"));
+    }
+    a.bursts.push_back(std::move(b));
+  }
+}
 
-  // Geolocation grid.
+// geolocationGrid/geolocationGridPointList: at least one point, each with
+// its image position, ground point and angles.
+void ParseGeolocationGrid(const Reader& r, const xmlNode* top, Sentinel1Annotation& a) {
   const std::string grid_path = "geolocationGrid/geolocationGridPointList";
   const std::vector<const xmlNode*> points = Children(r.Node(top, grid_path, ""), "geolocationGridPoint");
   if (points.empty()) throw InputError("no <geolocationGridPoint>", r.Where(grid_path));
@@ -657,56 +666,84 @@ Sentinel1Annotation ParseSentinel1Annotation(const std::string& xml, const std::
     }
     a.geolocation_grid.push_back(g);
   }
+}
 
-  // GRD slant <-> ground range.
-  if (const xmlNode* cc = Child(Child(top, "coordinateConversion"), "coordinateConversionList")) {
-    const std::vector<const xmlNode*> records = Children(cc, "coordinateConversion");
-    for (size_t i = 0; i < records.size(); ++i) {
-      const std::string base = Reader::Item("coordinateConversion/coordinateConversionList", "coordinateConversion", i);
-      Sentinel1RangeConversion c;
-      c.azimuth_time_s = r.Time(records[i], "azimuthTime", base);
-      c.slant_range_time_s = r.Number(records[i], "slantRangeTime", base);
-      c.sr0_m = r.Number(records[i], "sr0", base);
-      c.gr0_m = r.Number(records[i], "gr0", base);
-      c.srgr = r.Numbers(records[i], "srgrCoefficients", base);
-      c.grsr = r.Numbers(records[i], "grsrCoefficients", base);
-      if (c.srgr.empty() || c.grsr.empty()) throw InputError("empty polynomial", r.Where(base));
-      if (!a.range_conversion.empty() && !(c.azimuth_time_s > a.range_conversion.back().azimuth_time_s)) {
-        throw InputError("azimuth times not increasing", r.Where(base + "/azimuthTime"));
-      }
-      a.range_conversion.push_back(std::move(c));
+// coordinateConversion/coordinateConversionList (GRD): the slant <-> ground
+// range polynomials, increasing in time.
+void ParseRangeConversion(const Reader& r, const xmlNode* top, Sentinel1Annotation& a) {
+  const xmlNode* cc = Child(Child(top, "coordinateConversion"), "coordinateConversionList");
+  if (cc == nullptr) return;
+  const std::vector<const xmlNode*> records = Children(cc, "coordinateConversion");
+  for (size_t i = 0; i < records.size(); ++i) {
+    const std::string base = Reader::Item("coordinateConversion/coordinateConversionList", "coordinateConversion", i);
+    Sentinel1RangeConversion c;
+    c.azimuth_time_s = r.Time(records[i], "azimuthTime", base);
+    c.slant_range_time_s = r.Number(records[i], "slantRangeTime", base);
+    c.sr0_m = r.Number(records[i], "sr0", base);
+    c.gr0_m = r.Number(records[i], "gr0", base);
+    c.srgr = r.Numbers(records[i], "srgrCoefficients", base);
+    c.grsr = r.Numbers(records[i], "grsrCoefficients", base);
+    if (c.srgr.empty() || c.grsr.empty()) throw InputError("empty polynomial", r.Where(base));
+    if (!a.range_conversion.empty() && !(c.azimuth_time_s > a.range_conversion.back().azimuth_time_s)) {
+      throw InputError("azimuth times not increasing", r.Where(base + "/azimuthTime"));
     }
+    a.range_conversion.push_back(std::move(c));
   }
-  // Processed bands (optional: older or hand-made annotations may lack them).
+}
+
+// imageAnnotation/processingInformation/swathProcParamsList: the processed
+// bands and windows (optional: older or hand-made annotations may lack them).
+void ParseSwathProcessing(const Reader& r, const xmlNode* top, Sentinel1Annotation& a) {
   const std::string proc_path = "imageAnnotation/processingInformation/swathProcParamsList";
-  if (const xmlNode* list =
-          Child(Child(Child(top, "imageAnnotation"), "processingInformation"), "swathProcParamsList")) {
-    const std::vector<const xmlNode*> params = Children(list, "swathProcParams");
-    for (size_t i = 0; i < params.size(); ++i) {
-      const std::string base = Reader::Item(proc_path, "swathProcParams", i);
-      Sentinel1SwathProcessing p;
-      p.swath = r.Text(params[i], "swath", base);
-      p.range_processing_bandwidth_hz = r.Number(params[i], "rangeProcessing/processingBandwidth", base);
-      p.range_look_bandwidth_hz = r.Number(params[i], "rangeProcessing/lookBandwidth", base);
-      p.range_looks = r.Int(params[i], "rangeProcessing/numberOfLooks", base);
-      p.range_window = r.Text(params[i], "rangeProcessing/windowType", base);
-      p.range_window_coefficient = r.Number(params[i], "rangeProcessing/windowCoefficient", base);
-      p.azimuth_processing_bandwidth_hz = r.Number(params[i], "azimuthProcessing/processingBandwidth", base);
-      p.azimuth_look_bandwidth_hz = r.Number(params[i], "azimuthProcessing/lookBandwidth", base);
-      p.azimuth_looks = r.Int(params[i], "azimuthProcessing/numberOfLooks", base);
-      p.azimuth_window = r.Text(params[i], "azimuthProcessing/windowType", base);
-      p.azimuth_window_coefficient = r.Number(params[i], "azimuthProcessing/windowCoefficient", base);
-      for (const auto& [value, name] :
-           {std::pair{p.range_processing_bandwidth_hz, "rangeProcessing/processingBandwidth"},
-            {p.range_look_bandwidth_hz, "rangeProcessing/lookBandwidth"},
-            {p.azimuth_processing_bandwidth_hz, "azimuthProcessing/processingBandwidth"},
-            {p.azimuth_look_bandwidth_hz, "azimuthProcessing/lookBandwidth"}}) {
-        if (!(value > 0.0)) throw InputError("must be > 0", r.Where(base + "/" + name));
-      }
-      a.processing.push_back(std::move(p));
+  const xmlNode* list = Child(Child(Child(top, "imageAnnotation"), "processingInformation"), "swathProcParamsList");
+  if (list == nullptr) return;
+  const std::vector<const xmlNode*> params = Children(list, "swathProcParams");
+  for (size_t i = 0; i < params.size(); ++i) {
+    const std::string base = Reader::Item(proc_path, "swathProcParams", i);
+    Sentinel1SwathProcessing p;
+    p.swath = r.Text(params[i], "swath", base);
+    p.range_processing_bandwidth_hz = r.Number(params[i], "rangeProcessing/processingBandwidth", base);
+    p.range_look_bandwidth_hz = r.Number(params[i], "rangeProcessing/lookBandwidth", base);
+    p.range_looks = r.Int(params[i], "rangeProcessing/numberOfLooks", base);
+    p.range_window = r.Text(params[i], "rangeProcessing/windowType", base);
+    p.range_window_coefficient = r.Number(params[i], "rangeProcessing/windowCoefficient", base);
+    p.azimuth_processing_bandwidth_hz = r.Number(params[i], "azimuthProcessing/processingBandwidth", base);
+    p.azimuth_look_bandwidth_hz = r.Number(params[i], "azimuthProcessing/lookBandwidth", base);
+    p.azimuth_looks = r.Int(params[i], "azimuthProcessing/numberOfLooks", base);
+    p.azimuth_window = r.Text(params[i], "azimuthProcessing/windowType", base);
+    p.azimuth_window_coefficient = r.Number(params[i], "azimuthProcessing/windowCoefficient", base);
+    for (const auto& [value, name] :
+         {std::pair{p.range_processing_bandwidth_hz, "rangeProcessing/processingBandwidth"},
+          {p.range_look_bandwidth_hz, "rangeProcessing/lookBandwidth"},
+          {p.azimuth_processing_bandwidth_hz, "azimuthProcessing/processingBandwidth"},
+          {p.azimuth_look_bandwidth_hz, "azimuthProcessing/lookBandwidth"}}) {
+      if (!(value > 0.0)) throw InputError("must be > 0", r.Where(base + "/" + name));
     }
+    a.processing.push_back(std::move(p));
   }
+}
 
+}  // namespace
+
+Sentinel1Annotation ParseSentinel1Annotation(const std::string& xml, const std::string& file, double epoch_unix_s) {
+  const XmlDoc doc = ParseXml(xml, file);
+  const xmlNode* top = xmlDocGetRootElement(doc.get());
+  if (!IsElement(top, "product")) {
+    throw InputError("root element is <" + std::string(reinterpret_cast<const char*>(top->name)) +
+                         ">, expected <product>",
+                     file);
+  }
+  if (epoch_unix_s == 0.0) epoch_unix_s = AnnotationEpoch(top, file);
+  const Reader r(file, epoch_unix_s);
+  Sentinel1Annotation a;
+  a.file = file;
+  ParseProductInformation(r, top, a);
+  ParseImageInformation(r, top, a);
+  ParseOrbitList(r, top, a);
+  ParseSwathTiming(r, top, a);
+  ParseGeolocationGrid(r, top, a);
+  ParseRangeConversion(r, top, a);
+  ParseSwathProcessing(r, top, a);
   if (a.is_grd() && a.range_conversion.empty()) {
     throw InputError("a GRD annotation without slant/ground range polynomials",
                      r.Where("coordinateConversion/coordinateConversionList"));

@@ -156,10 +156,12 @@ void ValidatePointTargetOptions(const PointTargetOptions& options) {
   }
 }
 
-std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::complex<float>>& slc, int width,
-                                                         int height, double predicted_col, double predicted_row,
-                                                         const PointTargetOptions& options, std::string* why_not) {
-  ValidatePointTargetOptions(options);
+namespace {
+
+// Refuses an image whose size does not match its samples, and a prediction
+// that is not finite.
+void CheckImageAndPrediction(const std::vector<std::complex<float>>& slc, int width, int height,
+                             double predicted_col, double predicted_row) {
   if (width < 1 || height < 1) {
     throw InputError("image size must be positive, got " + std::to_string(width) + " x " + std::to_string(height),
                      "slc");
@@ -172,103 +174,131 @@ std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::
   if (!std::isfinite(predicted_col) || !std::isfinite(predicted_row)) {
     throw InputError("predicted position is not finite", "predicted_px");
   }
-  std::string why;
-  auto fail = [&](const std::string& reason) -> std::optional<PointTargetMeasurement> {
-    if (why_not) *why_not = reason;
-    return std::nullopt;
-  };
-  auto at = [&](int col, int row) -> std::complex<double> {
+}
+
+// The complex image, read in double; a sample that is not finite is an
+// InputError when it is read.
+struct SlcImage {
+  const std::vector<std::complex<float>>& slc;
+  int width = 0, height = 0;
+
+  std::complex<double> At(int col, int row) const {
     const std::complex<float> v = slc[size_t(row) * width + col];
     if (!std::isfinite(v.real()) || !std::isfinite(v.imag())) {
       throw InputError("sample (column " + std::to_string(col) + ", row " + std::to_string(row) + ") is not finite",
                        "slc");
     }
     return {v.real(), v.imag()};
-  };
-  const std::string where_text = "(" + Num(predicted_col) + ", " + Num(predicted_row) + ")";
+  }
+};
 
-  // 1. Brightest sample within the search circle; it must be a local maximum.
-  const double radius = options.search_radius_px;
+// The brightest sample near the prediction.
+struct PeakSample {
+  int col = -1, row = -1;
+  double power = -1.0;
+  std::string text;  // "(col, row)", for messages
+};
+
+// 1. The brightest sample within the search circle; it must be a local
+// maximum. nullopt (with the reason in `why`) when there is none.
+std::optional<PeakSample> FindPeakSample(const SlcImage& image, double predicted_col, double predicted_row,
+                                         double radius, const std::string& where_text, std::string* why) {
+  const int width = image.width, height = image.height;
   const double col_lo = std::max(0.0, std::ceil(predicted_col - radius));
   const double col_hi = std::min(width - 1.0, std::floor(predicted_col + radius));
   const double row_lo = std::max(0.0, std::ceil(predicted_row - radius));
   const double row_hi = std::min(height - 1.0, std::floor(predicted_row + radius));
-  int peak_col = -1, peak_row = -1;
-  double peak_sample_power = -1.0;
+  PeakSample peak;
   for (double r = row_lo; r <= row_hi; ++r) {
     for (double c = col_lo; c <= col_hi; ++c) {
       const double dc = c - predicted_col, dr = r - predicted_row;
       if (dc * dc + dr * dr > radius * radius) continue;
-      const double p = std::norm(at(int(c), int(r)));
-      if (p > peak_sample_power) {
-        peak_sample_power = p;
-        peak_col = int(c);
-        peak_row = int(r);
+      const double p = std::norm(image.At(int(c), int(r)));
+      if (p > peak.power) {
+        peak.power = p;
+        peak.col = int(c);
+        peak.row = int(r);
       }
     }
   }
-  if (peak_col < 0) {
-    return fail("the search circle of radius " + Num(radius) + " px around the prediction " + where_text +
-                " holds no image sample");
+  if (peak.col < 0) {
+    *why = "the search circle of radius " + Num(radius) + " px around the prediction " + where_text +
+           " holds no image sample";
+    return std::nullopt;
   }
-  const std::string peak_text = "(" + std::to_string(peak_col) + ", " + std::to_string(peak_row) + ")";
+  peak.text = "(" + std::to_string(peak.col) + ", " + std::to_string(peak.row) + ")";
   for (int dr = -1; dr <= 1; ++dr) {
     for (int dc = -1; dc <= 1; ++dc) {
-      const int c = peak_col + dc, r = peak_row + dr;
+      const int c = peak.col + dc, r = peak.row + dr;
       if (c < 0 || r < 0 || c >= width || r >= height) continue;
-      if (std::norm(at(c, r)) > peak_sample_power) {
-        return fail("the brightest sample within " + Num(radius) + " px of the prediction " + where_text + ", " +
-                    peak_text + ", is not a local maximum: the target lies outside the search radius");
+      if (std::norm(image.At(c, r)) > peak.power) {
+        *why = "the brightest sample within " + Num(radius) + " px of the prediction " + where_text + ", " +
+               peak.text + ", is not a local maximum: the target lies outside the search radius";
+        return std::nullopt;
       }
     }
   }
-  const int h = options.chip_half_size_px;
-  const int hi = options.integration_half_size_px > 0 ? options.integration_half_size_px : h;
-  const int margin = std::max(h, hi);
-  if (peak_col - margin < 0 || peak_row - margin < 0 || peak_col + margin > width - 1 ||
-      peak_row + margin > height - 1) {
-    return fail("target too close to the image edge: the chip of +-" + std::to_string(margin) +
-                " px around the peak sample " + peak_text + " leaves the " + std::to_string(width) + " x " +
-                std::to_string(height) + " image");
-  }
+  return peak;
+}
 
-  // 5 (first, for the detection test). Energy and background on the
-  // original samples: (2 hi + 1)^2 box, four corner boxes of side b.
+// The target's energy above the background, and the background.
+struct TargetEnergy {
+  double background = 0.0;  // mean power of the four corner boxes
+  double energy = 0.0;      // box sum minus the background over the box
+};
+
+// 5 (first, for the detection test). Energy and background on the
+// original samples: (2 hi + 1)^2 box, four corner boxes of side b. nullopt
+// (reason in `why`) when no target stands out of the background.
+std::optional<TargetEnergy> IntegrateEnergy(const SlcImage& image, const PeakSample& peak, int hi,
+                                            double min_peak_to_background_db, const std::string& where_text,
+                                            std::string* why) {
   const int b = std::max(1, hi / 2);
   double box_sum = 0.0, corner_sum = 0.0;
-  for (int r = peak_row - hi; r <= peak_row + hi; ++r) {
-    for (int c = peak_col - hi; c <= peak_col + hi; ++c) {
-      const double p = std::norm(at(c, r));
+  for (int r = peak.row - hi; r <= peak.row + hi; ++r) {
+    for (int c = peak.col - hi; c <= peak.col + hi; ++c) {
+      const double p = std::norm(image.At(c, r));
       box_sum += p;
-      const bool corner_col = c < peak_col - hi + b || c > peak_col + hi - b;
-      const bool corner_row = r < peak_row - hi + b || r > peak_row + hi - b;
+      const bool corner_col = c < peak.col - hi + b || c > peak.col + hi - b;
+      const bool corner_row = r < peak.row - hi + b || r > peak.row + hi - b;
       if (corner_col && corner_row) corner_sum += p;
     }
   }
   const double box_count = double(2 * hi + 1) * double(2 * hi + 1);
   const double background = corner_sum / (4.0 * b * b);
-  if (!(peak_sample_power > 0.0)) return fail("no target near " + where_text + ": every sample is zero");
+  if (!(peak.power > 0.0)) {
+    *why = "no target near " + where_text + ": every sample is zero";
+    return std::nullopt;
+  }
   if (background > 0.0) {
-    const double contrast_db = 10.0 * std::log10(peak_sample_power / background);
-    if (contrast_db < options.min_peak_to_background_db) {
-      return fail("no target near " + where_text + ": the brightest sample " + peak_text + " is only " +
-                  Num(contrast_db) + " dB above the background (at least " +
-                  Num(options.min_peak_to_background_db) + " dB needed)");
+    const double contrast_db = 10.0 * std::log10(peak.power / background);
+    if (contrast_db < min_peak_to_background_db) {
+      *why = "no target near " + where_text + ": the brightest sample " + peak.text + " is only " +
+             Num(contrast_db) + " dB above the background (at least " + Num(min_peak_to_background_db) +
+             " dB needed)";
+      return std::nullopt;
     }
   }
   const double energy = box_sum - background * box_count;
   if (!(energy > 0.0)) {
-    return fail("no target near " + where_text + ": the integrated energy minus the background is not positive");
+    *why = "no target near " + where_text + ": the integrated energy minus the background is not positive";
+    return std::nullopt;
   }
+  return TargetEnergy{background, energy};
+}
 
-  // 2. Chip (2h x 2h, brightest sample at index h) with its spectral
-  // centroid removed.
-  const int n = 2 * h;
-  const int col0 = peak_col - h, row0 = peak_row - h;
+// 2. The chip: n x n samples from (col0, row0), row-major.
+std::vector<std::complex<double>> ExtractChip(const SlcImage& image, int col0, int row0, int n) {
   std::vector<std::complex<double>> chip(size_t(n) * n);
   for (int r = 0; r < n; ++r) {
-    for (int c = 0; c < n; ++c) chip[size_t(r) * n + c] = at(col0 + c, row0 + r);
+    for (int c = 0; c < n; ++c) chip[size_t(r) * n + c] = image.At(col0 + c, row0 + r);
   }
+  return chip;
+}
+
+// The chip's spectral centroid (cycles per pixel, columns and rows) from its
+// lag-one correlations, removed from the chip (phase 0 at index h).
+RangeAzimuth RemoveSpectralCentroid(std::vector<std::complex<double>>& chip, int n, int h) {
   std::complex<double> lag_col = 0.0, lag_row = 0.0;
   for (int r = 0; r < n; ++r) {
     for (int c = 0; c < n; ++c) {
@@ -290,9 +320,24 @@ std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::
       }
     }
   }
+  return {f_col, f_row};
+}
 
-  // 3. Upsampling by zero-padding the spectrum.
-  const int u = options.upsampling;
+// The chip upsampled by u: m x m complex samples (m = n u), unscaled.
+struct UpsampledChip {
+  cv::Mat samples;     // CV_64FC2
+  double scale = 1.0;  // 1 / n^2: the inverse DFT's missing factor
+  int u = 1;           // grid step 1 / u pixel
+  int l = 0;           // the chip's sample extent: l x l, (n - 1) u + 1 (the wrap interval left out)
+
+  double Power(int r, int c) const {
+    const cv::Vec2d& v = samples.at<cv::Vec2d>(r, c);
+    return (v[0] * v[0] + v[1] * v[1]) * scale * scale;
+  }
+};
+
+// 3. Upsampling by zero-padding the spectrum.
+UpsampledChip UpsampleChip(const std::vector<std::complex<double>>& chip, int n, int u) {
   const int m = n * u;
   cv::Mat chip_mat(n, n, CV_64FC2);
   for (int r = 0; r < n; ++r) {
@@ -312,71 +357,132 @@ std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::
       }
     }
   }
+  UpsampledChip up;
   // In place (the chip's memory is touched once: 16 MiB for 1024^2).
   cv::Mat& upsampled = padded;
   cv::dft(padded, upsampled, cv::DFT_INVERSE);  // unscaled: divide by n^2
-  const double scale = 1.0 / (double(n) * n);
-  // Power over the chip's sample extent (the wrap interval after the last
-  // sample excluded): l x l, grid step 1 / u pixel.
-  const int l = (n - 1) * u + 1;
-  auto p = [&](int r, int c) {
-    const cv::Vec2d& v = upsampled.at<cv::Vec2d>(r, c);
-    return (v[0] * v[0] + v[1] * v[1]) * scale * scale;
-  };
-  // Grid maximum within 2 px of the brightest sample, then parabolas.
-  int peak_r = h * u, peak_c = h * u;
-  double grid_max = p(peak_r, peak_c);
+  up.samples = upsampled;
+  up.scale = 1.0 / (double(n) * n);
+  up.u = u;
+  up.l = (n - 1) * u + 1;
+  return up;
+}
+
+// The peak on the upsampled grid and its sub-sample offsets.
+struct UpsampledPeak {
+  int r = 0, c = 0;       // grid maximum
+  double power = 0.0;     // its power
+  double d_col = 0.0, d_row = 0.0;  // parabola vertex offsets, grid steps
+};
+
+// Grid maximum within 2 px of the brightest sample (index h), then
+// parabolas through it and its neighbours.
+UpsampledPeak FitPeak(const UpsampledChip& up, int h) {
+  const int u = up.u;
+  UpsampledPeak peak;
+  peak.r = h * u;
+  peak.c = h * u;
+  peak.power = up.Power(peak.r, peak.c);
   for (int r = (h - 2) * u; r <= (h + 2) * u; ++r) {
     for (int c = (h - 2) * u; c <= (h + 2) * u; ++c) {
-      const double value = p(r, c);
-      if (value > grid_max) {
-        grid_max = value;
-        peak_r = r;
-        peak_c = c;
+      const double value = up.Power(r, c);
+      if (value > peak.power) {
+        peak.power = value;
+        peak.r = r;
+        peak.c = c;
       }
     }
   }
-  const double d_col = ParabolaOffset(p(peak_r, peak_c - 1), p(peak_r, peak_c), p(peak_r, peak_c + 1));
-  const double d_row = ParabolaOffset(p(peak_r - 1, peak_c), p(peak_r, peak_c), p(peak_r + 1, peak_c));
+  const int pr = peak.r, pc = peak.c;
+  peak.d_col = ParabolaOffset(up.Power(pr, pc - 1), up.Power(pr, pc), up.Power(pr, pc + 1));
+  peak.d_row = ParabolaOffset(up.Power(pr - 1, pc), up.Power(pr, pc), up.Power(pr + 1, pc));
+  return peak;
+}
 
-  // 4. Cuts.
-  std::vector<double> range_cut(l), azimuth_cut(l);
-  for (int i = 0; i < l; ++i) {
-    range_cut[i] = p(peak_r, i);
-    azimuth_cut[i] = p(i, peak_c);
+// 4. The range and azimuth cuts through the peak, over the chip's extent.
+struct PeakCuts {
+  std::vector<double> range, azimuth;  // power
+};
+
+PeakCuts TakeCuts(const UpsampledChip& up, const UpsampledPeak& peak) {
+  PeakCuts cuts;
+  cuts.range.resize(up.l);
+  cuts.azimuth.resize(up.l);
+  for (int i = 0; i < up.l; ++i) {
+    cuts.range[i] = up.Power(peak.r, i);
+    cuts.azimuth[i] = up.Power(i, peak.c);
   }
-  const auto range = AnalyseCut(range_cut, peak_c, u, "range", &why);
-  if (!range) return fail(why + " (target at " + peak_text + ")");
-  const auto azimuth = AnalyseCut(azimuth_cut, peak_r, u, "azimuth", &why);
-  if (!azimuth) return fail(why + " (target at " + peak_text + ")");
+  return cuts;
+}
+
+// The power of the whole chip extent and of the main lobe (the box between
+// both cuts' first nulls), for the 2-D ISLR.
+struct LobeEnergy {
   double total = 0.0, main = 0.0;
-  for (int r = 0; r < l; ++r) {
-    for (int c = 0; c < l; ++c) {
-      total += p(r, c);
-      if (r >= azimuth->null_first && r <= azimuth->null_last && c >= range->null_first && c <= range->null_last) {
-        main += p(r, c);
+};
+
+LobeEnergy IntegrateMainLobe(const UpsampledChip& up, const CutAnalysis& range, const CutAnalysis& azimuth) {
+  LobeEnergy e;
+  for (int r = 0; r < up.l; ++r) {
+    for (int c = 0; c < up.l; ++c) {
+      e.total += up.Power(r, c);
+      if (r >= azimuth.null_first && r <= azimuth.null_last && c >= range.null_first && c <= range.null_last) {
+        e.main += up.Power(r, c);
       }
     }
   }
+  return e;
+}
 
+// A cut for plots, relative to the grid maximum, from pixel `first`.
+PointTargetCut CutForPlot(const std::vector<double>& power, int first, const CutAnalysis& analysis, int u,
+                          double grid_max) {
+  PointTargetCut cut;
+  cut.first_px = first;
+  cut.step_px = 1.0 / u;
+  cut.power_db.reserve(power.size());
+  for (double value : power) cut.power_db.push_back(10.0 * std::log10(std::max(value / grid_max, 1e-30)));
+  cut.null_first_px = first + double(analysis.null_first) / u;
+  cut.null_last_px = first + double(analysis.null_last) / u;
+  return cut;
+}
+
+// Where the chip lies and how it was centred: its first sample, half-size
+// and spectral centroid.
+struct ChipPlacement {
+  int col0 = 0, row0 = 0;
+  int h = 0;
+  RangeAzimuth centroid;  // cycles per pixel (f_col, f_row)
+};
+
+// The measurement from the fitted peak, the cut analyses and the energies.
+PointTargetMeasurement AssembleMeasurement(const PointTargetOptions& options, double predicted_col,
+                                           double predicted_row, const PeakSample& sample,
+                                           const TargetEnergy& target, const ChipPlacement& chip,
+                                           const UpsampledChip& up, const UpsampledPeak& peak, const PeakCuts& cuts,
+                                           const CutAnalysis& range, const CutAnalysis& azimuth,
+                                           const LobeEnergy& lobe) {
+  const int u = up.u, h = chip.h;
+  const double f_col = chip.centroid.range, f_row = chip.centroid.azimuth;
+  const double background = target.background, energy = target.energy;
   PointTargetMeasurement out;
   out.predicted_px = {predicted_col, predicted_row};
-  out.peak_sample_col = peak_col;
-  out.peak_sample_row = peak_row;
-  out.peak_px = {col0 + (peak_c + d_col) / u, row0 + (peak_r + d_row) / u};
+  out.peak_sample_col = sample.col;
+  out.peak_sample_row = sample.row;
+  out.peak_px = {chip.col0 + (peak.c + peak.d_col) / u, chip.row0 + (peak.r + peak.d_row) / u};
   out.location_error_px = {out.peak_px.range - predicted_col, out.peak_px.azimuth - predicted_row};
   out.location_error_m = {out.location_error_px.range * options.range_spacing_m,
                           out.location_error_px.azimuth * options.azimuth_spacing_m};
-  out.resolution_px = {range->width_px, azimuth->width_px};
-  out.resolution_m = {range->width_px * options.range_spacing_m, azimuth->width_px * options.azimuth_spacing_m};
-  out.main_lobe_px = {range->main_lobe_px, azimuth->main_lobe_px};
-  out.pslr_db = {range->pslr_db, azimuth->pslr_db};
-  out.islr_db = {range->islr_db, azimuth->islr_db};
-  out.islr_2d_db = 10.0 * std::log10((total - main) / main);
+  out.resolution_px = {range.width_px, azimuth.width_px};
+  out.resolution_m = {range.width_px * options.range_spacing_m, azimuth.width_px * options.azimuth_spacing_m};
+  out.main_lobe_px = {range.main_lobe_px, azimuth.main_lobe_px};
+  out.pslr_db = {range.pslr_db, azimuth.pslr_db};
+  out.islr_db = {range.islr_db, azimuth.islr_db};
+  out.islr_2d_db = 10.0 * std::log10((lobe.total - lobe.main) / lobe.main);
   out.spectrum_centre_cycles_per_px = {f_col, f_row};
-  const cv::Vec2d v = upsampled.at<cv::Vec2d>(peak_r, peak_c);
-  out.peak_value = std::complex<double>(v[0], v[1]) * scale *
-                   std::polar(1.0, 2.0 * M_PI * (f_col * (double(peak_c) / u - h) + f_row * (double(peak_r) / u - h)));
+  const cv::Vec2d v = up.samples.at<cv::Vec2d>(peak.r, peak.c);
+  out.peak_value = std::complex<double>(v[0], v[1]) * up.scale *
+                   std::polar(1.0, 2.0 * M_PI * (f_col * (double(peak.c) / u - h) + f_row * (double(peak.r) / u - h)));
   out.peak_power = std::norm(out.peak_value);
   out.background_power = background;
   out.energy = energy;
@@ -387,20 +493,68 @@ std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::
   out.peak_beta0_db = 10.0 * std::log10(out.beta0_calibration * out.peak_power);
   out.rcs_m2 = out.beta0_calibration * energy * options.range_spacing_m * options.azimuth_spacing_m;
   out.rcs_dbsm = 10.0 * std::log10(out.rcs_m2);
-  // The cuts for plots, relative to the grid maximum.
-  auto cut_of = [&](const std::vector<double>& power, int first, const CutAnalysis& analysis) {
-    PointTargetCut cut;
-    cut.first_px = first;
-    cut.step_px = 1.0 / u;
-    cut.power_db.reserve(power.size());
-    for (double value : power) cut.power_db.push_back(10.0 * std::log10(std::max(value / grid_max, 1e-30)));
-    cut.null_first_px = first + double(analysis.null_first) / u;
-    cut.null_last_px = first + double(analysis.null_last) / u;
-    return cut;
-  };
-  out.range_cut = cut_of(range_cut, col0, *range);
-  out.azimuth_cut = cut_of(azimuth_cut, row0, *azimuth);
+  out.range_cut = CutForPlot(cuts.range, chip.col0, range, u, peak.power);
+  out.azimuth_cut = CutForPlot(cuts.azimuth, chip.row0, azimuth, u, peak.power);
   return out;
+}
+
+}  // namespace
+
+std::optional<PointTargetMeasurement> MeasurePointTarget(const std::vector<std::complex<float>>& slc, int width,
+                                                         int height, double predicted_col, double predicted_row,
+                                                         const PointTargetOptions& options, std::string* why_not) {
+  ValidatePointTargetOptions(options);
+  CheckImageAndPrediction(slc, width, height, predicted_col, predicted_row);
+  std::string why;
+  auto fail = [&](const std::string& reason) -> std::optional<PointTargetMeasurement> {
+    if (why_not) *why_not = reason;
+    return std::nullopt;
+  };
+  const SlcImage image{slc, width, height};
+  const std::string where_text = "(" + Num(predicted_col) + ", " + Num(predicted_row) + ")";
+
+  // 1. The brightest sample near the prediction, far enough from the edges.
+  const std::optional<PeakSample> sample =
+      FindPeakSample(image, predicted_col, predicted_row, options.search_radius_px, where_text, &why);
+  if (!sample) return fail(why);
+  const int h = options.chip_half_size_px;
+  const int hi = options.integration_half_size_px > 0 ? options.integration_half_size_px : h;
+  const int margin = std::max(h, hi);
+  if (sample->col - margin < 0 || sample->row - margin < 0 || sample->col + margin > width - 1 ||
+      sample->row + margin > height - 1) {
+    return fail("target too close to the image edge: the chip of +-" + std::to_string(margin) +
+                " px around the peak sample " + sample->text + " leaves the " + std::to_string(width) + " x " +
+                std::to_string(height) + " image");
+  }
+  // 5 (first, for the detection test).
+  const std::optional<TargetEnergy> target =
+      IntegrateEnergy(image, *sample, hi, options.min_peak_to_background_db, where_text, &why);
+  if (!target) return fail(why);
+
+  // 2. Chip (2h x 2h, brightest sample at index h) with its spectral
+  // centroid removed.
+  const int n = 2 * h;
+  ChipPlacement placement;
+  placement.col0 = sample->col - h;
+  placement.row0 = sample->row - h;
+  placement.h = h;
+  std::vector<std::complex<double>> chip = ExtractChip(image, placement.col0, placement.row0, n);
+  placement.centroid = RemoveSpectralCentroid(chip, n, h);
+
+  // 3. Upsampling, and the peak on the upsampled grid.
+  const UpsampledChip up = UpsampleChip(chip, n, options.upsampling);
+  const UpsampledPeak peak = FitPeak(up, h);
+
+  // 4. Cuts: resolution, PSLR and ISLR per axis; the 2-D ISLR.
+  const PeakCuts cuts = TakeCuts(up, peak);
+  const auto range = AnalyseCut(cuts.range, peak.c, up.u, "range", &why);
+  if (!range) return fail(why + " (target at " + sample->text + ")");
+  const auto azimuth = AnalyseCut(cuts.azimuth, peak.r, up.u, "azimuth", &why);
+  if (!azimuth) return fail(why + " (target at " + sample->text + ")");
+  const LobeEnergy lobe = IntegrateMainLobe(up, *range, *azimuth);
+
+  return AssembleMeasurement(options, predicted_col, predicted_row, *sample, *target, placement, up, peak, cuts,
+                             *range, *azimuth, lobe);
 }
 
 std::optional<std::complex<double>> InterpolateComplex(const std::vector<std::complex<float>>& slc, int width,

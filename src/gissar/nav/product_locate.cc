@@ -350,371 +350,588 @@ sensor::RadarGrid MultilookGrid(const sensor::RadarGrid& grid, int la, int lr) {
   return g;
 }
 
-ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& frame,
-                                  const ProductObservation& observed, const TrackVectors& prior_track,
-                                  const ProductLocateOptions& options) {
-  options.Check();
+namespace {
+
+// The observed image's grid multilooked by the options' looks: the image must
+// be rows x cols of its grid and keep at least 12 lines and bins.
+sensor::RadarGrid CheckedMultilookGrid(const ProductObservation& observed, const ProductLocateOptions& options) {
   const sensor::RadarGrid& full = observed.grid;
   if (observed.intensity.size() != size_t(full.rows) * size_t(full.cols)) {
     throw InputError("observed image is not rows x cols of its grid", "nav::LocateProduct");
   }
-  const int la = options.looks_azimuth, lr = options.looks_range;
-  const sensor::RadarGrid grid = MultilookGrid(full, la, lr);
+  const sensor::RadarGrid grid = MultilookGrid(full, options.looks_azimuth, options.looks_range);
   if (grid.rows < 12 || grid.cols < 12) {
     throw ConfigError("the multilooked image has fewer than 12 lines or bins", "--looks");
   }
-  Stopwatch clock;
-  ProductLocateResult result;
-  const int width = grid.cols, height = grid.rows;
-  std::vector<float> observed_ml = image::Multilook(observed.intensity, full.rows, full.cols, la, lr);
+  return grid;
+}
+
+// The observed image multilooked onto `grid` (non-finite pixels 0), as the
+// filtered log intensity the references are matched with.
+cv::Mat ObservedLog(const ProductObservation& observed, const sensor::RadarGrid& grid,
+                    const ProductLocateOptions& options) {
+  const sensor::RadarGrid& full = observed.grid;
+  std::vector<float> observed_ml =
+      image::Multilook(observed.intensity, full.rows, full.cols, options.looks_azimuth, options.looks_range);
   for (float& v : observed_ml) {
     if (!std::isfinite(v)) v = 0.0f;
   }
-  const cv::Mat observed_log = LogIntensity(observed_ml, width, height, options.filter_px);
+  return LogIntensity(observed_ml, grid.cols, grid.rows, options.filter_px);
+}
 
-  const sensor::Orbit prior_orbit = prior_track.ToOrbit();
-  result.fix_time_s = grid.TimeOfRow(0.5 * (height - 1));
-  const TrackFrame track_frame = TrackFrameAt(prior_orbit, result.fix_time_s);
-  const sensor::OrbitState centre_state = prior_orbit.Interpolate(result.fix_time_s);
-  const double centre_range_m = grid.RangeOfCol(0.5 * (width - 1));
+// `grid` grown by `pad_rows` lines and `pad_cols` bins on each side.
+sensor::RadarGrid PaddedGrid(const sensor::RadarGrid& grid, int pad_rows, int pad_cols) {
+  sensor::RadarGrid ref_grid = grid;
+  ref_grid.t0_s -= pad_rows * grid.dt_s;
+  ref_grid.rows += 2 * pad_rows;
+  ref_grid.r0_m -= pad_cols * grid.dr_m;
+  ref_grid.cols += 2 * pad_cols;
+  return ref_grid;
+}
+
+// The observed (full-resolution) intensity at line y, bin x: 0 where it is
+// not a positive finite number.
+struct PositiveIntensity {
+  const std::vector<float>& intensity;
+  int cols = 0;
+  double operator()(int y, int x) const {
+    const float v = intensity[size_t(y) * cols + x];
+    return std::isfinite(v) && v > 0.0f ? double(v) : 0.0;
+  }
+};
+
+// A landmark's search window, lines [r0, r1] x bins [c0, c1]: its brightest
+// pixel (x, y), the window's median and the brightest pixel further than
+// kPeakExclusionPx from the brightest.
+struct WindowPeak {
+  int r0 = 0, r1 = 0, c0 = 0, c1 = 0;
+  int x = 0, y = 0;
+  double best = 0.0, median = 0.0, second = 0.0;
+};
+
+WindowPeak BrightestInWindow(const PositiveIntensity& value, int r0, int r1, int c0, int c1) {
+  WindowPeak peak{r0, r1, c0, c1};
+  int bx = c0, by = r0;
+  std::vector<double> window;
+  for (int y = r0; y <= r1; ++y)
+    for (int x = c0; x <= c1; ++x) {
+      window.push_back(value(y, x));
+      if (value(y, x) > value(by, bx)) bx = x, by = y;
+    }
+  peak.x = bx;
+  peak.y = by;
+  peak.best = value(by, bx);
+  std::nth_element(window.begin(), window.begin() + window.size() / 2, window.end());
+  peak.median = window[window.size() / 2];
+  double second = 0.0;
+  for (int y = r0; y <= r1; ++y)
+    for (int x = c0; x <= c1; ++x) {
+      if (std::abs(x - bx) > kPeakExclusionPx || std::abs(y - by) > kPeakExclusionPx) second = std::max(second, value(y, x));
+    }
+  peak.second = second;
+  return peak;
+}
+
+// Why a landmark's peak cannot be a control point ("" when it can).
+std::string LandmarkRejection(const WindowPeak& peak, const LandmarkRecord& rec, const ProductLocateOptions& options) {
+  char note[200] = "";
+  if (!(peak.best > 0.0)) {
+    std::snprintf(note, sizeof note, "no signal in its search window");
+  } else if (peak.x == peak.c0 || peak.x == peak.c1 || peak.y == peak.r0 || peak.y == peak.r1) {
+    std::snprintf(note, sizeof note, "its brightest pixel is on the border of its search window or the image");
+  } else if (rec.contrast_db < options.min_landmark_contrast_db) {
+    std::snprintf(note, sizeof note, "no distinct peak (%.1f dB over the window's median < %.1f dB)",
+                  rec.contrast_db, options.min_landmark_contrast_db);
+  } else if (rec.margin_db < options.min_landmark_margin_db) {
+    std::snprintf(note, sizeof note, "ambiguous peak (%.1f dB over the next brightest pixel > 3 px away < %.1f dB)",
+                  rec.margin_db, options.min_landmark_margin_db);
+  }
+  return note;
+}
+
+// The control points the landmarks give, the index in result.landmarks of
+// each one's landmark, and whether any landmark's window meets the image.
+struct LandmarkPeaks {
+  std::vector<ControlPoint> points;
+  std::vector<int> owners;
+  bool any_in_image = false;
+};
+
+// The whole-image shift of the observed image over a padded reference:
+// ncc(v, u) scores the observed pixel (x, y) on reference pixel (x + u, y + v);
+// `best` and (u, v) the chosen matcher's peak (whole and sub-pixel); the NCC
+// map's own peak, its value and the best NCC away from it (-1: none).
+struct ShiftPeak {
+  cv::Mat ncc;
+  cv::Point best;
+  double u = 0.0, v = 0.0;
+  cv::Point ncc_best;
+  double peak = 0.0, second = -1.0;
+};
+
+// One product fix (see the header): the observed image multilooked, the
+// prior track and its frame at the image's centre line, the search window
+// the prior's sigmas give, and the result as the phases fill it in.
+class ProductFix {
+ public:
+  ProductFix(const NavScene& scene, const geo::LocalFrame& frame, const ProductObservation& observed,
+             const TrackVectors& prior_track, const ProductLocateOptions& options, const sensor::RadarGrid& grid);
+
+  bool HasLandmarks() const { return scene_.landmarks != nullptr && !scene_.landmarks->empty(); }
+  LandmarkPeaks FindLandmarkPeaks();
+  ProductLocateResult ResectLandmarks(const LandmarkPeaks& peaks);
+  void MatchRelief();
+  void JudgeReliefFix();
+  void AddTerrainVariance();
+  ProductLocateResult Finish();
+
+ private:
+  render::ProductImage RenderReference(const sensor::Orbit& orbit, const sensor::RadarGrid& g) const;
+  void Fail(const std::string& why);
+  void MeasureLandmark(const render::SceneReflector& landmark, int half_rows, int half_cols, LandmarkPeaks& peaks);
+  void RecordLandmarkResiduals(const TrackResection& resection, const LandmarkPeaks& peaks);
+  double ZeroShiftNcc(const Eigen::Vector4d& at, double* contrast);
+  bool ReliefIteration(int it);
+  bool ReferenceHasStructure(const cv::Mat& ref_log);
+  ShiftPeak MeasureShift(const cv::Mat& ref_log) const;
+  bool RecordFirstPeak(const ShiftPeak& shift, float zero_shift, int pad_rows, int pad_cols);
+  std::vector<ControlPoint> ReliefControlPoints(const render::ProductImage& ref, int rw, const ShiftPeak& shift) const;
+  bool ResectShift(const std::vector<ControlPoint>& points, int it);
+
+  const NavScene& scene_;
+  const geo::LocalFrame& frame_;
+  const ProductObservation& observed_;
+  const TrackVectors& prior_track_;
+  const ProductLocateOptions& options_;
+  const sensor::RadarGrid& full_;  // the observed image's grid
+  const sensor::RadarGrid grid_;   // multilooked
+  const int la_, width_, height_;
+  Stopwatch clock_;
+  ProductLocateResult result_;
+  const cv::Mat observed_log_;
+  const sensor::Orbit prior_orbit_;
+  TrackFrame track_frame_;
+  double centre_range_m_ = 0.0;
+  double azimuth_m_ = 0.0;  // azimuth pixel on the ground (multilooked)
+  Eigen::Vector4d sigma_;
+  double k_ = 0.0;
+  int search_rows_ = 0, search_cols_ = 0;
+  render::RenderOptions ro_;
+  Eigen::Vector4d theta_ = Eigen::Vector4d::Zero();
+  double last_update_px_ = std::numeric_limits<double>::infinity();
+};
+
+ProductFix::ProductFix(const NavScene& scene, const geo::LocalFrame& frame, const ProductObservation& observed,
+                       const TrackVectors& prior_track, const ProductLocateOptions& options,
+                       const sensor::RadarGrid& grid)
+    : scene_(scene),
+      frame_(frame),
+      observed_(observed),
+      prior_track_(prior_track),
+      options_(options),
+      full_(observed.grid),
+      grid_(grid),
+      la_(options.looks_azimuth),
+      width_(grid.cols),
+      height_(grid.rows),
+      observed_log_(ObservedLog(observed, grid, options)),
+      prior_orbit_(prior_track.ToOrbit()) {
+  result_.fix_time_s = grid_.TimeOfRow(0.5 * (height_ - 1));
+  track_frame_ = TrackFrameAt(prior_orbit_, result_.fix_time_s);
+  const sensor::OrbitState centre_state = prior_orbit_.Interpolate(result_.fix_time_s);
+  centre_range_m_ = grid_.RangeOfCol(0.5 * (width_ - 1));
   // Azimuth pixel on the ground (m): the velocity scaled to the ground's
   // distance from the Earth's centre (the sensor's radius less its height
   // above the ellipsoid): about the aircraft speed, 0.9 x for a satellite.
   const double sensor_radius = centre_state.position_m.norm();
   const double ground_radius = sensor_radius - geo::LocalFrame::GeodeticFromEcef(centre_state.position_m)[2];
-  const double azimuth_m = grid.dt_s * centre_state.velocity_mps.norm() * ground_radius / sensor_radius;
-  result.cell_m = std::max(azimuth_m, grid.dr_m);
+  azimuth_m_ = grid_.dt_s * centre_state.velocity_mps.norm() * ground_radius / sensor_radius;
+  result_.cell_m = std::max(azimuth_m_, grid_.dr_m);
 
-  const Eigen::Vector4d sigma = options.prior_sigma.AsVector();
-  const double k = options.search_sigmas;
-  const int search_rows = static_cast<int>(
-      std::ceil(k * std::hypot(sigma[0], centre_range_m * sigma[3] * kDeg) / azimuth_m) + 3);
-  const int search_cols = static_cast<int>(std::ceil(k * std::hypot(sigma[1], sigma[2]) / grid.dr_m) + 3);
+  sigma_ = options_.prior_sigma.AsVector();
+  k_ = options_.search_sigmas;
+  search_rows_ = static_cast<int>(
+      std::ceil(k_ * std::hypot(sigma_[0], centre_range_m_ * sigma_[3] * kDeg) / azimuth_m_) + 3);
+  search_cols_ = static_cast<int>(std::ceil(k_ * std::hypot(sigma_[1], sigma_[2]) / grid_.dr_m) + 3);
 
-  render::RenderOptions ro;
-  ro.rays_per_cell = scene.rays_per_cell;
-  ro.max_bounces = scene.bounces;
-  ro.wavelength_m = grid.wavelength_m;
-  if (scene.landmarks != nullptr) ro.reflectors = *scene.landmarks;
-  // A reference: the terrain's returns plus the landmarks' point returns
-  // (an impulse response of one pixel of the reference's grid).
-  auto render_reference = [&](const sensor::Orbit& orbit, const sensor::RadarGrid& g) {
-    render::ProductImage img = render::RenderProduct(*scene.embree, *scene.mesh, *scene.materials, frame, orbit, g, ro);
-    if (!img.image.points.empty()) {
-      image::SensorEffects psf;
-      psf.range_resolution_px = psf.azimuth_resolution_px = 1.0;
-      image::AddPointIntensities(img.image, psf);
+  ro_.rays_per_cell = scene_.rays_per_cell;
+  ro_.max_bounces = scene_.bounces;
+  ro_.wavelength_m = grid_.wavelength_m;
+  if (scene_.landmarks != nullptr) ro_.reflectors = *scene_.landmarks;
+}
+
+// A reference: the terrain's returns plus the landmarks' point returns (an
+// impulse response of one pixel of the reference's grid).
+render::ProductImage ProductFix::RenderReference(const sensor::Orbit& orbit, const sensor::RadarGrid& g) const {
+  render::ProductImage img = render::RenderProduct(*scene_.embree, *scene_.mesh, *scene_.materials, frame_, orbit, g, ro_);
+  if (!img.image.points.empty()) {
+    image::SensorEffects psf;
+    psf.range_resolution_px = psf.azimuth_resolution_px = 1.0;
+    image::AddPointIntensities(img.image, psf);
+  }
+  return img;
+}
+
+void ProductFix::Fail(const std::string& why) {
+  result_.converged = false;
+  result_.failure_reason = why;
+}
+
+ProductLocateResult ProductFix::Finish() {
+  result_.correction = TrackOffset::FromVector(theta_);
+  result_.track = DisplaceTrack(prior_track_, track_frame_, result_.correction);
+  result_.sensor_ecef = result_.track.ToOrbit().Interpolate(result_.fix_time_s).position_m;
+  result_.seconds = clock_.ElapsedSeconds();
+  return result_;
+}
+
+// Every landmark's record, and a control point from each whose search window
+// at the prior shows a distinct peak.
+LandmarkPeaks ProductFix::FindLandmarkPeaks() {
+  const double az_full_m = azimuth_m_ / la_;
+  const int half_rows =
+      static_cast<int>(std::ceil(k_ * std::hypot(sigma_[0], centre_range_m_ * sigma_[3] * kDeg) / az_full_m)) + 2;
+  const int half_cols = static_cast<int>(std::ceil(k_ * std::hypot(sigma_[1], sigma_[2]) / full_.dr_m)) + 2;
+  LandmarkPeaks peaks;
+  for (const render::SceneReflector& landmark : *scene_.landmarks) MeasureLandmark(landmark, half_rows, half_cols, peaks);
+  return peaks;
+}
+
+// One landmark: predicted on the prior track, its peak searched for in a
+// window of the full-resolution image, judged, and located to sub-pixel.
+void ProductFix::MeasureLandmark(const render::SceneReflector& landmark, int half_rows, int half_cols,
+                                 LandmarkPeaks& peaks) {
+  LandmarkRecord rec;
+  rec.row = landmark.row;
+  const Eigen::Vector3d llh = frame_.GeodeticFromEnu(landmark.apex_enu);
+  const Eigen::Vector3d ecef = geo::LocalFrame::EcefFromGeodetic(llh[0], llh[1], llh[2]);
+  const auto rc = sensor::Geo2Rdr(prior_orbit_, ecef, result_.fix_time_s);
+  if (!rc) {
+    rec.note = "no zero-Doppler time on the prior track";
+    result_.landmarks.push_back(rec);
+    return;
+  }
+  const double pr = (rc->time_s - full_.t0_s) / full_.dt_s, pc = (rc->range_m - full_.r0_m) / full_.dr_m;
+  rec.predicted_px = {pc, pr};
+  const int r0 = std::max(0, static_cast<int>(std::floor(pr)) - half_rows);
+  const int r1 = std::min(full_.rows - 1, static_cast<int>(std::ceil(pr)) + half_rows);
+  const int c0 = std::max(0, static_cast<int>(std::floor(pc)) - half_cols);
+  const int c1 = std::min(full_.cols - 1, static_cast<int>(std::ceil(pc)) + half_cols);
+  if (r1 - r0 < 2 || c1 - c0 < 2) {
+    rec.note = "outside the image at the prior track";
+    result_.landmarks.push_back(rec);
+    return;
+  }
+  rec.in_image = peaks.any_in_image = true;
+  const PositiveIntensity value{observed_.intensity, full_.cols};
+  const WindowPeak peak = BrightestInWindow(value, r0, r1, c0, c1);
+  const int bx = peak.x, by = peak.y;
+  const double best = peak.best, median = peak.median, second = peak.second;
+  rec.contrast_db = best > 0.0 && median > 0.0 ? 10.0 * std::log10(best / median) : 0.0;
+  rec.margin_db = best > 0.0 && second > 0.0 ? 10.0 * std::log10(best / second)
+                                             : std::numeric_limits<double>::infinity();
+  const std::string note = LandmarkRejection(peak, rec, options_);
+  if (!note.empty()) {
+    rec.note = note;
+    result_.landmarks.push_back(rec);
+    return;
+  }
+  // Sub-pixel peak: a parabola through the dB values of the neighbours.
+  auto db = [&](int y, int x) { return 10.0 * std::log10(std::max(value(y, x), best * 1e-6)); };
+  const double dx = ParabolicOffset(db(by, bx - 1), db(by, bx), db(by, bx + 1));
+  const double dy = ParabolicOffset(db(by - 1, bx), db(by, bx), db(by + 1, bx));
+  rec.peak_px = {bx + dx, by + dy};
+  rec.used = true;
+  ControlPoint cp;
+  cp.ground_ecef = ecef;
+  cp.time_s = full_.TimeOfRow(by + dy);
+  cp.range_m = full_.RangeOfCol(bx + dx);
+  peaks.points.push_back(cp);
+  peaks.owners.push_back(static_cast<int>(result_.landmarks.size()));
+  result_.landmarks.push_back(rec);
+}
+
+// Landmark mode: the track offset resected from the landmarks' peaks alone
+// (along and cross track; up and heading held at the prior).
+ProductLocateResult ProductFix::ResectLandmarks(const LandmarkPeaks& peaks) {
+  result_.source = "landmarks";
+  result_.from_image = {true, true, false, false};
+  result_.iterations = 1;
+  if (peaks.points.empty()) {
+    std::string why = "no landmark in the image has a usable peak:";
+    for (const LandmarkRecord& rec : result_.landmarks) {
+      if (rec.in_image) why += " row " + std::to_string(rec.row) + ": " + rec.note + ";";
     }
-    return img;
-  };
+    why.pop_back();
+    Fail(why);
+    return Finish();
+  }
+  const TrackResection resection(prior_track_, track_frame_, full_, peaks.points, options_, options_.landmark_sigma_px);
+  const auto solved = resection.Solve(theta_, result_.from_image);
+  if (!solved) {
+    Fail("geo2rdr failed for a landmark (it lies outside the orbit's span)");
+    return Finish();
+  }
+  theta_ = solved->theta;
+  result_.covariance = solved->covariance;
+  result_.control_points = static_cast<int>(solved->used.size());
+  RecordLandmarkResiduals(resection, peaks);
+  // The references at the prior and at the fix (landmarks rendered):
+  // whole-image NCC at zero shift, for the record.
+  try {
+    result_.prior_similarity = ZeroShiftNcc(Eigen::Vector4d::Zero(), &result_.reference_contrast_db);
+    result_.similarity = ZeroShiftNcc(theta_, nullptr);
+  } catch (const InputError&) {
+    // No reference (the DEM does not reach the grid): the landmarks still fix the track.
+  }
+  result_.peak_ncc = result_.peak_margin = std::numeric_limits<double>::quiet_NaN();
+  if (!(result_.rms_px <= options_.max_rms_px)) {
+    Fail("the landmarks disagree (resection RMS " + std::to_string(result_.rms_px) + " px > " +
+         std::to_string(options_.max_rms_px) + ")");
+  } else {
+    result_.converged = true;
+  }
+  return Finish();
+}
 
-  Eigen::Vector4d theta = Eigen::Vector4d::Zero();
-  double last_update_px = std::numeric_limits<double>::infinity();
-  auto fail = [&](const std::string& why) {
-    result.converged = false;
-    result.failure_reason = why;
-  };
-  auto finish = [&]() {
-    result.correction = TrackOffset::FromVector(theta);
-    result.track = DisplaceTrack(prior_track, track_frame, result.correction);
-    result.sensor_ecef = result.track.ToOrbit().Interpolate(result.fix_time_s).position_m;
-    result.seconds = clock.ElapsedSeconds();
-    return result;
-  };
+// Each landmark's residual at the fix and their RMS (over all control points,
+// outliers included).
+void ProductFix::RecordLandmarkResiduals(const TrackResection& resection, const LandmarkPeaks& peaks) {
+  const std::vector<ControlPoint>& points = peaks.points;
+  std::vector<int> all(points.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  const auto residuals = resection.Residuals(theta_, all);
+  double sum = 0.0;
+  for (size_t i = 0; residuals && i < points.size(); ++i) {
+    // Residuals are predicted minus observed (time, range) pixels.
+    result_.landmarks[peaks.owners[i]].residual_px = {-(*residuals)[2 * i + 1], -(*residuals)[2 * i]};
+    sum += (*residuals)[2 * i] * (*residuals)[2 * i] + (*residuals)[2 * i + 1] * (*residuals)[2 * i + 1];
+  }
+  result_.rms_px = residuals ? std::sqrt(sum / points.size()) : std::numeric_limits<double>::infinity();
+}
 
-  // Landmark mode (see the header): the landmarks whose search window at
-  // the prior meets the observed image.
-  if (scene.landmarks != nullptr && !scene.landmarks->empty()) {
-    const double az_full_m = azimuth_m / la;
-    const int half_rows = static_cast<int>(std::ceil(k * std::hypot(sigma[0], centre_range_m * sigma[3] * kDeg) / az_full_m)) + 2;
-    const int half_cols = static_cast<int>(std::ceil(k * std::hypot(sigma[1], sigma[2]) / full.dr_m)) + 2;
-    std::vector<ControlPoint> points;
-    std::vector<int> owners;  // index in result.landmarks of each control point
-    bool any_in_image = false;
-    for (const render::SceneReflector& landmark : *scene.landmarks) {
-      LandmarkRecord rec;
-      rec.row = landmark.row;
-      const Eigen::Vector3d llh = frame.GeodeticFromEnu(landmark.apex_enu);
-      const Eigen::Vector3d ecef = geo::LocalFrame::EcefFromGeodetic(llh[0], llh[1], llh[2]);
-      const auto rc = sensor::Geo2Rdr(prior_orbit, ecef, result.fix_time_s);
-      if (!rc) {
-        rec.note = "no zero-Doppler time on the prior track";
-        result.landmarks.push_back(rec);
-        continue;
-      }
-      const double pr = (rc->time_s - full.t0_s) / full.dt_s, pc = (rc->range_m - full.r0_m) / full.dr_m;
-      rec.predicted_px = {pc, pr};
-      const int r0 = std::max(0, static_cast<int>(std::floor(pr)) - half_rows);
-      const int r1 = std::min(full.rows - 1, static_cast<int>(std::ceil(pr)) + half_rows);
-      const int c0 = std::max(0, static_cast<int>(std::floor(pc)) - half_cols);
-      const int c1 = std::min(full.cols - 1, static_cast<int>(std::ceil(pc)) + half_cols);
-      if (r1 - r0 < 2 || c1 - c0 < 2) {
-        rec.note = "outside the image at the prior track";
-        result.landmarks.push_back(rec);
-        continue;
-      }
-      rec.in_image = any_in_image = true;
-      auto value = [&](int y, int x) {
-        const float v = observed.intensity[size_t(y) * full.cols + x];
-        return std::isfinite(v) && v > 0.0f ? double(v) : 0.0;
-      };
-      int bx = c0, by = r0;
-      std::vector<double> window;
-      for (int y = r0; y <= r1; ++y)
-        for (int x = c0; x <= c1; ++x) {
-          window.push_back(value(y, x));
-          if (value(y, x) > value(by, bx)) bx = x, by = y;
-        }
-      const double best = value(by, bx);
-      std::nth_element(window.begin(), window.begin() + window.size() / 2, window.end());
-      const double median = window[window.size() / 2];
-      double second = 0.0;
-      for (int y = r0; y <= r1; ++y)
-        for (int x = c0; x <= c1; ++x) {
-          if (std::abs(x - bx) > kPeakExclusionPx || std::abs(y - by) > kPeakExclusionPx) second = std::max(second, value(y, x));
-        }
-      rec.contrast_db = best > 0.0 && median > 0.0 ? 10.0 * std::log10(best / median) : 0.0;
-      rec.margin_db = best > 0.0 && second > 0.0 ? 10.0 * std::log10(best / second)
-                                                 : std::numeric_limits<double>::infinity();
-      char note[200] = "";
-      if (!(best > 0.0)) {
-        std::snprintf(note, sizeof note, "no signal in its search window");
-      } else if (bx == c0 || bx == c1 || by == r0 || by == r1) {
-        std::snprintf(note, sizeof note, "its brightest pixel is on the border of its search window or the image");
-      } else if (rec.contrast_db < options.min_landmark_contrast_db) {
-        std::snprintf(note, sizeof note, "no distinct peak (%.1f dB over the window's median < %.1f dB)",
-                      rec.contrast_db, options.min_landmark_contrast_db);
-      } else if (rec.margin_db < options.min_landmark_margin_db) {
-        std::snprintf(note, sizeof note, "ambiguous peak (%.1f dB over the next brightest pixel > 3 px away < %.1f dB)",
-                      rec.margin_db, options.min_landmark_margin_db);
-      }
-      if (note[0] != '\0') {
-        rec.note = note;
-        result.landmarks.push_back(rec);
-        continue;
-      }
-      // Sub-pixel peak: a parabola through the dB values of the neighbours.
-      auto db = [&](int y, int x) { return 10.0 * std::log10(std::max(value(y, x), best * 1e-6)); };
-      const double dx = ParabolicOffset(db(by, bx - 1), db(by, bx), db(by, bx + 1));
-      const double dy = ParabolicOffset(db(by - 1, bx), db(by, bx), db(by + 1, bx));
-      rec.peak_px = {bx + dx, by + dy};
-      rec.used = true;
+// The whole-image NCC at zero shift of the observed image with the reference
+// at track offset `at` (and that reference's log-intensity spread).
+double ProductFix::ZeroShiftNcc(const Eigen::Vector4d& at, double* contrast) {
+  const sensor::Orbit orbit = DisplaceTrack(prior_track_, track_frame_, TrackOffset::FromVector(at)).ToOrbit();
+  const render::ProductImage ref = RenderReference(orbit, grid_);
+  ++result_.renders;
+  const cv::Mat ref_log = LogIntensity(ref.image.intensity, width_, height_, options_.filter_px, options_.reference_floor);
+  if (contrast != nullptr) {
+    cv::Scalar mean, sd;
+    cv::meanStdDev(ref_log, mean, sd);
+    *contrast = sd[0];
+  }
+  cv::Mat ncc;
+  cv::matchTemplate(ref_log, observed_log_, ncc, cv::TM_CCOEFF_NORMED);
+  return double(ncc.at<float>(0, 0));
+}
+
+// Relief mode: render a padded reference at the current track, find the
+// whole-image shift, resect it into a track offset; until the update settles.
+void ProductFix::MatchRelief() {
+  for (int it = 0; it < options_.max_iterations; ++it) {
+    if (!ReliefIteration(it)) break;
+  }
+}
+
+// One relief iteration; false when the iterations stop (a failure, or the
+// update has settled).
+bool ProductFix::ReliefIteration(int it) {
+  const TrackVectors track = DisplaceTrack(prior_track_, track_frame_, TrackOffset::FromVector(theta_));
+  const sensor::Orbit orbit = track.ToOrbit();
+  const int pad_rows = it == 0 ? search_rows_ : options_.refine_search_px;
+  const int pad_cols = it == 0 ? search_cols_ : options_.refine_search_px;
+  const sensor::RadarGrid ref_grid = PaddedGrid(grid_, pad_rows, pad_cols);
+  if (ref_grid.r0_m <= 0.0) {
+    Fail("the prior's search range reaches the sensor (prior sigmas too large for this image)");
+    return false;
+  }
+  std::optional<render::ProductImage> ref;
+  try {
+    ref = RenderReference(orbit, ref_grid);
+  } catch (const InputError& e) {
+    Fail(std::string("no reference at this track: ") + e.what());
+    return false;
+  }
+  ++result_.renders;
+  result_.iterations = it + 1;
+  const int rw = ref_grid.cols, rh = ref_grid.rows;
+  const cv::Mat ref_log = LogIntensity(ref->image.intensity, rw, rh, options_.filter_px, options_.reference_floor);
+  if (it == 0 && !ReferenceHasStructure(ref_log)) return false;
+  const ShiftPeak shift = MeasureShift(ref_log);
+  const float zero_shift = shift.ncc.at<float>(pad_rows, pad_cols);
+  if (it == 0 && !RecordFirstPeak(shift, zero_shift, pad_rows, pad_cols)) return false;
+  result_.similarity = zero_shift;
+  result_.ncc_shift_px = {double(shift.ncc_best.x - pad_cols), double(shift.ncc_best.y - pad_rows)};
+  const std::vector<ControlPoint> points = ReliefControlPoints(*ref, rw, shift);
+  if (static_cast<int>(points.size()) < 4) {
+    Fail("the reference has no ground points where the image matched");
+    return false;
+  }
+  return ResectShift(points, it);
+}
+
+// The first reference's log-intensity spread (recorded); false (a failure)
+// when it is too flat to match.
+bool ProductFix::ReferenceHasStructure(const cv::Mat& ref_log) {
+  cv::Scalar mean, sd;
+  cv::meanStdDev(ref_log, mean, sd);
+  result_.reference_contrast_db = sd[0];
+  if (sd[0] < options_.min_reference_contrast_db) {
+    char why[300];
+    std::snprintf(why, sizeof why,
+                  "the reference has no structure to match (its log intensity varies by %.2f dB < %.2f dB: "
+                  "flat terrain and no landmark in the image; give point landmarks, --reflectors)",
+                  sd[0], options_.min_reference_contrast_db);
+    Fail(why);
+    return false;
+  }
+  return true;
+}
+
+// Whole-image shift: the observed image slid over the padded reference; the
+// shift the chosen matcher's peak (sub-pixel by parabolas), and whether the
+// images correlate at all from the NCC map: its peak and the side lobes.
+ShiftPeak ProductFix::MeasureShift(const cv::Mat& ref_log) const {
+  ShiftPeak shift;
+  cv::Mat& ncc = shift.ncc;
+  cv::matchTemplate(ref_log, observed_log_, ncc, cv::TM_CCOEFF_NORMED);
+  const cv::Mat scores =
+      options_.matcher == ShiftMatcher::kNcc ? ncc : ShiftScores(options_.matcher, ref_log, observed_log_);
+  cv::Point& best = shift.best;
+  double best_score = 0.0;
+  cv::minMaxLoc(scores, nullptr, &best_score, nullptr, &best);
+  auto at = [&](int y, int x) {
+    return double(scores.at<float>(std::clamp(y, 0, scores.rows - 1), std::clamp(x, 0, scores.cols - 1)));
+  };
+  shift.u = best.x + ParabolicOffset(at(best.y, best.x - 1), best_score, at(best.y, best.x + 1));
+  shift.v = best.y + ParabolicOffset(at(best.y - 1, best.x), best_score, at(best.y + 1, best.x));
+  cv::Point& ncc_best = shift.ncc_best;
+  double peak = 0.0;
+  cv::minMaxLoc(ncc, nullptr, &peak, nullptr, &ncc_best);
+  shift.peak = peak;
+  // The best score away from the peak (beyond the exclusion radius): a
+  // peak that does not stand out of its side lobes is no fix.
+  double second = -1.0;
+  for (int y = 0; y < ncc.rows; ++y)
+    for (int x = 0; x < ncc.cols; ++x) {
+      if (std::abs(x - ncc_best.x) <= kPeakExclusionPx && std::abs(y - ncc_best.y) <= kPeakExclusionPx) continue;
+      second = std::max(second, double(ncc.at<float>(y, x)));
+    }
+  shift.second = second;
+  return shift;
+}
+
+// The first iteration's correlation at the prior (recorded); false (a
+// failure) when the images do not correlate or the peak is ambiguous.
+bool ProductFix::RecordFirstPeak(const ShiftPeak& shift, float zero_shift, int pad_rows, int pad_cols) {
+  const double peak = shift.peak, second = shift.second;
+  result_.prior_similarity = zero_shift;
+  result_.peak_ncc = peak;
+  result_.peak_margin = second > -1.0 ? peak - second : std::numeric_limits<double>::quiet_NaN();
+  result_.first_shift_px = {shift.u - pad_cols, shift.v - pad_rows};
+  if (peak < options_.min_peak_ncc) {
+    Fail("the real image does not correlate with the simulation (whole-image NCC peak " + std::to_string(peak) +
+         " < " + std::to_string(options_.min_peak_ncc) + ")");
+    return false;
+  }
+  if (second > -1.0 && peak - second < options_.min_peak_margin) {
+    Fail("the correlation peak is ambiguous (NCC " + std::to_string(peak) + ", best elsewhere " +
+         std::to_string(second) + ": the scene has too little relief or structure to match)");
+    return false;
+  }
+  return true;
+}
+
+// Control points: a grid of reference pixels with a ground point, where the
+// shift puts them in the observed image. They carry one shift measurement
+// together (their sigma is shift_sigma_px x sqrt(n)).
+std::vector<ControlPoint> ProductFix::ReliefControlPoints(const render::ProductImage& ref, int rw,
+                                                          const ShiftPeak& shift) const {
+  std::vector<ControlPoint> points;
+  const int grid_step = std::max(1, std::min(width_, height_) / 8);
+  for (int yo = grid_step / 2; yo < height_; yo += grid_step)
+    for (int xo = grid_step / 2; xo < width_; xo += grid_step) {
+      const int xr = xo + shift.best.x, yr = yo + shift.best.y;
+      const size_t p = size_t(yr) * rw + xr;
+      if (!std::isfinite(ref.height_m[p]) || (ref.image.mask[p] & render::kMaskLayover) != 0) continue;
       ControlPoint cp;
-      cp.ground_ecef = ecef;
-      cp.time_s = full.TimeOfRow(by + dy);
-      cp.range_m = full.RangeOfCol(bx + dx);
+      cp.ground_ecef = geo::LocalFrame::EcefFromGeodetic(ref.lon_deg_exact[p], ref.lat_deg_exact[p], ref.height_m[p]);
+      cp.time_s = grid_.TimeOfRow(yr - shift.v);
+      cp.range_m = grid_.RangeOfCol(xr - shift.u);
       points.push_back(cp);
-      owners.push_back(static_cast<int>(result.landmarks.size()));
-      result.landmarks.push_back(rec);
     }
-    if (any_in_image) {
-      result.source = "landmarks";
-      result.from_image = {true, true, false, false};
-      result.iterations = 1;
-      if (points.empty()) {
-        std::string why = "no landmark in the image has a usable peak:";
-        for (const LandmarkRecord& rec : result.landmarks) {
-          if (rec.in_image) why += " row " + std::to_string(rec.row) + ": " + rec.note + ";";
-        }
-        why.pop_back();
-        fail(why);
-        return finish();
-      }
-      const TrackResection resection(prior_track, track_frame, full, points, options, options.landmark_sigma_px);
-      const auto solved = resection.Solve(theta, result.from_image);
-      if (!solved) {
-        fail("geo2rdr failed for a landmark (it lies outside the orbit's span)");
-        return finish();
-      }
-      theta = solved->theta;
-      result.covariance = solved->covariance;
-      result.control_points = static_cast<int>(solved->used.size());
-      std::vector<int> all(points.size());
-      for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
-      const auto residuals = resection.Residuals(theta, all);
-      double sum = 0.0;
-      for (size_t i = 0; residuals && i < points.size(); ++i) {
-        // Residuals are predicted minus observed (time, range) pixels.
-        result.landmarks[owners[i]].residual_px = {-(*residuals)[2 * i + 1], -(*residuals)[2 * i]};
-        sum += (*residuals)[2 * i] * (*residuals)[2 * i] + (*residuals)[2 * i + 1] * (*residuals)[2 * i + 1];
-      }
-      result.rms_px = residuals ? std::sqrt(sum / points.size()) : std::numeric_limits<double>::infinity();
-      // The references at the prior and at the fix (landmarks rendered):
-      // whole-image NCC at zero shift, for the record.
-      auto zero_shift_ncc = [&](const Eigen::Vector4d& at, double* contrast) {
-        const sensor::Orbit orbit = DisplaceTrack(prior_track, track_frame, TrackOffset::FromVector(at)).ToOrbit();
-        const render::ProductImage ref = render_reference(orbit, grid);
-        ++result.renders;
-        const cv::Mat ref_log = LogIntensity(ref.image.intensity, width, height, options.filter_px, options.reference_floor);
-        if (contrast != nullptr) {
-          cv::Scalar mean, sd;
-          cv::meanStdDev(ref_log, mean, sd);
-          *contrast = sd[0];
-        }
-        cv::Mat ncc;
-        cv::matchTemplate(ref_log, observed_log, ncc, cv::TM_CCOEFF_NORMED);
-        return double(ncc.at<float>(0, 0));
-      };
-      try {
-        result.prior_similarity = zero_shift_ncc(Eigen::Vector4d::Zero(), &result.reference_contrast_db);
-        result.similarity = zero_shift_ncc(theta, nullptr);
-      } catch (const InputError&) {
-        // No reference (the DEM does not reach the grid): the landmarks still fix the track.
-      }
-      result.peak_ncc = result.peak_margin = std::numeric_limits<double>::quiet_NaN();
-      if (!(result.rms_px <= options.max_rms_px)) {
-        fail("the landmarks disagree (resection RMS " + std::to_string(result.rms_px) + " px > " +
-             std::to_string(options.max_rms_px) + ")");
-      } else {
-        result.converged = true;
-      }
-      return finish();
-    }
-  }
+  return points;
+}
 
-  for (int it = 0; it < options.max_iterations; ++it) {
-    const TrackVectors track = DisplaceTrack(prior_track, track_frame, TrackOffset::FromVector(theta));
-    const sensor::Orbit orbit = track.ToOrbit();
-    const int pad_rows = it == 0 ? search_rows : options.refine_search_px;
-    const int pad_cols = it == 0 ? search_cols : options.refine_search_px;
-    sensor::RadarGrid ref_grid = grid;
-    ref_grid.t0_s -= pad_rows * grid.dt_s;
-    ref_grid.rows += 2 * pad_rows;
-    ref_grid.r0_m -= pad_cols * grid.dr_m;
-    ref_grid.cols += 2 * pad_cols;
-    if (ref_grid.r0_m <= 0.0) {
-      fail("the prior's search range reaches the sensor (prior sigmas too large for this image)");
-      break;
-    }
-    std::optional<render::ProductImage> ref;
-    try {
-      ref = render_reference(orbit, ref_grid);
-    } catch (const InputError& e) {
-      fail(std::string("no reference at this track: ") + e.what());
-      break;
-    }
-    ++result.renders;
-    result.iterations = it + 1;
-    const int rw = ref_grid.cols, rh = ref_grid.rows;
-    const cv::Mat ref_log = LogIntensity(ref->image.intensity, rw, rh, options.filter_px, options.reference_floor);
-    if (it == 0) {
-      cv::Scalar mean, sd;
-      cv::meanStdDev(ref_log, mean, sd);
-      result.reference_contrast_db = sd[0];
-      if (sd[0] < options.min_reference_contrast_db) {
-        char why[300];
-        std::snprintf(why, sizeof why,
-                      "the reference has no structure to match (its log intensity varies by %.2f dB < %.2f dB: "
-                      "flat terrain and no landmark in the image; give point landmarks, --reflectors)",
-                      sd[0], options.min_reference_contrast_db);
-        fail(why);
-        break;
-      }
-    }
-    // Whole-image shift: the observed image slid over the padded reference;
-    // ncc(v, u) scores the observed pixel (x, y) on reference pixel (x + u, y + v).
-    cv::Mat ncc;
-    cv::matchTemplate(ref_log, observed_log, ncc, cv::TM_CCOEFF_NORMED);
-    // The shift: the peak of the chosen matcher's scores (sub-pixel by parabolas).
-    const cv::Mat scores = options.matcher == ShiftMatcher::kNcc ? ncc : ShiftScores(options.matcher, ref_log, observed_log);
-    cv::Point best;
-    double best_score = 0.0;
-    cv::minMaxLoc(scores, nullptr, &best_score, nullptr, &best);
-    auto at = [&](int y, int x) {
-      return double(scores.at<float>(std::clamp(y, 0, scores.rows - 1), std::clamp(x, 0, scores.cols - 1)));
-    };
-    const double u = best.x + ParabolicOffset(at(best.y, best.x - 1), best_score, at(best.y, best.x + 1));
-    const double v = best.y + ParabolicOffset(at(best.y - 1, best.x), best_score, at(best.y + 1, best.x));
-    // Whether the images correlate at all, from the NCC map: its peak, and
-    // the peak's margin over the side lobes.
-    cv::Point ncc_best;
-    double peak = 0.0;
-    cv::minMaxLoc(ncc, nullptr, &peak, nullptr, &ncc_best);
-    // The best score away from the peak (beyond the exclusion radius): a
-    // peak that does not stand out of its side lobes is no fix.
-    double second = -1.0;
-    for (int y = 0; y < ncc.rows; ++y)
-      for (int x = 0; x < ncc.cols; ++x) {
-        if (std::abs(x - ncc_best.x) <= kPeakExclusionPx && std::abs(y - ncc_best.y) <= kPeakExclusionPx) continue;
-        second = std::max(second, double(ncc.at<float>(y, x)));
-      }
-    const float zero_shift = ncc.at<float>(pad_rows, pad_cols);
-    if (it == 0) {
-      result.prior_similarity = zero_shift;
-      result.peak_ncc = peak;
-      result.peak_margin = second > -1.0 ? peak - second : std::numeric_limits<double>::quiet_NaN();
-      result.first_shift_px = {u - pad_cols, v - pad_rows};
-      if (peak < options.min_peak_ncc) {
-        fail("the real image does not correlate with the simulation (whole-image NCC peak " + std::to_string(peak) +
-             " < " + std::to_string(options.min_peak_ncc) + ")");
-        break;
-      }
-      if (second > -1.0 && peak - second < options.min_peak_margin) {
-        fail("the correlation peak is ambiguous (NCC " + std::to_string(peak) + ", best elsewhere " +
-             std::to_string(second) + ": the scene has too little relief or structure to match)");
-        break;
-      }
-    }
-    result.similarity = zero_shift;
-    result.ncc_shift_px = {double(ncc_best.x - pad_cols), double(ncc_best.y - pad_rows)};
-    // Control points: a grid of reference pixels with a ground point, where
-    // the shift puts them in the observed image. They carry one shift
-    // measurement together (their sigma is shift_sigma_px x sqrt(n)).
-    std::vector<ControlPoint> points;
-    const int grid_step = std::max(1, std::min(width, height) / 8);
-    for (int yo = grid_step / 2; yo < height; yo += grid_step)
-      for (int xo = grid_step / 2; xo < width; xo += grid_step) {
-        const int xr = xo + best.x, yr = yo + best.y;
-        const size_t p = size_t(yr) * rw + xr;
-        if (!std::isfinite(ref->height_m[p]) || (ref->image.mask[p] & render::kMaskLayover) != 0) continue;
-        ControlPoint cp;
-        cp.ground_ecef =
-            geo::LocalFrame::EcefFromGeodetic(ref->lon_deg_exact[p], ref->lat_deg_exact[p], ref->height_m[p]);
-        cp.time_s = grid.TimeOfRow(yr - v);
-        cp.range_m = grid.RangeOfCol(xr - u);
-        points.push_back(cp);
-      }
-    if (static_cast<int>(points.size()) < 4) {
-      fail("the reference has no ground points where the image matched");
-      break;
-    }
-    const TrackResection resection(prior_track, track_frame, grid, points, options,
-                                    options.shift_sigma_px * std::sqrt(double(points.size())));
-    const auto solved = resection.Solve(theta);
-    if (!solved) {
-      fail("geo2rdr failed for a matched ground point (it lies outside the orbit's span)");
-      break;
-    }
-    result.control_points = static_cast<int>(solved->used.size());
-    result.rms_px = solved->rms_px;
-    result.covariance = solved->covariance;
-    // The update in pixels: how far it moves the matched points' images.
-    const auto before = resection.Residuals(theta, solved->used);
-    const auto after = resection.Residuals(solved->theta, solved->used);
-    last_update_px = (before && after) ? std::sqrt((*after - *before).squaredNorm() / solved->used.size())
-                                       : std::numeric_limits<double>::infinity();
-    theta = solved->theta;
-    if (last_update_px < 0.1 && it > 0) break;
+// The track offset resected from the matched points, and how far the update
+// moves their images; false when the iterations stop.
+bool ProductFix::ResectShift(const std::vector<ControlPoint>& points, int it) {
+  const TrackResection resection(prior_track_, track_frame_, grid_, points, options_,
+                                  options_.shift_sigma_px * std::sqrt(double(points.size())));
+  const auto solved = resection.Solve(theta_);
+  if (!solved) {
+    Fail("geo2rdr failed for a matched ground point (it lies outside the orbit's span)");
+    return false;
   }
-  if (result.failure_reason.empty()) {
-    if (result.rms_px > options.max_rms_px) {
-      fail("the image shift is not a track offset (resection RMS " + std::to_string(result.rms_px) + " px > " +
-           std::to_string(options.max_rms_px) + ")");
-    } else if (result.ncc_shift_px.cwiseAbs().maxCoeff() > kMaxNccShiftAtFixPx) {
-      fail("the fix does not explain the image: at the fix the whole-image NCC still peaks " +
-           std::to_string(result.ncc_shift_px.norm()) + " px away");
-    } else if (!(last_update_px < 0.5)) {
-      fail("the fix did not settle (last update " + std::to_string(last_update_px) + " px)");
-    } else {
-      result.converged = true;
-    }
+  result_.control_points = static_cast<int>(solved->used.size());
+  result_.rms_px = solved->rms_px;
+  result_.covariance = solved->covariance;
+  // The update in pixels: how far it moves the matched points' images.
+  const auto before = resection.Residuals(theta_, solved->used);
+  const auto after = resection.Residuals(solved->theta, solved->used);
+  last_update_px_ = (before && after) ? std::sqrt((*after - *before).squaredNorm() / solved->used.size())
+                                      : std::numeric_limits<double>::infinity();
+  theta_ = solved->theta;
+  return !(last_update_px_ < 0.1 && it > 0);
+}
+
+// A relief fix that did not fail: converged, unless the resection does not
+// fit, the image still shifts against the last reference, or the update has
+// not settled.
+void ProductFix::JudgeReliefFix() {
+  if (!result_.failure_reason.empty()) return;
+  if (result_.rms_px > options_.max_rms_px) {
+    Fail("the image shift is not a track offset (resection RMS " + std::to_string(result_.rms_px) + " px > " +
+         std::to_string(options_.max_rms_px) + ")");
+  } else if (result_.ncc_shift_px.cwiseAbs().maxCoeff() > kMaxNccShiftAtFixPx) {
+    Fail("the fix does not explain the image: at the fix the whole-image NCC still peaks " +
+         std::to_string(result_.ncc_shift_px.norm()) + " px away");
+  } else if (!(last_update_px_ < 0.5)) {
+    Fail("the fix did not settle (last update " + std::to_string(last_update_px_) + " px)");
+  } else {
+    result_.converged = true;
   }
-  // The terrain's horizontal error moves the matched pattern as a whole: it
-  // adds to the along- and cross-track variance of the relief fix.
-  const double map_variance = options.terrain_horizontal_sigma_m * options.terrain_horizontal_sigma_m;
-  result.covariance(0, 0) += map_variance;
-  result.covariance(1, 1) += map_variance;
-  return finish();
+}
+
+// The terrain's horizontal error moves the matched pattern as a whole: it
+// adds to the along- and cross-track variance of the relief fix.
+void ProductFix::AddTerrainVariance() {
+  const double map_variance = options_.terrain_horizontal_sigma_m * options_.terrain_horizontal_sigma_m;
+  result_.covariance(0, 0) += map_variance;
+  result_.covariance(1, 1) += map_variance;
+}
+
+}  // namespace
+
+ProductLocateResult LocateProduct(const NavScene& scene, const geo::LocalFrame& frame,
+                                  const ProductObservation& observed, const TrackVectors& prior_track,
+                                  const ProductLocateOptions& options) {
+  options.Check();
+  const sensor::RadarGrid grid = CheckedMultilookGrid(observed, options);
+  ProductFix fix(scene, frame, observed, prior_track, options, grid);
+  // Landmark mode (see the header): when a landmark's search window at the
+  // prior meets the observed image, the landmarks alone fix the track.
+  if (fix.HasLandmarks()) {
+    const LandmarkPeaks peaks = fix.FindLandmarkPeaks();
+    if (peaks.any_in_image) return fix.ResectLandmarks(peaks);
+  }
+  // Relief mode: whole-image shifts against rendered references, iterated.
+  fix.MatchRelief();
+  fix.JudgeReliefFix();
+  fix.AddTerrainVariance();
+  return fix.Finish();
 }
 
 }  // namespace gissar::nav

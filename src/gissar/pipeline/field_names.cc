@@ -2,8 +2,44 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <sstream>
 
 namespace gissar::pipeline {
+
+std::vector<int> ParseIntegerList(const std::string& text, const std::string& flag, const std::string& expected,
+                                  size_t count) {
+  std::vector<int> values;
+  std::istringstream in(text);
+  std::string item;
+  bool ok = true;
+  while (ok && std::getline(in, item, ',')) {
+    try {
+      size_t used = 0;
+      const int k = std::stoi(item, &used);
+      ok = used == item.size();
+      values.push_back(k);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  if (!ok || values.empty() || (count > 0 && values.size() != count)) {
+    throw ConfigError("needs " + expected + ", got '" + text + "'", flag);
+  }
+  return values;
+}
+
+Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option) {
+  std::istringstream in(text);
+  double a = 0, b = 0;
+  char comma = 0;
+  std::string rest;
+  if (!(in >> a >> comma >> b) || comma != ',' || (in >> rest) || !std::isfinite(a) ||
+      !std::isfinite(b)) {
+    throw ConfigError("expected two numbers 'A,B', got '" + text + "'", option);
+  }
+  return {a, b};
+}
 
 size_t EditDistance(const std::string& a, const std::string& b) {
   std::vector<size_t> row(b.size() + 1);

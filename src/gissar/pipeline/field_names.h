@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include "gissar/util/error.h"
@@ -39,6 +40,18 @@ std::string UnknownKeyMessage(const std::string& key, const std::vector<std::str
 
 // The keys of a JSON object (a request's ToJson(): its fields), in order.
 std::vector<std::string> KeysOf(const nlohmann::json& object);
+
+// Parses "A,B" into two finite numbers; throws ConfigError naming `option`
+// ("expected two numbers 'A,B', got 'TEXT'").
+Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option);
+
+// "3,5,7" -> {3, 5, 7}: a comma-separated list of integers given to `flag`;
+// throws ConfigError naming `flag` ("needs <expected>, got 'TEXT'", e.g.
+// expected = "two integers R,A") for an item that is not an integer, an
+// empty list, or when `count` > 0 items were expected and another number
+// was given.
+std::vector<int> ParseIntegerList(const std::string& text, const std::string& flag, const std::string& expected,
+                                  size_t count = 0);
 
 // Reads `value` into the request field `field` (ApplyJson of every request);
 // ConfigError naming `key` and `source` when the JSON type does not fit.

@@ -259,79 +259,82 @@ std::string UtmCrsOf(double lon_deg, double lat_deg) {
   return "EPSG:" + std::to_string((lat_deg >= 0.0 ? 32600 : 32700) + zone);
 }
 
-GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& command_line, Reporter& reporter) {
-  request.Check();
-  Stopwatch total;
-  const std::string stem = Stem(request.image);
-  const std::string sidecar_path = stem + ".json", mask_path = stem + "_mask.tif";
-  AtomicOutputs outputs;
-  const fs::path out_tif = outputs.Add(request.out_prefix + ".tif");
-  const fs::path out_json = outputs.Add(request.out_prefix + ".json");
-  const fs::path out_stac = outputs.Add(request.out_prefix + "_stac.json");
+namespace {
 
-  // The image, its mask, geometry and sidecar.
-  geo::FloatRaster image = geo::ReadFloatRaster(request.image);
+// The simulation's provenance sidecar beside the image.
+json ReadSidecar(const std::string& sidecar_path) {
+  json sidecar;
+  std::ifstream in(sidecar_path);
+  if (!in) throw InputError("cannot read the image's sidecar", sidecar_path);
+  try {
+    in >> sidecar;
+  } catch (const json::exception& e) {
+    throw InputError(std::string("sidecar is not valid JSON: ") + e.what(), sidecar_path);
+  }
+  return sidecar;
+}
+
+// The image's layover/shadow mask; it must have the image's size.
+std::vector<uint8_t> ReadImageMask(const std::string& mask_path, const geo::FloatRaster& image) {
   int mask_w = 0, mask_h = 0;
   if (!fs::exists(mask_path)) throw InputError("the image's layover/shadow mask is missing", mask_path);
-  const std::vector<uint8_t> mask = geo::ReadByteRaster(mask_path, &mask_w, &mask_h);
+  std::vector<uint8_t> mask = geo::ReadByteRaster(mask_path, &mask_w, &mask_h);
   if (mask_w != image.width || mask_h != image.height) throw InputError("mask size differs from the image's", mask_path);
-  json sidecar;
-  {
-    std::ifstream in(sidecar_path);
-    if (!in) throw InputError("cannot read the image's sidecar", sidecar_path);
-    try {
-      in >> sidecar;
-    } catch (const json::exception& e) {
-      throw InputError(std::string("sidecar is not valid JSON: ") + e.what(), sidecar_path);
-    }
-  }
-  const Terrain terrain = LoadImageTerrain(request, sidecar, sidecar_path, reporter);
-  const geo::LocalFrame& frame = terrain.frame;
-  const TerrainSurface surface(terrain);
-  // An idealised geometry (GISSAR_* metadata) or the real radar grid of a
-  // product simulation (its sidecar's request).
+  return mask;
+}
+
+// An idealised geometry (GISSAR_* metadata) or the real radar grid of a
+// product simulation (its sidecar's request).
+ImageProjection ProjectionOfImage(const GeocodeRequest& request, const geo::FloatRaster& image, json& sidecar,
+                                  const std::string& sidecar_path, const geo::LocalFrame& frame, Reporter& reporter) {
   const bool radar_grid = !sidecar["options"].value("product", std::string()).empty() ||
                           !sidecar["options"].value("orbit", std::string()).empty();
-  ImageProjection geometry;
   if (radar_grid) {
     SimulateRequest o;
     json options = sidecar["options"];
     for (const char* key : {"materials", "reflectors", "contributions", "out_prefix"}) options.erase(key);
     o.ApplyJson(options, sidecar_path);
-    geometry = RadarGridProjection(o, frame, reporter);
-  } else {
-    geometry = IdealisedProjection(GeometryFromMetadata(image.metadata, image.width, image.height, request.image));
+    return RadarGridProjection(o, frame, reporter);
   }
-  ThrowIfCancelled(reporter, "geocode");
+  return IdealisedProjection(GeometryFromMetadata(image.metadata, image.width, image.height, request.image));
+}
 
-  // dB bands are resampled in linear power.
+// dB bands are resampled in linear power: converts them; whether they were.
+bool ToLinearPower(geo::FloatRaster& image) {
   const bool db = image.metadata.count("GISSAR_UNITS") && image.metadata["GISSAR_UNITS"].find("(dB)") != std::string::npos;
   if (db) {
     for (auto& band : image.bands)
       for (float& v : band) v = std::isnan(v) ? v : float(std::pow(10.0, v / 10.0));
   }
+  return db;
+}
 
-  // Output CRS and pixel size.
-  const std::string crs = request.crs.empty() ? UtmCrsOf(frame.origin_lon_deg(), frame.origin_lat_deg()) : request.crs;
-  const geo::CrsTransform transform(crs);
-  if (transform.source_is_geographic()) throw ConfigError("the output CRS must be projected (metres): " + crs, "--crs");
+// The output map grid: in `transform`'s CRS, pixels of px metres, covering
+// the terrain the image sees plus a pixel; k x k points per output pixel.
+struct MapGrid {
+  double px = 0.0, x_min = 0.0, y_max = 0.0;
+  int width = 0, height = 0;
+  std::vector<double> geotransform;
+  int k = 1;
+};
+
+MapGrid PlanMapGrid(const GeocodeRequest& request, const Terrain& terrain, const ImageProjection& geometry,
+                    const geo::FloatRaster& image, const geo::CrsTransform& transform) {
+  MapGrid grid;
   const double px = request.pixel_size_m > 0.0 ? request.pixel_size_m
                                                : std::max(geometry.range_spacing_m, geometry.azimuth_spacing_m);
-
   // Extent: the terrain the image sees.
   std::vector<double> ex, ey;
-  {
-    const auto& vertices = terrain.mesh.vertices;
-    const size_t stride = std::max<size_t>(1, vertices.size() / 400000);
-    for (size_t i = 0; i < vertices.size(); i += stride) {
-      const Eigen::Vector3d v = vertices[i].cast<double>();
-      if (!v.allFinite()) continue;
-      const Eigen::Vector2d p = geometry.project(v);
-      if (!p.allFinite() || p.x() < -0.5 || p.y() < -0.5 || p.x() > image.width - 0.5 || p.y() > image.height - 0.5) continue;
-      const Eigen::Vector3d g = frame.GeodeticFromEnu(v);
-      ex.push_back(g.x());
-      ey.push_back(g.y());
-    }
+  const auto& vertices = terrain.mesh.vertices;
+  const size_t stride = std::max<size_t>(1, vertices.size() / 400000);
+  for (size_t i = 0; i < vertices.size(); i += stride) {
+    const Eigen::Vector3d v = vertices[i].cast<double>();
+    if (!v.allFinite()) continue;
+    const Eigen::Vector2d p = geometry.project(v);
+    if (!p.allFinite() || p.x() < -0.5 || p.y() < -0.5 || p.x() > image.width - 0.5 || p.y() > image.height - 0.5) continue;
+    const Eigen::Vector3d g = terrain.frame.GeodeticFromEnu(v);
+    ex.push_back(g.x());
+    ey.push_back(g.y());
   }
   if (ex.empty()) throw InputError("the image sees none of its terrain", request.image);
   transform.FromLonLat(ex, ey);
@@ -345,120 +348,173 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   const std::string grid_size = "the map grid of " + std::to_string(width) + " x " + std::to_string(height) + " pixels";
   CheckImagePixels(width, height, request.max_memory_bytes, grid_size, "choose a larger --pixel-size", "--pixel-size");
   CheckMemoryBudget(bytes, request.max_memory_bytes, grid_size, "choose a larger --pixel-size");
-  const std::vector<double> geotransform{x_min, px, 0.0, y_max, 0.0, -px};
-
+  grid.px = px;
+  grid.x_min = x_min;
+  grid.y_max = y_max;
+  grid.width = width;
+  grid.height = height;
+  grid.geotransform = {x_min, px, 0.0, y_max, 0.0, -px};
   // Points per output pixel.
-  const std::string resampling(kGeocodeResamplings.Name(request.resampling));
-  const int k = request.resampling == GeocodeResampling::kAverage
-                    ? std::clamp(int(std::ceil(px / std::min(geometry.ground_range_spacing_m, geometry.azimuth_spacing_m) -
-                                               1e-9)),
-                                 1, 8)
-                    : 1;
+  grid.k = request.resampling == GeocodeResampling::kAverage
+               ? std::clamp(int(std::ceil(px / std::min(geometry.ground_range_spacing_m, geometry.azimuth_spacing_m) -
+                                          1e-9)),
+                            1, 8)
+               : 1;
+  return grid;
+}
 
-  // The terrain point (ENU) under WGS84 lon/lat: the height h at which
-  // (lon, lat, h) lies on the surface, by fixed-point steps along the local
-  // vertical (its tilt in the frame is ~1e-3 over tens of km). NaN off the terrain.
-  auto ground = [&](double lon, double lat) -> Eigen::Vector3d {
-    const Eigen::Vector3d p0 = frame.EnuFromGeodetic(lon, lat, 0.0);
-    const Eigen::Vector3d up = frame.EnuFromGeodetic(lon, lat, 1.0) - p0;
-    double h = 0.0;
-    Eigen::Vector3d p = p0;
-    for (int it = 0; it < 6; ++it) {
-      p = p0 + h * up;
-      const double z = surface(p.x(), p.y());
-      if (std::isnan(z)) return Eigen::Vector3d::Constant(std::nan(""));
-      const double step = (z - p.z()) / up.z();
-      h += step;
-      if (std::abs(step) < 1e-4) break;
-    }
-    return p0 + h * up;
-  };
+// The terrain point (ENU) under WGS84 lon/lat: the height h at which
+// (lon, lat, h) lies on the surface, by fixed-point steps along the local
+// vertical (its tilt in the frame is ~1e-3 over tens of km). NaN off the terrain.
+Eigen::Vector3d GroundUnder(const geo::LocalFrame& frame, const TerrainSurface& surface, double lon, double lat) {
+  const Eigen::Vector3d p0 = frame.EnuFromGeodetic(lon, lat, 0.0);
+  const Eigen::Vector3d up = frame.EnuFromGeodetic(lon, lat, 1.0) - p0;
+  double h = 0.0;
+  Eigen::Vector3d p = p0;
+  for (int it = 0; it < 6; ++it) {
+    p = p0 + h * up;
+    const double z = surface(p.x(), p.y());
+    if (std::isnan(z)) return Eigen::Vector3d::Constant(std::nan(""));
+    const double step = (z - p.z()) / up.z();
+    h += step;
+    if (std::abs(step) < 1e-4) break;
+  }
+  return p0 + h * up;
+}
 
-  std::vector<std::vector<float>> bands(nbands_in + 2, std::vector<float>(size_t(width) * height, kNan));
-  std::vector<float>& incidence = bands[nbands_in];
-  std::vector<float>& mask_band = bands[nbands_in + 1];
-  Progress progress("geocode", height, reporter);
-  int64_t valid = 0;
-  std::vector<Eigen::Vector2d> footprint;  // lon/lat of each row's first and last valid pixel
-  std::vector<double> sx, sy;
-  std::vector<double> sums(nbands_in);
-  std::vector<int> counts(nbands_in);
-  for (int row = 0; row < height; ++row) {
-    ThrowIfCancelled(reporter, "geocode");
-    // Every point of the row: k x k per pixel, then the pixel centre.
-    sx.clear();
-    sy.clear();
-    for (int col = 0; col < width; ++col) {
-      for (int j = 0; j < k; ++j)
-        for (int i = 0; i < k; ++i) {
-          sx.push_back(x_min + (col + (i + 0.5) / k) * px);
-          sy.push_back(y_max - (row + (j + 0.5) / k) * px);
-        }
-      sx.push_back(x_min + (col + 0.5) * px);
-      sy.push_back(y_max - (row + 0.5) * px);
-    }
-    transform.ToLonLat(sx, sy);
-    const size_t per_pixel = size_t(k) * k + 1;
+// The map bands: the image's (mean of the k x k points of each pixel that
+// see it, bilinear; dB again when the image was), then local incidence and
+// the layover/shadow code; NaN where no point sees the image.
+class MapResampler {
+ public:
+  MapResampler(const MapGrid& grid, const geo::FloatRaster& image, const std::vector<uint8_t>& mask, bool db,
+               const ImageProjection& geometry, const Terrain& terrain, const TerrainSurface& surface,
+               const geo::CrsTransform& transform)
+      : grid_(grid), image_(image), mask_(mask), db_(db), geometry_(geometry), frame_(terrain.frame),
+        surface_(surface), transform_(transform), nbands_in_(int(image.bands.size())),
+        bands_(nbands_in_ + 2, std::vector<float>(size_t(grid.width) * grid.height, kNan)), sums_(nbands_in_),
+        counts_(nbands_in_) {}
+
+  // One map row; the first and last valid pixel's centres go to the footprint.
+  void Row(int row) {
+    RowPoints(row);
+    const size_t per_pixel = size_t(grid_.k) * grid_.k + 1;
     int first_valid = -1, last_valid = -1;
-    for (int col = 0; col < width; ++col) {
-      std::fill(sums.begin(), sums.end(), 0.0);
-      std::fill(counts.begin(), counts.end(), 0);
-      int code = 0, seen = 0;
-      for (size_t s = 0; s < per_pixel - 1; ++s) {
-        const size_t at = col * per_pixel + s;
-        const Eigen::Vector3d p = ground(sx[at], sy[at]);
-        if (!p.allFinite()) continue;
-        const Eigen::Vector2d q = geometry.project(p);
-        if (!q.allFinite() || q.x() < -0.5 || q.y() < -0.5 || q.x() > image.width - 0.5 || q.y() > image.height - 0.5) continue;
-        ++seen;
-        for (int b = 0; b < nbands_in; ++b) {
-          const float v = Bilinear(image.bands[b], image.width, image.height, q.x(), q.y());
-          if (std::isnan(v)) continue;
-          sums[b] += v;
-          ++counts[b];
-        }
-        const int mc = std::clamp(int(std::lround(q.x())), 0, image.width - 1);
-        const int mr = std::clamp(int(std::lround(q.y())), 0, image.height - 1);
-        const uint8_t m = mask[size_t(mr) * image.width + mc];
-        if (m != render::kMaskOutside) code |= m & 3;
-      }
-      if (seen == 0) continue;
-      const size_t o = size_t(row) * width + col;
-      for (int b = 0; b < nbands_in; ++b) {
-        if (counts[b] == 0) continue;
-        const double mean = sums[b] / counts[b];
-        bands[b][o] = db ? float(mean > 0.0 ? 10.0 * std::log10(mean) : -std::numeric_limits<float>::infinity())
-                         : float(mean);
-      }
-      mask_band[o] = float(code);
-      ++valid;
+    for (int col = 0; col < grid_.width; ++col) {
+      if (!Pixel(row, col, per_pixel)) continue;
       if (first_valid < 0) first_valid = col;
       last_valid = col;
-      // Local incidence at the pixel centre: the surface normal from
-      // central differences over half a pixel, against the radar ray.
-      const size_t centre_at = col * per_pixel + per_pixel - 1;
-      const Eigen::Vector3d p = ground(sx[centre_at], sy[centre_at]);
-      if (!p.allFinite()) continue;
-      const double d = 0.5 * px;
-      const double zx = (surface(p.x() + d, p.y()) - surface(p.x() - d, p.y())) / (2.0 * d);
-      const double zy = (surface(p.x(), p.y() + d) - surface(p.x(), p.y() - d)) / (2.0 * d);
-      if (!std::isfinite(zx) || !std::isfinite(zy)) continue;
-      const Eigen::Vector3d normal = Eigen::Vector3d(-zx, -zy, 1.0).normalized();
-      const double c = std::clamp(-geometry.ray_to(p).dot(normal), -1.0, 1.0);
-      incidence[o] = float(std::acos(c) * 180.0 / M_PI);
+      LocalIncidence(size_t(row) * grid_.width + col, col * per_pixel + per_pixel - 1);
     }
     for (int col : {first_valid, last_valid}) {
-      if (col >= 0) footprint.emplace_back(sx[col * per_pixel + per_pixel - 1], sy[col * per_pixel + per_pixel - 1]);
+      if (col >= 0) footprint_.emplace_back(sx_[col * per_pixel + per_pixel - 1], sy_[col * per_pixel + per_pixel - 1]);
     }
-    progress.Advance(1);
   }
-  progress.Done();
-  if (valid == 0) throw InputError("no map pixel sees the image's terrain", request.image);
 
+  int64_t valid() const { return valid_; }
+  // lon/lat of each row's first and last valid pixel
+  const std::vector<Eigen::Vector2d>& footprint() const { return footprint_; }
+  std::vector<std::vector<float>>& bands() { return bands_; }
+
+ private:
+  // Every point of the row, in WGS84 lon/lat: k x k per pixel, then the
+  // pixel centre.
+  void RowPoints(int row) {
+    const int k = grid_.k;
+    const double px = grid_.px;
+    sx_.clear();
+    sy_.clear();
+    for (int col = 0; col < grid_.width; ++col) {
+      for (int j = 0; j < k; ++j)
+        for (int i = 0; i < k; ++i) {
+          sx_.push_back(grid_.x_min + (col + (i + 0.5) / k) * px);
+          sy_.push_back(grid_.y_max - (row + (j + 0.5) / k) * px);
+        }
+      sx_.push_back(grid_.x_min + (col + 0.5) * px);
+      sy_.push_back(grid_.y_max - (row + 0.5) * px);
+    }
+    transform_.ToLonLat(sx_, sy_);
+  }
+
+  // The image bands and mask code of pixel (row, col); false when none of
+  // its points sees the image.
+  bool Pixel(int row, int col, size_t per_pixel) {
+    std::fill(sums_.begin(), sums_.end(), 0.0);
+    std::fill(counts_.begin(), counts_.end(), 0);
+    int code = 0, seen = 0;
+    for (size_t s = 0; s < per_pixel - 1; ++s) {
+      const size_t at = col * per_pixel + s;
+      const Eigen::Vector3d p = GroundUnder(frame_, surface_, sx_[at], sy_[at]);
+      if (!p.allFinite()) continue;
+      const Eigen::Vector2d q = geometry_.project(p);
+      if (!q.allFinite() || q.x() < -0.5 || q.y() < -0.5 || q.x() > image_.width - 0.5 || q.y() > image_.height - 0.5) continue;
+      ++seen;
+      for (int b = 0; b < nbands_in_; ++b) {
+        const float v = Bilinear(image_.bands[b], image_.width, image_.height, q.x(), q.y());
+        if (std::isnan(v)) continue;
+        sums_[b] += v;
+        ++counts_[b];
+      }
+      const int mc = std::clamp(int(std::lround(q.x())), 0, image_.width - 1);
+      const int mr = std::clamp(int(std::lround(q.y())), 0, image_.height - 1);
+      const uint8_t m = mask_[size_t(mr) * image_.width + mc];
+      if (m != render::kMaskOutside) code |= m & 3;
+    }
+    if (seen == 0) return false;
+    const size_t o = size_t(row) * grid_.width + col;
+    for (int b = 0; b < nbands_in_; ++b) {
+      if (counts_[b] == 0) continue;
+      const double mean = sums_[b] / counts_[b];
+      bands_[b][o] = db_ ? float(mean > 0.0 ? 10.0 * std::log10(mean) : -std::numeric_limits<float>::infinity())
+                         : float(mean);
+    }
+    bands_[nbands_in_ + 1][o] = float(code);
+    ++valid_;
+    return true;
+  }
+
+  // Local incidence at the pixel centre (point `centre_at` of the row): the
+  // surface normal from central differences over half a pixel, against the
+  // radar ray.
+  void LocalIncidence(size_t o, size_t centre_at) {
+    const Eigen::Vector3d p = GroundUnder(frame_, surface_, sx_[centre_at], sy_[centre_at]);
+    if (!p.allFinite()) return;
+    const double d = 0.5 * grid_.px;
+    const double zx = (surface_(p.x() + d, p.y()) - surface_(p.x() - d, p.y())) / (2.0 * d);
+    const double zy = (surface_(p.x(), p.y() + d) - surface_(p.x(), p.y() - d)) / (2.0 * d);
+    if (!std::isfinite(zx) || !std::isfinite(zy)) return;
+    const Eigen::Vector3d normal = Eigen::Vector3d(-zx, -zy, 1.0).normalized();
+    const double c = std::clamp(-geometry_.ray_to(p).dot(normal), -1.0, 1.0);
+    bands_[nbands_in_][o] = float(std::acos(c) * 180.0 / M_PI);
+  }
+
+  const MapGrid& grid_;
+  const geo::FloatRaster& image_;
+  const std::vector<uint8_t>& mask_;
+  const bool db_;
+  const ImageProjection& geometry_;
+  const geo::LocalFrame& frame_;
+  const TerrainSurface& surface_;
+  const geo::CrsTransform& transform_;
+  const int nbands_in_;
+  std::vector<std::vector<float>> bands_;
+  int64_t valid_ = 0;
+  std::vector<Eigen::Vector2d> footprint_;
+  std::vector<double> sx_, sy_;
+  std::vector<double> sums_;
+  std::vector<int> counts_;
+};
+
+// PREFIX.tif's raster: the map bands named and described.
+geo::FloatRaster MapRaster(const GeocodeRequest& request, const MapGrid& grid, const std::string& crs,
+                           std::vector<std::vector<float>>&& bands, const geo::FloatRaster& image, const json& sidecar,
+                           const std::string& resampling) {
+  const int nbands_in = int(image.bands.size());
+  const int k = grid.k;
   geo::FloatRaster out;
-  out.width = width;
-  out.height = height;
-  out.geotransform = geotransform;
+  out.width = grid.width;
+  out.height = grid.height;
+  out.geotransform = grid.geotransform;
   out.crs = crs;
   out.nodata_nan = true;
   out.bands = std::move(bands);
@@ -483,31 +539,17 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
     for (size_t b = 0; b < out.band_names.size(); ++b) names += (b ? ", " : "") + std::to_string(b + 1) + " " + out.band_names[b];
     out.metadata["GISSAR_BANDS"] = names;
   }
-  geo::WriteFloatGeoTiff(out_tif, out);
+  return out;
+}
 
-  json provenance = ProvenanceHeader("geocode", command_line, request.ToJson());
-  json inputs = json::array({InputFileRecord(request.image), InputFileRecord(mask_path), InputFileRecord(sidecar_path)});
-  if (!request.dem.empty()) inputs.push_back(InputFileRecord(request.dem));
-  provenance["inputs"] = inputs;
-  provenance["grid"] = {{"crs", crs}, {"geotransform", geotransform}, {"width", width}, {"height", height},
-                        {"pixel_size_m", px}, {"points_per_pixel", k * k}};
-  provenance["vertical_datum"] = VerticalDatumRecord(terrain);
-  provenance["terrain"] = request.dem.empty() ? "the simulation's own terrain (sidecar options)" : "--dem, in the simulation's frame";
-  provenance["projection_mode"] = geometry.mode;
-  provenance["bands"] = out.band_names;
-  provenance["band_units"] = out.band_units;
-  provenance["nodata"] = "NaN";
-  provenance["valid_pixels"] = valid;
-  provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};
-  std::vector<std::string> final_names;
-  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
-  provenance["outputs"] = final_names;
-  WriteJsonFile(provenance, out_json);
-
-  // The STAC Item (stac.h).
+// The STAC Item (stac.h) of the map image, dated as its provenance.
+void WriteGeocodeStac(const fs::path& out_stac, const GeocodeRequest& request, const MapGrid& grid,
+                      const std::string& crs, const ImageProjection& geometry, json& sidecar,
+                      const std::vector<Eigen::Vector2d>& footprint, const std::string& resampling,
+                      const std::string& created_utc) {
   StacProduct p;
   p.id = fs::path(request.out_prefix).filename().string();
-  p.datetime_utc = provenance["created_utc"].get<std::string>();
+  p.datetime_utc = created_utc;
   p.footprint_lonlat = footprint;
   const json& sim_options = sidecar["options"];
   p.wavelength_m = geometry.wavelength_m > 0.0 ? geometry.wavelength_m : sim_options.value("wavelength_m", 0.031);
@@ -527,9 +569,9 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
   p.off_nadir_deg = geometry.off_nadir_deg;
   p.look_azimuth_deg = geometry.look_azimuth_deg;
   if (crs.rfind("EPSG:", 0) == 0) p.proj_code = crs;
-  p.width = width;
-  p.height = height;
-  p.geotransform = geotransform;
+  p.width = grid.width;
+  p.height = grid.height;
+  p.geotransform = grid.geotransform;
   p.processing_level = "L2";
   p.lineage = "terrain-corrected by gissar geocode (" + resampling + ") from " + fs::path(request.image).filename().string();
   const std::string tiff = "image/tiff; application=geotiff";
@@ -537,13 +579,80 @@ GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& comma
                "Map-geometry bands: image bands, local incidence (deg), layover/shadow code", {"data"}},
               {"provenance", request.out_prefix + ".json", "application/json", "gissar provenance sidecar", {"metadata"}}};
   WriteJsonFile(StacItem(p, fs::path(request.out_prefix).parent_path()), out_stac);
+}
+
+}  // namespace
+
+GeocodeResult RunGeocode(const GeocodeRequest& request, const std::string& command_line, Reporter& reporter) {
+  request.Check();
+  Stopwatch total;
+  const std::string stem = Stem(request.image);
+  const std::string sidecar_path = stem + ".json", mask_path = stem + "_mask.tif";
+  AtomicOutputs outputs;
+  const fs::path out_tif = outputs.Add(request.out_prefix + ".tif");
+  const fs::path out_json = outputs.Add(request.out_prefix + ".json");
+  const fs::path out_stac = outputs.Add(request.out_prefix + "_stac.json");
+
+  // The image, its mask, terrain, geometry and sidecar.
+  geo::FloatRaster image = geo::ReadFloatRaster(request.image);
+  const std::vector<uint8_t> mask = ReadImageMask(mask_path, image);
+  json sidecar = ReadSidecar(sidecar_path);
+  const Terrain terrain = LoadImageTerrain(request, sidecar, sidecar_path, reporter);
+  const geo::LocalFrame& frame = terrain.frame;
+  const TerrainSurface surface(terrain);
+  const ImageProjection geometry = ProjectionOfImage(request, image, sidecar, sidecar_path, frame, reporter);
+  ThrowIfCancelled(reporter, "geocode");
+  const bool db = ToLinearPower(image);
+
+  // Output CRS and grid.
+  const std::string crs = request.crs.empty() ? UtmCrsOf(frame.origin_lon_deg(), frame.origin_lat_deg()) : request.crs;
+  const geo::CrsTransform transform(crs);
+  if (transform.source_is_geographic()) throw ConfigError("the output CRS must be projected (metres): " + crs, "--crs");
+  const MapGrid grid = PlanMapGrid(request, terrain, geometry, image, transform);
+  const std::string resampling(kGeocodeResamplings.Name(request.resampling));
+
+  // Every map pixel's image values, local incidence and mask code.
+  MapResampler resampler(grid, image, mask, db, geometry, terrain, surface, transform);
+  Progress progress("geocode", grid.height, reporter);
+  for (int row = 0; row < grid.height; ++row) {
+    ThrowIfCancelled(reporter, "geocode");
+    resampler.Row(row);
+    progress.Advance(1);
+  }
+  progress.Done();
+  const int64_t valid = resampler.valid();
+  if (valid == 0) throw InputError("no map pixel sees the image's terrain", request.image);
+  const geo::FloatRaster out =
+      MapRaster(request, grid, crs, std::move(resampler.bands()), image, sidecar, resampling);
+  geo::WriteFloatGeoTiff(out_tif, out);
+
+  json provenance = ProvenanceHeader("geocode", command_line, request.ToJson());
+  json inputs = json::array({InputFileRecord(request.image), InputFileRecord(mask_path), InputFileRecord(sidecar_path)});
+  if (!request.dem.empty()) inputs.push_back(InputFileRecord(request.dem));
+  provenance["inputs"] = inputs;
+  provenance["grid"] = {{"crs", crs}, {"geotransform", grid.geotransform}, {"width", grid.width},
+                        {"height", grid.height}, {"pixel_size_m", grid.px}, {"points_per_pixel", grid.k * grid.k}};
+  provenance["vertical_datum"] = VerticalDatumRecord(terrain);
+  provenance["terrain"] = request.dem.empty() ? "the simulation's own terrain (sidecar options)" : "--dem, in the simulation's frame";
+  provenance["projection_mode"] = geometry.mode;
+  provenance["bands"] = out.band_names;
+  provenance["band_units"] = out.band_units;
+  provenance["nodata"] = "NaN";
+  provenance["valid_pixels"] = valid;
+  provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};
+  std::vector<std::string> final_names;
+  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
+  provenance["outputs"] = final_names;
+  WriteJsonFile(provenance, out_json);
+  WriteGeocodeStac(out_stac, request, grid, crs, geometry, sidecar, resampler.footprint(), resampling,
+                   provenance["created_utc"].get<std::string>());
   outputs.Commit();
 
   GeocodeResult result;
   result.outputs = outputs.final_paths();
-  result.width = width;
-  result.height = height;
-  result.geotransform = geotransform;
+  result.width = grid.width;
+  result.height = grid.height;
+  result.geotransform = grid.geotransform;
   result.crs = crs;
   result.valid_pixels = valid;
   return result;

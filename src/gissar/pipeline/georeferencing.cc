@@ -253,47 +253,56 @@ double TerrainSurface::operator()(double x, double y) const {
   return best;
 }
 
-geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
-                                         sensor::GeoreferenceReport* report, const std::vector<uint8_t>* mask,
-                                         TpsRefinement* refinement) {
-  const TerrainSurface surface(terrain);
-  const auto height_at = [&](double x, double y) { return surface(x, y); };
-  // A plain DEM grid in affine mode: the lattices' terrain points from the
-  // terrain's profiles (ProfileLatticePoints), the march only for rows the
-  // profile walk refuses.
-  std::optional<render::GridProfileSweep> sweep;
-  if (surface.plain_grid() && geometry.mode() == sensor::ProjectionMode::kAffine) {
-    sweep.emplace(terrain.mesh.vertices.data(), terrain.grid_width, terrain.grid_height, geometry);
+namespace {
+
+// The GCPs and RPCs of a grid x grid lattice of image nodes on the terrain
+// (sensor::SlantRangeGeoreference). A plain DEM grid in affine mode: the
+// lattices' terrain points from the terrain's profiles
+// (ProfileLatticePoints), the march only for rows the profile walk refuses.
+class LatticeGeoreference {
+ public:
+  LatticeGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry, const TerrainSurface& surface)
+      : terrain_(terrain), geometry_(geometry), surface_(surface) {
+    if (surface.plain_grid() && geometry.mode() == sensor::ProjectionMode::kAffine) {
+      sweep_.emplace(terrain.mesh.vertices.data(), terrain.grid_width, terrain.grid_height, geometry);
+    }
   }
-  auto lattice = [&](int grid, sensor::GeoreferenceReport* lattice_report) {
+
+  geo::Georeference operator()(int grid, sensor::GeoreferenceReport* lattice_report) {
+    const auto height_at = [&](double x, double y) { return surface_(x, y); };
     std::vector<sensor::KnownLatticePoint> known;
-    if (sweep) known = ProfileLatticePoints(*sweep, geometry, grid);
+    if (sweep_) known = ProfileLatticePoints(*sweep_, geometry_, grid);
     const bool all_known = !known.empty() && std::all_of(known.begin(), known.end(),
                                                           [](const sensor::KnownLatticePoint& k) { return k.known; });
     // The slope bound (a pass over the grid) only when something is marched.
-    return sensor::SlantRangeGeoreference(geometry, terrain.frame, height_at, surface.z_min_m(), surface.z_max_m(),
-                                          grid, lattice_report, all_known ? sensor::SurfaceLimits{} : surface.limits(),
+    return sensor::SlantRangeGeoreference(geometry_, terrain_.frame, height_at, surface_.z_min_m(), surface_.z_max_m(),
+                                          grid, lattice_report, all_known ? sensor::SurfaceLimits{} : surface_.limits(),
                                           known.empty() ? nullptr : &known);
-  };
-  // 12 x 12 nodes; where part of the image sees no terrain (a rotated image
-  // around a DEM), a denser lattice until at least 100 GCPs hit it.
+  }
+
+ private:
+  const Terrain& terrain_;
+  const sensor::SarGeometry& geometry_;
+  const TerrainSurface& surface_;
+  std::optional<render::GridProfileSweep> sweep_;
+};
+
+// 12 x 12 nodes; where part of the image sees no terrain (a rotated image
+// around a DEM), a denser lattice until at least 100 GCPs hit it.
+geo::Georeference LatticeGcps(LatticeGeoreference& lattice, sensor::GeoreferenceReport* report) {
   geo::Georeference g;
   for (int grid = 12;; grid += 4) {
     g = lattice(grid, report);
     if (g.gcps.size() >= 100 || grid >= 40) break;
   }
-  if (refinement != nullptr) *refinement = TpsRefinement{};
+  return g;
+}
 
-  // Refinement for TPS users (gdalwarp -tps): candidate terrain points on a
-  // dense lattice (about one every 3 pixels); wherever the spline through the
-  // GCPs misses a candidate by more than kTpsToleranceSpacings of the finer
-  // pixel spacing on the ground, the worst candidates become GCPs, a few
-  // pixels apart, until none misses or kMaxGcps is reached. Candidates in or
-  // next to layover, shadow or outside the footprint are not used: there the
-  // pixel-to-ground map folds and no spline can follow it.
-  const int w = geometry.width(), h = geometry.height();
-  const int dense = std::clamp(std::max(w, h) / 3, 12, kTpsCandidateLattice);
-  const std::vector<geo::GroundControlPoint> dense_gcps = lattice(dense, nullptr).gcps;
+// The terrain points of a dense lattice not in or next to layover, shadow
+// or outside the footprint (`mask`, when it is the image's size): there the
+// pixel-to-ground map folds and no spline can follow it.
+std::vector<geo::GroundControlPoint> TpsCandidates(const std::vector<geo::GroundControlPoint>& dense_gcps,
+                                                   const std::vector<uint8_t>* mask, int w, int h) {
   std::vector<geo::GroundControlPoint> candidates;
   for (const auto& p : dense_gcps) {
     bool clear = true;
@@ -308,101 +317,149 @@ geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::S
     }
     if (clear) candidates.push_back(p);
   }
-  if (candidates.empty()) return g;
-  const double spacing_m = std::min(geometry.range_spacing_m(), geometry.azimuth_spacing_m());
-  const double tolerance_m = kTpsToleranceSpacings * spacing_m;
-  std::vector<Eigen::Vector2d> pixels;
-  std::vector<Eigen::Vector2d> truth_xy;
-  for (const auto& p : candidates) {
-    pixels.emplace_back(p.pixel, p.line);
-    truth_xy.push_back(terrain.frame.EnuFromGeodetic(p.lon_deg, p.lat_deg, 0.0).head<2>());
+  return candidates;
+}
+
+// How far the spline gdalwarp -tps builds through the GCPs misses each
+// candidate, in metres on the ground (infinite where it gives no point). The
+// spline: GDAL's interpolant, forward only and vectorised, each Measure
+// extending the last one's fit (geo::IncrementalThinPlateSpline); a fit from
+// scratch (geo::ThinPlateSpline), then GDAL's transformer, where that
+// refuses the GCPs.
+class TpsMisses {
+ public:
+  TpsMisses(const std::vector<geo::GroundControlPoint>& candidates, const geo::LocalFrame& frame)
+      : frame_(frame), error_m_(candidates.size(), 0.0) {
+    for (const auto& p : candidates) {
+      pixels_.emplace_back(p.pixel, p.line);
+      truth_xy_.push_back(frame.EnuFromGeodetic(p.lon_deg, p.lat_deg, 0.0).head<2>());
+    }
   }
-  std::vector<double> error_m(candidates.size(), 0.0);
-  // The spline gdalwarp -tps builds through the GCPs: GDAL's interpolant,
-  // forward only and vectorised, each round extending the last round's fit
-  // (geo::IncrementalThinPlateSpline); a fit from scratch
-  // (geo::ThinPlateSpline), then GDAL's transformer, where that refuses the
-  // GCPs.
-  geo::IncrementalThinPlateSpline incremental;
-  bool incremental_ok = true;
-  auto spline_lonlat = [&] {
+
+  // Throws InputError when GDAL cannot build the spline (degenerate GCPs).
+  void Measure(const std::vector<geo::GroundControlPoint>& gcps) {
+    const std::vector<Eigen::Vector2d> lonlat = SplineLonLat(gcps);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels_.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        error_m_[i] = lonlat[i].allFinite() ? (frame_.EnuFromGeodetic(lonlat[i].x(), lonlat[i].y(), 0.0).head<2>() -
+                                               truth_xy_[i]).norm()
+                                            : std::numeric_limits<double>::infinity();
+      }
+    });
+  }
+
+  const std::vector<double>& error_m() const { return error_m_; }
+
+ private:
+  std::vector<Eigen::Vector2d> SplineLonLat(const std::vector<geo::GroundControlPoint>& gcps) {
     std::vector<Eigen::Vector2d> nodes, values;
     auto gcps_from = [&](size_t first) {
       nodes.clear();
       values.clear();
-      for (size_t i = first; i < g.gcps.size(); ++i) {
-        nodes.emplace_back(g.gcps[i].pixel, g.gcps[i].line);
-        values.emplace_back(g.gcps[i].lon_deg, g.gcps[i].lat_deg);
+      for (size_t i = first; i < gcps.size(); ++i) {
+        nodes.emplace_back(gcps[i].pixel, gcps[i].line);
+        values.emplace_back(gcps[i].lon_deg, gcps[i].lat_deg);
       }
     };
     std::optional<geo::ThinPlateSpline> spline;
-    if (incremental_ok) {
-      gcps_from(size_t(incremental.node_count()));
-      if (incremental.Add(nodes, values)) spline = incremental.Spline();
-      incremental_ok = spline.has_value();
+    if (incremental_ok_) {
+      gcps_from(size_t(incremental_.node_count()));
+      if (incremental_.Add(nodes, values)) spline = incremental_.Spline();
+      incremental_ok_ = spline.has_value();
     }
     if (!spline) {
       gcps_from(0);
       spline = geo::ThinPlateSpline::Fit(nodes, values);
     }
-    return spline ? spline->Evaluate(pixels) : geo::TpsLonLat(g.gcps, pixels);
-  };
-  auto measure = [&] {
-    const std::vector<Eigen::Vector2d> lonlat = spline_lonlat();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i < r.end(); ++i) {
-        error_m[i] = lonlat[i].allFinite() ? (terrain.frame.EnuFromGeodetic(lonlat[i].x(), lonlat[i].y(), 0.0).head<2>() -
-                                              truth_xy[i]).norm()
-                                           : std::numeric_limits<double>::infinity();
+    return spline ? spline->Evaluate(pixels_) : geo::TpsLonLat(gcps, pixels_);
+  }
+
+  const geo::LocalFrame& frame_;
+  std::vector<Eigen::Vector2d> pixels_;
+  std::vector<Eigen::Vector2d> truth_xy_;
+  std::vector<double> error_m_;
+  geo::IncrementalThinPlateSpline incremental_;
+  bool incremental_ok_ = true;
+};
+
+// One round: the candidates the spline misses by more than tolerance_m,
+// worst first, become GCPs unless within kTpsMinSeparationPx of one, up to
+// kTpsMaxAddedPerRound and kMaxGcps. How many were added.
+int AddWorstCandidates(std::vector<geo::GroundControlPoint>& gcps,
+                       const std::vector<geo::GroundControlPoint>& candidates, const std::vector<double>& error_m,
+                       double tolerance_m) {
+  // Sorted only as far as the round reads (a few times the GCPs it may
+  // add), the rest on demand.
+  std::vector<size_t> order;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if (error_m[i] > tolerance_m) order.push_back(i);
+  }
+  const auto worse = [&](size_t a, size_t b) { return error_m[a] > error_m[b]; };
+  size_t sorted = std::min(order.size(), size_t(8 * kTpsMaxAddedPerRound));
+  std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(sorted), order.end(), worse);
+  constexpr double kMinSeparation2 = kTpsMinSeparationPx * kTpsMinSeparationPx;
+  int added = 0;
+  for (size_t k = 0; k < order.size(); ++k) {
+    if (int(gcps.size()) >= kMaxGcps || added >= kTpsMaxAddedPerRound) break;
+    if (k == sorted) {
+      std::sort(order.begin() + std::ptrdiff_t(k), order.end(), worse);
+      sorted = order.size();
+    }
+    const geo::GroundControlPoint& candidate = candidates[order[k]];
+    bool far = true;
+    for (const auto& q : gcps) {
+      const double dx = q.pixel - candidate.pixel, dy = q.line - candidate.line;
+      if (dx * dx + dy * dy < kMinSeparation2) {
+        far = false;
+        break;
       }
-    });
-  };
+    }
+    if (!far) continue;
+    gcps.push_back(candidate);
+    ++added;
+  }
+  return added;
+}
+
+}  // namespace
+
+geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
+                                         sensor::GeoreferenceReport* report, const std::vector<uint8_t>* mask,
+                                         TpsRefinement* refinement) {
+  const TerrainSurface surface(terrain);
+  LatticeGeoreference lattice(terrain, geometry, surface);
+  geo::Georeference g = LatticeGcps(lattice, report);
+  if (refinement != nullptr) *refinement = TpsRefinement{};
+
+  // Refinement for TPS users (gdalwarp -tps): candidate terrain points on a
+  // dense lattice (about one every 3 pixels); wherever the spline through the
+  // GCPs misses a candidate by more than kTpsToleranceSpacings of the finer
+  // pixel spacing on the ground, the worst candidates become GCPs, a few
+  // pixels apart, until none misses or kMaxGcps is reached.
+  const int w = geometry.width(), h = geometry.height();
+  const int dense = std::clamp(std::max(w, h) / 3, 12, kTpsCandidateLattice);
+  const std::vector<geo::GroundControlPoint> candidates = TpsCandidates(lattice(dense, nullptr).gcps, mask, w, h);
+  if (candidates.empty()) return g;
+  const double spacing_m = std::min(geometry.range_spacing_m(), geometry.azimuth_spacing_m());
+  const double tolerance_m = kTpsToleranceSpacings * spacing_m;
+  TpsMisses misses(candidates, terrain.frame);
   int rounds = 0, added_total = 0;
   bool measured = false;
   for (;;) {
     try {
-      measure();  // the errors of the GCPs as they are now
+      misses.Measure(g.gcps);  // the errors of the GCPs as they are now
       measured = true;
     } catch (const InputError&) {
       break;  // GDAL could not build the spline (degenerate GCPs): keep what there is
     }
     if (rounds >= kTpsMaxRounds || int(g.gcps.size()) >= kMaxGcps) break;
-    // The candidates the spline misses, worst first: sorted only as far as
-    // the round reads (a few times the GCPs it may add), the rest on demand.
-    std::vector<size_t> order;
-    for (size_t i = 0; i < candidates.size(); ++i) {
-      if (error_m[i] > tolerance_m) order.push_back(i);
-    }
-    const auto worse = [&](size_t a, size_t b) { return error_m[a] > error_m[b]; };
-    size_t sorted = std::min(order.size(), size_t(8 * kTpsMaxAddedPerRound));
-    std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(sorted), order.end(), worse);
-    constexpr double kMinSeparation2 = kTpsMinSeparationPx * kTpsMinSeparationPx;
-    int added = 0;
-    for (size_t k = 0; k < order.size(); ++k) {
-      if (int(g.gcps.size()) >= kMaxGcps || added >= kTpsMaxAddedPerRound) break;
-      if (k == sorted) {
-        std::sort(order.begin() + std::ptrdiff_t(k), order.end(), worse);
-        sorted = order.size();
-      }
-      const geo::GroundControlPoint& candidate = candidates[order[k]];
-      bool far = true;
-      for (const auto& q : g.gcps) {
-        const double dx = q.pixel - candidate.pixel, dy = q.line - candidate.line;
-        if (dx * dx + dy * dy < kMinSeparation2) {
-          far = false;
-          break;
-        }
-      }
-      if (!far) continue;
-      g.gcps.push_back(candidate);
-      ++added;
-    }
+    const int added = AddWorstCandidates(g.gcps, candidates, misses.error_m(), tolerance_m);
     if (added == 0) break;
     added_total += added;
     ++rounds;
   }
   if (refinement != nullptr && measured) {
-    std::vector<double> sorted = error_m;
+    std::vector<double> sorted = misses.error_m();
     std::sort(sorted.begin(), sorted.end());
     refinement->candidates = int(candidates.size());
     refinement->added_gcps = added_total;

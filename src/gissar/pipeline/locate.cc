@@ -391,30 +391,35 @@ void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& s
   LocateFields().ApplyJson(*this, values, source);
 }
 
-nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
-  if (options.UsesTrack()) return RunProductLocate(options, command_line, reporter);
-  options.Check();
-  Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path out = outputs.Add(options.out);
-  const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
-  // A reference database is checked first: its catalogue, and that it was built from this terrain.
+namespace {
+
+// A reference database, when given: its catalogue, checked to be built from this terrain.
+std::optional<ReferenceDatabase> ReadCheckedDatabase(const LocateRequest& options) {
   std::optional<ReferenceDatabase> database;
   if (!options.database.empty()) {
     database = ReadReferenceDatabase(options.database);
     CheckDatabaseTerrain(*database, options.scene, options.dem, options.vertical_datum);
   }
-  std::ifstream prior_file(options.prior);
-  if (!prior_file) throw IoError("cannot read prior", options.prior);
+  return database;
+}
+
+// The INS prior (a JSON file).
+PriorPose ReadPrior(const std::string& path) {
+  std::ifstream prior_file(path);
+  if (!prior_file) throw IoError("cannot read prior", path);
   nlohmann::json prior_json;
   try {
     prior_json = nlohmann::json::parse(prior_file);
   } catch (const nlohmann::json::exception& e) {
-    throw ConfigError(std::string("invalid JSON: ") + e.what(), options.prior);
+    throw ConfigError(std::string("invalid JSON: ") + e.what(), path);
   }
-  const PriorPose prior = ParsePriorJson(prior_json, options.prior);
+  return ParsePriorJson(prior_json, path);
+}
 
-  const geo::FloatRaster raster = geo::ReadFloatRaster(options.image);
+// The observed image's sensor model: its size, the pixel spacings (the
+// options' or the image's metadata) and look side; a prior far from the
+// image's own slant range is refused.
+nav::SensorModel ImageSensorModel(const geo::FloatRaster& raster, const LocateRequest& options, const PriorPose& prior) {
   auto meta = [&](const std::string& key) -> std::optional<std::string> {
     const auto it = raster.metadata.find(key);
     if (it == raster.metadata.end()) return std::nullopt;
@@ -449,66 +454,90 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   if (!options.look.empty()) model.look_side = sensor::ParseLookSide(options.look);
   else if (const auto v = meta("GISSAR_LOOK_SIDE")) model.look_side = sensor::ParseLookSide(*v);
   model.Check();
-  std::vector<float> observed = raster.bands.at(0);
-  for (float& v : observed) if (!std::isfinite(v)) v = 0.0f;
+  return model;
+}
 
-  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes), reporter);
-  const render::EmbreeScene embree(terrain.mesh);
-  nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
+// The pose the fix starts from: the prior's sensor position, or its scene
+// centre on the surface.
+nav::NavPose StartPose(const PriorPose& prior, const nav::NavScene& scene, const Terrain& terrain,
+                       const render::EmbreeScene& embree, sensor::LookSide look_side, const std::string& prior_path) {
   std::optional<nav::NavPose> start;
   if (prior.sensor_enu) {
     start = nav::PoseFromSensor(scene, *prior.sensor_enu, prior.heading_deg, prior.slant_range_m,
-                                prior.depression_deg.value_or(40.0), model.look_side);
+                                prior.depression_deg.value_or(40.0), look_side);
   } else {
     Eigen::Vector3d c = prior.centre_enu.value_or(Eigen::Vector3d::Zero());
     if (prior.centre_lonlat) c = terrain.frame.EnuFromGeodetic(prior.centre_lonlat->x(), prior.centre_lonlat->y(), 0.0);
     const auto ground = nav::SurfaceBelow(embree, terrain.mesh, c.x(), c.y());
     if (ground) start = nav::NavPose{prior.heading_deg, *prior.depression_deg, prior.slant_range_m, *ground};
   }
-  if (!start) throw InputError("the prior's line of sight does not reach the scene", options.prior);
+  if (!start) throw InputError("the prior's line of sight does not reach the scene", prior_path);
+  return *start;
+}
+
+nav::LocateOptions LocateOptionsOf(const LocateRequest& options) {
   nav::LocateOptions lo;
   lo.matcher = nav::ParseMatcher(options.matcher, "--matcher");
   lo.dense_renders = options.dense_renders;
   lo.polish_evaluations = options.polish_evaluations;
   lo.initial_search_px = options.search_px;
   lo.step_px = options.step_px;
+  return lo;
+}
+
+// A fix of the observed image: from the reference database (stored
+// references warped, the ones loaded kept for the composite) or by
+// rendering references.
+struct SceneFix {
+  nav::LocateResult result;
   nlohmann::json database_record = nullptr;
   bool rendered = true;
   int warps = 0;
-  nav::LocateResult r;
   std::map<size_t, nav::StoredReference> loaded;
   std::optional<size_t> used_item;
-  if (database) {
-    std::vector<sensor::SarGeometry> cameras;
-    for (const StoredReferenceItem& item : database->items) cameras.push_back(ItemGeometryInFrame(item, terrain.frame));
-    auto stored = [&](size_t i) -> const nav::StoredReference& {
-      auto it = loaded.find(i);
-      if (it == loaded.end()) it = loaded.emplace(i, LoadStoredReference(database->items[i], cameras[i], scene)).first;
-      return it->second;
-    };
-    DatabaseFix fix = FixFromDatabase(*database, cameras, stored, scene, model, observed, *start, lo,
-                                      options.database_heading_tolerance_deg, options.database_fallback);
-    r = fix.result;
-    database_record = fix.record;
-    rendered = fix.rendered;
-    warps = fix.warps;
-    used_item = fix.item;
-  } else {
-    r = nav::Locate(scene, model, observed, *start, lo);
-  }
+};
 
+void FixPose(const std::optional<ReferenceDatabase>& database, const Terrain& terrain, const nav::NavScene& scene,
+             const nav::SensorModel& model, const std::vector<float>& observed, const nav::NavPose& start,
+             const nav::LocateOptions& lo, const LocateRequest& options, SceneFix& out) {
+  if (!database) {
+    out.result = nav::Locate(scene, model, observed, start, lo);
+    return;
+  }
+  std::vector<sensor::SarGeometry> cameras;
+  for (const StoredReferenceItem& item : database->items) cameras.push_back(ItemGeometryInFrame(item, terrain.frame));
+  auto stored = [&](size_t i) -> const nav::StoredReference& {
+    auto it = out.loaded.find(i);
+    if (it == out.loaded.end()) it = out.loaded.emplace(i, LoadStoredReference(database->items[i], cameras[i], scene)).first;
+    return it->second;
+  };
+  DatabaseFix fix = FixFromDatabase(*database, cameras, stored, scene, model, observed, start, lo,
+                                    options.database_heading_tolerance_deg, options.database_fallback);
+  out.result = fix.result;
+  out.database_record = fix.record;
+  out.rendered = fix.rendered;
+  out.warps = fix.warps;
+  out.used_item = fix.item;
+}
+
+// The fix's JSON: the pose, the prior, how it converged, its error estimate,
+// the sensor model and the inputs.
+nlohmann::json LocateReport(const LocateRequest& options, const std::string& command_line, const Stopwatch& total,
+                            const SceneFix& fix, const nav::NavPose& start, const nav::SensorModel& model,
+                            const Terrain& terrain) {
+  const nav::LocateResult& r = fix.result;
   nlohmann::json result = PoseJson(r.pose, model.look_side, terrain.frame);
-  nlohmann::json report = {
+  return {
       {"command", "locate"},
       {"command_line", command_line},
       {"version", VersionString()},
       {"created_utc", UtcTimestamp()},
       {"pose", result},
-      {"prior", PoseJson(*start, model.look_side, terrain.frame)},
+      {"prior", PoseJson(start, model.look_side, terrain.frame)},
       {"converged", r.converged},
       {"reason", r.converged ? nlohmann::json(nullptr) : nlohmann::json(r.failure_reason)},
       {"iterations", r.iterations},
-      {"renders", rendered ? r.renders : 0},
+      {"renders", fix.rendered ? r.renders : 0},
       {"matches", r.matches},
       {"inliers", r.inliers},
       {"resection_rms_px", r.rms_px},
@@ -529,24 +558,58 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
       {"inputs", {{"image", InputFileRecord(options.image)},
                   {"terrain", InputFileRecord(options.scene.empty() ? options.dem : options.scene)},
                   {"prior", InputFileRecord(options.prior)}}}};
+}
+
+// The references the fix saw (the stored one warped, or renders) at the
+// prior and at the fix, each over the observed image: observed green,
+// simulated magenta.
+void WriteFixComposite(const fs::path& path, const SceneFix& fix, const nav::NavScene& scene,
+                       const nav::NavPose& start, const nav::SensorModel& model, const std::vector<float>& observed) {
+  auto reference_at = [&](const nav::NavPose& pose) {
+    return fix.used_item ? nav::WarpStoredReference(fix.loaded.at(*fix.used_item), pose, model)
+                         : nav::RenderReference(scene, pose, model);
+  };
+  const nav::Reference at_prior = reference_at(start);
+  const nav::Reference at_fix = reference_at(fix.result.pose);
+  const image::RgbImage picture = image::SideBySide(
+      {image::IntensityComposite(observed, at_prior.intensity, model.width, model.height),
+       image::IntensityComposite(observed, at_fix.intensity, model.width, model.height)},
+      {"at the prior", "at the fix"});  // observed green, simulated magenta
+  geo::WritePng(path, picture.rgb, picture.width, picture.height, 3);
+}
+
+}  // namespace
+
+nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
+  if (options.UsesTrack()) return RunProductLocate(options, command_line, reporter);
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path out = outputs.Add(options.out);
+  const fs::path composite = options.composite_png.empty() ? fs::path() : outputs.Add(options.composite_png);
+  // A reference database is checked first: its catalogue, and that it was built from this terrain.
+  const std::optional<ReferenceDatabase> database = ReadCheckedDatabase(options);
+  const PriorPose prior = ReadPrior(options.prior);
+  const geo::FloatRaster raster = geo::ReadFloatRaster(options.image);
+  const nav::SensorModel model = ImageSensorModel(raster, options, prior);
+  std::vector<float> observed = raster.bands.at(0);
+  for (float& v : observed) if (!std::isfinite(v)) v = 0.0f;
+
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes), reporter);
+  const render::EmbreeScene embree(terrain.mesh);
+  nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
+  const nav::NavPose start = StartPose(prior, scene, terrain, embree, model.look_side, options.prior);
+  SceneFix fix;
+  FixPose(database, terrain, scene, model, observed, start, LocateOptionsOf(options), options, fix);
+
+  nlohmann::json report = LocateReport(options, command_line, total, fix, start, model, terrain);
   if (database) {
-    database_record["stored_reference_warps"] = warps;
-    report["database"] = database_record;
+    fix.database_record["stored_reference_warps"] = fix.warps;
+    report["database"] = fix.database_record;
     report["inputs"]["database"] = InputFileRecord(options.database);
   }
   if (!composite.empty()) {
-    // The references the fix saw: the stored one warped, or renders.
-    auto reference_at = [&](const nav::NavPose& pose) {
-      return used_item ? nav::WarpStoredReference(loaded.at(*used_item), pose, model)
-                       : nav::RenderReference(scene, pose, model);
-    };
-    const nav::Reference at_prior = reference_at(*start);
-    const nav::Reference at_fix = reference_at(r.pose);
-    const image::RgbImage picture = image::SideBySide(
-        {image::IntensityComposite(observed, at_prior.intensity, model.width, model.height),
-         image::IntensityComposite(observed, at_fix.intensity, model.width, model.height)},
-        {"at the prior", "at the fix"});  // observed green, simulated magenta
-    geo::WritePng(composite, picture.rgb, picture.width, picture.height, 3);
+    WriteFixComposite(composite, fix, scene, start, model, observed);
     report["pictures"] = {options.composite_png};
   }
   WriteJsonFile(report, out);
@@ -731,23 +794,30 @@ double NumberOf(const nlohmann::json& v) {
   return v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN();
 }
 
-// One Monte-Carlo trial: its randomness depends on (options.seed, trial)
-// only (the true pose, materials, prior: std::mt19937_64 seeded with
-// seed * 1000003 + trial; render, speckle and noise seeds from seed and
-// trial), so any subset of trials, in any order or process, gives the same
-// records.
-nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, int trial, Reporter& reporter) {
-  const sensor::LookSide look = s.model.look_side;
-  nav::NavScene scene{&s.terrain.mesh, s.embree.get(), &s.terrain.materials, options.rays_per_cell, options.bounces};
-  const nav::LocateOptions& lo = s.lo;
-  const nav::SensorModel& model = s.model;
-  std::mt19937_64 rng(options.seed * 1000003ULL + trial);
-  std::uniform_real_distribution<double> u01(0.0, 1.0);
-  auto uni = [&](double a, double b) { return a + (b - a) * u01(rng); };
-  // True pose.
-  nav::NavPose truth;
+// A trial's random numbers: std::mt19937_64 seeded with seed * 1000003 +
+// trial, drawn uniform in [a, b) in the order the trial's phases ask.
+struct TrialRandom {
+  explicit TrialRandom(uint64_t seed) : rng(seed) {}
+  double Uniform(double a, double b) { return a + (b - a) * u01(rng); }
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<double> u01{0.0, 1.0};
+};
+
+// The true pose of a trial, and (with a database) the stored reference it
+// was drawn around.
+struct TruePose {
+  nav::NavPose pose;
+  nlohmann::json near_item = nullptr;
+};
+
+// With a database: around a stored pose (kDatabaseTrial*); else uniform in
+// heading, depression and centre over the region. 100 attempts to land on
+// the scene surface.
+TruePose DrawTruePose(const EvaluateSetup& s, const EvaluateRequest& options, TrialRandom& random) {
+  auto uni = [&](double a, double b) { return random.Uniform(a, b); };
+  TruePose out;
+  nav::NavPose& truth = out.pose;
   bool ok = false;
-  nlohmann::json truth_item = nullptr;
   if (s.database) {
     // Around a stored pose (kDatabaseTrial*).
     const size_t n = s.cameras.size();
@@ -765,7 +835,7 @@ nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, 
       const auto ground = nav::SurfaceBelow(*s.embree, s.terrain.mesh, c.x(), c.y());
       if (ground) {
         truth.centre_enu = *ground;
-        truth_item = s.database->items[k].id;
+        out.near_item = s.database->items[k].id;
         ok = true;
       }
     }
@@ -778,7 +848,13 @@ nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, 
     if (g) { truth.centre_enu = *g; ok = true; }
   }
   if (!ok) throw InputError("no true pose found on the scene surface", options.scene);
-  // Observed image: smoothed terrain, materials off by +-material_db per class, speckle, noise.
+  return out;
+}
+
+// Observed image: smoothed terrain, materials off by +-material_db per class, speckle, noise.
+render::SarImage RenderObservedImage(const EvaluateSetup& s, const EvaluateRequest& options, int trial,
+                                     const nav::NavPose& truth, TrialRandom& random) {
+  auto uni = [&](double a, double b) { return random.Uniform(a, b); };
   material::MaterialTable materials = s.terrain.materials;
   for (int c = 0; c < std::max<int>(scene::kClassCount, int(s.terrain.materials.size())); ++c) {
     material::Material m = s.terrain.materials.Get(static_cast<scene::ClassId>(c));
@@ -789,50 +865,86 @@ nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, 
   ro.rays_per_cell = options.rays_per_cell;
   ro.max_bounces = options.bounces;
   ro.seed = options.seed + trial;
-  render::SarImage obs = render::RenderSar(*s.observed_embree, s.observed_mesh, materials, nav::GeometryOf(truth, model), ro);
+  render::SarImage obs = render::RenderSar(*s.observed_embree, s.observed_mesh, materials, nav::GeometryOf(truth, s.model), ro);
   if (options.speckle_looks >= 1) image::ApplyMultiplicativeSpeckle(obs.intensity, options.speckle_looks, options.seed * 7919 + trial);
   if (std::isfinite(options.nesz_db)) image::AddThermalNoise(obs.intensity, options.nesz_db, options.seed * 104729 + trial);
-  // INS prior after drift.
-  const Eigen::Vector3d sensor_true = truth.SensorPosition(look);
+  return obs;
+}
+
+// The INS prior after drift: the true sensor position moved by the prior
+// errors, the heading turned.
+struct TrialPrior {
+  Eigen::Vector3d sensor_true;
+  double heading_deg = 0.0;
+  nav::NavPose pose;
+};
+
+TrialPrior DrawPrior(const nav::NavScene& scene, const EvaluateRequest& options, int trial, const nav::NavPose& truth,
+                     sensor::LookSide look, TrialRandom& random) {
+  auto uni = [&](double a, double b) { return random.Uniform(a, b); };
+  TrialPrior out;
+  const Eigen::Vector3d sensor_true = out.sensor_true = truth.SensorPosition(look);
   const Eigen::Vector3d sensor_prior = sensor_true + Eigen::Vector3d(uni(-1, 1) * options.prior_error_horizontal_m,
                                                                      uni(-1, 1) * options.prior_error_horizontal_m,
                                                                      uni(-1, 1) * options.prior_error_vertical_m);
-  const double heading_prior = truth.heading_deg + uni(-1, 1) * options.prior_error_heading_deg;
+  const double heading_prior = out.heading_deg = truth.heading_deg + uni(-1, 1) * options.prior_error_heading_deg;
   const auto prior = nav::PoseFromSensor(scene, sensor_prior, heading_prior, truth.slant_range_m, truth.depression_deg, look);
   if (!prior) throw InputError("prior beam leaves the scene (trial " + std::to_string(trial) + ")", options.scene);
+  out.pose = *prior;
+  return out;
+}
 
-  nlohmann::json matcher_rows = nlohmann::json::array();
-  std::vector<std::array<double, 4>> mrow;
-  if (options.compare_matchers) {
-    const nav::Reference ref = nav::RenderReference(scene, *prior, model);
-    const cv::Mat obs_log = nav::LogIntensity(obs.intensity, model.width, model.height, lo.filter_px);
-    const sensor::SarGeometry true_geometry = nav::GeometryOf(truth, model);
-    nav::MatchOptions mo;
-    mo.patch_px = lo.patch_px;
-    mo.step_px = lo.step_px;
-    mo.search_px = lo.initial_search_px;
-    for (const nav::Matcher matcher : ComparedMatchers()) {
-      const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matcher, mo, lo.filter_px, lo.ransac_threshold_px,
-                                                         lo.reference_floor);
-      std::vector<double> errs;
-      for (size_t i = 0; i < cm.world.size(); ++i) errs.push_back((cm.observed[i] - true_geometry.Project(cm.world[i])).norm());
-      const double good = double(std::count_if(errs.begin(), errs.end(), [](double e) { return e < 1.0; }));
-      const double med = Percentile(errs, 0.5);
-      mrow.push_back({double(cm.raw), double(cm.world.size()), good, med});
-      matcher_rows.push_back({{"matcher", nav::ToString(matcher)},
-                              {"raw", cm.raw},
-                              {"inliers", cm.world.size()},
-                              {"good", good},
-                              {"median_error_px", NumberOrNull(med)}});
-    }
+// --compare-matchers: each compared matcher at the prior, its matches
+// against the truth (raw, inliers, good (< 1 px), median error) as JSON rows
+// and as the CSV's numbers.
+struct MatcherComparison {
+  nlohmann::json rows = nlohmann::json::array();
+  std::vector<std::array<double, 4>> numbers;
+};
+
+MatcherComparison CompareMatchers(const EvaluateSetup& s, const nav::NavScene& scene, const render::SarImage& obs,
+                                  const nav::NavPose& prior, const nav::NavPose& truth) {
+  const nav::LocateOptions& lo = s.lo;
+  const nav::SensorModel& model = s.model;
+  MatcherComparison out;
+  const nav::Reference ref = nav::RenderReference(scene, prior, model);
+  const cv::Mat obs_log = nav::LogIntensity(obs.intensity, model.width, model.height, lo.filter_px);
+  const sensor::SarGeometry true_geometry = nav::GeometryOf(truth, model);
+  nav::MatchOptions mo;
+  mo.patch_px = lo.patch_px;
+  mo.step_px = lo.step_px;
+  mo.search_px = lo.initial_search_px;
+  for (const nav::Matcher matcher : ComparedMatchers()) {
+    const nav::ControlMatches cm = nav::MatchReference(ref, obs_log, matcher, mo, lo.filter_px, lo.ransac_threshold_px,
+                                                       lo.reference_floor);
+    std::vector<double> errs;
+    for (size_t i = 0; i < cm.world.size(); ++i) errs.push_back((cm.observed[i] - true_geometry.Project(cm.world[i])).norm());
+    const double good = double(std::count_if(errs.begin(), errs.end(), [](double e) { return e < 1.0; }));
+    const double med = Percentile(errs, 0.5);
+    out.numbers.push_back({double(cm.raw), double(cm.world.size()), good, med});
+    out.rows.push_back({{"matcher", nav::ToString(matcher)},
+                        {"raw", cm.raw},
+                        {"inliers", cm.world.size()},
+                        {"good", good},
+                        {"median_error_px", NumberOrNull(med)}});
   }
+  return out;
+}
+
+// The trial's fix: from the stored references (database_fixes "stored"; the
+// choice of the references timed with it) or by rendering; with a database
+// its record, and the stored pose the truth was drawn around.
+nav::LocateResult FixTrial(const EvaluateSetup& s, const EvaluateRequest& options, const nav::NavScene& scene,
+                           const render::SarImage& obs, const nav::NavPose& prior, const TruePose& truth,
+                           nlohmann::json& database_record) {
+  const nav::LocateOptions& lo = s.lo;
+  const nav::SensorModel& model = s.model;
   nav::LocateResult r;
-  nlohmann::json database_record = nullptr;
   if (s.database && options.database_fixes == "stored") {
     const Stopwatch clock;
     DatabaseFix fix = FixFromDatabase(
         *s.database, s.cameras, [&](size_t i) -> const nav::StoredReference& { return s.stored.at(i); }, scene, model,
-        obs.intensity, *prior, lo, options.database_heading_tolerance_deg, options.database_fallback);
+        obs.intensity, prior, lo, options.database_heading_tolerance_deg, options.database_fallback);
     r = fix.result;
     r.seconds = clock.ElapsedSeconds();  // the choice of the references included
     database_record = fix.record;
@@ -840,53 +952,102 @@ nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, 
     database_record.erase("terrain_sha256");
     database_record["stored_reference_warps"] = fix.warps;
   } else {
-    r = nav::Locate(scene, model, obs.intensity, *prior, lo);
+    r = nav::Locate(scene, model, obs.intensity, prior, lo);
   }
   if (s.database) {
     if (database_record.is_null()) database_record = nlohmann::json::object();
-    database_record["truth_near"] = truth_item;
+    database_record["truth_near"] = truth.near_item;
   }
-  const Eigen::Vector3d d = r.sensor_enu - sensor_true;
-  const double e3 = d.norm(), eh = d.head<2>().norm();
-  const double e_heading = std::abs(std::remainder(r.pose.heading_deg - truth.heading_deg, 360.0));
-  const double e_dep = r.pose.depression_deg - truth.depression_deg;
-  const double cells = e3 / options.spacing_m;
-  const bool success = r.converged && cells <= options.success_cells && e_heading <= options.success_heading_deg;
+  return r;
+}
+
+// The trial's errors against the truth and whether it succeeded
+// (docs/conventions.md).
+struct TrialErrors {
+  Eigen::Vector3d d;  // fixed minus true sensor position
+  double e3 = 0.0, eh = 0.0, e_heading = 0.0, e_dep = 0.0, cells = 0.0;
+  bool success = false;
+};
+
+TrialErrors ErrorsOf(const nav::LocateResult& r, const nav::NavPose& truth, const Eigen::Vector3d& sensor_true,
+                     const EvaluateRequest& options) {
+  TrialErrors e;
+  const Eigen::Vector3d d = e.d = r.sensor_enu - sensor_true;
+  e.e3 = d.norm();
+  e.eh = d.head<2>().norm();
+  e.e_heading = std::abs(std::remainder(r.pose.heading_deg - truth.heading_deg, 360.0));
+  e.e_dep = r.pose.depression_deg - truth.depression_deg;
+  e.cells = e.e3 / options.spacing_m;
+  e.success = r.converged && e.cells <= options.success_cells && e.e_heading <= options.success_heading_deg;
+  return e;
+}
+
+// The trial's row of PREFIX_trials.csv (TrialsCsvHeader).
+std::string TrialCsvRow(int trial, const nav::NavPose& truth, const TrialPrior& prior, const nav::LocateResult& r,
+                        const TrialErrors& e, const MatcherComparison& matchers, sensor::LookSide look) {
+  const Eigen::Vector3d& sensor_true = prior.sensor_true;
+  const Eigen::Vector3d& d = e.d;
   char row[1024];
   int n = std::snprintf(row, sizeof(row), "%d,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.4f,%d,%d,%d,%.4f,%.3f,%.3f,%.3f,%.4f,%.5f,%.5f,%.5f,%.4f,%.4f,%.3f,%d",
                trial, truth.heading_deg, truth.depression_deg, truth.centre_enu.x(), truth.centre_enu.y(),
-               sensor_true.x(), sensor_true.y(), sensor_true.z(), (prior->SensorPosition(look) - sensor_true).norm(),
-               std::remainder(heading_prior - truth.heading_deg, 360.0), r.converged ? 1 : 0, r.iterations, r.inliers,
-               r.rms_px, e3, eh, d.z(), cells, e_heading, e_dep, r.heading_sigma_deg, r.similarity, r.prior_similarity,
-               r.seconds, success ? 1 : 0);
-  const Eigen::Vector3d prior_offset = prior->SensorPosition(look) - sensor_true;
+               sensor_true.x(), sensor_true.y(), sensor_true.z(), (prior.pose.SensorPosition(look) - sensor_true).norm(),
+               std::remainder(prior.heading_deg - truth.heading_deg, 360.0), r.converged ? 1 : 0, r.iterations, r.inliers,
+               r.rms_px, e.e3, e.eh, d.z(), e.cells, e.e_heading, e.e_dep, r.heading_sigma_deg, r.similarity, r.prior_similarity,
+               r.seconds, e.success ? 1 : 0);
+  const Eigen::Vector3d prior_offset = prior.pose.SensorPosition(look) - sensor_true;
   n += std::snprintf(row + n, sizeof(row) - n, ",%d,%.5f,%.2f,%.2f,%.2f", r.matches, r.depression_sigma_deg,
                      prior_offset.x(), prior_offset.y(), prior_offset.z());
-  for (const auto& m : mrow) {
+  for (const auto& m : matchers.numbers) {
     n += std::snprintf(row + n, sizeof(row) - n, ",%.0f,%.0f,%.0f,%.4f", m[0], m[1], m[2], m[3]);
   }
-  {
-    char line[320];
-    std::snprintf(line, sizeof(line),
-                  "evaluate: trial %d/%d: prior offset %.0f m; %d matches, %d inliers, rms %.2f px; position error "
-                  "%.1f m (%.2f cells), heading %.3f deg, depression %+.3f deg, %s, %.2f s",
-                  trial + 1, options.trials, prior_offset.norm(), r.matches, r.inliers, r.rms_px, e3, cells, e_heading,
-                  e_dep, success ? "ok" : "FAIL", r.seconds);
-    reporter.Info(line);
-    ThrowIfCancelled(reporter, "evaluate");
-  }
+  return row;
+}
+
+// One progress line per trial.
+void ReportTrial(int trial, const EvaluateRequest& options, const TrialPrior& prior, const nav::LocateResult& r,
+                 const TrialErrors& e, sensor::LookSide look, Reporter& reporter) {
+  const Eigen::Vector3d prior_offset = prior.pose.SensorPosition(look) - prior.sensor_true;
+  char line[320];
+  std::snprintf(line, sizeof(line),
+                "evaluate: trial %d/%d: prior offset %.0f m; %d matches, %d inliers, rms %.2f px; position error "
+                "%.1f m (%.2f cells), heading %.3f deg, depression %+.3f deg, %s, %.2f s",
+                trial + 1, options.trials, prior_offset.norm(), r.matches, r.inliers, r.rms_px, e.e3, e.cells,
+                e.e_heading, e.e_dep, e.success ? "ok" : "FAIL", r.seconds);
+  reporter.Info(line);
+  ThrowIfCancelled(reporter, "evaluate");
+}
+
+// One Monte-Carlo trial: its randomness depends on (options.seed, trial)
+// only (the true pose, materials, prior: std::mt19937_64 seeded with
+// seed * 1000003 + trial; render, speckle and noise seeds from seed and
+// trial), so any subset of trials, in any order or process, gives the same
+// records.
+nlohmann::json RunTrial(const EvaluateSetup& s, const EvaluateRequest& options, int trial, Reporter& reporter) {
+  const sensor::LookSide look = s.model.look_side;
+  nav::NavScene scene{&s.terrain.mesh, s.embree.get(), &s.terrain.materials, options.rays_per_cell, options.bounces};
+  TrialRandom random(options.seed * 1000003ULL + trial);
+  const TruePose truth = DrawTruePose(s, options, random);
+  const render::SarImage obs = RenderObservedImage(s, options, trial, truth.pose, random);
+  const TrialPrior prior = DrawPrior(scene, options, trial, truth.pose, look, random);
+  const MatcherComparison matchers =
+      options.compare_matchers ? CompareMatchers(s, scene, obs, prior.pose, truth.pose) : MatcherComparison();
+  nlohmann::json database_record = nullptr;
+  const nav::LocateResult r = FixTrial(s, options, scene, obs, prior.pose, truth, database_record);
+  const TrialErrors e = ErrorsOf(r, truth.pose, prior.sensor_true, options);
+  const std::string row = TrialCsvRow(trial, truth.pose, prior, r, e, matchers, look);
+  ReportTrial(trial, options, prior, r, e, look, reporter);
   return {{"trial", trial},
-          {"success", success},
+          {"success", e.success},
           {"converged", r.converged},
-          {"position_error_m", NumberOrNull(e3)},
-          {"position_error_cells", NumberOrNull(cells)},
-          {"horizontal_error_m", NumberOrNull(eh)},
-          {"heading_error_deg", NumberOrNull(e_heading)},
-          {"depression_error_deg", NumberOrNull(std::abs(e_dep))},
+          {"position_error_m", NumberOrNull(e.e3)},
+          {"position_error_cells", NumberOrNull(e.cells)},
+          {"horizontal_error_m", NumberOrNull(e.eh)},
+          {"heading_error_deg", NumberOrNull(e.e_heading)},
+          {"depression_error_deg", NumberOrNull(std::abs(e.e_dep))},
           {"seconds", r.seconds},
           {"database", database_record},
-          {"matchers", matcher_rows},
-          {"csv_row", std::string(row)}};
+          {"matchers", matchers.rows},
+          {"csv_row", row}};
 }
 
 std::string TrialsCsvHeader(const EvaluateRequest& options) {

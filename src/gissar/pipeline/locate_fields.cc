@@ -90,4 +90,21 @@ const FieldTable<LocateRequest>& LocateFields() {
   return kTable;
 }
 
+// In the order of `gissar matchpair --help`.
+const FieldTable<MatchPairRequest>& MatchPairFields() {
+  using M = MatchPairRequest;
+  using G = Fields<M>;
+  static const FieldTable<MatchPairRequest> kTable({
+      G::Plain("fixed", G::At(&M::fixed), "Fixed image", false),
+      G::Plain("moving", G::At(&M::moving), "Moving image (same grid, another date)", false),
+      G::Numbers("warp", G::At(&M::warp), 4, "Known warp ROT_DEG,SCALE,TX,TY applied to the moving image"),
+      G::Plain("patch_px", G::At(&M::patch_px), "Patch side, px (odd)"),
+      G::Plain("step_px", G::At(&M::step_px), "Grid step, px"),
+      G::Plain("search_px", G::At(&M::search_px), "Search radius, px"),
+      G::Plain("filter_px", G::At(&M::filter_px), "Speckle box filter, px"),
+      G::Plain("out", G::At(&M::out), "Output prefix: PREFIX.json (errors per matcher)", false),
+  });
+  return kTable;
+}
+
 }  // namespace gissar::pipeline

@@ -13,4 +13,8 @@ namespace gissar::pipeline {
 
 const FieldTable<LocateRequest>& LocateFields();
 
+// `matchpair`'s table (the matchers' comparison on a real pair): its flags
+// and the keys of its options file.
+const FieldTable<MatchPairRequest>& MatchPairFields();
+
 }  // namespace gissar::pipeline

@@ -1,4 +1,5 @@
 #include "gissar/pipeline/mvg_commands.h"
+#include "gissar/pipeline/mvg_fields.h"
 
 #include <algorithm>
 #include <cmath>
@@ -37,8 +38,6 @@ json Matrix(const Eigen::MatrixXd& m) {
   }
   return rows;
 }
-
-json Pair(const std::optional<Eigen::Vector2d>& p) { return p ? json{p->x(), p->y()} : json(nullptr); }
 
 void RequireOutput(const std::string& path, const std::string& option) {
   if (path.empty()) throw ConfigError("an output file is required", option);
@@ -108,12 +107,7 @@ void FmatrixRequest::Check() const {
   if (!image1.empty() && plot_prefix.empty()) throw ConfigError("images are drawn only with --plot", "--image1/--image2");
 }
 
-json FmatrixRequest::ToJson() const {
-  return {{"matches", matches}, {"range_spacing_m", Pair(range_spacing_m)},
-          {"azimuth_spacing_m", Pair(azimuth_spacing_m)}, {"depressions", Pair(depressions)},
-          {"threshold_px", threshold_px}, {"robust", robust}, {"seed", seed}, {"out", json_out},
-          {"plot", plot_prefix}, {"image1", image1}, {"image2", image2}};
-}
+json FmatrixRequest::ToJson() const { return FmatrixFields().ToJson(*this); }
 
 namespace {
 
@@ -293,12 +287,7 @@ void ResectRequest::Check() const {
   if (slant_range_m && !(*slant_range_m > 0)) throw ConfigError("slant range must be positive", "--slant-range");
 }
 
-json ResectRequest::ToJson() const {
-  return {{"points", points},
-          {"center_enu_m", {center_enu_m.x(), center_enu_m.y(), center_enu_m.z()}},
-          {"slant_range_m", slant_range_m ? json(*slant_range_m) : json(nullptr)},
-          {"out", json_out}};
-}
+json ResectRequest::ToJson() const { return ResectFields().ToJson(*this); }
 
 json RunResect(const ResectRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
@@ -361,10 +350,7 @@ void RegisterRequest::Check() const {
   if (!(threshold_px > 0)) throw ConfigError("threshold must be positive", "--threshold");
 }
 
-json RegisterRequest::ToJson() const {
-  return {{"fixed", fixed}, {"moving", moving}, {"points", points}, {"transform", transform},
-          {"threshold_px", threshold_px}, {"robust", robust}, {"out_prefix", out_prefix}};
-}
+json RegisterRequest::ToJson() const { return RegisterFields().ToJson(*this); }
 
 json RunRegister(const RegisterRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();

@@ -1,4 +1,5 @@
 #include "gissar/pipeline/polsar.h"
+#include "gissar/pipeline/polsar_fields.h"
 
 #include <algorithm>
 #include <array>
@@ -275,30 +276,10 @@ void PolsarRequest::Check() const {
                            {image, product});
 }
 
-json PolsarRequest::ToJson() const {
-  return {{"image", image},   {"product", product},       {"frequency", frequency},
-          {"multilook", multilook}, {"matrix", std::string(image::kPolarimetricMatrices.Name(matrix))}, {"out_prefix", out_prefix},
-          {"max_memory_bytes", max_memory_bytes}};
-}
+json PolsarRequest::ToJson() const { return PolsarFields().ToJson(*this); }
 
 void PolsarRequest::ApplyJson(const json& values, const std::string& source) {
-  if (!values.is_object()) throw ConfigError("options must be a JSON object", source);
-  for (const auto& [key, value] : values.items()) {
-    auto set = [&](auto& field) { AssignField(field, value, key, source); };
-    if (value.is_null()) continue;
-    if (key == "image") set(image);
-    else if (key == "product") set(product);
-    else if (key == "frequency") set(frequency);
-    else if (key == "multilook") set(multilook);
-    else if (key == "matrix") {
-      std::string text;
-      set(text);
-      matrix = image::kPolarimetricMatrices.Parse(text, "--matrix");
-    }
-    else if (key == "out_prefix") set(out_prefix);
-    else if (key == "max_memory_bytes") set(max_memory_bytes);
-    else throw ConfigError(UnknownKeyMessage(key, KeysOf(ToJson())), source);
-  }
+  PolsarFields().ApplyJson(*this, values, source);
 }
 
 PolsarResult RunPolsar(const PolsarRequest& request, const std::string& command_line, Reporter& reporter) {

@@ -608,23 +608,28 @@ geo::Metadata ProductMetadata(const ProductSimulation& sim, const SimulateReques
   return m;
 }
 
+// The files a product simulation writes: PREFIX.tif, .png, _mask.tif, .json
+// and, coherent, _slc.tif (and _pauli.png with the Pauli channels).
+struct ProductSimulationFiles {
+  fs::path tif, png, mask_tif, json, slc_tif, pauli_png;
+};
 
-}  // namespace
-
-SimulateResult RunProductSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter) {
-  options.Check();
-  Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path tif = outputs.Add(options.out_prefix + ".tif");
-  const fs::path png = outputs.Add(options.out_prefix + ".png");
-  const fs::path mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
-  const fs::path json = outputs.Add(options.out_prefix + ".json");
-  const fs::path slc_tif = options.coherent ? outputs.Add(options.out_prefix + "_slc.tif") : fs::path();
-  const fs::path pauli_png =
+ProductSimulationFiles AddProductSimulationFiles(AtomicOutputs& outputs, const SimulateRequest& options) {
+  ProductSimulationFiles files;
+  files.tif = outputs.Add(options.out_prefix + ".tif");
+  files.png = outputs.Add(options.out_prefix + ".png");
+  files.mask_tif = outputs.Add(options.out_prefix + "_mask.tif");
+  files.json = outputs.Add(options.out_prefix + ".json");
+  files.slc_tif = options.coherent ? outputs.Add(options.out_prefix + "_slc.tif") : fs::path();
+  files.pauli_png =
       options.coherent && HasPauliChannels(options) ? outputs.Add(options.out_prefix + "_pauli.png") : fs::path();
+  return files;
+}
 
-  // Sentinel-1: a GRD is rendered in slant range and resampled to its ground
-  // range pixels, in linear units (dB after the resampling).
+// The simulation in the units it is written in. Sentinel-1: a GRD is
+// rendered in slant range and resampled to its ground range pixels, in
+// linear units (dB after the resampling).
+ProductSimulation SimulateForWriting(const SimulateRequest& options, Reporter& reporter) {
   SimulateRequest run = options;
   if (IsSentinel1Request(options)) run.db = false;
   ProductSimulation sim = SimulateProduct(run, false, reporter);
@@ -641,15 +646,21 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
       }
     }
   }
-  // NaN where the pixel has no ground point on the terrain (declared no-data, mask 255).
-  render::SarImage image = sim.image.image;
-  if (image.footprint.size() == image.intensity.size()) MarkOutsideFootprint(image, sim.image.image.footprint);
-  geo::Metadata metadata = ProductMetadata(sim, options);
+  return sim;
+}
+
+// The bands of PREFIX.tif: one channel: the total and its bounce layers;
+// several (as `simulate` writes them): each channel's total, then each
+// channel's bounce layers (`channel_images`: the channels, NaN where the
+// pixel has no ground point, as the first); then longitude, latitude and
+// height of each pixel's ground point, located by GDAL geolocation arrays.
+geo::FloatRaster ProductRaster(const ProductSimulation& sim, const render::SarImage& image,
+                               const geo::Metadata& metadata, const SimulateRequest& options,
+                               std::vector<render::SarImage>& channel_images) {
   const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
   geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
   const std::string unit = image::RadiometryUnit(options.db);
   // Channel 0 is `image`; the others follow (several channels).
-  std::vector<render::SarImage> channel_images;
   if (sim.other_channels.empty()) {
     raster.bands.push_back(image.intensity);
     raster.band_names.push_back("total");
@@ -658,9 +669,6 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
       raster.band_names.push_back(layer_names[layer]);
     }
   } else {
-    // Several channels (as `simulate` writes them): each channel's total,
-    // then each channel's bounce counts; NaN where the pixel has no ground
-    // point, as the first channel.
     channel_images.push_back(image);
     for (render::SarImage c : sim.other_channels) {
       if (c.footprint.size() == c.intensity.size()) MarkOutsideFootprint(c, sim.image.image.footprint);
@@ -681,7 +689,6 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   const int image_bands = static_cast<int>(raster.bands.size());
   raster.band_units.assign(raster.bands.size(), unit);
   raster.nodata_nan = true;
-  const std::vector<uint8_t>& mask = image.mask;
   raster.bands.push_back(sim.image.lon_deg);
   raster.band_names.push_back("lon_deg");
   raster.bands.push_back(sim.image.lat_deg);
@@ -698,88 +705,104 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
       std::to_string(image_bands + 3) + " ellipsoidal height (m) of each pixel's ground point (NaN: none)";
   // GDAL geolocation arrays: gdalwarp -geoloc places the image from the longitude and latitude bands.
   raster.georeference.geolocation = geo::LonLatGeolocation(lon_band, lat_band);
-  geo::WriteFloatGeoTiff(tif, raster);
-  nlohmann::json pauli_record;  // the Pauli quicklook's looks and stretch
-  if (options.coherent) {
-    // The complex total and the complex image of each bounce count, as
-    // `gissar simulate --coherent` writes them; located by the geolocation
-    // arrays of PREFIX.tif beside it (bands 6 and 7).
-    geo::Metadata slc_metadata = metadata;
-    slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
-    slc_metadata["GISSAR_PHASE"] = "exp(-j 4 pi R / lambda), R = true slant range (geo2rdr on the product orbit)";
-    // As `gissar simulate --coherent` writes them: one channel: the total
-    // and its bounce bands; several: each channel's total, then each
-    // channel's bounce bands.
-    std::vector<render::SarImage*> slc_images = {&image};
-    for (size_t k = 1; k < channel_images.size(); ++k) slc_images.push_back(&channel_images[k]);
-    std::vector<float> no_return;  // a layer with no return
-    const std::vector<geo::ComplexBand> slc_bands = SlcBands(slc_images, sim.channels, no_return, slc_metadata);
-    // Georeference: GDAL geolocation arrays = bands 6/7 of PREFIX.tif (its
-    // absolute path: GDAL 3.6 opens X_DATASET as given), and, for when the
-    // files are moved apart, a lattice of up to 8 x 8 GCPs at pixel centres
-    // with a ground point (lon, lat, ellipsoidal height).
-    geo::Georeference slc_georeference;
-    slc_georeference.geolocation = geo::LonLatGeolocation(6, 7);
-    const std::string detected_path = fs::absolute(options.out_prefix + ".tif").lexically_normal().string();
-    slc_georeference.geolocation["X_DATASET"] = detected_path;
-    slc_georeference.geolocation["Y_DATASET"] = detected_path;
-    constexpr int kGcpLattice = 8;
-    for (int i = 0; i < kGcpLattice; ++i) {
-      const int row = int(std::lround(double(i) * (image.height - 1) / (kGcpLattice - 1)));
-      for (int j = 0; j < kGcpLattice; ++j) {
-        const int col = int(std::lround(double(j) * (image.width - 1) / (kGcpLattice - 1)));
-        const size_t k = size_t(row) * image.width + col;
-        if (!std::isfinite(sim.image.height_m[k])) continue;
-        slc_georeference.gcps.push_back({col + 0.5, row + 0.5, sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
-                                         double(sim.image.height_m[k])});
-      }
-    }
-    geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
-                             slc_georeference, /*nodata_nan=*/true, options.overviews);
-    if (!pauli_png.empty()) {
-      const std::vector<const render::SarImage*> images(slc_images.begin(), slc_images.end());
-      WritePauliQuicklook(pauli_png, sim.channels, images, &pauli_record);
+  return raster;
+}
+
+// The coherent outputs: the complex total and the complex image of each
+// bounce count in PREFIX_slc.tif, as `gissar simulate --coherent` writes
+// them, and PREFIX_pauli.png with the Pauli channels; returns the Pauli
+// quicklook's looks and stretch (null without it).
+nlohmann::json WriteProductSlc(const ProductSimulationFiles& files, const ProductSimulation& sim,
+                               render::SarImage& image, std::vector<render::SarImage>& channel_images,
+                               const geo::Metadata& metadata, const SimulateRequest& options) {
+  nlohmann::json pauli_record;
+  // Located by the geolocation arrays of PREFIX.tif beside it (bands 6 and 7).
+  geo::Metadata slc_metadata = metadata;
+  slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
+  slc_metadata["GISSAR_PHASE"] = "exp(-j 4 pi R / lambda), R = true slant range (geo2rdr on the product orbit)";
+  // As `gissar simulate --coherent` writes them: one channel: the total
+  // and its bounce bands; several: each channel's total, then each
+  // channel's bounce bands.
+  std::vector<render::SarImage*> slc_images = {&image};
+  for (size_t k = 1; k < channel_images.size(); ++k) slc_images.push_back(&channel_images[k]);
+  std::vector<float> no_return;  // a layer with no return
+  const std::vector<geo::ComplexBand> slc_bands = SlcBands(slc_images, sim.channels, no_return, slc_metadata);
+  // Georeference: GDAL geolocation arrays = bands 6/7 of PREFIX.tif (its
+  // absolute path: GDAL 3.6 opens X_DATASET as given), and, for when the
+  // files are moved apart, a lattice of up to 8 x 8 GCPs at pixel centres
+  // with a ground point (lon, lat, ellipsoidal height).
+  geo::Georeference slc_georeference;
+  slc_georeference.geolocation = geo::LonLatGeolocation(6, 7);
+  const std::string detected_path = fs::absolute(options.out_prefix + ".tif").lexically_normal().string();
+  slc_georeference.geolocation["X_DATASET"] = detected_path;
+  slc_georeference.geolocation["Y_DATASET"] = detected_path;
+  constexpr int kGcpLattice = 8;
+  for (int i = 0; i < kGcpLattice; ++i) {
+    const int row = int(std::lround(double(i) * (image.height - 1) / (kGcpLattice - 1)));
+    for (int j = 0; j < kGcpLattice; ++j) {
+      const int col = int(std::lround(double(j) * (image.width - 1) / (kGcpLattice - 1)));
+      const size_t k = size_t(row) * image.width + col;
+      if (!std::isfinite(sim.image.height_m[k])) continue;
+      slc_georeference.gcps.push_back({col + 0.5, row + 0.5, sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
+                                       double(sim.image.height_m[k])});
     }
   }
-  image::DbStretch stretch;
-  geo::WritePng(png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);
-  geo::Metadata mask_metadata = metadata;
-  mask_metadata["GISSAR_MASK_CODES"] = kMaskCodesText;
-  geo::WriteByteGeoTiff(mask_tif, mask, image.width, image.height, mask_metadata, {}, MaskCategories());
+  geo::WriteComplexGeoTiff(files.slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
+                           slc_georeference, /*nodata_nan=*/true, options.overviews);
+  if (!files.pauli_png.empty()) {
+    const std::vector<const render::SarImage*> images(slc_images.begin(), slc_images.end());
+    WritePauliQuicklook(files.pauli_png, sim.channels, images, &pauli_record);
+  }
+  return pauli_record;
+}
 
-  nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
-  provenance["inputs"] = nlohmann::json::array();
+// The input files of a product simulation, in the provenance's order.
+nlohmann::json ProductSimulationInputs(const ProductSimulation& sim, const SimulateRequest& options) {
+  nlohmann::json inputs = nlohmann::json::array();
   if (sim.sentinel1) {
     // The product, the terrain (where `pta` finds them), then the orbit file.
-    provenance["inputs"].push_back(Sentinel1InputRecord(*sim.sentinel1));
-    provenance["inputs"].push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
-    if (!options.orbit.empty()) provenance["inputs"].push_back(InputFileRecord(options.orbit));
+    inputs.push_back(Sentinel1InputRecord(*sim.sentinel1));
+    inputs.push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
+    if (!options.orbit.empty()) inputs.push_back(InputFileRecord(options.orbit));
   } else {
     for (const std::string& input : {options.product, options.orbit, options.radar_grid}) {
-      if (!input.empty()) provenance["inputs"].push_back(InputFileRecord(input));
+      if (!input.empty()) inputs.push_back(InputFileRecord(input));
     }
-    provenance["inputs"].push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
+    inputs.push_back(InputFileRecord(options.scene.empty() ? options.dem : options.scene));
   }
+  return inputs;
+}
+
+// How a coherent product simulation makes its phases.
+nlohmann::json CoherentRecord(const ProductSimulation& sim, const SimulateRequest& options) {
+  return {
+      {"phase", "exp(-j 4 pi R / lambda): R = true slant range of each return (geo2rdr on the product orbit; "
+                "multi-bounce: plus the path excess) and of each reflector's phase centre"},
+      {"rough_surface", sim.other_channels.empty()
+                            ? "seeded random micro-phase per return and pixel (expected intensity = incoherent image)"
+                            : "per return and pixel, three seeded phases shared by the channels: HH exp(j phi1), "
+                              "VV conj(rho) exp(j phi1) + sqrt(1 - |rho|^2) exp(j phi2), HV = VH exp(j phi3) "
+                              "(rho: the class's HH-VV correlation)"},
+      {"mirror_paths", sim.other_channels.empty()
+                           ? "path phase, twice the amplitude of one path (the path and its reverse)"
+                           : "sqrt(P) (S_c + S^T_c) with the path phase (Fresnel chain of the path and its reverse)"},
+      {"impulse_response", ImpulseResponseJson(sim, options)},
+      {"wavelength_m", sim.product.wavelength_m},
+      {"seed", options.seed}};
+}
+
+// PREFIX.json of a product simulation (but its timings).
+nlohmann::json ProductSimulationProvenance(ProductSimulation& sim, const render::SarImage& image,
+                                           const SimulateRequest& options, const std::string& command_line,
+                                           const nlohmann::json& pauli_record, const image::DbStretch& stretch) {
+  const std::vector<uint8_t>& mask = image.mask;
+  nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
+  provenance["inputs"] = ProductSimulationInputs(sim, options);
   provenance["product"] = ProductJson(sim);
   provenance["terrain"] = sim.terrain;
   provenance["frame"] = sim.frame;
   provenance["vertical_datum"] = {{"datum", sim.frame["vertical_datum"]}, {"source", sim.frame["vertical_datum_source"]}};
-  if (options.coherent) {
-    provenance["coherent"] = {
-        {"phase", "exp(-j 4 pi R / lambda): R = true slant range of each return (geo2rdr on the product orbit; "
-                  "multi-bounce: plus the path excess) and of each reflector's phase centre"},
-        {"rough_surface", sim.other_channels.empty()
-                              ? "seeded random micro-phase per return and pixel (expected intensity = incoherent image)"
-                              : "per return and pixel, three seeded phases shared by the channels: HH exp(j phi1), "
-                                "VV conj(rho) exp(j phi1) + sqrt(1 - |rho|^2) exp(j phi2), HV = VH exp(j phi3) "
-                                "(rho: the class's HH-VV correlation)"},
-        {"mirror_paths", sim.other_channels.empty()
-                             ? "path phase, twice the amplitude of one path (the path and its reverse)"
-                             : "sqrt(P) (S_c + S^T_c) with the path phase (Fresnel chain of the path and its reverse)"},
-        {"impulse_response", ImpulseResponseJson(sim, options)},
-        {"wavelength_m", sim.product.wavelength_m},
-        {"seed", options.seed}};
-  }
+  if (options.coherent) provenance["coherent"] = CoherentRecord(sim, options);
   if (!sim.other_channels.empty()) {
     provenance["polarimetry"] = {
         {"channels", material::ToString(sim.channels)},
@@ -805,8 +828,34 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
                          {"reflector_returns", image.points.size()},
                          {"mask_pixels", MaskPixelCounts(mask)}};
   provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db}, {"percentiles", {2, 98}}};
+  return provenance;
+}
+
+}  // namespace
+
+SimulateResult RunProductSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const ProductSimulationFiles files = AddProductSimulationFiles(outputs, options);
+  ProductSimulation sim = SimulateForWriting(options, reporter);
+  // NaN where the pixel has no ground point on the terrain (declared no-data, mask 255).
+  render::SarImage image = sim.image.image;
+  if (image.footprint.size() == image.intensity.size()) MarkOutsideFootprint(image, sim.image.image.footprint);
+  geo::Metadata metadata = ProductMetadata(sim, options);
+  std::vector<render::SarImage> channel_images;  // several channels: channel 0 is `image`, the others follow
+  geo::WriteFloatGeoTiff(files.tif, ProductRaster(sim, image, metadata, options, channel_images));
+  nlohmann::json pauli_record;  // the Pauli quicklook's looks and stretch
+  if (options.coherent) pauli_record = WriteProductSlc(files, sim, image, channel_images, metadata, options);
+  image::DbStretch stretch;
+  geo::WritePng(files.png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);
+  geo::Metadata mask_metadata = metadata;
+  mask_metadata["GISSAR_MASK_CODES"] = kMaskCodesText;
+  geo::WriteByteGeoTiff(files.mask_tif, image.mask, image.width, image.height, mask_metadata, {}, MaskCategories());
+
+  nlohmann::json provenance = ProductSimulationProvenance(sim, image, options, command_line, pauli_record, stretch);
   provenance["timings_s"] = {{"total", total.ElapsedSeconds()}};
-  return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
+  return CommitSimulation(outputs, provenance, files.json, image, total.ElapsedSeconds());
 }
 
 void ValidateRequest::Check() const {
@@ -917,25 +966,36 @@ std::string Fixed(double v, int digits) {
   return b;
 }
 
-}  // namespace
+// The files validate writes: PREFIX.json, .md, _side_by_side.png, _histogram.png.
+struct ValidateFiles {
+  fs::path json, md, side_by_side, histogram;
+};
 
-ValidateResult RunValidate(const ValidateRequest& options, const std::string& command_line, Reporter& reporter) {
-  options.Check();
-  Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
-  const fs::path md_path = outputs.Add(options.out_prefix + ".md");
-  const fs::path side_path = outputs.Add(options.out_prefix + "_side_by_side.png");
-  const fs::path hist_path = outputs.Add(options.out_prefix + "_histogram.png");
+ValidateFiles AddValidateFiles(AtomicOutputs& outputs, const ValidateRequest& options) {
+  ValidateFiles files;
+  files.json = outputs.Add(options.out_prefix + ".json");
+  files.md = outputs.Add(options.out_prefix + ".md");
+  files.side_by_side = outputs.Add(options.out_prefix + "_side_by_side.png");
+  files.histogram = outputs.Add(options.out_prefix + "_histogram.png");
+  return files;
+}
+
+// A peer's per-pixel geolocation (ISCE topo layers), when given.
+std::unique_ptr<geo::ReferenceGeolocation> ReadPeerGeolocation(const ValidateRequest& options) {
   std::unique_ptr<geo::ReferenceGeolocation> reference;
   if (!options.reference_geolocation.empty()) {
     reference = std::make_unique<geo::ReferenceGeolocation>(geo::ReadReferenceGeolocation(options.reference_geolocation));
   }
+  return reference;
+}
 
-  // Like with like: the simulation in the radiometry the real image is
-  // calibrated to (an RSLC's |s|^2 is beta0, NISAR's calibration; a SAFE's
-  // with the LUT of options.radiometry).
-  const std::string quantity = image::ToString(image::ParseRadiometry(options.radiometry, "--radiometry"));
+// Like with like: the simulation in the radiometry (`quantity`) the real
+// image is calibrated to (an RSLC's |s|^2 is beta0, NISAR's calibration; a
+// SAFE's with the LUT of options.radiometry), linear, with the real image
+// read on the output grid. A GRD: the simulation onto the GRD's ground-range
+// pixels, where its real image is.
+ProductSimulation SimulateLikeTheRealImage(const ValidateRequest& options, const std::string& quantity,
+                                           Reporter& reporter) {
   SimulateRequest compared = options.simulate;
   compared.radiometry = quantity;
   compared.db = false;
@@ -949,32 +1009,44 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
   real_options.radiometry = quantity;
   real_options.remove_noise = options.noise_removal;
   ProductSimulation sim = SimulateProduct(compared, real_options, reporter);
-  // A GRD: the simulation onto the GRD's ground-range pixels, where its real
-  // image is (a Sentinel-1 product's real image is read on the output grid).
   if (sim.sentinel1 && sim.sentinel1->ground_range) ResampleToGroundRange(*sim.sentinel1, sim);
-  const int width = sim.image.image.width, height = sim.image.image.height;
-  GISSAR_CHECK(sim.product.amplitude.size() == size_t(width) * height);
-  const size_t n = size_t(width) * height;
+  return sim;
+}
+
+// The real image's intensity on the simulation's grid, and the pixels
+// compared: those with a ground point and a positive real intensity.
+struct RealWindow {
+  int width = 0, height = 0;
+  size_t n = 0;
+  std::vector<float> real;
+  std::vector<uint8_t> valid;
+};
+
+RealWindow ReadRealWindow(const ProductSimulation& sim) {
+  RealWindow w;
+  w.width = sim.image.image.width;
+  w.height = sim.image.image.height;
+  GISSAR_CHECK(sim.product.amplitude.size() == size_t(w.width) * w.height);
+  const size_t n = w.n = size_t(w.width) * w.height;
+  w.real.resize(n);
+  for (size_t k = 0; k < n; ++k) w.real[k] = sim.product.amplitude[k] * sim.product.amplitude[k];
+  w.valid.resize(n);
+  for (size_t k = 0; k < n; ++k) w.valid[k] = std::isfinite(sim.image.height_m[k]) && w.real[k] > 0.0f ? 1 : 0;
+  return w;
+}
+
+// Correlation with the real amplitude: per multilook size, r of the block
+// means in dB, intensity and amplitude (and the peer's simamp, when given
+// on the same grid).
+nlohmann::json CorrelateAtLooks(const ProductSimulation& sim, const RealWindow& w,
+                                const geo::ReferenceGeolocation* reference, const std::vector<int>& looks) {
   const render::SarImage& image = sim.image.image;
-  std::vector<float> real(n);
-  for (size_t k = 0; k < n; ++k) real[k] = sim.product.amplitude[k] * sim.product.amplitude[k];
-  std::vector<uint8_t> valid(n);
-  for (size_t k = 0; k < n; ++k) valid[k] = std::isfinite(sim.image.height_m[k]) && real[k] > 0.0f ? 1 : 0;
-
-  nlohmann::json report = ProvenanceHeader("validate", command_line, options.ToJson());
-  nlohmann::json inputs = nlohmann::json::array(
-      {sim.sentinel1 ? Sentinel1InputRecord(*sim.sentinel1) : InputFileRecord(options.simulate.product),
-       InputFileRecord(options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)});
-  report["product"] = ProductJson(sim);
-  report["terrain"] = sim.terrain;
-  report["frame"] = sim.frame;
-  report["vertical_datum"] = {{"datum", sim.frame["vertical_datum"]}, {"source", sim.frame["vertical_datum_source"]}};
-  report["mask_pixels"] = MaskPixelCounts(image.mask);
-  report["pixels_geolocated"] = sim.image.geolocated;
-
-  // Correlation with the real amplitude.
+  const int width = w.width, height = w.height;
+  const size_t n = w.n;
+  const std::vector<float>& real = w.real;
+  const std::vector<uint8_t>& valid = w.valid;
   nlohmann::json corr = nlohmann::json::array();
-  for (int k : options.looks) {
+  for (int k : looks) {
     int64_t blocks = 0;
     const double r_db = MultilookPearson(image.intensity, real, width, height, k, true, true, valid, &blocks);
     std::vector<float> sim_amp(n), real_amp(n);
@@ -1000,158 +1072,146 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
     }
     corr.push_back(row);
   }
-  report["correlation"] = corr;
+  return corr;
+}
 
-  // Geolocation against the reference: ground distance, and the pixel the
-  // reference's point falls in by geo2rdr on the product orbit.
-  nlohmann::json geoloc = nullptr;
-  std::vector<float> diff_db(n, NAN);
-  if (reference) {
-    if (reference->width != width || reference->height != height) {
-      throw InputError("reference geolocation is " + std::to_string(reference->width) + " x " +
-                           std::to_string(reference->height) + ", product grid " + std::to_string(width) + " x " +
-                           std::to_string(height),
-                       options.reference_geolocation);
-    }
-    inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "x.rdr").string()));
-    inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "y.rdr").string()));
-    inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "z.rdr").string()));
-    const sensor::Orbit orbit(sim.product.orbit.time_s, sim.product.orbit.position_m, sim.product.orbit.velocity_mps);
-    double s_col = 0, s_row = 0, s_col2 = 0, s_row2 = 0, s_ground2 = 0, s_h = 0, s_h2 = 0, max_ground = 0;
-    int64_t count = 0;
-    for (int i = 0; i < height; ++i) {
-      for (int j = 0; j < width; ++j) {
-        const size_t k = size_t(i) * width + j;
-        if (!std::isfinite(sim.image.height_m[k])) continue;
-        const Eigen::Vector3d ref = geo::LocalFrame::EcefFromGeodetic(reference->lon_deg[k], reference->lat_deg[k],
-                                                                      reference->height_m[k]);
-        const auto rc = sensor::Geo2Rdr(orbit, ref, sim.grid.TimeOfRow(i));
-        if (!rc) continue;
-        const double dcol = sim.grid.ColOfRange(rc->range_m) - j, drow = sim.grid.RowOfTime(rc->time_s) - i;
-        const Eigen::Vector3d ours = geo::LocalFrame::EcefFromGeodetic(sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
-                                                                       sim.image.height_m[k]);
-        const geo::LocalFrame local(reference->lon_deg[k], reference->lat_deg[k], reference->height_m[k]);
-        const Eigen::Vector3d d = local.EnuFromGeodetic(sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
-                                                        sim.image.height_m[k]);
-        (void)ours;
-        const double ground = std::hypot(d.x(), d.y());
-        s_col += dcol;
-        s_row += drow;
-        s_col2 += dcol * dcol;
-        s_row2 += drow * drow;
-        s_ground2 += ground * ground;
-        s_h += d.z();
-        s_h2 += d.z() * d.z();
-        max_ground = std::max(max_ground, ground);
-        ++count;
-      }
-    }
-    if (count == 0) throw InputError("no pixel geolocated by both gissar and the reference", options.reference_geolocation);
-    const double c = double(count);
-    geoloc = {{"pixels", count},
-              {"range_px_rms", std::sqrt(s_col2 / c)},
-              {"azimuth_px_rms", std::sqrt(s_row2 / c)},
-              {"range_px_mean", s_col / c},
-              {"azimuth_px_mean", s_row / c},
-              {"range_m_rms", std::sqrt(s_col2 / c) * sim.grid.dr_m},
-              {"azimuth_m_rms", std::sqrt(s_row2 / c) * sim.image.tracing_geometry.azimuth_spacing_m},
-              {"ground_m_rms", std::sqrt(s_ground2 / c)},
-              {"ground_m_max", max_ground},
-              {"height_m_mean", s_h / c},
-              {"height_m_rms", std::sqrt(s_h2 / c)},
-              {"method",
-               "range/azimuth: reference point -> geo2rdr on the product orbit -> pixel offset; ground: horizontal "
-               "distance between gissar's and the reference's ground points of each pixel"}};
+// Geolocation against the reference: ground distance, and the pixel the
+// reference's point falls in by geo2rdr on the product orbit. Adds the
+// reference's files to `inputs`.
+nlohmann::json CompareGeolocation(const ProductSimulation& sim, const geo::ReferenceGeolocation& reference,
+                                  const ValidateRequest& options, nlohmann::json& inputs) {
+  const int width = sim.image.image.width, height = sim.image.image.height;
+  if (reference.width != width || reference.height != height) {
+    throw InputError("reference geolocation is " + std::to_string(reference.width) + " x " +
+                         std::to_string(reference.height) + ", product grid " + std::to_string(width) + " x " +
+                         std::to_string(height),
+                     options.reference_geolocation);
   }
-  report["geolocation"] = geoloc;
-  report["inputs"] = inputs;
+  inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "x.rdr").string()));
+  inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "y.rdr").string()));
+  inputs.push_back(InputFileRecord((fs::path(options.reference_geolocation) / "z.rdr").string()));
+  const sensor::Orbit orbit(sim.product.orbit.time_s, sim.product.orbit.position_m, sim.product.orbit.velocity_mps);
+  double s_col = 0, s_row = 0, s_col2 = 0, s_row2 = 0, s_ground2 = 0, s_h = 0, s_h2 = 0, max_ground = 0;
+  int64_t count = 0;
+  for (int i = 0; i < height; ++i) {
+    for (int j = 0; j < width; ++j) {
+      const size_t k = size_t(i) * width + j;
+      if (!std::isfinite(sim.image.height_m[k])) continue;
+      const Eigen::Vector3d ref = geo::LocalFrame::EcefFromGeodetic(reference.lon_deg[k], reference.lat_deg[k],
+                                                                    reference.height_m[k]);
+      const auto rc = sensor::Geo2Rdr(orbit, ref, sim.grid.TimeOfRow(i));
+      if (!rc) continue;
+      const double dcol = sim.grid.ColOfRange(rc->range_m) - j, drow = sim.grid.RowOfTime(rc->time_s) - i;
+      const geo::LocalFrame local(reference.lon_deg[k], reference.lat_deg[k], reference.height_m[k]);
+      const Eigen::Vector3d d = local.EnuFromGeodetic(sim.image.lon_deg_exact[k], sim.image.lat_deg_exact[k],
+                                                      sim.image.height_m[k]);
+      const double ground = std::hypot(d.x(), d.y());
+      s_col += dcol;
+      s_row += drow;
+      s_col2 += dcol * dcol;
+      s_row2 += drow * drow;
+      s_ground2 += ground * ground;
+      s_h += d.z();
+      s_h2 += d.z() * d.z();
+      max_ground = std::max(max_ground, ground);
+      ++count;
+    }
+  }
+  if (count == 0) throw InputError("no pixel geolocated by both gissar and the reference", options.reference_geolocation);
+  const double c = double(count);
+  return {{"pixels", count},
+          {"range_px_rms", std::sqrt(s_col2 / c)},
+          {"azimuth_px_rms", std::sqrt(s_row2 / c)},
+          {"range_px_mean", s_col / c},
+          {"azimuth_px_mean", s_row / c},
+          {"range_m_rms", std::sqrt(s_col2 / c) * sim.grid.dr_m},
+          {"azimuth_m_rms", std::sqrt(s_row2 / c) * sim.image.tracing_geometry.azimuth_spacing_m},
+          {"ground_m_rms", std::sqrt(s_ground2 / c)},
+          {"ground_m_max", max_ground},
+          {"height_m_mean", s_h / c},
+          {"height_m_rms", std::sqrt(s_h2 / c)},
+          {"method",
+           "range/azimuth: reference point -> geo2rdr on the product orbit -> pixel offset; ground: horizontal "
+           "distance between gissar's and the reference's ground points of each pixel"}};
+}
 
-  // Pictures: real | simulated (dB, each with its own 2-98 % stretch) and
-  // the histogram of the dB difference (simulated - real, each image's
-  // median removed) after the largest multilook.
-  const int kmax = *std::max_element(options.looks.begin(), options.looks.end());
-  std::vector<uint8_t> real_grey = image::DbQuicklook(real, 2.0, 98.0);
+// Real | simulated (dB, each with its own 2-98 % stretch) | mask, side by side.
+void WriteSideBySide(const fs::path& path, const render::SarImage& image, const RealWindow& w) {
+  std::vector<uint8_t> real_grey = image::DbQuicklook(w.real, 2.0, 98.0);
   std::vector<uint8_t> sim_grey = image::DbQuicklook(image.intensity, 2.0, 98.0);
-  std::vector<uint8_t> mask_grey(n);
-  for (size_t k = 0; k < n; ++k) {
+  std::vector<uint8_t> mask_grey(w.n);
+  for (size_t k = 0; k < w.n; ++k) {
     const uint8_t m = image.mask[k] & 3;
     mask_grey[k] = m == 0 ? 255 : m == 1 ? 170 : m == 2 ? 0 : 85;
   }
   int strip_width = 0;
-  const std::vector<uint8_t> strip = image::SideBySide({real_grey, sim_grey, mask_grey}, width, height, 6, &strip_width);
-  geo::WritePng(side_path, strip, strip_width, height, 1);
-  std::vector<float> differences;
+  const std::vector<uint8_t> strip = image::SideBySide({real_grey, sim_grey, mask_grey}, w.width, w.height, 6, &strip_width);
+  geo::WritePng(path, strip, strip_width, w.height, 1);
+}
+
+// The radiometric level after k x k looks: real minus simulated, the medians
+// of the block means in dB, and each block's dB difference (simulated -
+// real, each image's median removed).
+struct LevelComparison {
   double level_db = std::numeric_limits<double>::quiet_NaN();
-  {
-    std::vector<double> a, b;
-    for (int r0 = 0; r0 + kmax <= height; r0 += kmax) {
-      for (int c0 = 0; c0 + kmax <= width; c0 += kmax) {
-        double sa = 0, sb = 0;
-        bool ok = true;
-        for (int r = r0; r < r0 + kmax; ++r) {
-          for (int c2 = c0; c2 < c0 + kmax; ++c2) {
-            const size_t i = size_t(r) * width + c2;
-            ok = ok && valid[i];
-            sa += image.intensity[i];
-            sb += real[i];
-          }
-        }
-        if (ok && sa > 0 && sb > 0) {
-          a.push_back(10 * std::log10(sa));
-          b.push_back(10 * std::log10(sb));
+  std::vector<float> differences;
+};
+
+LevelComparison CompareLevels(const render::SarImage& image, const RealWindow& w, int kmax) {
+  const int width = w.width, height = w.height;
+  LevelComparison out;
+  std::vector<double> a, b;
+  for (int r0 = 0; r0 + kmax <= height; r0 += kmax) {
+    for (int c0 = 0; c0 + kmax <= width; c0 += kmax) {
+      double sa = 0, sb = 0;
+      bool ok = true;
+      for (int r = r0; r < r0 + kmax; ++r) {
+        for (int c2 = c0; c2 < c0 + kmax; ++c2) {
+          const size_t i = size_t(r) * width + c2;
+          ok = ok && w.valid[i];
+          sa += image.intensity[i];
+          sb += w.real[i];
         }
       }
+      if (ok && sa > 0 && sb > 0) {
+        a.push_back(10 * std::log10(sa));
+        b.push_back(10 * std::log10(sb));
+      }
     }
-    auto median = [](std::vector<double> v) {
-      if (v.empty()) return 0.0;
-      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-      return v[v.size() / 2];
-    };
-    const double ma = median(a), mb = median(b);
-    level_db = mb - ma;
-    for (size_t i = 0; i < a.size(); ++i) differences.push_back(static_cast<float>((a[i] - ma) - (b[i] - mb)));
   }
-  std::vector<int64_t> counts;
-  const std::vector<uint8_t> hist = image::HistogramPlot(differences, -15.0, 15.0, 60, 480, 200, &counts);
-  geo::WritePng(hist_path, hist, 480, 200, 1);
-  // The radiometric level: real minus simulated, the medians of the k x k
-  // block means in dB (the calibration chains and the material model
-  // together; 0 for a real image that is the simulation).
-  report["level_difference_db"] = {{"looks", kmax},
-                                   {"real_minus_simulated_median_db", Number(level_db)},
-                                   {"blocks", static_cast<int64_t>(differences.size())}};
-  report["difference_histogram"] = {{"looks", kmax},
-                                    {"quantity", "simulated dB - real dB, each minus its median"},
-                                    {"low_db", -15.0},
-                                    {"high_db", 15.0},
-                                    {"counts", counts}};
-  std::vector<std::string> names;
-  for (const fs::path& p : outputs.final_paths()) names.push_back(fs::absolute(p).string());
-  report["outputs"] = names;
-  // The quantity on both sides: the real image's formula (the LUT, the noise
-  // subtracted or not) and the simulation's conversion from beta0.
+  auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  const double ma = median(a), mb = median(b);
+  out.level_db = mb - ma;
+  for (size_t i = 0; i < a.size(); ++i) out.differences.push_back(static_cast<float>((a[i] - ma) - (b[i] - mb)));
+  return out;
+}
+
+// The real image's quantity: the formula (the LUT, the noise subtracted or not).
+std::string RealFormula(const ProductSimulation& sim, const std::string& quantity, bool noise_removal) {
   std::string real_formula = "|s|^2 of the RSLC (beta0)";
   if (sim.sentinel1) {
     const std::string lut = quantity == "sigma0" ? "sigmaNought" : quantity == "gamma0" ? "gamma" : "betaNought";
-    real_formula = quantity + (options.noise_removal ? " = (|DN|^2 - N) / " : " = |DN|^2 / ") + lut +
+    real_formula = quantity + (noise_removal ? " = (|DN|^2 - N) / " : " = |DN|^2 / ") + lut +
                    "^2 (the SAFE's calibration LUT, bilinear; " +
-                   (options.noise_removal ? "N the thermal noise power of the noise annotation, noiseRangeLut x "
-                                                            "noiseAzimuthLut where it has one, bilinear"
-                                          : "no noise removal") +
+                   (noise_removal ? "N the thermal noise power of the noise annotation, noiseRangeLut x "
+                                                    "noiseAzimuthLut where it has one, bilinear"
+                                  : "no noise removal") +
                    ")";
   }
-  report["radiometry"] = {
-      {"quantity", quantity},
-      {"noise_removal", options.noise_removal},
-      {"real", real_formula},
-      {"simulated", quantity == "beta0" ? "beta0 as rendered"
-                                        : quantity + " = beta0 x " + (quantity == "sigma0" ? "sin" : "tan") +
-                                              "(ellipsoid incidence of each pixel)"}};
-  report["real_image"] = real_formula + ", " + (sim.sentinel1 ? sim.sentinel1->annotation.polarization
-                                                              : sim.product.polarization);
-  report["side_by_side"] = std::string(sim.sentinel1 ? "left: real " + quantity + " dB" : "left: real |HH|^2 dB") + "; middle: simulated dB; right: mask (white none, light grey layover, black shadow, dark grey both)";
-  report["timings_s"] = {{"total", total.ElapsedSeconds()}};
+  return real_formula;
+}
 
+// PREFIX.md: the terrain, the quantity compared, the correlation table and
+// the geolocation table of the report.
+std::string ValidationMarkdown(const ValidateRequest& options, ProductSimulation& sim, const nlohmann::json& report,
+                               const std::string& quantity) {
+  const int width = sim.image.image.width, height = sim.image.image.height;
+  const nlohmann::json& corr = report["correlation"];
+  const nlohmann::json& geoloc = report["geolocation"];
   std::ostringstream md;
   md << "# Validation of " << fs::path(options.simulate.product).filename().string() << "\n\n";
   md << "Terrain: " << (options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)
@@ -1187,13 +1247,82 @@ ValidateResult RunValidate(const ValidateRequest& options, const std::string& co
      << fs::path(options.out_prefix + "_side_by_side.png").filename().string() << " ("
      << report["side_by_side"].get<std::string>() << "), "
      << fs::path(options.out_prefix + "_histogram.png").filename().string() << ".\n";
-  {
-    std::ofstream out(md_path);
-    out << md.str();
-    out.close();  // a full disk shows when the buffer is flushed
-    if (!out) throw WriteError("cannot write report", md_path, errno);
-  }
-  WriteJsonFile(report, json_path);
+  return md.str();
+}
+
+void WriteMarkdown(const fs::path& md_path, const std::string& text) {
+  std::ofstream out(md_path);
+  out << text;
+  out.close();  // a full disk shows when the buffer is flushed
+  if (!out) throw WriteError("cannot write report", md_path, errno);
+}
+
+}  // namespace
+
+ValidateResult RunValidate(const ValidateRequest& options, const std::string& command_line, Reporter& reporter) {
+  options.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const ValidateFiles files = AddValidateFiles(outputs, options);
+  const std::unique_ptr<geo::ReferenceGeolocation> reference = ReadPeerGeolocation(options);
+  const std::string quantity = image::ToString(image::ParseRadiometry(options.radiometry, "--radiometry"));
+  ProductSimulation sim = SimulateLikeTheRealImage(options, quantity, reporter);
+  const RealWindow real = ReadRealWindow(sim);
+  const render::SarImage& image = sim.image.image;
+
+  nlohmann::json report = ProvenanceHeader("validate", command_line, options.ToJson());
+  nlohmann::json inputs = nlohmann::json::array(
+      {sim.sentinel1 ? Sentinel1InputRecord(*sim.sentinel1) : InputFileRecord(options.simulate.product),
+       InputFileRecord(options.simulate.scene.empty() ? options.simulate.dem : options.simulate.scene)});
+  report["product"] = ProductJson(sim);
+  report["terrain"] = sim.terrain;
+  report["frame"] = sim.frame;
+  report["vertical_datum"] = {{"datum", sim.frame["vertical_datum"]}, {"source", sim.frame["vertical_datum_source"]}};
+  report["mask_pixels"] = MaskPixelCounts(image.mask);
+  report["pixels_geolocated"] = sim.image.geolocated;
+  report["correlation"] = CorrelateAtLooks(sim, real, reference.get(), options.looks);
+  report["geolocation"] = reference ? CompareGeolocation(sim, *reference, options, inputs) : nlohmann::json(nullptr);
+  report["inputs"] = inputs;
+
+  // Pictures: real | simulated, and the histogram of the dB difference after
+  // the largest multilook.
+  const int kmax = *std::max_element(options.looks.begin(), options.looks.end());
+  WriteSideBySide(files.side_by_side, image, real);
+  const LevelComparison levels = CompareLevels(image, real, kmax);
+  std::vector<int64_t> counts;
+  const std::vector<uint8_t> hist = image::HistogramPlot(levels.differences, -15.0, 15.0, 60, 480, 200, &counts);
+  geo::WritePng(files.histogram, hist, 480, 200, 1);
+  // The radiometric level: real minus simulated, the medians of the k x k
+  // block means in dB (the calibration chains and the material model
+  // together; 0 for a real image that is the simulation).
+  report["level_difference_db"] = {{"looks", kmax},
+                                   {"real_minus_simulated_median_db", Number(levels.level_db)},
+                                   {"blocks", static_cast<int64_t>(levels.differences.size())}};
+  report["difference_histogram"] = {{"looks", kmax},
+                                    {"quantity", "simulated dB - real dB, each minus its median"},
+                                    {"low_db", -15.0},
+                                    {"high_db", 15.0},
+                                    {"counts", counts}};
+  std::vector<std::string> names;
+  for (const fs::path& p : outputs.final_paths()) names.push_back(fs::absolute(p).string());
+  report["outputs"] = names;
+  // The quantity on both sides: the real image's formula and the
+  // simulation's conversion from beta0.
+  const std::string real_formula = RealFormula(sim, quantity, options.noise_removal);
+  report["radiometry"] = {
+      {"quantity", quantity},
+      {"noise_removal", options.noise_removal},
+      {"real", real_formula},
+      {"simulated", quantity == "beta0" ? "beta0 as rendered"
+                                        : quantity + " = beta0 x " + (quantity == "sigma0" ? "sin" : "tan") +
+                                              "(ellipsoid incidence of each pixel)"}};
+  report["real_image"] = real_formula + ", " + (sim.sentinel1 ? sim.sentinel1->annotation.polarization
+                                                              : sim.product.polarization);
+  report["side_by_side"] = std::string(sim.sentinel1 ? "left: real " + quantity + " dB" : "left: real |HH|^2 dB") + "; middle: simulated dB; right: mask (white none, light grey layover, black shadow, dark grey both)";
+  report["timings_s"] = {{"total", total.ElapsedSeconds()}};
+
+  WriteMarkdown(files.md, ValidationMarkdown(options, sim, report, quantity));
+  WriteJsonFile(report, files.json);
   outputs.Commit();
   ValidateResult result;
   result.outputs = outputs.final_paths();

@@ -151,6 +151,10 @@ struct ValidateRequest {
   // --noise-removal: a Sentinel-1 product's thermal noise LUTs subtracted
   // from the real image (|DN|^2 - N; NaN where negative).
   bool noise_removal = false;
+  // --polarization of a Sentinel-1 product: the channel simulated and
+  // compared (with terrain; "" = simulate.polarization), or the one checked
+  // against the geolocation grids (without; "" = every one present).
+  std::string polarization;
   std::string reference_geolocation;       // directory with x.rdr, y.rdr, z.rdr (optional)
   std::vector<int> looks = {1, 3, 5};      // k of the k x k multilooks
   std::string out_prefix;                  // REPORT.json, .md, _side_by_side.png, _histogram.png

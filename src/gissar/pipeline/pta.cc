@@ -654,29 +654,19 @@ void PtaRequest::ApplyJson(const json& values, const std::string& source) {
   PtaFields().ApplyJson(*this, values, source);
 }
 
-PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Reporter& reporter) {
-  request.Check();
-  Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path out_json = outputs.Add(request.out_prefix + ".json");
-  const fs::path out_png = outputs.Add(request.out_prefix + "_irf.png");
+namespace {
 
-  const std::vector<material::ReflectorSpec> rows = material::ReadReflectorsCsv(request.reflectors);
-  if (rows.empty()) throw InputError("the reflectors file holds no reflector", request.reflectors);
-  Source source = !request.product.empty() && geo::IsSentinel1Path(request.product)
-                      ? Sentinel1PtaSource(request, rows, reporter)
-                  : request.product.empty() ? ImageSource(request, reporter)
-                                            : ProductSource(request);
-  ThrowIfCancelled(reporter, "pta");
-  const bool quad = std::all_of(std::begin(kChannels), std::end(kChannels),
-                                [&](const char* c) { return source.channels.count(c) > 0; });
-  if (!source.calibrated) {
-    reporter.Warn("pta: " + (request.product.empty() ? request.image : request.product) +
-                  " states no beta0 calibration: RCS reported uncalibrated (|DN|^2 x m^2)");
-  }
-  const std::vector<std::complex<float>>& slc = source.channels.at(source.channel);
+// The complex image the reflectors are measured on: a Sentinel-1 SAFE, a
+// simulation's PREFIX_slc.tif or a NISAR product.
+Source OpenSource(const PtaRequest& request, const std::vector<material::ReflectorSpec>& rows, Reporter& reporter) {
+  return !request.product.empty() && geo::IsSentinel1Path(request.product) ? Sentinel1PtaSource(request, rows, reporter)
+         : request.product.empty()                                         ? ImageSource(request, reporter)
+                                                                           : ProductSource(request);
+}
 
-  // Predictions first: a bad row stops the run before anything is measured.
+// Predictions first: a bad row stops the run before anything is measured.
+std::vector<Prediction> PredictReflectors(const PtaRequest& request, const Source& source,
+                                          const std::vector<material::ReflectorSpec>& rows) {
   std::vector<Prediction> predictions;
   for (const material::ReflectorSpec& spec : rows) {
     const std::string where = request.reflectors + " row " + std::to_string(spec.row);
@@ -684,108 +674,168 @@ PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Rep
     CheckInside(p, source.width, source.height, request.product.empty() ? "image" : "product's radar grid", where);
     predictions.push_back(std::move(p));
   }
+  return predictions;
+}
 
+// Expected RCS: physical optics seen from the sensor, the channel's share.
+struct ExpectedRcs {
+  double pattern_rcs = 0.0;  // physical optics in the sensor's direction
+  double share = 1.0;        // the measured channel's share of the reflector's scattering matrix
+  double expected = 0.0;     // pattern_rcs x share
+  double peak_rcs = 0.0;     // on boresight
+  double off_boresight_deg = 0.0;
+};
+
+ExpectedRcs ExpectReflector(const material::ReflectorSpec& spec, const Source& source, const Prediction& p) {
+  ExpectedRcs e;
+  const Eigen::Vector3d boresight = material::BoresightVector(spec.boresight_azimuth_deg, spec.boresight_elevation_deg);
+  e.pattern_rcs = material::ReflectorRcs(spec.type, spec.size_m, source.wavelength_m, boresight, p.to_sensor_enu);
+  double share = 1.0;
+  if (source.polarimetric_expectation) {
+    const material::ScatteringMatrix s = material::ReflectorMatrix(spec.type, spec.size_m, source.wavelength_m, 0.0);
+    share = material::ChannelRcs(s, material::ParsePolarization(source.channel, "--polarization")) /
+            material::PeakRcs(spec.type, spec.size_m, source.wavelength_m);
+  }
+  e.share = share;
+  e.expected = e.pattern_rcs * share;
+  e.peak_rcs = material::PeakRcs(spec.type, spec.size_m, source.wavelength_m);
+  e.off_boresight_deg = std::acos(std::clamp(boresight.dot(p.to_sensor_enu), -1.0, 1.0)) / kDeg;
+  return e;
+}
+
+// The measurement's options for one reflector (its prediction's azimuth
+// spacing and beta0 factor).
+image::PointTargetOptions MeasurementOptions(const PtaRequest& request, const Source& source, const Prediction& p) {
+  image::PointTargetOptions options;
+  options.range_spacing_m = source.range_spacing_m;
+  options.azimuth_spacing_m = p.azimuth_spacing_m;
+  options.search_radius_px = request.search_px;
+  options.chip_half_size_px = request.chip_half_size_px;
+  options.upsampling = request.upsampling;
+  options.beta0_calibration = p.beta0_factor;
+  options.min_peak_to_background_db = request.detection_threshold_db;
+  return options;
+}
+
+// The record of a measured reflector: the measurement, the expectation and
+// the calibration offset.
+void RecordMeasurement(json& r, const image::PointTargetMeasurement& m, const ExpectedRcs& e, const Source& source,
+                       const Prediction& p) {
+  r["found"] = true;
+  r.update(image::ToJson(m));
+  r["rcs_expected_dbsm"] = e.expected > 0.0 ? json(10.0 * std::log10(e.expected)) : json(nullptr);
+  r["calibration_offset_db"] = e.expected > 0.0 ? json(m.rcs_dbsm - 10.0 * std::log10(e.expected)) : json(nullptr);
+  r["calibrated"] = m.calibrated;
+  r["beta0_calibration"] = m.beta0_calibration;
+  r["expected"] = {{"peak_rcs_dbsm", 10.0 * std::log10(e.peak_rcs)},
+                   {"off_boresight_deg", e.off_boresight_deg},
+                   {"pattern_db", e.pattern_rcs > 0.0 ? json(10.0 * std::log10(e.pattern_rcs / e.peak_rcs)) : json(nullptr)},
+                   {"channel_share", e.share},
+                   {"wavelength_m", source.wavelength_m}};
+  r["resolution_px"] = Pair(m.resolution_px.range, m.resolution_px.azimuth);
+  r["main_lobe_px"] = Pair(m.main_lobe_px.range, m.main_lobe_px.azimuth);
+  r["islr_2d_db"] = m.islr_2d_db;
+  r["scr_db"] = m.scr_db;
+  r["peak_beta0_db"] = m.peak_beta0_db;
+  r["spectrum_centre_cycles_per_px"] =
+      Pair(m.spectrum_centre_cycles_per_px.range, m.spectrum_centre_cycles_per_px.azimuth);
+  r["azimuth_spacing_m"] = p.azimuth_spacing_m;
+  r["range_spacing_m"] = source.range_spacing_m;
+}
+
+// Quad-pol: the four channels interpolated at the measured peak, the HH/VV
+// ratio and phase and the cross-pol isolation; false (and the reason
+// recorded) when the interpolation chip leaves the image.
+bool RecordQuadPol(json& r, const image::PointTargetMeasurement& m, const Source& source, const PtaRequest& request) {
+  std::map<std::string, std::complex<double>> value;
+  json channels = json::object();
+  for (const char* c : kChannels) {
+    const auto v = image::InterpolateComplex(source.channels.at(c), source.width, source.height, m.peak_px.range,
+                                             m.peak_px.azimuth, m.spectrum_centre_cycles_per_px,
+                                             request.chip_half_size_px);
+    if (!v) break;  // the chip around the sub-pixel peak leaves the image
+    value[c] = *v;
+    channels[c] = {{"power_db", 10.0 * std::log10(std::max(std::norm(*v), 1e-300))},
+                   {"phase_deg", std::arg(*v) / kDeg}};
+  }
+  if (value.size() < 4) {
+    r["hh_vv_ratio_db"] = r["hh_vv_phase_deg"] = r["cross_pol_isolation_db"] = nullptr;
+    r["quad_pol_reason"] = "the interpolation chip around the sub-pixel peak leaves the image";
+    return false;
+  }
+  const double hh = std::norm(value["HH"]), vv = std::norm(value["VV"]);
+  const double hv = std::norm(value["HV"]), vh = std::norm(value["VH"]);
+  r["hh_vv_ratio_db"] = 10.0 * std::log10(hh / vv);
+  r["hh_vv_phase_deg"] = std::arg(value["HH"] * std::conj(value["VV"])) / kDeg;
+  r["cross_pol_isolation_db"] = 10.0 * std::log10((hh + vv) / (hv + vh));
+  r["channels_at_peak"] = channels;
+  return true;
+}
+
+// Every reflector's record, the impulse responses to plot, how many were
+// measured and why the first was not.
+struct Measurements {
   json reflectors = json::array();
   std::vector<image::IrfPlotEntry> plots;
   int measured = 0;
   std::string first_reason;
+};
+
+// One reflector: its peak measured near the prediction, compared with the
+// expected RCS (and, quad-pol, its polarimetric values at the peak).
+void MeasureReflector(const PtaRequest& request, const Source& source, const std::vector<std::complex<float>>& slc,
+                      const material::ReflectorSpec& spec, const Prediction& p, bool quad, Reporter& reporter,
+                      Measurements& out) {
+  const image::PointTargetOptions options = MeasurementOptions(request, source, p);
+  std::string why;
+  const auto m = image::MeasurePointTarget(slc, source.width, source.height, p.col, p.row, options, &why);
+  json r;
+  r["id"] = spec.row;
+  r["type"] = material::ToString(spec.type);
+  r["lon_deg"] = spec.lon_deg;
+  r["lat_deg"] = spec.lat_deg;
+  r["polarization"] = source.channel;
+  r["prediction"] = p.geometry;
+  const ExpectedRcs expected = ExpectReflector(spec, source, p);
+  if (!m) {
+    r["found"] = false;
+    r["reason"] = why;
+    r["predicted_px"] = Pair(p.col, p.row);
+    reporter.Warn("pta: " + request.reflectors + " row " + std::to_string(spec.row) + ": not measured: " + why);
+    if (out.first_reason.empty()) out.first_reason = "row " + std::to_string(spec.row) + ": " + why;
+    out.reflectors.push_back(r);
+    return;
+  }
+  ++out.measured;
+  RecordMeasurement(r, *m, expected, source, p);
+  if (quad && !RecordQuadPol(r, *m, source, request)) {
+    out.reflectors.push_back(r);
+    out.plots.push_back({"row " + std::to_string(spec.row), *m, source.range_spacing_m, p.azimuth_spacing_m});
+    return;
+  }
+  out.reflectors.push_back(r);
+  char caption[200];
+  std::snprintf(caption, sizeof caption, "row %d %s, %s", spec.row, material::ToString(spec.type).c_str(),
+                source.channel.c_str());
+  out.plots.push_back({caption, *m, source.range_spacing_m, p.azimuth_spacing_m});
+}
+
+Measurements MeasureReflectors(const PtaRequest& request, const Source& source,
+                               const std::vector<std::complex<float>>& slc,
+                               const std::vector<material::ReflectorSpec>& rows,
+                               const std::vector<Prediction>& predictions, bool quad, Reporter& reporter) {
+  Measurements out;
   for (size_t k = 0; k < rows.size(); ++k) {
     ThrowIfCancelled(reporter, "pta");
-    const material::ReflectorSpec& spec = rows[k];
-    const Prediction& p = predictions[k];
-    image::PointTargetOptions options;
-    options.range_spacing_m = source.range_spacing_m;
-    options.azimuth_spacing_m = p.azimuth_spacing_m;
-    options.search_radius_px = request.search_px;
-    options.chip_half_size_px = request.chip_half_size_px;
-    options.upsampling = request.upsampling;
-    options.beta0_calibration = p.beta0_factor;
-    options.min_peak_to_background_db = request.detection_threshold_db;
-    std::string why;
-    const auto m = image::MeasurePointTarget(slc, source.width, source.height, p.col, p.row, options, &why);
-    json r;
-    r["id"] = spec.row;
-    r["type"] = material::ToString(spec.type);
-    r["lon_deg"] = spec.lon_deg;
-    r["lat_deg"] = spec.lat_deg;
-    r["polarization"] = source.channel;
-    r["prediction"] = p.geometry;
-    // Expected RCS: physical optics seen from the sensor, the channel's share.
-    const Eigen::Vector3d boresight = material::BoresightVector(spec.boresight_azimuth_deg, spec.boresight_elevation_deg);
-    const double pattern_rcs =
-        material::ReflectorRcs(spec.type, spec.size_m, source.wavelength_m, boresight, p.to_sensor_enu);
-    double share = 1.0;
-    if (source.polarimetric_expectation) {
-      const material::ScatteringMatrix s = material::ReflectorMatrix(spec.type, spec.size_m, source.wavelength_m, 0.0);
-      share = material::ChannelRcs(s, material::ParsePolarization(source.channel, "--polarization")) /
-              material::PeakRcs(spec.type, spec.size_m, source.wavelength_m);
-    }
-    const double expected = pattern_rcs * share;
-    const double peak_rcs = material::PeakRcs(spec.type, spec.size_m, source.wavelength_m);
-    const double off_boresight_deg = std::acos(std::clamp(boresight.dot(p.to_sensor_enu), -1.0, 1.0)) / kDeg;
-    if (!m) {
-      r["found"] = false;
-      r["reason"] = why;
-      r["predicted_px"] = Pair(p.col, p.row);
-      reporter.Warn("pta: " + request.reflectors + " row " + std::to_string(spec.row) + ": not measured: " + why);
-      if (first_reason.empty()) first_reason = "row " + std::to_string(spec.row) + ": " + why;
-      reflectors.push_back(r);
-      continue;
-    }
-    ++measured;
-    r["found"] = true;
-    r.update(image::ToJson(*m));
-    r["rcs_expected_dbsm"] = expected > 0.0 ? json(10.0 * std::log10(expected)) : json(nullptr);
-    r["calibration_offset_db"] = expected > 0.0 ? json(m->rcs_dbsm - 10.0 * std::log10(expected)) : json(nullptr);
-    r["calibrated"] = m->calibrated;
-    r["beta0_calibration"] = m->beta0_calibration;
-    r["expected"] = {{"peak_rcs_dbsm", 10.0 * std::log10(peak_rcs)},
-                     {"off_boresight_deg", off_boresight_deg},
-                     {"pattern_db", pattern_rcs > 0.0 ? json(10.0 * std::log10(pattern_rcs / peak_rcs)) : json(nullptr)},
-                     {"channel_share", share},
-                     {"wavelength_m", source.wavelength_m}};
-    r["resolution_px"] = Pair(m->resolution_px.range, m->resolution_px.azimuth);
-    r["main_lobe_px"] = Pair(m->main_lobe_px.range, m->main_lobe_px.azimuth);
-    r["islr_2d_db"] = m->islr_2d_db;
-    r["scr_db"] = m->scr_db;
-    r["peak_beta0_db"] = m->peak_beta0_db;
-    r["spectrum_centre_cycles_per_px"] =
-        Pair(m->spectrum_centre_cycles_per_px.range, m->spectrum_centre_cycles_per_px.azimuth);
-    r["azimuth_spacing_m"] = p.azimuth_spacing_m;
-    r["range_spacing_m"] = source.range_spacing_m;
-    if (quad) {
-      std::map<std::string, std::complex<double>> value;
-      json channels = json::object();
-      for (const char* c : kChannels) {
-        const auto v = image::InterpolateComplex(source.channels.at(c), source.width, source.height, m->peak_px.range,
-                                                 m->peak_px.azimuth, m->spectrum_centre_cycles_per_px,
-                                                 request.chip_half_size_px);
-        if (!v) break;  // the chip around the sub-pixel peak leaves the image
-        value[c] = *v;
-        channels[c] = {{"power_db", 10.0 * std::log10(std::max(std::norm(*v), 1e-300))},
-                       {"phase_deg", std::arg(*v) / kDeg}};
-      }
-      if (value.size() < 4) {
-        r["hh_vv_ratio_db"] = r["hh_vv_phase_deg"] = r["cross_pol_isolation_db"] = nullptr;
-        r["quad_pol_reason"] = "the interpolation chip around the sub-pixel peak leaves the image";
-        reflectors.push_back(r);
-        plots.push_back({"row " + std::to_string(spec.row), *m, source.range_spacing_m, p.azimuth_spacing_m});
-        continue;
-      }
-      const double hh = std::norm(value["HH"]), vv = std::norm(value["VV"]);
-      const double hv = std::norm(value["HV"]), vh = std::norm(value["VH"]);
-      r["hh_vv_ratio_db"] = 10.0 * std::log10(hh / vv);
-      r["hh_vv_phase_deg"] = std::arg(value["HH"] * std::conj(value["VV"])) / kDeg;
-      r["cross_pol_isolation_db"] = 10.0 * std::log10((hh + vv) / (hv + vh));
-      r["channels_at_peak"] = channels;
-    }
-    reflectors.push_back(r);
-    char caption[200];
-    std::snprintf(caption, sizeof caption, "row %d %s, %s", spec.row, material::ToString(spec.type).c_str(),
-                  source.channel.c_str());
-    plots.push_back({caption, *m, source.range_spacing_m, p.azimuth_spacing_m});
+    MeasureReflector(request, source, slc, rows[k], predictions[k], quad, reporter, out);
   }
+  return out;
+}
 
+// PREFIX.json (but its timings and outputs): the source, the calibration,
+// the definitions and every reflector's record.
+json PtaReport(const PtaRequest& request, const std::string& command_line, const Source& source, bool quad,
+               const Measurements& measurements, int total) {
   json report = ProvenanceHeader("pta", command_line, request.ToJson());
   json inputs = source.inputs;
   inputs.push_back(InputFileRecord(request.reflectors));
@@ -808,24 +858,51 @@ PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Rep
       {"cross_pol_isolation_db",
        "10 log10((|S_HH|^2 + |S_VV|^2) / (|S_HV|^2 + |S_VH|^2)) at the measured peak: co-pol over cross-pol "
        "power at the same position (clutter in the cross-pol channels bounds it from below)"}};
-  report["reflectors"] = reflectors;
-  report["measured"] = measured;
-  report["total"] = int(rows.size());
-  report["converged"] = measured > 0;
-  if (measured == 0) report["reason"] = "no reflector found: " + first_reason;
+  report["reflectors"] = measurements.reflectors;
+  report["measured"] = measurements.measured;
+  report["total"] = total;
+  report["converged"] = measurements.measured > 0;
+  if (measurements.measured == 0) report["reason"] = "no reflector found: " + measurements.first_reason;
+  return report;
+}
+
+}  // namespace
+
+PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Reporter& reporter) {
+  request.Check();
+  Stopwatch total;
+  AtomicOutputs outputs;
+  const fs::path out_json = outputs.Add(request.out_prefix + ".json");
+  const fs::path out_png = outputs.Add(request.out_prefix + "_irf.png");
+
+  const std::vector<material::ReflectorSpec> rows = material::ReadReflectorsCsv(request.reflectors);
+  if (rows.empty()) throw InputError("the reflectors file holds no reflector", request.reflectors);
+  Source source = OpenSource(request, rows, reporter);
+  ThrowIfCancelled(reporter, "pta");
+  const bool quad = std::all_of(std::begin(kChannels), std::end(kChannels),
+                                [&](const char* c) { return source.channels.count(c) > 0; });
+  if (!source.calibrated) {
+    reporter.Warn("pta: " + (request.product.empty() ? request.image : request.product) +
+                  " states no beta0 calibration: RCS reported uncalibrated (|DN|^2 x m^2)");
+  }
+  const std::vector<std::complex<float>>& slc = source.channels.at(source.channel);
+  const std::vector<Prediction> predictions = PredictReflectors(request, source, rows);
+  const Measurements measurements = MeasureReflectors(request, source, slc, rows, predictions, quad, reporter);
+
+  json report = PtaReport(request, command_line, source, quad, measurements, int(rows.size()));
   report["timings_s"] = {{"total", total.ElapsedSeconds()}};
   std::vector<std::string> finals;
   for (const fs::path& path : outputs.final_paths()) finals.push_back(fs::absolute(path).string());
   report["outputs"] = finals;
 
-  const image::RgbImage picture = image::IrfPlot(plots, -40.0, "pta: no reflector found (see PREFIX.json)");
+  const image::RgbImage picture = image::IrfPlot(measurements.plots, -40.0, "pta: no reflector found (see PREFIX.json)");
   geo::WritePng(out_png, picture.rgb, picture.width, picture.height, 3);
   WriteJsonFile(report, out_json);
   outputs.Commit();
   PtaResult result;
   result.outputs = outputs.final_paths();
   result.report = report;
-  result.measured = measured;
+  result.measured = measurements.measured;
   result.total = int(rows.size());
   return result;
 }

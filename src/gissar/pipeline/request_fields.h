@@ -84,9 +84,21 @@ struct RequestField {
   // default (FieldTable's `null_keeps_default`).
   bool accepts_null = false;
 
+  // Other spellings the CLI also accepts for this flag, comma-separated
+  // ("--looks"): listed in --help beside the flag.
+  std::string aliases;
+
   std::string Flag() const { return flag_override.empty() ? FlagOfField(name) : flag_override; }
   RequestField&& WithFlag(std::string flag) && {
     flag_override = std::move(flag);
+    return std::move(*this);
+  }
+  RequestField&& WithAliases(std::string other_flags) && {
+    aliases = std::move(other_flags);
+    return std::move(*this);
+  }
+  RequestField&& WithHelp(std::string text) && {
+    help = std::move(text);
     return std::move(*this);
   }
   bool IsSwitch(R& r) const { return std::holds_alternative<bool*>(ref(r)); }
@@ -157,6 +169,12 @@ class FieldTable {
 // of a member.
 // How a door's text becomes a field's JSON value (see RequestField::from_text).
 using TextReader = std::function<nlohmann::json(const std::string& text, const std::string& flag)>;
+
+// The reader of "A,B" (ParseNumberPair): JSON [a, b].
+inline nlohmann::json NumberPairText(const std::string& text, const std::string& flag) {
+  const Eigen::Vector2d v = ParseNumberPair(text, flag);
+  return nlohmann::json{v.x(), v.y()};
+}
 
 template <class R>
 struct Fields {
@@ -246,7 +264,14 @@ struct Fields {
       access(r) = std::move(v);
     };
     f.ref = [](R&) { return FieldRef(); };
-    f.from_text = [count](const std::string& text, const std::string& flag) {
+    f.from_text = NumbersText(count);
+    return f;
+  }
+
+  // The reader of `count` comma-separated numbers "A,B,..." (ConfigError
+  // naming the flag: "needs N comma-separated numbers, got 'TEXT'").
+  static TextReader NumbersText(size_t count) {
+    return [count](const std::string& text, const std::string& flag) {
       std::vector<double> v;
       std::string item;
       bool ok = !text.empty() && text.back() != ',';
@@ -267,6 +292,53 @@ struct Fields {
       }
       return nlohmann::json(v);
     };
+  }
+
+  // std::vector<int>: JSON [a, b, ...]; CLI text "A,B,..." (ParseIntegerList,
+  // whose error names `expected`, e.g. "two integers R,A"). `count` > 0:
+  // exactly that many ("key 'K' needs N integers" otherwise); the values'
+  // bounds are the request's Check().
+  template <class Access>
+  static RequestField<R> Integers(std::string name, Access access, size_t count, std::string help,
+                                  std::string expected, bool show_default = true) {
+    RequestField<R> f;
+    f.name = std::move(name);
+    f.help = std::move(help);
+    f.show_default = show_default;
+    f.get = [access](const R& r) { return nlohmann::json(access(const_cast<R&>(r))); };
+    f.set = [access, count](R& r, const nlohmann::json& value, const std::string& key, const std::string& source) {
+      std::vector<int> v;
+      AssignField(v, value, key, source);
+      if (count > 0 && v.size() != count) {
+        throw ConfigError("key '" + key + "' needs " + std::to_string(count) + " integers", source);
+      }
+      access(r) = std::move(v);
+    };
+    f.ref = [](R&) { return FieldRef(); };
+    f.from_text = [count, expected](const std::string& text, const std::string& flag) {
+      return nlohmann::json(ParseIntegerList(text, flag, expected, count));
+    };
+    return f;
+  }
+
+  // The row `row` of the table of the request S that R holds as `member`
+  // (validate's simulate request): same name, help and flag, reading and
+  // writing r.*member.
+  template <class S>
+  static RequestField<R> Of(S R::*member, const RequestField<S>& row) {
+    RequestField<R> f;
+    f.name = row.name;
+    f.help = row.help;
+    f.show_default = row.show_default;
+    f.extra_negations = row.extra_negations;
+    f.flag_override = row.flag_override;
+    f.accepts_null = row.accepts_null;
+    f.aliases = row.aliases;
+    f.from_text = row.from_text;
+    f.get = [member, get = row.get](const R& r) { return get(r.*member); };
+    f.set = [member, set = row.set](R& r, const nlohmann::json& value, const std::string& key,
+                                    const std::string& source) { set(r.*member, value, key, source); };
+    f.ref = [member, ref = row.ref](R& r) { return ref(r.*member); };
     return f;
   }
 

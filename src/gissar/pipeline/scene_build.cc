@@ -87,6 +87,226 @@ void RaiseToEllipsoidalHeights(scene::TriangleMesh& mesh, const geo::LocalFrame&
   }
 }
 
+// The files of a scene build, reserved before any work.
+struct SceneBuildOutputs {
+  AtomicOutputs files;
+  fs::path scene, ply, classes_png, view_png, json, mesh_json, obj, mtl;
+};
+void ReserveSceneBuildOutputs(const SceneBuildRequest& options, SceneBuildOutputs& o) {
+  o.scene = o.files.Add(options.out_prefix + ".gscene");
+  o.ply = o.files.Add(options.out_prefix + ".ply");
+  o.classes_png = o.files.Add(options.out_prefix + "_classes.png");
+  o.view_png = o.files.Add(options.out_prefix + "_3d.png");
+  o.json = o.files.Add(options.out_prefix + ".json");
+  o.mesh_json = o.files.Add(options.out_prefix + "_mesh.json");
+  o.obj = options.export_obj ? o.files.Add(options.out_prefix + ".obj") : fs::path();
+  o.mtl = options.export_obj ? o.files.Add(options.out_prefix + ".mtl") : fs::path();
+}
+
+// The scene configuration: --config, the --osm or --vectors preset, or none;
+// with the sea rule of the request.
+scene::SceneConfig SceneConfigOf(const SceneBuildRequest& options, std::vector<std::string>* warnings) {
+  scene::SceneConfig config;
+  if (!options.config.empty()) {
+    config = scene::LoadSceneConfig(options.config);
+  } else if (!options.osm.empty()) {
+    config = scene::OsmPreset(options.osm);
+  } else if (!options.vectors.empty()) {
+    config = scene::LayerNamePreset(options.vectors, warnings);
+  } else {
+    config.source = "no vector data";
+  }
+  config.sea_auto = options.sea == "auto";
+  config.sea_level_m = options.sea_level_m;
+  return config;
+}
+
+// The DEM (its window), refined by --dem-oversample.
+geo::Dem ReadSceneDem(const SceneBuildRequest& options) {
+  geo::DemReadOptions read_options;
+  read_options.fill_nodata = options.fill_nodata;
+  read_options.border_nodata_outside = true;  // a collar is left out of the scene, not filled
+  read_options.window = options.window;
+  // Constrained triangulation (CGAL vertices and faces with info), GEOS
+  // regions and the output mesh, per DEM post; vector constraints add more.
+  read_options.bytes_per_post = 512;
+  read_options.max_bytes = options.max_memory_bytes;
+  read_options.vertical_units = options.vertical_units;
+  return geo::RefineDem(geo::ReadDem(options.dem, read_options), options.dem_oversample,
+                        options.max_memory_bytes / read_options.bytes_per_post);
+}
+
+// The summary's "stats": per class and for the whole build.
+json SceneStats(const scene::GisScene& built, const geo::Dem& dem, const geo::VerticalDatumChoice& datum,
+                const SceneBuildRequest& options, size_t reflectors) {
+  json classes = json::object();
+  const auto& names = scene::ClassNames();
+  for (int c = 0; c < scene::kClassCount; ++c) {
+    classes[names[c]] = {{"triangles", built.stats.triangles[c]},
+                         {"mesh_area_m2", built.stats.mesh_area_m2[c]},
+                         {"region_area_m2", built.stats.region_area_m2[c]}};
+  }
+  return {{"classes", classes},
+          {"triangles", built.mesh.triangle_count()},
+          {"vertices", built.mesh.vertices.size()},
+          {"dem_posts", built.stats.dem_posts},
+          {"dem_vertical_unit_m", dem.vertical_unit_m},
+          {"dem_vertical_unit_source", dem.vertical_unit_source},
+          {"dem_vertical_datum", datum.datum},
+          {"dem_vertical_datum_source", datum.source},
+          {"inserted_vertices", built.stats.inserted_vertices},
+          {"constraint_segments", built.stats.constraint_segments},
+          {"cdt_cells", built.stats.cdt_cells},
+          {"cdt_posts", built.stats.cdt_posts},
+          {"grid_cells", built.stats.grid_cells},
+          {"terrain_grid_cells", built.grid.cells},
+          {"cdt_rebuilds", built.stats.cdt_rebuilds},
+          {"features_read", built.stats.features_read},
+          {"features_outside", built.stats.features_outside},
+          {"repaired_geometries", built.stats.repaired_geometries},
+          {"simplified_outlines", built.stats.simplified_outlines},
+          {"buildings", built.stats.buildings},
+          {"merged_buildings", built.stats.merged_buildings},
+          {"step_walls", built.stats.step_walls},
+          {"buried_wall_triangles", built.stats.buried_wall_triangles},
+          {"coastline_features", built.stats.coastline_features},
+          {"coastline_extended_ends", built.stats.coastline_extended_ends},
+          {"sea_trimmed_m2", built.stats.sea_trimmed_m2},
+          {"sea_level_vertices", built.stats.sea_level_vertices},
+          {"sea_from_dem", built.stats.sea_from_dem},
+          {"outside_posts", built.stats.outside_posts},
+          {"dropped_faces", built.stats.dropped_faces},
+          {"needle_faces", built.stats.needle_faces},
+          {"sliver_faces", built.stats.sliver_faces},
+          {"steep_slivers", built.stats.steep_slivers},
+          {"shading_normals", !options.flat_shading},
+          {"reflectors", reflectors},
+          {"build_seconds", built.stats.seconds}};
+}
+
+// The input files' records: the DEM, each vector file once, the config and
+// the reflectors.
+json SceneInputs(const SceneBuildRequest& options, const scene::SceneConfig& config) {
+  json inputs = json::array({InputFileRecord(options.dem)});
+  std::vector<std::string> seen;
+  for (const scene::LayerSpec& l : config.layers) {
+    if (std::find(seen.begin(), seen.end(), l.source.path) != seen.end()) continue;
+    seen.push_back(l.source.path);
+    if (fs::is_regular_file(l.source.path)) inputs.push_back(InputFileRecord(l.source.path));
+  }
+  if (!options.config.empty()) inputs.push_back(InputFileRecord(options.config));
+  if (!options.reflectors.empty()) inputs.push_back(InputFileRecord(options.reflectors));
+  return inputs;
+}
+
+// The reflector rows placed on the scene's surface (roofs included), found
+// as simulate finds it.
+std::vector<scene::StoredReflector> StoredReflectorsOf(const std::vector<material::ReflectorSpec>& reflector_rows,
+                                                       const SceneBuildRequest& options, const geo::LocalFrame& frame,
+                                                       const scene::TriangleMesh& mesh) {
+  const render::EmbreeScene embree(mesh);
+  const std::vector<render::SceneReflector> placed =
+      PlaceReflectorRows(reflector_rows, options.reflectors, frame, EmbreeSurface(embree, mesh.Bounds().max().z() + 100.0));
+  std::vector<scene::StoredReflector> stored;
+  for (size_t k = 0; k < placed.size(); ++k) {
+    const material::ReflectorSpec& row = reflector_rows[k];
+    scene::StoredReflector r;
+    r.type = material::ToString(row.type);
+    r.lon_deg = row.lon_deg;
+    r.lat_deg = row.lat_deg;
+    r.apex_height_m = row.apex_height_m;
+    r.size_m = row.size_m;
+    r.boresight_azimuth_deg = row.boresight_azimuth_deg;
+    r.boresight_elevation_deg = row.boresight_elevation_deg;
+    r.roll_deg = row.roll_deg;
+    r.apex_enu = placed[k].apex_enu;
+    r.source = fs::path(options.reflectors).filename().string();
+    r.row = row.row;
+    stored.push_back(r);
+  }
+  return stored;
+}
+
+// The meshes' files: PREFIX_mesh.json (their georeference, also in the
+// header comments), the PLY, the class map and 3-D view PNGs and, with
+// --obj, the OBJ and its MTL.
+void WriteMeshFiles(const SceneBuildOutputs& o, const scene::SceneFile& file, const SceneBuildRequest& options) {
+  const json mesh_crs = MeshCrsRecord(file.origin_lon_deg, file.origin_lat_deg);
+  const std::vector<std::string> mesh_comments = {
+      "crs " + mesh_crs["crs"].get<std::string>(),
+      "origin_lon_deg " + Num17(file.origin_lon_deg) + " origin_lat_deg " + Num17(file.origin_lat_deg) +
+          " origin_height_m 0",
+      "enu_to_wgs84 " + mesh_crs["proj_pipeline_to_wgs84"].get<std::string>()};
+  WriteJsonFile(mesh_crs, o.mesh_json);
+  scene::WritePly(o.ply, file.mesh, file.class_names, mesh_comments);
+  const image::RgbImage class_map = image::RenderClassMap(file.mesh, file.class_names);
+  geo::WritePng(o.classes_png, class_map.rgb, class_map.width, class_map.height, 3);
+  const image::RgbImage view = image::RenderMeshView(file.mesh, image::ClassColourList());
+  geo::WritePng(o.view_png, view.rgb, view.width, view.height, 3);
+  if (options.export_obj) {
+    scene::WriteObj(o.obj, o.mtl, fs::path(options.out_prefix + ".mtl").filename().string(), file.mesh,
+                    file.class_names, image::ClassColourList(), mesh_comments);
+  }
+}
+
+// The scene file: the mesh (moved from `built`; shading normals unless
+// --flat-shading), the placed reflectors, the frame, centre, classes,
+// materials and provenance.
+scene::SceneFile SceneFileOf(scene::GisScene& built, const SceneBuildRequest& options,
+                             const std::vector<material::ReflectorSpec>& reflector_rows, const geo::LocalFrame& frame,
+                             const geo::GeoPoint& centre, const scene::SceneConfig& config,
+                             const geo::VerticalDatumChoice& datum, const Eigen::Vector2d& spacing) {
+  scene::SceneFile file;
+  file.mesh = std::move(built.mesh);
+  file.grid = built.grid;
+  if (!options.flat_shading) file.mesh.SmoothShadingNormals(scene::kClassBuilding);
+  if (!reflector_rows.empty()) file.reflectors = StoredReflectorsOf(reflector_rows, options, frame, file.mesh);
+  const auto& names = scene::ClassNames();
+  file.origin_lon_deg = frame.origin_lon_deg();
+  file.origin_lat_deg = frame.origin_lat_deg();
+  file.centre_enu = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
+  file.centre_lon_deg = centre.lon_deg;
+  file.centre_lat_deg = centre.lat_deg;
+  file.centre_height_m = centre.height_m;
+  file.class_names.assign(names.begin(), names.end());
+  file.materials = config.materials;
+  file.provenance = {{"version", VersionString()},
+                     {"dem", fs::absolute(options.dem).string()},
+                     {"post_spacing_m", 0.5 * (spacing.x() + spacing.y())},
+                     {"vertical_datum", datum.datum},
+                     {"vertical_datum_source", datum.source},
+                     {"config", config.ToJson()}};
+  return file;
+}
+
+// PREFIX.json: the request, config, materials, inputs, frame, extent,
+// stats, warnings and resources (outputs are added when committed).
+json SceneSummary(const SceneBuildRequest& options, const std::string& command_line, const scene::SceneConfig& config,
+                  const material::MaterialTable& materials, const json& inputs, const geo::VerticalDatumChoice& datum,
+                  const scene::SceneFile& file, const json& stats, const std::vector<std::string>& warnings,
+                  const Stopwatch& total) {
+  const Eigen::AlignedBox3d box = file.mesh.Bounds();
+  return {{"command", "scene build"},
+          {"command_line", command_line},
+          {"version", VersionString()},
+          {"created_utc", UtcTimestamp()},
+          {"options", options.ToJson()},
+          {"config", config.ToJson()},
+          {"materials", materials.ToJson()},
+          {"inputs", inputs},
+          {"vertical_datum", {{"datum", datum.datum}, {"source", datum.source}}},
+          {"frame", {{"type", "ENU tangent frame, WGS84"},
+                     {"origin_lon_deg", file.origin_lon_deg},
+                     {"origin_lat_deg", file.origin_lat_deg}}},
+          {"extent_enu_m", {{"min", {box.min().x(), box.min().y(), box.min().z()}},
+                            {"max", {box.max().x(), box.max().y(), box.max().z()}}}},
+          {"stats", stats},
+          {"warnings", warnings},
+          {"mesh_bytes", file.mesh.MemoryBytes()},
+          {"peak_rss_bytes", PeakResidentBytes()},
+          {"total_seconds", total.ElapsedSeconds()}};
+}
+
 }  // namespace
 
 void SceneBuildRequest::Check() const {
@@ -122,47 +342,19 @@ void SceneBuildRequest::ApplyJson(const json& values, const std::string& source)
 SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   Stopwatch total;
-  AtomicOutputs outputs;
-  const fs::path scene_path = outputs.Add(options.out_prefix + ".gscene");
-  const fs::path ply_path = outputs.Add(options.out_prefix + ".ply");
-  const fs::path png_path = outputs.Add(options.out_prefix + "_classes.png");
-  const fs::path view_path = outputs.Add(options.out_prefix + "_3d.png");
-  const fs::path json_path = outputs.Add(options.out_prefix + ".json");
-  const fs::path mesh_json_path = outputs.Add(options.out_prefix + "_mesh.json");
-  const fs::path obj_path = options.export_obj ? outputs.Add(options.out_prefix + ".obj") : fs::path();
-  const fs::path mtl_path = options.export_obj ? outputs.Add(options.out_prefix + ".mtl") : fs::path();
+  SceneBuildOutputs outputs;
+  ReserveSceneBuildOutputs(options, outputs);
 
   // Config first: a bad config fails before any heavy work.
   std::vector<std::string> warnings;
-  scene::SceneConfig config;
-  if (!options.config.empty()) {
-    config = scene::LoadSceneConfig(options.config);
-  } else if (!options.osm.empty()) {
-    config = scene::OsmPreset(options.osm);
-  } else if (!options.vectors.empty()) {
-    config = scene::LayerNamePreset(options.vectors, &warnings);
-  } else {
-    config.source = "no vector data";
-  }
-  config.sea_auto = options.sea == "auto";
-  config.sea_level_m = options.sea_level_m;
+  const scene::SceneConfig config = SceneConfigOf(options, &warnings);
   const material::MaterialTable materials = material::SceneMaterials(config.materials, config.source);
   // Reflector rows: a bad row fails before the DEM is read.
   const std::vector<material::ReflectorSpec> reflector_rows =
       options.reflectors.empty() ? std::vector<material::ReflectorSpec>{}
                                  : material::ReadReflectorsCsv(options.reflectors);
 
-  geo::DemReadOptions read_options;
-  read_options.fill_nodata = options.fill_nodata;
-  read_options.border_nodata_outside = true;  // a collar is left out of the scene, not filled
-  read_options.window = options.window;
-  // Constrained triangulation (CGAL vertices and faces with info), GEOS
-  // regions and the output mesh, per DEM post; vector constraints add more.
-  read_options.bytes_per_post = 512;
-  read_options.max_bytes = options.max_memory_bytes;
-  read_options.vertical_units = options.vertical_units;
-  const geo::Dem dem = geo::RefineDem(geo::ReadDem(options.dem, read_options), options.dem_oversample,
-                                      options.max_memory_bytes / read_options.bytes_per_post);
+  const geo::Dem dem = ReadSceneDem(options);
   const geo::VerticalDatumChoice datum =
       geo::ResolveVerticalDatum(geo::CanonicalVerticalDatum(options.vertical_datum), dem.file_vertical_datum);
   if (datum.source == "assumed") warnings.push_back(geo::AssumedDatumWarning(options.dem));
@@ -177,147 +369,20 @@ SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::stri
   for (const std::string& w : warnings) reporter.Warn(w);
 
   const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(dem, frame);
-  json stats;
-  json classes = json::object();
-  const auto& names = scene::ClassNames();
-  for (int c = 0; c < scene::kClassCount; ++c) {
-    classes[names[c]] = {{"triangles", built.stats.triangles[c]},
-                         {"mesh_area_m2", built.stats.mesh_area_m2[c]},
-                         {"region_area_m2", built.stats.region_area_m2[c]}};
-  }
-  stats = {{"classes", classes},
-           {"triangles", built.mesh.triangle_count()},
-           {"vertices", built.mesh.vertices.size()},
-           {"dem_posts", built.stats.dem_posts},
-           {"dem_vertical_unit_m", dem.vertical_unit_m},
-           {"dem_vertical_unit_source", dem.vertical_unit_source},
-           {"dem_vertical_datum", datum.datum},
-           {"dem_vertical_datum_source", datum.source},
-           {"inserted_vertices", built.stats.inserted_vertices},
-           {"constraint_segments", built.stats.constraint_segments},
-           {"cdt_cells", built.stats.cdt_cells},
-           {"cdt_posts", built.stats.cdt_posts},
-           {"grid_cells", built.stats.grid_cells},
-           {"terrain_grid_cells", built.grid.cells},
-           {"cdt_rebuilds", built.stats.cdt_rebuilds},
-           {"features_read", built.stats.features_read},
-           {"features_outside", built.stats.features_outside},
-           {"repaired_geometries", built.stats.repaired_geometries},
-           {"simplified_outlines", built.stats.simplified_outlines},
-           {"buildings", built.stats.buildings},
-           {"merged_buildings", built.stats.merged_buildings},
-           {"step_walls", built.stats.step_walls},
-           {"buried_wall_triangles", built.stats.buried_wall_triangles},
-           {"coastline_features", built.stats.coastline_features},
-           {"coastline_extended_ends", built.stats.coastline_extended_ends},
-           {"sea_trimmed_m2", built.stats.sea_trimmed_m2},
-           {"sea_level_vertices", built.stats.sea_level_vertices},
-           {"sea_from_dem", built.stats.sea_from_dem},
-           {"outside_posts", built.stats.outside_posts},
-           {"dropped_faces", built.stats.dropped_faces},
-           {"needle_faces", built.stats.needle_faces},
-           {"sliver_faces", built.stats.sliver_faces},
-           {"steep_slivers", built.stats.steep_slivers},
-           {"shading_normals", !options.flat_shading},
-           {"reflectors", reflector_rows.size()},
-           {"build_seconds", built.stats.seconds}};
+  const json stats = SceneStats(built, dem, datum, options, reflector_rows.size());
+  const json inputs = SceneInputs(options, config);
 
-  json inputs = json::array({InputFileRecord(options.dem)});
-  std::vector<std::string> seen;
-  for (const scene::LayerSpec& l : config.layers) {
-    if (std::find(seen.begin(), seen.end(), l.source.path) != seen.end()) continue;
-    seen.push_back(l.source.path);
-    if (fs::is_regular_file(l.source.path)) inputs.push_back(InputFileRecord(l.source.path));
-  }
-  if (!options.config.empty()) inputs.push_back(InputFileRecord(options.config));
-  if (!options.reflectors.empty()) inputs.push_back(InputFileRecord(options.reflectors));
+  const scene::SceneFile file = SceneFileOf(built, options, reflector_rows, frame, centre, config, datum, spacing);
+  scene::WriteScene(outputs.scene, file);
+  WriteMeshFiles(outputs, file, options);
 
-  scene::SceneFile file;
-  file.mesh = std::move(built.mesh);
-  file.grid = built.grid;
-  if (!options.flat_shading) file.mesh.SmoothShadingNormals(scene::kClassBuilding);
-  if (!reflector_rows.empty()) {
-    // On the scene's surface (roofs included), found as simulate finds it.
-    const render::EmbreeScene embree(file.mesh);
-    const std::vector<render::SceneReflector> placed =
-        PlaceReflectorRows(reflector_rows, options.reflectors, frame,
-                           EmbreeSurface(embree, file.mesh.Bounds().max().z() + 100.0));
-    for (size_t k = 0; k < placed.size(); ++k) {
-      const material::ReflectorSpec& row = reflector_rows[k];
-      scene::StoredReflector r;
-      r.type = material::ToString(row.type);
-      r.lon_deg = row.lon_deg;
-      r.lat_deg = row.lat_deg;
-      r.apex_height_m = row.apex_height_m;
-      r.size_m = row.size_m;
-      r.boresight_azimuth_deg = row.boresight_azimuth_deg;
-      r.boresight_elevation_deg = row.boresight_elevation_deg;
-      r.roll_deg = row.roll_deg;
-      r.apex_enu = placed[k].apex_enu;
-      r.source = fs::path(options.reflectors).filename().string();
-      r.row = row.row;
-      file.reflectors.push_back(r);
-    }
-  }
-  file.origin_lon_deg = frame.origin_lon_deg();
-  file.origin_lat_deg = frame.origin_lat_deg();
-  file.centre_enu = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
-  file.centre_lon_deg = centre.lon_deg;
-  file.centre_lat_deg = centre.lat_deg;
-  file.centre_height_m = centre.height_m;
-  file.class_names.assign(names.begin(), names.end());
-  file.materials = config.materials;
-  file.provenance = {{"version", VersionString()},
-                     {"dem", fs::absolute(options.dem).string()},
-                     {"post_spacing_m", 0.5 * (spacing.x() + spacing.y())},
-                     {"vertical_datum", datum.datum},
-                     {"vertical_datum_source", datum.source},
-                     {"config", config.ToJson()}};
-  scene::WriteScene(scene_path, file);
-  // The meshes' georeference: header comments and PREFIX_mesh.json.
-  const json mesh_crs = MeshCrsRecord(file.origin_lon_deg, file.origin_lat_deg);
-  const std::vector<std::string> mesh_comments = {
-      "crs " + mesh_crs["crs"].get<std::string>(),
-      "origin_lon_deg " + Num17(file.origin_lon_deg) + " origin_lat_deg " + Num17(file.origin_lat_deg) +
-          " origin_height_m 0",
-      "enu_to_wgs84 " + mesh_crs["proj_pipeline_to_wgs84"].get<std::string>()};
-  WriteJsonFile(mesh_crs, mesh_json_path);
-  scene::WritePly(ply_path, file.mesh, file.class_names, mesh_comments);
-  const image::RgbImage class_map = image::RenderClassMap(file.mesh, file.class_names);
-  geo::WritePng(png_path, class_map.rgb, class_map.width, class_map.height, 3);
-  const image::RgbImage view = image::RenderMeshView(file.mesh, image::ClassColourList());
-  geo::WritePng(view_path, view.rgb, view.width, view.height, 3);
-  if (options.export_obj) {
-    scene::WriteObj(obj_path, mtl_path, fs::path(options.out_prefix + ".mtl").filename().string(), file.mesh,
-                    file.class_names, image::ClassColourList(), mesh_comments);
-  }
-
-  const Eigen::AlignedBox3d box = file.mesh.Bounds();
-  json summary = {{"command", "scene build"},
-                  {"command_line", command_line},
-                  {"version", VersionString()},
-                  {"created_utc", UtcTimestamp()},
-                  {"options", options.ToJson()},
-                  {"config", config.ToJson()},
-                  {"materials", materials.ToJson()},
-                  {"inputs", inputs},
-                  {"vertical_datum", {{"datum", datum.datum}, {"source", datum.source}}},
-                  {"frame", {{"type", "ENU tangent frame, WGS84"},
-                             {"origin_lon_deg", file.origin_lon_deg},
-                             {"origin_lat_deg", file.origin_lat_deg}}},
-                  {"extent_enu_m", {{"min", {box.min().x(), box.min().y(), box.min().z()}},
-                                    {"max", {box.max().x(), box.max().y(), box.max().z()}}}},
-                  {"stats", stats},
-                  {"warnings", warnings},
-                  {"mesh_bytes", file.mesh.MemoryBytes()},
-                  {"peak_rss_bytes", PeakResidentBytes()},
-                  {"total_seconds", total.ElapsedSeconds()}};
+  json summary = SceneSummary(options, command_line, config, materials, inputs, datum, file, stats, warnings, total);
   std::vector<std::string> final_names;
-  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
+  for (const fs::path& p : outputs.files.final_paths()) final_names.push_back(fs::absolute(p).string());
   summary["outputs"] = final_names;
-  WriteJsonFile(summary, json_path);
-  outputs.Commit();
-  return {outputs.final_paths(), summary};
+  WriteJsonFile(summary, outputs.json);
+  outputs.files.Commit();
+  return {outputs.files.final_paths(), summary};
 }
 
 void PrintSceneInfo(const std::string& scene_path, std::ostream& out) {

@@ -13,11 +13,6 @@ nlohmann::json WindowText(const std::string& text, const std::string& flag) {
   return nlohmann::json(ParseWindow(text, flag));
 }
 
-nlohmann::json PairText(const std::string& text, const std::string& flag) {
-  const Eigen::Vector2d v = ParseNumberPair(text, flag);
-  return nlohmann::json{v.x(), v.y()};
-}
-
 }  // namespace
 
 // Fields in the order of `gissar scene build --help` (scene_build.h states what each means).
@@ -34,7 +29,7 @@ const FieldTable<SceneBuildRequest>& SceneBuildFields() {
           F::Plain("osm", F::At(&R::osm), "OpenStreetMap file (.osm.pbf, .osm, .osm.gz): built-in preset", false),
           F::Plain("config", F::At(&R::config), "Scene config JSON (layers, classes, widths, materials)", false),
           F::OptionalPair("center_lonlat", F::At(&R::center_lonlat), "Scene centre LON,LAT (default: DEM centre)",
-                          PairText),
+                          NumberPairText),
           F::Plain("out_prefix", F::At(&R::out_prefix),
                    "Output prefix: PREFIX.gscene, PREFIX.ply, PREFIX_classes.png (class map), PREFIX_3d.png (3-D "
                    "view), PREFIX.json, PREFIX_mesh.json (the meshes' frame)",

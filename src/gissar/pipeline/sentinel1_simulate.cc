@@ -81,14 +81,10 @@ Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& re
   return ReadSentinel1Source(Sentinel1SelectionOf(options), reporter);
 }
 
-Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter& reporter) {
-  Sentinel1Source s;
-  s.product = geo::OpenSentinel1(options.product);
-  const geo::Sentinel1Product& product = s.product;
-  const std::vector<material::Polarization> channels =
-      material::ParsePolarizationList(options.polarization, "--polarization");
+namespace {
 
-  // The swath: --swath, or the product's only one.
+// The swath: --swath, or the product's only one ("" then: Entry finds it).
+std::string SelectedSwath(const geo::Sentinel1Product& product, const Sentinel1Selection& options) {
   std::string swath = Upper(options.swath);
   if (swath.empty()) {
     std::vector<std::string> swaths;
@@ -99,8 +95,14 @@ Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter&
       throw InputError(product.name + " has swaths " + Join(swaths) + ": give one with --swath", "--swath");
     }
   }
-  // The first channel's annotation gives the geometry (every polarisation
-  // of a swath has the same); each channel must be a polarisation of it.
+  return swath;
+}
+
+// The first channel's annotation gives the geometry (every polarisation
+// of a swath has the same); each channel must be a polarisation of it.
+// Throws InputError naming what is present when an annotation is missing.
+const geo::Sentinel1Entry& GeometryEntry(const geo::Sentinel1Product& product, const std::string& swath,
+                                         const std::vector<material::Polarization>& channels) {
   const geo::Sentinel1Entry& entry = product.Entry(swath, material::ToString(channels.front()));
   for (const material::Polarization c : channels) {
     const geo::Sentinel1Entry& other = product.Entry(entry.swath, material::ToString(c));
@@ -120,24 +122,31 @@ Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter&
                          (present.empty() ? std::string("none") : present),
                      "--swath/--polarization (" + product.name + ")");
   }
-  s.annotation = geo::ReadSentinel1Annotation(product, entry);
-  geo::Sentinel1Annotation& a = s.annotation;
-  if (!options.orbit.empty()) {
-    const geo::StateVectors vectors = geo::ReadStateVectors(options.orbit);
-    geo::ReplaceSentinel1Orbit(a, product, vectors, options.orbit);
-    s.orbit_source = options.orbit;
-    reporter.Info(options.command + ": orbit: " + std::to_string(a.orbit.time_s.size()) + " state vectors of " + options.orbit +
-                  " (" + vectors.format + ") replace the annotation's");
-  }
-  s.ground_range = a.is_grd();
-  if (s.ground_range && options.coherent) {
-    throw ConfigError("a GRD is a detected, multilooked product: simulate it without --coherent (or simulate the SLC)",
-                      "--coherent");
-  }
+  return entry;
+}
 
-  // Burst (IW/EW SLC) and the full grid in the product's own numbering.
-  double first_time_s = a.first_line_time_s;
-  int lines = a.number_of_lines, pixels = a.number_of_samples;
+// --orbit's state vectors in place of the annotation's.
+void ReplaceOrbit(Sentinel1Source& s, const Sentinel1Selection& options, Reporter& reporter) {
+  geo::Sentinel1Annotation& a = s.annotation;
+  const geo::StateVectors vectors = geo::ReadStateVectors(options.orbit);
+  geo::ReplaceSentinel1Orbit(a, s.product, vectors, options.orbit);
+  s.orbit_source = options.orbit;
+  reporter.Info(options.command + ": orbit: " + std::to_string(a.orbit.time_s.size()) + " state vectors of " + options.orbit +
+                " (" + vectors.format + ") replace the annotation's");
+}
+
+// The full grid in the product's own numbering: its first line's time and
+// its size.
+struct FullGrid {
+  double first_time_s = 0.0;
+  int lines = 0, pixels = 0;
+};
+
+// The burst (IW/EW SLC: --burst, required; sets s.burst) or the whole
+// swath / GRD (--burst refused).
+FullGrid SelectBurst(Sentinel1Source& s, const Sentinel1Selection& options) {
+  const geo::Sentinel1Annotation& a = s.annotation;
+  FullGrid full{a.first_line_time_s, a.number_of_lines, a.number_of_samples};
   if (!a.bursts.empty()) {
     if (options.burst == 0) {
       throw InputError("an " + a.mode + " SLC swath is simulated one burst at a time: give --burst N (" + a.swath +
@@ -146,26 +155,64 @@ Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter&
     }
     const geo::Sentinel1Burst& b = a.Burst(options.burst);
     s.burst = b.number;
-    first_time_s = b.azimuth_time_s;
-    lines = a.lines_per_burst;
-    pixels = a.samples_per_burst > 0 ? a.samples_per_burst : a.number_of_samples;
+    full.first_time_s = b.azimuth_time_s;
+    full.lines = a.lines_per_burst;
+    full.pixels = a.samples_per_burst > 0 ? a.samples_per_burst : a.number_of_samples;
   } else if (options.burst != 0) {
     a.Burst(options.burst);  // throws: a GRD or stripmap product has no bursts
   }
-  s.full_size = {lines, pixels};
-  s.window = options.window_px ? *options.window_px : std::array<int, 4>{0, 0, lines, pixels};
+  return full;
+}
+
+// Throws ConfigError naming --product-window when s.window leaves the grid.
+void CheckWindow(const Sentinel1Source& s, const FullGrid& full, const std::string& grid_name) {
   const std::array<int, 4>& w = s.window;
-  const std::string grid_name = s.burst > 0 ? "burst " + std::to_string(s.burst) + " of " + a.swath
-                                            : (s.ground_range ? "GRD " : "swath ") + a.swath;
+  const int lines = full.lines, pixels = full.pixels;
   if (int64_t(w[0]) + w[2] > lines || int64_t(w[1]) + w[3] > pixels) {
     throw ConfigError("window of lines " + std::to_string(w[0]) + "+" + std::to_string(w[2]) + ", pixels " +
                           std::to_string(w[1]) + "+" + std::to_string(w[3]) + " outside " + grid_name + " (" +
-                          std::to_string(lines) + " lines x " + std::to_string(pixels) + " pixels, " + a.file + ")",
+                          std::to_string(lines) + " lines x " + std::to_string(pixels) + " pixels, " +
+                          s.annotation.file + ")",
                       "--product-window");
   }
+}
 
-  // The zero-Doppler slant-range grid rendered.
-  const double dt = a.azimuth_time_interval_s, dr = a.slant_range_spacing_m();
+// The window's slant ranges: an SLC's own samples; a GRD's slant samples
+// covering the window's ground-range pixels on every line (grsr increases
+// with ground range), two samples of margin each side.
+void RangeSamples(Sentinel1Source& s) {
+  const geo::Sentinel1Annotation& a = s.annotation;
+  const std::array<int, 4>& w = s.window;
+  const double dr = a.slant_range_spacing_m();
+  geo::RslcProduct& g = s.grid;
+  if (!s.ground_range) {
+    const double r_first = a.SlantRangeOfTime(a.slant_range_time_s);
+    g.slant_range_m.resize(size_t(w[3]));
+    for (int j = 0; j < w[3]; ++j) g.slant_range_m[size_t(j)] = r_first + double(w[1] + j) * dr;
+    return;
+  }
+  s.ground_spacing_m = a.range_pixel_spacing_m;
+  const double g_first = double(w[1]) * s.ground_spacing_m, g_last = double(w[1] + w[3] - 1) * s.ground_spacing_m;
+  double r_lo = std::numeric_limits<double>::infinity(), r_hi = -r_lo;
+  for (const double t : g.zero_doppler_time_s) {
+    r_lo = std::min(r_lo, a.SlantRangeOfGroundRange(g_first, t));
+    r_hi = std::max(r_hi, a.SlantRangeOfGroundRange(g_last, t));
+  }
+  const double r0 = r_lo - 2.0 * dr;
+  const int cols = static_cast<int>(std::ceil((r_hi - r0) / dr)) + 3;
+  g.slant_range_m.resize(size_t(cols));
+  for (int j = 0; j < cols; ++j) g.slant_range_m[size_t(j)] = r0 + double(j) * dr;
+}
+
+// The zero-Doppler slant-range grid rendered (s.grid): the product's
+// identity and polarisations, the window's line times and range samples,
+// the radar's frequency, look side and orbit.
+void FillRadarGrid(Sentinel1Source& s, const Sentinel1Selection& options, const geo::Sentinel1Entry& entry,
+                   double first_time_s) {
+  const geo::Sentinel1Product& product = s.product;
+  const geo::Sentinel1Annotation& a = s.annotation;
+  const std::array<int, 4>& w = s.window;
+  const double dt = a.azimuth_time_interval_s;
   geo::RslcProduct& g = s.grid;
   g.path = options.product;
   g.mission = a.mission;
@@ -183,55 +230,70 @@ Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter&
   }
   g.zero_doppler_time_s.resize(size_t(w[2]));
   for (int i = 0; i < w[2]; ++i) g.zero_doppler_time_s[size_t(i)] = first_time_s + double(w[0] + i) * dt;
-  if (!s.ground_range) {
-    const double r_first = a.SlantRangeOfTime(a.slant_range_time_s);
-    g.slant_range_m.resize(size_t(w[3]));
-    for (int j = 0; j < w[3]; ++j) g.slant_range_m[size_t(j)] = r_first + double(w[1] + j) * dr;
-  } else {
-    // Slant samples covering the window's ground-range pixels on every line
-    // (grsr increases with ground range), two samples of margin each side.
-    s.ground_spacing_m = a.range_pixel_spacing_m;
-    const double g_first = double(w[1]) * s.ground_spacing_m, g_last = double(w[1] + w[3] - 1) * s.ground_spacing_m;
-    double r_lo = std::numeric_limits<double>::infinity(), r_hi = -r_lo;
-    for (const double t : g.zero_doppler_time_s) {
-      r_lo = std::min(r_lo, a.SlantRangeOfGroundRange(g_first, t));
-      r_hi = std::max(r_hi, a.SlantRangeOfGroundRange(g_last, t));
-    }
-    const double r0 = r_lo - 2.0 * dr;
-    const int cols = static_cast<int>(std::ceil((r_hi - r0) / dr)) + 3;
-    g.slant_range_m.resize(size_t(cols));
-    for (int j = 0; j < cols; ++j) g.slant_range_m[size_t(j)] = r0 + double(j) * dr;
-  }
+  RangeSamples(s);
   g.center_frequency_hz = a.radar_frequency_hz;
   g.wavelength_m = a.wavelength_m;
   g.look_left = a.look_left;
   g.orbit = a.orbit;
   if (s.orbit_source == "annotation") g.orbit.type = "annotation (" + a.file + ")";
+}
 
-  // The impulse response's bands: an SLC's processing bandwidths, a GRD's
-  // look bandwidths (one look's band sets the resolution of the multilooked
-  // image) of its middle swath.
-  if (!a.processing.empty()) {
-    if (s.ground_range) {
-      const geo::Sentinel1SwathProcessing& p = a.processing[a.processing.size() / 2];
-      g.processed_range_bandwidth_hz = p.range_look_bandwidth_hz;
-      g.processed_azimuth_bandwidth_hz = p.azimuth_look_bandwidth_hz;
-      s.bandwidth_source = "lookBandwidth of " + p.swath + " (the middle swath of the GRD; " +
-                           std::to_string(p.range_looks) + " x " + std::to_string(p.azimuth_looks) +
-                           " range x azimuth looks)";
-    } else {
-      const auto it = std::find_if(a.processing.begin(), a.processing.end(),
-                                   [&](const geo::Sentinel1SwathProcessing& p) { return p.swath == a.swath; });
-      const geo::Sentinel1SwathProcessing& p = it != a.processing.end() ? *it : a.processing.front();
-      g.processed_range_bandwidth_hz = p.range_processing_bandwidth_hz;
-      g.processed_azimuth_bandwidth_hz = p.azimuth_processing_bandwidth_hz;
-      s.bandwidth_source = "processingBandwidth of " + p.swath;
-    }
+// The impulse response's bands: an SLC's processing bandwidths, a GRD's
+// look bandwidths (one look's band sets the resolution of the multilooked
+// image) of its middle swath.
+void SetImpulseBandwidths(Sentinel1Source& s) {
+  const geo::Sentinel1Annotation& a = s.annotation;
+  geo::RslcProduct& g = s.grid;
+  if (a.processing.empty()) return;
+  if (s.ground_range) {
+    const geo::Sentinel1SwathProcessing& p = a.processing[a.processing.size() / 2];
+    g.processed_range_bandwidth_hz = p.range_look_bandwidth_hz;
+    g.processed_azimuth_bandwidth_hz = p.azimuth_look_bandwidth_hz;
+    s.bandwidth_source = "lookBandwidth of " + p.swath + " (the middle swath of the GRD; " +
+                         std::to_string(p.range_looks) + " x " + std::to_string(p.azimuth_looks) +
+                         " range x azimuth looks)";
+  } else {
+    const auto it = std::find_if(a.processing.begin(), a.processing.end(),
+                                 [&](const geo::Sentinel1SwathProcessing& p) { return p.swath == a.swath; });
+    const geo::Sentinel1SwathProcessing& p = it != a.processing.end() ? *it : a.processing.front();
+    g.processed_range_bandwidth_hz = p.range_processing_bandwidth_hz;
+    g.processed_azimuth_bandwidth_hz = p.azimuth_processing_bandwidth_hz;
+    s.bandwidth_source = "processingBandwidth of " + p.swath;
   }
-  reporter.Info(options.command + ": " + product.name + ": " + grid_name + " " + a.polarization + ", lines " +
+}
+
+}  // namespace
+
+Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter& reporter) {
+  Sentinel1Source s;
+  s.product = geo::OpenSentinel1(options.product);
+  const std::vector<material::Polarization> channels =
+      material::ParsePolarizationList(options.polarization, "--polarization");
+  const geo::Sentinel1Entry& entry = GeometryEntry(s.product, SelectedSwath(s.product, options), channels);
+  s.annotation = geo::ReadSentinel1Annotation(s.product, entry);
+  const geo::Sentinel1Annotation& a = s.annotation;
+  if (!options.orbit.empty()) ReplaceOrbit(s, options, reporter);
+  s.ground_range = a.is_grd();
+  if (s.ground_range && options.coherent) {
+    throw ConfigError("a GRD is a detected, multilooked product: simulate it without --coherent (or simulate the SLC)",
+                      "--coherent");
+  }
+
+  // Burst (IW/EW SLC) and the full grid in the product's own numbering; the window of it rendered.
+  const FullGrid full = SelectBurst(s, options);
+  s.full_size = {full.lines, full.pixels};
+  s.window = options.window_px ? *options.window_px : std::array<int, 4>{0, 0, full.lines, full.pixels};
+  const std::array<int, 4>& w = s.window;
+  const std::string grid_name = s.burst > 0 ? "burst " + std::to_string(s.burst) + " of " + a.swath
+                                            : (s.ground_range ? "GRD " : "swath ") + a.swath;
+  CheckWindow(s, full, grid_name);
+
+  FillRadarGrid(s, options, entry, full.first_time_s);
+  SetImpulseBandwidths(s);
+  reporter.Info(options.command + ": " + s.product.name + ": " + grid_name + " " + a.polarization + ", lines " +
                 std::to_string(w[0]) + "-" + std::to_string(w[0] + w[2] - 1) + ", pixels " + std::to_string(w[1]) +
                 "-" + std::to_string(w[1] + w[3] - 1) +
-                (s.ground_range ? " (ground range; rendered on " + std::to_string(g.slant_range_m.size()) +
+                (s.ground_range ? " (ground range; rendered on " + std::to_string(s.grid.slant_range_m.size()) +
                                       " slant samples)"
                                 : std::string()));
   return s;

@@ -2,37 +2,26 @@
 #include "gissar/pipeline/field_names.h"
 #include "gissar/pipeline/simulate_fields.h"
 
-#include "gissar/pipeline/georeferencing.h"
-#include "gissar/pipeline/stac.h"
-
 #include "gissar/pipeline/product_simulate.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <complex>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <cstdio>
 #include <sstream>
 
-#include <tbb/task_group.h>
-
 #include "gissar/geo/dem.h"
 #include "gissar/geo/geoid.h"
 #include "gissar/geo/vertical_datum.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
-#include "gissar/image/annotated.h"
 #include "gissar/image/impulse_response.h"
-#include "gissar/image/polarimetry.h"
-#include "gissar/image/quicklook.h"
 #include "gissar/image/radiometry.h"
 #include "gissar/material/material.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/raster_renderer.h"
-#include "gissar/render/terrain_layers.h"
 #include "gissar/scene/gis_scene.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
@@ -45,18 +34,6 @@
 
 namespace gissar::pipeline {
 namespace fs = std::filesystem;
-
-Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option) {
-  std::istringstream in(text);
-  double a = 0, b = 0;
-  char comma = 0;
-  std::string rest;
-  if (!(in >> a >> comma >> b) || comma != ',' || (in >> rest) || !std::isfinite(a) ||
-      !std::isfinite(b)) {
-    throw ConfigError("expected two numbers 'A,B', got '" + text + "'", option);
-  }
-  return {a, b};
-}
 
 std::string ToString(SimulateEngine engine) { return std::string(kSimulateEngines.Name(engine)); }
 
@@ -380,22 +357,6 @@ Terrain TerrainFromScene(const SimulateRequest& options) {
   return t;
 }
 
-void WriteContributions(const fs::path& path, const std::vector<render::Contribution>& contributions,
-                        const sensor::SarGeometry& geometry) {
-  std::FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) throw WriteError("cannot open contributions file", path, errno);
-  std::fprintf(f, "azimuth_m,range_m,elevation_m,column,row,intensity,bounces,specular,x_enu_m,y_enu_m,z_enu_m,class\n");
-  for (const render::Contribution& c : contributions) {
-    std::fprintf(f, "%.4f,%.4f,%.4f,%.3f,%.3f,%.6g,%d,%d,%.3f,%.3f,%.3f,%d\n", c.azimuth_m, c.range_m, c.elevation_m,
-                 geometry.ColumnOfRange(c.range_m), geometry.RowOfAlongTrack(c.azimuth_m), c.intensity, c.bounces,
-                 c.specular ? 1 : 0, c.hit_enu.x(), c.hit_enu.y(), c.hit_enu.z(), c.class_id);
-  }
-  const int write_error = std::ferror(f) != 0 ? errno : 0;
-  if (std::fclose(f) != 0 || write_error != 0) {
-    throw WriteError("failed writing contributions file", path, write_error != 0 ? write_error : errno);
-  }
-}
-
 }  // namespace
 
 nlohmann::json VerticalDatumRecord(const Terrain& terrain) {
@@ -483,6 +444,267 @@ Eigen::Vector3d ShadowReach(const sensor::SarGeometry& g, const Eigen::Vector3d&
   return p + (z_top - p.z()) / up_sight.z() * up_sight;
 }
 
+// Why a simulation reads the whole DEM without planning a window (nullopt:
+// a window is planned).
+std::optional<std::string> NoWindowPlanned(const SimulateRequest& options) {
+  if (options.dem.empty() || !options.product.empty()) return "not a DEM";
+  if (options.geometry.width <= 0 || options.geometry.height <= 0) {
+    return "no --width/--height: the image covers the whole DEM";
+  }
+  if (options.engine != SimulateEngine::kTrace) return "the raster engine spaces its horizon lines from the whole grid";
+  return std::nullopt;
+}
+
+// Height bounds of the window's halo: exact for the stored heights; cubic
+// refinement may overshoot (by less than the height span: Keys' kernel and
+// its boundary rule); a geoid adds its undulation (EGM96/EGM2008 lie within
+// -107..+86 m). sea_low: the lowest height the sea rule may compare.
+struct HaloHeights {
+  double lo = 0.0, hi = 0.0, sea_low = 0.0;
+};
+HaloHeights HaloHeightsOf(const geo::DemInfo& info, const SimulateRequest& options, const std::string& datum) {
+  double lo = info.min_height_m, hi = info.max_height_m;
+  if (options.dem_oversample > 1) {
+    const double span = hi - lo;
+    lo -= span;
+    hi += span;
+  }
+  const double sea_low = lo;
+  if (datum != "ellipsoid") {
+    lo -= 110.0;
+    hi += 90.0;
+  }
+  lo -= 1.0;
+  hi += 1.0;
+  return {lo, hi, sea_low};
+}
+
+// The source raster's header only: map coordinates of its posts.
+geo::Dem PostLattice(const geo::DemInfo& info) {
+  geo::Dem lattice;
+  lattice.geotransform = info.geotransform;
+  lattice.source_geotransform = info.geotransform;
+  lattice.lattice_factor = 1;
+  lattice.width = lattice.source_width = info.width;
+  lattice.height = lattice.source_height = info.height;
+  return lattice;
+}
+
+// The scene centre (--center, --center-map or the DEM's centre) in source
+// posts (column, row). Throws ConfigError for a centre that is not a
+// longitude,latitude or lies outside the DEM.
+Eigen::Vector2d SceneCentrePost(const SimulateRequest& options, const geo::DemInfo& info, const geo::Dem& lattice,
+                                const geo::CrsTransform& crs) {
+  Eigen::Vector2d centre_map;
+  if (options.center_lonlat) {
+    std::vector<double> x{options.center_lonlat->x()}, y{options.center_lonlat->y()};
+    if (!std::isfinite(x[0]) || !std::isfinite(y[0]) || std::abs(y[0]) > 90.0) {
+      throw ConfigError("scene centre is not a valid longitude,latitude", "--center");
+    }
+    crs.FromLonLat(x, y);
+    centre_map = {x[0], y[0]};
+  } else if (options.center_map) {
+    centre_map = *options.center_map;
+  } else {
+    centre_map = lattice.MapFromPost((info.width - 1) / 2.0, (info.height - 1) / 2.0);
+  }
+  double centre_col = 0.0, centre_row = 0.0;
+  lattice.PostFromMap(centre_map.x(), centre_map.y(), &centre_col, &centre_row);
+  if (!(centre_col >= 0.0 && centre_row >= 0.0 && centre_col <= info.width - 1 && centre_row <= info.height - 1)) {
+    throw ConfigError("scene centre lies outside the DEM", options.center_map ? "--center-map" : "--center");
+  }
+  return {centre_col, centre_row};
+}
+
+// The frame, scene centre (ENU), post spacing and image geometry exactly as
+// the whole DEM gives them.
+struct CentredGeometry {
+  geo::LocalFrame frame;
+  Eigen::Vector3d xc;
+  double post_spacing_m;
+  sensor::SarGeometry geometry;
+};
+
+// CentredGeometry from the posts around the scene centre; nullopt (and the
+// reason) when voids next to it are filled from the whole DEM.
+std::optional<CentredGeometry> GeometryAtCentre(const SimulateRequest& options, const geo::DemReadOptions& read_options,
+                                                const geo::DemInfo& info, const std::string& datum,
+                                                const Eigen::Vector2d& centre_post, std::string* reason) {
+  const int c = static_cast<int>(std::floor(centre_post.x())), r = static_cast<int>(std::floor(centre_post.y()));
+  const int c0 = std::max(0, c - 3), r0 = std::max(0, r - 3);
+  const int c1 = std::min(info.width - 1, c + 4), r1 = std::min(info.height - 1, r + 4);
+  geo::DemReadOptions small_options = read_options;
+  small_options.window = std::array<int, 4>{c0, r0, c1 - c0 + 1, r1 - r0 + 1};
+  geo::Dem small = geo::ReadDem(options.dem, small_options);
+  if (small.filled_nodata_cells > 0) {
+    *reason = "--fill-nodata with voids next to the scene centre (filled from the whole DEM)";
+    return std::nullopt;
+  }
+  small = geo::RefineDem(small, options.dem_oversample, int64_t{1} << 40);
+  geo::ToEllipsoidalHeights(small, datum);
+  std::optional<Eigen::Vector2d> small_map = options.center_map;
+  if (!options.center_lonlat && !small_map) {
+    const Eigen::Vector2d post = small.SourceCentrePost();
+    small_map = small.MapFromPost(post.x(), post.y());
+  }
+  const geo::GeoPoint centre = geo::ResolveSceneCentre(small, options.center_lonlat, small_map);
+  const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
+  const Eigen::Vector3d xc = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
+  sensor::SarGeometryOptions g = options.geometry;
+  const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(small, frame, /*at_source_centre=*/true);
+  const double post_spacing_m = 0.5 * (spacing.x() + spacing.y()) * options.dem_oversample;
+  if (g.range_spacing_m == 0.0) g.range_spacing_m = post_spacing_m;
+  if (g.azimuth_spacing_m == 0.0) g.azimuth_spacing_m = post_spacing_m;
+  return CentredGeometry{frame, xc, post_spacing_m, sensor::SarGeometry::Covering(g, xc, {})};
+}
+
+// Points along the image's border (and the window's) per side.
+constexpr int kWindowBorderSteps = 64;
+
+// The ground the image can see (ENU): its border (plus the margin) at the
+// lowest and highest ENU heights, and where its lines of sight reach the
+// highest. ENU heights drop with distance d from the origin (about
+// d^2 / 2R): the lowest bound (z_low) is lowered by the drop at the
+// farthest point found.
+struct ImageReach {
+  std::vector<Eigen::Vector3d> points;
+  double z_low = 0.0;
+};
+ImageReach ImageReachOf(const sensor::SarGeometry& geometry, const HaloHeights& heights) {
+  const double lo = heights.lo, hi = heights.hi;
+  const double m = kDemWindowMarginPx;
+  const double c_lo = -m, c_hi = geometry.width() - 1 + m, r_lo = -m, r_hi = geometry.height() - 1 + m;
+  std::vector<Eigen::Vector2d> border;
+  const int steps = kWindowBorderSteps;
+  for (int k = 0; k <= steps; ++k) {
+    const double f = double(k) / steps;
+    border.emplace_back(c_lo + f * (c_hi - c_lo), r_lo);
+    border.emplace_back(c_lo + f * (c_hi - c_lo), r_hi);
+    border.emplace_back(c_lo, r_lo + f * (r_hi - r_lo));
+    border.emplace_back(c_hi, r_lo + f * (r_hi - r_lo));
+  }
+  ImageReach reach;
+  std::vector<Eigen::Vector3d>& points = reach.points;
+  double z_low = lo;
+  for (int pass = 0; pass < 2; ++pass) {
+    points.clear();
+    double farthest = 0.0;
+    for (const Eigen::Vector2d& px : border) {
+      for (const double z : {z_low, hi}) {
+        const auto p = PixelAtHeight(geometry, px.x(), px.y(), z);
+        if (!p) continue;
+        points.push_back(*p);
+        points.push_back(ShadowReach(geometry, *p, hi));
+        farthest = std::max({farthest, p->head<2>().norm(), points.back().head<2>().norm()});
+      }
+    }
+    const double drop = 1.2 * farthest * farthest / (2.0 * 6.35e6) + 1.0;
+    if (lo - drop >= z_low) break;
+    z_low = lo - drop;
+  }
+  reach.z_low = z_low;
+  return reach;
+}
+
+// The window of source posts (first column, first row, columns, rows)
+// holding `points` plus kDemWindowMarginPosts; nullopt (and the reason)
+// when the footprint leaves the CRS's domain or the DEM.
+std::optional<std::array<int, 4>> WindowOfPoints(const std::vector<Eigen::Vector3d>& points,
+                                                 const geo::LocalFrame& frame, const geo::CrsTransform& crs,
+                                                 const geo::Dem& lattice, const geo::DemInfo& info,
+                                                 std::string* reason) {
+  // Source posts of those points.
+  std::vector<double> x, y;
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3d geodetic = frame.GeodeticFromEnu(p);
+    x.push_back(geodetic.x());
+    y.push_back(geodetic.y());
+  }
+  try {
+    crs.FromLonLat(x, y);
+  } catch (const InputError&) {  // a footprint beyond the domain of the DEM's CRS: read the whole DEM
+    *reason = "the image's footprint reaches outside the domain of the DEM's CRS";
+    return std::nullopt;
+  }
+  double col_min = 1e300, col_max = -1e300, row_min = 1e300, row_max = -1e300;
+  for (size_t i = 0; i < x.size(); ++i) {
+    double c = 0.0, r = 0.0;
+    lattice.PostFromMap(x[i], y[i], &c, &r);
+    if (!std::isfinite(c) || !std::isfinite(r)) continue;
+    col_min = std::min(col_min, c);
+    col_max = std::max(col_max, c);
+    row_min = std::min(row_min, r);
+    row_max = std::max(row_max, r);
+  }
+  auto clamp_post = [](double v, int size) {
+    return static_cast<int>(std::clamp(v, 0.0, double(size - 1)));
+  };
+  const int wc0 = clamp_post(std::floor(col_min) - kDemWindowMarginPosts, info.width);
+  const int wc1 = clamp_post(std::ceil(col_max) + kDemWindowMarginPosts, info.width);
+  const int wr0 = clamp_post(std::floor(row_min) - kDemWindowMarginPosts, info.height);
+  const int wr1 = clamp_post(std::ceil(row_max) + kDemWindowMarginPosts, info.height);
+  if (wc1 - wc0 < 1 || wr1 - wr0 < 1) {
+    *reason = "the image's footprint lies outside the DEM";
+    return std::nullopt;
+  }
+  return std::array<int, 4>{wc0, wr0, wc1 - wc0 + 1, wr1 - wr0 + 1};
+}
+
+// The ray box: the window's posts at both height bounds (its border,
+// densely, and its centre; ENU heights are lowest at the border), the scene
+// centre, a post of slack (the window's plan is curved in ENU) and the ENU
+// drop below heights.lo.
+Eigen::AlignedBox3d WindowRayBox(const std::array<int, 4>& window, const geo::Dem& lattice,
+                                 const geo::CrsTransform& crs, const CentredGeometry& centred,
+                                 const HaloHeights& heights, double z_low) {
+  const double lo = heights.lo, hi = heights.hi;
+  const int wc0 = window[0], wr0 = window[1], wc1 = window[0] + window[2] - 1, wr1 = window[1] + window[3] - 1;
+  const int steps = kWindowBorderSteps;
+  std::vector<double> bx, by;
+  for (int k = 0; k <= steps; ++k) {
+    const double f = double(k) / steps;
+    const double cc = wc0 + f * (wc1 - wc0), rr = wr0 + f * (wr1 - wr0);
+    for (const auto& [pc, pr] : {std::pair{cc, double(wr0)}, {cc, double(wr1)}, {double(wc0), rr}, {double(wc1), rr}}) {
+      const Eigen::Vector2d mp = lattice.MapFromPost(pc, pr);
+      bx.push_back(mp.x());
+      by.push_back(mp.y());
+    }
+  }
+  const Eigen::Vector2d mid = lattice.MapFromPost(0.5 * (wc0 + wc1), 0.5 * (wr0 + wr1));
+  bx.push_back(mid.x());
+  by.push_back(mid.y());
+  crs.ToLonLat(bx, by);
+  Eigen::AlignedBox3d box;
+  for (size_t i = 0; i < bx.size(); ++i) {
+    for (const double z : {lo, hi}) box.extend(centred.frame.EnuFromGeodetic(bx[i], by[i], z));
+  }
+  box.extend(centred.xc);
+  const double slack = 2.0 * centred.post_spacing_m + 1.0;
+  box.min() -= Eigen::Vector3d(slack, slack, slack + (z_low < lo ? lo - z_low : 0.0));
+  box.max() += Eigen::Vector3d(slack, slack, slack);
+  return box;
+}
+
+// Why the whole DEM is read anyway although a window was planned ("": the
+// window is read).
+std::string WhyWholeDem(const SimulateRequest& options, const std::array<int, 4>& window, const geo::DemInfo& info,
+                        double sea_low) {
+  material::MaterialTable materials;
+  ApplyMaterialsFile(materials, options);
+  const bool mirror_paths = options.bounces > 1 && materials.Get(scene::kClassDefault).mirror > 0.0;
+  const double window_posts = double(window[2]) * window[3];
+  if (options.dem_window == "off") return "--dem-window off";
+  if (options.sea == "auto" && sea_low <= options.sea_level_m) {
+    return "--sea auto on a DEM reaching the sea level (the sea is what connects to the whole DEM's border; "
+           "--sea off reads a window)";
+  }
+  if (mirror_paths) return "mirror paths (--materials with a mirror share and --bounces > 1) may reach any terrain";
+  if (!options.reflectors.empty()) return "--reflectors may lie anywhere on the DEM";
+  if (!options.contributions.empty()) return "--contributions records returns from anywhere on the DEM";
+  if (window_posts >= 0.8 * double(info.width) * double(info.height)) return "the window is most of the DEM";
+  return "";
+}
+
 }  // namespace
 
 nlohmann::json DemWindowPlan::ToJson() const {
@@ -505,16 +727,8 @@ nlohmann::json DemWindowPlan::ToJson() const {
 
 DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) {
   DemWindowPlan plan;
-  if (options.dem.empty() || !options.product.empty()) {
-    plan.reason = "not a DEM";
-    return plan;
-  }
-  if (options.geometry.width <= 0 || options.geometry.height <= 0) {
-    plan.reason = "no --width/--height: the image covers the whole DEM";
-    return plan;
-  }
-  if (options.engine != SimulateEngine::kTrace) {
-    plan.reason = "the raster engine spaces its horizon lines from the whole grid";
+  if (const std::optional<std::string> why = NoWindowPlanned(options)) {
+    plan.reason = *why;
     return plan;
   }
   const geo::DemReadOptions read_options = DemReadOptionsOf(options);
@@ -527,202 +741,35 @@ DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) 
   plan.source_height = info.height;
   const geo::VerticalDatumChoice datum =
       geo::ResolveVerticalDatum(geo::CanonicalVerticalDatum(options.vertical_datum), info.file_vertical_datum);
-  // Height bounds: exact for the stored heights; cubic refinement may
-  // overshoot (by less than the height span: Keys' kernel and its boundary
-  // rule); a geoid adds its undulation (EGM96/EGM2008 lie within -107..+86 m).
-  double lo = info.min_height_m, hi = info.max_height_m;
-  if (options.dem_oversample > 1) {
-    const double span = hi - lo;
-    lo -= span;
-    hi += span;
-  }
-  const double sea_low = lo;
-  if (datum.datum != "ellipsoid") {
-    lo -= 110.0;
-    hi += 90.0;
-  }
-  lo -= 1.0;
-  hi += 1.0;
+  const HaloHeights heights = HaloHeightsOf(info, options, datum.datum);
 
   // The scene centre, frame and geometry exactly as the whole DEM gives
   // them: the centre's height from the posts around it.
-  geo::Dem lattice;  // header only: map coordinates of source posts
-  lattice.geotransform = info.geotransform;
-  lattice.source_geotransform = info.geotransform;
-  lattice.lattice_factor = 1;
-  lattice.width = lattice.source_width = info.width;
-  lattice.height = lattice.source_height = info.height;
+  const geo::Dem lattice = PostLattice(info);
   const geo::CrsTransform crs(info.crs_wkt);
-  Eigen::Vector2d centre_map;
-  if (options.center_lonlat) {
-    std::vector<double> x{options.center_lonlat->x()}, y{options.center_lonlat->y()};
-    if (!std::isfinite(x[0]) || !std::isfinite(y[0]) || std::abs(y[0]) > 90.0) {
-      throw ConfigError("scene centre is not a valid longitude,latitude", "--center");
-    }
-    crs.FromLonLat(x, y);
-    centre_map = {x[0], y[0]};
-  } else if (options.center_map) {
-    centre_map = *options.center_map;
-  } else {
-    centre_map = lattice.MapFromPost((info.width - 1) / 2.0, (info.height - 1) / 2.0);
-  }
-  double centre_col = 0.0, centre_row = 0.0;
-  lattice.PostFromMap(centre_map.x(), centre_map.y(), &centre_col, &centre_row);
-  if (!(centre_col >= 0.0 && centre_row >= 0.0 && centre_col <= info.width - 1 && centre_row <= info.height - 1)) {
-    throw ConfigError("scene centre lies outside the DEM", options.center_map ? "--center-map" : "--center");
-  }
-  {
-    const int c = static_cast<int>(std::floor(centre_col)), r = static_cast<int>(std::floor(centre_row));
-    const int c0 = std::max(0, c - 3), r0 = std::max(0, r - 3);
-    const int c1 = std::min(info.width - 1, c + 4), r1 = std::min(info.height - 1, r + 4);
-    geo::DemReadOptions small_options = read_options;
-    small_options.window = std::array<int, 4>{c0, r0, c1 - c0 + 1, r1 - r0 + 1};
-    geo::Dem small = geo::ReadDem(options.dem, small_options);
-    if (small.filled_nodata_cells > 0) {
-      plan.reason = "--fill-nodata with voids next to the scene centre (filled from the whole DEM)";
-      return plan;
-    }
-    small = geo::RefineDem(small, options.dem_oversample, int64_t{1} << 40);
-    geo::ToEllipsoidalHeights(small, datum.datum);
-    std::optional<Eigen::Vector2d> small_map = options.center_map;
-    if (!options.center_lonlat && !small_map) {
-      const Eigen::Vector2d post = small.SourceCentrePost();
-      small_map = small.MapFromPost(post.x(), post.y());
-    }
-    const geo::GeoPoint centre = geo::ResolveSceneCentre(small, options.center_lonlat, small_map);
-    const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
-    const Eigen::Vector3d xc = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
-    sensor::SarGeometryOptions g = options.geometry;
-    const Eigen::Vector2d spacing = geo::DemPostSpacingMetres(small, frame, /*at_source_centre=*/true);
-    const double post_spacing_m = 0.5 * (spacing.x() + spacing.y()) * options.dem_oversample;
-    if (g.range_spacing_m == 0.0) g.range_spacing_m = post_spacing_m;
-    if (g.azimuth_spacing_m == 0.0) g.azimuth_spacing_m = post_spacing_m;
-    const sensor::SarGeometry geometry = sensor::SarGeometry::Covering(g, xc, {});
+  const Eigen::Vector2d centre_post = SceneCentrePost(options, info, lattice, crs);
+  const std::optional<CentredGeometry> centred =
+      GeometryAtCentre(options, read_options, info, datum.datum, centre_post, &plan.reason);
+  if (!centred) return plan;
 
-    // The image's border (plus the margin) on the ground at the lowest and
-    // highest ENU heights, and where its lines of sight reach the highest.
-    // ENU heights drop with distance d from the origin (about d^2 / 2R):
-    // the lowest bound is lowered by the drop at the farthest point found.
-    const double m = kDemWindowMarginPx;
-    const double c_lo = -m, c_hi = geometry.width() - 1 + m, r_lo = -m, r_hi = geometry.height() - 1 + m;
-    std::vector<Eigen::Vector2d> border;
-    const int steps = 64;
-    for (int k = 0; k <= steps; ++k) {
-      const double f = double(k) / steps;
-      border.emplace_back(c_lo + f * (c_hi - c_lo), r_lo);
-      border.emplace_back(c_lo + f * (c_hi - c_lo), r_hi);
-      border.emplace_back(c_lo, r_lo + f * (r_hi - r_lo));
-      border.emplace_back(c_hi, r_lo + f * (r_hi - r_lo));
-    }
-    std::vector<Eigen::Vector3d> points;
-    double z_low = lo;
-    for (int pass = 0; pass < 2; ++pass) {
-      points.clear();
-      double farthest = 0.0;
-      for (const Eigen::Vector2d& px : border) {
-        for (const double z : {z_low, hi}) {
-          const auto p = PixelAtHeight(geometry, px.x(), px.y(), z);
-          if (!p) continue;
-          points.push_back(*p);
-          points.push_back(ShadowReach(geometry, *p, hi));
-          farthest = std::max({farthest, p->head<2>().norm(), points.back().head<2>().norm()});
-        }
-      }
-      const double drop = 1.2 * farthest * farthest / (2.0 * 6.35e6) + 1.0;
-      if (lo - drop >= z_low) break;
-      z_low = lo - drop;
-    }
-    if (points.empty()) {
-      plan.reason = "the image's lines of sight do not reach the DEM's heights";
-      return plan;
-    }
-    plan.z_low_m = z_low;
-    plan.z_high_m = hi;
-    // Source posts of those points.
-    std::vector<double> x, y;
-    for (const Eigen::Vector3d& p : points) {
-      const Eigen::Vector3d geodetic = frame.GeodeticFromEnu(p);
-      x.push_back(geodetic.x());
-      y.push_back(geodetic.y());
-    }
-    try {
-      crs.FromLonLat(x, y);
-    } catch (const InputError&) {  // a footprint beyond the domain of the DEM's CRS: read the whole DEM
-      plan.reason = "the image's footprint reaches outside the domain of the DEM's CRS";
-      return plan;
-    }
-    double col_min = 1e300, col_max = -1e300, row_min = 1e300, row_max = -1e300;
-    for (size_t i = 0; i < x.size(); ++i) {
-      double c = 0.0, r = 0.0;
-      lattice.PostFromMap(x[i], y[i], &c, &r);
-      if (!std::isfinite(c) || !std::isfinite(r)) continue;
-      col_min = std::min(col_min, c);
-      col_max = std::max(col_max, c);
-      row_min = std::min(row_min, r);
-      row_max = std::max(row_max, r);
-    }
-    auto clamp_post = [](double v, int size) {
-      return static_cast<int>(std::clamp(v, 0.0, double(size - 1)));
-    };
-    const int wc0 = clamp_post(std::floor(col_min) - kDemWindowMarginPosts, info.width);
-    const int wc1 = clamp_post(std::ceil(col_max) + kDemWindowMarginPosts, info.width);
-    const int wr0 = clamp_post(std::floor(row_min) - kDemWindowMarginPosts, info.height);
-    const int wr1 = clamp_post(std::ceil(row_max) + kDemWindowMarginPosts, info.height);
-    if (wc1 - wc0 < 1 || wr1 - wr0 < 1) {
-      plan.reason = "the image's footprint lies outside the DEM";
-      return plan;
-    }
-    plan.window = {wc0, wr0, wc1 - wc0 + 1, wr1 - wr0 + 1};
-    // The ray box: the window's posts at both height bounds (its border,
-    // densely, and its centre; ENU heights are lowest at the border).
-    std::vector<double> bx, by;
-    for (int k = 0; k <= steps; ++k) {
-      const double f = double(k) / steps;
-      const double cc = wc0 + f * (wc1 - wc0), rr = wr0 + f * (wr1 - wr0);
-      for (const auto& [pc, pr] : {std::pair{cc, double(wr0)}, {cc, double(wr1)}, {double(wc0), rr}, {double(wc1), rr}}) {
-        const Eigen::Vector2d mp = lattice.MapFromPost(pc, pr);
-        bx.push_back(mp.x());
-        by.push_back(mp.y());
-      }
-    }
-    const Eigen::Vector2d mid = lattice.MapFromPost(0.5 * (wc0 + wc1), 0.5 * (wr0 + wr1));
-    bx.push_back(mid.x());
-    by.push_back(mid.y());
-    crs.ToLonLat(bx, by);
-    Eigen::AlignedBox3d box;
-    for (size_t i = 0; i < bx.size(); ++i) {
-      for (const double z : {lo, hi}) box.extend(frame.EnuFromGeodetic(bx[i], by[i], z));
-    }
-    box.extend(xc);
-    // A post of slack (the window's plan is curved in ENU) and the ENU drop.
-    const double slack = 2.0 * post_spacing_m + 1.0;
-    box.min() -= Eigen::Vector3d(slack, slack, slack + (z_low < lo ? lo - z_low : 0.0));
-    box.max() += Eigen::Vector3d(slack, slack, slack);
-    plan.ray_box = box;
+  // The posts the image can see or be shadowed from, and the rays' box.
+  const ImageReach reach = ImageReachOf(centred->geometry, heights);
+  if (reach.points.empty()) {
+    plan.reason = "the image's lines of sight do not reach the DEM's heights";
+    return plan;
   }
+  plan.z_low_m = reach.z_low;
+  plan.z_high_m = heights.hi;
+  const std::optional<std::array<int, 4>> window =
+      WindowOfPoints(reach.points, centred->frame, crs, lattice, info, &plan.reason);
+  if (!window) return plan;
+  plan.window = *window;
+  plan.ray_box = WindowRayBox(plan.window, lattice, crs, *centred, heights, reach.z_low);
   plan.applies = true;
 
   // When the whole DEM is read anyway.
-  material::MaterialTable materials;
-  ApplyMaterialsFile(materials, options);
-  const bool mirror_paths = options.bounces > 1 && materials.Get(scene::kClassDefault).mirror > 0.0;
-  const double window_posts = double(plan.window[2]) * plan.window[3];
-  if (options.dem_window == "off") {
-    plan.reason = "--dem-window off";
-  } else if (options.sea == "auto" && sea_low <= options.sea_level_m) {
-    plan.reason = "--sea auto on a DEM reaching the sea level (the sea is what connects to the whole DEM's border; "
-                  "--sea off reads a window)";
-  } else if (mirror_paths) {
-    plan.reason = "mirror paths (--materials with a mirror share and --bounces > 1) may reach any terrain";
-  } else if (!options.reflectors.empty()) {
-    plan.reason = "--reflectors may lie anywhere on the DEM";
-  } else if (!options.contributions.empty()) {
-    plan.reason = "--contributions records returns from anywhere on the DEM";
-  } else if (window_posts >= 0.8 * double(info.width) * double(info.height)) {
-    plan.reason = "the window is most of the DEM";
-  } else {
-    plan.read_window = true;
-  }
+  plan.reason = WhyWholeDem(options, plan.window, info, heights.sea_low);
+  plan.read_window = plan.reason.empty();
   (void)reporter;
   return plan;
 }
@@ -1093,148 +1140,6 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   return out;
 }
 
-namespace {
-
-std::vector<std::string> ChannelNames(const std::vector<material::Polarization>& channels) {
-  std::vector<std::string> names;
-  for (const material::Polarization c : channels) names.push_back(material::ToString(c));
-  return names;
-}
-
-}  // namespace
-
-bool HasPauliChannels(const SimulateRequest& options) {
-  const auto channels = material::ParsePolarizationList(options.polarization, "--polarization");
-  auto has = [&](material::Polarization p) { return std::find(channels.begin(), channels.end(), p) != channels.end(); };
-  return has(material::Polarization::kHH) && has(material::Polarization::kVV) &&
-         (has(material::Polarization::kHV) || has(material::Polarization::kVH));
-}
-
-std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& images,
-                                       const std::vector<material::Polarization>& channels,
-                                       std::vector<float>& no_return, geo::Metadata& metadata) {
-  GISSAR_CHECK(!images.empty());
-  const bool several = images.size() > 1;
-  auto channel_name = [&](size_t k) {
-    return k < channels.size() ? material::ToString(channels[k]) : std::string("VV");
-  };
-  const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
-  std::vector<geo::ComplexBand> slc_bands;
-  for (size_t k = 0; k < images.size(); ++k) {
-    slc_bands.push_back({&images[k]->real, &images[k]->imag, several ? channel_name(k) : "total"});
-  }
-  for (size_t k = 0; k < images.size(); ++k) {
-    render::SarImage& c = *images[k];
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      const std::string name = several ? channel_name(k) + "_" + layer_names[layer] : layer_names[layer];
-      if (c.bounce_real[layer].size() != c.real.size()) {
-        if (no_return.empty()) no_return = NoReturnPlane(*images[0], /*db=*/false);
-        slc_bands.push_back({&no_return, &no_return, name});
-      } else {
-        slc_bands.push_back({&c.bounce_real[layer], &c.bounce_imag[layer], name});
-      }
-    }
-  }
-  if (several) {
-    std::string bands_text;
-    for (size_t k = 0; k < slc_bands.size(); ++k) {
-      bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + slc_bands[k].name;
-    }
-    metadata["GISSAR_BANDS"] = bands_text + " (complex; each channel's bounce bands add up to its total "
-                                            "before thermal noise)";
-    metadata["GISSAR_POLARIZATIONS"] = material::ToString(channels);
-  } else {
-    metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
-                               "2-5 add up to band 1 before thermal noise)";
-  }
-  return slc_bands;
-}
-
-void WritePauliQuicklook(const fs::path& path, const std::vector<material::Polarization>& channels,
-                         const std::vector<const render::SarImage*>& images, nlohmann::json* record) {
-  using material::Polarization;
-  GISSAR_CHECK(channels.size() == images.size());
-  auto channel_image = [&](Polarization pol) -> const render::SarImage* {
-    for (size_t k = 0; k < channels.size(); ++k) {
-      if (channels[k] == pol) return images[k];
-    }
-    return nullptr;
-  };
-  const render::SarImage* hh = channel_image(Polarization::kHH);
-  const render::SarImage* vv = channel_image(Polarization::kVV);
-  const render::SarImage* hv = channel_image(Polarization::kHV);
-  const render::SarImage* vh = channel_image(Polarization::kVH);
-  if (!hv) hv = vh;
-  if (!vh) vh = hv;
-  GISSAR_CHECK(hh && vv && hv && vh);
-  image::QuadPolImage quad;
-  quad.width = hh->width;
-  quad.height = hh->height;
-  auto complex_of = [](const render::SarImage& c) {
-    std::vector<std::complex<float>> z(c.real.size());
-    for (size_t i = 0; i < z.size(); ++i) z[i] = {c.real[i], c.imag[i]};
-    return z;
-  };
-  quad.hh = complex_of(*hh);
-  quad.hv = complex_of(*hv);
-  quad.vh = complex_of(*vh);
-  quad.vv = complex_of(*vv);
-  const int side = std::max(quad.width, quad.height);
-  const int looks = std::clamp((side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx, 2,
-                               std::max(1, std::min(quad.width, quad.height)));
-  const image::PolarimetricMatrixImage t3 = image::MultilookCoherency(quad, looks, looks);
-  image::PauliStretch stretch;
-  const image::RgbImage rgb = image::PauliRgb(t3, &stretch);
-  geo::WritePng(path, rgb.rgb, rgb.width, rgb.height, 3);
-  *record = {{"looks", {looks, looks}},
-             {"db_low", stretch.low_db},
-             {"db_high", stretch.high_db},
-             {"percentiles", {2, 98}},
-             {"channels", "R = |HH - VV| / sqrt 2, G = |HV + VH| / sqrt 2, B = |HH + VV| / sqrt 2 (multilooked "
-                          "coherency T22, T33, T11; one dB stretch for the three)"}};
-}
-
-namespace {
-
-// Per channel: the share of the total power (summed over the footprint,
-// before the sensor stage's noise) in each bounce layer: the double-bounce
-// share of HH is above VV's where walls and ground form dihedrals.
-nlohmann::json BounceShares(const SimulatedImage& simulated) {
-  nlohmann::json shares = nlohmann::json::object();
-  const char* names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
-  for (size_t k = 0; k < simulated.channels.size(); ++k) {
-    const render::SarImage& c = k == 0 ? simulated.image : simulated.other_channels[k - 1];
-    double layer_sum[render::kBounceLayers] = {0, 0, 0, 0}, total = 0.0;
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      for (const float v : c.bounce_layers[layer]) {
-        if (std::isfinite(v)) layer_sum[layer] += v;
-      }
-      total += layer_sum[layer];
-    }
-    nlohmann::json row = nlohmann::json::object();
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      row[names[layer]] = total > 0.0 ? layer_sum[layer] / total : 0.0;
-    }
-    shares[material::ToString(simulated.channels[k])] = row;
-  }
-  return shares;
-}
-
-}  // namespace
-
-void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& o) {
-  o.tif = o.files.Add(options.out_prefix + ".tif");
-  o.png = o.files.Add(options.out_prefix + ".png");
-  o.annotated_png = o.files.Add(options.out_prefix + "_quicklook.png");
-  o.mask_tif = o.files.Add(options.out_prefix + "_mask.tif");
-  o.json = o.files.Add(options.out_prefix + ".json");
-  o.stac_json = o.files.Add(options.out_prefix + "_stac.json");
-  if (options.coherent) o.slc_tif = o.files.Add(options.out_prefix + "_slc.tif");
-  if (options.coherent && HasPauliChannels(options)) o.pauli_png = o.files.Add(options.out_prefix + "_pauli.png");
-  if (options.layers) o.layers_tif = o.files.Add(options.out_prefix + "_layers.tif");
-  if (!options.contributions.empty()) o.contributions_csv = o.files.Add(options.contributions);
-}
-
 SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   if (options.UsesProductGeometry()) return RunProductSimulate(options, command_line, reporter);
@@ -1244,398 +1149,6 @@ SimulateResult RunSimulate(const SimulateRequest& options, const std::string& co
   ReserveSimulationOutputs(options, outputs);
   SimulatedImage simulated = SimulateImage(options, reporter);
   return WriteSimulation(options, simulated, command_line, outputs, total);
-}
-
-SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& simulated,
-                               const std::string& command_line, SimulationOutputs& reserved,
-                               const Stopwatch& total) {
-  AtomicOutputs& outputs = reserved.files;
-  const fs::path& tif = reserved.tif;
-  const fs::path& png = reserved.png;
-  const fs::path& annotated_png = reserved.annotated_png;
-  const fs::path& mask_tif = reserved.mask_tif;
-  const fs::path& json = reserved.json;
-  const fs::path& contributions_csv = reserved.contributions_csv;
-  const fs::path& slc_tif = reserved.slc_tif;
-  nlohmann::json timings = simulated.timings_s;
-  Stopwatch step;
-  const Terrain& terrain = simulated.terrain;
-  const scene::TriangleMesh& mesh = terrain.mesh;
-  const geo::LocalFrame& frame = terrain.frame;
-  const sensor::SarGeometryOptions& geometry_options = simulated.geometry_options;
-  const sensor::SarGeometry& geometry = *simulated.geometry;
-  render::SarImage& image = simulated.image;
-  const Eigen::Vector3d xc = terrain.centre_enu;
-  const geo::GeoPoint centre = terrain.centre;
-
-  step = Stopwatch();
-  geo::Metadata metadata;
-  for (const auto& [k, v] : geometry.ToMetadata()) metadata[k] = v;
-  metadata["GISSAR_FRAME"] = "local ENU tangent frame on WGS84, origin lon,lat,h=" +
-                             std::to_string(frame.origin_lon_deg()) + "," +
-                             std::to_string(frame.origin_lat_deg()) + ",0";
-  metadata["GISSAR_UNITS"] = options.radiometry + (options.db ? " (dB)" : " (linear, m2/m2)");
-  metadata["GISSAR_RADIOMETRY"] = options.radiometry;
-  metadata["GISSAR_TERRAIN"] = fs::absolute(options.scene.empty() ? options.dem : options.scene).string();
-  metadata["GISSAR_VERSION"] = VersionString();
-  // Quicklooks from the linear values, drawn on another thread (PNG encoding
-  // is single-threaded) while the georeferencing and the GeoTIFFs are
-  // computed and written; on an exception the task group's destructor waits.
-  std::vector<float> linear = image.intensity;
-  for (float& v : linear) {
-    if (std::isnan(v)) v = 0.0f;  // no-data: black
-    else if (options.db) v = static_cast<float>(std::pow(10.0, v / 10.0));
-  }
-  image::DbStretch stretch;
-  double quicklook_seconds = 0.0;
-  tbb::task_group pictures;
-  pictures.run([&] {
-    const Stopwatch watch;
-    geo::WritePng(png, image::DbQuicklook(linear, 2.0, 98.0, &stretch), image.width, image.height, 1);
-    char title[160];
-    std::snprintf(title, sizeof(title), "heading %.1f deg, depression %.1f deg, %.3g x %.3g m pixels",
-                  geometry_options.heading_deg, geometry_options.depression_deg, geometry.range_spacing_m(),
-                  geometry.azimuth_spacing_m());
-    // The annotated quicklook is a picture for people: above
-    // kQuicklookMaxSidePx a side, it shows the image multilooked by an
-    // integer factor (linear power averaged), its axes at the block centres.
-    const int side = std::max(image.width, image.height);
-    const int looks = (side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx;
-    const std::vector<float> shown = looks > 1 ? image::Multilook(linear, image.height, image.width, looks, looks)
-                                               : std::vector<float>();
-    const double dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
-    const double half_block = 0.5 * (looks - 1);
-    // Affine geometry has parallel rays and no sensor: its range axis is
-    // relative to the scene centre (a nominal slant range added to it would
-    // read ranges shorter than the sensor's height).
-    const bool affine = geometry_options.mode == sensor::ProjectionMode::kAffine;
-    const image::RgbImage annotated = image::AnnotatedQuicklook(
-        looks > 1 ? shown : linear, image.width / looks, image.height / looks,
-        {(affine ? 0.0 : geometry.slant_range_m()) + (half_block - geometry.u0()) * dr, dr * looks,
-         (half_block - geometry.v0()) * da, da * looks, affine},
-        title);
-    geo::WritePng(annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
-    quicklook_seconds = watch.ElapsedSeconds();
-  });
-  // The bands are moved into the raster for the write and back afterwards
-  // (the caller may still read the image): no copies of full-size planes.
-  // One channel: total, then one band per bounce count. Several: each
-  // channel's total (named by its channel), then each channel's bounce bands.
-  std::vector<render::SarImage*> channel_images = {&image};
-  for (render::SarImage& other : simulated.other_channels) channel_images.push_back(&other);
-  const bool several = channel_images.size() > 1;
-  auto channel_name = [&](size_t k) {
-    return k < simulated.channels.size() ? material::ToString(simulated.channels[k]) : std::string("VV");
-  };
-  geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
-  raster.band_unit = image::RadiometryUnit(options.db);
-  const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
-  for (size_t k = 0; k < channel_images.size(); ++k) {
-    raster.bands.push_back(std::move(channel_images[k]->intensity));
-    raster.band_names.push_back(several ? channel_name(k) : "total");
-  }
-  for (size_t k = 0; k < channel_images.size(); ++k) {
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      raster.bands.push_back(std::move(channel_images[k]->bounce_layers[layer]));
-      raster.band_names.push_back(several ? channel_name(k) + "_" + layer_names[layer] : layer_names[layer]);
-      // A layer with no return (more bounces than traced) shares one plane.
-      if (raster.bands.back().empty() && raster.empty_band_pixels.empty()) {
-        raster.empty_band_pixels = NoReturnPlane(image, options.db);
-      }
-    }
-  }
-  // The terrain layers (--layers, --incidence-band), computed once: NaN
-  // outside the imaged footprint.
-  std::optional<render::TerrainLayers> terrain_layers;
-  auto layers_of_terrain = [&]() -> const render::TerrainLayers& {
-    if (!terrain_layers) {
-      // The raster engine keeps the DEM as posts only: triangulate them as it does.
-      const bool posts_only = mesh.triangle_count() == 0 && terrain.grid_width > 1 && terrain.grid_height > 1;
-      terrain_layers = render::ComputeTerrainLayers(
-          posts_only ? scene::MeshFromGrid(mesh.vertices, terrain.grid_width, terrain.grid_height) : mesh, geometry);
-      for (size_t i = 0; i < image.footprint.size() && i < terrain_layers->local_incidence_deg.size(); ++i) {
-        if (!image.footprint[i]) {
-          terrain_layers->local_incidence_deg[i] = terrain_layers->projected_area_m2[i] =
-              std::numeric_limits<float>::quiet_NaN();
-        }
-      }
-    }
-    return *terrain_layers;
-  };
-  if (options.incidence_band) {
-    const Stopwatch layers_watch;
-    raster.bands.push_back(layers_of_terrain().local_incidence_deg);
-    raster.band_names.push_back("local_incidence");
-    timings["layers"] = layers_watch.ElapsedSeconds();
-  }
-  auto give_back_bands = [&] {
-    if (raster.bands.empty()) return;
-    const size_t n = channel_images.size();
-    for (size_t k = 0; k < n; ++k) {
-      channel_images[k]->intensity = std::move(raster.bands[k]);
-      for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-        channel_images[k]->bounce_layers[layer] = std::move(raster.bands[n + k * render::kBounceLayers + layer]);
-      }
-    }
-    raster.bands.clear();
-  };
-  if (several) {
-    std::string bands_text;
-    for (size_t k = 0; k < raster.band_names.size(); ++k) {
-      bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + raster.band_names[k];
-    }
-    raster.metadata["GISSAR_BANDS"] = bands_text + " (channel totals, then each channel's bounce counts)";
-    raster.metadata["GISSAR_POLARIZATIONS"] = material::ToString(simulated.channels);
-  } else {
-    raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
-  }
-  if (options.incidence_band) raster.metadata["GISSAR_BANDS"] += "; last: local incidence (deg)";
-  raster.band_units.assign(raster.bands.size(), raster.band_unit);
-  if (options.incidence_band) raster.band_units.back() = "deg";
-  // NaN outside the imaged footprint (ApplySensorEffects), declared.
-  raster.nodata_nan = true;
-  raster.overviews = options.overviews;
-  // WGS84 GCPs on the terrain and RPCs fitted to the geometry (docs/georeferencing.md).
-  nlohmann::json georeference_record;
-  // Where the write phase's time goes (sidecar timings_s.write_detail).
-  nlohmann::json write_detail = nlohmann::json::object();
-  Stopwatch part;
-  auto lap = [&](const char* name) {
-    write_detail[name] = part.ElapsedSeconds();
-    part = Stopwatch();
-  };
-  try {
-    sensor::GeoreferenceReport georeference_report;
-    TpsRefinement tps;
-    raster.georeference = SimulationGeoreference(terrain, geometry, &georeference_report, &image.mask, &tps);
-    georeference_record = {{"gcps", georeference_report.gcp_count},
-                           {"rpc_max_error_px", georeference_report.rpc_max_error_px},
-                           {"rpc_rms_error_px", georeference_report.rpc_rms_error_px},
-                           {"tps_refinement",
-                            {{"candidates", tps.candidates},
-                             {"added_gcps", tps.added_gcps},
-                             {"rounds", tps.rounds},
-                             {"tolerance_m", tps.tolerance_m},
-                             {"max_error_m", tps.max_error_m},
-                             {"p95_error_m", tps.p95_error_m}}}};
-  } catch (const ConfigError& e) {
-    georeference_record = {{"gcps", 0}, {"reason", e.what()}};
-  }
-  lap("georeference");
-  if (!contributions_csv.empty()) WriteContributions(contributions_csv, image.contributions, geometry);
-  try {
-    geo::WriteFloatGeoTiff(tif, raster);
-  } catch (...) {
-    give_back_bands();
-    throw;
-  }
-  give_back_bands();
-  lap("image");
-  nlohmann::json pauli_record;  // the Pauli quicklook's looks and stretch
-  if (options.coherent) {
-    geo::Metadata slc_metadata = metadata;
-    slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
-    // The complex total, then the complex image of each bounce count: they
-    // add up to the total (before thermal noise). Several channels: each
-    // channel's complex total, then each channel's bounce counts.
-    std::vector<float> no_return;  // the real and imaginary parts of a layer with no return
-    const std::vector<geo::ComplexBand> slc_bands = SlcBands(channel_images, simulated.channels, no_return, slc_metadata);
-    geo::WriteComplexGeoTiff(slc_tif, slc_bands, image.width, image.height, slc_metadata, "sqrt(m2/m2)",
-                             raster.georeference, /*nodata_nan=*/true, options.overviews);
-    lap("slc");
-    if (!reserved.pauli_png.empty()) {
-      const std::vector<const render::SarImage*> images(channel_images.begin(), channel_images.end());
-      WritePauliQuicklook(reserved.pauli_png, simulated.channels, images, &pauli_record);
-      lap("pauli");
-    }
-  }
-  if (!reserved.layers_tif.empty()) {
-    const Stopwatch layers_watch;
-    const render::TerrainLayers& layers = layers_of_terrain();
-    geo::FloatRaster out{image.width, image.height, {layers.local_incidence_deg, layers.projected_area_m2},
-                         {"local_incidence", "projected_area"}, metadata};
-    out.band_units = {"deg", "m2"};
-    out.nodata_nan = true;
-    out.overviews = options.overviews;
-    out.georeference = raster.georeference;
-    out.metadata["GISSAR_BANDS"] =
-        "1 local incidence (deg, area-weighted over the surfaces facing the radar), 2 projected area (m2 of "
-        "terrain facing the radar in the pixel, occlusion ignored)";
-    geo::WriteFloatGeoTiff(reserved.layers_tif, out);
-    timings["layers"] = timings.value("layers", 0.0) + layers_watch.ElapsedSeconds();
-    part = Stopwatch();
-  }
-  // The quicklooks were drawn meanwhile.
-  pictures.wait();
-  write_detail["quicklooks"] = quicklook_seconds;
-  lap("quicklooks_wait");
-  geo::Metadata mask_metadata = metadata;
-  mask_metadata["GISSAR_MASK_CODES"] = kMaskCodesText;
-  geo::WriteByteGeoTiff(mask_tif, image.mask, image.width, image.height, mask_metadata, raster.georeference,
-                        MaskCategories(), options.overviews);
-  lap("mask");
-
-  nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
-  provenance["inputs"] = nlohmann::json::array(
-      {InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
-  provenance["georeference"] = georeference_record;
-  provenance["terrain"] = terrain.description;
-  provenance["materials"] = terrain.materials.ToJson();
-  provenance["vertical_datum"] = VerticalDatumRecord(terrain);
-  if (!terrain.dem_window.is_null()) provenance["dem_window"] = terrain.dem_window;
-  provenance["frame"] = {{"type", terrain.vertical_datum != "ellipsoid"
-                                      ? "ENU tangent frame, WGS84; DEM heights " + terrain.vertical_datum +
-                                            " + undulation = ellipsoidal"
-                                      : "ENU tangent frame, WGS84; DEM heights used as ellipsoidal"},
-                         {"origin_lon_deg", frame.origin_lon_deg()},
-                         {"origin_lat_deg", frame.origin_lat_deg()},
-                         {"origin_height_m", frame.origin_height_m()}};
-  provenance["scene_centre"] = {{"lon_deg", centre.lon_deg},
-                                {"lat_deg", centre.lat_deg},
-                                {"height_m", centre.height_m},
-                                {"enu_m", {xc.x(), xc.y(), xc.z()}}};
-  const Eigen::Vector3d sensor_position = geometry.SensorPosition(0.0);
-  provenance["geometry"] = {{"width", geometry.width()},
-                            {"height", geometry.height()},
-                            {"u0", geometry.u0()},
-                            {"v0", geometry.v0()},
-                            {"range_spacing_m", geometry.range_spacing_m()},
-                            {"azimuth_spacing_m", geometry.azimuth_spacing_m()},
-                            {"sensor_enu_m_at_centre",
-                             {sensor_position.x(), sensor_position.y(), sensor_position.z()}},
-                            {"flight_direction_enu",
-                             {geometry.flight_direction().x(), geometry.flight_direction().y(),
-                              geometry.flight_direction().z()}},
-                            {"look_direction_enu",
-                             {geometry.look_direction().x(), geometry.look_direction().y(),
-                              geometry.look_direction().z()}}};
-  provenance["stats"] = {{"triangles", mesh.triangle_count()},
-                         {"rays", image.stats.rays},
-                         {"hits", image.stats.hits},
-                         {"sub_rays", image.stats.sub_rays},
-                         {"shadow_rays", image.stats.shadow_rays},
-                         {"dem_cells", image.stats.cells},
-                         {"heightfield_cells", image.stats.heightfield_cells},
-                         {"profile_swept_lines", image.stats.profile_swept_lines},
-                         {"profile_swept_mask_rows", image.stats.profile_swept_mask_rows},
-                         {"mask_pixels",
-                          MaskPixelCounts(image.mask)}};
-  provenance["radiometry"] = {
-      {"quantity", options.radiometry},
-      {"scale", options.db ? "dB" : "linear"},
-      {"unit", image::RadiometryUnit(options.db)},
-      {"polarization", options.polarization},
-      {"channels", ChannelNames(simulated.channels)},
-      {"wavelength_m", options.wavelength_m},
-      {"nesz_db", std::isnan(options.nesz_db) ? nlohmann::json(nullptr) : nlohmann::json(options.nesz_db)},
-      {"incidence_reference",
-       geometry.mode() == sensor::ProjectionMode::kAffine
-           ? "ellipsoid incidence = 90 deg - depression (affine)"
-           : "ellipsoid incidence on the tangent plane through the scene centre, per range column"},
-      {"incidence_deg_first_last_column",
-       {geometry.IncidenceDeg(0), geometry.IncidenceDeg(geometry.width() - 1)}},
-      {"range_spacing_m", geometry.range_spacing_m()},
-      {"azimuth_spacing_m", geometry.azimuth_spacing_m()},
-      {"reflector_returns", image.points.size()}};
-  if (several) {
-    // Polarimetric passes: the bounce shares per channel, the Pauli
-    // quicklook's stretch.
-    provenance["polarimetry"] = {
-        {"channels", ChannelNames(simulated.channels)},
-        {"model", "one polarimetric pass per channel (VH = HV by reciprocity), one seed: scattering matrices per "
-                  "return (docs/radiometry.md, Polarimetry in the renderer)"},
-        {"bounce_shares", BounceShares(simulated)}};
-    if (!pauli_record.is_null()) provenance["polarimetry"]["pauli_quicklook"] = pauli_record;
-  }
-  provenance["sampling"] = {
-      {"footprint_pixels", image.stats.footprint_pixels},
-      {"empty_footprint_pixels", image.stats.empty_footprint_pixels},
-      {"empty_footprint_fraction",
-       image.stats.footprint_pixels > 0
-           ? double(image.stats.empty_footprint_pixels) / double(image.stats.footprint_pixels)
-           : 0.0}};
-  provenance["quicklook"] = {{"db_low", stretch.low_db}, {"db_high", stretch.high_db},
-                             {"percentiles", {2, 98}}};
-  // The STAC Item (stac.h): footprint from the GCPs on the imaged terrain.
-  {
-    StacProduct p;
-    p.id = fs::path(options.out_prefix).filename().string();
-    p.datetime_utc = provenance["created_utc"].get<std::string>();
-    for (const auto& g : raster.georeference.gcps) p.footprint_lonlat.emplace_back(g.lon_deg, g.lat_deg);
-    if (p.footprint_lonlat.empty()) p.footprint_lonlat.emplace_back(centre.lon_deg, centre.lat_deg);
-    p.wavelength_m = options.wavelength_m;
-    p.polarization = options.polarization;
-    p.product_type = "DETECTED_SLANT_RANGE";
-    p.observation_direction = sensor::ToString(geometry_options.look_side);
-    p.range_spacing_m = geometry.range_spacing_m();
-    p.azimuth_spacing_m = geometry.azimuth_spacing_m();
-    p.range_resolution_m = options.RangeResolutionM();
-    p.azimuth_resolution_m = options.AzimuthResolutionM();
-    p.looks_equivalent_number = options.speckle_looks;
-    p.incidence_deg = geometry.IncidenceDeg(geometry.u0());
-    p.off_nadir_deg = 90.0 - geometry_options.depression_deg;
-    p.look_azimuth_deg = geometry_options.heading_deg + (geometry_options.look_side == sensor::LookSide::kRight ? 90.0 : -90.0);
-    p.width = image.width;
-    p.height = image.height;
-    p.lineage = "simulated by gissar simulate (" + ToString(options.engine) + ", " + sensor::ToString(geometry.mode()) +
-                " projection) from " + fs::path(options.scene.empty() ? options.dem : options.scene).filename().string();
-    const std::string tiff = "image/tiff; application=geotiff";
-    auto final_of = [&](const fs::path& suffix) { return fs::path(options.out_prefix + suffix.string()); };
-    p.assets = {{"image", final_of(".tif"), tiff, "Slant-range " + options.radiometry + " (total and per-bounce bands)", {"data"}},
-                {"layover_shadow_mask", final_of("_mask.tif"), tiff, "Layover/shadow mask", {"data", "layover-shadow"}},
-                {"thumbnail", final_of(".png"), "image/png", "Quicklook (dB stretch)", {"thumbnail"}},
-                {"quicklook", final_of("_quicklook.png"), "image/png", "Annotated quicklook", {"overview"}},
-                {"provenance", final_of(".json"), "application/json", "gissar provenance sidecar", {"metadata"}}};
-    if (options.coherent) p.assets.push_back({"slc", final_of("_slc.tif"), tiff, "Single-look complex image", {"data"}});
-    if (!reserved.pauli_png.empty()) {
-      p.assets.push_back({"pauli", final_of("_pauli.png"), "image/png", "Pauli RGB quicklook (multilooked)", {"overview"}});
-    }
-    if (options.layers) {
-      p.assets.push_back({"layers", final_of("_layers.tif"), tiff, "Local incidence angle and projected terrain area",
-                          {"data", "local-incidence-angle"}});
-    }
-    WriteJsonFile(StacItem(p, fs::path(options.out_prefix).parent_path()), reserved.stac_json);
-  }
-  lap("sidecars");
-  timings["write"] = step.ElapsedSeconds();
-  timings["write_detail"] = write_detail;
-  timings["total"] = total.ElapsedSeconds();
-  provenance["timings_s"] = timings;
-  // The run's share of the machine's memory budget (util/memory_ledger.h; 0 with --force).
-  provenance["memory_reserved_bytes"] = static_cast<int64_t>(simulated.memory.bytes());
-  return CommitSimulation(outputs, provenance, json, image, total.ElapsedSeconds());
-}
-
-geo::ByteCategories MaskCategories() {
-  geo::ByteCategories c{{"none", "layover", "shadow", "layover and shadow"},
-                        {{0, 0, 0, 0}, {255, 64, 0, 255}, {0, 64, 255, 255}, {255, 0, 255, 255}}};
-  c.nodata = render::kMaskOutside;
-  return c;
-}
-
-nlohmann::json MaskPixelCounts(const std::vector<uint8_t>& mask) {
-  int64_t c[4] = {0, 0, 0, 0}, outside = 0;
-  for (uint8_t v : mask) {
-    if (v == render::kMaskOutside) ++outside;
-    else ++c[v & 3];
-  }
-  return {{"none", c[0]}, {"layover", c[1]}, {"shadow", c[2]}, {"layover_and_shadow", c[3]}, {"outside", outside}};
-}
-
-SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenance, const fs::path& json,
-                                const render::SarImage& image, double total_seconds) {
-  std::vector<std::string> final_names;
-  for (const fs::path& p : outputs.final_paths()) final_names.push_back(fs::absolute(p).string());
-  provenance["outputs"] = final_names;
-  WriteJsonFile(provenance, json);
-  outputs.Commit();
-  SimulateResult result;
-  result.outputs = outputs.final_paths();
-  result.stats = image.stats;
-  result.width = image.width;
-  result.height = image.height;
-  result.total_seconds = total_seconds;
-  return result;
 }
 
 }  // namespace gissar::pipeline

@@ -22,6 +22,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/material/material.h"
 #include "gissar/material/reflector.h"
+#include "gissar/pipeline/simulation_output.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/scene_io.h"
@@ -364,30 +365,6 @@ void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& i
 // part of an empty complex layer (db false).
 std::vector<float> NoReturnPlane(const render::SarImage& image, bool db);
 
-// Whether the request's channels give a Pauli vector (HH, VV and HV or VH):
-// a coherent run then writes PREFIX_pauli.png.
-bool HasPauliChannels(const SimulateRequest& options);
-
-// The complex bands of PREFIX_slc.tif (channels[k] is images[k]): one
-// channel: the complex total, then one band per bounce count; several: each
-// channel's complex total (named by its channel), then each channel's
-// bounce bands (HH_single, ...). A layer the render left empty points to
-// `no_return` (NoReturnPlane of images[0], filled here). Sets
-// GISSAR_BANDS (and GISSAR_POLARIZATIONS for several) in `metadata`.
-std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& images,
-                                       const std::vector<material::Polarization>& channels,
-                                       std::vector<float>& no_return, geo::Metadata& metadata);
-
-// Writes the Pauli RGB (image::PauliRgb: R = |HH - VV|, G = |HV + VH|, B =
-// |HH + VV|, each / sqrt 2, one common dB stretch from the 2nd to the 98th
-// percentile) of the multilooked coherency (at least 2 x 2 looks, more to
-// keep the longer side <= kQuicklookMaxSidePx) of the complex channels
-// `images` (channels[k] is images[k]; HH, VV and HV or VH among them), and
-// records the looks and the stretch. A missing cross-polarised channel is
-// taken from the other (reciprocity).
-void WritePauliQuicklook(const std::filesystem::path& path, const std::vector<material::Polarization>& channels,
-                         const std::vector<const render::SarImage*>& images, nlohmann::json* record);
-
 // The tracer's options of a simulation: rays per cell, bounces, coherence,
 // wavelength, seed, contributions (when options.contributions is set) and
 // progress (unless quiet). The one place SimulateRequest map to the tracer.
@@ -422,53 +399,11 @@ struct SimulatedImage {
 // options must have passed Check(). Not for options.product.
 SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter = NullReporter());
 
-// The files a simulation writes, reserved (AtomicOutputs::Add) before any
-// work so that a missing or read-only directory fails first.
-struct SimulationOutputs {
-  AtomicOutputs files;
-  std::filesystem::path tif, png, annotated_png, mask_tif, json, stac_json, contributions_csv, slc_tif, layers_tif,
-      pauli_png;
-};
-// Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _stac.json (STAC Item, stac.h), _slc.tif in
-// coherent mode (and _pauli.png for a coherent run with HH, VV and a cross-polarised channel), _layers.tif with `layers` and the contributions CSV when asked. Throws IoError for a missing or read-only
-// directory.
-void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& outputs);
-
-// The writing step: the GeoTIFF (total + per-bounce bands, geometry
-// metadata), quicklooks, mask, contributions and the provenance sidecar of
-// `simulated`, committed together (nothing is left on failure). `total`
-// started with the job (for the recorded timings).
-SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& simulated,
-                               const std::string& command_line, SimulationOutputs& reserved,
-                               const Stopwatch& total);
-
 // Runs the whole job: ReserveSimulationOutputs, SimulateImage,
-// WriteSimulation. Every output is written under a temporary name and
+// WriteSimulation (simulation_output.h). Every output is written under a temporary name and
 // renamed only when all of them succeeded. Throws the gissar::Error family
 // (InputError, ConfigError, IoError) with context on failure, leaving no
 // output behind. `command_line` is recorded in the provenance JSON.
 SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
-
-// Pixel counts of a layover/shadow mask by code, for provenance:
-// {"none", "layover", "shadow", "layover_and_shadow", "outside"} (outside:
-// render::kMaskOutside, no-data).
-nlohmann::json MaskPixelCounts(const std::vector<uint8_t>& mask);
-
-// Text of the mask codes (GISSAR_MASK_CODES metadata) and the mask GeoTIFF's
-// categories: names and colours of codes 0-3, no-data render::kMaskOutside.
-inline constexpr const char* kMaskCodesText =
-    "0 none, 1 layover, 2 shadow, 3 layover and shadow, 255 outside the imaged footprint (no-data)";
-geo::ByteCategories MaskCategories();
-
-// Finishes a simulation's outputs: records their absolute final paths in
-// provenance["outputs"], writes `provenance` to `json` (one of the reserved
-// outputs), commits them all (renames) and returns the result for `image`.
-// Throws IoError when writing or renaming fails (nothing is left behind).
-SimulateResult CommitSimulation(AtomicOutputs& outputs, nlohmann::json& provenance,
-                                const std::filesystem::path& json, const render::SarImage& image,
-                                double total_seconds);
-
-// Parses "A,B" into two finite numbers; throws ConfigError naming `option`.
-Eigen::Vector2d ParseNumberPair(const std::string& text, const std::string& option);
 
 }  // namespace gissar::pipeline

@@ -12,11 +12,6 @@ namespace {
 
 using F = Fields<SimulateRequest>;
 
-nlohmann::json PairText(const std::string& text, const std::string& flag) {
-  const Eigen::Vector2d v = ParseNumberPair(text, flag);
-  return nlohmann::json{v.x(), v.y()};
-}
-
 }  // namespace
 
 // Fields in the order of `gissar simulate --help` (simulate.h states what each means).
@@ -73,10 +68,10 @@ const FieldTable<SimulateRequest>& SimulateFields() {
           "Look side: " + sensor::kLookSides.Alternatives()),
       F::OptionalPair("center_lonlat", F::At(&SimulateRequest::center_lonlat),
           "Scene centre LON,LAT in degrees (default: DEM centre)",
-          PairText),
+          NumberPairText),
       F::OptionalPair("center_map", F::At(&SimulateRequest::center_map),
           "Scene centre X,Y in the DEM's CRS",
-          PairText),
+          NumberPairText),
       F::Plain("slant_range_m", F::At(&SimulateRequest::geometry, &sensor::SarGeometryOptions::slant_range_m),
           "Slant range from the sensor to the scene centre, metres"),
       F::Plain("range_spacing_m", F::At(&SimulateRequest::geometry, &sensor::SarGeometryOptions::range_spacing_m),

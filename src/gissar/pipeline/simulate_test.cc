@@ -1,6 +1,7 @@
 #include "gissar/pipeline/image_probe_testing.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/pipeline/field_names.h"
 #include "gissar/render/image_agreement.h"
 
 #include <gtest/gtest.h>

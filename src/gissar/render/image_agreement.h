@@ -1,7 +1,8 @@
 // How closely two renderings of the same scene agree: the raster engine
-// against the ray tracer, the height field against the BVH (tests, `make
-// bench`). Both images must have the
-// same size and pixel grid.
+// against the ray tracer, the height field against the BVH. A metric of the
+// tests and `make bench` (bench/raster_agreement), in the gissar_render_testing
+// library, not in gissar_render. Both images must have the same size and
+// pixel grid.
 #pragma once
 
 #include <cstdint>

@@ -128,17 +128,23 @@ Vector3d EnuOfEcef(const geo::LocalFrame& frame, const Vector3d& ecef) {
 
 }  // namespace
 
-ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
-                           const material::MaterialTable& materials, const geo::LocalFrame& frame,
-                           const sensor::Orbit& orbit, const sensor::RadarGrid& grid,
-                           const RenderOptions& options) {
-  options.Check();
-  const bool coherent = options.coherent;
-  if (coherent && !(options.wavelength_m > 0.0 && std::isfinite(options.wavelength_m))) {
-    throw ConfigError("coherent mode needs a positive wavelength", "--wavelength");
-  }
+namespace {
+
+// The product grid's view of the scene: the real orbit and grid, and the
+// frame of the scene's ENU coordinates.
+struct ProductView {
+  const geo::LocalFrame& frame;
+  const sensor::Orbit& orbit;
+  const sensor::RadarGrid& grid;
+};
+
+// 1. Geolocation of every pixel (rdr2geo on the scene surface), into out's
+// lon/lat/height planes (NaN where none) and out.geolocated.
+void GeolocateGrid(const EmbreeScene& embree, const scene::TriangleMesh& mesh, const ProductView& view,
+                   ProductImage& out) {
+  const geo::LocalFrame& frame = view.frame;
+  const sensor::RadarGrid& grid = view.grid;
   const int width = grid.cols, height = grid.rows;
-  ProductImage out;
   const size_t n = size_t(width) * height;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   out.lon_deg.assign(n, nan);
@@ -147,7 +153,6 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
   out.lon_deg_exact.assign(n, std::numeric_limits<double>::quiet_NaN());
   out.lat_deg_exact.assign(n, std::numeric_limits<double>::quiet_NaN());
 
-  // 1. Geolocation of every pixel (rdr2geo on the scene surface).
   const sensor::HeightFunction surface = SceneHeightFunction(embree, mesh, frame);
   const Eigen::AlignedBox3d box = mesh.Bounds();
   const double mean_height = frame.GeodeticFromEnu(box.center()).z();
@@ -156,7 +161,7 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
       sensor::Rdr2GeoOptions o;
       o.initial_height_m = mean_height;
       for (int j = 0; j < width; ++j) {
-        const auto llh = sensor::Rdr2Geo(orbit, grid.TimeOfRow(i), grid.RangeOfCol(j), grid.look_side, surface, o);
+        const auto llh = sensor::Rdr2Geo(view.orbit, grid.TimeOfRow(i), grid.RangeOfCol(j), grid.look_side, surface, o);
         if (!llh) continue;
         const size_t k = size_t(i) * width + j;
         out.lon_deg_exact[k] = llh->x();
@@ -170,9 +175,21 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
   });
   for (size_t k = 0; k < n; ++k) out.geolocated += std::isfinite(out.height_m[k]) ? 1 : 0;
   if (out.geolocated == 0) throw InputError("no pixel of the product reaches the terrain (product outside the DEM?)", "--product");
+}
 
-  // 2. The straight tracing geometry, tangent to the orbit at the scene
-  // centre: the geolocated pixel nearest to the grid centre.
+// The straight tracing geometry and how it maps to the real one.
+struct TangentGeometry {
+  sensor::SarGeometry geometry;
+  double t_c = 0.0;           // zero-Doppler time of the scene centre, s
+  double ground_speed = 0.0;  // speed of the zero-Doppler footprint along the ground at the scene, m/s
+};
+
+// 2. The straight tracing geometry, tangent to the orbit at the scene
+// centre: the geolocated pixel nearest to the grid centre.
+TangentGeometry TangentTracingGeometry(const ProductView& view, ProductImage& out) {
+  const geo::LocalFrame& frame = view.frame;
+  const sensor::RadarGrid& grid = view.grid;
+  const int width = grid.cols, height = grid.rows;
   size_t centre_k = 0;
   double best = std::numeric_limits<double>::infinity();
   for (int i = 0; i < height; ++i) {
@@ -189,7 +206,7 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
   const double t_c = grid.TimeOfRow(ci);
   const Vector3d xc = frame.EnuFromGeodetic(out.lon_deg_exact[centre_k], out.lat_deg_exact[centre_k],
                                             out.height_m[centre_k]);
-  const sensor::OrbitState state = orbit.Interpolate(t_c);
+  const sensor::OrbitState state = view.orbit.Interpolate(t_c);
   const Vector3d sensor_enu = EnuOfEcef(frame, state.position_m);
   const Vector3d v_enu = EnuOfEcef(frame, state.position_m + state.velocity_mps) - sensor_enu;
   const Vector3d look = (xc - sensor_enu).normalized();
@@ -209,21 +226,26 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
   g.width = width + 2 * margin;
   g.height = height + 2 * margin;
   out.tracing_geometry = g;
-  const sensor::SarGeometry geometry(g, xc, cj + margin, ci + margin, g.width, g.height);
+  return {sensor::SarGeometry(g, xc, cj + margin, ci + margin, g.width, g.height), t_c, ground_speed};
+}
 
-  // 3. Trace with the unchanged tracer, recording every return.
+// 3. Trace with the unchanged tracer, recording every return.
+SarImage TraceReturns(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                      const material::MaterialTable& materials, const sensor::SarGeometry& geometry,
+                      const RenderOptions& options) {
   RenderOptions trace_options = options;
   trace_options.record_contributions = true;
   // The phasors are formed on the product grid (step 4) from the recorded
   // returns: the tracer's own coherent planes (straight-line ranges) are
   // not needed.
   trace_options.coherent = false;
-  SarImage traced = RenderSar(embree, mesh, materials, geometry, trace_options);
+  return RenderSar(embree, mesh, materials, geometry, trace_options);
+}
 
-  // 4. Re-project every return with the real geometry: the hit's true
-  // zero-Doppler time and range, plus the path and azimuth offsets the
-  // tracer gave the return relative to that hit (multi-bounce).
-  SarImage& image = out.image;
+// The zeroed planes of a width x height product image (complex ones in
+// coherent mode).
+void AllocateImage(int width, int height, bool coherent, SarImage& image) {
+  const size_t n = size_t(width) * height;
   image.width = width;
   image.height = height;
   image.intensity.assign(n, 0.0f);
@@ -236,25 +258,46 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
       image.bounce_imag[layer].assign(n, 0.0f);
     }
   }
-  const std::vector<Contribution>& cs = traced.contributions;
-  struct Landing {
-    double col = 0, row = 0;
-    double range_m = 0;  // true range of the last hit plus the tracer's path excess
-    bool ok = false;
-  };
+}
+
+// Where a return lands on the product grid.
+struct Landing {
+  double col = 0, row = 0;
+  double range_m = 0;  // true range of the last hit plus the tracer's path excess
+  bool ok = false;
+};
+
+// 4a. Re-projects every return with the real geometry: the hit's true
+// zero-Doppler time and range, plus the path and azimuth offsets the
+// tracer gave the return relative to that hit (multi-bounce).
+std::vector<Landing> LandReturns(const std::vector<Contribution>& cs, const TangentGeometry& tangent,
+                                 const ProductView& view) {
+  const sensor::SarGeometry& geometry = tangent.geometry;
+  const double t_c = tangent.t_c, ground_speed = tangent.ground_speed;
   std::vector<Landing> landing(cs.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, cs.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t k = r.begin(); k != r.end(); ++k) {
       const Contribution& c = cs[k];
       const Vector3d hit = c.hit_enu.cast<double>();
       const double along = geometry.AlongTrack(hit);
-      const auto rc = sensor::Geo2Rdr(orbit, EcefOfEnu(frame, hit), t_c + along / ground_speed);
+      const auto rc = sensor::Geo2Rdr(view.orbit, EcefOfEnu(view.frame, hit), t_c + along / ground_speed);
       if (!rc) continue;
       const double range = c.range_m + (rc->range_m - geometry.SlantRange(hit));
       const double time = rc->time_s + (c.azimuth_m - along) / ground_speed;
-      landing[k] = {grid.ColOfRange(range), grid.RowOfTime(time), range, true};
+      landing[k] = {view.grid.ColOfRange(range), view.grid.RowOfTime(time), range, true};
     }
   });
+  return landing;
+}
+
+// 4b. Splats the landed returns, in order (deterministic sums): intensity
+// and bounce layers, and in coherent mode their phasors; returns how many
+// landed.
+int64_t SplatReturns(const std::vector<Contribution>& cs, const std::vector<Landing>& landing,
+                     const RenderOptions& options, SarImage& image) {
+  const bool coherent = options.coherent;
+  const int width = image.width, height = image.height;
+  int64_t splatted = 0;
   for (size_t k = 0; k < cs.size(); ++k) {  // in order: deterministic sums
     if (!landing[k].ok) continue;
     const Contribution& c = cs[k];
@@ -289,13 +332,21 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
                     [&](uint64_t pixel) { return std::polar(1.0, MicroPhase(options.seed, k, pixel)); });
       }
     }
-    ++out.contributions;
+    ++splatted;
   }
   if (coherent) {  // the total is the detected complex sum
+    const size_t n = size_t(width) * height;
     for (size_t k = 0; k < n; ++k) image.intensity[k] = image.real[k] * image.real[k] + image.imag[k] * image.imag[k];
   }
+  return splatted;
+}
 
-  // 5. Mask through each pixel's ground point.
+// 5. Mask through each pixel's ground point: the tracing geometry's mask
+// code where the point projects, and the footprint (pixels with a ground
+// point on the terrain).
+void MaskFromTracing(const ProductImage& out, const sensor::SarGeometry& geometry, const SarImage& traced,
+                     const geo::LocalFrame& frame, SarImage& image) {
+  const size_t n = out.height_m.size();
   image.mask.assign(n, kMaskNone);
   image.footprint.assign(n, 0);  // pixels with a ground point on the terrain
   for (size_t k = 0; k < n; ++k) {
@@ -308,9 +359,14 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
       image.mask[k] = traced.mask[size_t(r) * geometry.width() + c];
     }
   }
-  // 6. Canonical reflectors: RCS, pattern and visibility as in the tracing
-  // geometry (RenderSar), the phase centre placed with the real geometry:
-  // its pixel and its range (the coherent phase) from geo2rdr.
+}
+
+// 6. Canonical reflectors: RCS, pattern and visibility as in the tracing
+// geometry (RenderSar), the phase centre placed with the real geometry:
+// its pixel and its range (the coherent phase) from geo2rdr.
+void PlaceReflectors(const EmbreeScene& embree, const TangentGeometry& tangent, const ProductView& view,
+                     const RenderOptions& options, SarImage& image) {
+  const sensor::SarGeometry& geometry = tangent.geometry;
   for (const SceneReflector& r : options.reflectors) {
     const std::vector<PointReturn> seen =
         ReflectorReturns(embree, {r}, geometry, options.wavelength_m,
@@ -318,15 +374,38 @@ ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh&
                                               : std::nullopt);
     if (seen.empty()) continue;
     const double along = geometry.AlongTrack(r.apex_enu);
-    const auto rc = sensor::Geo2Rdr(orbit, EcefOfEnu(frame, r.apex_enu), t_c + along / ground_speed);
+    const auto rc = sensor::Geo2Rdr(view.orbit, EcefOfEnu(view.frame, r.apex_enu),
+                                    tangent.t_c + along / tangent.ground_speed);
     if (!rc) continue;
     PointReturn p = seen.front();
-    p.col = grid.ColOfRange(rc->range_m);
-    p.row = grid.RowOfTime(rc->time_s);
+    p.col = view.grid.ColOfRange(rc->range_m);
+    p.row = view.grid.RowOfTime(rc->time_s);
     p.range_m = rc->range_m;
     image.points.push_back(p);
   }
-  image.stats = traced.stats;
+}
+
+}  // namespace
+
+ProductImage RenderProduct(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                           const material::MaterialTable& materials, const geo::LocalFrame& frame,
+                           const sensor::Orbit& orbit, const sensor::RadarGrid& grid,
+                           const RenderOptions& options) {
+  options.Check();
+  if (options.coherent && !(options.wavelength_m > 0.0 && std::isfinite(options.wavelength_m))) {
+    throw ConfigError("coherent mode needs a positive wavelength", "--wavelength");
+  }
+  const ProductView view{frame, orbit, grid};
+  ProductImage out;
+  GeolocateGrid(embree, mesh, view, out);
+  const TangentGeometry tangent = TangentTracingGeometry(view, out);
+  const SarImage traced = TraceReturns(embree, mesh, materials, tangent.geometry, options);
+  AllocateImage(grid.cols, grid.rows, options.coherent, out.image);
+  const std::vector<Landing> landing = LandReturns(traced.contributions, tangent, view);
+  out.contributions = SplatReturns(traced.contributions, landing, options, out.image);
+  MaskFromTracing(out, tangent.geometry, traced, frame, out.image);
+  PlaceReflectors(embree, tangent, view, options, out.image);
+  out.image.stats = traced.stats;
   return out;
 }
 

@@ -261,7 +261,13 @@ TEST(SarRendererTest, RaisedTargetLandsOnItsPredictedPixelInBothModes) {
       sensor::SarGeometryOptions o = Options(heading, 40.0, 0.5);
       o.mode = mode;
       o.slant_range_m = 1500.0;
-      const sensor::SarGeometry g(o, Vector3d::Zero(), 300, 300, 600, 600);
+      // A 300 x 300 image about the scene centre (+-75 m): the target lands
+      // within 100 px of the centre in every case, and only its 13 x 13
+      // neighbourhood is measured.
+      const sensor::SarGeometry g(o, Vector3d::Zero(), 150, 150, 300, 300);
+      const Eigen::Vector2d predicted = g.Project(target);
+      ASSERT_TRUE(predicted.x() > 10 && predicted.x() < 290 && predicted.y() > 10 && predicted.y() < 290)
+          << predicted.transpose();
       const Eigen::Vector2d centroid = TargetCentroid(g, target);
       EXPECT_LT((centroid - g.Project(target)).norm(), 0.5)
           << sensor::ToString(mode) << " heading " << heading << ": " << centroid.transpose()
