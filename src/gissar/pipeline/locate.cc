@@ -103,16 +103,16 @@ scene::TriangleMesh SmoothedTerrain(const scene::TriangleMesh& mesh, double lamb
   return out;
 }
 
-SimulateRequest TerrainOptions(const std::string& scene, const std::string& dem, const std::string& vertical_datum,
-                               const std::string& sea, int64_t max_memory_bytes) {
-  SimulateRequest so;
-  so.max_memory_bytes = max_memory_bytes;
-  so.scene = scene;
-  so.dem = dem;
-  so.vertical_datum = vertical_datum;
-  so.sea = sea;
-  so.fill_nodata = true;
-  return so;
+TerrainRequest TerrainOptions(const std::string& scene, const std::string& dem, const std::string& vertical_datum,
+                              const std::string& sea, int64_t max_memory_bytes) {
+  TerrainRequest terrain;
+  terrain.max_memory_bytes = max_memory_bytes;
+  terrain.scene = scene;
+  terrain.dem = dem;
+  terrain.vertical_datum = vertical_datum;
+  terrain.sea = sea;
+  terrain.fill_nodata = true;
+  return terrain;
 }
 
 // --sea auto/off; --reflectors with a product (or an orbit) only.
@@ -595,7 +595,8 @@ nlohmann::json RunLocate(const LocateRequest& options, const std::string& comman
   std::vector<float> observed = raster.bands.at(0);
   for (float& v : observed) if (!std::isfinite(v)) v = 0.0f;
 
-  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes), reporter);
+  Terrain terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes),
+                              TerrainShape(), reporter);
   const render::EmbreeScene embree(terrain.mesh);
   nav::NavScene scene{&terrain.mesh, &embree, &terrain.materials, options.rays_per_cell, options.bounces};
   const nav::NavPose start = StartPose(prior, scene, terrain, embree, model.look_side, options.prior);
@@ -746,7 +747,8 @@ const std::vector<nav::Matcher>& ComparedMatchers() {
 
 EvaluateSetup PrepareEvaluation(const EvaluateRequest& options, Reporter& reporter) {
   EvaluateSetup s;
-  s.terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes), reporter);
+  s.terrain = LoadTerrain(TerrainOptions(options.scene, options.dem, options.vertical_datum, options.sea, options.max_memory_bytes),
+                              TerrainShape(), reporter);
   s.embree = std::make_unique<render::EmbreeScene>(s.terrain.mesh);
   s.observed_mesh = SmoothedTerrain(s.terrain.mesh, options.dem_smoothing);
   s.observed_embree = std::make_unique<render::EmbreeScene>(s.observed_mesh);

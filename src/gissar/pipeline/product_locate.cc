@@ -141,20 +141,19 @@ std::unique_ptr<ProductFix> LoadProductFix(const ProductInputs& in, Reporter& re
   fix->truth = {p.orbit.time_s, p.orbit.position_m, p.orbit.velocity_mps};
   reporter.Info("locate: product " + std::to_string(p.rows()) + " lines x " + std::to_string(p.cols()) + " bins, " +
                 p.frequency + " " + p.polarization);
-  SimulateRequest terrain_options;
+  TerrainRequest terrain_options;
   terrain_options.scene = in.scene;
   terrain_options.dem = in.dem;
   terrain_options.vertical_datum = in.vertical_datum;
   terrain_options.dem_oversample = in.dem_oversample;
   terrain_options.sea = in.sea;
-  terrain_options.reflectors = in.reflectors;
   terrain_options.fill_nodata = true;
   terrain_options.max_memory_bytes = in.max_memory_bytes;
-  fix->terrain = LoadTerrain(terrain_options, reporter);
+  fix->terrain = LoadTerrain(terrain_options, TerrainShape(), reporter);
   fix->embree = std::make_unique<render::EmbreeScene>(fix->terrain.mesh);
   fix->landmarks = fix->terrain.reflectors;  // a scene's own
   if (!in.reflectors.empty()) {
-    const auto placed = PlaceReflectors(terrain_options, fix->terrain, *fix->embree);
+    const auto placed = PlaceReflectors(in.reflectors, fix->terrain, *fix->embree);
     fix->landmarks.insert(fix->landmarks.end(), placed.begin(), placed.end());
     CheckLandmarksInImage(*fix, in.reflectors);
     reporter.Info("locate: " + std::to_string(placed.size()) + " point landmarks from " + in.reflectors);

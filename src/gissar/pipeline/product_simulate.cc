@@ -437,7 +437,7 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, const RealImag
   render::RenderOptions ro = RenderOptionsOf(options, &reporter);
   ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
   ro.reflectors = terrain.reflectors;  // a scene's own
-  const auto placed = PlaceReflectors(options, terrain, embree);
+  const auto placed = PlaceReflectors(options.reflectors, terrain, embree);
   ro.reflectors.insert(ro.reflectors.end(), placed.begin(), placed.end());
   // One pass per channel (polarimetric passes with one seed; VH = HV).
   ro.polarization = sim.channels.front();

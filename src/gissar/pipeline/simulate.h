@@ -23,6 +23,7 @@
 #include "gissar/material/material.h"
 #include "gissar/material/reflector.h"
 #include "gissar/pipeline/simulation_output.h"
+#include "gissar/pipeline/terrain.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/scene_io.h"
@@ -218,59 +219,6 @@ struct SimulateResult {
   double total_seconds = 0.0;
 };
 
-// The terrain a simulation renders: a DEM's mesh (bare terrain, one unit
-// Lambertian class) or a GIS scene (classes and their materials), with its
-// ENU frame, scene centre and default pixel spacing.
-struct Terrain {
-  scene::TriangleMesh mesh;
-  geo::LocalFrame frame{0.0, 0.0};
-  geo::GeoPoint centre;
-  Eigen::Vector3d centre_enu = Eigen::Vector3d::Zero();
-  double post_spacing_m = 30.0;
-  // A DEM's grid of posts (mesh.vertices, row-major); 0 x 0 for scenes.
-  int grid_width = 0;
-  int grid_height = 0;
-  // A scene's terrain grid (scene::GridPrefix: its directly split cells at
-  // the start of the mesh, the others holes); cells empty: none.
-  render::TerrainGrid scene_grid;
-  // Raster engine: the class of every triangle of the DEM's grid
-  // (scene::MeshFromGrid's order, e.g. the sea); empty = all `default`.
-  std::vector<scene::ClassId> grid_classes;
-  material::MaterialTable materials;
-  // Datum of the source DEM's heights (now ellipsoidal in the mesh) and
-  // where it came from: flag, file or assumed (a scene: the datum it was
-  // built with).
-  std::string vertical_datum = "ellipsoid";
-  std::string vertical_datum_source = "assumed";
-  nlohmann::json description;  // for provenance
-  // Canonical reflectors stored in a scene (`scene build --reflectors`),
-  // placed when it was built.
-  std::vector<render::SceneReflector> reflectors;
-  // The tracer's ray box (render::RenderOptions::ray_box) of a fixed-size
-  // image of a DEM: the same whether the window or the whole DEM was read.
-  std::optional<Eigen::AlignedBox3d> ray_box;
-  // The sidecar's `dem_window` record: what was read and why.
-  nlohmann::json dem_window = nullptr;
-};
-
-// The DEM window a fixed-size simulation of a DEM needs (PlanDemWindow).
-struct DemWindowPlan {
-  // A window was computed (width and height set, a DEM, the trace engine):
-  // the ray box below is used whatever is read.
-  bool applies = false;
-  // The window, in the source raster's cells (first column, first row,
-  // columns, rows), and whether it is read instead of the whole DEM (else
-  // `reason` says why not).
-  std::array<int, 4> window{0, 0, 0, 0};
-  bool read_window = false;
-  std::string reason;
-  Eigen::AlignedBox3d ray_box;
-  // Bounds used for the halo: ellipsoidal heights (metres) and the image
-  // margin (pixels) and post margin.
-  double z_low_m = 0.0, z_high_m = 0.0;
-  int source_width = 0, source_height = 0;
-  nlohmann::json ToJson() const;
-};
 // Plans the DEM window of a simulation (options.dem must be set; Check()ed).
 // Not `applies` without --width/--height, for the raster engine or a scene.
 // The window holds every DEM post whose ENU position can project within
@@ -284,45 +232,23 @@ struct DemWindowPlan {
 // with a mirror share and --bounces > 1: a mirror ray may reach any
 // terrain), reflectors and contributions (both may lie anywhere on the DEM),
 // or a window that would be most of the DEM anyway.
-inline constexpr int kDemWindowMarginPx = 4;
-inline constexpr int kDemWindowMarginPosts = 4;
 DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter = NullReporter());
-
-// The reflectors of options.reflectors (CSV) placed on the terrain surface in
-// `embree` (apex = surface height at lon, lat + apex_height_m), ENU.
-// Throws InputError naming the file and row for a reflector off the terrain.
-std::vector<render::SceneReflector> PlaceReflectors(const SimulateRequest& options, const Terrain& terrain,
-                                                    const render::EmbreeScene& embree);
-
-// The surface height below ENU (x, y) (nullopt: off the terrain).
-using SurfaceHeightAt = std::function<std::optional<double>(double x_m, double y_m)>;
-// The surface of a mesh in `embree`: a vertical ray from above `top_z_m`.
-SurfaceHeightAt EmbreeSurface(const render::EmbreeScene& embree, double top_z_m);
 
 // The terrain grid the trace engine traces as a height field
 // (render::EmbreeScene's TerrainGrid) when options.heightfield: a DEM's
 // grid, or a scene's terrain grid with its holes (scenes built before it:
 // none); none with --no-heightfield.
 render::TerrainGrid TracedGrid(const Terrain& terrain, const SimulateRequest& options);
-// Reflector rows placed on a surface (apex = surface height at lon, lat +
-// apex_height_m, ENU of `frame`). Throws InputError naming `source` and the
-// row for a reflector off the terrain.
-std::vector<render::SceneReflector> PlaceReflectorRows(const std::vector<material::ReflectorSpec>& rows,
-                                                       const std::string& source, const geo::LocalFrame& frame,
-                                                       const SurfaceHeightAt& surface);
-// A scene's stored reflectors as the renderers take them. Throws InputError
-// naming `scene_path` for an unknown type.
-std::vector<render::SceneReflector> StoredReflectors(const std::vector<scene::StoredReflector>& stored,
-                                                     const std::string& scene_path);
-
-// Loads options.dem or options.scene; the centre follows --center /
-// --center-map for DEMs. With engine "raster" a DEM's mesh holds only its
-// posts (no triangles). Throws the gissar::Error family.
+// The terrain fields of a simulation (terrain.h).
+TerrainRequest TerrainRequestOf(const SimulateRequest& options);
+// The mesh a simulation renders: the raster engine's posts or a triangle
+// mesh, --heightfield, the centre of --center / --center-map (no window).
+TerrainShape TerrainShapeOf(const SimulateRequest& options);
+// Loads options.dem or options.scene (LoadTerrain of TerrainRequestOf and
+// TerrainShapeOf), a DEM's window planned first (PlanDemWindow): the centre
+// follows --center / --center-map for DEMs; with engine "raster" a DEM's mesh
+// holds only its posts (no triangles). Throws the gissar::Error family.
 Terrain LoadTerrain(const SimulateRequest& options, Reporter& reporter = NullReporter());
-// {"datum": ..., "source": flag|file|assumed|scene (...)}: the sidecars'
-// record of the DEM heights' vertical datum.
-nlohmann::json VerticalDatumRecord(const Terrain& terrain);
-
 // For scenes: moves the centre to options.center_lonlat on the scene's
 // surface (found by a vertical ray). Throws ConfigError when it is outside.
 void PlaceSceneCentre(Terrain& terrain, const render::EmbreeScene& embree,

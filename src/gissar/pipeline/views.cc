@@ -103,7 +103,7 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
   render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
   // A scene's stored reflectors and any --reflectors rows, as simulate renders them.
   render_options.reflectors = terrain.reflectors;
-  for (const render::SceneReflector& r : PlaceReflectors(options.base, terrain, embree)) {
+  for (const render::SceneReflector& r : PlaceReflectors(options.base.reflectors, terrain, embree)) {
     render_options.reflectors.push_back(r);
   }
   std::vector<std::vector<uint8_t>> grey_frames;
@@ -221,7 +221,7 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
       render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kSlantRangeNormal, colour);
   render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
   render_options.reflectors = terrain.reflectors;
-  for (const render::SceneReflector& r : PlaceReflectors(options.base, terrain, embree)) {
+  for (const render::SceneReflector& r : PlaceReflectors(options.base.reflectors, terrain, embree)) {
     render_options.reflectors.push_back(r);
   }
   render::SarImage sar = render::RenderSar(embree, terrain.mesh, terrain.materials, geometry, render_options);
