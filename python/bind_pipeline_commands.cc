@@ -5,6 +5,7 @@
 
 #include "gissar/pipeline/geocode.h"
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/locate_door.h"
 #include "gissar/pipeline/polsar.h"
 #include "gissar/pipeline/pta.h"
 

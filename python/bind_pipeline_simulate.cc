@@ -11,6 +11,7 @@
 #include "gissar/material/material.h"
 #include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/pipeline/simulation_output.h"
 #include "gissar/pipeline/views.h"
 #include "gissar/render/sar_renderer.h"
 #include "gissar/sensor/sar_geometry.h"

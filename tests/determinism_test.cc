@@ -10,6 +10,7 @@
 
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/pipeline/simulate_door.h"
 #include "gissar/util/testing.h"
 
 namespace gissar::pipeline {

@@ -5,6 +5,7 @@
 #include "gissar/cli/headline.h"
 #include "gissar/pipeline/evaluate_fields.h"
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/locate_door.h"
 #include "gissar/pipeline/locate_fields.h"
 
 namespace gissar::cli {

@@ -4,6 +4,7 @@
 #include "gissar/cli/command.h"
 #include "gissar/pipeline/sentinel1_simulate.h"
 #include "gissar/pipeline/simulate.h"
+#include "gissar/pipeline/simulate_door.h"
 
 namespace gissar::cli {
 using namespace gissar::pipeline;  // the requests and Run functions this command binds

@@ -183,7 +183,7 @@ std::optional<double> Dem::InterpolateHeight(double col, double row) const {
 namespace {
 
 // The raster at `path`, opened read-only, holding band `band`.
-DatasetPtr OpenDemRaster(const fs::path& path, const std::string& where, int band) {
+DatasetPtr OpenDemRaster(const fs::path& path, const std::string& where) {
   std::error_code ec;
   // GDAL virtual file systems (/vsimem/, /vsizip/...) are not on disk.
   const bool virtual_path = where.rfind("/vsi", 0) == 0;
@@ -193,10 +193,13 @@ DatasetPtr OpenDemRaster(const fs::path& path, const std::string& where, int ban
   }
   DatasetPtr ds(GDALDataset::Open(where.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw InputError("not a raster GDAL can read", where);
-  if (band < 1 || band > ds->GetRasterCount()) {
+  return ds;
+}
+
+void CheckBand(GDALDataset& ds, int band, const std::string& where) {
+  if (band < 1 || band > ds.GetRasterCount()) {
     throw InputError("raster has no band " + std::to_string(band), where);
   }
-  return ds;
 }
 
 // The part of the raster read (options.window, else all of it): sets the
@@ -460,10 +463,14 @@ void StoreHeights(const RawHeights& raw, int64_t voids, const BorderVoids& borde
 
 }  // namespace
 
-Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
-  EnsureGdal();
-  const std::string where = path.string();
-  DatasetPtr ds = OpenDemRaster(path, where, options.band);
+struct DemFile::Dataset {
+  DatasetPtr ds;
+};
+
+Dem DemFile::Read(const DemReadOptions& options) const {
+  const std::string& where = path_;
+  GDALDataset* ds = dataset_->ds.get();
+  CheckBand(*ds, options.band, where);
   Dem dem;
   dem.source = where;
   const auto [col0, row0] = ChooseWindow(*ds, options, where, dem);
@@ -488,6 +495,8 @@ Dem ReadDem(const fs::path& path, const DemReadOptions& options) {
   StoreHeights(raw, voids, border, options, where, dem);
   return dem;
 }
+
+Dem ReadDem(const fs::path& path, const DemReadOptions& options) { return DemFile(path).Read(options); }
 
 void WriteDemGeoTiff(const fs::path& path, const std::vector<float>& heights, int width,
                      int height, const std::array<double, 6>& geotransform, const std::string& crs,
@@ -860,17 +869,15 @@ Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
 
 namespace gissar::geo {
 
-DemInfo ReadDemInfo(const fs::path& path, const DemReadOptions& options) {
+DemFile::DemFile(const fs::path& path) : path_(path.string()) {
   EnsureGdal();
-  const std::string where = path.string();
-  std::error_code ec;
-  const bool virtual_path = where.rfind("/vsi", 0) == 0;
-  if (!virtual_path && !fs::exists(path, ec)) throw InputError("DEM file does not exist", where);
-  DatasetPtr ds(GDALDataset::Open(where.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!ds) throw InputError("not a raster GDAL can read", where);
-  if (options.band < 1 || options.band > ds->GetRasterCount()) {
-    throw InputError("raster has no band " + std::to_string(options.band), where);
-  }
+  dataset_ = std::make_shared<Dataset>(Dataset{OpenDemRaster(path, path_)});
+}
+
+DemInfo DemFile::Info(const DemReadOptions& options) const {
+  const std::string& where = path_;
+  GDALDataset* ds = dataset_->ds.get();
+  CheckBand(*ds, options.band, where);
   DemInfo info;
   info.width = ds->GetRasterXSize();
   info.height = ds->GetRasterYSize();
@@ -902,5 +909,7 @@ DemInfo ReadDemInfo(const fs::path& path, const DemReadOptions& options) {
   info.any_valid = true;
   return info;
 }
+
+DemInfo ReadDemInfo(const fs::path& path, const DemReadOptions& options) { return DemFile(path).Info(options); }
 
 }  // namespace gissar::geo

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -131,6 +132,27 @@ struct DemInfo {
 // Throws InputError like ReadDem for a missing or unreadable raster, no
 // band, no geotransform/CRS or an unknown vertical unit.
 DemInfo ReadDemInfo(const std::filesystem::path& path, const DemReadOptions& options = {});
+
+// A DEM raster opened once and read as often as a job needs: its header and
+// height bounds (Info) and windows of posts (Read), so that planning a
+// window and reading it open the file once. `path` may be a GDAL virtual
+// file. Throws InputError naming the file when it is missing, a directory or
+// not a raster GDAL can read. Copies share the open file; one thread at a
+// time reads it.
+class DemFile {
+ public:
+  explicit DemFile(const std::filesystem::path& path);
+  // ReadDemInfo of this file (same promises and failures).
+  DemInfo Info(const DemReadOptions& options = {}) const;
+  // ReadDem of this file (same promises and failures).
+  Dem Read(const DemReadOptions& options = {}) const;
+  const std::string& path() const { return path_; }
+
+ private:
+  struct Dataset;  // the GDAL dataset (dem.cc)
+  std::string path_;
+  std::shared_ptr<Dataset> dataset_;
+};
 
 // Reads band `options.band` of a raster as a DEM. `path` may be a GDAL
 // virtual file (/vsimem/..., /vsizip/archive.zip/file.hgt). Throws InputError naming

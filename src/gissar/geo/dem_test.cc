@@ -352,6 +352,35 @@ TEST(DemTest, NonRasterFileIsAnInputError) {
   }
 }
 
+// DemFile opens the raster once: with the file gone from the directory
+// after opening, its header, bounds and any window still read, equal to
+// what ReadDemInfo/ReadDem gave before.
+TEST(DemTest, DemFileOpensOnceAndReadsAsOftenAsNeeded) {
+  const auto dir = testing::MakeTempDir();
+  std::vector<float> z(64);
+  for (int i = 0; i < 64; ++i) z[i] = 100.0f + float(i);  // 100 .. 163 m
+  WriteDemGeoTiff(dir / "dem.tif", z, 8, 8, {0.0, 30.0, 0.0, 0.0, 0.0, -30.0}, "EPSG:32631");
+  DemReadOptions window;
+  window.window = std::array<int, 4>{2, 3, 4, 2};
+  const Dem expected_window = ReadDem(dir / "dem.tif", window);
+  const DemFile file(dir / "dem.tif");
+  std::filesystem::remove(dir / "dem.tif");
+  const DemInfo info = file.Info();
+  EXPECT_EQ(info.width, 8);
+  EXPECT_EQ(info.height, 8);
+  EXPECT_DOUBLE_EQ(info.min_height_m, 100.0);
+  EXPECT_DOUBLE_EQ(info.max_height_m, 163.0);
+  for (int pass = 0; pass < 2; ++pass) {
+    const Dem part = file.Read(window);
+    ASSERT_EQ(part.width, 4);
+    ASSERT_EQ(part.height, 2);
+    EXPECT_EQ(part.heights_m, expected_window.heights_m);
+    EXPECT_DOUBLE_EQ(part.HeightAt(0, 0), 100.0 + 3 * 8 + 2);  // row 3, column 2
+  }
+  EXPECT_EQ(file.Read().heights_m.size(), 64u);
+  EXPECT_THROW(DemFile(dir / "dem.tif"), InputError);  // gone: a new open fails
+}
+
 TEST(DemTest, CentreOutsideDemIsAConfigError) {
   const Dem dem = ReadDem(kFilledDem());
   EXPECT_THROW(ResolveSceneCentre(dem, Eigen::Vector2d(5.0, 45.0), std::nullopt), ConfigError);

@@ -108,4 +108,11 @@ const FieldTable<EvaluateRequest>& EvaluateFields() {
   return kTable;
 }
 
+// The request's JSON form is its table's (locate.h states the promises).
+nlohmann::json EvaluateRequest::ToJson() const { return EvaluateFields().ToJson(*this); }
+
+void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  EvaluateFields().ApplyJson(*this, values, source);
+}
+
 }  // namespace gissar::pipeline

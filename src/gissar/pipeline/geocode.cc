@@ -9,7 +9,6 @@
 
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/vertical_datum.h"
-#include "gissar/pipeline/geocode_fields.h"
 #include "gissar/pipeline/georeferencing.h"
 #include "gissar/pipeline/product_simulate.h"
 #include "gissar/pipeline/sentinel1_simulate.h"
@@ -135,12 +134,6 @@ void GeocodeRequest::Check() const {
       throw ConfigError("output would overwrite the input " + input, "--out");
     }
   }
-}
-
-json GeocodeRequest::ToJson() const { return GeocodeFields().ToJson(*this); }
-
-void GeocodeRequest::ApplyJson(const json& values, const std::string& source) {
-  GeocodeFields().ApplyJson(*this, values, source);
 }
 
 sensor::SarGeometry GeometryFromMetadata(const geo::Metadata& m, int width, int height, const std::string& source) {

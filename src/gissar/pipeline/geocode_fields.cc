@@ -27,4 +27,11 @@ const FieldTable<GeocodeRequest>& GeocodeFields() {
   return kTable;
 }
 
+// The requests' JSON forms are their tables' (the request headers state the promises).
+nlohmann::json GeocodeRequest::ToJson() const { return GeocodeFields().ToJson(*this); }
+
+void GeocodeRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  GeocodeFields().ApplyJson(*this, values, source);
+}
+
 }  // namespace gissar::pipeline

@@ -1,4 +1,5 @@
 #include "gissar/pipeline/geocode.h"
+#include "gissar/pipeline/simulate_door.h"
 #include "gissar/pipeline/geocode_fields.h"
 
 #include <gtest/gtest.h>

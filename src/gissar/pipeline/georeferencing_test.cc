@@ -1,4 +1,5 @@
 #include "gissar/pipeline/georeferencing.h"
+#include "gissar/pipeline/simulation_output.h"
 
 #include <gtest/gtest.h>
 

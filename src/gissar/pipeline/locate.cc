@@ -1,8 +1,6 @@
 #include "gissar/pipeline/locate.h"
 
 #include "gissar/geo/sentinel1_safe.h"
-#include "gissar/pipeline/evaluate_fields.h"
-#include "gissar/pipeline/locate_fields.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -30,7 +28,6 @@
 #include "gissar/nav/matching.h"
 #include "gissar/nav/product_locate.h"
 #include "gissar/pipeline/field_names.h"
-#include "gissar/pipeline/product_locate.h"
 #include "gissar/pipeline/reference_database.h"
 #include "gissar/scene/scene_config.h"
 #include "gissar/util/atomic_output.h"
@@ -385,12 +382,6 @@ void LocateRequest::Check() const {
   CheckOutputsAreNotInputs({out, composite_png}, {image, scene, dem, prior});
 }
 
-nlohmann::json LocateRequest::ToJson() const { return LocateFields().ToJson(*this); }
-
-void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
-  LocateFields().ApplyJson(*this, values, source);
-}
-
 namespace {
 
 // A reference database, when given: its catalogue, checked to be built from this terrain.
@@ -580,9 +571,12 @@ void WriteFixComposite(const fs::path& path, const SceneFix& fix, const nav::Nav
 
 }  // namespace
 
-nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
-  if (options.UsesTrack()) return RunProductLocate(options, command_line, reporter);
+nlohmann::json RunTerrainLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
+  if (options.UsesTrack()) {
+    throw ConfigError("a product or an orbit is fixed by RunProductLocate (product_locate.h)",
+                      options.product.empty() ? "--orbit" : "--product");
+  }
   Stopwatch total;
   AtomicOutputs outputs;
   const fs::path out = outputs.Add(options.out);
@@ -669,8 +663,6 @@ void EvaluateRequest::Check() const {
   }
 }
 
-nlohmann::json EvaluateRequest::ToJson() const { return EvaluateFields().ToJson(*this); }
-
 EvaluateRequest EvaluateRequest::Resolved() const {
   EvaluateRequest r = *this;
   if (!product.empty()) return r;
@@ -693,10 +685,6 @@ EvaluateRequest EvaluateRequest::Resolved() const {
     r.depression_max_deg = item.depression_deg + kDatabaseTrialDepressionDeg;
   }
   return r;
-}
-
-void EvaluateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
-  EvaluateFields().ApplyJson(*this, values, source);
 }
 
 namespace {
@@ -1083,9 +1071,11 @@ std::vector<nlohmann::json> SortedRecords(const std::vector<nlohmann::json>& rec
 
 }  // namespace
 
-std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& requested, Reporter& reporter) {
+std::vector<nlohmann::json> TerrainEvaluateTrials(const EvaluateRequest& requested, Reporter& reporter) {
   requested.Check();
-  if (!requested.product.empty()) return ProductEvaluateTrials(requested, reporter);
+  if (!requested.product.empty()) {
+    throw ConfigError("a product's trials are run by the product path (product_locate.h)", "--product");
+  }
   const EvaluateRequest options = requested.Resolved();
   const EvaluateSetup setup = PrepareEvaluation(options, reporter);
   std::vector<nlohmann::json> records;
@@ -1094,8 +1084,10 @@ std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& requested, Rep
   return records;
 }
 
-nlohmann::json SummariseTrials(const EvaluateRequest& requested, const std::vector<nlohmann::json>& unsorted) {
-  if (!requested.product.empty()) return ProductSummariseTrials(requested, unsorted);
+nlohmann::json TerrainSummariseTrials(const EvaluateRequest& requested, const std::vector<nlohmann::json>& unsorted) {
+  if (!requested.product.empty()) {
+    throw ConfigError("a product's trials are run by the product path (product_locate.h)", "--product");
+  }
   // A database sets the cell size (EvaluateRequest::Resolved).
   const EvaluateRequest options = requested.database.empty() ? requested : requested.Resolved();
   const std::vector<nlohmann::json> records = SortedRecords(unsorted);
@@ -1170,10 +1162,13 @@ nlohmann::json SummariseTrials(const EvaluateRequest& requested, const std::vect
           {"matcher_comparison_first_iteration", matcher_json}};
 }
 
-nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vector<nlohmann::json>& unsorted,
-                               const std::string& command_line, double seconds, const nlohmann::json& vertical_datum) {
+nlohmann::json WriteTerrainEvaluation(const EvaluateRequest& requested, const std::vector<nlohmann::json>& unsorted,
+                                      const std::string& command_line, double seconds,
+                                      const nlohmann::json& vertical_datum) {
   requested.Check();
-  if (!requested.product.empty()) return WriteProductEvaluation(requested, unsorted, command_line, seconds);
+  if (!requested.product.empty()) {
+    throw ConfigError("a product's trials are run by the product path (product_locate.h)", "--product");
+  }
   const EvaluateRequest options = requested.Resolved();
   AtomicOutputs outputs;
   const fs::path json_path = outputs.Add(options.out_prefix + ".json");
@@ -1182,7 +1177,7 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
   CheckOutputsAreNotInputs({options.out_prefix + ".json", options.out_prefix + "_trials.csv"},
                            {options.scene, options.dem, options.database});
   const std::vector<nlohmann::json> records = SortedRecords(unsorted);
-  nlohmann::json stats = SummariseTrials(options, records);
+  nlohmann::json stats = TerrainSummariseTrials(options, records);
   std::FILE* csv = std::fopen(csv_path.c_str(), "w");
   if (csv == nullptr) throw WriteError("cannot write the trials CSV", csv_path, errno);
   std::fprintf(csv, "%s\n", TrialsCsvHeader(options).c_str());
@@ -1231,9 +1226,12 @@ nlohmann::json WriteEvaluation(const EvaluateRequest& requested, const std::vect
   return summary;
 }
 
-nlohmann::json RunEvaluate(const EvaluateRequest& requested, const std::string& command_line, Reporter& reporter) {
-  if (!requested.product.empty()) return RunProductEvaluate(requested, command_line, reporter);
+nlohmann::json RunTerrainEvaluate(const EvaluateRequest& requested, const std::string& command_line,
+                                  Reporter& reporter) {
   requested.Check();
+  if (!requested.product.empty()) {
+    throw ConfigError("a product's trials are run by the product path (product_locate.h)", "--product");
+  }
   const EvaluateRequest options = requested.Resolved();
   Stopwatch total;
   {
@@ -1245,7 +1243,8 @@ nlohmann::json RunEvaluate(const EvaluateRequest& requested, const std::string& 
   std::vector<nlohmann::json> records;
   const int last = options.trial_count < 0 ? options.trials : options.trial_first + options.trial_count;
   for (int trial = options.trial_first; trial < last; ++trial) records.push_back(RunTrial(setup, options, trial, reporter));
-  return WriteEvaluation(options, records, command_line, total.ElapsedSeconds(), VerticalDatumRecord(setup.terrain));
+  return WriteTerrainEvaluation(options, records, command_line, total.ElapsedSeconds(),
+                                VerticalDatumRecord(setup.terrain));
 }
 
 void MatchPairRequest::Check() const {

@@ -3,6 +3,9 @@
 // the matcher's warp recovery on real image pairs. The algorithms live in
 // gissar/nav; these functions load the inputs and write the outputs (all
 // through AtomicOutputs, with provenance). Errors: the gissar::Error family.
+// Here: the requests and the path of a scene or DEM terrain (simulated or
+// given images over the terrain). Callers go through the door (locate_door.h),
+// which sends a request with a product or a track to product_locate.h.
 #pragma once
 
 #include <cstdint>
@@ -138,7 +141,14 @@ struct LocateRequest {
   // or a wrong type is a ConfigError naming `source`.
   void ApplyJson(const nlohmann::json& values, const std::string& source);
 };
-nlohmann::json RunLocate(const LocateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
+// A fix of --image from --prior over the terrain (--scene or --dem; with
+// --database from its stored references): Check(), then writes options.out
+// (the fix JSON: pose, errors in metres and degrees, matches, `seconds`) and
+// the composite picture when asked, atomically; returns the JSON. A request
+// with a product or a track (UsesTrack) goes through the door in
+// locate_door.h (here: ConfigError).
+nlohmann::json RunTerrainLocate(const LocateRequest& options, const std::string& command_line,
+                                Reporter& reporter = NullReporter());
 
 // Most Monte-Carlo trials one `evaluate` runs (each is a whole pose fix).
 constexpr int kMaxTrials = 100000;
@@ -181,7 +191,7 @@ struct EvaluateRequest {
   // The reference images carry the observed image's noise floor (NESZ) as
   // nav::LocateOptions::reference_floor (--no-reference-floor: 1e-4).
   bool reference_floor = true;
-  // A subset of the trials (EvaluateTrials: for spreading them over
+  // A subset of the trials (EvaluateTrials, locate_door.h: for spreading them over
   // workers): trials trial_first .. trial_first + trial_count - 1 of the
   // `trials`; trial_count -1 = the rest (by default: all of them).
   int trial_first = 0;
@@ -226,35 +236,44 @@ struct EvaluateRequest {
   // from its catalogue (InputError naming the catalogue when unreadable).
   EvaluateRequest Resolved() const;
   // {snake_case field: value} and back (the Python keywords; unknown key or
-  // wrong type: ConfigError naming `source`). ApplyJson(ToJson()) is the identity.
+  // wrong type: ConfigError naming `source`; pipeline/evaluate_fields.cc).
+  // ApplyJson(ToJson()) is the identity.
   nlohmann::json ToJson() const;
   void ApplyJson(const nlohmann::json& values, const std::string& source);
 };
-// Returns the summary JSON (also written to PREFIX.json): EvaluateTrials
-// (every trial unless trial_first/trial_count pick some), then WriteEvaluation.
-nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
+// The Monte-Carlo evaluation over a scene or DEM terrain: each trial renders
+// an observed image at a seeded true pose and fixes it from a prior drawn
+// around it. A request with a product goes through the door in
+// locate_door.h (here: ConfigError).
+//
+// The whole run: Check(), TerrainEvaluateTrials (every trial unless
+// trial_first/trial_count pick some), then WriteTerrainEvaluation; returns
+// the summary JSON (also written to PREFIX.json).
+nlohmann::json RunTerrainEvaluate(const EvaluateRequest& options, const std::string& command_line,
+                                  Reporter& reporter = NullReporter());
 
 // The per-trial records of trials trial_first .. (see EvaluateRequest),
-// nothing written. Trial k's randomness depends only on (seed, k): any
-// split of the trials over processes gives the records of the serial run
-// (up to `seconds`, the time a fix took). A record: trial, success,
-// converged, position_error_m, position_error_cells, horizontal_error_m,
-// heading_error_deg, depression_error_deg (absolute), seconds, matchers
-// (per compared matcher: raw, inliers, good, median_error_px), csv_row (the
-// PREFIX_trials.csv line).
-std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& options, Reporter& reporter = NullReporter());
+// nothing written; Check() first. Trial k's randomness depends only on
+// (seed, k): any split of the trials over processes gives the records of the
+// serial run (up to `seconds`, the time a fix took). A record: trial,
+// success, converged, position_error_m, position_error_cells,
+// horizontal_error_m, heading_error_deg, depression_error_deg (absolute),
+// seconds, matchers (per compared matcher: raw, inliers, good,
+// median_error_px), csv_row (the PREFIX_trials.csv line).
+std::vector<nlohmann::json> TerrainEvaluateTrials(const EvaluateRequest& options, Reporter& reporter = NullReporter());
 // The summary statistics of a set of trial records (any order; a repeated
-// trial is a ConfigError): the keys of RunEvaluate's summary from "trials"
-// to "matcher_comparison_first_iteration" (success_rate, position_error_m
-// median/p95, ...), identical to the serial run's for the same records.
-nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector<nlohmann::json>& records);
-// Writes PREFIX.json (SummariseTrials plus command, options, inputs,
-// `seconds`), PREFIX_trials.csv (rows by trial) and PREFIX_hist.png from
-// records, atomically; returns the summary. `vertical_datum`: the record of
-// the DEM's datum (null: the option as given).
-nlohmann::json WriteEvaluation(const EvaluateRequest& options, const std::vector<nlohmann::json>& records,
-                               const std::string& command_line, double seconds,
-                               const nlohmann::json& vertical_datum = nullptr);
+// trial is a ConfigError): the keys of RunTerrainEvaluate's summary from
+// "trials" to "matcher_comparison_first_iteration" (success_rate,
+// position_error_m median/p95, ...), identical to the serial run's for the
+// same records.
+nlohmann::json TerrainSummariseTrials(const EvaluateRequest& options, const std::vector<nlohmann::json>& records);
+// Check(), then writes PREFIX.json (TerrainSummariseTrials plus command,
+// options, inputs, `seconds`), PREFIX_trials.csv (rows by trial) and
+// PREFIX_hist.png from records, atomically; returns the summary.
+// `vertical_datum`: the record of the DEM's datum (null: the option as given).
+nlohmann::json WriteTerrainEvaluation(const EvaluateRequest& options, const std::vector<nlohmann::json>& records,
+                                      const std::string& command_line, double seconds,
+                                      const nlohmann::json& vertical_datum = nullptr);
 
 struct MatchPairRequest {
   std::string fixed, moving;  // two co-registered images (GDAL), band 1 linear intensity

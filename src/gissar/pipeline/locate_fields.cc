@@ -90,6 +90,13 @@ const FieldTable<LocateRequest>& LocateFields() {
   return kTable;
 }
 
+// The request's JSON form is its table's (locate.h states the promises).
+nlohmann::json LocateRequest::ToJson() const { return LocateFields().ToJson(*this); }
+
+void LocateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  LocateFields().ApplyJson(*this, values, source);
+}
+
 // In the order of `gissar matchpair --help`.
 const FieldTable<MatchPairRequest>& MatchPairFields() {
   using M = MatchPairRequest;

@@ -3,6 +3,8 @@
 // 128 x 128 images; ~1 s per fix),
 // and the real Sentinel-1 warp recovery.
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/locate_door.h"
+#include "gissar/pipeline/simulate_door.h"
 #include "gissar/pipeline/locate_fields.h"
 
 #include <algorithm>

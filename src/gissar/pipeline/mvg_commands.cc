@@ -1,5 +1,4 @@
 #include "gissar/pipeline/mvg_commands.h"
-#include "gissar/pipeline/mvg_fields.h"
 
 #include <algorithm>
 #include <cmath>
@@ -106,8 +105,6 @@ void FmatrixRequest::Check() const {
   if (image1.empty() != image2.empty()) throw ConfigError("give both images or none", "--image1/--image2");
   if (!image1.empty() && plot_prefix.empty()) throw ConfigError("images are drawn only with --plot", "--image1/--image2");
 }
-
-json FmatrixRequest::ToJson() const { return FmatrixFields().ToJson(*this); }
 
 namespace {
 
@@ -287,8 +284,6 @@ void ResectRequest::Check() const {
   if (slant_range_m && !(*slant_range_m > 0)) throw ConfigError("slant range must be positive", "--slant-range");
 }
 
-json ResectRequest::ToJson() const { return ResectFields().ToJson(*this); }
-
 json RunResect(const ResectRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();
   CheckOutputsAreNotInputs({options.json_out}, {options.points});
@@ -349,8 +344,6 @@ void RegisterRequest::Check() const {
   mvg::ParseTransformType(transform);
   if (!(threshold_px > 0)) throw ConfigError("threshold must be positive", "--threshold");
 }
-
-json RegisterRequest::ToJson() const { return RegisterFields().ToJson(*this); }
 
 json RunRegister(const RegisterRequest& options, const std::string& command_line, Reporter& reporter) {
   options.Check();

@@ -145,4 +145,11 @@ const FieldTable<CompositeRequest>& CompositeFields() {
   return kTable;
 }
 
+// The requests' JSON forms are their tables' (the request headers state the promises).
+nlohmann::json FmatrixRequest::ToJson() const { return FmatrixFields().ToJson(*this); }
+
+nlohmann::json ResectRequest::ToJson() const { return ResectFields().ToJson(*this); }
+
+nlohmann::json RegisterRequest::ToJson() const { return RegisterFields().ToJson(*this); }
+
 }  // namespace gissar::pipeline

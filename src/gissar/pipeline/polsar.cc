@@ -1,5 +1,4 @@
 #include "gissar/pipeline/polsar.h"
-#include "gissar/pipeline/polsar_fields.h"
 
 #include <algorithm>
 #include <array>
@@ -274,12 +273,6 @@ void PolsarRequest::Check() const {
   CheckOutputsAreNotInputs({out_prefix + kind, out_prefix + "_HAalpha.tif", out_prefix + "_pauli.png",
                             out_prefix + ".json"},
                            {image, product});
-}
-
-json PolsarRequest::ToJson() const { return PolsarFields().ToJson(*this); }
-
-void PolsarRequest::ApplyJson(const json& values, const std::string& source) {
-  PolsarFields().ApplyJson(*this, values, source);
 }
 
 PolsarResult RunPolsar(const PolsarRequest& request, const std::string& command_line, Reporter& reporter) {

@@ -36,4 +36,11 @@ const FieldTable<PolsarRequest>& PolsarFields() {
   return kTable;
 }
 
+// The requests' JSON forms are their tables' (the request headers state the promises).
+nlohmann::json PolsarRequest::ToJson() const { return PolsarFields().ToJson(*this); }
+
+void PolsarRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  PolsarFields().ApplyJson(*this, values, source);
+}
+
 }  // namespace gissar::pipeline

@@ -16,10 +16,11 @@
 
 namespace gissar::pipeline {
 
-// LocateRequest with `product` (or `orbit`) set: writes options.out (the fix
-// JSON: fix, correction, covariance, error against the annotated track,
-// matches, time) and the composite picture when asked; with an empty `out`
-// (Python) nothing is written. Returns the JSON.
+// LocateRequest with `product` (or `orbit`) set (RunLocate, locate_door.h,
+// sends it here): writes options.out (the fix JSON: fix, correction,
+// covariance, error against the annotated track, matches, time) and the
+// composite picture when asked; with an empty `out` (Python) nothing is
+// written. Returns the JSON.
 nlohmann::json RunProductLocate(const LocateRequest& options, const std::string& command_line,
                                 Reporter& reporter = NullReporter());
 
@@ -29,8 +30,8 @@ nlohmann::json RunProductLocate(const LocateRequest& options, const std::string&
 // RunProductEvaluate = ProductEvaluateTrials, then WriteProductEvaluation
 // (PREFIX.json: success_rate, position_error_m, position_error_cells, ...,
 // every record; PREFIX_trials.csv), or only ProductSummariseTrials without
-// an out_prefix (Python). EvaluateTrials, SummariseTrials and
-// WriteEvaluation (locate.h) dispatch here for a product.
+// an out_prefix (Python). The door (locate_door.h: RunLocate, RunEvaluate,
+// EvaluateTrials, SummariseTrials, WriteEvaluation) sends a product here.
 std::vector<nlohmann::json> ProductEvaluateTrials(const EvaluateRequest& options, Reporter& reporter = NullReporter());
 // The summary of records in any order (a repeated trial: ConfigError).
 nlohmann::json ProductSummariseTrials(const EvaluateRequest& options, std::vector<nlohmann::json> records);

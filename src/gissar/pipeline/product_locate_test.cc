@@ -1,4 +1,5 @@
 #include "gissar/pipeline/product_locate.h"
+#include "gissar/pipeline/simulate_door.h"
 
 #include <gtest/gtest.h>
 
@@ -10,6 +11,7 @@
 #include "gissar/geo/orbit_file.h"
 #include "gissar/geo/rslc_product.h"
 #include "gissar/pipeline/alos_testing.h"
+#include "gissar/pipeline/locate_door.h"
 #include "gissar/pipeline/product_simulate.h"
 #include "gissar/util/error.h"
 #include "gissar/util/utc_time.h"

@@ -24,6 +24,7 @@
 #include "gissar/image/side_by_side.h"
 #include "gissar/material/scattering.h"
 #include "gissar/pipeline/sentinel1_simulate.h"
+#include "gissar/pipeline/simulation_output.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
@@ -32,57 +33,6 @@
 
 namespace gissar::pipeline {
 namespace fs = std::filesystem;
-
-void CheckProductOptions(const SimulateRequest& o) {
-  const bool sentinel1 = IsSentinel1Request(o);
-  if (sentinel1) {
-    // A SAFE fixes its grid; --orbit replaces its annotation's orbit.
-    if (!o.radar_grid.empty()) throw ConfigError("a Sentinel-1 product fixes the radar grid", "--product/--radar-grid");
-    if (!o.frequency.empty()) {
-      throw ConfigError("a Sentinel-1 product has no frequency band (A/B are NISAR's): choose with --swath and "
-                        "--polarization",
-                        "--frequency");
-    }
-  } else {
-    if (!o.product.empty() && (!o.orbit.empty() || !o.radar_grid.empty())) {
-      throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
-    }
-    if (o.product.empty() && (o.orbit.empty() || o.radar_grid.empty())) {
-      throw ConfigError("an orbit needs a radar grid and a radar grid an orbit", "--orbit/--radar-grid");
-    }
-    if (!o.swath.empty()) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--swath");
-    if (o.burst != 0) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--burst");
-    if (!o.frequency.empty()) {
-      if (o.product.empty()) throw ConfigError("only for a NISAR product (--product FILE.h5)", "--frequency");
-      if (o.frequency != "A" && o.frequency != "B") {
-        throw ConfigError("expected A or B, got '" + o.frequency + "'", "--frequency");
-      }
-    }
-  }
-  if (o.burst < 0) throw ConfigError("bursts are numbered from 1, got " + std::to_string(o.burst), "--burst");
-  if (o.product_window_px) {
-    const auto& w = *o.product_window_px;
-    if (w[0] < 0 || w[1] < 0 || w[2] < 2 || w[3] < 2) {
-      throw ConfigError("expected LINE,PIXEL,LINES,PIXELS with LINE, PIXEL >= 0 and at least 2 lines and 2 pixels",
-                        "--product-window");
-    }
-  }
-  // The option that fixes the geometry, for the messages below.
-  const std::string fixed_by = o.product.empty() ? "--orbit" : "--product";
-  if (o.engine != SimulateEngine::kTrace) throw ConfigError("the radar grid needs the trace engine", fixed_by + "/--engine");
-  if (!o.contributions.empty()) {
-    throw ConfigError("contributions are not recorded on a radar grid", fixed_by + "/--contributions");
-  }
-  if (o.center_lonlat || o.center_map) {
-    throw ConfigError("the radar grid fixes the scene centre", fixed_by + "/--center");
-  }
-  if (o.geometry.width != 0 || o.geometry.height != 0) {
-    throw ConfigError("the radar grid fixes the image size", fixed_by + "/--width/--height");
-  }
-  if (o.geometry.range_spacing_m != 0.0 || o.geometry.azimuth_spacing_m != 0.0) {
-    throw ConfigError("the radar grid fixes the pixel spacing", fixed_by + "/--range-spacing/--azimuth-spacing");
-  }
-}
 
 namespace {
 

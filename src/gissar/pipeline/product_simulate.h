@@ -20,13 +20,6 @@ namespace gissar::pipeline {
 
 struct Sentinel1Source;  // sentinel1_simulate.h
 
-// The rules SimulateRequest::Check applies when `product` is set: the
-// trace engine, no idealised-geometry options (--center, --center-map,
-// --width, --height, --range-spacing, --azimuth-spacing) and no
-// --contributions. Throws ConfigError naming the option. Coherent mode is
-// allowed (render::RenderProduct forms the phasors on the product grid).
-void CheckProductOptions(const SimulateRequest& options);
-
 // The radar geometry a product simulation renders on: options.product (a
 // NISAR RSLC of band options.frequency, its amplitude read with
 // `read_amplitude`; or a Sentinel-1 SAFE: ReadSentinel1Source's grid, no

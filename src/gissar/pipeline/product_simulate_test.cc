@@ -1,4 +1,5 @@
 #include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/simulate_door.h"
 
 #include <gtest/gtest.h>
 

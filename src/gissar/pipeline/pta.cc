@@ -26,7 +26,6 @@
 #include "gissar/pipeline/geocode.h"
 #include "gissar/pipeline/georeferencing.h"
 #include "gissar/pipeline/product_simulate.h"
-#include "gissar/pipeline/pta_fields.h"
 #include "gissar/pipeline/sentinel1_simulate.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/sensor/range_doppler.h"
@@ -646,12 +645,6 @@ void PtaRequest::Check() const {
   std::vector<std::string> inputs{product, image, reflectors, orbit};
   if (!image.empty()) inputs.push_back(SidecarOf(image));
   CheckOutputsAreNotInputs({out_prefix + ".json", out_prefix + "_irf.png"}, inputs);
-}
-
-json PtaRequest::ToJson() const { return PtaFields().ToJson(*this); }
-
-void PtaRequest::ApplyJson(const json& values, const std::string& source) {
-  PtaFields().ApplyJson(*this, values, source);
 }
 
 namespace {

@@ -50,4 +50,11 @@ const FieldTable<PtaRequest>& PtaFields() {
   return kTable;
 }
 
+// The requests' JSON forms are their tables' (the request headers state the promises).
+nlohmann::json PtaRequest::ToJson() const { return PtaFields().ToJson(*this); }
+
+void PtaRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  PtaFields().ApplyJson(*this, values, source);
+}
+
 }  // namespace gissar::pipeline

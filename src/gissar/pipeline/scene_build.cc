@@ -11,7 +11,6 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/image/class_map.h"
 #include "gissar/image/mesh_view.h"
-#include "gissar/pipeline/scene_build_fields.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/material/material.h"
 #include "gissar/material/reflector.h"
@@ -331,12 +330,6 @@ void SceneBuildRequest::Check() const {
     outs.push_back(out_prefix + suffix);
   }
   CheckOutputsAreNotInputs(outs, inputs);
-}
-
-json SceneBuildRequest::ToJson() const { return SceneBuildFields().ToJson(*this); }
-
-void SceneBuildRequest::ApplyJson(const json& values, const std::string& source) {
-  SceneBuildFields().ApplyJson(*this, values, source);
 }
 
 SceneBuildResult RunSceneBuild(const SceneBuildRequest& options, const std::string& command_line, Reporter& reporter) {

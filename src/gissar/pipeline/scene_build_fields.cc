@@ -59,4 +59,11 @@ const FieldTable<SceneBuildRequest>& SceneBuildFields() {
   return kTable;
 }
 
+// The requests' JSON forms are their tables' (the request headers state the promises).
+nlohmann::json SceneBuildRequest::ToJson() const { return SceneBuildFields().ToJson(*this); }
+
+void SceneBuildRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  SceneBuildFields().ApplyJson(*this, values, source);
+}
+
 }  // namespace gissar::pipeline

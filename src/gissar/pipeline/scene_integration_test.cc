@@ -20,6 +20,7 @@
 
 #include "gissar/geo/dem.h"
 #include "gissar/pipeline/locate.h"
+#include "gissar/pipeline/locate_door.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/render/image_agreement.h"

@@ -20,6 +20,7 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/geo/sentinel1_testing.h"
 #include "gissar/pipeline/product_simulate.h"
+#include "gissar/pipeline/simulate_door.h"
 #include "gissar/pipeline/pta.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/sensor/range_doppler.h"

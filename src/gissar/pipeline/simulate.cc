@@ -1,8 +1,5 @@
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/field_names.h"
-#include "gissar/pipeline/simulate_fields.h"
-
-#include "gissar/pipeline/product_simulate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -17,6 +14,7 @@
 #include "gissar/geo/vertical_datum.h"
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/raster_io.h"
+#include "gissar/geo/sentinel1_safe.h"
 #include "gissar/image/impulse_response.h"
 #include "gissar/image/radiometry.h"
 #include "gissar/material/material.h"
@@ -36,6 +34,67 @@ namespace gissar::pipeline {
 namespace fs = std::filesystem;
 
 std::string ToString(SimulateEngine engine) { return std::string(kSimulateEngines.Name(engine)); }
+
+namespace {
+
+// The rules Check applies when the request renders on a product's radar
+// grid (`product`, or `orbit` with `radar_grid`): the trace engine, no
+// idealised-geometry options (--center, --center-map, --width, --height,
+// --range-spacing, --azimuth-spacing) and no --contributions. Throws
+// ConfigError naming the option. Coherent mode is allowed
+// (render::RenderProduct forms the phasors on the product grid).
+void CheckProductOptions(const SimulateRequest& o) {
+  const bool sentinel1 = !o.product.empty() && geo::IsSentinel1Path(o.product);
+  if (sentinel1) {
+    // A SAFE fixes its grid; --orbit replaces its annotation's orbit.
+    if (!o.radar_grid.empty()) throw ConfigError("a Sentinel-1 product fixes the radar grid", "--product/--radar-grid");
+    if (!o.frequency.empty()) {
+      throw ConfigError("a Sentinel-1 product has no frequency band (A/B are NISAR's): choose with --swath and "
+                        "--polarization",
+                        "--frequency");
+    }
+  } else {
+    if (!o.product.empty() && (!o.orbit.empty() || !o.radar_grid.empty())) {
+      throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
+    }
+    if (o.product.empty() && (o.orbit.empty() || o.radar_grid.empty())) {
+      throw ConfigError("an orbit needs a radar grid and a radar grid an orbit", "--orbit/--radar-grid");
+    }
+    if (!o.swath.empty()) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--swath");
+    if (o.burst != 0) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--burst");
+    if (!o.frequency.empty()) {
+      if (o.product.empty()) throw ConfigError("only for a NISAR product (--product FILE.h5)", "--frequency");
+      if (o.frequency != "A" && o.frequency != "B") {
+        throw ConfigError("expected A or B, got '" + o.frequency + "'", "--frequency");
+      }
+    }
+  }
+  if (o.burst < 0) throw ConfigError("bursts are numbered from 1, got " + std::to_string(o.burst), "--burst");
+  if (o.product_window_px) {
+    const auto& w = *o.product_window_px;
+    if (w[0] < 0 || w[1] < 0 || w[2] < 2 || w[3] < 2) {
+      throw ConfigError("expected LINE,PIXEL,LINES,PIXELS with LINE, PIXEL >= 0 and at least 2 lines and 2 pixels",
+                        "--product-window");
+    }
+  }
+  // The option that fixes the geometry, for the messages below.
+  const std::string fixed_by = o.product.empty() ? "--orbit" : "--product";
+  if (o.engine != SimulateEngine::kTrace) throw ConfigError("the radar grid needs the trace engine", fixed_by + "/--engine");
+  if (!o.contributions.empty()) {
+    throw ConfigError("contributions are not recorded on a radar grid", fixed_by + "/--contributions");
+  }
+  if (o.center_lonlat || o.center_map) {
+    throw ConfigError("the radar grid fixes the scene centre", fixed_by + "/--center");
+  }
+  if (o.geometry.width != 0 || o.geometry.height != 0) {
+    throw ConfigError("the radar grid fixes the image size", fixed_by + "/--width/--height");
+  }
+  if (o.geometry.range_spacing_m != 0.0 || o.geometry.azimuth_spacing_m != 0.0) {
+    throw ConfigError("the radar grid fixes the pixel spacing", fixed_by + "/--range-spacing/--azimuth-spacing");
+  }
+}
+
+}  // namespace
 
 void SimulateRequest::Check() const {
   if (dem.empty() == scene.empty()) {
@@ -117,12 +176,6 @@ void SimulateRequest::Check() const {
   CheckOutputsAreNotInputs(outs, {dem, scene, product, orbit, radar_grid, materials, reflectors});
 }
 
-nlohmann::json SimulateRequest::ToJson() const { return SimulateFields().ToJson(*this); }
-
-void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
-  SimulateFields().ApplyJson(*this, values, source);
-}
-
 namespace {
 
 // Memory estimates for --max-memory (measured, kept on the safe side; peak
@@ -151,12 +204,13 @@ double BytesPerImagePixel(const SimulateRequest& options) {
 // geo::ReadDemInfo, remembered per process for a file (path, size,
 // modification time, vertical units): a worker rendering many poses of one
 // DEM streams its heights once.
-geo::DemInfo CachedDemInfo(const std::string& path, const geo::DemReadOptions& read_options) {
+geo::DemInfo CachedDemInfo(const geo::DemFile& file, const geo::DemReadOptions& read_options) {
+  const fs::path path = file.path();
   std::error_code ec;
   const auto size = fs::file_size(path, ec);
   const bool on_disk = !ec;
   const auto mtime = on_disk ? fs::last_write_time(path, ec) : fs::file_time_type();
-  if (!on_disk || ec) return geo::ReadDemInfo(path, read_options);
+  if (!on_disk || ec) return file.Info(read_options);
   const std::string key = fs::absolute(path).string() + "|" + std::to_string(size) + "|" +
                           std::to_string(mtime.time_since_epoch().count()) + "|" + read_options.vertical_units;
   static std::mutex mutex;
@@ -166,7 +220,7 @@ geo::DemInfo CachedDemInfo(const std::string& path, const geo::DemReadOptions& r
     const auto found = cache.find(key);
     if (found != cache.end()) return found->second;
   }
-  geo::DemInfo info = geo::ReadDemInfo(path, read_options);
+  geo::DemInfo info = file.Info(read_options);
   std::lock_guard<std::mutex> lock(mutex);
   if (cache.size() > 64) cache.clear();
   cache[key] = info;
@@ -292,7 +346,8 @@ struct CentredGeometry {
 
 // CentredGeometry from the posts around the scene centre; nullopt (and the
 // reason) when voids next to it are filled from the whole DEM.
-std::optional<CentredGeometry> GeometryAtCentre(const SimulateRequest& options, const geo::DemReadOptions& read_options,
+std::optional<CentredGeometry> GeometryAtCentre(const SimulateRequest& options, const geo::DemFile& file,
+                                                const geo::DemReadOptions& read_options,
                                                 const geo::DemInfo& info, const std::string& datum,
                                                 const Eigen::Vector2d& centre_post, std::string* reason) {
   const int c = static_cast<int>(std::floor(centre_post.x())), r = static_cast<int>(std::floor(centre_post.y()));
@@ -300,7 +355,7 @@ std::optional<CentredGeometry> GeometryAtCentre(const SimulateRequest& options, 
   const int c1 = std::min(info.width - 1, c + 4), r1 = std::min(info.height - 1, r + 4);
   geo::DemReadOptions small_options = read_options;
   small_options.window = std::array<int, 4>{c0, r0, c1 - c0 + 1, r1 - r0 + 1};
-  geo::Dem small = geo::ReadDem(options.dem, small_options);
+  geo::Dem small = file.Read(small_options);
   if (small.filled_nodata_cells > 0) {
     *reason = "--fill-nodata with voids next to the scene centre (filled from the whole DEM)";
     return std::nullopt;
@@ -479,7 +534,10 @@ DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) 
     return plan;
   }
   const geo::DemReadOptions read_options = DemReadOptionsOf(TerrainRequestOf(options), TerrainShapeOf(options));
-  const geo::DemInfo info = CachedDemInfo(options.dem, read_options);
+  // Opened once: its header and bounds, the posts at the centre, then the
+  // window or the whole DEM (LoadTerrain reads plan.dem_file).
+  plan.dem_file.emplace(options.dem);
+  const geo::DemInfo info = CachedDemInfo(*plan.dem_file, read_options);
   if (!info.any_valid) {
     plan.reason = "the DEM has no valid height";
     return plan;
@@ -496,7 +554,7 @@ DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter) 
   const geo::CrsTransform crs(info.crs_wkt);
   const Eigen::Vector2d centre_post = SceneCentrePost(options, info, lattice, crs);
   const std::optional<CentredGeometry> centred =
-      GeometryAtCentre(options, read_options, info, datum.datum, centre_post, &plan.reason);
+      GeometryAtCentre(options, *plan.dem_file, read_options, info, datum.datum, centre_post, &plan.reason);
   if (!centred) return plan;
 
   // The posts the image can see or be shadowed from, and the rays' box.
@@ -660,16 +718,6 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
   }
   image::ApplySensorEffects(image, effects, ColumnIncidenceDeg(geometry));
   if (inside.size() == image.intensity.size()) MarkOutsideFootprint(image, inside);
-}
-
-std::vector<float> NoReturnPlane(const render::SarImage& image, bool db) {
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  const size_t n = size_t(image.width) * image.height;
-  const bool everywhere = image.footprint.size() != n;
-  std::vector<float> plane(n, db ? nan : 0.0f);
-  if (db || everywhere) return plane;
-  for (size_t i = 0; i < n; ++i) if (!image.footprint[i]) plane[i] = nan;
-  return plane;
 }
 
 void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside) {
@@ -840,17 +888,6 @@ SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter)
   out.timings_s[ToString(options.engine)] = out.image.stats.trace_seconds;
   if (!raster_engine) out.timings_s["mask"] = out.image.stats.mask_seconds;
   return out;
-}
-
-SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter) {
-  options.Check();
-  if (options.UsesProductGeometry()) return RunProductSimulate(options, command_line, reporter);
-  Stopwatch total;
-  // Reserve every output first: a missing or read-only directory fails now.
-  SimulationOutputs outputs;
-  ReserveSimulationOutputs(options, outputs);
-  SimulatedImage simulated = SimulateImage(options, reporter);
-  return WriteSimulation(options, simulated, command_line, outputs, total);
 }
 
 }  // namespace gissar::pipeline

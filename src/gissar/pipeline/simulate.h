@@ -22,7 +22,6 @@
 #include "gissar/geo/raster_io.h"
 #include "gissar/material/material.h"
 #include "gissar/material/reflector.h"
-#include "gissar/pipeline/simulation_output.h"
 #include "gissar/pipeline/terrain.h"
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/sar_renderer.h"
@@ -283,14 +282,6 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
 // `inside` as image.footprint. CHECKs the size.
 void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside);
 
-// The pixels of a bounce layer the render left empty (no return of that
-// order, render::SarImage::bounce_layers), as the writers and Python give
-// it: 0 inside the footprint (NaN when `db`: the dB of no power, as
-// image::ToDecibels writes it), NaN outside it (image.footprint; every pixel
-// is inside when the footprint is empty). Also the real and the imaginary
-// part of an empty complex layer (db false).
-std::vector<float> NoReturnPlane(const render::SarImage& image, bool db);
-
 // The tracer's options of a simulation: rays per cell, bounces, coherence,
 // wavelength, seed, contributions (when options.contributions is set) and
 // progress (unless quiet). The one place SimulateRequest map to the tracer.
@@ -319,17 +310,11 @@ struct SimulatedImage {
 
 // Loads the terrain, places the scene centre, resolves and checks the
 // geometry against the memory budget, renders with options.engine and
-// applies the sensor effects: everything RunSimulate does short of writing
-// (the Python binding calls it too, so both give the same bits). Progress,
-// information lines and cancellation go through `reporter`. Throws the gissar::Error family;
-// options must have passed Check(). Not for options.product.
+// applies the sensor effects: everything RunTerrainSimulate (simulate_door.h)
+// does short of writing (the Python binding calls it too, so both give the
+// same bits). Progress, information lines and cancellation go through
+// `reporter`. Throws the gissar::Error family; options must have passed
+// Check(). Not for a product's radar grid (product_simulate.h).
 SimulatedImage SimulateImage(const SimulateRequest& options, Reporter& reporter = NullReporter());
-
-// Runs the whole job: ReserveSimulationOutputs, SimulateImage,
-// WriteSimulation (simulation_output.h). Every output is written under a temporary name and
-// renamed only when all of them succeeded. Throws the gissar::Error family
-// (InputError, ConfigError, IoError) with context on failure, leaving no
-// output behind. `command_line` is recorded in the provenance JSON.
-SimulateResult RunSimulate(const SimulateRequest& options, const std::string& command_line, Reporter& reporter = NullReporter());
 
 }  // namespace gissar::pipeline

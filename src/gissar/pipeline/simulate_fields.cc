@@ -160,4 +160,11 @@ const std::string& SimulateHelp(const std::string& field) {
   return it->second;
 }
 
+// The request's JSON form is its table's (simulate.h states the promises).
+nlohmann::json SimulateRequest::ToJson() const { return SimulateFields().ToJson(*this); }
+
+void SimulateRequest::ApplyJson(const nlohmann::json& values, const std::string& source) {
+  SimulateFields().ApplyJson(*this, values, source);
+}
+
 }  // namespace gissar::pipeline

@@ -1,4 +1,5 @@
 #include "gissar/pipeline/image_probe_testing.h"
+#include "gissar/pipeline/simulate_door.h"
 #include "gissar/pipeline/scene_build.h"
 #include "gissar/pipeline/simulate.h"
 #include "gissar/pipeline/field_names.h"

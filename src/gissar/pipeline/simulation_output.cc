@@ -526,6 +526,16 @@ void WriteStacItem(const SimulateRequest& options, const SimulatedImage& simulat
 
 }  // namespace
 
+std::vector<float> NoReturnPlane(const render::SarImage& image, bool db) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const size_t n = size_t(image.width) * image.height;
+  const bool everywhere = image.footprint.size() != n;
+  std::vector<float> plane(n, db ? nan : 0.0f);
+  if (db || everywhere) return plane;
+  for (size_t i = 0; i < n; ++i) if (!image.footprint[i]) plane[i] = nan;
+  return plane;
+}
+
 bool HasPauliChannels(const SimulateRequest& options) {
   const auto channels = material::ParsePolarizationList(options.polarization, "--polarization");
   auto has = [&](material::Polarization p) { return std::find(channels.begin(), channels.end(), p) != channels.end(); };

@@ -25,6 +25,14 @@ struct SimulateRequest;
 struct SimulatedImage;
 struct SimulateResult;
 
+// The pixels of a bounce layer the render left empty (no return of that
+// order, render::SarImage::bounce_layers), as the writers and Python give
+// it: 0 inside the footprint (NaN when `db`: the dB of no power, as
+// image::ToDecibels writes it), NaN outside it (image.footprint; every pixel
+// is inside when the footprint is empty). Also the real and the imaginary
+// part of an empty complex layer (db false).
+std::vector<float> NoReturnPlane(const render::SarImage& image, bool db);
+
 // Whether the request's channels give a Pauli vector (HH, VV and HV or VH):
 // a coherent run then writes PREFIX_pauli.png.
 bool HasPauliChannels(const SimulateRequest& options);

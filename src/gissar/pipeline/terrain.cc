@@ -37,7 +37,9 @@ Terrain TerrainFromDem(const TerrainRequest& options, const TerrainShape& shape,
   geo::DemReadOptions read_options = DemReadOptionsOf(options, shape);
   DemWindowPlan plan = shape.window;
   if (plan.read_window) read_options.window = plan.window;
-  geo::Dem dem = geo::ReadDem(options.dem, read_options);
+  // The file as the window's planner opened it, else opened here: once.
+  const geo::DemFile file = plan.dem_file ? *plan.dem_file : geo::DemFile(options.dem);
+  geo::Dem dem = file.Read(read_options);
   if (plan.read_window && !dem.nodata_mask.empty()) {
     // GDAL's filling draws on valid cells up to its search distance away:
     // the whole DEM's voids are filled from the whole DEM; and which voids
@@ -45,7 +47,7 @@ Terrain TerrainFromDem(const TerrainRequest& options, const TerrainShape& shape,
     plan.read_window = false;
     plan.reason = "no-data in the window (filled, or left out, as in the whole DEM)";
     read_options.window.reset();
-    dem = geo::ReadDem(options.dem, read_options);
+    dem = file.Read(read_options);
   }
   if (plan.applies) {
     reporter.Info("simulate: DEM window " + std::to_string(plan.window[2]) + " x " + std::to_string(plan.window[3]) +

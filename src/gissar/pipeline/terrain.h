@@ -83,6 +83,9 @@ struct DemWindowPlan {
   // margin (pixels) and post margin.
   double z_low_m = 0.0, z_high_m = 0.0;
   int source_width = 0, source_height = 0;
+  // The DEM as the planner opened it (set once it was opened): LoadTerrain
+  // reads the window or the whole DEM from it without opening it again.
+  std::optional<geo::DemFile> dem_file;
   nlohmann::json ToJson() const;
 };
 // The margins of a planned window (PlanDemWindow, simulate.h).
