@@ -70,7 +70,7 @@ py::dict Locate(const PyScene& scene, const py::array_t<float, py::array::c_styl
         const geo::LocalFrame frame(scene.file.origin_lon_deg, scene.file.origin_lat_deg, 0.0);
         c = frame.EnuFromGeodetic(prior.centre_lonlat->x(), prior.centre_lonlat->y(), 0.0);
       }
-      const auto ground = nav::SurfaceBelow(embree, scene.file.mesh, c.x(), c.y());
+      const auto ground = nav::SurfaceBelow(embree, c.x(), c.y());
       if (ground) s = nav::NavPose{prior.heading_deg, *prior.depression_deg, prior.slant_range_m, *ground};
     }
     if (!s) throw InputError("the prior's line of sight does not reach the scene", "gissar.locate: prior");

@@ -14,6 +14,10 @@ namespace gissar::nav {
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
+// A dense Gauss-Newton step that moves no pixel by more than this ends the
+// iterations: 20 times below the dense stage's own settling (a pose update
+// under 0.02 px), so further steps cannot change a fix that matters.
+constexpr double kDenseSettledPx = 1e-3;
 
 Eigen::Vector3d UpNormal(const sensor::SarGeometry& g) {
   Eigen::Vector3d n = g.range_plane_normal();
@@ -31,7 +35,7 @@ std::optional<NavPose> Moved(const NavScene& scene, const NavPose& pose, const S
   if (!(p.depression_deg > 1.0 && p.depression_deg < 89.0)) return std::nullopt;
   const sensor::SarGeometry g = GeometryOf(p, model);
   const Eigen::Vector3d base = pose.centre_enu + a * g.look_direction() + b * g.flight_direction();
-  const auto centre = SurfaceAlongNormal(*scene.embree, *scene.mesh, base, UpNormal(g));
+  const auto centre = SurfaceAlongNormal(*scene.embree, base, UpNormal(g));
   if (!centre) return std::nullopt;
   p.centre_enu = *centre;
   return p;
@@ -252,7 +256,13 @@ std::optional<KnownSpacingResection> DenseRefine(const Reference& ref, const cv:
     if (!step.allFinite()) return std::nullopt;
     q += step;
     rms = std::sqrt(wr2 / std::max(wsum, 1.0));
-    if (std::abs(step[0]) < 1e-7 && std::abs(step[1]) < 1e-7 && step.segment<2>(2).norm() < 1e-5) break;
+    // Settled: the step moves no pixel by more than kDenseSettledPx (the
+    // rotation at the image edge, the range rescaling of the depression
+    // change at the image edge, the shift), as StepTo measures a pose update.
+    const double step_px = std::max({std::abs(step[0]) * kDeg * 0.5 * std::max(w, h),
+                                     std::abs(step[1]) * kDeg * std::tan(q[1] * kDeg) * 0.5 * w,
+                                     std::abs(step[2]), std::abs(step[3])});
+    if (step_px < kDenseSettledPx) break;
   }
   if (!(q[1] > 1.0 && q[1] < 89.0)) return std::nullopt;
   out.heading_deg = q[0];
@@ -315,11 +325,9 @@ sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model) {
                              (model.height - 1) / 2.0, model.width, model.height);
 }
 
-std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& embree,
-                                                  const scene::TriangleMesh& mesh,
-                                                  const Eigen::Vector3d& base,
+std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& embree, const Eigen::Vector3d& base,
                                                   const Eigen::Vector3d& n_up) {
-  const Eigen::AlignedBox3d box = mesh.Bounds();
+  const Eigen::AlignedBox3d& box = embree.bounds();
   if (!(n_up.z() > 1e-6)) return std::nullopt;
   const double t0 = (box.max().z() + 100.0 - base.z()) / n_up.z();
   const Eigen::Vector3d start = base + t0 * n_up;
@@ -329,9 +337,8 @@ std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& emb
   return start - double(hit->t) * n_up;
 }
 
-std::optional<Eigen::Vector3d> SurfaceBelow(const render::EmbreeScene& embree,
-                                            const scene::TriangleMesh& mesh, double x, double y) {
-  return SurfaceAlongNormal(embree, mesh, Eigen::Vector3d(x, y, 0.0), Eigen::Vector3d::UnitZ());
+std::optional<Eigen::Vector3d> SurfaceBelow(const render::EmbreeScene& embree, double x, double y) {
+  return SurfaceAlongNormal(embree, Eigen::Vector3d(x, y, 0.0), Eigen::Vector3d::UnitZ());
 }
 
 Reference RenderReference(const NavScene& scene, const NavPose& pose, const SensorModel& model) {
@@ -581,7 +588,7 @@ std::optional<NavPose> PoseFromSensor(const NavScene& scene, const Eigen::Vector
   p.depression_deg = depression_guess_deg;
   for (int i = 0; i < 20; ++i) {
     const Eigen::Vector3d c = sensor_enu + slant_range_m * sensor::LookDirection(heading_deg, p.depression_deg, look_side);
-    const auto ground = SurfaceBelow(*scene.embree, *scene.mesh, c.x(), c.y());
+    const auto ground = SurfaceBelow(*scene.embree, c.x(), c.y());
     if (!ground) return std::nullopt;
     const double s = (sensor_enu.z() - ground->z()) / slant_range_m;
     if (!(s > std::sin(1.0 * M_PI / 180) && s < std::sin(89.0 * M_PI / 180))) return std::nullopt;
@@ -594,7 +601,7 @@ std::optional<NavPose> PoseFromSensor(const NavScene& scene, const Eigen::Vector
   // Xc: the surface point on the final line of sight at range R (horizontal
   // position from the line of sight, height from the surface).
   const Eigen::Vector3d c = sensor_enu + slant_range_m * sensor::LookDirection(heading_deg, p.depression_deg, look_side);
-  const auto ground = SurfaceBelow(*scene.embree, *scene.mesh, c.x(), c.y());
+  const auto ground = SurfaceBelow(*scene.embree, c.x(), c.y());
   if (!ground) return std::nullopt;
   p.centre_enu = *ground;
   return p;

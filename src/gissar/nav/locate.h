@@ -93,13 +93,11 @@ sensor::SarGeometry GeometryOf(const NavPose& pose, const SensorModel& model);
 // First surface point of the line {base + t n_up}, searched from above along
 // -n_up (n_up: the slant-range-plane normal pointing up). nullopt when the
 // line misses the scene.
-std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& embree,
-                                                  const scene::TriangleMesh& mesh,
-                                                  const Eigen::Vector3d& base,
+// The search starts 100 m above the scene's bounds (EmbreeScene::bounds).
+std::optional<Eigen::Vector3d> SurfaceAlongNormal(const render::EmbreeScene& embree, const Eigen::Vector3d& base,
                                                   const Eigen::Vector3d& n_up);
 // The scene surface below (x, y) (vertical ray); nullopt outside the scene.
-std::optional<Eigen::Vector3d> SurfaceBelow(const render::EmbreeScene& embree,
-                                            const scene::TriangleMesh& mesh, double x, double y);
+std::optional<Eigen::Vector3d> SurfaceBelow(const render::EmbreeScene& embree, double x, double y);
 
 struct Reference {
   sensor::SarGeometry geometry;

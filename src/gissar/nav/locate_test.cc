@@ -26,7 +26,7 @@ TEST(Locate, RecoversPoseFromDriftedPrior) {
   truth.heading_deg = 37.0;
   truth.depression_deg = 40.0;
   truth.slant_range_m = 8000.0;
-  truth.centre_enu = *SurfaceBelow(embree, mesh, 150.0, -220.0);
+  truth.centre_enu = *SurfaceBelow(embree, 150.0, -220.0);
   Reference observed = RenderReference(scene, truth, model);
   image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 5);
   const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
@@ -72,7 +72,7 @@ TEST(Locate, DenseStageAbsorbsAClassOffset) {
   truth.heading_deg = 122.0;
   truth.depression_deg = 38.0;
   truth.slant_range_m = 8000.0;
-  truth.centre_enu = *SurfaceBelow(embree, mesh, -250.0, 300.0);
+  truth.centre_enu = *SurfaceBelow(embree, -250.0, 300.0);
   Reference observed = RenderReference(observed_scene, truth, model);
   image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 11);
   const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
@@ -107,7 +107,7 @@ TEST(Locate, PoseFromSensorIsConsistent) {
   truth.heading_deg = 200.0;
   truth.depression_deg = 35.0;
   truth.slant_range_m = 9000.0;
-  truth.centre_enu = *SurfaceBelow(embree, mesh, -300.0, 400.0);
+  truth.centre_enu = *SurfaceBelow(embree, -300.0, 400.0);
   const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
   const auto p = PoseFromSensor(scene, sensor, truth.heading_deg, truth.slant_range_m, 45.0, sensor::LookSide::kRight);
   ASSERT_TRUE(p);
@@ -128,7 +128,7 @@ TEST(Locate, FixesFromAStoredReferenceWithoutRendering) {
   stored_pose.heading_deg = 34.5;
   stored_pose.depression_deg = 41.0;
   stored_pose.slant_range_m = 8000.0;
-  stored_pose.centre_enu = *SurfaceBelow(embree, mesh, 400.0, -20.0);
+  stored_pose.centre_enu = *SurfaceBelow(embree, 400.0, -20.0);
   const Reference rendered = RenderReference(scene, stored_pose, model);
   const StoredReference stored = MakeStoredReference(scene, rendered.geometry, rendered.intensity, {});
   EXPECT_GT(stored.valid_pixels, 0.8 * 96 * 96);
@@ -155,7 +155,7 @@ TEST(Locate, FixesFromAStoredReferenceWithoutRendering) {
   truth.heading_deg = 37.0;
   truth.depression_deg = 40.0;
   truth.slant_range_m = 8000.0;
-  truth.centre_enu = *SurfaceBelow(embree, mesh, 150.0, -220.0);
+  truth.centre_enu = *SurfaceBelow(embree, 150.0, -220.0);
   Reference observed = RenderReference(scene, truth, model);
   image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 5);
   const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);

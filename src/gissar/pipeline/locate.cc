@@ -459,7 +459,7 @@ nav::NavPose StartPose(const PriorPose& prior, const nav::NavScene& scene, const
   } else {
     Eigen::Vector3d c = prior.centre_enu.value_or(Eigen::Vector3d::Zero());
     if (prior.centre_lonlat) c = terrain.frame.EnuFromGeodetic(prior.centre_lonlat->x(), prior.centre_lonlat->y(), 0.0);
-    const auto ground = nav::SurfaceBelow(embree, terrain.mesh, c.x(), c.y());
+    const auto ground = nav::SurfaceBelow(embree, c.x(), c.y());
     if (ground) start = nav::NavPose{prior.heading_deg, *prior.depression_deg, prior.slant_range_m, *ground};
   }
   if (!start) throw InputError("the prior's line of sight does not reach the scene", prior_path);
@@ -822,7 +822,7 @@ TruePose DrawTruePose(const EvaluateSetup& s, const EvaluateRequest& options, Tr
                        std::cos(g.options().depression_deg * M_PI / 180.0);
       const double b = uni(-1, 1) * kDatabaseTrialOffset * g.height() * g.azimuth_spacing_m();
       const Eigen::Vector3d c = g.scene_centre() + a * across + b * g.flight_direction();
-      const auto ground = nav::SurfaceBelow(*s.embree, s.terrain.mesh, c.x(), c.y());
+      const auto ground = nav::SurfaceBelow(*s.embree, c.x(), c.y());
       if (ground) {
         truth.centre_enu = *ground;
         out.near_item = s.database->items[k].id;
@@ -834,7 +834,7 @@ TruePose DrawTruePose(const EvaluateSetup& s, const EvaluateRequest& options, Tr
     truth.heading_deg = uni(0.0, 360.0);
     truth.depression_deg = uni(options.depression_min_deg, options.depression_max_deg);
     truth.slant_range_m = options.slant_range_m;
-    const auto g = nav::SurfaceBelow(*s.embree, s.terrain.mesh, uni(s.lo_xy.x(), s.hi_xy.x()), uni(s.lo_xy.y(), s.hi_xy.y()));
+    const auto g = nav::SurfaceBelow(*s.embree, uni(s.lo_xy.x(), s.hi_xy.x()), uni(s.lo_xy.y(), s.hi_xy.y()));
     if (g) { truth.centre_enu = *g; ok = true; }
   }
   if (!ok) throw InputError("no true pose found on the scene surface", options.scene);

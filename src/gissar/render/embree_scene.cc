@@ -421,6 +421,7 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, BvhQuality quality)
 EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, BvhQuality quality)
     : impl_(std::make_unique<Impl>()) {
   if (mesh.triangle_count() == 0) throw InputError("scene has no triangles", "mesh");
+  bounds_ = mesh.Bounds();
   Stopwatch watch;
   impl_->device = rtcNewDevice(nullptr);
   if (impl_->device == nullptr) throw Error("cannot create Embree device", "ray tracer");

@@ -131,6 +131,9 @@ class EmbreeScene {
   // walls, no overhangs), so along a vertical plane a ray that meets it
   // from above has passed over everything before its hit.
   bool HeightfieldOnly() const;
+  // The bounds of the mesh it was built from (its frame, metres), kept at
+  // construction: no pass over the vertices per query.
+  const Eigen::AlignedBox3d& bounds() const { return bounds_; }
   // The quality the BVH was built with (never kAuto).
   BvhQuality quality() const { return quality_; }
   // Seconds spent building the BVH.
@@ -141,6 +144,7 @@ class EmbreeScene {
   std::unique_ptr<Impl> impl_;
   double build_seconds_ = 0.0;
   BvhQuality quality_ = BvhQuality::kMedium;
+  Eigen::AlignedBox3d bounds_;
 };
 
 }  // namespace gissar::render
