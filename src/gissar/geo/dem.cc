@@ -493,6 +493,9 @@ Dem DemFile::Read(const DemReadOptions& options) const {
                      where);
   }
   StoreHeights(raw, voids, border, options, where, dem);
+  // Give back GDAL's cached blocks of what was read (as closing the file
+  // would): the heights are held by `dem` now.
+  ds->FlushCache(false);
   return dem;
 }
 
@@ -907,6 +910,7 @@ DemInfo DemFile::Info(const DemReadOptions& options) const {
   info.min_height_m = a * info.vertical_unit_m;
   info.max_height_m = b * info.vertical_unit_m;
   info.any_valid = true;
+  ds->FlushCache(false);  // the streamed blocks (see Read)
   return info;
 }
 
