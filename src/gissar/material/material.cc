@@ -1,6 +1,9 @@
 #include "gissar/material/material.h"
 
 #include <algorithm>
+#include <bit>
+#include <map>
+#include <mutex>
 #include <cctype>
 #include <cmath>
 #include <fstream>
@@ -426,12 +429,21 @@ Sigma0Table::Sigma0Table(const Material& material, double wavelength_m, Polariza
   }
 }
 
-MaterialTable::MaterialTable() : materials_(1, DefaultMaterial(scene::kClassDefault)) {}
+// The Sigma0Tables of one set of materials, by (wavelength bits, polarisation).
+struct MaterialTable::TableCache {
+  static constexpr size_t kMaxEntries = 8;
+  std::mutex mutex;
+  std::map<std::pair<uint64_t, int>, std::vector<Sigma0Table>> tables;
+};
+
+MaterialTable::MaterialTable()
+    : materials_(1, DefaultMaterial(scene::kClassDefault)), tables_(std::make_shared<TableCache>()) {}
 
 void MaterialTable::Set(scene::ClassId id, Material material) {
   material.Check();
   if (id >= materials_.size()) materials_.resize(size_t(id) + 1, materials_[0]);
   materials_[id] = std::move(material);
+  tables_ = std::make_shared<TableCache>();  // other copies keep theirs
 }
 
 const Material& MaterialTable::Get(scene::ClassId id) const {
@@ -439,9 +451,18 @@ const Material& MaterialTable::Get(scene::ClassId id) const {
 }
 
 std::vector<Sigma0Table> MaterialTable::Tables(double wavelength_m, Polarization pol) const {
+  const std::pair<uint64_t, int> key{std::bit_cast<uint64_t>(wavelength_m), static_cast<int>(pol)};
+  {
+    std::lock_guard<std::mutex> lock(tables_->mutex);
+    const auto found = tables_->tables.find(key);
+    if (found != tables_->tables.end()) return found->second;
+  }
   std::vector<Sigma0Table> tables;
   tables.reserve(materials_.size());
   for (const Material& m : materials_) tables.emplace_back(m, wavelength_m, pol);
+  std::lock_guard<std::mutex> lock(tables_->mutex);
+  if (tables_->tables.size() >= TableCache::kMaxEntries) tables_->tables.clear();
+  tables_->tables.emplace(key, tables);
   return tables;
 }
 

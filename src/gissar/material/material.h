@@ -23,6 +23,7 @@
 #include <array>
 #include <cmath>
 #include <complex>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -252,13 +253,17 @@ class MaterialTable {
   // The material of class `id`; the class-0 material when unset.
   const Material& Get(scene::ClassId id) const;
   size_t size() const { return materials_.size(); }
-  // One Sigma0Table per class (index = ClassId).
+  // One Sigma0Table per class (index = ClassId). Built once per
+  // (wavelength, polarisation) and kept until Set changes a material: a
+  // navigation fix renders many references with one table. Thread-safe.
   std::vector<Sigma0Table> Tables(double wavelength_m, Polarization pol) const;
 
   nlohmann::json ToJson() const;
 
  private:
+  struct TableCache;  // material.cc; copies share it until one calls Set
   std::vector<Material> materials_;
+  std::shared_ptr<TableCache> tables_;
 };
 
 // One vertex of a multi-bounce path (far field): its point, its unit

@@ -66,6 +66,31 @@ TEST(MaterialTest, TableInterpolatesInDecibels) {
   EXPECT_NEAR(Db(t(std::cos(30 * kDeg))), -11.0, 0.01);
 }
 
+// MaterialTable keeps the tables it built per (wavelength, polarisation)
+// and builds new ones when a material changes; a copy keeps its own.
+TEST(MaterialTest, TablesAreKeptUntilAMaterialChanges) {
+  MaterialTable table;
+  Material flat;
+  flat.model = ScatteringModel::kTable;
+  flat.sigma0_db = {{0, -10}, {90, -10}};
+  table.Set(1, flat);
+  const std::vector<Sigma0Table> first = table.Tables(kC, Polarization::kVV);
+  ASSERT_EQ(first.size(), 2u);
+  EXPECT_NEAR(Db(first[1](std::cos(40 * kDeg))), -10.0, 1e-6);
+  // The same request again: the same values.
+  const std::vector<Sigma0Table> again = table.Tables(kC, Polarization::kVV);
+  EXPECT_EQ(again[0](0.6), first[0](0.6));
+  EXPECT_EQ(again[1](0.6), first[1](0.6));
+  const MaterialTable copy = table;
+  flat.sigma0_db = {{0, -20}, {90, -20}};
+  table.Set(1, flat);
+  EXPECT_NEAR(Db(table.Tables(kC, Polarization::kVV)[1](std::cos(40 * kDeg))), -20.0, 1e-6);
+  EXPECT_NEAR(Db(copy.Tables(kC, Polarization::kVV)[1](std::cos(40 * kDeg))), -10.0, 1e-6);
+  // Another wavelength or polarisation is its own table (Oh 1992 depends on both).
+  EXPECT_NE(table.Tables(kC, Polarization::kVV)[0](0.6), table.Tables(kC, Polarization::kHH)[0](0.6));
+  EXPECT_NE(table.Tables(kC, Polarization::kVV)[0](0.6), table.Tables(0.24, Polarization::kVV)[0](0.6));
+}
+
 // The table's angle lookup without libm: within 2e-8 rad of std::acos over
 // [0, 1] (Abramowitz & Stegun's bound), exact at the ends, clamped outside.
 TEST(MaterialTest, TableAngleLookupIsAcosTo2e8Radians) {
