@@ -112,10 +112,25 @@ void CropProductGrid(geo::RslcProduct& p, const std::array<int, 4>& window, cons
                                         p.slant_range_m.begin() + window[1] + window[3]);
 }
 
+// A NISAR RSLC's selection: no orbit or radar grid beside it (the product
+// has both), no Sentinel-1 swath or burst, band A or B. Throws ConfigError
+// naming the option.
+void CheckNisarSelection(const SimulateRequest& o) {
+  if (!o.orbit.empty() || !o.radar_grid.empty()) {
+    throw ConfigError("give a product or an orbit with a radar grid, not both", "--product/--orbit");
+  }
+  if (!o.swath.empty()) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--swath");
+  if (o.burst != 0) throw ConfigError("only for a Sentinel-1 product (--product S1.SAFE)", "--burst");
+  if (!o.frequency.empty() && o.frequency != "A" && o.frequency != "B") {
+    throw ConfigError("expected A or B, got '" + o.frequency + "'", "--frequency");
+  }
+}
+
 }  // namespace
 
 geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_amplitude, Reporter& reporter) {
   if (IsSentinel1Request(options)) return ReadSentinel1Source(options, reporter).grid;
+  if (!options.product.empty()) CheckNisarSelection(options);
   geo::RslcProduct product;
   geo::RslcReadOptions read;
   read.frequency = options.frequency.empty() ? "A" : options.frequency;
@@ -384,13 +399,12 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, const RealImag
 
   Terrain terrain = LoadTerrain(options, reporter);
   const render::EmbreeScene embree(terrain.mesh, TracedGrid(terrain, options));
-  render::RenderOptions ro = RenderOptionsOf(options, &reporter);
+  render::RenderOptions ro = RenderOptionsOf(options, sim.channels.front(), &reporter);
   ro.wavelength_m = p.wavelength_m;  // the product's band selects the materials' laws
   ro.reflectors = terrain.reflectors;  // a scene's own
   const auto placed = PlaceReflectors(options.reflectors, terrain, embree);
   ro.reflectors.insert(ro.reflectors.end(), placed.begin(), placed.end());
   // One pass per channel (polarimetric passes with one seed; VH = HV).
-  ro.polarization = sim.channels.front();
   ro.polarimetric = polarimetric;
   sim.image = render::RenderProduct(embree, terrain.mesh, terrain.materials, terrain.frame, orbit, sim.grid, ro);
   for (size_t k = 1; k < sim.channels.size(); ++k) {

@@ -26,7 +26,9 @@ struct Sentinel1Source;  // sentinel1_simulate.h
 // image) or options.orbit with options.radar_grid (geo::ProductFromOrbit,
 // polarisation options.polarization), checked against
 // options.max_memory_bytes, cut to options.product_window_px when set
-// (ConfigError naming --product-window when it leaves the grid). Throws the
+// (ConfigError naming --product-window when it leaves the grid; before
+// reading a NISAR product, ConfigError naming --product/--orbit, --swath,
+// --burst or --frequency for a selection it cannot have). Throws the
 // gissar::Error family.
 geo::RslcProduct ReadProductGeometry(const SimulateRequest& options, bool read_amplitude,
                                      Reporter& reporter = NullReporter());

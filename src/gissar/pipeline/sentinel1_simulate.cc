@@ -78,6 +78,15 @@ Sentinel1Selection Sentinel1SelectionOf(const SimulateRequest& options) {
 }
 
 Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& reporter) {
+  // A SAFE fixes its grid; --orbit replaces its annotation's orbit.
+  if (!options.radar_grid.empty()) {
+    throw ConfigError("a Sentinel-1 product fixes the radar grid", "--product/--radar-grid");
+  }
+  if (!options.frequency.empty()) {
+    throw ConfigError("a Sentinel-1 product has no frequency band (A/B are NISAR's): choose with --swath and "
+                      "--polarization",
+                      "--frequency");
+  }
   return ReadSentinel1Source(Sentinel1SelectionOf(options), reporter);
 }
 

@@ -101,6 +101,9 @@ Sentinel1Selection Sentinel1SelectionOf(const SimulateRequest& options);
 // naming --product-window for a window outside the grid or --coherent for a
 // GRD (a detected product).
 Sentinel1Source ReadSentinel1Source(const Sentinel1Selection& options, Reporter& reporter = NullReporter());
+// The selection of a simulation request; also ConfigError naming
+// --product/--radar-grid or --frequency (a SAFE fixes its grid and has no
+// frequency band), before anything is read.
 Sentinel1Source ReadSentinel1Source(const SimulateRequest& options, Reporter& reporter = NullReporter());
 
 // The real image of source.window, calibrated to `radiometry` (sigma0,

@@ -354,13 +354,16 @@ TEST(Sentinel1SimulateTest, BadSelectionsNameTheirFlag) {
   grd.coherent = true;
   EXPECT_THROW(ReadSentinel1Source(grd), ConfigError);
 
-  // Checked before any file is read.
+  // A SAFE's own rules, checked where it is opened, before any of its files
+  // is read (generic Check() does not tell products apart).
   SimulateRequest f = Selection(kIwSlc);
   f.frequency = "A";
-  EXPECT_THROW(f.Check(), ConfigError);
+  EXPECT_NO_THROW(f.Check());
+  EXPECT_EQ(message_of(f), "a Sentinel-1 product has no frequency band (A/B are NISAR's): choose with --swath and "
+                           "--polarization (--frequency)");
   f.frequency = "";
   f.radar_grid = "grid.json";
-  EXPECT_THROW(f.Check(), ConfigError);
+  EXPECT_EQ(message_of(f), "a Sentinel-1 product fixes the radar grid (--product/--radar-grid)");
   SimulateRequest plain;
   plain.dem = "dem.tif";
   plain.out_prefix = "/nonexistent/out";

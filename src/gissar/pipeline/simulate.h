@@ -218,20 +218,13 @@ struct SimulateResult {
   double total_seconds = 0.0;
 };
 
-// Plans the DEM window of a simulation (options.dem must be set; Check()ed).
-// Not `applies` without --width/--height, for the raster engine or a scene.
-// The window holds every DEM post whose ENU position can project within
-// kDemWindowMarginPx pixels of the image at any height between the DEM's
-// bounds (geo::ReadDemInfo: exact lowest and highest heights, widened for
-// the vertical datum and DEM refinement), every post that can shadow such
-// a point (the line of sight towards the sensor up to the highest height),
-// plus kDemWindowMarginPosts posts. The whole DEM is read instead (reason
-// given) for --dem-window off, --sea auto on a DEM reaching the sea level
-// (the sea is connected to the whole DEM's border), mirror paths (a material
-// with a mirror share and --bounces > 1: a mirror ray may reach any
-// terrain), reflectors and contributions (both may lie anywhere on the DEM),
-// or a window that would be most of the DEM anyway.
-DemWindowPlan PlanDemWindow(const SimulateRequest& options, Reporter& reporter = NullReporter());
+// What a simulation's image asks of its DEM window (terrain.h
+// PlanDemWindow): the geometry and size, the engine, --dem-window, bounces,
+// reflectors and contributions.
+DemWindowNeeds DemWindowNeedsOf(const SimulateRequest& options);
+// The DEM window of a simulation (options Check()ed): PlanDemWindow of its
+// TerrainRequestOf, TerrainShapeOf and DemWindowNeedsOf.
+DemWindowPlan PlanDemWindow(const SimulateRequest& options);
 
 // The terrain grid the trace engine traces as a height field
 // (render::EmbreeScene's TerrainGrid) when options.heightfield: a DEM's
@@ -282,10 +275,15 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
 // `inside` as image.footprint. CHECKs the size.
 void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside);
 
-// The tracer's options of a simulation: rays per cell, bounces, coherence,
+// The tracer's options of a simulation rendering `channel` (one of
+// options.polarization's list): rays per cell, bounces, coherence,
 // wavelength, seed, contributions (when options.contributions is set) and
 // progress (unless quiet). The one place SimulateRequest map to the tracer.
-render::RenderOptions RenderOptionsOf(const SimulateRequest& options, Reporter* reporter = nullptr);
+render::RenderOptions RenderOptionsOf(const SimulateRequest& options, material::Polarization channel,
+                                      Reporter* reporter = nullptr);
+// The first channel of options.polarization (a single-channel view renders
+// it). Throws ConfigError naming --polarization for a bad list.
+material::Polarization FirstChannel(const SimulateRequest& options);
 
 // A simulated image before anything is written: the terrain it was rendered
 // from, the geometry (automatic spacings resolved, covering the terrain),

@@ -1,11 +1,11 @@
 // The terrain source of the requests: a DEM or a scene, read, meshed and
 // centred once (LoadTerrain) into a Terrain (mesh, ENU frame, centre,
-// materials, the scene's reflectors). simulate, sequence, ortho, validate and
-// the product simulation describe it with their SimulateRequest
-// (TerrainRequestOf, TerrainShapeOf and the window PlanDemWindow plans,
-// simulate.h); locate and evaluate with their own fields, without a
-// simulation request; geocode and pta with the request their image's sidecar
-// records.
+// materials, the scene's reflectors), a fixed-size image's DEM window planned
+// first (PlanDemWindow). simulate, sequence, ortho, validate and the product
+// simulation describe it with their SimulateRequest (TerrainRequestOf,
+// TerrainShapeOf and DemWindowNeedsOf, simulate.h); locate and evaluate with
+// their own fields, without a simulation request; geocode and pta with the
+// request their image's sidecar records.
 #pragma once
 
 #include <array>
@@ -27,6 +27,7 @@
 #include "gissar/render/sar_renderer.h"
 #include "gissar/scene/scene_io.h"
 #include "gissar/scene/triangle_mesh.h"
+#include "gissar/sensor/sar_geometry.h"
 #include "gissar/util/memory_limit.h"
 #include "gissar/util/reporter.h"
 
@@ -124,6 +125,36 @@ struct TerrainShape {
   DemWindowPlan window;
 };
 
+// What a fixed-size image of a DEM asks of its window (the simulation's
+// side of PlanDemWindow; pipeline/simulate.h DemWindowNeedsOf).
+struct DemWindowNeeds {
+  bool product_grid = false;             // rendered on a product's radar grid: no window
+  bool raster_engine = false;            // the raster engine reads the whole grid
+  sensor::SarGeometryOptions geometry;   // width and height 0: the image covers the whole DEM
+  bool window_off = false;               // --dem-window off
+  int bounces = 1;                       // > 1 with a mirror material: mirror paths reach anywhere
+  bool reflectors = false;               // --reflectors given (may lie anywhere)
+  bool contributions = false;            // --contributions given (returns from anywhere)
+};
+
+// Plans the DEM window of a fixed-size image of request.dem. Not `applies`
+// without a width and height, for the raster engine, a scene or a product's
+// radar grid (`reason` says which).
+// The window holds every DEM post whose ENU position can project within
+// kDemWindowMarginPx pixels of the image at any height between the DEM's
+// bounds (geo::ReadDemInfo: exact lowest and highest heights, widened for
+// the vertical datum and DEM refinement), every post that can shadow such
+// a point (the line of sight towards the sensor up to the highest height),
+// plus kDemWindowMarginPosts posts. The whole DEM is read instead (reason
+// given) for --dem-window off, --sea auto on a DEM reaching the sea level
+// (the sea is connected to the whole DEM's border), mirror paths (a material
+// with a mirror share and --bounces > 1: a mirror ray may reach any
+// terrain), reflectors and contributions (both may lie anywhere on the DEM),
+// or a window that would be most of the DEM anyway.
+// Throws the gissar::Error family (a bad centre: ConfigError naming
+// --center or --center-map; the DEM: InputError naming the file).
+DemWindowPlan PlanDemWindow(const TerrainRequest& request, const TerrainShape& shape, const DemWindowNeeds& needs);
+
 // The DEM reading options of `request` meshed as `shape`: fill, collar left
 // out, memory budget per post, vertical units.
 geo::DemReadOptions DemReadOptionsOf(const TerrainRequest& request, const TerrainShape& shape);
@@ -156,6 +187,10 @@ std::vector<render::SceneReflector> PlaceReflectors(const std::string& reflector
 using SurfaceHeightAt = std::function<std::optional<double>(double x_m, double y_m)>;
 // The surface of a mesh in `embree`: a vertical ray from above `top_z_m`.
 SurfaceHeightAt EmbreeSurface(const render::EmbreeScene& embree, double top_z_m);
+// The same with any surface (the raster engine's height field): the rows of
+// `reflectors_csv` (none for "") in the ENU of `frame`.
+std::vector<render::SceneReflector> PlaceReflectors(const std::string& reflectors_csv, const geo::LocalFrame& frame,
+                                                    const SurfaceHeightAt& surface);
 // Reflector rows placed on a surface (apex = surface height at lon, lat +
 // apex_height_m, ENU of `frame`). Throws InputError naming `source` and the
 // row for a reflector off the terrain.

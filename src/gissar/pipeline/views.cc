@@ -100,7 +100,7 @@ SequenceResult RunSequence(const SequenceRequest& options, const std::string& co
                     "sequence of " + std::to_string(options.frames) + " frames of " + std::to_string(width) + " x " +
                         std::to_string(height) + " pixels",
                     "use fewer --frames, coarser --range-spacing/--azimuth-spacing");
-  render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
+  render::RenderOptions render_options = RenderOptionsOf(options.base, FirstChannel(options.base), &reporter);
   // A scene's stored reflectors and any --reflectors rows, as simulate renders them.
   render_options.reflectors = terrain.reflectors;
   for (const render::SceneReflector& r : PlaceReflectors(options.base.reflectors, terrain, embree)) {
@@ -219,7 +219,7 @@ std::vector<fs::path> RunOrtho(const OrthoRequest& options, const std::string& c
   const render::OrthoImage los = render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kLineOfSight, colour);
   const render::OrthoImage gperp =
       render::RenderOrtho(embree, terrain.mesh, geometry, render::OrthoView::kSlantRangeNormal, colour);
-  render::RenderOptions render_options = RenderOptionsOf(options.base, &reporter);
+  render::RenderOptions render_options = RenderOptionsOf(options.base, FirstChannel(options.base), &reporter);
   render_options.reflectors = terrain.reflectors;
   for (const render::SceneReflector& r : PlaceReflectors(options.base.reflectors, terrain, embree)) {
     render_options.reflectors.push_back(r);
