@@ -18,6 +18,12 @@ constexpr double kDeg = M_PI / 180.0;
 // iterations: 20 times below the dense stage's own settling (a pose update
 // under 0.02 px), so further steps cannot change a fix that matters.
 constexpr double kDenseSettledPx = 1e-3;
+// A reference rendered at a pose that has since moved no pixel by more
+// than this (the patch stage's own settling) serves the next step instead
+// of a new render (a fifth of a fix each): the dense stage's first fit
+// starts from its pose, and the result's whole-image NCC does not change
+// at that scale.
+constexpr double kReferenceReusePx = 0.1;
 
 Eigen::Vector3d UpNormal(const sensor::SarGeometry& g) {
   Eigen::Vector3d n = g.range_plane_normal();
@@ -451,9 +457,21 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   NavPose pose = prior;
   int search = options.initial_search_px;
   double last_update_px = std::numeric_limits<double>::infinity();
-  for (int it = 0; it < options.max_iterations; ++it) {
-    const Reference ref = source(pose);
+  // The last reference rendered, the pose it was rendered at and how far
+  // (px) the pose moved since: the dense stage's first fit and the result's
+  // similarity reuse it when that move is below kReferenceReusePx.
+  std::optional<Reference> last_ref;
+  NavPose last_ref_pose = pose;
+  double moved_since_last_ref_px = 0.0;
+  const auto render_at = [&](const NavPose& at) -> const Reference& {
+    last_ref.emplace(source(at));
+    last_ref_pose = at;
+    moved_since_last_ref_px = 0.0;
     ++result.renders;
+    return *last_ref;
+  };
+  for (int it = 0; it < options.max_iterations; ++it) {
+    const Reference& ref = render_at(pose);
     if (it == 0) result.prior_similarity = Similarity(ref, obs_log, options.filter_px, options.reference_floor);
     MatchOptions mo;
     mo.patch_px = options.patch_px;
@@ -488,22 +506,28 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
                                                   res->sigma[3] * model.azimuth_spacing_m,
                                                   pose.slant_range_m * res->sigma[1] * kDeg);
     last_update_px = step->update_px;
+    moved_since_last_ref_px = step->update_px;
     pose = step->pose;
     search = last_update_px > options.refine_search_px - 1 ? options.initial_search_px : options.refine_search_px;
     if (last_update_px < 0.1) break;
   }
   // Dense stage: from inside its basin (the patch stage's last update below
-  // 2 px; infinite when the patch stage found no camera).
+  // 2 px; infinite when the patch stage found no camera). Each fit starts
+  // from the pose its reference was rendered at: the first fit takes the
+  // patch stage's last reference when the pose moved less than
+  // kReferenceReusePx since (the fit moves it on from there).
   for (int k = 0; k < options.dense_renders && last_update_px < 2.0; ++k) {
-    const Reference ref = source(pose);
-    ++result.renders;
-    const auto res = DenseRefine(ref, obs_log, pose.centre_enu, model, pose.heading_deg, pose.depression_deg,
+    const bool reuse = k == 0 && last_ref && moved_since_last_ref_px < kReferenceReusePx;
+    const Reference& ref = reuse ? *last_ref : render_at(pose);
+    const NavPose base = last_ref_pose;
+    const auto res = DenseRefine(ref, obs_log, base.centre_enu, model, base.heading_deg, base.depression_deg,
                                  options.dense_iterations, options.filter_px, options.reference_floor);
     if (!res) break;
-    const auto step = StepTo(scene, pose, model, *res);
+    const auto step = StepTo(scene, base, model, *res);
     if (!step) break;
     pose = step->pose;
     last_update_px = step->update_px;
+    moved_since_last_ref_px = step->update_px;
     result.dense_renders = k + 1;
     result.dense_rms_db = res->rms_px;
     if (last_update_px < 0.02) break;
@@ -517,6 +541,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   }
 
   if (options.polish_evaluations > 0 && result.converged) {
+    last_ref.reset();  // the polish moves the pose by its own rule
     // Nelder-Mead on -NCC over (heading, depression, shift along l, along h).
     auto cost = [&](const Eigen::Vector4d& q) {
       const auto p = Moved(scene, pose, model, q[0], q[1], q[2], q[3]);
@@ -569,8 +594,12 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
   }
   result.pose = pose;
   result.sensor_enu = pose.SensorPosition(model.look_side);
-  result.similarity = Similarity(source(pose), obs_log, options.filter_px, options.reference_floor);
-  ++result.renders;
+  if (last_ref && moved_since_last_ref_px < kReferenceReusePx) {
+    result.similarity = Similarity(*last_ref, obs_log, options.filter_px, options.reference_floor);
+  } else {
+    result.similarity = Similarity(source(pose), obs_log, options.filter_px, options.reference_floor);
+    ++result.renders;
+  }
   result.seconds = clock.ElapsedSeconds();
   return result;
 }

@@ -18,7 +18,8 @@
 // pose to the resected camera (new Xc: the surface point the resected camera
 // images at the image centre), and iterate with a shrinking search until the
 // update is below 0.1 px (at most max_iterations renders). Then the dense
-// stage (dense_renders > 0): render at the pose reached and fit (heading,
+// stage (dense_renders > 0): render at the pose reached (or keep the last
+// reference when the pose moved less than 0.1 px since it) and fit (heading,
 // depression, u0, v0) by Gauss-Newton on the log-intensity difference of
 // every usable reference pixel, the reference being the sum of its classes'
 // intensities each scaled by a fitted gain (the scene's materials are known
@@ -145,9 +146,14 @@ struct LocateResult {
   int matches = 0;                 // correspondences of the last iteration
   int inliers = 0;                 // after RANSAC
   double rms_px = 0.0;             // resection residual of the last patch iteration
-  int dense_renders = 0;           // dense-stage renders whose update was applied
+  // Dense-stage fits whose update was applied (the first may fit the patch
+  // stage's last reference: `renders` counts what was rendered).
+  int dense_renders = 0;
   double dense_rms_db = 0.0;       // robust RMS log-intensity residual of the last dense fit, dB
-  double similarity = 0.0;         // whole-image NCC of the log images at the result
+  // Whole-image NCC of the log images at the result: on the last reference
+  // rendered when the final update moved no pixel by more than 0.1 px, else
+  // on a render at the result.
+  double similarity = 0.0;
   double prior_similarity = 0.0;   // the same at the prior
   // One-sigma errors from the resection covariance of the last patch
   // iteration (the dense stage's pixels are correlated; it gives none).

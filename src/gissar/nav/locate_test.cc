@@ -42,6 +42,46 @@ TEST(Locate, RecoversPoseFromDriftedPrior) {
   EXPECT_GT(r.inliers, 20);
 }
 
+// A reference serves the next step when the pose has moved less than
+// 0.1 px since it was rendered: the dense stage's first fit starts from the
+// patch stage's last reference, and the result's similarity is computed on
+// the last reference. Every render goes through the source (counted here),
+// and a fix that settles needs fewer renders than one per patch iteration,
+// per dense fit and one for the similarity (5 on this scene before).
+TEST(Locate, SettledPosesReuseTheirReference) {
+  const scene::TriangleMesh mesh = Hills();
+  const render::EmbreeScene embree(mesh);
+  const material::MaterialTable materials;
+  const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
+  SensorModel model;
+  model.range_spacing_m = model.azimuth_spacing_m = 30.0;
+  model.width = model.height = 96;
+  NavPose truth;
+  truth.heading_deg = 37.0;
+  truth.depression_deg = 40.0;
+  truth.slant_range_m = 8000.0;
+  truth.centre_enu = *SurfaceBelow(embree, 150.0, -220.0);
+  Reference observed = RenderReference(scene, truth, model);
+  image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 5);
+  const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
+  const auto prior = PoseFromSensor(scene, sensor + Eigen::Vector3d(150, -120, 40), truth.heading_deg + 2.0,
+                                    truth.slant_range_m, 40.0, sensor::LookSide::kRight);
+  ASSERT_TRUE(prior);
+  int rendered = 0;
+  const LocateResult r = Locate(scene, model, observed.intensity, *prior, LocateOptions(), [&](const NavPose& p) {
+    ++rendered;
+    return RenderReference(scene, p, model);
+  });
+  ASSERT_TRUE(r.converged);
+  EXPECT_EQ(r.renders, rendered);
+  EXPECT_GE(r.dense_renders, 1);
+  EXPECT_LT(rendered, r.iterations + r.dense_renders + 1);
+  EXPECT_LT((r.sensor_enu - sensor).norm(), 30.0);
+  EXPECT_GT(r.similarity, r.prior_similarity);
+  std::printf("[ measured ] %d patch iterations, %d dense fits, %d renders\n", r.iterations, r.dense_renders,
+              rendered);
+}
+
 // The scene's materials are known to a few dB only. Here one class (a
 // checkerboard of 1.2 km squares, with the same material as the rest in the
 // scene) is 4 dB brighter in the observed image: its edges are features the

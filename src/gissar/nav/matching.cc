@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "gissar/util/error.h"
 
@@ -101,34 +104,45 @@ std::vector<Correspondence> DenseNccMatch(const cv::Mat& ref, const cv::Mat& obs
   CheckPair(ref, obs, valid);
   options.Check();
   const int half = options.patch_px / 2;
-  std::vector<Correspondence> out;
-  for (const cv::Point& c : GridCentres(ref.size(), half, options.step_px, valid)) {
+  // One patch: its best match in the search window, or none.
+  const auto match_patch = [&](const cv::Point& c) -> std::optional<Correspondence> {
     const cv::Rect tpl_rect(c.x - half, c.y - half, options.patch_px, options.patch_px);
     const cv::Mat tpl = ref(tpl_rect);
     cv::Scalar mean, stddev;
     cv::meanStdDev(tpl, mean, stddev);
-    if (stddev[0] < options.min_contrast_db) continue;
+    if (stddev[0] < options.min_contrast_db) return std::nullopt;
     // Search window clipped to the observed image.
     const cv::Rect search = cv::Rect(tpl_rect.x - options.search_px, tpl_rect.y - options.search_px,
                                      options.patch_px + 2 * options.search_px,
                                      options.patch_px + 2 * options.search_px) &
                             cv::Rect(0, 0, obs.cols, obs.rows);
-    if (search.width < options.patch_px + 2 || search.height < options.patch_px + 2) continue;
+    if (search.width < options.patch_px + 2 || search.height < options.patch_px + 2) return std::nullopt;
     cv::Mat result;
     cv::matchTemplate(obs(search), tpl, result, cv::TM_CCOEFF_NORMED);
     double best = 0;
     cv::Point at;
     cv::minMaxLoc(result, nullptr, &best, nullptr, &at);
-    if (!(best >= options.min_score)) continue;
+    if (!(best >= options.min_score)) return std::nullopt;
     // A peak on the window border is a truncated search: not a match.
-    if (at.x == 0 || at.y == 0 || at.x == result.cols - 1 || at.y == result.rows - 1) continue;
+    if (at.x == 0 || at.y == 0 || at.x == result.cols - 1 || at.y == result.rows - 1) return std::nullopt;
     const double dx = ParabolaPeak(result.at<float>(at.y, at.x - 1), best, result.at<float>(at.y, at.x + 1));
     const double dy = ParabolaPeak(result.at<float>(at.y - 1, at.x), best, result.at<float>(at.y + 1, at.x));
     Correspondence m;
     m.reference = Eigen::Vector2d(c.x, c.y);
     m.observed = Eigen::Vector2d(search.x + at.x + dx + half, search.y + at.y + dy + half);
     m.score = best;
-    out.push_back(m);
+    return m;
+  };
+  // The patches in parallel (each its own OpenCV call), kept in grid order:
+  // the same matches as one after the other.
+  const std::vector<cv::Point> centres = GridCentres(ref.size(), half, options.step_px, valid);
+  std::vector<std::optional<Correspondence>> found(centres.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, centres.size()), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t i = range.begin(); i < range.end(); ++i) found[i] = match_patch(centres[i]);
+  });
+  std::vector<Correspondence> out;
+  for (const std::optional<Correspondence>& m : found) {
+    if (m) out.push_back(*m);
   }
   return out;
 }
