@@ -17,7 +17,7 @@ nlohmann::json RunEvaluate(const EvaluateRequest& options, const std::string& co
 }
 
 std::vector<nlohmann::json> EvaluateTrials(const EvaluateRequest& options, Reporter& reporter) {
-  options.Check();
+  // Each path Check()s the request first.
   if (!options.product.empty()) return ProductEvaluateTrials(options, reporter);
   return TerrainEvaluateTrials(options, reporter);
 }
@@ -29,7 +29,7 @@ nlohmann::json SummariseTrials(const EvaluateRequest& options, const std::vector
 
 nlohmann::json WriteEvaluation(const EvaluateRequest& options, const std::vector<nlohmann::json>& records,
                                const std::string& command_line, double seconds, const nlohmann::json& vertical_datum) {
-  options.Check();
+  // Each path Check()s the request first.
   if (!options.product.empty()) return WriteProductEvaluation(options, records, command_line, seconds);
   return WriteTerrainEvaluation(options, records, command_line, seconds, vertical_datum);
 }

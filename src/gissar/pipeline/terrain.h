@@ -89,7 +89,7 @@ struct DemWindowPlan {
   std::optional<geo::DemFile> dem_file;
   nlohmann::json ToJson() const;
 };
-// The margins of a planned window (PlanDemWindow, simulate.h).
+// The margins of a planned window (PlanDemWindow below).
 inline constexpr int kDemWindowMarginPx = 4;
 inline constexpr int kDemWindowMarginPosts = 4;
 
