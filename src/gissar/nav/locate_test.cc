@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <optional>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -14,27 +16,47 @@ namespace {
 
 using testing::Hills;
 
-TEST(Locate, RecoversPoseFromDriftedPrior) {
-  const scene::TriangleMesh mesh = Hills();
-  const render::EmbreeScene embree(mesh);
-  const material::MaterialTable materials;
-  const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
+// The drifted-prior case of the tests below: the hills seen at 30 m from
+// 8 km (heading 37, depression 40), 4-look speckle, and an INS prior about
+// 200 m and 2 deg off.
+SensorModel HillsModel() {
   SensorModel model;
   model.range_spacing_m = model.azimuth_spacing_m = 30.0;
   model.width = model.height = 96;
+  return model;
+}
+NavPose HillsTruth(const render::EmbreeScene& embree) {
   NavPose truth;
   truth.heading_deg = 37.0;
   truth.depression_deg = 40.0;
   truth.slant_range_m = 8000.0;
   truth.centre_enu = *SurfaceBelow(embree, 150.0, -220.0);
-  Reference observed = RenderReference(scene, truth, model);
+  return truth;
+}
+Reference Speckled(Reference observed) {
   image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 5);
-  const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
-  const auto prior = PoseFromSensor(scene, sensor + Eigen::Vector3d(150, -120, 40), truth.heading_deg + 2.0,
-                                    truth.slant_range_m, 40.0, sensor::LookSide::kRight);
+  return observed;
+}
+struct DriftedPrior {
+  scene::TriangleMesh mesh = Hills();
+  render::EmbreeScene embree{mesh};
+  material::MaterialTable materials;
+  NavScene scene{&mesh, &embree, &materials, 4.0, 1};
+  SensorModel model = HillsModel();
+  NavPose truth = HillsTruth(embree);
+  Reference observed = Speckled(RenderReference(scene, truth, model));
+  Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
+  std::optional<NavPose> prior = PoseFromSensor(scene, sensor + Eigen::Vector3d(150, -120, 40),
+                                                truth.heading_deg + 2.0, truth.slant_range_m, 40.0,
+                                                sensor::LookSide::kRight);
+};
+
+TEST(Locate, RecoversPoseFromDriftedPrior) {
+  const DriftedPrior c;
+  const auto& [truth, sensor, prior] = std::tie(c.truth, c.sensor, c.prior);
   ASSERT_TRUE(prior);
   EXPECT_GT((prior->SensorPosition(sensor::LookSide::kRight) - sensor).norm(), 150.0);
-  const LocateResult r = Locate(scene, model, observed.intensity, *prior, LocateOptions());
+  const LocateResult r = Locate(c.scene, c.model, c.observed.intensity, *prior, LocateOptions());
   EXPECT_TRUE(r.converged);
   EXPECT_LT((r.sensor_enu - sensor).norm(), 30.0);  // one resolution cell
   EXPECT_LT(std::abs(r.pose.heading_deg - truth.heading_deg), 0.1);
@@ -49,34 +71,19 @@ TEST(Locate, RecoversPoseFromDriftedPrior) {
 // and a fix that settles needs fewer renders than one per patch iteration,
 // per dense fit and one for the similarity (5 on this scene before).
 TEST(Locate, SettledPosesReuseTheirReference) {
-  const scene::TriangleMesh mesh = Hills();
-  const render::EmbreeScene embree(mesh);
-  const material::MaterialTable materials;
-  const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
-  SensorModel model;
-  model.range_spacing_m = model.azimuth_spacing_m = 30.0;
-  model.width = model.height = 96;
-  NavPose truth;
-  truth.heading_deg = 37.0;
-  truth.depression_deg = 40.0;
-  truth.slant_range_m = 8000.0;
-  truth.centre_enu = *SurfaceBelow(embree, 150.0, -220.0);
-  Reference observed = RenderReference(scene, truth, model);
-  image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 5);
-  const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
-  const auto prior = PoseFromSensor(scene, sensor + Eigen::Vector3d(150, -120, 40), truth.heading_deg + 2.0,
-                                    truth.slant_range_m, 40.0, sensor::LookSide::kRight);
-  ASSERT_TRUE(prior);
+  const DriftedPrior c;
+  ASSERT_TRUE(c.prior);
   int rendered = 0;
-  const LocateResult r = Locate(scene, model, observed.intensity, *prior, LocateOptions(), [&](const NavPose& p) {
-    ++rendered;
-    return RenderReference(scene, p, model);
-  });
+  const LocateResult r = Locate(c.scene, c.model, c.observed.intensity, *c.prior, LocateOptions(),
+                                [&](const NavPose& p) {
+                                  ++rendered;
+                                  return RenderReference(c.scene, p, c.model);
+                                });
   ASSERT_TRUE(r.converged);
   EXPECT_EQ(r.renders, rendered);
   EXPECT_GE(r.dense_renders, 1);
   EXPECT_LT(rendered, r.iterations + r.dense_renders + 1);
-  EXPECT_LT((r.sensor_enu - sensor).norm(), 30.0);
+  EXPECT_LT((r.sensor_enu - c.sensor).norm(), 30.0);
   EXPECT_GT(r.similarity, r.prior_similarity);
   std::printf("[ measured ] %d patch iterations, %d dense fits, %d renders\n", r.iterations, r.dense_renders,
               rendered);
@@ -156,13 +163,8 @@ TEST(Locate, PoseFromSensorIsConsistent) {
 }
 
 TEST(Locate, FixesFromAStoredReferenceWithoutRendering) {
-  const scene::TriangleMesh mesh = Hills();
-  const render::EmbreeScene embree(mesh);
-  const material::MaterialTable materials;
-  const NavScene scene{&mesh, &embree, &materials, 4.0, 1};
-  SensorModel model;
-  model.range_spacing_m = model.azimuth_spacing_m = 30.0;
-  model.width = model.height = 96;
+  const DriftedPrior c;
+  const auto& [embree, scene, model] = std::tie(c.embree, c.scene, c.model);
   // The stored reference: another pose 300 m and 2.5 deg away from the truth.
   NavPose stored_pose;
   stored_pose.heading_deg = 34.5;
@@ -191,19 +193,11 @@ TEST(Locate, FixesFromAStoredReferenceWithoutRendering) {
   }
   EXPECT_LT(diff / sum, 0.02);
 
-  NavPose truth;
-  truth.heading_deg = 37.0;
-  truth.depression_deg = 40.0;
-  truth.slant_range_m = 8000.0;
-  truth.centre_enu = *SurfaceBelow(embree, 150.0, -220.0);
-  Reference observed = RenderReference(scene, truth, model);
-  image::ApplyMultiplicativeSpeckle(observed.intensity, 4.0, 5);
-  const Eigen::Vector3d sensor = truth.SensorPosition(sensor::LookSide::kRight);
-  const auto prior = PoseFromSensor(scene, sensor + Eigen::Vector3d(150, -120, 40), truth.heading_deg + 2.0,
-                                    truth.slant_range_m, 40.0, sensor::LookSide::kRight);
-  ASSERT_TRUE(prior);
+  // The observed image and the prior: the drifted-prior case.
+  ASSERT_TRUE(c.prior);
+  const auto& [truth, sensor, prior] = std::tie(c.truth, c.sensor, c.prior);
   int warps = 0;
-  const LocateResult r = Locate(scene, model, observed.intensity, *prior, LocateOptions(), [&](const NavPose& pose) {
+  const LocateResult r = Locate(scene, model, c.observed.intensity, *prior, LocateOptions(), [&](const NavPose& pose) {
     ++warps;
     return WarpStoredReference(stored, pose, model);
   });

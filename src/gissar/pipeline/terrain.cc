@@ -389,25 +389,25 @@ geo::Dem PostLattice(const geo::DemInfo& info) {
 // The scene centre (--center, --center-map or the DEM's centre) in source
 // posts (column, row). Throws ConfigError for a centre that is not a
 // longitude,latitude or lies outside the DEM.
-Eigen::Vector2d SceneCentrePost(const TerrainShape& options, const geo::DemInfo& info, const geo::Dem& lattice,
+Eigen::Vector2d SceneCentrePost(const TerrainShape& shape, const geo::DemInfo& info, const geo::Dem& lattice,
                                 const geo::CrsTransform& crs) {
   Eigen::Vector2d centre_map;
-  if (options.center_lonlat) {
-    std::vector<double> x{options.center_lonlat->x()}, y{options.center_lonlat->y()};
+  if (shape.center_lonlat) {
+    std::vector<double> x{shape.center_lonlat->x()}, y{shape.center_lonlat->y()};
     if (!std::isfinite(x[0]) || !std::isfinite(y[0]) || std::abs(y[0]) > 90.0) {
       throw ConfigError("scene centre is not a valid longitude,latitude", "--center");
     }
     crs.FromLonLat(x, y);
     centre_map = {x[0], y[0]};
-  } else if (options.center_map) {
-    centre_map = *options.center_map;
+  } else if (shape.center_map) {
+    centre_map = *shape.center_map;
   } else {
     centre_map = lattice.MapFromPost((info.width - 1) / 2.0, (info.height - 1) / 2.0);
   }
   double centre_col = 0.0, centre_row = 0.0;
   lattice.PostFromMap(centre_map.x(), centre_map.y(), &centre_col, &centre_row);
   if (!(centre_col >= 0.0 && centre_row >= 0.0 && centre_col <= info.width - 1 && centre_row <= info.height - 1)) {
-    throw ConfigError("scene centre lies outside the DEM", options.center_map ? "--center-map" : "--center");
+    throw ConfigError("scene centre lies outside the DEM", shape.center_map ? "--center-map" : "--center");
   }
   return {centre_col, centre_row};
 }
@@ -423,7 +423,7 @@ struct CentredGeometry {
 
 // CentredGeometry from the posts around the scene centre; nullopt (and the
 // reason) when voids next to it are filled from the whole DEM.
-std::optional<CentredGeometry> GeometryAtCentre(const TerrainRequest& request, const TerrainShape& options,
+std::optional<CentredGeometry> GeometryAtCentre(const TerrainRequest& request, const TerrainShape& shape,
                                                 const sensor::SarGeometryOptions& image, const geo::DemFile& file,
                                                 const geo::DemReadOptions& read_options,
                                                 const geo::DemInfo& info, const std::string& datum,
@@ -440,12 +440,12 @@ std::optional<CentredGeometry> GeometryAtCentre(const TerrainRequest& request, c
   }
   small = geo::RefineDem(small, request.dem_oversample, int64_t{1} << 40);
   geo::ToEllipsoidalHeights(small, datum);
-  std::optional<Eigen::Vector2d> small_map = options.center_map;
-  if (!options.center_lonlat && !small_map) {
+  std::optional<Eigen::Vector2d> small_map = shape.center_map;
+  if (!shape.center_lonlat && !small_map) {
     const Eigen::Vector2d post = small.SourceCentrePost();
     small_map = small.MapFromPost(post.x(), post.y());
   }
-  const geo::GeoPoint centre = geo::ResolveSceneCentre(small, options.center_lonlat, small_map);
+  const geo::GeoPoint centre = geo::ResolveSceneCentre(small, shape.center_lonlat, small_map);
   const geo::LocalFrame frame(centre.lon_deg, centre.lat_deg, 0.0);
   const Eigen::Vector3d xc = frame.EnuFromGeodetic(centre.lon_deg, centre.lat_deg, centre.height_m);
   sensor::SarGeometryOptions g = image;
