@@ -353,5 +353,41 @@ class GeocodedCorridorTest(unittest.TestCase):
         self.assertFalse(os.path.isdir(os.path.join(self.server.cache, "geocoded")))
 
 
+class SimulationTest(unittest.TestCase):
+    """A `gissar simulate` output: its image and mask geocoded on demand (exact on the simulation's terrain,
+    cached), not warped through its GCPs (which keep only the 12 x 12 lattice by default)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.work = tempfile.mkdtemp(prefix="gissar-view-simulate-")
+        cls.prefix = vc.build_simulate(os.path.join(cls.work, "simulate"))
+        cls.server = vc.Server(cls.prefix + ".json")
+
+    @classmethod
+    def tearDownClass(cls):
+        status = cls.server.stop()
+        shutil.rmtree(cls.work, ignore_errors=True)
+        assert status == 0, f"gissar view exits {status} on Ctrl-C"
+
+    def test_image_and_mask_geocoded_on_demand(self):
+        c = http.client.HTTPConnection("127.0.0.1", self.server.port, timeout=60)
+        c.request("GET", "/api/view.json")
+        image = json.loads(c.getresponse().read())["image"]
+        for key in ("render_info", "mask_info"):
+            c.request("GET", image[key])
+            r = c.getresponse()
+            info = json.loads(r.read())
+            self.assertEqual(r.status, 200, key)
+            self.assertEqual(info.get("via"), "geocode (on demand, cached)", (key, info))
+            extent = info["extent"]
+            self.assertTrue(extent[0] < extent[2] and extent[1] < extent[3], (key, extent))
+        for key in ("render", "mask"):
+            c.request("GET", image[key])
+            r = c.getresponse()
+            self.assertEqual((r.status, r.read()[:4]), (200, b"\x89PNG"), key)
+        c.close()
+        self.assertTrue(any(n.endswith(".tif") for n in os.listdir(os.path.join(self.server.cache, "geocoded"))))
+
+
 if __name__ == "__main__":
     unittest.main(argv=vc.parse_args(sys.argv), verbosity=2)

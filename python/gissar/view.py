@@ -459,10 +459,18 @@ class View:
         for suffix in (".tif", "_mask.tif", ".png", "_quicklook.png", "_stac.json"):
             self._allow(stem + suffix)
         image = {}
-        if stem + ".tif" in self.files:
+        if self.kind == "simulate" and stem + ".tif" in self.files:
+            # As a corridor pose: geocoded on demand (gissar's geocode, cached), else warped through its GCPs.
+            tif, mask = self.files[stem + ".tif"], self.files.get(stem + "_mask.tif")
+            image["render"] = self._render("image.png", "geocoded", tif, "image", mask)
+            image["render_info"] = self._render("image.json", "image_info", tif)
+            if mask:
+                image["mask"] = self._render("mask.png", "geocoded", tif, "mask", mask)
+                image["mask_info"] = "/render/mask.json"
+        elif stem + ".tif" in self.files:
             image["render"] = self._render("image.png", "image", self.files[stem + ".tif"])
             image["render_info"] = self._render("image.json", "image_info", self.files[stem + ".tif"])
-        if stem + "_mask.tif" in self.files:
+        if self.kind != "simulate" and stem + "_mask.tif" in self.files:
             image["mask"] = self._render("mask.png", "mask", self.files[stem + "_mask.tif"], None)
             image["mask_info"] = self._render("mask.json", "image_info", self.files[stem + "_mask.tif"])
         if self.kind == "geocode" and stem + ".tif" in self.files:

@@ -93,6 +93,11 @@ def test_corridor_images_equal_the_single_process_simulation(reference):
         for name in ("total", "single", "double", "triple", "four_or_more"):
             assert np.array_equal(theirs[name], mine.sel(band=name).values, equal_nan=True), (pose["id"], name)
         assert np.array_equal(theirs["mask"], mine["mask"].values), pose["id"]
+        # The references keep the GCP lattice (tps_gcps off by default: no refinement for gdalwarp -tps).
+        with open(f"{prefix}_{pose['id']}.json", encoding="utf-8") as f:
+            georeference = json.load(f)["georeference"]
+        assert georeference["tps_refinement"]["enabled"] is False and georeference["tps_refinement"]["added_gcps"] == 0
+        assert 100 <= georeference["gcps"] <= 40 * 40, georeference
     # The first and last poses are the skipped ones (their footprints cross the DEM's west and east edges).
     skipped = [p["id"] for p in catalog["gissar:poses"] if p["status"] == "skipped"]
     assert "p0000_h080" in skipped and "p0015_h100" in skipped

@@ -424,12 +424,16 @@ int AddWorstCandidates(std::vector<geo::GroundControlPoint>& gcps,
 }  // namespace
 
 geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
-                                         sensor::GeoreferenceReport* report, const std::vector<uint8_t>* mask,
+                                         bool refine_for_tps, sensor::GeoreferenceReport* report, const std::vector<uint8_t>* mask,
                                          TpsRefinement* refinement) {
   const TerrainSurface surface(terrain);
   LatticeGeoreference lattice(terrain, geometry, surface);
   geo::Georeference g = LatticeGcps(lattice, report);
-  if (refinement != nullptr) *refinement = TpsRefinement{};
+  if (refinement != nullptr) *refinement = TpsRefinement{.enabled = refine_for_tps};
+  if (!refine_for_tps) {
+    if (report != nullptr) report->gcp_count = int(g.gcps.size());
+    return g;
+  }
 
   // Refinement for TPS users (gdalwarp -tps): candidate terrain points on a
   // dense lattice (about one every 3 pixels); wherever the spline through the

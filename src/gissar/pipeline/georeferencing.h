@@ -78,6 +78,7 @@ inline constexpr double kTpsToleranceSpacings = 0.4;  // of the finer pixel spac
 // distances (metres) between the spline through the final GCPs and the
 // simulation's own terrain point of each candidate pixel.
 struct TpsRefinement {
+  bool enabled = false;  // refine_for_tps
   int candidates = 0;   // lattice pixels clear of layover/shadow/no-data
   int added_gcps = 0;   // GCPs added to the base lattice
   int rounds = 0;
@@ -95,10 +96,11 @@ struct TpsRefinement {
 // away from layover/shadow/no-data in `mask` when given) more than
 // kTpsToleranceSpacings x the finer pixel spacing from its terrain point,
 // the worst candidates (at least kTpsMinSeparationPx from every GCP) are added,
-// in rounds, up to kMaxGcps GCPs. `refinement` (optional) tells what it did.
+// in rounds, up to kMaxGcps GCPs; `refine_for_tps` false keeps the lattice
+// (no candidates, no spline). `refinement` (optional) tells what it did.
 // Throws ConfigError when the image does not see the terrain.
 geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
-                                         sensor::GeoreferenceReport* report = nullptr,
+                                         bool refine_for_tps, sensor::GeoreferenceReport* report = nullptr,
                                          const std::vector<uint8_t>* mask = nullptr,
                                          TpsRefinement* refinement = nullptr);
 

@@ -32,6 +32,7 @@ SimulateRequest AndorraRequest(const std::string& out_prefix) {
   o.geometry.depression_deg = 40.0;
   o.geometry.range_spacing_m = 150.0;
   o.geometry.azimuth_spacing_m = 150.0;
+  o.tps_gcps = true;  // the GCPs refined for gdalwarp -tps (off by default)
   o.out_prefix = out_prefix;
   return o;
 }
@@ -178,6 +179,37 @@ TEST(GeoreferencingTest, AndorraReliefFeaturesLandOnTheirMapPosition) {
 // march's points: Andorra's relief (SRTM 3", affine, 150 m pixels,
 // heading 30, depression 40), a 60 x 60 lattice. Each point also lies on
 // the terrain and projects to its node's pixel.
+// --no-tps-gcps (SimulateRequest::tps_gcps false): the GCPs are the lattice
+// the refinement starts from (it only appends), the RPCs are the same fit,
+// and the refinement record says it did not run.
+TEST(GeoreferencingTest, WithoutTpsRefinementTheLatticeAloneAndTheSameRpcs) {
+  const fs::path dir = testing::MakeTempDir();
+  const SimulateRequest o = AndorraRequest((dir / "andorra").string());
+  const SimulatedImage simulated = SimulateImage(o);
+  sensor::GeoreferenceReport refined_report, lattice_report;
+  TpsRefinement refined_record, lattice_record;
+  const geo::Georeference refined = SimulationGeoreference(simulated.terrain, *simulated.geometry, true,
+                                                           &refined_report, &simulated.image.mask, &refined_record);
+  const geo::Georeference lattice = SimulationGeoreference(simulated.terrain, *simulated.geometry, false,
+                                                           &lattice_report, &simulated.image.mask, &lattice_record);
+  EXPECT_TRUE(refined_record.enabled);
+  EXPECT_GT(refined_record.added_gcps, 0);
+  EXPECT_FALSE(lattice_record.enabled);
+  EXPECT_EQ(lattice_record.added_gcps, 0);
+  EXPECT_EQ(lattice_record.rounds, 0);
+  ASSERT_EQ(lattice.gcps.size() + size_t(refined_record.added_gcps), refined.gcps.size());
+  EXPECT_EQ(lattice_report.gcp_count, int(lattice.gcps.size()));
+  EXPECT_GE(lattice.gcps.size(), 100u);  // the 12 x 12 lattice, or a denser one until 100 see the terrain
+  for (size_t i = 0; i < lattice.gcps.size(); ++i) {
+    EXPECT_EQ(lattice.gcps[i].pixel, refined.gcps[i].pixel) << i;
+    EXPECT_EQ(lattice.gcps[i].line, refined.gcps[i].line) << i;
+    EXPECT_EQ(lattice.gcps[i].lon_deg, refined.gcps[i].lon_deg) << i;
+    EXPECT_EQ(lattice.gcps[i].lat_deg, refined.gcps[i].lat_deg) << i;
+  }
+  EXPECT_EQ(lattice.rpc, refined.rpc);
+  EXPECT_EQ(lattice_report.rpc_max_error_px, refined_report.rpc_max_error_px);
+}
+
 TEST(GeoreferencingTest, ProfileLatticePointsAreTheMarchsPoints) {
   // The filled DEM: the raw one's border voids are left out of the scene,
   // which makes it a grid with holes, not a plain grid.

@@ -162,6 +162,11 @@ struct SimulateRequest {
   // with internal overviews; false leaves the overviews out (the COG layout
   // stays).
   bool overviews = true;
+  // GCPs for gdalwarp -tps: true refines the 12 x 12 lattice where the
+  // thin-plate spline through it misses the terrain (SimulationGeoreference;
+  // 0.1-0.4 s); false (the default) keeps the lattice alone. The RPCs, exact
+  // with a DEM (gdalwarp -rpc -to RPC_DEM=), are the same either way.
+  bool tps_gcps = false;
   // Trace engine: a DEM's terrain is traced as a height field (a quadtree of
   // bounds over its cells, render/heightfield.h: no BVH over its triangles,
   // a fraction of the memory); false builds Embree's BVH over the triangles

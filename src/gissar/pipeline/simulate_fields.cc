@@ -113,6 +113,10 @@ const FieldTable<SimulateRequest>& SimulateFields() {
       F::Plain("overviews", F::At(&SimulateRequest::overviews),
           "Rasters over 1024 px a side: COGs with internal overviews, or (--no-overviews) without them (faster, a "
           "third smaller)"),
+      F::Plain("tps_gcps", F::At(&SimulateRequest::tps_gcps),
+          "GCPs for gdalwarp -tps: the 12 x 12 lattice refined, up to 1024, where the thin-plate spline through "
+          "them misses the terrain by more than 0.4 pixel spacings (0.1-0.4 s), or (--no-tps-gcps) the lattice "
+          "alone; the RPCs (exact with a DEM: gdalwarp -rpc -to RPC_DEM=) are the same"),
       F::Plain("heightfield", F::At(&SimulateRequest::heightfield),
           "Trace a DEM's terrain as a height field (a quadtree over its cells, no BVH), or (--no-heightfield) "
           "through Embree's BVH over its triangles"),

@@ -283,17 +283,18 @@ void DescribeImageBands(geo::FloatRaster& raster, const SimulateRequest& options
 // WGS84 GCPs on the terrain and RPCs fitted to the geometry
 // (docs/georeferencing.md) into raster.georeference; the sidecar's record of
 // them (or why there are none).
-nlohmann::json GeoreferenceImage(const SimulatedImage& simulated, geo::FloatRaster& raster) {
+nlohmann::json GeoreferenceImage(const SimulatedImage& simulated, bool refine_for_tps, geo::FloatRaster& raster) {
   try {
     sensor::GeoreferenceReport georeference_report;
     TpsRefinement tps;
-    raster.georeference = SimulationGeoreference(simulated.terrain, *simulated.geometry, &georeference_report,
+    raster.georeference = SimulationGeoreference(simulated.terrain, *simulated.geometry, refine_for_tps, &georeference_report,
                                                  &simulated.image.mask, &tps);
     return {{"gcps", georeference_report.gcp_count},
             {"rpc_max_error_px", georeference_report.rpc_max_error_px},
             {"rpc_rms_error_px", georeference_report.rpc_rms_error_px},
             {"tps_refinement",
-             {{"candidates", tps.candidates},
+             {{"enabled", tps.enabled},
+              {"candidates", tps.candidates},
               {"added_gcps", tps.added_gcps},
               {"rounds", tps.rounds},
               {"tolerance_m", tps.tolerance_m},
@@ -662,7 +663,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   }
   DescribeImageBands(raster, options, simulated);
   WriteLaps laps;
-  const nlohmann::json georeference_record = GeoreferenceImage(simulated, raster);
+  const nlohmann::json georeference_record = GeoreferenceImage(simulated, options.tps_gcps, raster);
   laps.Lap("georeference");
   if (!reserved.contributions_csv.empty()) {
     WriteContributions(reserved.contributions_csv, image.contributions, *simulated.geometry);
