@@ -214,6 +214,9 @@ say "corridor on Dask: 50 poses with 1 and 2 workers, --threads 1"
 # The Python the module was built for (Debian's, with python3-distributed).
 PY=$(sed -n 's/^Python_EXECUTABLE:FILEPATH=//p' "$B/CMakeCache.txt")
 PYTHONPATH="$B/python" run corridor "${PY:-python3}" "$ROOT/bench/corridor_bench.py" --json "$R/corridor.json"
+say "corridor on Dask: 30 poses of 512 x 512 px at 15 m with 2 workers (issue 47)"
+PYTHONPATH="$B/python" run corridor_512 "${PY:-python3}" "$ROOT/bench/corridor_bench.py" --workers 2 --width 512 \
+  --spacing 15 --poses 30 --json "$R/corridor_512.json"
 
 say "gissar view: a 202-pose corridor in headless chromium (bench/view_bench.py)"
 if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then

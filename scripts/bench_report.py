@@ -515,6 +515,25 @@ if os.path.exists(os.path.join(R, "corridor.json")):
         speedup, verdict(speedup >= 1.7), est[-1] / est[0]))
     w("")
 
+if os.path.exists(os.path.join(R, "corridor_512.json")):
+    c = load("corridor_512.json")
+    im, r = c["image"], c["results"][-1]
+    w("### 512 × 512 references, 2 workers")
+    w("")
+    w("The same corridor, %d poses of %d × %d px at %g m (%g rays per cell, 3 bounces), on %d workers: "
+      "**%.2f poses/s** (task %.2f s and CPU %.2f s per pose, simulation phase %.1f s, peak worker RSS %.0f MiB; "
+      "load average when it ended: %s)." % (
+          c["poses"], im["width"], im["height"], im["range_spacing_m"], im["rays_per_cell"], r["workers"],
+          r["poses_per_s"], r["task_s_per_pose"], r["cpu_s_per_pose"], r["simulate_s"],
+          r["peak_worker_rss_bytes"] / MIB, ", ".join("%.2f" % x for x in c["load_average"])))
+    w("")
+    w("Command: `PYTHONPATH=build/python python3 "
+      + re.sub(r" --json \S+", "", commands["corridor_512"].split(" ", 1)[1]) + "`.")
+    w("")
+    w("Target (issue 47): ≥ 4 poses/s. Reached here: %.2f poses/s (%s)." % (
+        r["poses_per_s"], verdict(r["poses_per_s"] >= 4.0)))
+    w("")
+
 # ---------------------------------------------------------------- gissar view
 if os.path.exists(os.path.join(R, "view.json")):
     v = load("view.json")

@@ -9,6 +9,7 @@ PACKAGES=(
   libgdal-dev gdal-bin libproj-dev proj-bin proj-data  # geo: raster/vector I/O, CRS, EGM96 grid
   libhdf5-dev                                  # geo: NISAR RSLC products (HDF5)
   libxml2-dev                                  # geo: Sentinel-1 SAFE annotations (XML)
+  libpng-dev                                   # geo: PNG pictures (quicklooks)
   libcgal-dev libgeos-dev                      # scene: triangulation, buffers
   libembree-dev                                # render: ray tracing (Embree 3)
   libeigen3-dev                                # linear algebra

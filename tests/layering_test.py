@@ -29,7 +29,7 @@ LAYERS = ["util", "geo", "scene", "material", "sensor", "render", "image", "mvg"
 OWNERS = {  # include prefix -> the one layer that may include it
     "gdal": "geo", "ogr": "geo", "cpl_": "geo", "proj.h": "geo",
     "CGAL/": "scene", "geos_c.h": "scene", "geos/": "scene",
-    "embree3/": "render",
+    "embree3/": "render", "png.h": "geo",
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^>"]+)[>"]', re.M)
 LINK = re.compile(r"\bgissar_(\w+)")

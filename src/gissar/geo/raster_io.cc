@@ -4,6 +4,8 @@
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
+#include <png.h>
+#include <zlib.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -12,6 +14,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cmath>
+#include <csetjmp>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -512,41 +515,59 @@ ComplexRaster ReadComplexRaster(const fs::path& path) {
   return raster;
 }
 
+// The PNG encoding of `data` (libpng, in memory). Every row is filtered
+// with Up (the row above subtracted) and deflated at zlib level 2, grey with
+// Z_RLE: on a 1471 x 2007 quicklook 23 ms instead of 65 ms (GDAL's PNG
+// driver: libpng's adaptive choice among all five filters per row) and 12 %
+// smaller; RGB 2x faster at the same size (docs/performance.md).
+static std::vector<uint8_t> EncodePng(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,
+                                      int channels) {
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png != nullptr ? png_create_info_struct(png) : nullptr;
+  if (info == nullptr) {
+    png_destroy_write_struct(&png, nullptr);
+    throw IoError("cannot write PNG: libpng could not start", path.string());
+  }
+  std::vector<uint8_t> bytes;
+  const auto append = [](png_structp p, png_bytep chunk, png_size_t size) {
+    auto* out = static_cast<std::vector<uint8_t>*>(png_get_io_ptr(p));
+    out->insert(out->end(), chunk, chunk + size);
+  };
+  std::vector<png_bytep> rows(static_cast<size_t>(height));
+  for (int r = 0; r < height; ++r) {
+    rows[size_t(r)] = const_cast<png_bytep>(data.data()) + size_t(r) * width * channels;
+  }
+  // libpng reports errors by longjmp: nothing with a destructor is created
+  // between here and the end of the encoding.
+  if (setjmp(png_jmpbuf(png)) != 0) {
+    png_destroy_write_struct(&png, &info);
+    throw IoError("cannot write PNG: libpng failed to encode it", path.string());
+  }
+  png_set_write_fn(png, &bytes, append, nullptr);
+  const int color = channels == 1 ? PNG_COLOR_TYPE_GRAY : channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_RGBA;
+  png_set_IHDR(png, info, png_uint_32(width), png_uint_32(height), 8, color, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+  png_set_compression_level(png, 2);
+  png_set_compression_strategy(png, channels == 1 ? Z_RLE : Z_DEFAULT_STRATEGY);
+  png_write_info(png, info);
+  png_write_image(png, rows.data());
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return bytes;
+}
+
 static void WritePngUnchecked(const fs::path& path, const std::vector<uint8_t>& data, int width, int height,
-              int channels) {
-  DatasetPtr mem(Driver("MEM")->Create("", width, height, channels, GDT_Byte, nullptr));
-  if (!mem) throw IoError("cannot stage PNG in memory", path.string());
-  for (int c = 0; c < channels; ++c) {
-    if (mem->GetRasterBand(c + 1)->RasterIO(
-            GF_Write, 0, 0, width, height, const_cast<uint8_t*>(data.data()) + c, width, height,
-            GDT_Byte, channels, static_cast<GSpacing>(channels) * width, nullptr) != CE_None) {
-      throw IoError("cannot stage PNG band", path.string());
-    }
-  }
-  // zlib level 2 instead of GDAL's default 6: about 3x faster on
-  // quicklooks and a few percent larger (docs/performance.md).
-  // Encoded in memory, then written here: GDAL's PNG driver does not report
-  // a failed close, so a PNG cut short by a full disk would pass as written.
-  static std::atomic<uint64_t> counter{0};
-  const std::string staging = "/vsimem/gissar_png_" + std::to_string(counter++) + "/image.png";
-  const char* options[] = {"ZLEVEL=2", nullptr};
-  DatasetPtr png(Driver("PNG")->CreateCopy(staging.c_str(), mem.get(), FALSE, const_cast<char**>(options), nullptr,
-                                           nullptr));
-  if (!png) {
-    const std::string message = LastGdalMessage();
-    VSIRmdirRecursive(fs::path(staging).parent_path().c_str());
-    throw IoError("cannot write PNG: " + message, path.string());
-  }
-  CloseChecked(std::move(png), path);
-  vsi_l_offset size = 0;
-  GByte* bytes = VSIGetMemFileBuffer(staging.c_str(), &size, TRUE);  // taken over: freed below
-  VSIRmdirRecursive(fs::path(staging).parent_path().c_str());
-  if (bytes == nullptr) throw IoError("cannot write PNG: no encoded image", path.string());
+                              int channels) {
+  GISSAR_CHECK(channels == 1 || channels == 3 || channels == 4);
+  GISSAR_CHECK(width > 0 && height > 0 && data.size() >= size_t(width) * height * channels);
+  const std::vector<uint8_t> bytes = EncodePng(path, data, width, height, channels);
+  // Written here, every failure reported (a PNG cut short by a full disk
+  // must not pass as written).
   if (path.string().rfind("/vsi", 0) == 0) {  // a GDAL virtual file
     VSILFILE* file = VSIFOpenL(path.c_str(), "wb");
-    const bool written = file != nullptr && VSIFWriteL(bytes, 1, size_t(size), file) == size_t(size);
+    const bool written = file != nullptr && VSIFWriteL(bytes.data(), 1, bytes.size(), file) == bytes.size();
     const bool closed = file != nullptr && VSIFCloseL(file) == 0;
-    VSIFree(bytes);
     if (!written || !closed) throw IoError("cannot write PNG", path.string());
     return;
   }
@@ -554,10 +575,9 @@ static void WritePngUnchecked(const fs::path& path, const std::vector<uint8_t>& 
   std::FILE* file = std::fopen(path.c_str(), "wb");
   int error = file == nullptr ? errno : 0;
   if (file != nullptr) {
-    if (std::fwrite(bytes, 1, size_t(size), file) != size_t(size)) error = errno;
+    if (std::fwrite(bytes.data(), 1, bytes.size(), file) != bytes.size()) error = errno;
     if (std::fclose(file) != 0 && error == 0) error = errno;
   }
-  VSIFree(bytes);
   if (file == nullptr || error != 0) {
     IoError failure(std::string(file == nullptr ? "cannot open PNG for writing: " : "failed writing PNG: ") +
                         std::strerror(error),
