@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gissar/mvg/registration.h"
+#include "gissar/util/check.h"
 #include "gissar/util/error.h"
 #include "gissar/util/progress.h"
 
@@ -692,6 +693,17 @@ Reference WarpStoredReference(const StoredReference& stored, const NavPose& pose
   ref.valid = cv::Mat(h, w, CV_8U, cv::Scalar(0));
   ref.class_ids = {0};
   ref.class_intensity = {cv::Mat(h, w, CV_32F, cv::Scalar(0))};
+  // The pose's camera is affine (GeometryOf): SarGeometry::Project as its
+  // two dot products, inlined in the per-pixel loops below.
+  const sensor::SarGeometry& camera = ref.geometry;
+  GISSAR_CHECK(camera.mode() == sensor::ProjectionMode::kAffine);
+  const Eigen::Vector3d xc = camera.scene_centre();
+  const Eigen::Vector3d l_per_px = camera.look_direction() / camera.range_spacing_m();
+  const Eigen::Vector3d h_per_px = camera.flight_direction() / camera.azimuth_spacing_m();
+  const auto project = [&](const cv::Vec3f& q) {
+    const Eigen::Vector3d d = Eigen::Vector3d(q[0], q[1], q[2]) - xc;
+    return Eigen::Vector2d(d.dot(l_per_px) + camera.u0(), d.dot(h_per_px) + camera.v0());
+  };
   // Least-squares affine map stored pixel -> pose pixel over the valid points.
   Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
   Eigen::Matrix<double, 3, 2> atb = Eigen::Matrix<double, 3, 2>::Zero();
@@ -700,8 +712,7 @@ Reference WarpStoredReference(const StoredReference& stored, const NavPose& pose
   for (int y = 0; y < sh; y += stride)
     for (int x = 0; x < sw; x += stride) {
       if (stored.valid.at<uint8_t>(y, x) == 0) continue;
-      const cv::Vec3f q = stored.points.at<cv::Vec3f>(y, x);
-      const Eigen::Vector2d p = ref.geometry.Project(Eigen::Vector3d(q[0], q[1], q[2]));
+      const Eigen::Vector2d p = project(stored.points.at<cv::Vec3f>(y, x));
       const Eigen::Vector3d a(x, y, 1.0);
       ata += a * a.transpose();
       atb += a * p.transpose();
@@ -723,11 +734,9 @@ Reference WarpStoredReference(const StoredReference& stored, const NavPose& pose
       for (int k = 0; k < 2; ++k) {
         const int cx = static_cast<int>(std::lround(c.x())), cy = static_cast<int>(std::lround(c.y()));
         if (cx < 0 || cy < 0 || cx >= sw || cy >= sh || stored.valid.at<uint8_t>(cy, cx) == 0) break;
-        const cv::Vec3f q = stored.points.at<cv::Vec3f>(cy, cx);
         // The stored pixel's point moved by the sub-pixel part of c (the
         // affine map's local scale) before projecting.
-        const Eigen::Vector2d at = ref.geometry.Project(Eigen::Vector3d(q[0], q[1], q[2])) +
-                                   a * (c - Eigen::Vector2d(cx, cy));
+        const Eigen::Vector2d at = project(stored.points.at<cv::Vec3f>(cy, cx)) + a * (c - Eigen::Vector2d(cx, cy));
         c += a_inv * (p - at);
       }
       if (!(c.x() >= 0.0 && c.y() >= 0.0 && c.x() <= sw - 1 && c.y() <= sh - 1)) continue;

@@ -424,8 +424,8 @@ int AddWorstCandidates(std::vector<geo::GroundControlPoint>& gcps,
 }  // namespace
 
 geo::Georeference SimulationGeoreference(const Terrain& terrain, const sensor::SarGeometry& geometry,
-                                         bool refine_for_tps, sensor::GeoreferenceReport* report, const std::vector<uint8_t>* mask,
-                                         TpsRefinement* refinement) {
+                                         bool refine_for_tps, sensor::GeoreferenceReport* report,
+                                         const std::vector<uint8_t>* mask, TpsRefinement* refinement) {
   const TerrainSurface surface(terrain);
   LatticeGeoreference lattice(terrain, geometry, surface);
   geo::Georeference g = LatticeGcps(lattice, report);

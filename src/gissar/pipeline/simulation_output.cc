@@ -299,8 +299,8 @@ nlohmann::json GeoreferenceImage(const SimulatedImage& simulated, bool refine_fo
   try {
     sensor::GeoreferenceReport georeference_report;
     TpsRefinement tps;
-    raster.georeference = SimulationGeoreference(simulated.terrain, *simulated.geometry, refine_for_tps, &georeference_report,
-                                                 &simulated.image.mask, &tps);
+    raster.georeference = SimulationGeoreference(simulated.terrain, *simulated.geometry, refine_for_tps,
+                                                 &georeference_report, &simulated.image.mask, &tps);
     return {{"gcps", georeference_report.gcp_count},
             {"rpc_max_error_px", georeference_report.rpc_max_error_px},
             {"rpc_rms_error_px", georeference_report.rpc_rms_error_px},
