@@ -316,22 +316,34 @@ class CommandTest(unittest.TestCase):
             proc.stderr.close()
 
 
-class GeocodedCorridorTest(unittest.TestCase):
-    """`gissar corridor --geocode`: each pose's geocoded image is named in the catalogue and served as is."""
+class _ServedOutputTest(unittest.TestCase):
+    """One output built in a temporary directory (`work`) and served by `gissar view` (`server`) for the
+    class's tests; stopped and removed after them."""
 
     @classmethod
-    def setUpClass(cls):
-        cls.work = tempfile.mkdtemp(prefix="gissar-view-geocoded-")
-        cls.catalog = vc.build_corridor(os.path.join(cls.work, "corridor"), missing_one=False, geocode=True)
-        with open(cls.catalog) as f:
-            cls.poses = json.load(f)["gissar:poses"]
-        cls.server = vc.Server(cls.catalog)
+    def serve(cls, prefix, build):
+        """Builds the output with build(directory) -> path to serve, in a new temporary directory."""
+        cls.work = tempfile.mkdtemp(prefix=prefix)
+        served = build(cls.work)
+        cls.server = vc.Server(served)
+        return served
 
     @classmethod
     def tearDownClass(cls):
         status = cls.server.stop()
         shutil.rmtree(cls.work, ignore_errors=True)
         assert status == 0, f"gissar view exits {status} on Ctrl-C"
+
+
+class GeocodedCorridorTest(_ServedOutputTest):
+    """`gissar corridor --geocode`: each pose's geocoded image is named in the catalogue and served as is."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.catalog = cls.serve("gissar-view-geocoded-", lambda work: vc.build_corridor(
+            os.path.join(work, "corridor"), missing_one=False, geocode=True))
+        with open(cls.catalog) as f:
+            cls.poses = json.load(f)["gissar:poses"]
 
     def test_stored_geocoded_image_used(self):
         c = http.client.HTTPConnection("127.0.0.1", self.server.port, timeout=30)
@@ -353,21 +365,13 @@ class GeocodedCorridorTest(unittest.TestCase):
         self.assertFalse(os.path.isdir(os.path.join(self.server.cache, "geocoded")))
 
 
-class SimulationTest(unittest.TestCase):
+class SimulationTest(_ServedOutputTest):
     """A `gissar simulate` output: its image and mask geocoded on demand (exact on the simulation's terrain,
     cached), not warped through its GCPs (which keep only the 12 x 12 lattice by default)."""
 
     @classmethod
     def setUpClass(cls):
-        cls.work = tempfile.mkdtemp(prefix="gissar-view-simulate-")
-        cls.prefix = vc.build_simulate(os.path.join(cls.work, "simulate"))
-        cls.server = vc.Server(cls.prefix + ".json")
-
-    @classmethod
-    def tearDownClass(cls):
-        status = cls.server.stop()
-        shutil.rmtree(cls.work, ignore_errors=True)
-        assert status == 0, f"gissar view exits {status} on Ctrl-C"
+        cls.serve("gissar-view-simulate-", lambda work: vc.build_simulate(os.path.join(work, "simulate")) + ".json")
 
     def test_image_and_mask_geocoded_on_demand(self):
         c = http.client.HTTPConnection("127.0.0.1", self.server.port, timeout=60)
