@@ -132,19 +132,19 @@ class RayAssigner {
     }
     const double v = sweep_.Coordinate(to);
     if (v > hi_v_) {
-      const double limit = AngleOf(v);
-      if (hi_ < count && RayE(hi_) <= limit) {
+      const double limit = Limit(v);
+      if (hi_ < count && RayV(hi_) <= limit) {
         const uint32_t tri = sweep_.Triangle(facet);
         const Eigen::Vector3f n = rays_.normal != nullptr ? sweep_.Normal(facet) : Eigen::Vector3f::Zero();
-        for (; hi_ < count && RayE(hi_) <= limit; ++hi_) Record(hi_, from, to, tri, n);
+        for (; hi_ < count && RayV(hi_) <= limit; ++hi_) Record(hi_, from, to, tri, n);
       }
       hi_v_ = v;
     } else if (v < lo_v_) {
-      const double limit = AngleOf(v);
-      if (lo_ >= 0 && RayE(lo_) >= limit) {
+      const double limit = Limit(v);
+      if (lo_ >= 0 && RayV(lo_) >= limit) {
         const uint32_t tri = sweep_.Triangle(facet);
         const Eigen::Vector3f n = rays_.normal != nullptr ? sweep_.Normal(facet) : Eigen::Vector3f::Zero();
-        for (; lo_ >= 0 && RayE(lo_) >= limit; --lo_) Record(lo_, from, to, tri, n);
+        for (; lo_ >= 0 && RayV(lo_) >= limit; --lo_) Record(lo_, from, to, tri, n);
       }
       lo_v_ = v;
     }
@@ -154,6 +154,13 @@ class RayAssigner {
  private:
   double RayE(int j) const { return rays_.e0 + j * rays_.de; }
   double AngleOf(double v) const { return affine_ ? v : std::atan(v); }
+  // Rays are compared with a profile coordinate v by RayV(j) against
+  // Limit(v): in exact mode with the rays' tangents given, tangent against v
+  // (tan is increasing on the rays' angles: no atan per segment), else
+  // coordinate against AngleOf(v).
+  bool by_tan() const { return !affine_ && rays_.tan_e != nullptr; }
+  double RayV(int j) const { return by_tan() ? rays_.tan_e[j] : RayE(j); }
+  double Limit(double v) const { return by_tan() ? v : AngleOf(v); }
   // Ray j's hit on the segment from u to v: the crossing of the ray with it.
   void Record(int j, const GridProfileSweep::ProfilePoint& u, const GridProfileSweep::ProfilePoint& v, uint32_t tri,
               const Eigen::Vector3f& n) {

@@ -609,23 +609,46 @@ std::optional<GridProfileSweep> ProfileSweepOf(const EmbreeScene& embree, const 
 }
 
 // RenderLayoverShadowMask's flags (mask codes, kLitBit, kCoveredBit) of a
-// whole terrain grid in affine mode from one profile per image row: the
-// centres of row r lie on the azimuth line through it, a centre is covered
-// by every profile segment whose slant-range span holds it (layover: more
-// than one), and a point of a segment is hidden exactly when the horizon
-// before it (the highest e of the profile nearer the radar) is above it:
-// the visibility ray towards the radar runs in that plane at constant e.
-// False (nothing written) when the sweep does not apply.
+// whole terrain grid from one profile per image row: the centres of row r
+// lie on the azimuth line through it, a centre is covered by every profile
+// segment whose slant-range span holds it (layover: more than one), and a
+// point of a segment is hidden exactly when the horizon before it (the
+// highest Elevation of the profile nearer the radar) is above it: the
+// visibility ray towards the radar runs in that plane at constant
+// Elevation (affine: offset e along n; exact: the angle seen from the
+// line's sensor, which lies in the same plane). In exact mode the point at
+// a centre is placed on its segment by the centre's column, interpolated
+// between the segment's ends (as the ray pass interpolates in the
+// projected triangle), and it is turned away, or flipped, by its own
+// direction to the sensor. `refused_rows` (one per image row): 1 where the
+// row's line does not cross the grid in one piece (its flags are left 0:
+// the ray pass finds them). False (nothing written) when the sweep does not
+// apply: no whole grid alone, or (exact) a profile point not beyond the
+// sensor in ground range.
 bool MaskByProfileSweep(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
-                        const sensor::SarGeometry& geometry, std::vector<uint8_t>* flags) {
-  if (geometry.mode() != sensor::ProjectionMode::kAffine) return false;
+                        const sensor::SarGeometry& geometry, std::vector<uint8_t>* flags,
+                        std::vector<uint8_t>* refused_rows) {
   const std::optional<GridProfileSweep> sweep = ProfileSweepOf(embree, mesh, geometry);
   if (!sweep) return false;
+  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
   const int width = geometry.width(), height = geometry.height();
-  const Vector3d to_radar = -geometry.look_direction();
+  const Vector3d& l = geometry.look_direction();
+  const Vector3d& n = geometry.range_plane_normal();
+  const Vector3d& h = geometry.flight_direction();
+  const Vector3d to_radar = -l;
   const Vector3d n_up = geometry.UpwardRangePlaneNormal(geometry.scene_centre());
-  const double inv_dr = 1.0 / geometry.range_spacing_m(), u0 = geometry.u0();
+  const double inv_dr = 1.0 / geometry.range_spacing_m(), u0 = geometry.u0(), range0 = geometry.slant_range_m();
+  // Exact mode: every line's sensor lies at ground coordinate -range0 |l_h|
+  // (h is horizontal and normal to l); the profile must lie beyond it.
+  const double sensor_g = -range0 * std::hypot(l.x(), l.y());
+  const double up_sign = n.z() >= 0.0 ? 1.0 : -1.0;
+  // The column of a profile point.
+  auto column = [&](const GridProfileSweep::ProfilePoint& p) {
+    const double x = range0 + p.xl;
+    return affine ? p.xl * inv_dr + u0 : (std::sqrt(x * x + p.e * p.e) - range0) * inv_dr + u0;
+  };
   flags->assign(size_t(width) * height, 0);
+  refused_rows->assign(size_t(height), 0);
   std::atomic<bool> failed{false};
   // Rows in groups walked in lockstep (neighbouring rows cross the same
   // posts); each writes only its own row.
@@ -638,30 +661,55 @@ bool MaskByProfileSweep(const EmbreeScene& embree, const scene::TriangleMesh& me
       a_m.clear();
       for (int r = r0; r < r1; ++r) a_m.push_back((r - geometry.v0()) * geometry.azimuth_spacing_m());
       ok.assign(a_m.size(), 0);
+      bool behind_sensor = false;
       sweep->ProfileLines(a_m.data(), a_m.size(), ok.data(), [&](size_t k, const GridProfileSweep::ProfileSegment& s) {
-        const double col0 = s.from.xl * inv_dr + u0, col1 = s.to.xl * inv_dr + u0;
+        if (!affine && !(s.from.g > sensor_g && s.to.g > sensor_g)) {
+          behind_sensor = true;
+          return;
+        }
+        const double col0 = column(s.from), col1 = column(s.to);
         if (col0 == col1) return;  // seen edge-on: covers no centre
         const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min(col0, col1))));
         const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max(col0, col1))));
         if (c_lo > c_hi) return;
         const Vector3d normal = sweep->Normal(s.facet).cast<double>();
         if (normal.isZero()) return;
-        const bool turned_away = normal.dot(to_radar) <= kMaskEdgeOnCos;
-        const uint8_t lit_code = kLitBit | (normal.dot(n_up) < 0.0 ? kMaskLayover : kMaskNone);
         const double inv = 1.0 / (col1 - col0);
-        const double up_from = sweep->Elevation(s.from), up_to = sweep->Elevation(s.to);
         uint8_t* row = flags->data() + size_t(r0 + int(k)) * width;
+        if (affine) {
+          const bool turned_away = normal.dot(to_radar) <= kMaskEdgeOnCos;
+          const uint8_t lit_code = kLitBit | (normal.dot(n_up) < 0.0 ? kMaskLayover : kMaskNone);
+          const double up_from = sweep->Elevation(s.from), up_to = sweep->Elevation(s.to);
+          for (int c = c_lo; c <= c_hi; ++c) {
+            const double up = up_from + (c - col0) * inv * (up_to - up_from);
+            // Hidden when the horizon before the point is above it (ties
+            // within rounding: lit, as the tracer's ray ignores its own
+            // surface).
+            const bool shadow = turned_away || s.horizon > up + kProfileShadowToleranceM;
+            row[c] |= kCoveredBit | (shadow ? kMaskShadow : lit_code);
+          }
+          return;
+        }
         for (int c = c_lo; c <= c_hi; ++c) {
-          const double up = up_from + (c - col0) * inv * (up_to - up_from);
-          // Hidden when the horizon before the point is above it (ties
-          // within rounding: lit, as the tracer's ray ignores its own
-          // surface).
-          const bool shadow = turned_away || s.horizon > up + kProfileShadowToleranceM;
-          row[c] |= kCoveredBit | (shadow ? kMaskShadow : lit_code);
+          const double f = (c - col0) * inv;
+          const double x = range0 + s.from.xl + f * (s.to.xl - s.from.xl);  // along l from the sensor
+          const double e = s.from.e + f * (s.to.e - s.from.e);
+          const Vector3d dir = (x * l + e * n) / std::sqrt(x * x + e * e);  // sensor -> point
+          Vector3d up_normal = dir.cross(h);  // SarGeometry::UpwardRangePlaneNormal at the point
+          if (up_normal.z() < 0.0) up_normal = -up_normal;
+          const bool turned_away = normal.dot(-dir) <= kMaskEdgeOnCos;
+          // The rounding tolerance in metres along n at the point's range.
+          const bool shadow = turned_away || s.horizon > up_sign * e / x + kProfileShadowToleranceM / x;
+          row[c] |= kCoveredBit |
+                    (shadow ? kMaskShadow : uint8_t(kLitBit | (normal.dot(up_normal) < 0.0 ? kMaskLayover : kMaskNone)));
         }
       });
-      for (const uint8_t line_ok : ok) {
-        if (!line_ok) failed = true;
+      if (behind_sensor) failed = true;
+      for (size_t k = 0; k < ok.size(); ++k) {
+        if (ok[k]) continue;
+        const int r = r0 + int(k);
+        (*refused_rows)[size_t(r)] = 1;
+        std::fill_n(flags->data() + size_t(r) * width, width, uint8_t{0});
       }
     }
   });
@@ -708,11 +756,12 @@ std::vector<uint8_t> UnpackMaskFlags(FlagAt&& flag_at, size_t size, std::vector<
 // at a time (neighbouring pixel centres, one direction in affine mode: a
 // coherent packet). Flags are or-ed atomically: the result does not depend
 // on the order. `box` (ENU metres) sizes the rays' epsilon and affine
-// reach; the inputs must outlive the pass.
+// reach; `only_rows` (one per image row, or null: all): the rows whose
+// centres it settles (the others stay 0). The inputs must outlive the pass.
 class MaskRayPass {
  public:
   MaskRayPass(const EmbreeScene& embree, const scene::TriangleMesh& mesh, const sensor::SarGeometry& geometry,
-              const Eigen::AlignedBox3d& box, bool want_lit);
+              const Eigen::AlignedBox3d& box, bool want_lit, const std::vector<uint8_t>* only_rows = nullptr);
 
   // Runs the pass over every triangle; returns the visibility rays cast.
   int64_t Run();
@@ -752,6 +801,7 @@ class MaskRayPass {
   const sensor::SarGeometry& geometry_;
   const int width_, height_;
   const bool want_lit_;
+  const std::vector<uint8_t>* only_rows_;
   std::vector<std::atomic<uint8_t>> flags_;
   const float eps_;
   const double far_affine_;
@@ -763,13 +813,15 @@ class MaskRayPass {
 };
 
 MaskRayPass::MaskRayPass(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
-                         const sensor::SarGeometry& geometry, const Eigen::AlignedBox3d& box, bool want_lit)
+                         const sensor::SarGeometry& geometry, const Eigen::AlignedBox3d& box, bool want_lit,
+                         const std::vector<uint8_t>* only_rows)
     : embree_(embree),
       mesh_(mesh),
       geometry_(geometry),
       width_(geometry.width()),
       height_(geometry.height()),
       want_lit_(want_lit),
+      only_rows_(only_rows),
       flags_(size_t(width_) * height_),
       eps_(RayEpsilon(box)),
       far_affine_(geometry.slant_range_m() + box.diagonal().norm()),
@@ -847,9 +899,14 @@ void MaskRayPass::Triangle(Task& task, size_t t, const Vector3d v[3], const Eige
   const int r_lo = std::max(0, static_cast<int>(std::ceil(std::min({p[0].y(), p[1].y(), p[2].y()}))));
   const int r_hi = std::min(height_ - 1, static_cast<int>(std::floor(std::max({p[0].y(), p[1].y(), p[2].y()}))));
   if (c_lo > c_hi || r_lo > r_hi) return;  // no pixel centre inside its bounds
+  if (only_rows_ != nullptr &&
+      std::none_of(only_rows_->begin() + r_lo, only_rows_->begin() + r_hi + 1, [](uint8_t w) { return w != 0; })) {
+    return;
+  }
   const Vector3d normal = mesh_.Normal(t).cast<double>();
   if (normal.isZero()) return;
   for (int r = r_lo; r <= r_hi; ++r) {
+    if (only_rows_ != nullptr && (*only_rows_)[size_t(r)] == 0) continue;
     for (int c = c_lo; c <= c_hi; ++c) {
       // Barycentric coordinates of the pixel centre in the projected triangle.
       const Eigen::Vector2d q(c, r);
@@ -896,17 +953,42 @@ size_t MaskRayPass::WalkGrid() {
   const int grid_w = embree_.heightfield_grid_width(), grid_h = embree_.heightfield_grid_height();
   const bool whole_grid = grid_w >= 2 && embree_.heightfield_cells() == int64_t(grid_w - 1) * (grid_h - 1);
   if (!whole_grid) return 0;
+  // With only_rows_: the wanted rows among [0, r) (wanted_before[r]), so
+  // that a strip of cells whose posts' image rows (their along-track
+  // coordinates alone, no projection) reach no wanted row is skipped.
+  std::vector<int> wanted_before;
+  if (only_rows_ != nullptr) {
+    wanted_before.assign(size_t(height_) + 1, 0);
+    for (int r = 0; r < height_; ++r) wanted_before[size_t(r) + 1] = wanted_before[size_t(r)] + ((*only_rows_)[size_t(r)] != 0);
+  }
+  auto strip_wanted = [&](int r) {
+    if (only_rows_ == nullptr) return true;
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (size_t post = size_t(r) * grid_w; post < size_t(r + 2) * grid_w; ++post) {
+      const double row = geometry_.RowOfAlongTrack(geometry_.AlongTrack(mesh_.vertices[post].cast<double>()));
+      lo = std::min(lo, row);
+      hi = std::max(hi, row);
+    }
+    // (A margin beyond Triangle's own bounds of the same values.)
+    const int r_lo = std::max(0, static_cast<int>(std::ceil(lo - 1e-6)));
+    const int r_hi = std::min(height_ - 1, static_cast<int>(std::floor(hi + 1e-6)));
+    return r_lo <= r_hi && wanted_before[size_t(r_hi) + 1] > wanted_before[size_t(r_lo)];
+  };
   tbb::parallel_for(tbb::blocked_range<int>(0, grid_h - 1, 8), [&](const tbb::blocked_range<int>& rows) {
     Task task;
     const size_t posts_across = size_t(grid_w);
     std::vector<Eigen::Vector2d> below(posts_across), above(posts_across);
-    for (int c = 0; c < grid_w; ++c) {
-      below[size_t(c)] = Project(mesh_.vertices[size_t(rows.begin()) * grid_w + c].cast<double>());
-    }
+    auto project_row = [&](int r, std::vector<Eigen::Vector2d>& out) {
+      for (int c = 0; c < grid_w; ++c) out[size_t(c)] = Project(mesh_.vertices[size_t(r) * grid_w + c].cast<double>());
+    };
+    bool below_ready = false;  // `below` holds post row r's projections
     for (int r = rows.begin(); r < rows.end(); ++r) {
-      for (int c = 0; c < grid_w; ++c) {
-        above[size_t(c)] = Project(mesh_.vertices[size_t(r + 1) * grid_w + c].cast<double>());
+      if (!strip_wanted(r)) {
+        below_ready = false;
+        continue;
       }
+      if (!below_ready) project_row(r, below);
+      project_row(r + 1, above);
       for (size_t t = size_t(2) * size_t(r) * (grid_w - 1); t < size_t(2) * size_t(r + 1) * (grid_w - 1); ++t) {
         const Eigen::Vector3i tri = mesh_.Triangle(t);
         Vector3d v[3];
@@ -919,6 +1001,7 @@ size_t MaskRayPass::WalkGrid() {
         Triangle(task, t, v, p);
       }
       std::swap(below, above);
+      below_ready = true;
     }
     Finish(task);
   });
@@ -949,17 +1032,29 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const sensor::SarGeometry& geometry,
                                              int64_t* shadow_rays, std::vector<uint8_t>* lit,
                                              std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box,
-                                             bool profile_sweep, bool* swept) {
-  if (swept != nullptr) *swept = false;
+                                             bool profile_sweep, int64_t* swept_rows) {
+  if (swept_rows != nullptr) *swept_rows = 0;
+  const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
   if (profile_sweep) {
-    std::vector<uint8_t> flags;
-    if (MaskByProfileSweep(embree, mesh, geometry, &flags)) {
-      if (shadow_rays != nullptr) *shadow_rays = 0;
-      if (swept != nullptr) *swept = true;
+    std::vector<uint8_t> flags, refused;
+    if (MaskByProfileSweep(embree, mesh, geometry, &flags, &refused)) {
+      // Rows whose line the sweep refused: by rays.
+      const int64_t refused_rows = std::count(refused.begin(), refused.end(), uint8_t{1});
+      int64_t rays = 0;
+      if (refused_rows > 0) {
+        MaskRayPass pass(embree, mesh, geometry, box, lit != nullptr, &refused);
+        rays = pass.Run();
+        const size_t width = size_t(geometry.width());
+        for (size_t r = 0; r < refused.size(); ++r) {
+          if (!refused[r]) continue;
+          for (size_t i = r * width; i < (r + 1) * width; ++i) flags[i] = pass.flags()[i].load(std::memory_order_relaxed);
+        }
+      }
+      if (shadow_rays != nullptr) *shadow_rays = rays;
+      if (swept_rows != nullptr) *swept_rows = geometry.height() - refused_rows;
       return UnpackMaskFlags([&](size_t i) { return flags[i]; }, flags.size(), lit, covered);
     }
   }
-  const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
   MaskRayPass pass(embree, mesh, geometry, box, lit != nullptr);
   const int64_t rays = pass.Run();
   if (shadow_rays != nullptr) *shadow_rays = rays;
@@ -1894,11 +1989,9 @@ void MaskImage(const TracePlan& plan, SarImage* image) {
                                    plan.polarimetric ? std::optional<material::Polarization>(options.polarization)
                                                      : std::nullopt);
   std::vector<uint8_t> lit;
-  bool mask_swept = false;
   image->mask = RenderLayoverShadowMask(plan.embree, plan.mesh, plan.geometry, &image->stats.shadow_rays, &lit,
                                         &image->footprint, options.ray_box ? &*options.ray_box : nullptr,
-                                        options.profile_sweep, &mask_swept);
-  if (mask_swept) image->stats.profile_swept_mask_rows = plan.height;
+                                        options.profile_sweep, &image->stats.profile_swept_mask_rows);
   for (size_t q = 0; q < lit.size(); ++q) {
     if (!lit[q]) continue;
     ++image->stats.footprint_pixels;

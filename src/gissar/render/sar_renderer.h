@@ -344,11 +344,14 @@ std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const s
 // lit surface (facing the radar, not occluded) covers the pixel centre.
 // `covered` (optional): 1 where any surface not seen exactly edge-on covers
 // the pixel centre (SarImage::footprint). `profile_sweep`: over a whole
-// terrain grid's height field and nothing else, in affine mode, each image
-// row's centres are read off the terrain profile of their azimuth line
-// (GridProfileSweep: the horizon before a point decides its shadow exactly;
-// *shadow_rays is then 0 and *swept, when given, true); otherwise, and when
-// false, one visibility ray per covered centre.
+// terrain grid's height field and nothing else, in affine or exact mode,
+// each image row's centres are read off the terrain profile of their
+// azimuth line (GridProfileSweep: the horizon before a point decides its
+// shadow exactly; *swept_rows, when given, counts those rows), and the rows
+// whose line does not cross the grid in one piece get visibility rays;
+// otherwise (also when a profile point is not beyond the sensor in ground
+// range), and when false, one visibility ray per covered centre.
+// *shadow_rays counts the visibility rays cast.
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,
                                              const sensor::SarGeometry& geometry,
@@ -356,6 +359,6 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              std::vector<uint8_t>* lit = nullptr,
                                              std::vector<uint8_t>* covered = nullptr,
                                              const Eigen::AlignedBox3d* ray_box = nullptr,
-                                             bool profile_sweep = true, bool* swept = nullptr);
+                                             bool profile_sweep = true, int64_t* swept_rows = nullptr);
 
 }  // namespace gissar::render

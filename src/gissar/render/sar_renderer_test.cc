@@ -463,12 +463,79 @@ TEST(SarRendererTest, RidgeShadowEndsAtTheClosedFormDistanceInBothMasks) {
   }
 }
 
+// The same ridge in exact geometry from 2 km slant range: the sensor of
+// each azimuth line sits D = R0 cos(40 deg) = 1532.1 m before the ridge and
+// Z = R0 sin(40 deg) = 1285.6 m above the ground, so the ridge's shadow ends
+// where the ray from the sensor over the top reaches the ground,
+// x = H D / (Z - H) = 62.0 m (2.4 m beyond the parallel rays' 59.6 m), and
+// the front slope lays over the ground whose slant range lies between the
+// top's, hypot(D, Z - H), and its foot's: x = sqrt(R^2 - Z^2) - D from
+// -41.7 to -10 m. Both masks (profile and rays) to within 1 m of ground.
+TEST(SarRendererTest, ExactRidgeShadowEndsWhereTheSensorsRayOverTheTopLands) {
+  constexpr int kCols = 61, kRows = 41;
+  constexpr double kH = 50.0, kDep = 40.0, kRange0 = 2000.0;
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kRows; ++r) {
+    for (int c = 0; c < kCols; ++c) {
+      const double x = 10.0 * (c - 30);
+      posts.emplace_back(float(x), float(10.0 * (r - 20)), float(std::max(0.0, kH - 5.0 * std::abs(x))));
+    }
+  }
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kCols, kRows);
+  sensor::SarGeometryOptions o = Options(0.0, kDep, 2.0);
+  o.mode = sensor::ProjectionMode::kExact;
+  o.slant_range_m = kRange0;
+  const auto g = sensor::SarGeometry::Covering(o, Vector3d::Zero(), mesh.vertices);
+  const double d = kRange0 * std::cos(kDep * kDeg), z = kRange0 * std::sin(kDep * kDeg);
+  const double shadow_end_x = kH * d / (z - kH);
+  ASSERT_GT(shadow_end_x - kH / std::tan(kDep * kDeg), 2.0);
+  auto ground_x = [&](double range) { return std::sqrt(range * range - z * z) - d; };
+  const double layover_from_x = ground_x(std::hypot(d, z - kH));
+  ASSERT_NEAR(ground_x(std::hypot(d - 10.0, z)), -10.0, 1e-9);
+  for (const bool sweep : {true, false}) {
+    const EmbreeScene embree(mesh, TerrainGrid{kCols, kRows, {}});
+    int64_t rays = -1, swept_rows = -1;
+    const std::vector<uint8_t> mask =
+        RenderLayoverShadowMask(embree, mesh, g, &rays, nullptr, nullptr, nullptr, sweep, &swept_rows);
+    EXPECT_EQ(rays == 0, sweep);
+    EXPECT_EQ(swept_rows, sweep ? g.height() : 0);
+    int64_t checked = 0, shadowed = 0;
+    for (int r = 0; r < g.height(); ++r) {
+      const double y = (r - g.v0()) * g.azimuth_spacing_m();
+      if (std::abs(y) > 190.0) continue;  // lines near the grid's sides
+      for (int c = 0; c < g.width(); ++c) {
+        const double range = kRange0 + (c - g.u0()) * g.range_spacing_m();
+        if (!(range > z)) continue;
+        const double x = ground_x(range);  // the flat-ground point of this centre
+        if (x < -280.0 || x > 280.0) continue;
+        const double margin = 1.0;  // metres of ground, clear of the edges
+        uint8_t expected;
+        if (x > 10.0 + margin && x < shadow_end_x - margin) {
+          expected = kMaskShadow;
+          ++shadowed;
+        } else if (x > layover_from_x + margin && x < -10.0 - margin) {
+          expected = kMaskLayover | kMaskShadow;  // as in affine mode
+        } else if (x > shadow_end_x + margin || x < layover_from_x - margin) {
+          expected = kMaskNone;
+        } else {
+          continue;
+        }
+        ASSERT_EQ(mask[size_t(r) * g.width() + c], expected) << "sweep " << sweep << " x " << x << " y " << y;
+        ++checked;
+      }
+    }
+    EXPECT_GT(checked, 10000);
+    EXPECT_GT(shadowed, 1000);
+  }
+}
+
 // Over a whole grid's height field the primary hits come from one profile
 // walk per azimuth line and the affine mask from one profile per image row
-// (RenderOptions::profile_sweep). On the steep terrain above, warped in plan
-// as a geographic DEM is in ENU, with three bounces, both modes and both
-// look sides: the image is the traced one to float rounding and the masks
-// agree but for pixel centres at a shadow or layover edge.
+// (RenderOptions::profile_sweep), and the mask from one profile per image
+// row in both modes. On the steep terrain above, warped in plan as a
+// geographic DEM is in ENU, with three bounces, both modes and both look
+// sides: the image is the traced one to float rounding and the masks agree
+// but for pixel centres at a shadow or layover edge.
 TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
   constexpr int kPosts = 90;
   const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
@@ -505,7 +572,32 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
         // centimetres): at most one such pixel per image.
         EXPECT_LE(masks.away_from_edges, 1) << heading;
         EXPECT_LE(masks.differing, std::max<int64_t>(2, masks.flagged / 500)) << heading;
-        EXPECT_EQ(swept.footprint, traced.footprint) << heading;
+        if (mode == sensor::ProjectionMode::kAffine) {
+          EXPECT_EQ(swept.footprint, traced.footprint) << heading;
+        } else {
+          // Exact mode: the ray pass interpolates in the projected triangle,
+          // whose edges are straight in the image while a straight edge's
+          // true image is curved; the sweep places the edge exactly. A centre
+          // within that curvature (a thousandth of a pixel here) of the
+          // footprint's border may differ: at most two per image, each on
+          // the border (a neighbour outside the traced footprint).
+          int64_t footprint_differing = 0;
+          for (int r = 0; r < g.height(); ++r) {
+            for (int c = 0; c < g.width(); ++c) {
+              const size_t q = size_t(r) * g.width() + c;
+              if (swept.footprint[q] == traced.footprint[q]) continue;
+              ++footprint_differing;
+              bool border = false;
+              for (const auto [dc, dr] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+                const int cc = c + dc, rr = r + dr;
+                border = border || cc < 0 || rr < 0 || cc >= g.width() || rr >= g.height() ||
+                         traced.footprint[size_t(rr) * g.width() + cc] == 0;
+              }
+              EXPECT_TRUE(border) << heading << " " << c << "," << r;
+            }
+          }
+          EXPECT_LE(footprint_differing, 2) << heading;
+        }
         // Near-grazing hits split into sub-rays, which start at the swept
         // hit of the ray below them.
         EXPECT_GT(swept.stats.sub_rays, 0);
@@ -513,13 +605,10 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
         EXPECT_GT(swept.stats.profile_swept_lines, 0);
         EXPECT_EQ(traced.stats.profile_swept_lines, 0);
         EXPECT_EQ(traced.stats.profile_swept_mask_rows, 0);
-        if (mode == sensor::ProjectionMode::kAffine) {
-          EXPECT_EQ(swept.stats.shadow_rays, 0);
-          EXPECT_EQ(swept.stats.profile_swept_mask_rows, g.height());
-        } else {
-          EXPECT_GT(swept.stats.shadow_rays, 0);  // exact mode: the mask's rays
-          EXPECT_EQ(swept.stats.profile_swept_mask_rows, 0);
-        }
+        // Both modes' masks come from the profiles: no visibility ray.
+        EXPECT_EQ(swept.stats.shadow_rays, 0);
+        EXPECT_EQ(swept.stats.profile_swept_mask_rows, g.height());
+        EXPECT_GT(traced.stats.shadow_rays, 0);
         differing += masks.differing;
         flagged += masks.flagged;
         for (uint8_t m : swept.mask) {
@@ -532,6 +621,49 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
   EXPECT_GT(shadow, 2000);  // the terrain does cast shadows and lay over
   EXPECT_GT(layover, 2000);
   std::printf("mask pixels flagged %lld, differing %lld\n", (long long)flagged, (long long)differing);
+}
+
+// A grid whose first row of posts zigzags along track: the azimuth lines
+// through the zigzag cross the grid's boundary more than twice, so the
+// sweep refuses them and only their image rows get visibility rays; every
+// other row comes from its profile. The mask is the all-rays mask but for
+// centres at an edge, in both modes.
+TEST(SarRendererTest, MaskRowsTheSweepRefusesGetVisibilityRays) {
+  constexpr int kPosts = 90;
+  const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kPosts; ++r) {
+    for (int c = 0; c < kPosts; ++c) {
+      // Row 0 zigzags 4 m across y = -405 m (flight along +y: along track).
+      const double y = r == 0 ? -405.0 + (c % 2 == 0 ? -4.0 : 4.0) : 9.0 * (r - 45);
+      posts.emplace_back(float(10.0 * (c - 45)), float(y), heights[size_t(r) * kPosts + c]);
+    }
+  }
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
+  ASSERT_TRUE(heightfield.HeightfieldOnly());
+  for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    const auto g = RidgeGeometry(mode, sensor::LookSide::kRight, 0.0, mesh.vertices);
+    int64_t swept_rows = 0, mixed_rays = 0, all_rays = 0;
+    std::vector<uint8_t> mixed_footprint, all_footprint;
+    const std::vector<uint8_t> mixed =
+        RenderLayoverShadowMask(heightfield, mesh, g, &mixed_rays, nullptr, &mixed_footprint, nullptr, true, &swept_rows);
+    const std::vector<uint8_t> all =
+        RenderLayoverShadowMask(heightfield, mesh, g, &all_rays, nullptr, &all_footprint, nullptr, false);
+    // The zigzag spans 8 m of along track: 8 m / 5 m rows, one or two rows
+    // refused, and rays only for them.
+    EXPECT_LT(swept_rows, g.height());
+    EXPECT_GE(swept_rows, g.height() - 3);
+    EXPECT_GT(mixed_rays, 0);
+    EXPECT_LT(mixed_rays, all_rays / 20);
+    const MaskAgreement masks = CompareMasks(all, mixed, g.width(), g.height());
+    EXPECT_GT(masks.flagged, 1000);
+    EXPECT_LE(masks.away_from_edges, 1);
+    EXPECT_LE(masks.differing, std::max<int64_t>(2, masks.flagged / 500));
+    int64_t footprint_differing = 0;
+    for (size_t q = 0; q < all_footprint.size(); ++q) footprint_differing += all_footprint[q] != mixed_footprint[q];
+    EXPECT_LE(footprint_differing, 2);
+  }
 }
 
 }  // namespace
