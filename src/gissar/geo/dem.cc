@@ -811,7 +811,7 @@ std::vector<std::vector<PostRing>> LowlandPolygons(const Dem& dem, double level_
   return polygons;
 }
 
-Dem RefineDem(const Dem& dem, int factor, int64_t max_posts) {
+Dem RefineDem(Dem dem, int factor, int64_t max_posts) {
   if (factor < 1 || factor > kMaxDemOversample) {
     throw ConfigError("DEM oversampling must be in [1, " + std::to_string(kMaxDemOversample) + "], got " +
                           std::to_string(factor),

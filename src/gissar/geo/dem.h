@@ -180,12 +180,12 @@ Dem ReadDem(const std::filesystem::path& path, const DemReadOptions& options = {
 // slope, so the facets of a meshed coarse DEM (one plane per half cell,
 // i.e. streaks of constant brightness several radar pixels long when the
 // posts are coarser than the pixels) become smoothly varying normals.
-// factor 1 returns the DEM unchanged. A refined post is no-data when one of
+// factor 1 returns the DEM unchanged (moved: pass an rvalue to avoid a copy). A refined post is no-data when one of
 // the original posts around it (the cell it lies in) is. Throws ConfigError (--dem-oversample)
 // when factor is outside [1, kMaxDemOversample] and InputError naming the
 // DEM when the refined grid would exceed max_posts.
 inline constexpr int kMaxDemOversample = 16;
-Dem RefineDem(const Dem& dem, int factor, int64_t max_posts);
+Dem RefineDem(Dem dem, int factor, int64_t max_posts);
 
 // The lowland of a DEM: the region where the height is at most `level_m`,
 // outlined by the `level_m` contour (GDAL's contour generator: linear

@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <utility>
 
 #include "gissar/geo/local_frame.h"
 #include "gissar/geo/vertical_datum.h"
@@ -59,7 +60,7 @@ Terrain TerrainFromDem(const TerrainRequest& options, const TerrainShape& shape,
                   (plan.read_window ? "" : "; reading the whole DEM: " + plan.reason));
   }
   const int source_width = dem.width, source_height = dem.height;
-  dem = geo::RefineDem(dem, options.dem_oversample,
+  dem = geo::RefineDem(std::move(dem), options.dem_oversample,
                        static_cast<int64_t>(double(options.max_memory_bytes) / BytesPerDemPost(shape)));
   // Sea from the heights as given (orthometric for SRTM-like DEMs), before
   // any datum change.
@@ -438,7 +439,7 @@ std::optional<CentredGeometry> GeometryAtCentre(const TerrainRequest& request, c
     *reason = "--fill-nodata with voids next to the scene centre (filled from the whole DEM)";
     return std::nullopt;
   }
-  small = geo::RefineDem(small, request.dem_oversample, int64_t{1} << 40);
+  small = geo::RefineDem(std::move(small), request.dem_oversample, int64_t{1} << 40);
   geo::ToEllipsoidalHeights(small, datum);
   std::optional<Eigen::Vector2d> small_map = shape.center_map;
   if (!shape.center_lonlat && !small_map) {

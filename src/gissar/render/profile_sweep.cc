@@ -103,6 +103,24 @@ GridProfileSweep::LineWalk::LineWalk(const GridProfileSweep& sweep, double a_m) 
 
 namespace {
 
+// Depth (as GridProfileSweep::Trace's depth_m) of the crossing of the ray of
+// coordinate `v` (affine: offset e; exact: tangent) with the profile
+// segment from (u_xl, u_e) to (v_xl, v_e).
+double DepthOnSegment(bool affine, double range0, double v, double u_xl, double u_e, double w_xl, double w_e) {
+  if (affine) {
+    const double lambda = (v - u_e) / (w_e - u_e);
+    return u_xl + lambda * (w_xl - u_xl);
+  }
+  // Sensor frame: x along l from the sensor, y along n.
+  const double ux = range0 + u_xl, uy = u_e, dx = w_xl - u_xl, dy = w_e - u_e;
+  const double denom = dy - v * dx;
+  const double lambda = denom != 0.0 ? std::clamp((v * ux - uy) / denom, 0.0, 1.0) : 1.0;
+  // (sqrt of the sum, not std::hypot: no overflow at these magnitudes, and a
+  // third of the cost.)
+  const double x = ux + lambda * dx, y = uy + lambda * dy;
+  return std::sqrt(x * x + y * y);
+}
+
 // The rays of one line being assigned their hits as its walk goes
 // (GridProfileSweep::Trace): the covered interval [lo_v, hi_v] of ray
 // coordinates (Coordinate); hi, the lowest ray above it (count: none), lo,
@@ -113,6 +131,10 @@ class RayAssigner {
   RayAssigner(const GridProfileSweep& sweep, bool affine, double range0, const GridProfileSweep::LineRays& rays)
       : sweep_(sweep), affine_(affine), range0_(range0), rays_(rays), hi_(rays.count) {
     std::fill(rays.triangle, rays.triangle + rays.count, GridProfileSweep::kNoHit);
+    if (rays.frontier != nullptr) {
+      rays.frontier->upper.clear();
+      rays.frontier->lower.clear();
+    }
   }
 
   // One segment of the profile; false once every ray has its hit.
@@ -129,9 +151,13 @@ class RayAssigner {
       lo_ = std::clamp(static_cast<int>(std::ceil((angle - rays_.e0) / rays_.de)) - 1, -1, count - 1);
       while (lo_ + 1 < count && RayE(lo_ + 1) < angle) ++lo_;
       while (lo_ >= 0 && !(RayE(lo_) < angle)) --lo_;
+      if (rays_.frontier != nullptr) rays_.frontier->entry = hi_v_;
     }
     const double v = sweep_.Coordinate(to);
     if (v > hi_v_) {
+      if (rays_.frontier != nullptr) {
+        rays_.frontier->upper.push_back({v, from.xl, from.e, to.xl, to.e, sweep_.Triangle(facet)});
+      }
       const double limit = Limit(v);
       if (hi_ < count && RayV(hi_) <= limit) {
         const uint32_t tri = sweep_.Triangle(facet);
@@ -140,6 +166,9 @@ class RayAssigner {
       }
       hi_v_ = v;
     } else if (v < lo_v_) {
+      if (rays_.frontier != nullptr) {
+        rays_.frontier->lower.push_back({v, from.xl, from.e, to.xl, to.e, sweep_.Triangle(facet)});
+      }
       const double limit = Limit(v);
       if (lo_ >= 0 && RayV(lo_) >= limit) {
         const uint32_t tri = sweep_.Triangle(facet);
@@ -148,7 +177,8 @@ class RayAssigner {
       }
       lo_v_ = v;
     }
-    return hi_ < count || lo_ >= 0;
+    return hi_ < count || lo_ >= 0 ||
+           (rays_.frontier != nullptr && (hi_v_ < rays_.frontier_above || lo_v_ > rays_.frontier_below));
   }
 
  private:
@@ -166,17 +196,9 @@ class RayAssigner {
               const Eigen::Vector3f& n) {
     rays_.triangle[j] = tri;
     if (rays_.normal != nullptr) rays_.normal[j] = n;
-    if (affine_) {
-      const double lambda = (RayE(j) - u.e) / (v.e - u.e);
-      rays_.depth_m[j] = u.xl + lambda * (v.xl - u.xl);
-      return;
-    }
-    // Sensor frame: x along l from the sensor, y along n.
-    const double tau = rays_.tan_e != nullptr ? rays_.tan_e[j] : std::tan(RayE(j));
-    const double ux = range0_ + u.xl, uy = u.e, dx = v.xl - u.xl, dy = v.e - u.e;
-    const double denom = dy - tau * dx;
-    const double lambda = denom != 0.0 ? std::clamp((tau * ux - uy) / denom, 0.0, 1.0) : 1.0;
-    rays_.depth_m[j] = std::hypot(ux + lambda * dx, uy + lambda * dy);
+    const double coordinate =
+        affine_ ? RayE(j) : rays_.tan_e != nullptr ? rays_.tan_e[j] : std::tan(RayE(j));
+    rays_.depth_m[j] = DepthOnSegment(affine_, range0_, coordinate, u.xl, u.e, v.xl, v.e);
   }
 
   const GridProfileSweep& sweep_;
@@ -195,6 +217,28 @@ bool GridProfileSweep::Trace(double a_m, double e0, double de, int count, double
   uint8_t ok = 0;
   TraceLines({LineRays{a_m, e0, de, count, depth_m, triangle, normal}}, &ok);
   return ok != 0;
+}
+
+bool GridProfileSweep::FrontierHit(const Frontier& frontier, double v, double* depth_m, uint32_t* triangle) const {
+  // As RayAssigner: a ray above the entry's coordinate is an upper ray, one
+  // below it a lower ray; its hit is on the first segment whose end reaches
+  // it (`reached` increases along the upper frontier, decreases along the
+  // lower one).
+  std::vector<FrontierSegment>::const_iterator it;
+  if (v > frontier.entry) {
+    it = std::lower_bound(frontier.upper.begin(), frontier.upper.end(), v,
+                          [](const FrontierSegment& s, double x) { return s.reached < x; });
+    if (it == frontier.upper.end()) return false;
+  } else if (v < frontier.entry) {
+    it = std::lower_bound(frontier.lower.begin(), frontier.lower.end(), v,
+                          [](const FrontierSegment& s, double x) { return s.reached > x; });
+    if (it == frontier.lower.end()) return false;
+  } else {
+    return false;
+  }
+  *depth_m = DepthOnSegment(affine_, range0_, v, it->from_xl, it->from_e, it->to_xl, it->to_e);
+  *triangle = it->triangle;
+  return true;
 }
 
 void GridProfileSweep::TraceLines(const std::vector<LineRays>& lines, uint8_t* ok) const {

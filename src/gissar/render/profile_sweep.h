@@ -79,6 +79,22 @@ class GridProfileSweep {
   struct ProfilePoint {
     double xl, e, g;
   };
+  // The frontiers of a line's profile, for rays at any coordinate
+  // (sub-rays between the grid's): the profile segments that raised the
+  // running maximum of the Coordinate (upper) or lowered its running minimum
+  // (lower), in walk order, each with the extreme reached at its end. A ray
+  // of coordinate v above the entry point's first meets the profile on the
+  // first upper segment that reaches v, one below it on the first lower
+  // segment that reaches v (FrontierHit), as Trace assigns its rays.
+  struct FrontierSegment {
+    double reached;
+    double from_xl, from_e, to_xl, to_e;
+    uint32_t triangle;
+  };
+  struct Frontier {
+    double entry = 0.0;  // the entry point's Coordinate
+    std::vector<FrontierSegment> upper, lower;
+  };
   // The rays of one azimuth line and where their hits go (Trace's arguments).
   struct LineRays {
     double a_m, e0, de;
@@ -88,6 +104,11 @@ class GridProfileSweep {
     Eigen::Vector3f* normal;  // may be null
     // Exact mode: tan(e0 + j * de) for j < count, or null (computed per ray).
     const double* tan_e = nullptr;
+    // When not null: the line's frontiers, recorded until the running
+    // maximum reaches `frontier_above` and the running minimum
+    // `frontier_below` (Coordinates), or the profile ends.
+    Frontier* frontier = nullptr;
+    double frontier_below = 0.0, frontier_above = 0.0;
   };
   // Trace for several lines, walked in lockstep (a stretch of each in turn:
   // neighbouring lines cross the same posts, which the next line then finds
@@ -110,6 +131,20 @@ class GridProfileSweep {
   // so far are then void).
   template <class Segment>
   void ProfileLines(const double* a_m, size_t lines, uint8_t* ok, Segment&& segment) const;
+  // The first hit of the ray of Coordinate `v` (affine: its offset e;
+  // exact: the tangent of its angle) on the line whose `frontier` was
+  // recorded: true with its depth (as Trace's depth_m) and triangle (front
+  // or back face, as Trace) when a frontier segment reaches v; false when v
+  // equals the entry point's Coordinate or no recorded segment reaches it
+  // (the ray misses, or the recording stopped short of v).
+  bool FrontierHit(const Frontier& frontier, double v, double* depth_m, uint32_t* triangle) const;
+  // The Normal of the grid mesh's triangle `triangle` (Triangle's index).
+  Eigen::Vector3f TriangleNormal(uint32_t triangle) const {
+    const int cells_across = width_ - 1;
+    const int cell = static_cast<int>(triangle / 2);
+    return Normal(Facet{cell % cells_across, cell / cells_across, static_cast<int>(triangle % 2)});
+  }
+
   // The coordinate the rays of a line are ordered by: affine e (metres along
   // n), exact tan of the angle from l seen from the sensor.
   double Coordinate(const ProfilePoint& p) const { return affine_ ? p.e : p.e / (range0_ + p.xl); }

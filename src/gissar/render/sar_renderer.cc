@@ -1257,6 +1257,9 @@ struct SweptHits {
   std::vector<double> depth;
   std::vector<uint32_t> triangle;
   std::vector<Vector3f> normal;
+  // Per line, with adaptive sampling: its profile's upper frontier, where
+  // the sub-rays find their first hits (GridProfileSweep::FrontierHit).
+  std::vector<GridProfileSweep::Frontier> frontier;
 };
 
 // A thread's buffers, kept from block to block (tens of MB: allocating
@@ -1444,11 +1447,20 @@ void BlockTracer::PrepareLines() {
   s.depth.resize(size_t(lines) * grid.n_el);
   s.triangle.resize(size_t(lines) * grid.n_el);
   s.normal.resize(size_t(lines) * grid.n_el);
+  // Sub-rays reach half a ray spacing beyond the lowest and the highest
+  // ray: the frontiers are recorded out to there.
+  const bool sub_rays = plan_.options.adaptive_sampling;
+  if (sub_rays) s.frontier.resize(size_t(lines));
+  const double bottom = grid.e0 - 0.5 * grid.de, top = grid.e0 + (grid.n_el - 0.5) * grid.de;
+  constexpr double kNearRightAngle = 0.5 * M_PI - 1e-9;
+  const double frontier_below = plan_.affine ? bottom : std::tan(std::max(bottom, -kNearRightAngle));
+  const double frontier_above = plan_.affine ? top : std::tan(std::min(top, kNearRightAngle));
   std::vector<GridProfileSweep::LineRays> rays;
   for (int i = i0_; i < i1_; ++i) {
     const size_t at = size_t(i - i0_) * grid.n_el;
     rays.push_back({plan_.AlongTrackOfLine(i), grid.e0, grid.de, grid.n_el, &s.depth[at], &s.triangle[at],
-                    &s.normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data()});
+                    &s.normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data(),
+                    sub_rays ? &s.frontier[size_t(i - i0_)] : nullptr, frontier_below, frontier_above});
   }
   plan_.sweep->TraceLines(rays, s.swept.data());
   for (const uint8_t swept : s.swept) swept_lines_ += swept;
@@ -1665,21 +1677,37 @@ void BlockTracer::TraceSubRays(const Line& line, int j, uint64_t ray_id, double 
   const bool affine = plan_.affine;
   const int subs = std::min(kMaxSubRays, static_cast<int>(std::ceil(box_cols / plan_.split_footprint_px)));
   sub_rays_ += subs;
-  const double sub_start_ground = SubRayStartGround(line, j);
+  // A swept line's sub-rays meet its profile's frontiers (no traversal);
+  // otherwise they are traced from where the ray below them met the
+  // terrain.
+  const GridProfileSweep::Frontier* frontier =
+      line.swept && !scratch_.swept.frontier.empty() ? &scratch_.swept.frontier[size_t(line.i - i0_)] : nullptr;
+  const double sub_start_ground = frontier != nullptr ? 0.0 : SubRayStartGround(line, j);
   const double e = grid.E(j);
   for (int q = 0; q < subs; ++q) {
     const double e_q = e + grid.de * ((q + 0.5) / subs - 0.5);
     Vector3d o_q, d_q;
     double trav_q;
     if (!PrimaryRay(geometry, grid, plan_.box, line.a, e_q, line.sensor, &o_q, &d_q, &trav_q)) continue;
-    float t_near_q = 0.0f;
-    if (sub_start_ground > -std::numeric_limits<double>::infinity()) {
-      const double t_skip =
-          (sub_start_ground - kSkipMarginM - o_q.dot(plan_.ground_look)) / d_q.dot(plan_.ground_look);
-      if (t_skip > 0.0) t_near_q = static_cast<float>(t_skip);
+    std::optional<RayHit> h_q;
+    if (frontier != nullptr) {
+      double depth = 0.0;
+      uint32_t triangle = 0;
+      if (!plan_.sweep->FrontierHit(*frontier, plan_.affine ? e_q : std::tan(e_q), &depth, &triangle)) continue;
+      // Distance from the ray's origin (as FindFirstHits).
+      const double t = plan_.affine ? depth + grid.back_off_m : depth - trav_q;
+      if (!(t >= 0.0)) continue;
+      h_q = RayHit{static_cast<float>(t), triangle};
+    } else {
+      float t_near_q = 0.0f;
+      if (sub_start_ground > -std::numeric_limits<double>::infinity()) {
+        const double t_skip =
+            (sub_start_ground - kSkipMarginM - o_q.dot(plan_.ground_look)) / d_q.dot(plan_.ground_look);
+        if (t_skip > 0.0) t_near_q = static_cast<float>(t_skip);
+      }
+      h_q = plan_.embree.Intersect(o_q.cast<float>(), d_q.cast<float>(), t_near_q,
+                                   std::numeric_limits<float>::infinity());
     }
-    const auto h_q = plan_.embree.Intersect(o_q.cast<float>(), d_q.cast<float>(), t_near_q,
-                                            std::numeric_limits<float>::infinity());
     if (!h_q) continue;
     const Vector3d p_q = o_q + double(h_q->t) * d_q;
     trav_q += h_q->t;
