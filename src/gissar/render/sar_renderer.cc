@@ -1612,9 +1612,16 @@ void BlockTracer::FollowRay(const Line& line, int j0, int k) {
     if (bounce == 1) ray.area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * ray.travelled;
     // Return to the radar from p.
     s.along = geometry.AlongTrack(s.p);
-    s.to_radar = plan_.affine ? Vector3d(-plan_.l) : Vector3d((geometry.SensorPosition(s.along) - s.p).normalized());
-    s.back = plan_.affine ? plan_.range0 + (s.p - plan_.xc).dot(plan_.l)
-                          : (geometry.SensorPosition(s.along) - s.p).norm();
+    if (plan_.affine) {
+      s.to_radar = -plan_.l;
+      s.back = plan_.range0 + (s.p - plan_.xc).dot(plan_.l);
+    } else {
+      // One square root for both (Eigen's normalized() divides by the same
+      // norm: the same values).
+      const Vector3d to_sensor = geometry.SensorPosition(s.along) - s.p;
+      s.back = to_sensor.norm();
+      s.to_radar = s.back > 0.0 ? Vector3d(to_sensor / s.back) : to_sensor;
+    }
     s.mirror = ray.dir + 2.0 * s.cos_in * s.normal;
     const Shading shading = bounce == 1 ? ShadeFirstBounce(line, j, ray, s) : ShadeLaterBounce(ray, s);
     if (shading.value > 0.0) {
@@ -1686,14 +1693,18 @@ void BlockTracer::TraceSubRays(const Line& line, int j, uint64_t ray_id, double 
   const double e = grid.E(j);
   for (int q = 0; q < subs; ++q) {
     const double e_q = e + grid.de * ((q + 0.5) / subs - 0.5);
+    const double cos_q_e = affine ? 1.0 : std::cos(e_q), sin_q_e = affine ? 0.0 : std::sin(e_q);
     Vector3d o_q, d_q;
     double trav_q;
-    if (!PrimaryRay(geometry, grid, plan_.box, line.a, e_q, line.sensor, &o_q, &d_q, &trav_q)) continue;
+    if (!PrimaryRay(geometry, grid, plan_.box, line.a, e_q, cos_q_e, sin_q_e, line.sensor, &o_q, &d_q, &trav_q)) {
+      continue;
+    }
     std::optional<RayHit> h_q;
     if (frontier != nullptr) {
       double depth = 0.0;
       uint32_t triangle = 0;
-      if (!plan_.sweep->FrontierHit(*frontier, plan_.affine ? e_q : std::tan(e_q), &depth, &triangle)) continue;
+      // The frontier's coordinate: affine e, exact tan e.
+      if (!plan_.sweep->FrontierHit(*frontier, affine ? e_q : sin_q_e / cos_q_e, &depth, &triangle)) continue;
       // Distance from the ray's origin (as FindFirstHits).
       const double t = plan_.affine ? depth + grid.back_off_m : depth - trav_q;
       if (!(t >= 0.0)) continue;
@@ -1720,7 +1731,7 @@ void BlockTracer::TraceSubRays(const Line& line, int j, uint64_t ray_id, double 
     const double cos_shade_q = plan_.ShadingCos(h_q->triangle, p_q, d_q, cos_q);
     const double value_q = plan_.Sigma0(class_q, cos_shade_q) * area_q / cos_q_eff * plan_.inv_pixel_area;
     if (!(value_q > 0.0)) continue;
-    const Vector3d v_q = affine ? Vector3d(plan_.n) : Vector3d(-std::sin(e_q) * plan_.l + std::cos(e_q) * plan_.n);
+    const Vector3d v_q = affine ? Vector3d(plan_.n) : Vector3d(-sin_q_e * plan_.l + cos_q_e * plan_.n);
     const double s_q = affine ? grid.de_m / subs : trav_q * grid.de / subs;
     const double cols_q = s_q * std::abs(n_q.dot(v_q)) / cos_q_eff / geometry.range_spacing_m();
     const double a_q = geometry.AlongTrack(p_q);
