@@ -105,7 +105,7 @@ namespace {
 
 // Depth (as GridProfileSweep::Trace's depth_m) of the crossing of the ray of
 // coordinate `v` (affine: offset e; exact: tangent) with the profile
-// segment from (u_xl, u_e) to (v_xl, v_e).
+// segment from (u_xl, u_e) to (w_xl, w_e).
 double DepthOnSegment(bool affine, double range0, double v, double u_xl, double u_e, double w_xl, double w_e) {
   if (affine) {
     const double lambda = (v - u_e) / (w_e - u_e);
@@ -137,7 +137,8 @@ class RayAssigner {
     }
   }
 
-  // One segment of the profile; false once every ray has its hit.
+  // One segment of the profile; false once every ray has its hit and the
+  // frontiers, when recorded, reach their bounds.
   bool operator()(const GridProfileSweep::ProfilePoint& from, const GridProfileSweep::ProfilePoint& to,
                   const GridProfileSweep::Facet& facet) {
     const int count = rays_.count;

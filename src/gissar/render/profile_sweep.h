@@ -138,12 +138,6 @@ class GridProfileSweep {
   // equals the entry point's Coordinate or no recorded segment reaches it
   // (the ray misses, or the recording stopped short of v).
   bool FrontierHit(const Frontier& frontier, double v, double* depth_m, uint32_t* triangle) const;
-  // The Normal of the grid mesh's triangle `triangle` (Triangle's index).
-  Eigen::Vector3f TriangleNormal(uint32_t triangle) const {
-    const int cells_across = width_ - 1;
-    const int cell = static_cast<int>(triangle / 2);
-    return Normal(Facet{cell % cells_across, cell / cells_across, static_cast<int>(triangle % 2)});
-  }
 
   // The coordinate the rays of a line are ordered by: affine e (metres along
   // n), exact tan of the angle from l seen from the sensor.
