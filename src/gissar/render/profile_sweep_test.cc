@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "gissar/render/embree_scene.h"
 #include "gissar/scene/triangle_mesh.h"
@@ -23,6 +25,58 @@ sensor::SarGeometryOptions Options(double heading, double depression, sensor::Pr
   o.azimuth_spacing_m = 5.0;
   o.mode = mode;
   return o;
+}
+
+// The rough terrain of the Embree comparisons: kRoughWidth x kRoughHeight
+// posts on a warped grid (not a lattice in ENU, as a geographic DEM's),
+// heights with noise drawn from `rng`.
+constexpr int kRoughWidth = 90, kRoughHeight = 70;
+std::vector<Vector3f> WarpedRoughPosts(std::mt19937& rng) {
+  std::normal_distribution<float> bump(0.0f, 6.0f);
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kRoughHeight; ++r) {
+    for (int c = 0; c < kRoughWidth; ++c) {
+      const float x = 12.0f * (c - 45) + 0.8f * (r - 35) + 0.004f * float((r - 35) * (r - 35));
+      const float y = 9.0f * (r - 35) - 0.5f * (c - 45);
+      const float z = 60.0f * std::sin(0.09f * c) * std::cos(0.07f * r) + 0.3f * x + bump(rng);
+      posts.emplace_back(x, y, z);
+    }
+  }
+  return posts;
+}
+
+// The extent of `posts` in the ray coordinate e of `g`'s lines (affine:
+// metres along n; exact: radians from l seen from the sensor).
+std::pair<double, double> RayCoordinateExtent(const std::vector<Vector3f>& posts, const sensor::SarGeometry& g) {
+  const bool affine = g.mode() == sensor::ProjectionMode::kAffine;
+  const Vector3d& l = g.look_direction();
+  const Vector3d& n = g.range_plane_normal();
+  double e_lo = 1e300, e_hi = -1e300;
+  for (const Vector3f& p : posts) {
+    const Vector3d q = p.cast<double>() - g.scene_centre();
+    const double e = affine ? q.dot(n) : std::atan2(q.dot(n), g.slant_range_m() + q.dot(l));
+    e_lo = std::min(e_lo, e);
+    e_hi = std::max(e_hi, e);
+  }
+  return {e_lo, e_hi};
+}
+
+// The ray of coordinate e on the line at along-track a (sensor at
+// `sensor_pos` in exact mode) as Embree gets it: its origin and direction;
+// returns the origin's depth in the sweep's terms (affine: along l from the
+// scene centre; exact: from the sensor).
+double FloatRay(const sensor::SarGeometry& g, double a, double e, const Vector3d& sensor_pos, Vector3d* origin,
+                Vector3d* dir) {
+  const Vector3d& l = g.look_direction();
+  const Vector3d& n = g.range_plane_normal();
+  if (g.mode() == sensor::ProjectionMode::kAffine) {
+    *dir = l;
+    *origin = g.scene_centre() + a * g.flight_direction() + e * n - 5000.0 * l;
+    return -5000.0;
+  }
+  *dir = std::cos(e) * l + std::sin(e) * n;
+  *origin = sensor_pos + 1000.0 * *dir;
+  return 1000.0;
 }
 
 // A flat grid at z = 0: ray e meets it where g (n . ground) = e, at depth
@@ -78,22 +132,11 @@ TEST(GridProfileSweepTest, FlatPlaneHitsAtTheClosedFormDepth) {
 // geographic DEM's), every heading and both projection modes: each ray's
 // sweep hit is the first hit Embree finds for the same ray.
 TEST(GridProfileSweepTest, EveryRayHitsWhereEmbreeDoes) {
-  const int w = 90, h = 70;
+  const int w = kRoughWidth, h = kRoughHeight;
   std::mt19937 rng(7);
-  std::normal_distribution<float> bump(0.0f, 6.0f);
-  std::vector<Vector3f> posts;
-  for (int r = 0; r < h; ++r) {
-    for (int c = 0; c < w; ++c) {
-      const float x = 12.0f * (c - 45) + 0.8f * (r - 35) + 0.004f * float((r - 35) * (r - 35));
-      const float y = 9.0f * (r - 35) - 0.5f * (c - 45);
-      const float z = 60.0f * std::sin(0.09f * c) * std::cos(0.07f * r) + 0.3f * x + bump(rng);
-      posts.emplace_back(x, y, z);
-    }
-  }
+  const std::vector<Vector3f> posts = WarpedRoughPosts(rng);
   const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, w, h);
   const EmbreeScene embree(mesh);
-  Eigen::AlignedBox3d box;
-  for (const Vector3f& p : posts) box.extend(p.cast<double>());
   int64_t rays = 0, hits = 0, other_triangle = 0, disagree = 0;
   double worst_depth = 0.0;
   for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
@@ -101,18 +144,9 @@ TEST(GridProfileSweepTest, EveryRayHitsWhereEmbreeDoes) {
       for (double depression : {20.0, 45.0, 70.0}) {
         const auto g = sensor::SarGeometry::Covering(Options(heading, depression, mode), Vector3d::Zero(), posts);
         const GridProfileSweep sweep(posts.data(), w, h, g);
-        const bool affine = mode == sensor::ProjectionMode::kAffine;
-        const Vector3d& l = g.look_direction();
-        const Vector3d& n = g.range_plane_normal();
         const int count = 300;
         // The rays span the terrain's extent in e (metres or radians).
-        double e_lo = 1e300, e_hi = -1e300;
-        for (const Vector3f& p : posts) {
-          const Vector3d q = p.cast<double>() - g.scene_centre();
-          const double e = affine ? q.dot(n) : std::atan2(q.dot(n), g.slant_range_m() + q.dot(l));
-          e_lo = std::min(e_lo, e);
-          e_hi = std::max(e_hi, e);
-        }
+        const auto [e_lo, e_hi] = RayCoordinateExtent(posts, g);
         const double de = (e_hi - e_lo) / (count - 20);
         const double e0 = e_lo - 10 * de;
         std::vector<double> depth(count);
@@ -123,16 +157,7 @@ TEST(GridProfileSweepTest, EveryRayHitsWhereEmbreeDoes) {
           for (int j = 0; j < count; ++j) {
             const double e = e0 + j * de;
             Vector3d origin, dir;
-            double before;  // depth of the origin
-            if (affine) {
-              dir = l;
-              before = -5000.0;
-              origin = g.scene_centre() + a * g.flight_direction() + e * n + before * l;
-            } else {
-              dir = std::cos(e) * l + std::sin(e) * n;
-              before = 1000.0;
-              origin = sensor_pos + before * dir;
-            }
+            const double before = FloatRay(g, a, e, sensor_pos, &origin, &dir);  // depth of the origin
             const auto hit = embree.Intersect(origin.cast<float>(), dir.cast<float>(), 0.0f,
                                               std::numeric_limits<float>::infinity());
             ++rays;
@@ -170,18 +195,9 @@ TEST(GridProfileSweepTest, EveryRayHitsWhereEmbreeDoes) {
 // the terrain's extent against Embree's float rays: the same hits but for
 // rays grazing an edge.
 TEST(GridProfileSweepTest, FrontierHitsWhereEmbreeDoesBetweenTheRays) {
-  const int w = 90, h = 70;
+  const int w = kRoughWidth, h = kRoughHeight;
   std::mt19937 rng(11);
-  std::normal_distribution<float> bump(0.0f, 6.0f);
-  std::vector<Vector3f> posts;
-  for (int r = 0; r < h; ++r) {
-    for (int c = 0; c < w; ++c) {
-      const float x = 12.0f * (c - 45) + 0.8f * (r - 35) + 0.004f * float((r - 35) * (r - 35));
-      const float y = 9.0f * (r - 35) - 0.5f * (c - 45);
-      const float z = 60.0f * std::sin(0.09f * c) * std::cos(0.07f * r) + 0.3f * x + bump(rng);
-      posts.emplace_back(x, y, z);
-    }
-  }
+  const std::vector<Vector3f> posts = WarpedRoughPosts(rng);
   const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, w, h);
   const EmbreeScene embree(mesh);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -193,15 +209,7 @@ TEST(GridProfileSweepTest, FrontierHitsWhereEmbreeDoesBetweenTheRays) {
         const auto g = sensor::SarGeometry::Covering(Options(heading, depression, mode), Vector3d::Zero(), posts);
         const GridProfileSweep sweep(posts.data(), w, h, g);
         const bool affine = mode == sensor::ProjectionMode::kAffine;
-        const Vector3d& l = g.look_direction();
-        const Vector3d& n = g.range_plane_normal();
-        double e_lo = 1e300, e_hi = -1e300;
-        for (const Vector3f& p : posts) {
-          const Vector3d q = p.cast<double>() - g.scene_centre();
-          const double e = affine ? q.dot(n) : std::atan2(q.dot(n), g.slant_range_m() + q.dot(l));
-          e_lo = std::min(e_lo, e);
-          e_hi = std::max(e_hi, e);
-        }
+        const auto [e_lo, e_hi] = RayCoordinateExtent(posts, g);
         // A coarse grid of 12 rays; the frontiers out to the terrain's extent.
         const int count = 12;
         const double de = (e_hi - e_lo) / (count - 1);
@@ -219,16 +227,7 @@ TEST(GridProfileSweepTest, FrontierHitsWhereEmbreeDoesBetweenTheRays) {
           for (int k = 0; k < 60; ++k) {
             const double e = e_lo + (e_hi - e_lo) * unit(rng);
             Vector3d origin, dir;
-            double before;  // depth of the origin
-            if (affine) {
-              dir = l;
-              before = -5000.0;
-              origin = g.scene_centre() + a * g.flight_direction() + e * n + before * l;
-            } else {
-              dir = std::cos(e) * l + std::sin(e) * n;
-              before = 1000.0;
-              origin = sensor_pos + before * dir;
-            }
+            const double before = FloatRay(g, a, e, sensor_pos, &origin, &dir);  // depth of the origin
             const auto hit = embree.Intersect(origin.cast<float>(), dir.cast<float>(), 0.0f,
                                               std::numeric_limits<float>::infinity());
             double frontier_depth = 0.0;

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <optional>
 
 #include "gissar/util/error.h"
 
@@ -405,6 +406,36 @@ TEST(SarRendererTest, FixedSamplingTracesNoSubRaysAndKeepsThePower) {
   EXPECT_NEAR(sum_fixed / sum_adaptive, 1.0, 0.02);
 }
 
+// The ridge of the closed-form mask tests: kRidgeCols x kRidgeRows posts
+// 10 m apart, kRidgeHeightM high along x = 0 with 5:1 slopes (78.7 deg),
+// flat ground at z = 0 beyond x = +-10 m.
+constexpr int kRidgeCols = 61, kRidgeRows = 41;
+constexpr double kRidgeHeightM = 50.0;
+std::vector<Vector3f> RidgePosts() {
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kRidgeRows; ++r) {
+    for (int c = 0; c < kRidgeCols; ++c) {
+      const double x = 10.0 * (c - 30);
+      posts.emplace_back(float(x), float(10.0 * (r - 20)),
+                         float(std::max(0.0, kRidgeHeightM - 5.0 * std::abs(x))));
+    }
+  }
+  return posts;
+}
+
+// The mask code of a ground centre x metres across the ridge (radar on the
+// -x side): shadow from the back slope's foot (10 m) to shadow_end_x;
+// layover and shadow from layover_from_x to the front slope's foot (-10 m)
+// (ground lit, the front slope lit and flipped, the back slope turned
+// away, all at those slant ranges); none beyond both. nullopt within
+// `margin` metres of an edge, and on the ridge.
+std::optional<uint8_t> ExpectedRidgeCode(double x, double layover_from_x, double shadow_end_x, double margin) {
+  if (x > 10.0 + margin && x < shadow_end_x - margin) return kMaskShadow;
+  if (x > layover_from_x + margin && x < -10.0 - margin) return uint8_t(kMaskLayover | kMaskShadow);
+  if (x > shadow_end_x + margin || x < layover_from_x - margin) return kMaskNone;
+  return std::nullopt;
+}
+
 // A ridge H = 50 m high across flat ground, 10 m posts, seen at depression
 // 40 deg across it, as a whole grid's height field (the mask read off each
 // row's profile) and as an ordinary mesh (a visibility ray per centre). The
@@ -413,15 +444,9 @@ TEST(SarRendererTest, FixedSamplingTracesNoSubRaysAndKeepsThePower) {
 // back slope is turned away, and the ridge's shadow on the ground behind it ends at x = H / tan(40 deg) =
 // 59.6 m: a ground centre at x is lit beyond it and in shadow before it.
 TEST(SarRendererTest, RidgeShadowEndsAtTheClosedFormDistanceInBothMasks) {
-  constexpr int kCols = 61, kRows = 41;
-  constexpr double kH = 50.0, kDep = 40.0;
-  std::vector<Vector3f> posts;
-  for (int r = 0; r < kRows; ++r) {
-    for (int c = 0; c < kCols; ++c) {
-      const double x = 10.0 * (c - 30);
-      posts.emplace_back(float(x), float(10.0 * (r - 20)), float(std::max(0.0, kH - 5.0 * std::abs(x))));
-    }
-  }
+  constexpr int kCols = kRidgeCols, kRows = kRidgeRows;
+  constexpr double kH = kRidgeHeightM, kDep = 40.0;
+  const std::vector<Vector3f> posts = RidgePosts();
   const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kCols, kRows);
   // Flight north, looking east (+x): azimuth lines run along the rows.
   const auto g = sensor::SarGeometry::Covering(Options(0.0, kDep, 2.0), Vector3d::Zero(), mesh.vertices);
@@ -441,21 +466,11 @@ TEST(SarRendererTest, RidgeShadowEndsAtTheClosedFormDistanceInBothMasks) {
         const double xl = (c - g.u0()) * g.range_spacing_m();
         const double x = xl / std::cos(kDep * kDeg) + g.scene_centre().dot(Vector3d(1, 0, 0));
         if (x < -280.0 || x > 280.0) continue;
-        // Slant ranges of the slopes: front [-32.1, -7.7] m, back [-32.1, 7.7] m.
-        const double margin = 3.0;  // metres of ground, clear of the edges
-        uint8_t expected;
-        if (x > 10.0 + margin && x < shadow_end_x - margin) {
-          expected = kMaskShadow;
-        } else if (x > -41.9 + margin && x < -10.0 - margin) {
-          // Ground lit, the front slope lit and flipped, the back slope
-          // turned away: all three at these slant ranges.
-          expected = kMaskLayover | kMaskShadow;
-        } else if (x > shadow_end_x + margin || x < -41.9 - margin) {
-          expected = kMaskNone;
-        } else {
-          continue;
-        }
-        ASSERT_EQ(mask[size_t(r) * g.width() + c], expected) << "sweep " << sweep << " x " << x << " y " << y;
+        // Slant ranges of the slopes: front [-32.1, -7.7] m, back [-32.1, 7.7] m;
+        // 3 m of ground clear of the edges.
+        const std::optional<uint8_t> expected = ExpectedRidgeCode(x, -41.9, shadow_end_x, 3.0);
+        if (!expected) continue;
+        ASSERT_EQ(mask[size_t(r) * g.width() + c], *expected) << "sweep " << sweep << " x " << x << " y " << y;
         ++checked;
       }
     }
@@ -472,15 +487,9 @@ TEST(SarRendererTest, RidgeShadowEndsAtTheClosedFormDistanceInBothMasks) {
 // top's, hypot(D, Z - H), and its foot's: x = sqrt(R^2 - Z^2) - D from
 // -41.7 to -10 m. Both masks (profile and rays) to within 1 m of ground.
 TEST(SarRendererTest, ExactRidgeShadowEndsWhereTheSensorsRayOverTheTopLands) {
-  constexpr int kCols = 61, kRows = 41;
-  constexpr double kH = 50.0, kDep = 40.0, kRange0 = 2000.0;
-  std::vector<Vector3f> posts;
-  for (int r = 0; r < kRows; ++r) {
-    for (int c = 0; c < kCols; ++c) {
-      const double x = 10.0 * (c - 30);
-      posts.emplace_back(float(x), float(10.0 * (r - 20)), float(std::max(0.0, kH - 5.0 * std::abs(x))));
-    }
-  }
+  constexpr int kCols = kRidgeCols, kRows = kRidgeRows;
+  constexpr double kH = kRidgeHeightM, kDep = 40.0, kRange0 = 2000.0;
+  const std::vector<Vector3f> posts = RidgePosts();
   const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kCols, kRows);
   sensor::SarGeometryOptions o = Options(0.0, kDep, 2.0);
   o.mode = sensor::ProjectionMode::kExact;
@@ -508,19 +517,11 @@ TEST(SarRendererTest, ExactRidgeShadowEndsWhereTheSensorsRayOverTheTopLands) {
         if (!(range > z)) continue;
         const double x = ground_x(range);  // the flat-ground point of this centre
         if (x < -280.0 || x > 280.0) continue;
-        const double margin = 1.0;  // metres of ground, clear of the edges
-        uint8_t expected;
-        if (x > 10.0 + margin && x < shadow_end_x - margin) {
-          expected = kMaskShadow;
-          ++shadowed;
-        } else if (x > layover_from_x + margin && x < -10.0 - margin) {
-          expected = kMaskLayover | kMaskShadow;  // as in affine mode
-        } else if (x > shadow_end_x + margin || x < layover_from_x - margin) {
-          expected = kMaskNone;
-        } else {
-          continue;
-        }
-        ASSERT_EQ(mask[size_t(r) * g.width() + c], expected) << "sweep " << sweep << " x " << x << " y " << y;
+        // 1 m of ground clear of the edges.
+        const std::optional<uint8_t> expected = ExpectedRidgeCode(x, layover_from_x, shadow_end_x, 1.0);
+        if (!expected) continue;
+        shadowed += *expected == kMaskShadow;
+        ASSERT_EQ(mask[size_t(r) * g.width() + c], *expected) << "sweep " << sweep << " x " << x << " y " << y;
         ++checked;
       }
     }
