@@ -140,14 +140,6 @@ bool PrimaryRay(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::
   return true;
 }
 
-// A primary ray at any e (sub-rays between the grid's).
-bool PrimaryRay(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::AlignedBox3d& box, double a,
-                double e, const Vector3d& sensor, Vector3d* origin, Vector3d* dir, double* travelled) {
-  const bool affine = g.mode() == sensor::ProjectionMode::kAffine;
-  return PrimaryRay(g, grid, box, a, e, affine ? 1.0 : std::cos(e), affine ? 0.0 : std::sin(e), sensor, origin, dir,
-                    travelled);
-}
-
 // Primary ray j of the grid at along-track a.
 bool PrimaryRayAt(const sensor::SarGeometry& g, const RayGrid& grid, const Eigen::AlignedBox3d& box, double a, int j,
                   const Vector3d& sensor, Vector3d* origin, Vector3d* dir, double* travelled) {
@@ -1376,6 +1368,7 @@ class BlockTracer {
   };
 
   void PrepareLines();
+  void FirstBouncesOfSweptLine(int i);
   void TracePacket(int i, int j0);
   bool CastPrimaryRays(const Line& line, int j0, double previous_hit_ground);
   void FindFirstHits(const Line& line, int j0);
@@ -1397,6 +1390,9 @@ class BlockTracer {
   const int block_;
   const int i0_, i1_;      // the block's azimuth lines
   const bool by_profile_;  // incoherent: first-bounce returns go through LineProfiles
+  // One bounce, incoherent, one channel, no contributions: a swept line's
+  // rays are shaded in one pass along the line (FirstBouncesOfSweptLine).
+  const bool first_bounce_lines_;
   Band band_;
   Lanes lanes_;
   int64_t hits_ = 0, sub_rays_ = 0, swept_lines_ = 0;
@@ -1409,7 +1405,9 @@ BlockTracer::BlockTracer(const TracePlan& plan, TraceAccumulator& acc, BlockScra
       block_(block),
       i0_(block * plan.rows_per_block),
       i1_(std::min(plan.grid.n_az, i0_ + plan.rows_per_block)),
-      by_profile_(!plan.options.coherent) {
+      by_profile_(!plan.options.coherent),
+      first_bounce_lines_(by_profile_ && plan.sweep && plan.options.max_bounces == 1 && !plan.polarimetric &&
+                          !plan.options.record_contributions) {
   band_.planes = plan.planes;
   band_.row0 = plan.BandRow0(block);
   band_.rows = plan.BandRows(block);
@@ -1421,8 +1419,16 @@ BlockTracer::BlockTracer(const TracePlan& plan, TraceAccumulator& acc, BlockScra
 
 void BlockTracer::Run() {
   PrepareLines();
+  // Swept lines first when they take the one-pass path (a line's returns
+  // go only into its own range profile, in the same order either way).
+  const auto one_pass = [&](int i) { return first_bounce_lines_ && scratch_.swept.swept[size_t(i - i0_)] != 0; };
+  for (int i = i0_; i < i1_; ++i) {
+    if (one_pass(i)) FirstBouncesOfSweptLine(i);
+  }
   for (int j0 = 0; j0 < plan_.grid.n_el; j0 += 16) {
-    for (int i = i0_; i < i1_; ++i) TracePacket(i, j0);
+    for (int i = i0_; i < i1_; ++i) {
+      if (!one_pass(i)) TracePacket(i, j0);
+    }
   }
   FlushProfiles();
   MergeBand();
@@ -1464,6 +1470,60 @@ void BlockTracer::PrepareLines() {
   }
   plan_.sweep->TraceLines(rays, s.swept.data());
   for (const uint8_t swept : s.swept) swept_lines_ += swept;
+}
+
+// Every primary ray of swept line i, one after the other, when only first
+// bounces are returned into range profiles (first_bounce_lines_): the
+// arithmetic of CastPrimaryRays, FindFirstHits, FollowRay's first bounce,
+// ShadeFirstBounce and Emit in the same order (the same returns, bit for
+// bit) without the packet's lanes, the mirror ray or the return's row.
+void BlockTracer::FirstBouncesOfSweptLine(int i) {
+  const RayGrid& grid = plan_.grid;
+  const sensor::SarGeometry& geometry = plan_.geometry;
+  const size_t line_index = size_t(i - i0_);
+  const Line line{i, plan_.AlongTrackOfLine(i), scratch_.line_sensor[line_index], true};
+  const SweptHits& swept_hits = scratch_.swept;
+  const size_t at = line_index * grid.n_el;
+  const double box_rows = grid.da / geometry.azimuth_spacing_m();
+  for (int j = 0; j < grid.n_el; ++j) {
+    const uint32_t triangle = swept_hits.triangle[at + size_t(j)];
+    if (triangle == RayPacket16::kNoHit) continue;
+    Vector3d origin, dir;
+    double travelled;  // path length from the sensor, to the origin, then to the hit
+    if (!PrimaryRayAt(geometry, grid, plan_.box, line.a, j, line.sensor, &origin, &dir, &travelled)) continue;
+    const double depth = swept_hits.depth[at + size_t(j)];
+    // The packet's float distance from the origin (FindFirstHits).
+    const float t = static_cast<float>(plan_.affine ? depth + grid.back_off_m : depth - travelled);
+    ++hits_;
+    const Vector3d p = origin + double(t) * dir;
+    travelled += t;
+    const Vector3d normal = swept_hits.normal[at + size_t(j)].cast<double>();
+    const double cos_in = -normal.dot(dir);
+    if (cos_in <= 0.0) continue;  // back face
+    const scene::ClassId class_id = plan_.mesh.classes[triangle];
+    const double area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * travelled;
+    double back;  // path length p -> sensor
+    if (plan_.affine) {
+      back = plan_.range0 + (p - plan_.xc).dot(plan_.l);
+    } else {
+      back = (geometry.SensorPosition(geometry.AlongTrack(p)) - p).norm();
+    }
+    const double cos_shade = plan_.ShadingCos(triangle, p, dir, cos_in);
+    const double cos_eff = std::max(cos_in, kMaskEdgeOnCos);
+    const double value = plan_.Sigma0(class_id, cos_shade) * area / cos_eff * plan_.inv_pixel_area;
+    const Vector3d v_e = plan_.affine
+                             ? Vector3d(plan_.n)
+                             : Vector3d(-grid.sin_e[size_t(j)] * plan_.l + grid.cos_e[size_t(j)] * plan_.n);
+    const double s_e = plan_.affine ? grid.de_m : travelled * grid.de;
+    const double box_cols = s_e * std::abs(normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
+    if (plan_.options.adaptive_sampling && box_cols > plan_.split_footprint_px) {
+      TraceSubRays(line, j, uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j), box_cols, box_rows);
+      continue;
+    }
+    if (value > 0.0) {
+      scratch_.profiles.Add(int(line_index), geometry.ColumnOfRange(0.5 * (travelled + back)), box_cols, value);
+    }
+  }
 }
 
 // Packet row j0 of azimuth line i: its primary rays, their first hits, then

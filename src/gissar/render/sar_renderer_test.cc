@@ -624,6 +624,50 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
   std::printf("mask pixels flagged %lld, differing %lld\n", (long long)flagged, (long long)differing);
 }
 
+// With one bounce (incoherent, no contributions) a swept line's rays are
+// shaded in one pass along the line instead of in packets of 16; with
+// three the packets return the same first bounces. Both give the first-bounce
+// layer bit for bit, with the same hits and sub-rays (those met on the
+// profile's frontiers), in both modes and with or without adaptive sampling.
+TEST(SarRendererTest, OnePassFirstBouncesAreThePacketsBitForBit) {
+  constexpr int kPosts = 90;
+  const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kPosts; ++r) {
+    for (int c = 0; c < kPosts; ++c) {
+      posts.emplace_back(float(10.0 * (c - 45) + 0.7 * (r - 45)), float(9.0 * (r - 45) - 0.4 * (c - 45)),
+                         heights[size_t(r) * kPosts + c]);
+    }
+  }
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    for (const bool adaptive : {true, false}) {
+      const auto g = RidgeGeometry(mode, sensor::LookSide::kRight, 30.0, mesh.vertices);
+      RenderOptions options = Quiet(4.0);
+      options.adaptive_sampling = adaptive;
+      options.max_bounces = 1;
+      const SarImage one_pass = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+      options.max_bounces = 3;
+      const SarImage packets = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+      ASSERT_EQ(one_pass.stats.profile_swept_lines, packets.stats.profile_swept_lines);
+      EXPECT_GT(one_pass.stats.profile_swept_lines, 0);
+      EXPECT_EQ(one_pass.stats.hits, packets.stats.hits);
+      EXPECT_EQ(one_pass.stats.sub_rays, packets.stats.sub_rays);
+      if (adaptive) EXPECT_GT(one_pass.stats.sub_rays, 0);
+      ASSERT_EQ(one_pass.bounce_layers[0].size(), packets.bounce_layers[0].size());
+      int64_t lit = 0;
+      for (size_t q = 0; q < one_pass.bounce_layers[0].size(); ++q) {
+        ASSERT_EQ(one_pass.bounce_layers[0][q], packets.bounce_layers[0][q]) << "pixel " << q;
+        lit += one_pass.bounce_layers[0][q] > 0.0f;
+      }
+      EXPECT_GT(lit, 10000);
+      // One bounce: the total is its first-bounce layer.
+      EXPECT_EQ(one_pass.intensity, one_pass.bounce_layers[0]);
+    }
+  }
+}
+
 // A grid whose first row of posts zigzags along track: the azimuth lines
 // through the zigzag cross the grid's boundary more than twice, so the
 // sweep refuses them and only their image rows get visibility rays; every
