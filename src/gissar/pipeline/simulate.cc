@@ -9,6 +9,9 @@
 #include <cstdio>
 #include <sstream>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include "gissar/geo/dem.h"
 #include "gissar/geo/geoid.h"
 #include "gissar/geo/vertical_datum.h"
@@ -310,8 +313,18 @@ void CheckViewingGeometry(const sensor::SarGeometry& geometry, const scene::Tria
   if (geometry.mode() != sensor::ProjectionMode::kExact || mesh.vertices.empty()) return;
   // Exact mode: a sensor at or below the highest terrain sees it from below
   // (lines of sight run through the relief).
-  double top = -std::numeric_limits<double>::infinity();
-  for (const auto& v : mesh.vertices) if (std::isfinite(v.z())) top = std::max(top, double(v.z()));
+  // (In parallel: tens of millions of posts; the maximum does not depend
+  // on the order.)
+  const double top = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, mesh.vertices.size(), size_t(1) << 16), -std::numeric_limits<double>::infinity(),
+      [&](const tbb::blocked_range<size_t>& range, double m) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+          const float z = mesh.vertices[i].z();
+          if (std::isfinite(z)) m = std::max(m, double(z));
+        }
+        return m;
+      },
+      [](double a, double b) { return std::max(a, b); });
   const double sensor_z = geometry.SensorPosition(0.0).z();
   if (!(sensor_z > top)) {
     throw ConfigError("the sensor (" + FormatNumber(sensor_z) + " m) is not above the terrain's highest point (" +

@@ -124,23 +124,37 @@ SarGeometry SarGeometry::Covering(const SarGeometryOptions& options,
     return SarGeometry(options, scene_centre, (options.width - 1) / 2.0,
                        (options.height - 1) / 2.0, options.width, options.height);
   }
-  // Project with a provisional frame (Xc at pixel 0,0), then shift.
+  // Project with a provisional frame (Xc at pixel 0,0), then shift. A
+  // column grows with slant range and a row with the along-track coordinate
+  // (ColumnOfRange and RowOfAlongTrack are monotonic in floating point too),
+  // so the extent is that of the posts' slant ranges and along-track
+  // coordinates, mapped once: the same columns and rows as projecting every
+  // post, without the per-post pixel arithmetic.
   const SarGeometry probe(options, scene_centre, 0.0, 0.0, 1, 1);
-  // Extent of the projections (in parallel: a large DEM has tens of
-  // millions of posts); min and max do not depend on the order.
-  using Extent = std::array<double, 4>;  // column min, max, row min, max
-  const Extent extent = tbb::parallel_reduce(
-      tbb::blocked_range<size_t>(0, points.size(), size_t(1) << 16), Extent{0.0, 0.0, 0.0, 0.0},
+  const bool affine = options.mode == ProjectionMode::kAffine;
+  const double range0 = probe.options_.slant_range_m;
+  // Extent of the slant ranges and along-track coordinates (in parallel: a
+  // large DEM has tens of millions of posts); min and max do not depend on
+  // the order; non-finite posts are skipped as std::min/max skip NaN.
+  using Extent = std::array<double, 4>;  // slant range min, max, along-track min, max
+  const Extent extent_m = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, points.size(), size_t(1) << 16), Extent{range0, range0, 0.0, 0.0},
       [&](const tbb::blocked_range<size_t>& range, Extent e) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
-          const Eigen::Vector2d px = probe.Project(points[i].cast<double>());
-          e = {std::min(e[0], px.x()), std::max(e[1], px.x()), std::min(e[2], px.y()), std::max(e[3], px.y())};
+          const Eigen::Vector3d p = points[i].cast<double>();
+          const double along = probe.AlongTrack(p);
+          // SlantRange(p), with the along-track coordinate computed once.
+          const double r = affine ? range0 + (p - probe.xc_).dot(probe.l_)
+                                  : (p - probe.SensorPosition(along)).norm();
+          e = {std::min(e[0], r), std::max(e[1], r), std::min(e[2], along), std::max(e[3], along)};
         }
         return e;
       },
       [](const Extent& a, const Extent& b) {
         return Extent{std::min(a[0], b[0]), std::max(a[1], b[1]), std::min(a[2], b[2]), std::max(a[3], b[3])};
       });
+  const Extent extent = {probe.ColumnOfRange(extent_m[0]), probe.ColumnOfRange(extent_m[1]),
+                         probe.RowOfAlongTrack(extent_m[2]), probe.RowOfAlongTrack(extent_m[3])};
   const double cmin = extent[0], cmax = extent[1], rmin = extent[2], rmax = extent[3];
   const double u0 = std::ceil(-cmin) + margin_px;
   const double v0 = std::ceil(-rmin) + margin_px;
