@@ -71,6 +71,7 @@ const Scene& LoadedScene() {
     const double before_heightfield = ResidentBytes();
     s.heightfield = std::make_unique<render::EmbreeScene>(
         s.terrain.mesh, render::TerrainGrid{s.terrain.grid_width, s.terrain.grid_height}, quality);
+    s.heightfield->Build();  // (a height field alone is otherwise built by its first query)
     s.heightfield_added_bytes = ResidentBytes() - before_heightfield;
     s.heightfield_seconds = s.heightfield->build_seconds();
     s.geometry = std::make_unique<sensor::SarGeometry>(sensor::SarGeometry::Covering(

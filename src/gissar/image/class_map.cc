@@ -68,4 +68,15 @@ RgbImage RenderClassMap(const scene::TriangleMesh& mesh, const std::vector<std::
   return image;
 }
 
+std::optional<std::vector<uint8_t>> NeutralGrey(const RgbImage& image) {
+  GISSAR_CHECK(image.rgb.size() == size_t(image.width) * image.height * 3);
+  std::vector<uint8_t> grey(size_t(image.width) * image.height);
+  const uint8_t* p = image.rgb.data();
+  for (size_t i = 0; i < grey.size(); ++i, p += 3) {
+    if (p[0] != p[1] || p[0] != p[2]) return std::nullopt;
+    grey[i] = p[0];
+  }
+  return grey;
+}
+
 }  // namespace gissar::image

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,11 @@ struct RgbImage {
   int height = 0;
   std::vector<uint8_t> rgb;  // interleaved, row-major, row 0 at the top
 };
+
+// The grey levels of `image` (width x height, row-major) when every pixel is
+// neutral (R = G = B): the same picture in a third of the bytes, for a grey
+// PNG. nullopt when any pixel has colour.
+std::optional<std::vector<uint8_t>> NeutralGrey(const RgbImage& image);
 
 // Colour of each class (index = ClassId): default tan, water blue, forest
 // green, urban grey, road black, building red.

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <optional>
+
 namespace gissar::image {
 namespace {
 
@@ -70,6 +72,26 @@ TEST(AnnotatedTest, QuicklookKeepsTheImageAndAddsAxes) {
       EXPECT_EQ(p[0], grey[size_t(y) * 80 + x]);
       EXPECT_EQ(p[1], p[0]);
     }
+}
+
+// The annotated quicklook is all grey (image, text, colour bar): its grey
+// levels are its red channel; one coloured pixel makes it colour.
+TEST(AnnotatedTest, TheQuicklookIsNeutralGrey) {
+  std::vector<float> intensity(80 * 60);
+  for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = 0.1f + float(i % 80) / 80.0f;
+  RgbImage picture = AnnotatedQuicklook(intensity, 80, 60, QuicklookAxes{9800.0, 2.0, -90.0, 3.0}, "test");
+  const std::optional<std::vector<uint8_t>> grey = NeutralGrey(picture);
+  ASSERT_TRUE(grey.has_value());
+  ASSERT_EQ(grey->size(), size_t(picture.width) * picture.height);
+  int levels[256] = {};
+  for (size_t i = 0; i < grey->size(); ++i) {
+    ASSERT_EQ((*grey)[i], picture.rgb[3 * i]);
+    ++levels[(*grey)[i]];
+  }
+  EXPECT_GT(levels[0], 100);    // black text and frame
+  EXPECT_GT(levels[255], 1000);  // white margins
+  picture.rgb[3 * 500 + 2] ^= 1;
+  EXPECT_FALSE(NeutralGrey(picture).has_value());
 }
 
 TEST(AnnotatedTest, RelativeRangeAxisIsLabelledAsSuchAndCentredOnZero) {

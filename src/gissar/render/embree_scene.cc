@@ -6,6 +6,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/collaborative_call_once.h>
 
 #include <algorithm>
 #include <atomic>
@@ -15,6 +16,7 @@
 #include <limits>
 #include <new>
 #include <string>
+#include <utility>
 
 #include "gissar/render/heightfield.h"
 #include "gissar/util/error.h"
@@ -153,6 +155,19 @@ struct EmbreeScene::Impl {
   // corner indices (4 for quads, 3 for triangles); owned by the scene.
   const float* vertices = nullptr;
   const unsigned* indices = nullptr;
+  // The terrain grid's shape, known before anything is built.
+  int grid_width = 0, grid_height = 0;
+  size_t grid_cells = 0;
+  bool heightfield_only = false;
+  // A height field alone is built on the first query (Build): a run whose
+  // rays all come from the profile sweep never builds it. Until then the
+  // inputs of the build are kept here (the mesh must outlive the scene).
+  const scene::TriangleMesh* pending_mesh = nullptr;
+  TerrainGrid pending_grid;
+  BvhQuality pending_quality = BvhQuality::kAuto;
+  tbb::collaborative_once_flag once;
+  std::atomic<bool> built{false};
+  double build_seconds = 0.0;
   bool IsHeightfield(unsigned geometry) const { return geometry == heightfield_geometry; }
   uint32_t Triangle(unsigned geometry, uint32_t primitive, float u, float v) const {
     if (IsHeightfield(geometry)) return primitive;
@@ -422,14 +437,54 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& gri
     : impl_(std::make_unique<Impl>()) {
   if (mesh.triangle_count() == 0) throw InputError("scene has no triangles", "mesh");
   bounds_ = mesh.Bounds();
+  const size_t cells = TerrainGridCells(mesh, grid);
+  if (cells > 0) {
+    impl_->grid_width = grid.width;
+    impl_->grid_height = grid.height;
+    impl_->grid_cells = cells;
+  }
+  // Every triangle is the grid's: a height field alone, built on the first
+  // query (the quality the build would pick: no other triangles, medium).
+  impl_->heightfield_only = cells > 0 && 2 * cells == mesh.triangle_count();
+  if (impl_->heightfield_only) {
+    quality_ = quality == BvhQuality::kAuto ? BvhQuality::kMedium : quality;
+    impl_->pending_mesh = &mesh;
+    impl_->pending_grid = grid;
+    impl_->pending_quality = quality;
+    return;
+  }
+  BuildScene(mesh, grid, cells, quality);
+  impl_->built.store(true, std::memory_order_release);
+}
+
+void EmbreeScene::Build() const {
+  if (impl_->built.load(std::memory_order_acquire)) return;
+  // The threads that query meanwhile wait by taking part in the build's
+  // parallel loops (and in nothing else of their callers').
+  tbb::collaborative_call_once(impl_->once, [&] {
+    const_cast<EmbreeScene*>(this)->BuildScene(*impl_->pending_mesh, impl_->pending_grid, impl_->grid_cells,
+                                                 impl_->pending_quality);
+    impl_->built.store(true, std::memory_order_release);
+  });
+}
+
+double EmbreeScene::build_seconds() const { return impl_->build_seconds; }
+
+void EmbreeScene::BuildScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, size_t cells,
+                             BvhQuality quality) {
   Stopwatch watch;
+  // What a failed earlier attempt (a deferred build is retried) left.
+  if (impl_->scene != nullptr) rtcReleaseScene(std::exchange(impl_->scene, nullptr));
+  if (impl_->device != nullptr) rtcReleaseDevice(std::exchange(impl_->device, nullptr));
+  impl_->heightfield.reset();
+  impl_->heightfield_geometry = impl_->mesh_geometry = RTC_INVALID_GEOMETRY_ID;
   impl_->device = rtcNewDevice(nullptr);
   if (impl_->device == nullptr) throw Error("cannot create Embree device", "ray tracer");
   rtcSetDeviceErrorFunction(impl_->device, OnEmbreeError, nullptr);
   impl_->scene = rtcNewScene(impl_->device);
   // The terrain grid as a height field: a user geometry over its tiles.
   size_t first_mesh_triangle = 0;
-  if (const size_t cells = TerrainGridCells(mesh, grid); cells > 0) {
+  if (cells > 0) {
     impl_->heightfield = std::make_unique<HeightfieldTree>(mesh.vertices.data(), grid.width, grid.height,
                                                            grid.cells.empty() ? nullptr : &grid.cells);
     first_mesh_triangle = cells * 2;
@@ -528,28 +583,25 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& gri
   }
   rtcCommitScene(impl_->scene);
   ThrowIfError(impl_->device, "building the scene");
-  build_seconds_ = watch.ElapsedSeconds();
+  impl_->build_seconds = watch.ElapsedSeconds();
 }
 
-bool EmbreeScene::heightfield() const { return impl_->heightfield != nullptr; }
+bool EmbreeScene::heightfield() const { return impl_->grid_cells > 0; }
 
-int64_t EmbreeScene::heightfield_cells() const {
-  return impl_->heightfield ? int64_t(impl_->heightfield->cell_count()) : 0;
-}
+int64_t EmbreeScene::heightfield_cells() const { return int64_t(impl_->grid_cells); }
 
-int EmbreeScene::heightfield_grid_width() const { return impl_->heightfield ? impl_->heightfield->width() : 0; }
+int EmbreeScene::heightfield_grid_width() const { return impl_->grid_width; }
 
-int EmbreeScene::heightfield_grid_height() const { return impl_->heightfield ? impl_->heightfield->height() : 0; }
+int EmbreeScene::heightfield_grid_height() const { return impl_->grid_height; }
 
-bool EmbreeScene::HeightfieldOnly() const {
-  return impl_->heightfield != nullptr && impl_->mesh_geometry == RTC_INVALID_GEOMETRY_ID;
-}
+bool EmbreeScene::HeightfieldOnly() const { return impl_->heightfield_only; }
 
 EmbreeScene::~EmbreeScene() = default;
 
 std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,
                                              const Eigen::Vector3f& direction, float t_near,
                                              float t_far) const {
+  Build();
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   const float org[3] = {origin.x(), origin.y(), origin.z()};
@@ -563,6 +615,7 @@ std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,
 }
 
 void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const {
+  Build();
   GISSAR_CHECK((reinterpret_cast<uintptr_t>(valid) & 63u) == 0 &&
                (reinterpret_cast<uintptr_t>(&packet) & 63u) == 0);
   RTCIntersectContext context;
@@ -593,6 +646,7 @@ void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coh
 }
 
 void EmbreeScene::Occluded16(const int valid[16], RayPacket16& packet, bool coherent, bool occluded[16]) const {
+  Build();
   GISSAR_CHECK((reinterpret_cast<uintptr_t>(valid) & 63u) == 0 &&
                (reinterpret_cast<uintptr_t>(&packet) & 63u) == 0);
   RTCIntersectContext context;
@@ -613,6 +667,7 @@ void EmbreeScene::Occluded16(const int valid[16], RayPacket16& packet, bool cohe
 
 bool EmbreeScene::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                            float t_near, float t_far) const {
+  Build();
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   const float org[3] = {origin.x(), origin.y(), origin.z()};

@@ -84,7 +84,8 @@ class EmbreeScene {
   // triangles go into an Embree mesh, with `quality` chosen for them. The
   // height field reads the grid's posts in place: `mesh` must outlive the
   // scene and keep its vertices. When the mesh does not start with such a
-  // grid (checked), every triangle goes into the Embree mesh, as above.
+  // grid (checked), every triangle goes into the Embree mesh, as above. A
+  // grid and nothing else is built on the first query (Build).
   EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, BvhQuality quality = BvhQuality::kAuto);
   ~EmbreeScene();
   EmbreeScene(const EmbreeScene&) = delete;
@@ -136,13 +137,20 @@ class EmbreeScene {
   const Eigen::AlignedBox3d& bounds() const { return bounds_; }
   // The quality the BVH was built with (never kAuto).
   BvhQuality quality() const { return quality_; }
-  // Seconds spent building the BVH.
-  double build_seconds() const { return build_seconds_; }
+  // Seconds spent building the BVH (0 until it is built).
+  double build_seconds() const;
+  // Builds what is not built yet: a height field alone (every triangle the
+  // grid's) is built on the first query instead of by the constructor, so a
+  // run whose rays all come from the profile sweep (GridProfileSweep) never
+  // builds it. Queries call it; thread-safe (the first caller builds, the
+  // others wait). Throws what the constructor throws.
+  void Build() const;
 
  private:
+  void BuildScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, size_t cells, BvhQuality quality);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  double build_seconds_ = 0.0;
   BvhQuality quality_ = BvhQuality::kMedium;
   Eigen::AlignedBox3d bounds_;
 };

@@ -13,6 +13,8 @@
 #include <random>
 #include <vector>
 
+#include <tbb/parallel_for.h>
+
 #include "gissar/render/embree_scene.h"
 #include "gissar/render/heightfield.h"
 #include "gissar/scene/triangle_mesh.h"
@@ -455,6 +457,48 @@ TEST(HeightfieldTest, HitsDoNotDependOnTheGridExtent) {
     EXPECT_EQ(Corners(whole, hw->triangle), Corners(part, hp->triangle));
   }
   EXPECT_EQ(hits, int(rays.size()));
+}
+
+// A height field alone is built by its first query, not by its
+// constructor (a run whose rays all come from the profile sweep never builds
+// it): queried first from many threads at once, it is built once and
+// answers as the scene built beforehand does. A scene with other triangles
+// is built at once.
+TEST(HeightfieldTest, AHeightFieldAloneIsBuiltByItsFirstQuery) {
+  constexpr int kPosts = 37;
+  const scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(kPosts, 5), kPosts, kPosts, 25.0);
+  const EmbreeScene triangles(mesh);
+  EXPECT_GT(triangles.build_seconds(), 0.0);
+  const EmbreeScene built(mesh, TerrainGrid{kPosts, kPosts, {}});
+  EXPECT_EQ(built.build_seconds(), 0.0);
+  built.Build();
+  EXPECT_GT(built.build_seconds(), 0.0);
+  const EmbreeScene lazy(mesh, TerrainGrid{kPosts, kPosts, {}});
+  EXPECT_EQ(lazy.build_seconds(), 0.0);
+  EXPECT_TRUE(lazy.heightfield());
+  EXPECT_TRUE(lazy.HeightfieldOnly());
+  EXPECT_EQ(lazy.heightfield_cells(), int64_t(kPosts - 1) * (kPosts - 1));
+  EXPECT_EQ(lazy.heightfield_grid_width(), kPosts);
+  EXPECT_EQ(lazy.heightfield_grid_height(), kPosts);
+  const std::vector<TestRay> rays = RandomRays(mesh, 4000, 17);
+  std::vector<std::optional<RayHit>> hits(rays.size());
+  std::vector<uint8_t> blocked(rays.size(), 0);
+  tbb::parallel_for(size_t(0), rays.size(), [&](size_t i) {
+    hits[i] = lazy.Intersect(rays[i].origin, rays[i].direction, 0.0f, kInf);
+    blocked[i] = lazy.Occluded(rays[i].origin, rays[i].direction, 0.0f, kInf);
+  });
+  EXPECT_GT(lazy.build_seconds(), 0.0);
+  int hit_count = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const auto expected = built.Intersect(rays[i].origin, rays[i].direction, 0.0f, kInf);
+    ASSERT_EQ(hits[i].has_value(), expected.has_value()) << i;
+    EXPECT_EQ(bool(blocked[i]), expected.has_value()) << i;
+    if (!expected) continue;
+    EXPECT_EQ(hits[i]->t, expected->t) << i;
+    EXPECT_EQ(hits[i]->triangle, expected->triangle) << i;
+    ++hit_count;
+  }
+  EXPECT_GT(hit_count, 2000);
 }
 
 // Buildings (ordinary triangles after the grid) in the same scene: hits on

@@ -830,6 +830,9 @@ MaskRayPass::MaskRayPass(const EmbreeScene& embree, const scene::TriangleMesh& m
 }
 
 int64_t MaskRayPass::Run() {
+  // A height field built on first use is built here, by this thread with
+  // the whole pool, rather than by the first task that casts a ray.
+  embree_.Build();
   WalkTriangles(WalkGrid());
   return rays_.load();
 }
