@@ -1371,12 +1371,14 @@ class BlockTracer {
   };
 
   void PrepareLines();
-  void FirstBouncesOfSweptLine(int i);
+  void SweptRays(int i, int j_begin, int j_end);
   void TracePacket(int i, int j0);
   bool CastPrimaryRays(const Line& line, int j0, double previous_hit_ground);
   void FindFirstHits(const Line& line, int j0);
   double HighestLaneGround() const;
   void FollowRay(const Line& line, int j0, int k);
+  void WayBack(SurfaceHit& s) const;
+  void ContinueRay(const Line& line, RayState& ray, SurfaceHit s, int bounce);
   Shading ShadeFirstBounce(const Line& line, int j, const RayState& ray, const SurfaceHit& s);
   void TraceSubRays(const Line& line, int j, uint64_t ray_id, double box_cols, double box_rows);
   double SubRayStartGround(const Line& line, int j) const;
@@ -1393,9 +1395,9 @@ class BlockTracer {
   const int block_;
   const int i0_, i1_;      // the block's azimuth lines
   const bool by_profile_;  // incoherent: first-bounce returns go through LineProfiles
-  // One bounce, incoherent, one channel, no contributions: a swept line's
-  // rays are shaded in one pass along the line (FirstBouncesOfSweptLine).
-  const bool first_bounce_lines_;
+  // Incoherent, one channel, no contributions: a swept line's rays are
+  // shaded one by one, without packets (SweptRays).
+  const bool one_pass_lines_;
   Band band_;
   Lanes lanes_;
   int64_t hits_ = 0, sub_rays_ = 0, swept_lines_ = 0;
@@ -1409,8 +1411,8 @@ BlockTracer::BlockTracer(const TracePlan& plan, TraceAccumulator& acc, BlockScra
       i0_(block * plan.rows_per_block),
       i1_(std::min(plan.grid.n_az, i0_ + plan.rows_per_block)),
       by_profile_(!plan.options.coherent),
-      first_bounce_lines_(by_profile_ && plan.sweep && plan.options.max_bounces == 1 && !plan.polarimetric &&
-                          !plan.options.record_contributions) {
+      one_pass_lines_(by_profile_ && plan.sweep && plan.options.one_pass_swept_lines && !plan.polarimetric &&
+                      !plan.options.record_contributions) {
   band_.planes = plan.planes;
   band_.row0 = plan.BandRow0(block);
   band_.rows = plan.BandRows(block);
@@ -1422,15 +1424,16 @@ BlockTracer::BlockTracer(const TracePlan& plan, TraceAccumulator& acc, BlockScra
 
 void BlockTracer::Run() {
   PrepareLines();
-  // Swept lines first when they take the one-pass path (a line's returns
-  // go only into its own range profile, in the same order either way).
-  const auto one_pass = [&](int i) { return first_bounce_lines_ && scratch_.swept.swept[size_t(i - i0_)] != 0; };
-  for (int i = i0_; i < i1_; ++i) {
-    if (one_pass(i)) FirstBouncesOfSweptLine(i);
-  }
+  // A swept line's rays go without packets when they can
+  // (SweptRays), in the packets' order: every return lands in the same
+  // order either way.
   for (int j0 = 0; j0 < plan_.grid.n_el; j0 += 16) {
     for (int i = i0_; i < i1_; ++i) {
-      if (!one_pass(i)) TracePacket(i, j0);
+      if (one_pass_lines_ && scratch_.swept.swept[size_t(i - i0_)] != 0) {
+        SweptRays(i, j0, std::min(j0 + 16, plan_.grid.n_el));
+      } else {
+        TracePacket(i, j0);
+      }
     }
   }
   FlushProfiles();
@@ -1475,12 +1478,14 @@ void BlockTracer::PrepareLines() {
   for (const uint8_t swept : s.swept) swept_lines_ += swept;
 }
 
-// Every primary ray of swept line i, one after the other, when only first
-// bounces are returned into range profiles (first_bounce_lines_): the
-// arithmetic of CastPrimaryRays, FindFirstHits, FollowRay's first bounce,
-// ShadeFirstBounce and Emit in the same order (the same returns, bit for
-// bit) without the packet's lanes, the mirror ray or the return's row.
-void BlockTracer::FirstBouncesOfSweptLine(int i) {
+// Rays [j_begin, j_end) of swept line i, one after the other, without a
+// packet (one_pass_lines_): the arithmetic of CastPrimaryRays,
+// FindFirstHits, FollowRay's first bounce, ShadeFirstBounce and Emit in the
+// same order (the same returns, bit for bit), without the lanes, and
+// without the first hit's way back to the radar, mirror direction and
+// return row when there is no later bounce (the line's range profile has
+// its row); later bounces as FollowRay's (ContinueRay).
+void BlockTracer::SweptRays(int i, int j_begin, int j_end) {
   const RayGrid& grid = plan_.grid;
   const sensor::SarGeometry& geometry = plan_.geometry;
   const size_t line_index = size_t(i - i0_);
@@ -1488,44 +1493,52 @@ void BlockTracer::FirstBouncesOfSweptLine(int i) {
   const SweptHits& swept_hits = scratch_.swept;
   const size_t at = line_index * grid.n_el;
   const double box_rows = grid.da / geometry.azimuth_spacing_m();
-  for (int j = 0; j < grid.n_el; ++j) {
+  const bool later_bounces = plan_.options.max_bounces > 1;
+  for (int j = j_begin; j < j_end; ++j) {
     const uint32_t triangle = swept_hits.triangle[at + size_t(j)];
     if (triangle == RayPacket16::kNoHit) continue;
-    Vector3d origin, dir;
-    double travelled;  // path length from the sensor, to the origin, then to the hit
-    if (!PrimaryRayAt(geometry, grid, plan_.box, line.a, j, line.sensor, &origin, &dir, &travelled)) continue;
+    RayState ray;
+    if (!PrimaryRayAt(geometry, grid, plan_.box, line.a, j, line.sensor, &ray.origin, &ray.dir, &ray.travelled)) {
+      continue;
+    }
     const double depth = swept_hits.depth[at + size_t(j)];
     // The packet's float distance from the origin (FindFirstHits).
-    const float t = static_cast<float>(plan_.affine ? depth + grid.back_off_m : depth - travelled);
+    const float t = static_cast<float>(plan_.affine ? depth + grid.back_off_m : depth - ray.travelled);
     ++hits_;
-    const Vector3d p = origin + double(t) * dir;
-    travelled += t;
-    const Vector3d normal = swept_hits.normal[at + size_t(j)].cast<double>();
-    const double cos_in = -normal.dot(dir);
-    if (cos_in <= 0.0) continue;  // back face
-    const scene::ClassId class_id = plan_.mesh.classes[triangle];
-    const double area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * travelled;
-    double back;  // path length p -> sensor
-    if (plan_.affine) {
-      back = plan_.range0 + (p - plan_.xc).dot(plan_.l);
+    SurfaceHit s;
+    s.p = ray.origin + double(t) * ray.dir;
+    ray.travelled += t;
+    s.normal = swept_hits.normal[at + size_t(j)].cast<double>();
+    s.cos_in = -s.normal.dot(ray.dir);
+    if (s.cos_in <= 0.0) continue;  // back face
+    s.triangle = triangle;
+    s.class_id = plan_.mesh.classes[triangle];
+    ray.area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * ray.travelled;
+    ray.id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
+    if (later_bounces) {
+      s.material = &plan_.materials.Get(s.class_id);
+      WayBack(s);
+      s.mirror = ray.dir + 2.0 * s.cos_in * s.normal;
+    } else if (plan_.affine) {
+      s.back = plan_.range0 + (s.p - plan_.xc).dot(plan_.l);
     } else {
-      back = (geometry.SensorPosition(geometry.AlongTrack(p)) - p).norm();
+      s.back = (geometry.SensorPosition(geometry.AlongTrack(s.p)) - s.p).norm();
     }
-    const double cos_shade = plan_.ShadingCos(triangle, p, dir, cos_in);
-    const double cos_eff = std::max(cos_in, kMaskEdgeOnCos);
-    const double value = plan_.Sigma0(class_id, cos_shade) * area / cos_eff * plan_.inv_pixel_area;
+    const double cos_shade = plan_.ShadingCos(triangle, s.p, ray.dir, s.cos_in);
+    const double cos_eff = std::max(s.cos_in, kMaskEdgeOnCos);
+    const double value = plan_.Sigma0(s.class_id, cos_shade) * ray.area / cos_eff * plan_.inv_pixel_area;
     const Vector3d v_e = plan_.affine
                              ? Vector3d(plan_.n)
                              : Vector3d(-grid.sin_e[size_t(j)] * plan_.l + grid.cos_e[size_t(j)] * plan_.n);
-    const double s_e = plan_.affine ? grid.de_m : travelled * grid.de;
-    const double box_cols = s_e * std::abs(normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
+    const double s_e = plan_.affine ? grid.de_m : ray.travelled * grid.de;
+    const double box_cols = s_e * std::abs(s.normal.dot(v_e)) / cos_eff / geometry.range_spacing_m();
     if (plan_.options.adaptive_sampling && box_cols > plan_.split_footprint_px) {
-      TraceSubRays(line, j, uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j), box_cols, box_rows);
-      continue;
+      TraceSubRays(line, j, ray.id, box_cols, box_rows);
+    } else if (value > 0.0) {
+      scratch_.profiles.Add(int(line_index), geometry.ColumnOfRange(0.5 * (ray.travelled + s.back)), box_cols,
+                            value);
     }
-    if (value > 0.0) {
-      scratch_.profiles.Add(int(line_index), geometry.ColumnOfRange(0.5 * (travelled + back)), box_cols, value);
-    }
+    if (later_bounces) ContinueRay(line, ray, s, 1);
   }
 }
 
@@ -1646,8 +1659,6 @@ double BlockTracer::HighestLaneGround() const {
 // a miss or a back face (blocked).
 void BlockTracer::FollowRay(const Line& line, int j0, int k) {
   const RayGrid& grid = plan_.grid;
-  const sensor::SarGeometry& geometry = plan_.geometry;
-  const scene::TriangleMesh& mesh = plan_.mesh;
   const int j = j0 + k;
   RayState ray;
   ray.origin = lanes_.origin[k];
@@ -1655,46 +1666,79 @@ void BlockTracer::FollowRay(const Line& line, int j0, int k) {
   ray.travelled = lanes_.travelled[k];
   ray.id = uint64_t(line.i) * uint64_t(grid.n_el) + uint64_t(j);
   if (plan_.polarimetric) ray.field = TransmitField(ray.dir);
-  for (int bounce = 1; bounce <= plan_.options.max_bounces; ++bounce) {
-    const auto hit = bounce == 1 ? std::optional<RayHit>(RayHit{lanes_.packet.tfar[k], lanes_.packet.triangle[k]})
-                                 : plan_.embree.Intersect(ray.origin.cast<float>(), ray.dir.cast<float>(), plan_.eps,
-                                                          std::numeric_limits<float>::infinity());
-    if (!hit) break;
-    if (bounce == 1) ++hits_;
-    SurfaceHit s;
+  // The first hit, from the packet.
+  const float t = lanes_.packet.tfar[k];
+  ++hits_;
+  SurfaceHit s;
+  s.p = ray.origin + double(t) * ray.dir;
+  ray.travelled += t;
+  s.normal = lanes_.normal[k].cast<double>();
+  s.cos_in = -s.normal.dot(ray.dir);
+  if (s.cos_in <= 0.0) return;  // back face: blocked
+  s.triangle = lanes_.packet.triangle[k];
+  s.class_id = lanes_.class_id[k];
+  s.material = &plan_.materials.Get(s.class_id);
+  // Beam cross-section: constant in affine mode, growing with range in
+  // exact mode (constant angular spacing).
+  ray.area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * ray.travelled;
+  WayBack(s);
+  s.mirror = ray.dir + 2.0 * s.cos_in * s.normal;
+  const Shading shading = ShadeFirstBounce(line, j, ray, s);
+  if (shading.value > 0.0) {
+    Emit(Return{shading.value, 0.5 * (ray.travelled + s.back), 0.5 * (line.a + s.along), shading.box_cols,
+                shading.box_rows, 1, 1, s.p, s.class_id, shading.specular_part > shading.diffuse_part,
+                plan_.polarimetric ? &shading.terms : nullptr},
+         line.i, ray.id);
+  }
+  ContinueRay(line, ray, s, 1);
+}
+
+// Hit `s` (its point set): its along-track coordinate, the way back to the
+// radar (unit direction and length) and the mirror direction.
+void BlockTracer::WayBack(SurfaceHit& s) const {
+  const sensor::SarGeometry& geometry = plan_.geometry;
+  s.along = geometry.AlongTrack(s.p);
+  if (plan_.affine) {
+    s.to_radar = -plan_.l;
+    s.back = plan_.range0 + (s.p - plan_.xc).dot(plan_.l);
+  } else {
+    // One square root for both (Eigen's normalized() divides by the same
+    // norm: the same values).
+    const Vector3d to_sensor = geometry.SensorPosition(s.along) - s.p;
+    s.back = to_sensor.norm();
+    s.to_radar = s.back > 0.0 ? Vector3d(to_sensor / s.back) : to_sensor;
+  }
+}
+
+// `ray`, whose bounce `bounce` met `s` (its return emitted, its mirror
+// direction set), on as the mirror ray through the later bounces up to
+// max_bounces: at each hit facing the ray, its return, while its share of
+// the power stays at or above 1e-9. Stops at a miss or a back face.
+void BlockTracer::ContinueRay(const Line& line, RayState& ray, SurfaceHit s, int bounce) {
+  const scene::TriangleMesh& mesh = plan_.mesh;
+  while (bounce < plan_.options.max_bounces) {
+    if (!Reflect(ray, s)) return;
+    ++bounce;
+    const auto hit = plan_.embree.Intersect(ray.origin.cast<float>(), ray.dir.cast<float>(), plan_.eps,
+                                            std::numeric_limits<float>::infinity());
+    if (!hit) return;
     s.p = ray.origin + double(hit->t) * ray.dir;
     ray.travelled += hit->t;
-    s.normal = (bounce == 1 ? lanes_.normal[k] : mesh.Normal(hit->triangle)).cast<double>();
+    s.normal = mesh.Normal(hit->triangle).cast<double>();
     s.cos_in = -s.normal.dot(ray.dir);
-    if (s.cos_in <= 0.0) break;  // back face: blocked
+    if (s.cos_in <= 0.0) return;  // back face: blocked
     s.triangle = hit->triangle;
-    s.class_id = bounce == 1 ? lanes_.class_id[k] : mesh.classes[hit->triangle];
+    s.class_id = mesh.classes[hit->triangle];
     s.material = &plan_.materials.Get(s.class_id);
-    // Beam cross-section: constant in affine mode, growing with range in
-    // exact mode (constant angular spacing).
-    if (bounce == 1) ray.area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * ray.travelled;
-    // Return to the radar from p.
-    s.along = geometry.AlongTrack(s.p);
-    if (plan_.affine) {
-      s.to_radar = -plan_.l;
-      s.back = plan_.range0 + (s.p - plan_.xc).dot(plan_.l);
-    } else {
-      // One square root for both (Eigen's normalized() divides by the same
-      // norm: the same values).
-      const Vector3d to_sensor = geometry.SensorPosition(s.along) - s.p;
-      s.back = to_sensor.norm();
-      s.to_radar = s.back > 0.0 ? Vector3d(to_sensor / s.back) : to_sensor;
-    }
+    WayBack(s);
     s.mirror = ray.dir + 2.0 * s.cos_in * s.normal;
-    const Shading shading = bounce == 1 ? ShadeFirstBounce(line, j, ray, s) : ShadeLaterBounce(ray, s);
+    const Shading shading = ShadeLaterBounce(ray, s);
     if (shading.value > 0.0) {
       Emit(Return{shading.value, 0.5 * (ray.travelled + s.back), 0.5 * (line.a + s.along), shading.box_cols,
                   shading.box_rows, bounce, bounce, s.p, s.class_id, shading.specular_part > shading.diffuse_part,
                   plan_.polarimetric ? &shading.terms : nullptr},
            line.i, ray.id);
     }
-    if (bounce == plan_.options.max_bounces) break;  // no mirror ray to follow
-    if (!Reflect(ray, s)) break;
   }
 }
 

@@ -118,6 +118,11 @@ struct RenderOptions {
   // one hit and spreads its return over the footprint (fixed sampling: the
   // rays traced are exactly the ray grid's).
   bool adaptive_sampling = true;
+  // Incoherent, one channel, no recorded contributions: a swept line's rays
+  // are shaded one by one instead of in the 16-lane packets built for
+  // Embree, in the same order with the same arithmetic (the same image, bit
+  // for bit). False keeps the packets (for comparison).
+  bool one_pass_swept_lines = true;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;

@@ -624,12 +624,12 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
   std::printf("mask pixels flagged %lld, differing %lld\n", (long long)flagged, (long long)differing);
 }
 
-// With one bounce (incoherent, no contributions) a swept line's rays are
-// shaded in one pass along the line instead of in packets of 16; with
-// three the packets return the same first bounces. Both give the first-bounce
-// layer bit for bit, with the same hits and sub-rays (those met on the
-// profile's frontiers), in both modes and with or without adaptive sampling.
-TEST(SarRendererTest, OnePassFirstBouncesAreThePacketsBitForBit) {
+// A swept line's rays shaded one by one (RenderOptions::one_pass_swept_lines)
+// give the image of the 16-lane packets bit for bit, every plane, with the
+// same hits and sub-rays (those met on the profile's frontiers): one and
+// three bounces (the mirror rays traced on from the one-pass hits), both
+// modes, with and without adaptive sampling.
+TEST(SarRendererTest, OnePassSweptLinesAreThePacketsBitForBit) {
   constexpr int kPosts = 90;
   const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
   std::vector<Vector3f> posts;
@@ -640,32 +640,44 @@ TEST(SarRendererTest, OnePassFirstBouncesAreThePacketsBitForBit) {
     }
   }
   const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
-  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
+  // Half Lambertian, half the smooth-surface reflection going on as a mirror
+  // ray: the ridge's slopes return later bounces.
+  material::MaterialTable materials;
+  materials.Set(0, material::Material{"partly_mirror", 0.5, 0.0, 1.0, 0.5});
+  int64_t later_bounce_pixels = 0;
   for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
-    for (const bool adaptive : {true, false}) {
-      const auto g = RidgeGeometry(mode, sensor::LookSide::kRight, 30.0, mesh.vertices);
-      RenderOptions options = Quiet(4.0);
-      options.adaptive_sampling = adaptive;
-      options.max_bounces = 1;
-      const SarImage one_pass = RenderSar(heightfield, mesh, UnitLambert(), g, options);
-      options.max_bounces = 3;
-      const SarImage packets = RenderSar(heightfield, mesh, UnitLambert(), g, options);
-      ASSERT_EQ(one_pass.stats.profile_swept_lines, packets.stats.profile_swept_lines);
-      EXPECT_GT(one_pass.stats.profile_swept_lines, 0);
-      EXPECT_EQ(one_pass.stats.hits, packets.stats.hits);
-      EXPECT_EQ(one_pass.stats.sub_rays, packets.stats.sub_rays);
-      if (adaptive) EXPECT_GT(one_pass.stats.sub_rays, 0);
-      ASSERT_EQ(one_pass.bounce_layers[0].size(), packets.bounce_layers[0].size());
-      int64_t lit = 0;
-      for (size_t q = 0; q < one_pass.bounce_layers[0].size(); ++q) {
-        ASSERT_EQ(one_pass.bounce_layers[0][q], packets.bounce_layers[0][q]) << "pixel " << q;
-        lit += one_pass.bounce_layers[0][q] > 0.0f;
+    for (const int bounces : {1, 3}) {
+      for (const bool adaptive : {true, false}) {
+        const auto g = RidgeGeometry(mode, sensor::LookSide::kRight, 30.0, mesh.vertices);
+        RenderOptions options = Quiet(4.0);
+        options.adaptive_sampling = adaptive;
+        options.max_bounces = bounces;
+        const SarImage one_pass = RenderSar(heightfield, mesh, materials, g, options);
+        options.one_pass_swept_lines = false;
+        const SarImage packets = RenderSar(heightfield, mesh, materials, g, options);
+        ASSERT_EQ(one_pass.stats.profile_swept_lines, packets.stats.profile_swept_lines);
+        EXPECT_GT(one_pass.stats.profile_swept_lines, 0);
+        EXPECT_EQ(one_pass.stats.hits, packets.stats.hits);
+        EXPECT_EQ(one_pass.stats.sub_rays, packets.stats.sub_rays);
+        if (adaptive) EXPECT_GT(one_pass.stats.sub_rays, 0);
+        ASSERT_EQ(one_pass.intensity.size(), packets.intensity.size());
+        int64_t lit = 0;
+        for (size_t q = 0; q < one_pass.intensity.size(); ++q) {
+          ASSERT_EQ(one_pass.intensity[q], packets.intensity[q]) << "pixel " << q;
+          lit += one_pass.intensity[q] > 0.0f;
+        }
+        EXPECT_GT(lit, 10000);
+        for (size_t layer = 0; layer < one_pass.bounce_layers.size(); ++layer) {
+          ASSERT_EQ(one_pass.bounce_layers[layer], packets.bounce_layers[layer]) << "layer " << layer;
+          if (layer == 0) continue;
+          for (const float v : one_pass.bounce_layers[layer]) later_bounce_pixels += v > 0.0f;
+        }
       }
-      EXPECT_GT(lit, 10000);
-      // One bounce: the total is its first-bounce layer.
-      EXPECT_EQ(one_pass.intensity, one_pass.bounce_layers[0]);
     }
   }
+  // The ridge's slopes return later bounces too.
+  EXPECT_GT(later_bounce_pixels, 100);
 }
 
 // A grid whose first row of posts zigzags along track: the azimuth lines
