@@ -1424,15 +1424,32 @@ BlockTracer::BlockTracer(const TracePlan& plan, TraceAccumulator& acc, BlockScra
 
 void BlockTracer::Run() {
   PrepareLines();
-  // A swept line's rays go without packets when they can
-  // (SweptRays), in the packets' order: every return lands in the same
-  // order either way.
-  for (int j0 = 0; j0 < plan_.grid.n_el; j0 += 16) {
+  // A swept line's rays go without packets when they can (SweptRays).
+  const auto one_pass = [&](int i) { return one_pass_lines_ && scratch_.swept.swept[size_t(i - i0_)] != 0; };
+  const int n_el = plan_.grid.n_el;
+  if (one_pass_lines_ && plan_.options.max_bounces == 1) {
+    // One bounce: every return goes into its own line's range profile, so
+    // a swept line's rays go all at once (its data stays in cache), the
+    // other lines' in packets: the same sums either way.
     for (int i = i0_; i < i1_; ++i) {
-      if (one_pass_lines_ && scratch_.swept.swept[size_t(i - i0_)] != 0) {
-        SweptRays(i, j0, std::min(j0 + 16, plan_.grid.n_el));
-      } else {
-        TracePacket(i, j0);
+      if (one_pass(i)) SweptRays(i, 0, n_el);
+    }
+    for (int j0 = 0; j0 < n_el; j0 += 16) {
+      for (int i = i0_; i < i1_; ++i) {
+        if (!one_pass(i)) TracePacket(i, j0);
+      }
+    }
+  } else {
+    // Later bounces land in the band shared by the block's lines: in the
+    // packets' order (packet row, then line), so that every pixel sums its
+    // returns in the same order either way.
+    for (int j0 = 0; j0 < n_el; j0 += 16) {
+      for (int i = i0_; i < i1_; ++i) {
+        if (one_pass(i)) {
+          SweptRays(i, j0, std::min(j0 + 16, n_el));
+        } else {
+          TracePacket(i, j0);
+        }
       }
     }
   }
