@@ -96,7 +96,7 @@ TEST(InterruptTest, SignalWhileTracingLeavesNothing) {
   for (int sig : {SIGINT, SIGTERM}) {
     const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
     // About 5 million rays: seconds of tracing, with progress lines.
-    const pid_t pid = StartSimulate(out, logs / "stderr", Job{"32", "30", false, false});
+    const pid_t pid = StartSimulate(out, logs / "stderr", Job{"32", "30", false, false, ""});
     ASSERT_GT(pid, 0);
     const bool tracing = WaitFor(pid, [&] {
       return ReadText(logs / "stderr").find("simulate: tracing: 20%") != std::string::npos;
@@ -113,7 +113,7 @@ TEST(InterruptTest, SignalWhileWritingRemovesPartialFiles) {
   const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
   // Some 600,000 returns: a CSV of tens of MB, written first, under a
   // temporary name.
-  const pid_t pid = StartSimulate(out, logs / "stderr", Job{"4", "30", true, true});
+  const pid_t pid = StartSimulate(out, logs / "stderr", Job{"4", "30", true, true, ""});
   ASSERT_GT(pid, 0);
   const bool writing = WaitFor(pid, [&] {
     for (const auto& e : fs::directory_iterator(out)) {
@@ -134,7 +134,7 @@ TEST(InterruptTest, SignalWhileWritingRemovesPartialFiles) {
 
 TEST(InterruptTest, UninterruptedRunCommitsEveryOutput) {
   const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
-  const pid_t pid = StartSimulate(out, logs / "stderr", Job{"1", "60", true, true});
+  const pid_t pid = StartSimulate(out, logs / "stderr", Job{"1", "60", true, true, ""});
   int status = 0;
   waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
@@ -159,7 +159,7 @@ int RunToEnd(pid_t pid) {
 
 TEST(InterruptTest, SignalDuringTheFinalCommitKeepsTheEarlierRun) {
   const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
-  Job job{"1", "60", true, true};
+  Job job{"1", "60", true, true, ""};
   const int first = RunToEnd(StartSimulate(out, logs / "first", job));
   ASSERT_TRUE(WIFEXITED(first) && WEXITSTATUS(first) == 0) << ReadText(logs / "first");
   const std::map<std::string, std::string> before = Snapshot(out);
@@ -183,7 +183,7 @@ TEST(InterruptTest, SignalDuringTheFinalCommitKeepsTheEarlierRun) {
 
 TEST(InterruptTest, ASecondRunOnTheSameOutFailsAtOnce) {
   const fs::path out = gissar::testing::MakeTempDir(), logs = gissar::testing::MakeTempDir();
-  Job job{"1", "60", true, true};
+  Job job{"1", "60", true, true, ""};
   const fs::path marker = logs / "paused";
   job.commit_pause = "written:" + marker.string();
   const pid_t first = StartSimulate(out, logs / "first", job);

@@ -164,7 +164,6 @@ struct EmbreeScene::Impl {
   // inputs of the build are kept here (the mesh must outlive the scene).
   const scene::TriangleMesh* pending_mesh = nullptr;
   TerrainGrid pending_grid;
-  BvhQuality pending_quality = BvhQuality::kAuto;
   tbb::collaborative_once_flag once;
   std::atomic<bool> built{false};
   double build_seconds = 0.0;
@@ -444,13 +443,13 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& gri
     impl_->grid_cells = cells;
   }
   // Every triangle is the grid's: a height field alone, built on the first
-  // query (the quality the build would pick: no other triangles, medium).
+  // query with quality_ (the one the build would pick now: no other
+  // triangles, medium).
   impl_->heightfield_only = cells > 0 && 2 * cells == mesh.triangle_count();
   if (impl_->heightfield_only) {
     quality_ = quality == BvhQuality::kAuto ? BvhQuality::kMedium : quality;
     impl_->pending_mesh = &mesh;
     impl_->pending_grid = grid;
-    impl_->pending_quality = quality;
     return;
   }
   BuildScene(mesh, grid, cells, quality);
@@ -462,8 +461,8 @@ void EmbreeScene::Build() const {
   // The threads that query meanwhile wait by taking part in the build's
   // parallel loops (and in nothing else of their callers').
   tbb::collaborative_call_once(impl_->once, [&] {
-    const_cast<EmbreeScene*>(this)->BuildScene(*impl_->pending_mesh, impl_->pending_grid, impl_->grid_cells,
-                                                 impl_->pending_quality);
+    auto* scene = const_cast<EmbreeScene*>(this);
+    scene->BuildScene(*impl_->pending_mesh, impl_->pending_grid, impl_->grid_cells, quality_);
     impl_->built.store(true, std::memory_order_release);
   });
 }

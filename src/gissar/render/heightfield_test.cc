@@ -155,7 +155,7 @@ int ExactMismatches(const EmbreeScene& scene, const scene::TriangleMesh& mesh, c
 TEST(HeightfieldTest, HitsAreTheExactFirstHitsAndEmbreesTriangles) {
   constexpr int kPosts = 37;  // 3 x 3 tiles, the last ones partial
   const scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(kPosts, 3), kPosts, kPosts, 25.0);
-  const EmbreeScene triangles(mesh), heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene triangles(mesh), heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
   EXPECT_FALSE(triangles.heightfield());
   ASSERT_TRUE(heightfield.heightfield());
   const std::vector<TestRay> rays = RandomRays(mesh, 6000, 11);
@@ -288,7 +288,9 @@ TEST(HeightfieldTest, HolesAreTracedThroughTheRestOfTheMesh) {
       const auto single = heightfield.Intersect(rays[first + k].origin, rays[first + k].direction, 0.0f, kInf);
       ++compared;
       ASSERT_EQ(single.has_value(), packet.triangle[k] != RayPacket16::kNoHit) << "ray " << first + k;
-      if (single) EXPECT_EQ(single->triangle, packet.triangle[k]) << "ray " << first + k;
+      if (single) {
+        EXPECT_EQ(single->triangle, packet.triangle[k]) << "ray " << first + k;
+      }
     }
   }
   EXPECT_GT(compared, 5000);
@@ -300,7 +302,7 @@ TEST(HeightfieldTest, HolesAreTracedThroughTheRestOfTheMesh) {
 TEST(HeightfieldTest, PacketHitsEqualSingleRayHits) {
   constexpr int kPosts = 65;
   const scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(kPosts, 13), kPosts, kPosts, 20.0);
-  const EmbreeScene scene(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene scene(mesh, TerrainGrid{kPosts, kPosts, {}});
   ASSERT_TRUE(scene.heightfield());
   std::vector<TestRay> rays = RandomRays(mesh, 4000, 5);
   // Coherent packets: rows of 16 parallel rays over neighbouring posts.
@@ -343,7 +345,7 @@ TEST(HeightfieldTest, PacketHitsEqualSingleRayHits) {
 TEST(HeightfieldTest, PacketOcclusionEqualsSingleRayOcclusion) {
   constexpr int kPosts = 65;
   const scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(kPosts, 17), kPosts, kPosts, 20.0);
-  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts}), triangles(mesh);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}}), triangles(mesh);
   ASSERT_TRUE(heightfield.heightfield());
   std::vector<TestRay> rays = RandomRays(mesh, 3000, 9);
   std::vector<float> t_near(rays.size(), 0.0f), t_far(rays.size());
@@ -396,7 +398,7 @@ TEST(HeightfieldTest, PacketOcclusionEqualsSingleRayOcclusion) {
 TEST(HeightfieldTest, RaysThroughEdgesAndPostsDoNotSlipThrough) {
   constexpr int kPosts = 48;
   const scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(kPosts, 5), kPosts, kPosts, 30.0);
-  const EmbreeScene scene(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene scene(mesh, TerrainGrid{kPosts, kPosts, {}});
   ASSERT_TRUE(scene.heightfield());
   for (const bool oblique : {true, false}) {
     const std::vector<TestRay> rays = RaysAtEdges(mesh, kPosts, oblique);
@@ -432,7 +434,8 @@ TEST(HeightfieldTest, HitsDoNotDependOnTheGridExtent) {
   const scene::TriangleMesh whole = scene::MeshFromHeights(heights, kPosts, kPosts, kSpacing);
   const scene::TriangleMesh part =
       scene::MeshFromHeights(window, kWindow, kWindow, kSpacing, kOffset * kSpacing, kOffset * kSpacing);
-  const EmbreeScene scene_whole(whole, TerrainGrid{kPosts, kPosts}), scene_part(part, TerrainGrid{kWindow, kWindow});
+  const EmbreeScene scene_whole(whole, TerrainGrid{kPosts, kPosts, {}});
+  const EmbreeScene scene_part(part, TerrainGrid{kWindow, kWindow, {}});
   // Rays aimed at the window's inner posts and edges, steep enough to stay
   // inside it.
   std::vector<TestRay> rays;
@@ -513,7 +516,7 @@ TEST(HeightfieldTest, OtherTrianglesShareTheScene) {
   mesh.AddQuad(a + up, b + up, c + up, d + up, 3);              // roof
   mesh.AddQuad(a, b, b + up, a + up, 3);                        // south wall
   mesh.AddQuad(b, c, c + up, b + up, 3);                        // east wall
-  const EmbreeScene triangles(mesh), heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene triangles(mesh), heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
   ASSERT_TRUE(heightfield.heightfield());
   const std::vector<TestRay> rays = RandomRays(mesh, 5000, 4);
   EXPECT_EQ(ExactMismatches(heightfield, mesh, rays), 0);
@@ -545,7 +548,7 @@ TEST(HeightfieldTest, CurvedGridsAndMissingPostsMatchEmbree) {
   }
   posts[size_t(20) * kPosts + 33].z() = std::numeric_limits<float>::quiet_NaN();
   const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
-  const EmbreeScene triangles(mesh), heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene triangles(mesh), heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
   ASSERT_TRUE(heightfield.heightfield());
   const std::vector<TestRay> rays = RandomRays(mesh, 5000, 8);
   EXPECT_EQ(ExactMismatches(heightfield, mesh, rays), 0);
@@ -576,7 +579,7 @@ TEST(HeightfieldTest, AnImplicitGridIsTracedLikeItsStoredTriangles) {
   const std::vector<TestRay> rays = RandomRays(stored, 4000, 12);
   for (const bool as_heightfield : {true, false}) {
     SCOPED_TRACE(as_heightfield ? "height field" : "Embree triangles");
-    const TerrainGrid grid = as_heightfield ? TerrainGrid{kPosts, kPosts} : TerrainGrid{};
+    const TerrainGrid grid = as_heightfield ? TerrainGrid{kPosts, kPosts, {}} : TerrainGrid{};
     const EmbreeScene from_stored(stored, grid), from_implicit(implicit, grid);
     EXPECT_EQ(from_implicit.heightfield(), as_heightfield);
     int hits = 0;
@@ -598,8 +601,8 @@ TEST(HeightfieldTest, AnImplicitGridIsTracedLikeItsStoredTriangles) {
 TEST(HeightfieldTest, AMeshThatIsNotTheStatedGridIsTracedAsTriangles) {
   scene::TriangleMesh mesh = scene::MeshFromHeights(RoughHeights(10, 1), 10, 10, 10.0);
   std::swap(mesh.triangles[4], mesh.triangles[5]);
-  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{10, 10}).heightfield());
-  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{9, 11}).heightfield());
+  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{10, 10, {}}).heightfield());
+  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{9, 11, {}}).heightfield());
 }
 
 // The index: the children of every node above the cells, 96 bytes per four

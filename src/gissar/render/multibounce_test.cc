@@ -182,7 +182,9 @@ TEST(MultiBounceTest, ContributionsMatchTheImage) {
   double per_bounce[3] = {0, 0, 0};
   for (const Contribution& c : image.contributions) {
     per_bounce[std::min<int>(c.bounces, 3) - 1] += c.intensity;
-    if (c.bounces == 2) EXPECT_NEAR(c.range_m, g.SlantRange(Vector3d(xw, 0, 0)), 1e-3);
+    if (c.bounces == 2) {
+      EXPECT_NEAR(c.range_m, g.SlantRange(Vector3d(xw, 0, 0)), 1e-3);
+    }
   }
   for (int b = 0; b < 2; ++b) {
     const double image_sum = std::accumulate(image.bounce_layers[b].begin(), image.bounce_layers[b].end(), 0.0);

@@ -303,7 +303,9 @@ TEST(GridProfileSweepTest, RefusesLinesThatCrossTheGridTwice) {
       const auto hit = embree.Intersect(origin.cast<float>(), g.look_direction().cast<float>(), 0.0f,
                                         std::numeric_limits<float>::infinity());
       ASSERT_EQ(hit.has_value(), tri[j] != GridProfileSweep::kNoHit) << a << " " << j;
-      if (hit) EXPECT_NEAR(double(hit->t) - 3000.0, depth[j], 0.01);
+      if (hit) {
+        EXPECT_NEAR(double(hit->t) - 3000.0, depth[j], 0.01);
+      }
     }
   }
   EXPECT_GT(refused, 50);

@@ -442,7 +442,7 @@ TEST(RasterRendererTest, TriangleClassesSelectTheMaterialOfEachHalfCell) {
     const double flat = std::sin(40 * kDeg) * Calibrated(40 * kDeg);
     SCOPED_TRACE("heading " + std::to_string(heading));
     // Cell with corner (0, 0) and cell with corner (-40, 20).
-    for (const Eigen::Vector2d corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(-40, 20)}) {
+    for (const Eigen::Vector2d& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(-40, 20)}) {
       // (The sub-triangle sampling leaves a ripple of a few percent.)
       EXPECT_NEAR(mean(corner.x() + 20.0 / 3, corner.y() + 20.0 / 3), 0.25 * flat, 0.05 * flat);
       EXPECT_NEAR(mean(corner.x() + 40.0 / 3, corner.y() + 40.0 / 3), flat, 0.05 * flat);

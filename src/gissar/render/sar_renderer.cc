@@ -1377,7 +1377,7 @@ class BlockTracer {
   void FindFirstHits(const Line& line, int j0);
   double HighestLaneGround() const;
   void FollowRay(const Line& line, int j0, int k);
-  void WayBack(SurfaceHit& s) const;
+  void WayBack(SurfaceHit& s, bool with_direction = true) const;
   void ContinueRay(const Line& line, RayState& ray, SurfaceHit s, int bounce);
   Shading ShadeFirstBounce(const Line& line, int j, const RayState& ray, const SurfaceHit& s);
   void TraceSubRays(const Line& line, int j, uint64_t ray_id, double box_cols, double box_rows);
@@ -1499,7 +1499,7 @@ void BlockTracer::PrepareLines() {
 // packet (one_pass_lines_): the arithmetic of CastPrimaryRays,
 // FindFirstHits, FollowRay's first bounce, ShadeFirstBounce and Emit in the
 // same order (the same returns, bit for bit), without the lanes, and
-// without the first hit's way back to the radar, mirror direction and
+// without the direction of the first hit's way back, its mirror direction and
 // return row when there is no later bounce (the line's range profile has
 // its row); later bounces as FollowRay's (ContinueRay).
 void BlockTracer::SweptRays(int i, int j_begin, int j_end) {
@@ -1532,14 +1532,10 @@ void BlockTracer::SweptRays(int i, int j_begin, int j_end) {
     s.class_id = plan_.mesh.classes[triangle];
     ray.area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * ray.travelled;
     ray.id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
+    WayBack(s, /*with_direction=*/later_bounces);
     if (later_bounces) {
       s.material = &plan_.materials.Get(s.class_id);
-      WayBack(s);
       s.mirror = ray.dir + 2.0 * s.cos_in * s.normal;
-    } else if (plan_.affine) {
-      s.back = plan_.range0 + (s.p - plan_.xc).dot(plan_.l);
-    } else {
-      s.back = (geometry.SensorPosition(geometry.AlongTrack(s.p)) - s.p).norm();
     }
     const double cos_shade = plan_.ShadingCos(triangle, s.p, ray.dir, s.cos_in);
     const double cos_eff = std::max(s.cos_in, kMaskEdgeOnCos);
@@ -1710,20 +1706,21 @@ void BlockTracer::FollowRay(const Line& line, int j0, int k) {
   ContinueRay(line, ray, s, 1);
 }
 
-// Hit `s` (its point set): its along-track coordinate, the way back to the
-// radar (unit direction and length) and the mirror direction.
-void BlockTracer::WayBack(SurfaceHit& s) const {
+// Hit `s` (its point set): its along-track coordinate and the length of
+// the way back to the radar, with its unit direction when `with_direction`
+// (a later bounce needs it; a first bounce with none after it does not).
+void BlockTracer::WayBack(SurfaceHit& s, bool with_direction) const {
   const sensor::SarGeometry& geometry = plan_.geometry;
   s.along = geometry.AlongTrack(s.p);
   if (plan_.affine) {
-    s.to_radar = -plan_.l;
+    if (with_direction) s.to_radar = -plan_.l;
     s.back = plan_.range0 + (s.p - plan_.xc).dot(plan_.l);
   } else {
     // One square root for both (Eigen's normalized() divides by the same
     // norm: the same values).
     const Vector3d to_sensor = geometry.SensorPosition(s.along) - s.p;
     s.back = to_sensor.norm();
-    s.to_radar = s.back > 0.0 ? Vector3d(to_sensor / s.back) : to_sensor;
+    if (with_direction) s.to_radar = s.back > 0.0 ? Vector3d(to_sensor / s.back) : to_sensor;
   }
 }
 

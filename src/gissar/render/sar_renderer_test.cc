@@ -40,6 +40,22 @@ std::vector<float> SteepRidgeHeights(int posts, double step_m) {
   return heights;
 }
 
+// The steep ridge (SteepRidgeHeights, 7 m steps) on a 90 x 90 grid whose
+// posts are sheared and rotated in plan as a geographic DEM's are in ENU,
+// with `bend_per_row2_m` bending the rows (x += bend * (r - 45)^2).
+std::vector<Vector3f> WarpedRidgePosts(double bend_per_row2_m) {
+  constexpr int kPosts = 90;
+  const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
+  std::vector<Vector3f> posts;
+  for (int r = 0; r < kPosts; ++r) {
+    for (int c = 0; c < kPosts; ++c) {
+      posts.emplace_back(float(10.0 * (c - 45) + 0.7 * (r - 45) + bend_per_row2_m * (r - 45) * (r - 45)),
+                         float(9.0 * (r - 45) - 0.4 * (c - 45)), heights[size_t(r) * kPosts + c]);
+    }
+  }
+  return posts;
+}
+
 // The steep-ridge tests' view of `mesh`: depression 40 degrees, 5 m pixels,
 // 5 km slant range, covering the mesh.
 sensor::SarGeometry RidgeGeometry(sensor::ProjectionMode mode, sensor::LookSide side, double heading,
@@ -343,7 +359,7 @@ TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
   constexpr int kPosts = 90;
   const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
   scene::TriangleMesh mesh = scene::MeshFromHeights(heights, kPosts, kPosts, 10.0, -445.0, -445.0);
-  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
   ASSERT_TRUE(heightfield.HeightfieldOnly());
   int64_t shadow = 0, layover = 0;
   for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
@@ -378,7 +394,7 @@ TEST(SarRendererTest, PrimaryRaysSkippingToThePreviousHitChangeNoBit) {
   EXPECT_GT(shadow, 500);  // the terrain does cast shadows and lay over
   EXPECT_GT(layover, 500);
   mesh.AddQuad(Vector3f(0, 0, 0), Vector3f(20, 0, 0), Vector3f(20, 0, 300), Vector3f(0, 0, 300));
-  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{kPosts, kPosts}).HeightfieldOnly());
+  EXPECT_FALSE(EmbreeScene(mesh, TerrainGrid{kPosts, kPosts, {}}).HeightfieldOnly());
 }
 
 // Fixed sampling (RenderOptions::adaptive_sampling false) traces exactly the
@@ -389,7 +405,7 @@ TEST(SarRendererTest, FixedSamplingTracesNoSubRaysAndKeepsThePower) {
   constexpr int kPosts = 90;
   const std::vector<float> heights = SteepRidgeHeights(kPosts, 0.0);
   const scene::TriangleMesh mesh = scene::MeshFromHeights(heights, kPosts, kPosts, 10.0, -445.0, -445.0);
-  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
   const auto g = sensor::SarGeometry::Covering(Options(30.0, 40.0, 5.0), Vector3d::Zero(), mesh.vertices);
   RenderOptions options = Quiet(4.0);
   const SarImage adaptive = RenderSar(heightfield, mesh, UnitLambert(), g, options);
@@ -453,7 +469,7 @@ TEST(SarRendererTest, RidgeShadowEndsAtTheClosedFormDistanceInBothMasks) {
   ASSERT_NEAR(g.look_direction().x(), std::cos(kDep * kDeg), 1e-12);
   const double shadow_end_x = kH / std::tan(kDep * kDeg);
   for (const bool sweep : {true, false}) {
-    const EmbreeScene embree(mesh, TerrainGrid{kCols, kRows});
+    const EmbreeScene embree(mesh, TerrainGrid{kCols, kRows, {}});
     int64_t rays = -1;
     const std::vector<uint8_t> mask = RenderLayoverShadowMask(embree, mesh, g, &rays, nullptr, nullptr, nullptr, sweep);
     EXPECT_EQ(rays == 0, sweep);
@@ -539,17 +555,8 @@ TEST(SarRendererTest, ExactRidgeShadowEndsWhereTheSensorsRayOverTheTopLands) {
 // but for pixel centres at a shadow or layover edge.
 TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
   constexpr int kPosts = 90;
-  const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
-  std::vector<Vector3f> posts;
-  for (int r = 0; r < kPosts; ++r) {
-    for (int c = 0; c < kPosts; ++c) {
-      const double z = heights[size_t(r) * kPosts + c];
-      posts.emplace_back(float(10.0 * (c - 45) + 0.7 * (r - 45) + 0.01 * (r - 45) * (r - 45)),
-                         float(9.0 * (r - 45) - 0.4 * (c - 45)), float(z));
-    }
-  }
-  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
-  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts});
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(WarpedRidgePosts(0.01), kPosts, kPosts);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
   ASSERT_TRUE(heightfield.HeightfieldOnly());
   int64_t shadow = 0, layover = 0, differing = 0, flagged = 0;
   for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
@@ -589,7 +596,7 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
               if (swept.footprint[q] == traced.footprint[q]) continue;
               ++footprint_differing;
               bool border = false;
-              for (const auto [dc, dr] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+              for (const auto& [dc, dr] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
                 const int cc = c + dc, rr = r + dr;
                 border = border || cc < 0 || rr < 0 || cc >= g.width() || rr >= g.height() ||
                          traced.footprint[size_t(rr) * g.width() + cc] == 0;
@@ -631,15 +638,7 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
 // modes, with and without adaptive sampling.
 TEST(SarRendererTest, OnePassSweptLinesAreThePacketsBitForBit) {
   constexpr int kPosts = 90;
-  const std::vector<float> heights = SteepRidgeHeights(kPosts, 7.0);
-  std::vector<Vector3f> posts;
-  for (int r = 0; r < kPosts; ++r) {
-    for (int c = 0; c < kPosts; ++c) {
-      posts.emplace_back(float(10.0 * (c - 45) + 0.7 * (r - 45)), float(9.0 * (r - 45) - 0.4 * (c - 45)),
-                         heights[size_t(r) * kPosts + c]);
-    }
-  }
-  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(WarpedRidgePosts(0.0), kPosts, kPosts);
   const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
   // Half Lambertian, half the smooth-surface reflection going on as a mirror
   // ray: the ridge's slopes return later bounces.
@@ -660,7 +659,9 @@ TEST(SarRendererTest, OnePassSweptLinesAreThePacketsBitForBit) {
         EXPECT_GT(one_pass.stats.profile_swept_lines, 0);
         EXPECT_EQ(one_pass.stats.hits, packets.stats.hits);
         EXPECT_EQ(one_pass.stats.sub_rays, packets.stats.sub_rays);
-        if (adaptive) EXPECT_GT(one_pass.stats.sub_rays, 0);
+        if (adaptive) {
+          EXPECT_GT(one_pass.stats.sub_rays, 0);
+        }
         ASSERT_EQ(one_pass.intensity.size(), packets.intensity.size());
         int64_t lit = 0;
         for (size_t q = 0; q < one_pass.intensity.size(); ++q) {
