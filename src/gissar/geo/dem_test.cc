@@ -220,6 +220,64 @@ TEST(DemTest, BandScaleAndOffsetAreApplied) {
   EXPECT_FLOAT_EQ(dem.heights_m[11], 2234.5f);
 }
 
+// The reader takes 8- and 16-bit integer and Float32 bands in float (no
+// double copy) when no scale or offset applies: the same heights, voids and
+// border mask as a band of the same values read in double (Int32, Float64),
+// with a unit conversion rounded once (double product, then float).
+TEST(DemTest, EveryStorageTypeGivesTheHeightsOfTheDoubleRead) {
+  EnsureGdal();
+  const auto dir = testing::MakeTempDir();
+  constexpr int kW = 6, kH = 5;
+  constexpr double kNoData = -32768.0;
+  std::vector<double> stored(kW * kH);
+  for (int i = 0; i < kW * kH; ++i) stored[size_t(i)] = 1000.0 + 37.0 * i - 3.0 * (i % 4);
+  stored[0] = stored[1] = kNoData;  // a void on the border
+  stored[2 * kW + 3] = kNoData;     // and one inside
+  auto write = [&](const char* name, GDALDataType type) {
+    const auto path = dir / name;
+    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+    GDALDataset* ds = gtiff->Create(path.c_str(), kW, kH, 1, type, nullptr);
+    double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
+    ds->SetGeoTransform(gt);
+    OGRSpatialReference srs;
+    srs.importFromEPSG(32631);
+    ds->SetSpatialRef(&srs);
+    GDALRasterBand* band = ds->GetRasterBand(1);
+    band->SetNoDataValue(kNoData);
+    band->SetUnitType("ft");
+    EXPECT_EQ(band->RasterIO(GF_Write, 0, 0, kW, kH, stored.data(), kW, kH, GDT_Float64, 0, 0, nullptr), CE_None);
+    GDALClose(ds);
+    return path;
+  };
+  DemReadOptions options;
+  options.fill_nodata = true;
+  options.border_nodata_outside = true;
+  const Dem reference = ReadDem(write("f64.tif", GDT_Float64), options);
+  ASSERT_EQ(reference.heights_m.size(), stored.size());
+  ASSERT_EQ(reference.nodata_mask.size(), stored.size());
+  EXPECT_EQ(reference.nodata_mask[0], 1);
+  EXPECT_EQ(reference.nodata_mask[2 * kW + 3], 1);
+  EXPECT_EQ(reference.filled_nodata_cells, 1);
+  for (size_t i = 3; i < stored.size(); ++i) {
+    if (i == 2 * kW + 3) continue;
+    EXPECT_EQ(reference.heights_m[i], static_cast<float>(stored[i] * 0.3048)) << i;
+  }
+  for (const auto& [name, type] : {std::pair{"i16.tif", GDT_Int16}, {"f32.tif", GDT_Float32}, {"i32.tif", GDT_Int32}}) {
+    const Dem dem = ReadDem(write(name, type), options);
+    EXPECT_EQ(dem.heights_m, reference.heights_m) << name;
+    EXPECT_EQ(dem.nodata_mask, reference.nodata_mask) << name;
+    EXPECT_EQ(dem.filled_nodata_cells, reference.filled_nodata_cells) << name;
+    EXPECT_EQ(dem.vertical_unit_m, 0.3048) << name;
+  }
+  // Without a void the float values become the heights as they are.
+  stored[0] = stored[1] = stored[2 * kW + 3] = 1500.0;
+  const Dem whole_f32 = ReadDem(write("whole_f32.tif", GDT_Float32), options);
+  const Dem whole_f64 = ReadDem(write("whole_f64.tif", GDT_Float64), options);
+  EXPECT_EQ(whole_f32.heights_m, whole_f64.heights_m);
+  EXPECT_TRUE(whole_f32.nodata_mask.empty());
+  EXPECT_EQ(whole_f32.heights_m[0], static_cast<float>(1500.0 * 0.3048));
+}
+
 // A 2x2 Float32 DEM in UTM 31N holding `stored`, with the band unit `unit`
 // ("" = none) and the CRS `crs` (any OGR definition).
 std::string UnitDem(const std::filesystem::path& path, const std::vector<float>& stored, const char* unit,
