@@ -77,18 +77,28 @@ TEST(DemTest, PostsInFrameFollowTheGeotransform) {
   EXPECT_LT(enu[0].x(), enu[479].x());
 }
 
+// A new w x h, one-band GeoTIFF at `path` of `type`, 30 m posts from
+// (385000, 4711000) in `crs` (UTM 31N unless told): the caller fills its
+// band and closes it (GDALClose).
+GDALDataset* CreateTestDem(const std::filesystem::path& path, int w, int h, GDALDataType type,
+                           const char* crs = "EPSG:32631") {
+  EnsureGdal();
+  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+  GDALDataset* ds = gtiff->Create(path.c_str(), w, h, 1, type, nullptr);
+  double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
+  ds->SetGeoTransform(gt);
+  OGRSpatialReference srs;
+  srs.SetFromUserInput(crs);
+  ds->SetSpatialRef(&srs);
+  return ds;
+}
+
 TEST(DemTest, ProjectedDemIsPlacedThroughProj) {
   EnsureGdal();
   const auto dir = testing::MakeTempDir();
   const auto path = dir / "utm.tif";
   {
-    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-    GDALDataset* ds = gtiff->Create(path.c_str(), 4, 3, 1, GDT_Float32, nullptr);
-    double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
-    ds->SetGeoTransform(gt);
-    OGRSpatialReference srs;
-    srs.importFromEPSG(32631);
-    ds->SetSpatialRef(&srs);
+    GDALDataset* ds = CreateTestDem(path, 4, 3, GDT_Float32);
     std::vector<float> h(12, 1000.0f);
     ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 4, 3, h.data(), 4, 3, GDT_Float32,
                                              0, 0, nullptr),
@@ -198,13 +208,7 @@ TEST(DemTest, BandScaleAndOffsetAreApplied) {
   const auto path = dir / "dm.tif";
   {
     // Int16 decimetres above 1000 m: height = stored * 0.1 + 1000; -32768 is no-data.
-    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-    GDALDataset* ds = gtiff->Create(path.c_str(), 4, 3, 1, GDT_Int16, nullptr);
-    double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
-    ds->SetGeoTransform(gt);
-    OGRSpatialReference srs;
-    srs.importFromEPSG(32631);
-    ds->SetSpatialRef(&srs);
+    GDALDataset* ds = CreateTestDem(path, 4, 3, GDT_Int16);
     GDALRasterBand* band = ds->GetRasterBand(1);
     band->SetScale(0.1);
     band->SetOffset(1000.0);
@@ -235,13 +239,7 @@ TEST(DemTest, EveryStorageTypeGivesTheHeightsOfTheDoubleRead) {
   stored[2 * kW + 3] = kNoData;     // and one inside
   auto write = [&](const char* name, GDALDataType type) {
     const auto path = dir / name;
-    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-    GDALDataset* ds = gtiff->Create(path.c_str(), kW, kH, 1, type, nullptr);
-    double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
-    ds->SetGeoTransform(gt);
-    OGRSpatialReference srs;
-    srs.importFromEPSG(32631);
-    ds->SetSpatialRef(&srs);
+    GDALDataset* ds = CreateTestDem(path, kW, kH, type);
     GDALRasterBand* band = ds->GetRasterBand(1);
     band->SetNoDataValue(kNoData);
     band->SetUnitType("ft");
@@ -282,14 +280,7 @@ TEST(DemTest, EveryStorageTypeGivesTheHeightsOfTheDoubleRead) {
 // ("" = none) and the CRS `crs` (any OGR definition).
 std::string UnitDem(const std::filesystem::path& path, const std::vector<float>& stored, const char* unit,
                     const char* crs = "EPSG:32631") {
-  EnsureGdal();
-  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-  GDALDataset* ds = gtiff->Create(path.c_str(), 2, 2, 1, GDT_Float32, nullptr);
-  double gt[6] = {385000.0, 30.0, 0.0, 4711000.0, 0.0, -30.0};
-  ds->SetGeoTransform(gt);
-  OGRSpatialReference srs;
-  srs.SetFromUserInput(crs);
-  ds->SetSpatialRef(&srs);
+  GDALDataset* ds = CreateTestDem(path, 2, 2, GDT_Float32, crs);
   GDALRasterBand* band = ds->GetRasterBand(1);
   if (unit[0] != '\0') band->SetUnitType(unit);
   std::vector<float> h = stored;
