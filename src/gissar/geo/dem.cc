@@ -313,13 +313,6 @@ struct RawHeights {
   bool IsVoidAt(size_t i) const { return IsVoid(values[i], nodata_marked, nodata); }
 };
 
-// Whether reading the band in float gives the heights of reading it in
-// double: every stored value is a float (8- and 16-bit integers, Float32)
-// and no scale or offset is applied (a unit conversion rounds once to float
-// either way). Reading a 4000^2 Int16 DEM in float touches 64 MB instead of
-// 128 MB of double plus the 64 MB of heights (the float values become the
-// heights): on this project's benchmark machine fresh pages cost about
-// 1.5 ms per MB, serial at the start of the run.
 // Whether the band's scale or offset changes its stored values.
 bool ScalesOrOffsets(GDALRasterBand& band) {
   int has_scale = 0, has_offset = 0;
@@ -327,6 +320,13 @@ bool ScalesOrOffsets(GDALRasterBand& band) {
   return (has_scale && scale != 1.0) || (has_offset && offset != 0.0);
 }
 
+// Whether reading the band in float gives the heights of reading it in
+// double: every stored value is a float (8- and 16-bit integers, Float32)
+// and no scale or offset is applied (a unit conversion rounds once to float
+// either way). Reading a 4000^2 Int16 DEM in float touches 64 MB instead of
+// 128 MB of double plus the 64 MB of heights (the float values become the
+// heights): on this project's benchmark machine fresh pages cost about
+// 1.5 ms per MB, serial at the start of the run.
 bool HeightsExactInFloat(GDALRasterBand& band) {
   switch (band.GetRasterDataType()) {
     case GDT_Byte:

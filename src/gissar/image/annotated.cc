@@ -55,7 +55,7 @@ std::vector<AxisTick> AxisTicks(double origin_m, double spacing_m, int pixels, i
   return ticks;
 }
 
-RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int height,
+RgbImage AnnotatedQuicklook(std::span<const float> intensity, int width, int height,
                             const QuicklookAxes& axes, const std::string& title) {
   GISSAR_CHECK(intensity.size() == size_t(width) * height && axes.range_spacing_m > 0 &&
                axes.azimuth_spacing_m > 0);

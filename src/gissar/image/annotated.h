@@ -3,6 +3,7 @@
 // and the Koenderink-van Doorn diagram of a two-view geometry.
 #pragma once
 
+#include <span>
 #include <string>
 #include <vector>
 
@@ -46,7 +47,7 @@ std::vector<AxisTick> AxisTicks(double origin_m, double spacing_m, int pixels, i
 // The dB quicklook of `intensity` (width x height, linear) with a title, a
 // horizontal slant-range axis and a vertical along-track axis (ticks from
 // AxisTicks) and a grey-scale colour bar labelled in dB.
-RgbImage AnnotatedQuicklook(const std::vector<float>& intensity, int width, int height,
+RgbImage AnnotatedQuicklook(std::span<const float> intensity, int width, int height,
                             const QuicklookAxes& axes, const std::string& title);
 
 // The KvD reading of an affine F: the image plane with the rotation axis at

@@ -32,7 +32,7 @@ inline uint8_t Grey(float v, const DbStretch& s, double span) {
 
 }  // namespace
 
-std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low_percentile,
+std::vector<uint8_t> DbQuicklook(std::span<const float> intensity, double low_percentile,
                                  double high_percentile, DbStretch* stretch) {
   GISSAR_CHECK(0.0 <= low_percentile && low_percentile < high_percentile && high_percentile <= 100.0);
   // Percentiles of the linear values, then in dB: 10 log10 is increasing,
@@ -71,7 +71,7 @@ std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low
   return DbQuicklookWithStretch(intensity, s);
 }
 
-std::vector<uint8_t> DbQuicklookWithStretch(const std::vector<float>& intensity, const DbStretch& s) {
+std::vector<uint8_t> DbQuicklookWithStretch(std::span<const float> intensity, const DbStretch& s) {
   const double span = std::max(s.high_db - s.low_db, 1e-6);
   // The mapping is increasing in the value, so a bin whose smallest and
   // largest floats get the same grey level gives it to all of its values:
@@ -97,7 +97,7 @@ std::vector<uint8_t> DbQuicklookWithStretch(const std::vector<float>& intensity,
   return grey;
 }
 
-std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols, int la, int lr) {
+std::vector<float> Multilook(std::span<const float> image, int rows, int cols, int la, int lr, NanPixels nan) {
   GISSAR_CHECK(la >= 1 && lr >= 1 && rows >= 0 && cols >= 0 && image.size() == size_t(rows) * cols);
   const int out_rows = rows / la, out_cols = cols / lr;
   std::vector<float> out(size_t(out_rows) * out_cols, std::numeric_limits<float>::quiet_NaN());
@@ -108,7 +108,11 @@ std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols
       for (int i = 0; i < la; ++i) {
         const float* row = image.data() + size_t(r * la + i) * cols + size_t(c) * lr;
         for (int j = 0; j < lr; ++j) {
-          if (std::isfinite(row[j])) sum += row[j], ++n;
+          if (std::isfinite(row[j])) {
+            sum += row[j], ++n;
+          } else if (nan == NanPixels::kAsZero && std::isnan(row[j])) {
+            ++n;
+          }
         }
       }
       if (n > 0) out[size_t(r) * out_cols + c] = static_cast<float>(sum / n);

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace gissar::image {
@@ -16,18 +17,23 @@ struct DbStretch {
 // `high_percentile` (grey 255), clipped; pixels with I <= 0 or not finite
 // (no return, shadow) are 0. Percentiles in [0, 100], low < high. When no
 // pixel is positive every grey value is 0 and the stretch is {0, 0}.
-std::vector<uint8_t> DbQuicklook(const std::vector<float>& intensity, double low_percentile,
+std::vector<uint8_t> DbQuicklook(std::span<const float> intensity, double low_percentile,
                                  double high_percentile, DbStretch* stretch = nullptr);
 
 // The same mapping with a given stretch (e.g. the first frame's, so that a
 // sequence shares one grey scale).
-std::vector<uint8_t> DbQuicklookWithStretch(const std::vector<float>& intensity, const DbStretch& stretch);
+std::vector<uint8_t> DbQuicklookWithStretch(std::span<const float> intensity, const DbStretch& stretch);
+
+// What Multilook does with a NaN pixel: skips it (the mean of the block's
+// finite pixels) or counts it as 0 (no return; a block of no-data is then 0).
+enum class NanPixels { kSkip, kAsZero };
 
 // Block average (multilook) of a rows x cols row-major image by la rows x lr
 // columns (la, lr >= 1): output (rows / la) x (cols / lr), partial blocks at
-// the end dropped, NaN pixels skipped; a block without a finite pixel is NaN.
-// Output pixel (r, c) sits at input position (r la + (la - 1) / 2,
-// c lr + (lr - 1) / 2).
-std::vector<float> Multilook(const std::vector<float>& image, int rows, int cols, int la, int lr);
+// the end dropped, NaN pixels as `nan` says, infinite ones skipped; a block
+// without a pixel counted is NaN. Output pixel (r, c) sits at input position
+// (r la + (la - 1) / 2, c lr + (lr - 1) / 2).
+std::vector<float> Multilook(std::span<const float> image, int rows, int cols, int la, int lr,
+                             NanPixels nan = NanPixels::kSkip);
 
 }  // namespace gissar::image

@@ -97,5 +97,23 @@ TEST(MultilookTest, BlockMeansSkipNaNAndDropPartialBlocks) {
   EXPECT_TRUE(std::isnan(out[3]));
 }
 
+TEST(MultilookTest, NaNCountsAsZeroWhenAskedAndInfinityIsSkippedEitherWay) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  // 2 x 4, 2 x 2 looks -> 1 x 2: block 0 holds 1, 2, 3 and a NaN; block 1
+  // two NaN, an infinity and 6.
+  const std::vector<float> image = {1, 2, nan, 6,  //
+                                    3, nan, nan, inf};
+  const std::vector<float> skip = Multilook(image, 2, 4, 2, 2);
+  const std::vector<float> zero = Multilook(image, 2, 4, 2, 2, NanPixels::kAsZero);
+  ASSERT_EQ(zero.size(), 2u);
+  EXPECT_FLOAT_EQ(skip[0], 6.0f / 3.0f);
+  EXPECT_FLOAT_EQ(skip[1], 6.0f);
+  EXPECT_FLOAT_EQ(zero[0], 6.0f / 4.0f);  // the NaN is a fourth pixel of 0
+  EXPECT_FLOAT_EQ(zero[1], 6.0f / 3.0f);  // two zeros and 6; the infinity left out
+  // A block of NaN only: 0 (no return), not NaN.
+  EXPECT_EQ(Multilook(std::vector<float>{nan, nan}, 1, 2, 1, 2, NanPixels::kAsZero)[0], 0.0f);
+}
+
 }  // namespace
 }  // namespace gissar::image

@@ -1,5 +1,8 @@
 #include "gissar/image/radiometry.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 #include <limits>
 
@@ -28,16 +31,24 @@ double FactorFromBeta0(Radiometry target, double incidence_deg) {
 void ScaleColumns(std::vector<float>& image, int width, int height, const std::vector<double>& factors) {
   GISSAR_CHECK(factors.size() == size_t(width));
   GISSAR_CHECK(image.size() == size_t(width) * height);
-  for (int r = 0; r < height; ++r) {
-    float* line = image.data() + size_t(r) * width;
-    for (int c = 0; c < width; ++c) line[c] = static_cast<float>(line[c] * factors[c]);
-  }
+  // Rows in parallel (each pixel's product does not depend on the order).
+  tbb::parallel_for(tbb::blocked_range<int>(0, height, 16), [&](const tbb::blocked_range<int>& rows) {
+    for (int r = rows.begin(); r != rows.end(); ++r) {
+      float* line = image.data() + size_t(r) * width;
+      for (int c = 0; c < width; ++c) line[c] = static_cast<float>(line[c] * factors[c]);
+    }
+  });
 }
 
 void ToDecibels(std::vector<float>& image) {
-  for (float& v : image) {
-    v = v > 0.0f ? static_cast<float>(10.0 * std::log10(double(v))) : std::numeric_limits<float>::quiet_NaN();
-  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, image.size(), size_t(1) << 16),
+                    [&](const tbb::blocked_range<size_t>& range) {
+                      for (size_t i = range.begin(); i != range.end(); ++i) {
+                        const float v = image[i];
+                        image[i] = v > 0.0f ? static_cast<float>(10.0 * std::log10(double(v)))
+                                            : std::numeric_limits<float>::quiet_NaN();
+                      }
+                    });
 }
 
 namespace {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "gissar/geo/dem.h"
@@ -348,37 +349,52 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
   // The footprint: pixel centres a surface covers, and pixels a return
   // reached before the impulse response spreads it (a multi-bounce path may
   // land beyond the terrain's projection).
-  std::vector<uint8_t> inside = image.footprint;
-  if (inside.size() == image.intensity.size()) {
-    for (size_t i = 0; i < inside.size(); ++i) {
-      if (image.intensity[i] > 0.0f || (!image.real.empty() && (image.real[i] != 0.0f || image.imag[i] != 0.0f))) {
-        inside[i] = 1;
-      }
-    }
+  // (Computed in place: the sensor effects below neither read nor change
+  // the footprint.)
+  std::vector<uint8_t>& inside = image.footprint;
+  const bool has_footprint = inside.size() == image.intensity.size();
+  if (has_footprint) {
+    const bool coherent = !image.real.empty();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, inside.size(), size_t(1) << 16),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t i = range.begin(); i != range.end(); ++i) {
+                          if (image.intensity[i] > 0.0f ||
+                              (coherent && (image.real[i] != 0.0f || image.imag[i] != 0.0f))) {
+                            inside[i] = 1;
+                          }
+                        }
+                      });
   }
   image::ApplySensorEffects(image, effects, ColumnIncidenceDeg(geometry));
-  if (inside.size() == image.intensity.size()) MarkOutsideFootprint(image, inside);
+  if (has_footprint) MarkOutsideFootprint(image, inside);
 }
 
 void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside) {
   GISSAR_CHECK(inside.size() == image.intensity.size());
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  auto blank = [&](std::vector<float>& band) {
-    if (band.size() != inside.size()) return;
-    for (size_t i = 0; i < inside.size(); ++i) if (!inside[i]) band[i] = nan;
-  };
-  blank(image.intensity);
-  blank(image.real);
-  blank(image.imag);
+  std::vector<std::vector<float>*> bands;
+  for (std::vector<float>* band : {&image.intensity, &image.real, &image.imag}) bands.push_back(band);
   for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-    blank(image.bounce_layers[layer]);
-    blank(image.bounce_real[layer]);
-    blank(image.bounce_imag[layer]);
+    for (std::vector<float>* band : {&image.bounce_layers[layer], &image.bounce_real[layer], &image.bounce_imag[layer]}) {
+      bands.push_back(band);
+    }
   }
-  if (image.mask.size() == inside.size()) {
-    for (size_t i = 0; i < inside.size(); ++i) if (!inside[i]) image.mask[i] = render::kMaskOutside;
-  }
-  image.footprint = inside;
+  std::erase_if(bands, [&](const std::vector<float>* band) { return band->size() != inside.size(); });
+  const bool mask = image.mask.size() == inside.size();
+  // Pixels in parallel, every band of a pixel range in turn.
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, inside.size(), size_t(1) << 16),
+                    [&](const tbb::blocked_range<size_t>& range) {
+                      for (std::vector<float>* band : bands) {
+                        float* values = band->data();
+                        for (size_t i = range.begin(); i != range.end(); ++i) if (!inside[i]) values[i] = nan;
+                      }
+                      if (mask) {
+                        for (size_t i = range.begin(); i != range.end(); ++i) {
+                          if (!inside[i]) image.mask[i] = render::kMaskOutside;
+                        }
+                      }
+                    });
+  if (&inside != &image.footprint) image.footprint = inside;
 }
 
 render::RenderOptions RenderOptionsOf(const SimulateRequest& options, material::Polarization channel,

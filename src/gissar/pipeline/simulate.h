@@ -277,7 +277,8 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
 
 // Sets every float band of `image` (intensity, per-bounce, complex) to NaN
 // and the mask to render::kMaskOutside where inside[i] == 0, and stores
-// `inside` as image.footprint. CHECKs the size.
+// `inside` as image.footprint (`inside` may be image.footprint itself).
+// CHECKs the size.
 void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside);
 
 // The tracer's options of a simulation rendering `channel` (one of

@@ -7,7 +7,10 @@
 #include <cstdio>
 #include <limits>
 #include <optional>
+#include <span>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
 
 #include "gissar/geo/raster_io.h"
@@ -114,17 +117,17 @@ geo::Metadata ImageMetadata(const SimulateRequest& options, const SimulatedImage
 }
 
 // PREFIX.png: every pixel, the dB stretch of `linear` (its levels into
-// `stretch`).
+// `stretch`; NaN black).
 void DrawPlainQuicklook(const SimulationOutputs& reserved, const SimulatedImage& simulated,
-                        const std::vector<float>& linear, image::DbStretch* stretch) {
+                        std::span<const float> linear, image::DbStretch* stretch) {
   const render::SarImage& image = simulated.image;
   geo::WritePng(reserved.png, image::DbQuicklook(linear, 2.0, 98.0, stretch), image.width, image.height, 1);
 }
 
 // PREFIX_quicklook.png: annotated (title, axes in metres, dB colour bar);
-// multilooked above kQuicklookMaxSidePx a side.
+// multilooked above kQuicklookMaxSidePx a side (a NaN pixel: no return, 0).
 void DrawAnnotatedQuicklook(const SimulationOutputs& reserved, const SimulatedImage& simulated,
-                            const std::vector<float>& linear) {
+                            std::span<const float> linear) {
   const render::SarImage& image = simulated.image;
   const sensor::SarGeometryOptions& geometry_options = simulated.geometry_options;
   const sensor::SarGeometry& geometry = *simulated.geometry;
@@ -137,8 +140,9 @@ void DrawAnnotatedQuicklook(const SimulationOutputs& reserved, const SimulatedIm
   // integer factor (linear power averaged), its axes at the block centres.
   const int side = std::max(image.width, image.height);
   const int looks = (side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx;
-  const std::vector<float> shown = looks > 1 ? image::Multilook(linear, image.height, image.width, looks, looks)
-                                             : std::vector<float>();
+  const std::vector<float> shown =
+      looks > 1 ? image::Multilook(linear, image.height, image.width, looks, looks, image::NanPixels::kAsZero)
+                : std::vector<float>();
   const double dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
   const double half_block = 0.5 * (looks - 1);
   // Affine geometry has parallel rays and no sensor: its range axis is
@@ -146,7 +150,7 @@ void DrawAnnotatedQuicklook(const SimulationOutputs& reserved, const SimulatedIm
   // read ranges shorter than the sensor's height).
   const bool affine = geometry_options.mode == sensor::ProjectionMode::kAffine;
   const image::RgbImage annotated = image::AnnotatedQuicklook(
-      looks > 1 ? shown : linear, image.width / looks, image.height / looks,
+      looks > 1 ? std::span<const float>(shown) : linear, image.width / looks, image.height / looks,
       {(affine ? 0.0 : geometry.slant_range_m()) + (half_block - geometry.u0()) * dr, dr * looks,
        (half_block - geometry.v0()) * da, da * looks, affine},
       title);
@@ -163,22 +167,31 @@ void DrawAnnotatedQuicklook(const SimulationOutputs& reserved, const SimulatedIm
 // The two quicklooks, from the linear values, drawn as two tasks (PNG
 // encoding is single-threaded) while the georeferencing and the GeoTIFFs are
 // computed and written; on an exception the task group's destructor waits.
+// Linear values are read where they are (no copy): the image's intensity
+// buffer must outlive the tasks and stay unchanged until Wait(), wherever it
+// moves meanwhile (the writer moves it into its raster and back).
 class QuicklookPictures {
  public:
   void Start(const SimulateRequest& options, const SimulatedImage& simulated, const SimulationOutputs& reserved) {
-    linear_ = simulated.image.intensity;
-    for (float& v : linear_) {
-      if (std::isnan(v)) v = 0.0f;  // no-data: black
-      else if (options.db) v = static_cast<float>(std::pow(10.0, v / 10.0));
+    const std::vector<float>& intensity = simulated.image.intensity;
+    if (options.db) {
+      linear_.resize(intensity.size());
+      for (size_t i = 0; i < intensity.size(); ++i) {
+        const float v = intensity[i];
+        linear_[i] = std::isnan(v) ? 0.0f : static_cast<float>(std::pow(10.0, v / 10.0));
+      }
+      shown_ = linear_;
+    } else {
+      shown_ = intensity;
     }
     group_.run([this, &simulated, &reserved] {
       const Stopwatch watch;
-      DrawPlainQuicklook(reserved, simulated, linear_, &stretch_);
+      DrawPlainQuicklook(reserved, simulated, shown_, &stretch_);
       seconds_[0] = watch.ElapsedSeconds();
     });
     group_.run([this, &simulated, &reserved] {
       const Stopwatch watch;
-      DrawAnnotatedQuicklook(reserved, simulated, linear_);
+      DrawAnnotatedQuicklook(reserved, simulated, shown_);
       seconds_[1] = watch.ElapsedSeconds();
     });
   }
@@ -190,7 +203,8 @@ class QuicklookPictures {
   const image::DbStretch& stretch() const { return stretch_; }
 
  private:
-  std::vector<float> linear_;
+  std::vector<float> linear_;     // dB images: the linear values (NaN: 0)
+  std::span<const float> shown_;  // the linear values drawn
   image::DbStretch stretch_;
   double seconds_[2] = {0.0, 0.0};
   tbb::task_group group_;  // last: destroyed (waiting) before what its task reads
@@ -552,7 +566,9 @@ std::vector<float> NoReturnPlane(const render::SarImage& image, bool db) {
   const bool everywhere = image.footprint.size() != n;
   std::vector<float> plane(n, db ? nan : 0.0f);
   if (db || everywhere) return plane;
-  for (size_t i = 0; i < n; ++i) if (!image.footprint[i]) plane[i] = nan;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, size_t(1) << 16), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i) if (!image.footprint[i]) plane[i] = nan;
+  });
   return plane;
 }
 
@@ -667,12 +683,16 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   const Stopwatch step;
   render::SarImage& image = simulated.image;
   const geo::Metadata metadata = ImageMetadata(options, simulated);
+  // PREFIX.tif's raster holds the image bands between ImageRaster and
+  // WriteImageGeoTiff: declared before the pictures, which read the total's
+  // plane, so that on an exception they are waited for before it is freed.
+  geo::FloatRaster raster;
   QuicklookPictures pictures;
   pictures.Start(options, simulated, reserved);
 
   // PREFIX.tif: the image bands (moved in and back), the incidence band.
   const std::vector<render::SarImage*> channel_images = ChannelImages(simulated);
-  geo::FloatRaster raster = ImageRaster(options, simulated, channel_images, metadata);
+  raster = ImageRaster(options, simulated, channel_images, metadata);
   TerrainLayersOnce terrain_layers(simulated);
   if (options.incidence_band) {
     const Stopwatch layers_watch;

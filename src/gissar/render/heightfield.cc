@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <memory>
 #include <utility>
 
 #include "gissar/scene/triangle_mesh.h"
@@ -53,50 +54,48 @@ HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int he
       box.upper[a] = std::max(box.upper[a], upper[a]);
     }
   };
-  // Level 1 from the posts (a node of 2 x 2 cells spans up to 3 x 3 posts).
-  std::vector<Box> below(size_t(levels_[0].nx) * levels_[0].ny);
+  // Level 1 from the posts (a node of 2 x 2 cells spans up to 3 x 3 posts),
+  // computed where level 2 needs it (no array of level-1 boxes: at 4000^2
+  // posts it would be 96 MB of fresh pages).
+  static_assert(kTileLevel >= 2);
   std::atomic<bool> non_finite{false};
-  {
-    const Level& level = levels_[0];
-    tbb::parallel_for(tbb::blocked_range<int>(0, level.ny, 16), [&](const tbb::blocked_range<int>& rows) {
-      for (int j = rows.begin(); j < rows.end(); ++j) {
-        for (int i = 0; i < level.nx; ++i) {
-          Box& box = below[size_t(j) * level.nx + i];
-          empty(box);
-          auto add_post = [&](int r, int c) {
-            const Eigen::Vector3f& p = posts[size_t(r) * width + c];
-            if (p.allFinite()) {
-              grow(box, p.data(), p.data());
-            } else {
-              non_finite = true;
-            }
-          };
-          if (!masked_) {
-            for (int r = 2 * j; r <= std::min(2 * j + 2, height - 1); ++r) {
-              for (int c = 2 * i; c <= std::min(2 * i + 2, width - 1); ++c) add_post(r, c);
-            }
-            continue;
-          }
-          // With holes: the posts of the cells in only.
-          for (int r = 2 * j; r <= std::min(2 * j + 1, height - 2); ++r) {
-            for (int c = 2 * i; c <= std::min(2 * i + 1, width - 2); ++c) {
-              if (!Included(size_t(r) * (width - 1) + c)) continue;
-              for (int dr = 0; dr < 2; ++dr) {
-                for (int dc = 0; dc < 2; ++dc) add_post(r + dr, c + dc);
-              }
-            }
-          }
+  auto level1_box = [&](int i, int j) {
+    Box box;
+    empty(box);
+    auto add_post = [&](int r, int c) {
+      const Eigen::Vector3f& p = posts[size_t(r) * width + c];
+      if (p.allFinite()) {
+        grow(box, p.data(), p.data());
+      } else {
+        non_finite = true;
+      }
+    };
+    if (!masked_) {
+      for (int r = 2 * j; r <= std::min(2 * j + 2, height - 1); ++r) {
+        for (int c = 2 * i; c <= std::min(2 * i + 2, width - 1); ++c) add_post(r, c);
+      }
+      return box;
+    }
+    // With holes: the posts of the cells in only.
+    for (int r = 2 * j; r <= std::min(2 * j + 1, height - 2); ++r) {
+      for (int c = 2 * i; c <= std::min(2 * i + 1, width - 2); ++c) {
+        if (!Included(size_t(r) * (width - 1) + c)) continue;
+        for (int dr = 0; dr < 2; ++dr) {
+          for (int dc = 0; dc < 2; ++dc) add_post(r + dr, c + dc);
         }
       }
-    });
-  }
-  all_finite_ = !non_finite;
-  // Each higher level: its nodes' children in groups, and its own boxes.
+    }
+    return box;
+  };
+  // Each higher level: its nodes' children in groups, and its own boxes
+  // (every element written by the loop: no zero-filling pass).
+  std::unique_ptr<Box[]> below;  // the boxes of the level below (from level 2 on)
+  size_t below_count = 0;
   for (int k = 2; k <= kTileLevel; ++k) {
     const int below_nx = levels_[k - 2].nx, below_ny = levels_[k - 2].ny;
     Level& level = levels_[k - 1];
     level.groups.resize(size_t(level.nx) * level.ny);
-    std::vector<Box> boxes(level.groups.size());
+    std::unique_ptr<Box[]> boxes = std::make_unique_for_overwrite<Box[]>(level.groups.size());
     tbb::parallel_for(tbb::blocked_range<int>(0, level.ny, 16), [&](const tbb::blocked_range<int>& rows) {
       for (int j = rows.begin(); j < rows.end(); ++j) {
         for (int i = 0; i < level.nx; ++i) {
@@ -107,7 +106,9 @@ HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int he
             const int ci = 2 * i + (q & 1), cj = 2 * j + (q >> 1);
             Box child;
             empty(child);
-            if (ci < below_nx && cj < below_ny) child = below[size_t(cj) * below_nx + ci];
+            if (ci < below_nx && cj < below_ny) {
+              child = k == 2 ? level1_box(ci, cj) : below[size_t(cj) * below_nx + ci];
+            }
             for (int a = 0; a < 3; ++a) {
               group.lower[a][q] = child.lower[a];
               group.upper[a][q] = child.upper[a];
@@ -118,8 +119,10 @@ HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int he
       }
     });
     below = std::move(boxes);
+    below_count = level.groups.size();
   }
-  for (size_t k = 0; k < below.size(); ++k) {
+  all_finite_ = !non_finite;
+  for (size_t k = 0; k < below_count; ++k) {
     if (below[k].lower[0] <= below[k].upper[0]) {
       tiles_.push_back(uint32_t(k));
       tile_boxes_.push_back(below[k]);

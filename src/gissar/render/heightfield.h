@@ -123,6 +123,10 @@ class HeightfieldTree {
   // 2 dj + di), structure of arrays for a 4-wide slab test; a missing child
   // (beyond the grid's border, or without a finite post) has lower > upper.
   struct alignas(16) Group {
+    // Left uninitialised (every field is written when a level is built, in
+    // parallel): a level's groups are then first touched by the threads
+    // that fill them, not zeroed on one thread by the vector's resize.
+    Group() {}  // NOLINT(modernize-use-equals-default): = default would value-initialise
     float lower[3][4];
     float upper[3][4];
   };

@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <array>
@@ -74,6 +75,7 @@ struct Context {
   // lines_per_row on the centres of image row r, so that the mask, which is
   // evaluated at pixel centres, reads exact horizons (no interpolation).
   float line_spacing = 0;
+  float inv_line_spacing = 0;  // 1 / line_spacing
   double line_offset = 0;
   int lines_per_row = 1;
   float cell_span = 0;     // bound on the along-track extent of a cell, metres
@@ -125,6 +127,16 @@ inline void Splat(float* image, int width, int row0, int row1, float col, float 
   const int c0 = FloorInt(col), r0 = FloorInt(row);
   const float fc = col - float(c0), fr = row - float(r0);
   const float wr[2] = {1.0f - fr, fr}, wc[2] = {1.0f - fc, fc};
+  if (c0 >= 0 && c0 + 1 < width && r0 >= row0 && r0 + 1 < row1) {
+    // All four pixels inside (the common case): the loop below unrolled,
+    // the same products added in the same order.
+    float* p = image + size_t(r0) * width + c0;
+    p[0] += value * (wr[0] * wc[0]);
+    p[1] += value * (wr[0] * wc[1]);
+    p[width] += value * (wr[1] * wc[0]);
+    p[width + 1] += value * (wr[1] * wc[1]);
+    return;
+  }
   for (int dr = 0; dr < 2; ++dr) {
     const int r = r0 + dr;
     if (r < row0 || r >= row1) continue;
@@ -270,7 +282,7 @@ class ChunkRenderer {
   // (edges through the post itself excluded: they reach it).
   void ComputeMargins() {
     const int n = cur_.t_hi - cur_.t_lo + 1;
-    const float inv_w = 1.0f / ctx_.line_spacing;
+    const float inv_w = ctx_.inv_line_spacing;
     const float first = static_cast<float>(line_first_);
     const float offset = static_cast<float>(ctx_.line_offset);
     const int last_line = static_cast<int>(horizon_.size()) - 2;
@@ -372,8 +384,7 @@ class ChunkRenderer {
     if (row >= 0 && row_line >= 0 && row_line < int64_t(horizon_prev_.size())) {
       horizon = horizon_prev_[size_t(row_line)];
     } else {
-      const float inv_w = 1.0f / ctx_.line_spacing;
-      const float fl = (A - static_cast<float>(ctx_.line_offset)) * inv_w - float(line_first_);
+      const float fl = (A - static_cast<float>(ctx_.line_offset)) * ctx_.inv_line_spacing - float(line_first_);
       const int line = std::clamp(FloorInt(fl), 0, int(horizon_prev_.size()) - 2);
       const float f = std::clamp(fl - float(line), 0.0f, 1.0f);
       horizon = Interpolate(horizon_prev_[line], horizon_prev_[line + 1], f);
@@ -481,19 +492,24 @@ class ChunkRenderer {
     const Eigen::Vector3f p0(s0.x[k0], s0.y[k0], s0.z[k0]);
     const Eigen::Vector3f e1 = Eigen::Vector3f(s1.x[k1], s1.y[k1], s1.z[k1]) - p0;
     const Eigen::Vector3f e2 = Eigen::Vector3f(s2.x[k2], s2.y[k2], s2.z[k2]) - p0;
-    Eigen::Vector3f normal = sign * e1.cross(e2);
+    // The normal and (exact geometry) the look direction are left at their
+    // lengths: cos_in divides once by both (one division per triangle
+    // instead of a normalisation each).
+    const Eigen::Vector3f normal = sign * e1.cross(e2);
     const float twice_area = normal.norm();
     if (!(twice_area > 0.0f)) return;
-    normal /= twice_area;
-    Eigen::Vector3f dir = ctx_.l, n_up = ctx_.n_up;
+    Eigen::Vector3f dir = ctx_.l, n_up = ctx_.n_up;  // dir: unit (affine) or of length look_length
+    float look_length = 1.0f;
     if (!ctx_.affine) {
-      const float xl = (s0.xl[k0] + s1.xl[k1] + s2.xl[k2]) / 3.0f;
-      const float xn = (s0.xn[k0] + s1.xn[k1] + s2.xn[k2]) / 3.0f;
-      dir = ((ctx_.range0 + xl) * ctx_.l + xn * ctx_.n).normalized();
+      // Towards the centroid from the sensor: 3 (R + mean xl) l + 3 (mean xn) n.
+      const float xl3 = s0.xl[k0] + s1.xl[k1] + s2.xl[k2];
+      const float xn3 = s0.xn[k0] + s1.xn[k1] + s2.xn[k2];
+      dir = (3.0f * ctx_.range0 + xl3) * ctx_.l + xn3 * ctx_.n;
+      look_length = dir.norm();
       n_up = dir.cross(ctx_.h);
       if (n_up.z() < 0.0f) n_up = -n_up;
     }
-    const float cos_in = -normal.dot(dir);
+    const float cos_in = -normal.dot(dir) / (twice_area * look_length);
     const bool turned_away = cos_in <= 1e-9f;
     const bool edge_on = cos_in <= static_cast<float>(kMaskEdgeOnCos);  // mask: shadow
     const bool flipped = normal.dot(n_up) < 0.0f;
@@ -510,6 +526,7 @@ class ChunkRenderer {
     // posts' shading normals (RenderSar's rule); flat when one is zero.
     const bool smooth = ctx_.normals != nullptr && !s0.normal[k0].isZero() && !s1.normal[k1].isZero() &&
                         !s2.normal[k2].isZero();
+    if (smooth && look_length != 1.0f) dir /= look_length;  // the shading below takes the unit direction
     if (!turned_away && !all_dark) {
       const float power = 0.5f * twice_area * material.Fast(cos_in) * ctx_.power_scale;
       const float area_power = 0.5f * twice_area * ctx_.power_scale;
@@ -744,28 +761,38 @@ SarImage RenderSarRaster(const std::vector<Eigen::Vector3f>& posts, int width, i
   // row, one through every row's centres.
   ctx.lines_per_row = std::max(1, static_cast<int>(std::ceil(ctx.da * kLinesPerPost / min_transverse)));
   ctx.line_spacing = static_cast<float>(geometry.azimuth_spacing_m() / ctx.lines_per_row);
+  ctx.inv_line_spacing = 1.0f / ctx.line_spacing;
   ctx.line_offset = -geometry.v0() * geometry.azimuth_spacing_m();
   ctx.cell_span = 1.25f * max_span + 1e-3f;
 
   SarImage image;
   image.width = ctx.width;
   image.height = ctx.height;
-  image.intensity.assign(size_t(ctx.width) * ctx.height, 0.0f);
-  image.mask.assign(size_t(ctx.width) * ctx.height, kMaskNone);
-  image.footprint.assign(image.mask.size(), 0);
+  // The planes' first touch (fresh pages) on both threads: the single-bounce
+  // layer is filled by the chunks below (single bounce only: the other
+  // layers stay empty).
+  const size_t pixels = size_t(ctx.width) * ctx.height;
+  std::vector<float>& single = image.bounce_layers[0];
+  tbb::parallel_invoke([&] { image.intensity.assign(pixels, 0.0f); }, [&] { single.resize(pixels); },
+                       [&] {
+                         image.mask.assign(pixels, kMaskNone);
+                         image.footprint.resize(pixels);
+                       });
   const int chunks = (ctx.height + kChunkRows - 1) / kChunkRows;
   tbb::parallel_for(tbb::blocked_range<int>(0, chunks, 1), [&](const tbb::blocked_range<int>& range) {
     for (int k = range.begin(); k != range.end(); ++k) {
       const int row0 = k * kChunkRows, row1 = std::min(ctx.height, row0 + kChunkRows);
       ChunkRenderer(ctx, row0, row1, image.intensity.data(), image.mask.data()).Run();
-      // The chunk's rows are final: the covered flag becomes the footprint.
-      for (size_t i = size_t(row0) * ctx.width; i < size_t(row1) * ctx.width; ++i) {
+      // The chunk's rows are final: the covered flag becomes the footprint,
+      // the intensity the single-bounce layer.
+      const size_t begin = size_t(row0) * ctx.width, end = size_t(row1) * ctx.width;
+      for (size_t i = begin; i < end; ++i) {
         image.footprint[i] = (image.mask[i] & kCoveredFlag) != 0;
         image.mask[i] &= kMaskLayover | kMaskShadow;
       }
+      std::copy(image.intensity.begin() + begin, image.intensity.begin() + end, single.begin() + begin);
     }
   });
-  image.bounce_layers[0] = image.intensity;  // single bounce only: the other layers stay empty
   image.stats.cells = int64_t(width - 1) * (height - 1);
   image.stats.trace_seconds = watch.ElapsedSeconds();
   return image;
