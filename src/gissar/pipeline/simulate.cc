@@ -372,8 +372,7 @@ void ApplySensorEffects(render::SarImage& image, const SimulateRequest& options,
 void MarkOutsideFootprint(render::SarImage& image, const std::vector<uint8_t>& inside) {
   GISSAR_CHECK(inside.size() == image.intensity.size());
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  std::vector<std::vector<float>*> bands;
-  for (std::vector<float>* band : {&image.intensity, &image.real, &image.imag}) bands.push_back(band);
+  std::vector<std::vector<float>*> bands = {&image.intensity, &image.real, &image.imag};
   for (int layer = 0; layer < render::kBounceLayers; ++layer) {
     for (std::vector<float>* band : {&image.bounce_layers[layer], &image.bounce_real[layer], &image.bounce_imag[layer]}) {
       bands.push_back(band);

@@ -90,7 +90,6 @@ HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int he
   // Each higher level: its nodes' children in groups, and its own boxes
   // (every element written by the loop: no zero-filling pass).
   std::unique_ptr<Box[]> below;  // the boxes of the level below (from level 2 on)
-  size_t below_count = 0;
   for (int k = 2; k <= kTileLevel; ++k) {
     const int below_nx = levels_[k - 2].nx, below_ny = levels_[k - 2].ny;
     Level& level = levels_[k - 1];
@@ -119,10 +118,9 @@ HeightfieldTree::HeightfieldTree(const Eigen::Vector3f* posts, int width, int he
       }
     });
     below = std::move(boxes);
-    below_count = level.groups.size();
   }
   all_finite_ = !non_finite;
-  for (size_t k = 0; k < below_count; ++k) {
+  for (size_t k = 0; k < levels_[kTileLevel - 1].groups.size(); ++k) {
     if (below[k].lower[0] <= below[k].upper[0]) {
       tiles_.push_back(uint32_t(k));
       tile_boxes_.push_back(below[k]);
