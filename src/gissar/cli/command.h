@@ -35,7 +35,7 @@ struct CommandContext {
   bool force = false;        // --force: run jobs over the memory budget
   // Set by a command that ran to the end and wrote its result file but found
   // no result (a pose fix that did not converge): the reason, for exit status 3.
-  mutable std::optional<std::string> no_result;
+  mutable std::optional<std::string> no_result = {};
 };
 
 using CommandAction = std::function<void(const CommandContext&)>;

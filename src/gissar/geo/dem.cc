@@ -25,11 +25,6 @@ namespace gissar::geo {
 namespace fs = std::filesystem;
 namespace {
 
-struct GdalDatasetCloser {
-  void operator()(GDALDataset* ds) const { GDALClose(ds); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, GdalDatasetCloser>;
-
 bool IsVoid(double value, bool has_nodata, double nodata) {
   return !std::isfinite(value) || (has_nodata && value == nodata);
 }

@@ -2,12 +2,14 @@
 // includes GDAL headers.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 #include <gdal.h>
 #include <gdal_alg.h>
+#include <gdal_priv.h>
 
 #include "gissar/geo/raster_io.h"
 
@@ -20,6 +22,12 @@ void EnsureGdal();
 
 // The last message GDAL reported on this thread ("" when none).
 std::string LastGdalMessage();
+
+// An open GDAL dataset, closed (GDALClose) when the pointer goes.
+struct GdalDatasetCloser {
+  void operator()(GDALDataset* ds) const { GDALClose(ds); }
+};
+using DatasetPtr = std::unique_ptr<GDALDataset, GdalDatasetCloser>;
 
 // GCPs in GDAL's form (ids "1", "2", ...; pixel/line, X = longitude,
 // Y = latitude, Z = height). `list` points into `ids`: keep the object alive

@@ -16,6 +16,7 @@
 #include "gissar/geo/look_side.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
+#include "gissar/util/number_text.h"
 #include "gissar/util/utc_time.h"
 
 namespace gissar::geo {
@@ -39,18 +40,11 @@ std::string ReadText(const fs::path& path) {
 }
 
 double Number(const std::string& text, const std::string& where) {
-  size_t used = 0;
-  double value = 0.0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  while (used < text.size() && std::isspace(static_cast<unsigned char>(text[used]))) ++used;
-  if (used == 0 || used != text.size() || !std::isfinite(value)) {
-    throw InputError("'" + text + "' is not a finite number", where);
-  }
-  return value;
+  size_t end = text.size();  // trailing white space allowed
+  while (end > 0 && std::isspace(static_cast<unsigned char>(text[end - 1]))) --end;
+  const std::optional<double> value = util::ParseFiniteNumber(text.substr(0, end));
+  if (!value) throw InputError("'" + text + "' is not a finite number", where);
+  return *value;
 }
 
 std::string Trim(const std::string& text) {

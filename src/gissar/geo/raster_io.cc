@@ -1,5 +1,6 @@
 #include "gissar/geo/raster_io.h"
 
+#include <cpl_conv.h>
 #include <cpl_string.h>
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
@@ -31,10 +32,38 @@ namespace gissar::geo {
 namespace fs = std::filesystem;
 namespace {
 
-struct GdalDatasetCloser {
-  void operator()(GDALDataset* ds) const { GDALClose(ds); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, GdalDatasetCloser>;
+// Appends band `b` (1-based) of `ds` to `raster` (a FloatRaster or a
+// ComplexRaster of the dataset's size): its values read as `type`
+// (`floats_per_pixel` floats each), name and unit; band 1 also says whether
+// NaN is the nodata. InputError naming `path` when GDAL cannot read it.
+template <class Raster>
+void ReadBand(GDALDataset& ds, int b, GDALDataType type, size_t floats_per_pixel, const fs::path& path,
+              Raster& raster) {
+  GDALRasterBand* band = ds.GetRasterBand(b);
+  std::vector<float> values(floats_per_pixel * size_t(raster.width) * raster.height);
+  if (band->RasterIO(GF_Read, 0, 0, raster.width, raster.height, values.data(), raster.width, raster.height, type,
+                     0, 0, nullptr) != CE_None) {
+    throw InputError("cannot read raster band: " + LastGdalMessage(), path.string());
+  }
+  raster.bands.push_back(std::move(values));
+  raster.band_names.emplace_back(band->GetDescription());
+  raster.band_units.emplace_back(band->GetUnitType());
+  int has_nodata = 0;
+  const double nodata = band->GetNoDataValue(&has_nodata);
+  if (b == 1) raster.nodata_nan = has_nodata != 0 && std::isnan(nodata);
+}
+
+// The dataset's default-domain metadata items into `metadata`.
+void ReadDatasetMetadata(GDALDataset& ds, Metadata& metadata) {
+  char** items = ds.GetMetadata();
+  if (items == nullptr) return;
+  for (char** item = items; *item != nullptr; ++item) {
+    char* key = nullptr;
+    const char* value = CPLParseNameValue(*item, &key);
+    if (key != nullptr && value != nullptr) metadata[key] = value;
+    CPLFree(key);
+  }
+}
 
 // Runs a writer of `path`; an IoError it throws on a full disk says so
 // (util's WriteError) instead of GDAL's message ("IO error writing tag data",
@@ -179,6 +208,8 @@ void PatchGeolocation(const fs::path& path, const Metadata& geolocation) {
 
 // Tile side of the COGs, and the size their overviews halve down to.
 constexpr int kCogBlockPx = 512;
+// ZSTD level of the COGs' overview tiles (FinishGeoTiff says why not 1).
+constexpr const char* kOverviewZstdLevel = "3";
 
 // One overview level: each 2 x 2 block of the sw x sh level (`counts` the
 // base pixels behind each value, or null for the base level: 1 where finite)
@@ -307,13 +338,22 @@ void FinishGeoTiff(DatasetPtr ds, const fs::path& path, const char* resampling, 
   if (own_overviews) options.push_back("OVERVIEWS=FORCE_USE_EXISTING");
   if (!overviews) options.push_back("OVERVIEWS=NONE");
   options.push_back(nullptr);
-  const std::string old_tmpdir = CPLGetThreadLocalConfigOption("CPL_TMPDIR", "");
-  CPLSetThreadLocalConfigOption("CPL_TMPDIR", "/vsimem");
-  CPLErrorReset();
-  DatasetPtr cog(Driver("COG")->CreateCopy(path.c_str(), ds.get(), FALSE, const_cast<char**>(options.data()),
-                                           nullptr, nullptr));
-  const std::string message = LastGdalMessage();
-  CPLSetThreadLocalConfigOption("CPL_TMPDIR", old_tmpdir.empty() ? nullptr : old_tmpdir.c_str());
+  DatasetPtr cog;
+  std::string message;
+  {
+    const CPLConfigOptionSetter temporary_files_in_memory("CPL_TMPDIR", "/vsimem", false);
+    // The COG driver stages the overview tiles in a temporary GeoTIFF, then
+    // compresses them again into `path`. LEVEL reaches neither: the staging
+    // file took libtiff's default ZSTD level 9 (12 MB of hash tables cleared
+    // per tile) and the final overviews level 1. Level 3 for both: at 4000^2
+    // the file is 5 % smaller at the same wall time (paired runs, 0.98x).
+    // A user's own ZSTD_LEVEL_OVERVIEW wins.
+    const CPLConfigOptionSetter overview_level("ZSTD_LEVEL_OVERVIEW", kOverviewZstdLevel, true);
+    CPLErrorReset();
+    cog.reset(Driver("COG")->CreateCopy(path.c_str(), ds.get(), FALSE, const_cast<char**>(options.data()), nullptr,
+                                        nullptr));
+    message = LastGdalMessage();
+  }
   if (!cog) throw IoError("cannot write Cloud-Optimized GeoTIFF: " + message, path.string());
   CloseChecked(std::move(cog), path);
   if (!geolocation.empty()) PatchGeolocation(path, geolocation);
@@ -490,28 +530,8 @@ ComplexRaster ReadComplexRaster(const fs::path& path) {
   ComplexRaster raster;
   raster.width = ds->GetRasterXSize();
   raster.height = ds->GetRasterYSize();
-  for (int b = 1; b <= ds->GetRasterCount(); ++b) {
-    GDALRasterBand* band = ds->GetRasterBand(b);
-    std::vector<float> values(2 * size_t(raster.width) * raster.height);
-    if (band->RasterIO(GF_Read, 0, 0, raster.width, raster.height, values.data(), raster.width, raster.height,
-                       GDT_CFloat32, 0, 0, nullptr) != CE_None) {
-      throw InputError("cannot read raster band: " + LastGdalMessage(), path.string());
-    }
-    raster.bands.push_back(std::move(values));
-    raster.band_names.emplace_back(band->GetDescription());
-    raster.band_units.emplace_back(band->GetUnitType());
-    int has_nodata = 0;
-    const double nodata = band->GetNoDataValue(&has_nodata);
-    if (b == 1) raster.nodata_nan = has_nodata != 0 && std::isnan(nodata);
-  }
-  if (char** items = ds->GetMetadata()) {
-    for (char** item = items; *item != nullptr; ++item) {
-      char* key = nullptr;
-      const char* value = CPLParseNameValue(*item, &key);
-      if (key != nullptr && value != nullptr) raster.metadata[key] = value;
-      CPLFree(key);
-    }
-  }
+  for (int b = 1; b <= ds->GetRasterCount(); ++b) ReadBand(*ds, b, GDT_CFloat32, 2, path, raster);
+  ReadDatasetMetadata(*ds, raster.metadata);
   return raster;
 }
 
@@ -611,20 +631,7 @@ FloatRaster ReadFloatRaster(const fs::path& path) {
   FloatRaster raster;
   raster.width = ds->GetRasterXSize();
   raster.height = ds->GetRasterYSize();
-  for (int b = 1; b <= ds->GetRasterCount(); ++b) {
-    GDALRasterBand* band = ds->GetRasterBand(b);
-    std::vector<float> values(size_t(raster.width) * raster.height);
-    if (band->RasterIO(GF_Read, 0, 0, raster.width, raster.height, values.data(), raster.width,
-                       raster.height, GDT_Float32, 0, 0, nullptr) != CE_None) {
-      throw InputError("cannot read raster band: " + LastGdalMessage(), path.string());
-    }
-    raster.bands.push_back(std::move(values));
-    raster.band_names.emplace_back(band->GetDescription());
-    raster.band_units.emplace_back(band->GetUnitType());
-    int has_nodata = 0;
-    const double nodata = band->GetNoDataValue(&has_nodata);
-    if (b == 1) raster.nodata_nan = has_nodata != 0 && std::isnan(nodata);
-  }
+  for (int b = 1; b <= ds->GetRasterCount(); ++b) ReadBand(*ds, b, GDT_Float32, 1, path, raster);
   double gt[6];
   if (ds->GetGeoTransform(gt) == CE_None) raster.geotransform.assign(gt, gt + 6);
   if (const OGRSpatialReference* srs = ds->GetSpatialRef()) {
@@ -632,14 +639,7 @@ FloatRaster ReadFloatRaster(const fs::path& path) {
     if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) raster.crs = wkt;
     CPLFree(wkt);
   }
-  if (char** items = ds->GetMetadata()) {
-    for (char** item = items; *item != nullptr; ++item) {
-      char* key = nullptr;
-      const char* value = CPLParseNameValue(*item, &key);
-      if (key != nullptr && value != nullptr) raster.metadata[key] = value;
-      CPLFree(key);
-    }
-  }
+  ReadDatasetMetadata(*ds, raster.metadata);
   return raster;
 }
 

@@ -51,8 +51,8 @@ struct FloatRaster {
   std::vector<std::string> band_names;  // one per band (may be empty)
   Metadata metadata;                    // dataset metadata items
   std::string band_unit = {};           // unit of every band (GDAL unit type; may be empty)
-  Georeference georeference;            // GCPs/RPCs (radar geometry), may be empty
-  std::vector<std::string> band_units;  // GDAL unit type per band (may be empty)
+  Georeference georeference = {};       // GCPs/RPCs (radar geometry), may be empty
+  std::vector<std::string> band_units = {};  // GDAL unit type per band (may be empty)
   // Map-geometry rasters: GDAL geotransform (cell corners) and CRS (any
   // definition OGR accepts, e.g. "EPSG:32631"); both empty for radar geometry.
   std::vector<double> geotransform = {};  // 6 coefficients, or empty
@@ -65,7 +65,7 @@ struct FloatRaster {
   // The pixels of every band left empty in `bands` (one plane shared by all
   // of them, e.g. a simulation's bounce layers with no return); unused when
   // no band is empty.
-  std::vector<float> empty_band_pixels;
+  std::vector<float> empty_band_pixels = {};
 };
 
 // Every GeoTIFF writer below writes a ZSTD-compressed (level 1), tiled GeoTIFF;
@@ -93,7 +93,7 @@ void WriteFloatGeoTiff(const std::filesystem::path& path, const FloatRaster& ras
 struct ByteCategories {
   std::vector<std::string> names;
   std::vector<std::array<uint8_t, 4>> colours;  // same length as names, or empty
-  std::optional<uint8_t> nodata;                 // declared no-data value (transparent), if any
+  std::optional<uint8_t> nodata = {};            // declared no-data value (transparent), if any
 };
 
 void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8_t>& data,

@@ -13,11 +13,6 @@ namespace gissar::geo {
 namespace fs = std::filesystem;
 namespace {
 
-struct DatasetCloser {
-  void operator()(GDALDataset* ds) const { GDALClose(ds); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
-
 std::string GdalPath(const std::string& path) {
   if (path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0) return "/vsigzip/" + path;
   return path;

@@ -53,9 +53,11 @@ void ToDecibels(std::vector<float>& image) {
 
 namespace {
 
-// Adds the intensity response centred at (col, row) integrating to `total`.
-void AddPointIntensity(std::vector<float>& plane, int width, int height, double col, double row, double total,
-                       const SensorEffects& e) {
+// Calls visit(pixel index, range amplitude, azimuth amplitude) for every
+// pixel of the width x height image under the amplitude response centred at
+// (col, row).
+template <typename Visit>
+void ForEachResponsePixel(int width, int height, double col, double row, const SensorEffects& e, Visit&& visit) {
   int c0 = 0, r0 = 0;
   const std::vector<double> hx = ShiftedAmplitudeResponse(col, e.range_resolution_px, e.window, &c0);
   const std::vector<double> hy = ShiftedAmplitudeResponse(row, e.azimuth_resolution_px, e.window, &r0);
@@ -65,29 +67,28 @@ void AddPointIntensity(std::vector<float>& plane, int width, int height, double 
     for (size_t i = 0; i < hx.size(); ++i) {
       const int c = c0 + int(i);
       if (c < 0 || c >= width) continue;
-      plane[size_t(r) * width + c] += static_cast<float>(total * hx[i] * hx[i] * hy[j] * hy[j]);
+      visit(size_t(r) * width + c, hx[i], hy[j]);
     }
   }
+}
+
+// Adds the intensity response centred at (col, row) integrating to `total`.
+void AddPointIntensity(std::vector<float>& plane, int width, int height, double col, double row, double total,
+                       const SensorEffects& e) {
+  ForEachResponsePixel(width, height, col, row, e, [&](size_t pixel, double hx, double hy) {
+    plane[pixel] += static_cast<float>(total * hx * hx * hy * hy);
+  });
 }
 
 // Adds the amplitude response of a phasor A exp(i phase) at (col, row).
 void AddPointPhasor(std::vector<float>& re, std::vector<float>& im, int width, int height, double col, double row,
                     double amplitude, double phase, const SensorEffects& e) {
-  int c0 = 0, r0 = 0;
-  const std::vector<double> hx = ShiftedAmplitudeResponse(col, e.range_resolution_px, e.window, &c0);
-  const std::vector<double> hy = ShiftedAmplitudeResponse(row, e.azimuth_resolution_px, e.window, &r0);
   const double a_re = amplitude * std::cos(phase), a_im = amplitude * std::sin(phase);
-  for (size_t j = 0; j < hy.size(); ++j) {
-    const int r = r0 + int(j);
-    if (r < 0 || r >= height) continue;
-    for (size_t i = 0; i < hx.size(); ++i) {
-      const int c = c0 + int(i);
-      if (c < 0 || c >= width) continue;
-      const double w = hx[i] * hy[j];
-      re[size_t(r) * width + c] += static_cast<float>(a_re * w);
-      im[size_t(r) * width + c] += static_cast<float>(a_im * w);
-    }
-  }
+  ForEachResponsePixel(width, height, col, row, e, [&](size_t pixel, double hx, double hy) {
+    const double w = hx * hy;
+    re[pixel] += static_cast<float>(a_re * w);
+    im[pixel] += static_cast<float>(a_im * w);
+  });
 }
 
 // A canonical reflector returns into its bounce layer whatever the bounces

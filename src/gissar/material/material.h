@@ -44,6 +44,12 @@ inline constexpr auto kPolarizations = util::MakeEnumTable<Polarization>(
     "channel",
     {{Polarization::kHH, "HH"}, {Polarization::kHV, "HV"}, {Polarization::kVH, "VH"}, {Polarization::kVV, "VV"}},
     util::EnumCase::kInsensitive);
+// The four channel names in quad order (HH, HV, VH, VV), from kPolarizations.
+inline constexpr std::array<const char*, 4> kQuadChannelNames = [] {
+  std::array<const char*, 4> out{};
+  for (size_t i = 0; i < out.size(); ++i) out[i] = kPolarizations.Entries()[i].name.data();
+  return out;
+}();
 // kPolarizations.Parse: "HH", "HV", "VH", "VV" (case-insensitive); throws
 // ConfigError naming `option` and the channels otherwise.
 Polarization ParsePolarization(const std::string& text, const std::string& option);

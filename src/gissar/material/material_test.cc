@@ -195,7 +195,9 @@ TEST(MaterialTest, SeaMatchesCmod5nAndIsDarkerThanLand) {
     EXPECT_NEAR(water, reference_db, 2.0) << inc;
     EXPECT_LE(water - land, reference_db - land + 2.0) << inc;
     EXPECT_LE(water - forest, reference_db - forest + 2.0) << inc;
-    if (reference_db - forest <= -17.0) EXPECT_LE(water - forest, -15.0) << inc;
+    if (reference_db - forest <= -17.0) {
+      EXPECT_LE(water - forest, -15.0) << inc;
+    }
   }
 }
 

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "gissar/util/error.h"
+#include "gissar/util/number_text.h"
 
 namespace gissar::material {
 namespace {
@@ -100,15 +101,9 @@ std::vector<ReflectorSpec> ReadReflectorsCsv(const std::string& path) {
     for (int k = 1; k < 8; ++k) {
       if (column[k] < 0) continue;  // roll_deg absent: 0
       const std::string& field = fields[size_t(column[k])];
-      size_t used = 0;
-      try {
-        v[k - 1] = std::stod(field, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used == 0 || used != field.size() || !std::isfinite(v[k - 1])) {
-        throw InputError(std::string(kNames[k]) + " must be a number, got '" + field + "'", where);
-      }
+      const std::optional<double> value = util::ParseFiniteNumber(field);
+      if (!value) throw InputError(std::string(kNames[k]) + " must be a number, got '" + field + "'", where);
+      v[k - 1] = *value;
     }
     r.lon_deg = v[0], r.lat_deg = v[1], r.apex_height_m = v[2], r.size_m = v[3];
     r.boresight_azimuth_deg = v[4], r.boresight_elevation_deg = v[5], r.roll_deg = v[6];

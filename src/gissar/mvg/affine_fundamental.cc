@@ -242,14 +242,7 @@ void RansacOptions::Check() const {
   if (!std::isfinite(threshold_px) || threshold_px <= 0.0) {
     throw ConfigError("RANSAC threshold must be a positive number of pixels", "threshold_px");
   }
-  if (!std::isfinite(confidence) || confidence <= 0.0 || confidence >= 1.0) {
-    throw ConfigError("RANSAC confidence must be in (0, 1)", "confidence");
-  }
-  if (max_iterations < 1) throw ConfigError("RANSAC needs at least 1 iteration", "max_iterations");
-  if (min_iterations < 0 || min_iterations > max_iterations) {
-    throw ConfigError("min_iterations must be in [0, max_iterations]", "min_iterations");
-  }
-  if (max_refits < 1) throw ConfigError("at least 1 refit is needed", "max_refits");
+  CheckSamplingBudget(confidence, max_iterations, min_iterations, max_refits);
 }
 
 std::optional<RobustFundamentalFit> EstimateAffineFundamentalRansac(

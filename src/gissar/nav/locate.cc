@@ -438,6 +438,67 @@ ControlMatches MatchReference(const Reference& reference, const cv::Mat& observe
   return out;
 }
 
+namespace {
+
+// The polish: Nelder-Mead on -NCC over (heading, depression, shift along
+// l, along h) from `pose`, about `options.polish_evaluations` evaluations
+// (a shrink takes 4 at once). The best vertex's pose, or `pose` when that
+// vertex leaves the scene. `renders` counts the references rendered.
+NavPose PolishPose(const NavScene& scene, const SensorModel& model, const NavPose& pose, const cv::Mat& obs_log,
+                   const LocateOptions& options, const ReferenceSource& source, int* renders) {
+  auto cost = [&](const Eigen::Vector4d& q) {
+    const auto p = Moved(scene, pose, model, q[0], q[1], q[2], q[3]);
+    if (!p) return 2.0;
+    ++*renders;
+    return -Similarity(source(*p), obs_log, options.filter_px, options.reference_floor);
+  };
+  std::vector<Eigen::Vector4d> simplex(5, Eigen::Vector4d::Zero());
+  const Eigen::Vector4d steps(0.05, 0.1, 0.3 * model.range_spacing_m, 0.3 * model.azimuth_spacing_m);
+  for (int k = 0; k < 4; ++k) simplex[k + 1][k] = steps[k];
+  std::vector<double> f(5);
+  for (int k = 0; k < 5; ++k) f[k] = cost(simplex[k]);
+  int evaluations = 5;
+  while (evaluations < options.polish_evaluations) {
+    std::vector<int> order{0, 1, 2, 3, 4};
+    std::sort(order.begin(), order.end(), [&](int i, int j) { return f[i] < f[j]; });
+    std::vector<Eigen::Vector4d> s2;
+    std::vector<double> f2;
+    for (int i : order) { s2.push_back(simplex[i]); f2.push_back(f[i]); }
+    simplex = s2;
+    f = f2;
+    Eigen::Vector4d centroid = Eigen::Vector4d::Zero();
+    for (int k = 0; k < 4; ++k) centroid += simplex[k] / 4.0;
+    const Eigen::Vector4d xr = centroid + (centroid - simplex[4]);
+    const double fr = cost(xr);
+    ++evaluations;
+    if (fr < f[0]) {
+      const Eigen::Vector4d xe = centroid + 2.0 * (centroid - simplex[4]);
+      const double fe = cost(xe);
+      ++evaluations;
+      if (fe < fr) { simplex[4] = xe; f[4] = fe; } else { simplex[4] = xr; f[4] = fr; }
+    } else if (fr < f[3]) {
+      simplex[4] = xr; f[4] = fr;
+    } else {
+      const Eigen::Vector4d xc = centroid + 0.5 * (simplex[4] - centroid);
+      const double fc = cost(xc);
+      ++evaluations;
+      if (fc < f[4]) { simplex[4] = xc; f[4] = fc; }
+      else {
+        for (int k = 1; k < 5; ++k) { simplex[k] = simplex[0] + 0.5 * (simplex[k] - simplex[0]); f[k] = cost(simplex[k]); }
+        evaluations += 4;
+      }
+    }
+  }
+  const int best = static_cast<int>(std::min_element(f.begin(), f.end()) - f.begin());
+  if (const auto p = Moved(scene, pose, model, simplex[best][0], simplex[best][1], simplex[best][2],
+                           simplex[best][3])) {
+    return *p;
+  }
+  return pose;
+}
+
+}  // namespace
+
 LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::vector<float>& observed,
                     const NavPose& prior, const LocateOptions& options) {
   return Locate(scene, model, observed, prior, options,
@@ -543,55 +604,7 @@ LocateResult Locate(const NavScene& scene, const SensorModel& model, const std::
 
   if (options.polish_evaluations > 0 && result.converged) {
     last_ref.reset();  // the polish moves the pose by its own rule
-    // Nelder-Mead on -NCC over (heading, depression, shift along l, along h).
-    auto cost = [&](const Eigen::Vector4d& q) {
-      const auto p = Moved(scene, pose, model, q[0], q[1], q[2], q[3]);
-      if (!p) return 2.0;
-      ++result.renders;
-      return -Similarity(source(*p), obs_log, options.filter_px, options.reference_floor);
-    };
-    std::vector<Eigen::Vector4d> simplex(5, Eigen::Vector4d::Zero());
-    const Eigen::Vector4d steps(0.05, 0.1, 0.3 * model.range_spacing_m, 0.3 * model.azimuth_spacing_m);
-    for (int k = 0; k < 4; ++k) simplex[k + 1][k] = steps[k];
-    std::vector<double> f(5);
-    for (int k = 0; k < 5; ++k) f[k] = cost(simplex[k]);
-    int evaluations = 5;
-    while (evaluations < options.polish_evaluations) {
-      std::vector<int> order{0, 1, 2, 3, 4};
-      std::sort(order.begin(), order.end(), [&](int i, int j) { return f[i] < f[j]; });
-      std::vector<Eigen::Vector4d> s2;
-      std::vector<double> f2;
-      for (int i : order) { s2.push_back(simplex[i]); f2.push_back(f[i]); }
-      simplex = s2;
-      f = f2;
-      Eigen::Vector4d centroid = Eigen::Vector4d::Zero();
-      for (int k = 0; k < 4; ++k) centroid += simplex[k] / 4.0;
-      const Eigen::Vector4d xr = centroid + (centroid - simplex[4]);
-      const double fr = cost(xr);
-      ++evaluations;
-      if (fr < f[0]) {
-        const Eigen::Vector4d xe = centroid + 2.0 * (centroid - simplex[4]);
-        const double fe = cost(xe);
-        ++evaluations;
-        if (fe < fr) { simplex[4] = xe; f[4] = fe; } else { simplex[4] = xr; f[4] = fr; }
-      } else if (fr < f[3]) {
-        simplex[4] = xr; f[4] = fr;
-      } else {
-        const Eigen::Vector4d xc = centroid + 0.5 * (simplex[4] - centroid);
-        const double fc = cost(xc);
-        ++evaluations;
-        if (fc < f[4]) { simplex[4] = xc; f[4] = fc; }
-        else {
-          for (int k = 1; k < 5; ++k) { simplex[k] = simplex[0] + 0.5 * (simplex[k] - simplex[0]); f[k] = cost(simplex[k]); }
-          evaluations += 4;
-        }
-      }
-    }
-    const int best = static_cast<int>(std::min_element(f.begin(), f.end()) - f.begin());
-    if (const auto p = Moved(scene, pose, model, simplex[best][0], simplex[best][1], simplex[best][2],
-                             simplex[best][3])) {
-      pose = *p;
-    }
+    pose = PolishPose(scene, model, pose, obs_log, options, source, &result.renders);
   }
   result.pose = pose;
   result.sensor_enu = pose.SensorPosition(model.look_side);

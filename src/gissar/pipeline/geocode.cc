@@ -18,6 +18,7 @@
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
 #include "gissar/util/memory_limit.h"
+#include "gissar/util/number_text.h"
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
@@ -40,14 +41,9 @@ std::string Stem(const std::string& tif) {
 double MetadataNumber(const geo::Metadata& m, const std::string& key, const std::string& source) {
   const auto it = m.find(key);
   if (it == m.end()) throw InputError("not a gissar slant-range image: metadata " + key + " missing", source);
-  try {
-    size_t used = 0;
-    const double v = std::stod(it->second, &used);
-    if (used != it->second.size() || !std::isfinite(v)) throw std::invalid_argument("");
-    return v;
-  } catch (const std::exception&) {
-    throw InputError("metadata " + key + " is not a number: " + it->second, source);
-  }
+  const std::optional<double> value = util::ParseFiniteNumber(it->second);
+  if (!value) throw InputError("metadata " + key + " is not a number: " + it->second, source);
+  return *value;
 }
 
 std::string MetadataText(const geo::Metadata& m, const std::string& key, const std::string& source) {

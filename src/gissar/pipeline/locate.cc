@@ -32,6 +32,7 @@
 #include "gissar/scene/scene_config.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/error.h"
+#include "gissar/util/number_text.h"
 #include "gissar/util/progress.h"
 #include "gissar/util/provenance.h"
 
@@ -239,17 +240,9 @@ constexpr double kDatabaseTrialOffset = 0.15;
 // A positive finite number from image metadata `key`; InputError otherwise
 // (never the library's "stod" message).
 double MetadataNumber(const std::string& text, const std::string& key, const std::string& image) {
-  size_t used = 0;
-  double value = 0.0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || !std::isfinite(value) || !(value > 0)) {
-    throw InputError(key + " is not a positive number: '" + text + "'", image);
-  }
-  return value;
+  const std::optional<double> value = util::ParseFiniteNumber(text);
+  if (!value || !(*value > 0)) throw InputError(key + " is not a positive number: '" + text + "'", image);
+  return *value;
 }
 
 // The database options of locate and evaluate.

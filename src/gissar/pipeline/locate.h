@@ -46,44 +46,14 @@ struct PriorPose {
 };
 PriorPose ParsePriorJson(const nlohmann::json& json, const std::string& source);
 
-struct LocateRequest {
-  std::string image;   // observed image: GeoTIFF (band 1 linear intensity) with GISSAR_* metadata
-  std::string scene;   // .gscene (or a DEM with --dem)
-  std::string dem;
-  std::string vertical_datum;  // of --dem's heights ("" = from the file; SimulateRequest::vertical_datum)
-  std::string prior;   // prior pose JSON
-  std::string out;     // result JSON
-  // Optional picture: the observed image (green) over the simulation
-  // (magenta) at the prior (left) and at the fix (right).
-  std::string composite_png;
-  // Pixel spacings (0: the image's GISSAR_*_SPACING_M metadata).
-  double range_spacing_m = 0.0;
-  double azimuth_spacing_m = 0.0;
-  std::string look = "";  // "" = metadata, else right/left
-  std::string matcher = "ncc";
-  int search_px = 28;  // first-iteration search radius: the prior's uncertainty in pixels
-  int step_px = 12;    // grid step of the matched patches
-  // Renders of the dense photometric stage after the patch iterations
-  // (nav::LocateOptions::dense_renders; 0 = off).
-  int dense_renders = 2;
-  int polish_evaluations = 0;
-  int bounces = 1;
-  double rays_per_cell = 4.0;
-  // A real product instead of --image/--prior (issue 23, docs/navigation.md
-  // "Real images"): the observed image is the RSLC's detected layer
-  // (frequency, polarization), multilooked looks_azimuth x looks_range; the
-  // prior is the product's own track moved by prior_offset_track (along,
-  // cross, up; metres, in the frame of the mid-scene velocity) and
-  // prior_heading_offset_deg; the references are simulated on the product's
-  // zero-Doppler grid; the fix is the track offset (nav/product_locate.h).
-  // prior_sigma_*: the INS's one-sigma errors (regularisation and search).
+// The fields locate and evaluate share (each request's table gives their
+// flags and help): the real product fixed, its looks, the terrain's options
+// and the reference database.
+struct ProductFixFields {
+  // A real product instead of --image/--prior (docs/navigation.md "Real
+  // images"): the observed image is the RSLC's detected layer (frequency,
+  // polarization), multilooked looks_azimuth x looks_range.
   std::string product;
-  // Or any sensor's track (geo/orbit_file.h): state vectors (--orbit) and the
-  // radar grid (--radar-grid) of the observed detected image given as
-  // --image (band 1 linear intensity, exactly width x length of the grid);
-  // fixed like a product (the state vectors are the annotated truth).
-  std::string orbit;
-  std::string radar_grid;
   std::string frequency = "A";
   std::string polarization = "HH";
   // A Sentinel-1 SLC --product (a SAFE; pipeline/sentinel1_simulate.h): the
@@ -94,11 +64,6 @@ struct LocateRequest {
   std::string swath;
   int burst = 0;
   std::optional<std::array<int, 4>> product_window_px;
-  std::vector<double> prior_offset_track = {0.0, 0.0, 0.0};
-  double prior_heading_offset_deg = 0.0;
-  double prior_sigma_horizontal_m = 60.0;
-  double prior_sigma_vertical_m = 10.0;
-  double prior_sigma_heading_deg = 0.05;
   int looks_range = 3;
   int looks_azimuth = 3;
   int dem_oversample = 1;
@@ -128,10 +93,53 @@ struct LocateRequest {
   // against the stored reference that covers the prior (warped to the pose,
   // no rendering) and resects with its geometry. No covering reference:
   // database_fallback "none" = no fix (exit 3 with the reason), "render" =
-  // the fix renders its references on the fly. With --image/--prior only.
+  // the fix renders its references on the fly. locate: with --image/--prior
+  // only; evaluate: see EvaluateRequest::database_fixes.
   std::string database;
   std::string database_fallback = "none";
   double database_heading_tolerance_deg = 10.0;  // largest prior-to-reference heading difference
+};
+
+struct LocateRequest : ProductFixFields {
+  std::string image;   // observed image: GeoTIFF (band 1 linear intensity) with GISSAR_* metadata
+  std::string scene;   // .gscene (or a DEM with --dem)
+  std::string dem;
+  std::string vertical_datum;  // of --dem's heights ("" = from the file; SimulateRequest::vertical_datum)
+  std::string prior;   // prior pose JSON
+  std::string out;     // result JSON
+  // Optional picture: the observed image (green) over the simulation
+  // (magenta) at the prior (left) and at the fix (right).
+  std::string composite_png;
+  // Pixel spacings (0: the image's GISSAR_*_SPACING_M metadata).
+  double range_spacing_m = 0.0;
+  double azimuth_spacing_m = 0.0;
+  std::string look = "";  // "" = metadata, else right/left
+  std::string matcher = "ncc";
+  int search_px = 28;  // first-iteration search radius: the prior's uncertainty in pixels
+  int step_px = 12;    // grid step of the matched patches
+  // Renders of the dense photometric stage after the patch iterations
+  // (nav::LocateOptions::dense_renders; 0 = off).
+  int dense_renders = 2;
+  int polish_evaluations = 0;
+  int bounces = 1;
+  double rays_per_cell = 4.0;
+  // With a product (ProductFixFields::product): the prior is the product's
+  // own track moved by prior_offset_track (along, cross, up; metres, in the
+  // frame of the mid-scene velocity) and prior_heading_offset_deg; the
+  // references are simulated on the product's zero-Doppler grid; the fix is
+  // the track offset (nav/product_locate.h). prior_sigma_*: the INS's
+  // one-sigma errors (regularisation and search).
+  // Or any sensor's track (geo/orbit_file.h): state vectors (--orbit) and the
+  // radar grid (--radar-grid) of the observed detected image given as
+  // --image (band 1 linear intensity, exactly width x length of the grid);
+  // fixed like a product (the state vectors are the annotated truth).
+  std::string orbit;
+  std::string radar_grid;
+  std::vector<double> prior_offset_track = {0.0, 0.0, 0.0};
+  double prior_heading_offset_deg = 0.0;
+  double prior_sigma_horizontal_m = 60.0;
+  double prior_sigma_vertical_m = 10.0;
+  double prior_sigma_heading_deg = 0.05;
   bool UsesTrack() const { return !product.empty() || !orbit.empty() || !radar_grid.empty(); }
   void Check() const;
   // The request as {snake_case field: value} (pipeline/locate_fields.cc).
@@ -153,7 +161,7 @@ nlohmann::json RunTerrainLocate(const LocateRequest& options, const std::string&
 // Most Monte-Carlo trials one `evaluate` runs (each is a whole pose fix).
 constexpr int kMaxTrials = 100000;
 
-struct EvaluateRequest {
+struct EvaluateRequest : ProductFixFields {
   std::string scene;
   std::string dem;
   std::string vertical_datum;  // of --dem's heights ("" = from the file; SimulateRequest::vertical_datum)
@@ -196,37 +204,18 @@ struct EvaluateRequest {
   // `trials`; trial_count -1 = the rest (by default: all of them).
   int trial_first = 0;
   int trial_count = -1;
-  // A real product instead of simulated observations (LocateRequest's
-  // product fields): each trial displaces the product's annotated track by a
+  // With a product (ProductFixFields::product) instead of simulated
+  // observations, each trial displaces the product's annotated track by a
   // seeded prior error and fixes it (RunProductEvaluate). The image-shape
   // options (spacing, size, slant range, depression, looks, nesz, material,
   // smoothing) do not apply.
-  std::string product;
-  std::string frequency = "A";
-  std::string polarization = "HH";
-  // LocateRequest's Sentinel-1 selection.
-  std::string swath;
-  int burst = 0;
-  std::optional<std::array<int, 4>> product_window_px;
-  int looks_range = 3;
-  int looks_azimuth = 3;
-  int dem_oversample = 1;
-  // LocateRequest::reflectors, ::sea and ::terrain_horizontal_sigma_m
-  // (reflectors with a product only).
-  std::string reflectors;
-  std::string sea = "auto";
-  double terrain_horizontal_sigma_m = 6.0;
-  int64_t max_memory_bytes = DefaultMemoryLimitBytes();  // as LocateRequest's
-  // Fixes from a reference database (LocateRequest::database): the trials'
-  // true poses are drawn around its stored poses (a stored pose, heading and
-  // depression +- 2 deg, image centre +- 15 % of the footprint along and
-  // across) with its image size, pixel spacing, slant range and depression
-  // (Resolved() takes them from the catalogue); database_fixes "stored" fixes
-  // them from the stored references, "render" renders on the fly (the same
-  // observed images and priors: the comparison of docs/navigation.md).
-  std::string database;
-  std::string database_fallback = "none";
-  double database_heading_tolerance_deg = 10.0;
+  // With a database (ProductFixFields::database), the trials' true poses are
+  // drawn around its stored poses (a stored pose, heading and depression
+  // +- 2 deg, image centre +- 15 % of the footprint along and across) with
+  // its image size, pixel spacing, slant range and depression (Resolved()
+  // takes them from the catalogue); database_fixes "stored" fixes them from
+  // the stored references, "render" renders on the fly (the same observed
+  // images and priors: the comparison of docs/navigation.md).
   std::string database_fixes = "stored";
   void Check() const;
   // The request with automatic (negative) prior errors replaced by the

@@ -346,7 +346,7 @@ TEST(RegisterCommandTest, RecoversAKnownAffineWarp) {
   {
     std::ofstream csv(dir / "cp.csv");
     csv << "x1,y1,x2,y2\n";
-    for (const Vector2d p : {Vector2d(10, 10), Vector2d(100, 15), Vector2d(20, 90), Vector2d(95, 85), Vector2d(60, 50),
+    for (const Vector2d& p : {Vector2d(10, 10), Vector2d(100, 15), Vector2d(20, 90), Vector2d(95, 85), Vector2d(60, 50),
                              Vector2d(30, 60)}) {
       const Vector2d m = A * p + t;
       csv << p.x() << "," << p.y() << "," << m.x() << "," << m.y() << "\n";

@@ -26,12 +26,8 @@ using json = nlohmann::json;
 
 namespace {
 
-// The channel names in quad order, from material::kPolarizations.
-constexpr std::array<const char*, 4> kChannels = [] {
-  std::array<const char*, 4> out{};
-  for (size_t i = 0; i < out.size(); ++i) out[i] = material::kPolarizations.Entries()[i].name.data();
-  return out;
-}();
+// The channel names in quad order.
+constexpr const auto& kChannels = material::kQuadChannelNames;
 
 std::string Upper(std::string text) {
   for (char& c : text) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));

@@ -41,6 +41,7 @@
 #include <set>
 #include <string>
 #include <utility>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -178,9 +179,11 @@ inline nlohmann::json NumberPairText(const std::string& text, const std::string&
 
 template <class R>
 struct Fields {
-  // The accessor of a member of R, or of a member of a member of R.
-  template <class T>
-  static auto At(T R::*member) {
+  // The accessor of a member of R (or of a base of R's), or of a member of
+  // a member of R.
+  template <class T, class B>
+    requires std::is_base_of_v<B, R>
+  static auto At(T B::*member) {
     return [member](R& r) -> T& { return r.*member; };
   }
   template <class S, class T>

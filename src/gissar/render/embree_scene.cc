@@ -135,6 +135,24 @@ RTCRayHit Query(const float org[3], const float dir[3], float t_near, float t_fa
   return query;
 }
 
+// The context of a 16-ray query and the lanes' fields Embree reads besides
+// the rays (time, mask, id, flags). `valid` and `packet` must be 64-byte
+// aligned, as Embree requires.
+RTCIntersectContext PacketContext(const int valid[16], RayPacket16& packet, bool coherent) {
+  GISSAR_CHECK((reinterpret_cast<uintptr_t>(valid) & 63u) == 0 &&
+               (reinterpret_cast<uintptr_t>(&packet) & 63u) == 0);
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  for (int k = 0; k < 16; ++k) {
+    packet.time[k] = 0.0f;
+    packet.mask[k] = std::numeric_limits<unsigned>::max();
+    packet.id[k] = static_cast<uint32_t>(k);
+    packet.flags[k] = 0;
+  }
+  return context;
+}
+
 }  // namespace
 
 struct EmbreeScene::Impl {
@@ -326,6 +344,20 @@ void WalkPacket(const HeightfieldTree& tree, unsigned tile, const int* valid, RT
   }
   tree.IntersectPacket(tile, reinterpret_cast<const HeightfieldRay*>(storage), lanes, t_near, t_far, accept);
 }
+
+// Walks height-field tile `tile` for each valid lane of an Embree query of
+// n rays alone (HeightfieldTree::Intersect); accept(k, hit) as there.
+template <class Accept>
+void WalkLanes(const HeightfieldTree& tree, unsigned tile, const int* valid, RTCRayN* rays, unsigned n,
+               Accept&& accept) {
+  for (unsigned k = 0; k < n; ++k) {
+    if (valid[k] != -1) continue;
+    const HeightfieldRay ray = LaneRay(rays, n, k);
+    float t_far = RTCRayN_tfar(rays, n, k);
+    tree.Intersect(tile, ray, RTCRayN_tnear(rays, n, k), &t_far,
+                   [&](const HeightfieldHit& hit) -> float { return accept(k, hit); });
+  }
+}
 }  // namespace
 
 void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArguments* args) {
@@ -362,19 +394,13 @@ void EmbreeScene::Impl::HeightfieldIntersect(const RTCIntersectFunctionNArgument
                [&](int k, const HeightfieldHit& hit) { return keep(unsigned(k), hit); });
     return;
   }
-  for (unsigned k = 0; k < n; ++k) {
-    if (args->valid[k] != -1) continue;
-    const HeightfieldRay ray = LaneRay(rays, n, k);
-    float t_far = RTCRayN_tfar(rays, n, k);
-    impl->heightfield->Intersect(args->primID, ray, RTCRayN_tnear(rays, n, k), &t_far,
-                                 [&](const HeightfieldHit& hit) -> float {
-      if (collector != nullptr) {
-        collector->Offer(hit.t, args->geomID, hit.triangle, hit.triangle);
-        return RTCRayN_tfar(rays, n, k);
-      }
-      return keep(k, hit);
-    });
-  }
+  WalkLanes(*impl->heightfield, args->primID, args->valid, rays, n, [&](unsigned k, const HeightfieldHit& hit) {
+    if (collector != nullptr) {
+      collector->Offer(hit.t, args->geomID, hit.triangle, hit.triangle);
+      return RTCRayN_tfar(rays, n, k);
+    }
+    return keep(k, hit);
+  });
 }
 
 void EmbreeScene::Impl::HeightfieldOccluded(const RTCOccludedFunctionNArguments* args) {
@@ -390,16 +416,10 @@ void EmbreeScene::Impl::HeightfieldOccluded(const RTCOccludedFunctionNArguments*
     });
     return;
   }
-  for (unsigned k = 0; k < n; ++k) {
-    if (args->valid[k] != -1) continue;
-    const HeightfieldRay ray = LaneRay(rays, n, k);
-    float t_far = RTCRayN_tfar(rays, n, k);
-    impl->heightfield->Intersect(args->primID, ray, RTCRayN_tnear(rays, n, k), &t_far,
-                                 [&](const HeightfieldHit&) -> float {
-      RTCRayN_tfar(rays, n, k) = -std::numeric_limits<float>::infinity();
-      return -std::numeric_limits<float>::infinity();
-    });
-  }
+  WalkLanes(*impl->heightfield, args->primID, args->valid, rays, n, [&](unsigned k, const HeightfieldHit&) {
+    RTCRayN_tfar(rays, n, k) = -std::numeric_limits<float>::infinity();
+    return -std::numeric_limits<float>::infinity();
+  });
 }
 
 void EmbreeScene::Impl::ResolveTie(const float org[3], const float dir[3], float t_near, float t, float* t_out,
@@ -615,16 +635,8 @@ std::optional<RayHit> EmbreeScene::Intersect(const Eigen::Vector3f& origin,
 
 void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coherent) const {
   Build();
-  GISSAR_CHECK((reinterpret_cast<uintptr_t>(valid) & 63u) == 0 &&
-               (reinterpret_cast<uintptr_t>(&packet) & 63u) == 0);
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  RTCIntersectContext context = PacketContext(valid, packet, coherent);
   for (int k = 0; k < 16; ++k) {
-    packet.time[k] = 0.0f;
-    packet.mask[k] = std::numeric_limits<unsigned>::max();
-    packet.id[k] = static_cast<uint32_t>(k);
-    packet.flags[k] = 0;
     packet.geometry[k] = RTC_INVALID_GEOMETRY_ID;
     packet.instance[k] = RTC_INVALID_GEOMETRY_ID;
     packet.triangle[k] = RayPacket16::kNoHit;
@@ -646,17 +658,7 @@ void EmbreeScene::Intersect16(const int valid[16], RayPacket16& packet, bool coh
 
 void EmbreeScene::Occluded16(const int valid[16], RayPacket16& packet, bool coherent, bool occluded[16]) const {
   Build();
-  GISSAR_CHECK((reinterpret_cast<uintptr_t>(valid) & 63u) == 0 &&
-               (reinterpret_cast<uintptr_t>(&packet) & 63u) == 0);
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  for (int k = 0; k < 16; ++k) {
-    packet.time[k] = 0.0f;
-    packet.mask[k] = std::numeric_limits<unsigned>::max();
-    packet.id[k] = static_cast<uint32_t>(k);
-    packet.flags[k] = 0;
-  }
+  RTCIntersectContext context = PacketContext(valid, packet, coherent);
   // RayPacket16 begins with Embree's RTCRay16 (the ray part of RTCRayHit16).
   rtcOccluded16(valid, impl_->scene, &context, reinterpret_cast<RTCRay16*>(&packet));
   for (int k = 0; k < 16; ++k) {

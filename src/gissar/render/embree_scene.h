@@ -56,7 +56,7 @@ struct alignas(64) RayPacket16 {
 struct TerrainGrid {
   int width = 0;
   int height = 0;
-  std::vector<uint8_t> cells;
+  std::vector<uint8_t> cells = {};
 };
 
 // BVH build quality: kAuto picks by scene size (EmbreeScene constructor).
