@@ -123,18 +123,19 @@ struct LocateRequest : ProductFixFields {
   int polish_evaluations = 0;
   int bounces = 1;
   double rays_per_cell = 4.0;
-  // With a product (ProductFixFields::product): the prior is the product's
-  // own track moved by prior_offset_track (along, cross, up; metres, in the
-  // frame of the mid-scene velocity) and prior_heading_offset_deg; the
-  // references are simulated on the product's zero-Doppler grid; the fix is
-  // the track offset (nav/product_locate.h). prior_sigma_*: the INS's
-  // one-sigma errors (regularisation and search).
-  // Or any sensor's track (geo/orbit_file.h): state vectors (--orbit) and the
-  // radar grid (--radar-grid) of the observed detected image given as
-  // --image (band 1 linear intensity, exactly width x length of the grid);
-  // fixed like a product (the state vectors are the annotated truth).
+  // Or, instead of a product (ProductFixFields::product), any sensor's track
+  // (geo/orbit_file.h): state vectors (--orbit) and the radar grid
+  // (--radar-grid) of the observed detected image given as --image (band 1
+  // linear intensity, exactly width x length of the grid); fixed like a
+  // product (the state vectors are the annotated truth).
   std::string orbit;
   std::string radar_grid;
+  // With a product or a track: the prior is the annotated track moved by
+  // prior_offset_track (along, cross, up; metres, in the frame of the
+  // mid-scene velocity) and prior_heading_offset_deg; the references are
+  // simulated on the product's zero-Doppler grid; the fix is the track
+  // offset (nav/product_locate.h). prior_sigma_*: the INS's one-sigma errors
+  // (regularisation and search).
   std::vector<double> prior_offset_track = {0.0, 0.0, 0.0};
   double prior_heading_offset_deg = 0.0;
   double prior_sigma_horizontal_m = 60.0;
