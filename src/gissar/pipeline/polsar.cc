@@ -26,9 +26,6 @@ using json = nlohmann::json;
 
 namespace {
 
-// The channel names in quad order.
-constexpr const auto& kChannels = material::kQuadChannelNames;
-
 std::string Upper(std::string text) {
   for (char& c : text) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   return text;
@@ -100,7 +97,7 @@ QuadInput FromProduct(const PolsarRequest& request, int looks_range, int looks_a
     }
   }
   std::vector<std::string> missing;
-  for (const char* c : kChannels) {
+  for (const char* c : material::kQuadChannelNames) {
     if (std::find(p.stored_polarizations.begin(), p.stored_polarizations.end(), c) == p.stored_polarizations.end()) {
       missing.push_back(c);
     }
@@ -111,7 +108,7 @@ QuadInput FromProduct(const PolsarRequest& request, int looks_range, int looks_a
                          "; listOfPolarizations: " + Joined(p.polarizations) + ")",
                      request.product);
   }
-  for (const char* c : kChannels) {
+  for (const char* c : material::kQuadChannelNames) {
     geo::RslcReadOptions read = options;
     read.polarization = c;
     read.read_complex = true;
@@ -187,7 +184,7 @@ QuadInput FromImage(const PolsarRequest& request, int looks_range, int looks_azi
     if (!named.count(name)) named[name] = b;
   }
   std::vector<std::string> missing, names;
-  for (const char* c : kChannels) {
+  for (const char* c : material::kQuadChannelNames) {
     if (!named.count(c)) missing.push_back(c);
   }
   for (const std::string& name : raster.band_names) names.push_back(name.empty() ? "(unnamed)" : name);
@@ -199,7 +196,7 @@ QuadInput FromImage(const PolsarRequest& request, int looks_range, int looks_azi
                     request.max_memory_bytes, "the four channels of " + request.image, "crop the image");
   q.image.width = raster.width;
   q.image.height = raster.height;
-  for (const char* c : kChannels) {
+  for (const char* c : material::kQuadChannelNames) {
     const std::vector<float>& interleaved = raster.bands[named.at(c)];
     std::vector<std::complex<float>> plane(size_t(raster.width) * raster.height);
     for (size_t k = 0; k < plane.size(); ++k) plane[k] = {interleaved[2 * k], interleaved[2 * k + 1]};

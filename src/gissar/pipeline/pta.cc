@@ -41,12 +41,10 @@ using json = nlohmann::json;
 
 namespace {
 
-// The channel names in quad order.
-constexpr const auto& kChannels = material::kQuadChannelNames;
 constexpr double kDeg = M_PI / 180.0;
 
 bool IsChannel(const std::string& name) {
-  return std::find(std::begin(kChannels), std::end(kChannels), name) != std::end(kChannels);
+  return std::ranges::find(material::kQuadChannelNames, name) != material::kQuadChannelNames.end();
 }
 
 std::string Upper(std::string text) {
@@ -157,11 +155,11 @@ Source ProductSource(const PtaRequest& request) {
   s.width = p.cols();
   s.height = p.rows();
   s.channels[s.channel] = std::move(product->slc);
-  const bool quad = std::all_of(std::begin(kChannels), std::end(kChannels), [&](const char* c) {
+  const bool quad = std::ranges::all_of(material::kQuadChannelNames, [&](const char* c) {
     return std::find(p.stored_polarizations.begin(), p.stored_polarizations.end(), c) != p.stored_polarizations.end();
   });
   if (quad) {
-    for (const char* c : kChannels) {
+    for (const char* c : material::kQuadChannelNames) {
       if (s.channels.count(c)) continue;
       geo::RslcReadOptions other = options;
       other.polarization = c;
@@ -738,7 +736,7 @@ void RecordMeasurement(json& r, const image::PointTargetMeasurement& m, const Ex
 bool RecordQuadPol(json& r, const image::PointTargetMeasurement& m, const Source& source, const PtaRequest& request) {
   std::map<std::string, std::complex<double>> value;
   json channels = json::object();
-  for (const char* c : kChannels) {
+  for (const char* c : material::kQuadChannelNames) {
     const auto v = image::InterpolateComplex(source.channels.at(c), source.width, source.height, m.peak_px.range,
                                              m.peak_px.azimuth, m.spectrum_centre_cycles_per_px,
                                              request.chip_half_size_px);
@@ -868,7 +866,7 @@ PtaResult RunPta(const PtaRequest& request, const std::string& command_line, Rep
   if (rows.empty()) throw InputError("the reflectors file holds no reflector", request.reflectors);
   Source source = OpenSource(request, rows, reporter);
   ThrowIfCancelled(reporter, "pta");
-  const bool quad = std::all_of(std::begin(kChannels), std::end(kChannels),
+  const bool quad = std::all_of(std::begin(material::kQuadChannelNames), std::end(material::kQuadChannelNames),
                                 [&](const char* c) { return source.channels.count(c) > 0; });
   if (!source.calibrated) {
     reporter.Warn("pta: " + (request.product.empty() ? request.image : request.product) +

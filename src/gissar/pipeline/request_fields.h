@@ -40,8 +40,8 @@
 #include <optional>
 #include <set>
 #include <string>
-#include <utility>
 #include <type_traits>
+#include <utility>
 #include <variant>
 #include <vector>
 
