@@ -22,13 +22,14 @@ namespace gissar::python {
 
 namespace {
 
-// The bounce layers as a (layer, row, column) array; a layer the render left
-// empty (no return of that order) as the writers give it.
-py::array_t<float> BounceBands(const render::SarImage& image, bool db) {
+// The first `held` bounce layers (pipeline::HeldBounceLayers) as a (layer,
+// row, column) array; a layer the render left empty (no return of that
+// order) as the writers give it.
+py::array_t<float> BounceBands(const render::SarImage& image, bool db, int held) {
   const size_t n = size_t(image.width) * image.height;
-  py::array_t<float> bands({render::kBounceLayers, image.height, image.width});
+  py::array_t<float> bands({held, image.height, image.width});
   std::vector<float> no_return;
-  for (int b = 0; b < render::kBounceLayers; ++b) {
+  for (int b = 0; b < held; ++b) {
     const std::vector<float>* layer = &image.bounce_layers[b];
     if (layer->empty()) {
       if (no_return.empty()) no_return = pipeline::NoReturnPlane(image, db);
@@ -147,7 +148,10 @@ py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
       other_channels = std::move(simulated.other_channels);
     }
   }
-  py::array_t<float> bands = BounceBands(image, options.db);
+  std::vector<const render::SarImage*> images = {&image};
+  for (const render::SarImage& c : other_channels) images.push_back(&c);
+  const int held = pipeline::HeldBounceLayers(images);  // as PREFIX.tif holds them
+  py::array_t<float> bands = BounceBands(image, options.db, held);
   py::array_t<bool> layover({image.height, image.width}), shadow({image.height, image.width});
   for (size_t i = 0; i < image.mask.size(); ++i) {
     const bool inside = image.mask[i] != render::kMaskOutside;
@@ -169,12 +173,9 @@ py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
     // The GeoTIFF's bands: each channel's total, then each channel's bounce
     // counts, with their names.
     const size_t n = size_t(image.width) * image.height;
-    const size_t count = channels.size() * (1 + render::kBounceLayers);
+    const size_t count = channels.size() * (1 + size_t(held));
     py::array_t<float> all({py::ssize_t(count), py::ssize_t(image.height), py::ssize_t(image.width)});
     std::vector<std::string> names;
-    const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
-    std::vector<const render::SarImage*> images = {&image};
-    for (const render::SarImage& c : other_channels) images.push_back(&c);
     size_t band = 0;
     for (size_t k = 0; k < images.size(); ++k, ++band) {
       GISSAR_CHECK(images[k]->intensity.size() == n);
@@ -182,10 +183,12 @@ py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
       names.push_back(material::ToString(channels[k]));
     }
     for (size_t k = 0; k < images.size(); ++k) {
-      const py::array_t<float> layers = BounceBands(*images[k], options.db);
-      std::copy(layers.data(), layers.data() + render::kBounceLayers * n, all.mutable_data() + band * n);
-      band += render::kBounceLayers;
-      for (const char* layer : layer_names) names.push_back(material::ToString(channels[k]) + "_" + layer);
+      const py::array_t<float> layers = BounceBands(*images[k], options.db, held);
+      std::copy(layers.data(), layers.data() + size_t(held) * n, all.mutable_data() + band * n);
+      band += size_t(held);
+      for (int layer = 0; layer < held; ++layer) {
+        names.push_back(material::ToString(channels[k]) + "_" + pipeline::kBounceLayerNames[layer]);
+      }
     }
     out["channel_bands"] = all;
     out["band_names"] = names;
@@ -207,7 +210,9 @@ py::dict SimulateProduct(const std::string& product, py::kwargs kwargs) {
   render::SarImage image = sim.image.image;
   if (image.footprint.size() == image.intensity.size()) pipeline::MarkOutsideFootprint(image, sim.image.image.footprint);
   const int h = image.height, w = image.width;
-  py::array_t<float> bands = BounceBands(image, options.db);
+  std::vector<const render::SarImage*> channel_images = {&image};
+  for (const render::SarImage& c : sim.other_channels) channel_images.push_back(&c);
+  py::array_t<float> bands = BounceBands(image, options.db, pipeline::HeldBounceLayers(channel_images));
   py::dict out;
   out["image"] = Image(image.intensity, h, w);
   out["bounces"] = bands;

@@ -221,7 +221,7 @@ w("")
 # ---------------------------------------------------------------- writing
 w("## Writing the product")
 w("")
-w("`write_bench`: the five float32 bands of the 4096², 3-bounce image above written again by `geo::WriteFloatGeoTiff`, the")
+w("`write_bench`: the four float32 bands (total, single, double, triple) of the 4096², 3-bounce image above written again by `geo::WriteFloatGeoTiff`, the")
 w("writer `simulate` uses (COG layout, 512-pixel ZSTD level-1 tiles, floating-point predictor, GDAL's")
 w("threads), with the COG's internal overviews (simulate's default: AVERAGE of the finite pixels, computed")
 w("by gissar) and without them (`--no-overviews`, the outputs of the simulate runs above); mean of 3.")

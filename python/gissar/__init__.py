@@ -109,7 +109,8 @@ depression_deg are required, as `gissar simulate`'s --heading and --depression (
 (heading_deg)" without them).
 
 Returns an xarray.DataArray 'intensity' with dims (band, along_track_m, slant_range_m): bands total, single,
-double, triple, four_or_more (linear intensity in the request's radiometry, sigma0 by default; units '1'),
+double, triple, four_or_more, up to the highest bounce count that can return (bounces, reflectors) as the
+GeoTIFF (linear intensity in the request's radiometry, sigma0 by default; units '1'),
 along_track_m = metres along track from the scene centre's row, slant_range_m = slant range (m) of each
 column; 2-D coordinates mask (uint8, flag_values 0 1 2 3 255 = none layover shadow layover_and_shadow
 outside_footprint; NaN outside), layover, shadow (bool); attrs: units, radiometry, options (JSON), gissar_version

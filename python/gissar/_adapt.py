@@ -405,7 +405,12 @@ def _band_coord(raw):
     if "band_names" in raw:
         return ("band", list(raw["band_names"]),
                 {"long_name": "polarisation channel (totals, then each channel's bounce counts)"})
-    return ("band", list(BAND_NAMES), {"long_name": "contribution (bounce count)"})
+    return _bounce_band_coord(raw)
+
+
+def _bounce_band_coord(raw):
+    """total, then the bounce counts the run holds (the GeoTIFF's bands: up to the highest count that can return)."""
+    return ("band", list(BAND_NAMES[:1 + raw["bounces"].shape[0]]), {"long_name": "contribution (bounce count)"})
 
 
 def _intensity_attrs(options):
@@ -448,7 +453,7 @@ def product_dataarray(raw):
     import xarray as xr
     dims = ("zero_doppler_time_s", "slant_range_m")
     coords = {
-        "band": ("band", list(BAND_NAMES), {"long_name": "contribution (bounce count)"}),
+        "band": _bounce_band_coord(raw),
         "zero_doppler_time_s": ("zero_doppler_time_s", np.asarray(raw["zero_doppler_time_s"]),
                                 {"units": "s", "long_name": "zero-Doppler azimuth time of the product's lines"}),
         "slant_range_m": ("slant_range_m", np.asarray(raw["slant_range_m"]),

@@ -84,7 +84,8 @@ def test_simulate_requires_heading_and_depression_as_the_cli_does():
         cli = subprocess.run([os.environ["GISSAR_CLI"], "simulate", "--dem", DEM, "--out", "/nonexistent/x"],
                              capture_output=True, text=True)
         assert cli.returncode != 0 and "--heading" in cli.stderr and "required" in cli.stderr, cli.stderr
-    assert gissar.simulate(DEM, heading_deg=30, depression_deg=40, **COARSE).sizes["band"] == 5
+    # total, then single, double and triple: the default three bounces (no four-or-more band)
+    assert gissar.simulate(DEM, heading_deg=30, depression_deg=40, **COARSE).sizes["band"] == 4
 
 
 def test_the_signatures_show_them_required():

@@ -70,8 +70,8 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
     result = gissar.simulate(**options)
     image = result.sel(band="total").values
     assert image.dtype == np.float32 and image.ndim == 2
-    assert result.shape == (5,) + image.shape and list(result["band"].values)[1:] == ["single", "double", "triple",
-                                                                                      "four_or_more"]
+    # The default three bounces: single, double, triple (no four-or-more band), as the GeoTIFF holds them.
+    assert result.shape == (4,) + image.shape and list(result["band"].values)[1:] == ["single", "double", "triple"]
     assert result["mask"].dtype == np.uint8
     prefix = str(tmp_path / "sim")
     subprocess.run([os.environ["GISSAR_CLI"], "simulate", "--dem", DEM, "--heading", "30", "--depression", "40",
@@ -81,7 +81,8 @@ def test_simulate_equals_the_cli_geotiff_bit_for_bit(tmp_path):
     assert np.array_equal(tif.GetRasterBand(1).ReadAsArray(), image, equal_nan=True)
     assert np.array_equal(tif.GetRasterBand(3).ReadAsArray(), result.sel(band="double").values, equal_nan=True)
     # The DataArray's bands are the GeoTIFF's bands, by name.
-    for b in range(1, 6):
+    assert tif.RasterCount == 4
+    for b in range(1, 5):
         name = tif.GetRasterBand(b).GetDescription()
         assert np.array_equal(tif.GetRasterBand(b).ReadAsArray(), result.sel(band=name).values, equal_nan=True), name
     # No-data (NaN, declared) exactly where the mask says "outside the footprint" (255).
@@ -101,10 +102,12 @@ def test_simulate_quad_gives_the_geotiff_bands_by_channel(tmp_path):
     result = gissar.simulate(dem=DEM, heading_deg=30.0, depression_deg=40.0, range_spacing_m=300.0,
                              azimuth_spacing_m=300.0, polarization="quad", out_prefix=prefix)
     names = list(result["band"].values)
-    assert names[:4] == ["HH", "HV", "VH", "VV"] and names[4] == "HH_single" and len(names) == 20
+    # Four totals, then each channel's single, double and triple bands (three bounces traced).
+    assert names[:4] == ["HH", "HV", "VH", "VV"] and names[4:7] == ["HH_single", "HH_double", "HH_triple"]
+    assert len(names) == 16
     tif = gdal.Open(prefix + ".tif")
-    assert tif.RasterCount == 20
-    for b in range(1, 21):
+    assert tif.RasterCount == 16
+    for b in range(1, 17):
         name = tif.GetRasterBand(b).GetDescription()
         assert np.array_equal(tif.GetRasterBand(b).ReadAsArray(), result.sel(band=name).values, equal_nan=True), name
     # Reciprocity: VH is the HV pass; bare soil's cross-polarised return is weaker than its co-polarised ones.

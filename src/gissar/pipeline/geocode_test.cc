@@ -133,16 +133,17 @@ TEST_P(GeocodeTest, FeaturesLandOnTheirMapPosition) {
   EXPECT_DOUBLE_EQ(map.geotransform[1], 5.0);
   EXPECT_DOUBLE_EQ(map.geotransform[5], -5.0);
   EXPECT_TRUE(map.nodata_nan);
-  ASSERT_EQ(map.bands.size(), 7u);
-  const std::vector<std::string> names{"total", "single", "double", "triple", "four_or_more", "local_incidence", "layover_shadow"};
+  // The image's bands (three bounces traced), then the terrain's.
+  ASSERT_EQ(map.bands.size(), 6u);
+  const std::vector<std::string> names{"total", "single", "double", "triple", "local_incidence", "layover_shadow"};
   EXPECT_EQ(map.band_names, names);
   EXPECT_EQ(map.band_units[0], "m2/m2");
-  EXPECT_EQ(map.band_units[5], "deg");
+  EXPECT_EQ(map.band_units[4], "deg");
 
   const auto& gt = map.geotransform;
   const auto& total = map.bands[0];
-  const auto& incidence = map.bands[5];
-  const auto& mask = map.bands[6];
+  const auto& incidence = map.bands[4];
+  const auto& mask = map.bands[5];
   auto centre_x = [&](int c) { return gt[0] + (c + 0.5) * gt[1]; };
   auto centre_y = [&](int r) { return gt[3] + (r + 0.5) * gt[5]; };
 
@@ -167,7 +168,7 @@ TEST_P(GeocodeTest, FeaturesLandOnTheirMapPosition) {
           const double x = g[0] + (c + 0.5) * px, y = g[3] - (r + 0.5) * px;
           const double d = std::max(std::abs(x - s.x), std::abs(y - s.y));  // from the centre, Chebyshev
           const float v = m.bands[0][size_t(r) * m.width + c];
-          if (std::isnan(v) || m.bands[6][size_t(r) * m.width + c] != 0.0f) continue;
+          if (std::isnan(v) || m.bands[5][size_t(r) * m.width + c] != 0.0f) continue;
           if (d < s.half - 15) inside.push_back(v);
           if (d > s.half + 15 && d < s.half + 40) outside.push_back(v);
         }
@@ -181,7 +182,7 @@ TEST_P(GeocodeTest, FeaturesLandOnTheirMapPosition) {
           if (std::abs(x - s.x) > s.half + 40 || std::abs(y - s.y) > s.half + 40) continue;
           const size_t i = size_t(r) * m.width + c;
           const float v = m.bands[0][i];
-          if (std::isnan(v) || m.bands[6][i] != 0.0f) continue;
+          if (std::isnan(v) || m.bands[5][i] != 0.0f) continue;
           const double w = std::clamp((ground - v) / (ground - water), 0.0, 1.0);
           sx += w * x;
           sy += w * y;

@@ -621,16 +621,18 @@ ProductSimulation SimulateForWriting(const SimulateRequest& options, Reporter& r
 geo::FloatRaster ProductRaster(const ProductSimulation& sim, const render::SarImage& image,
                                const geo::Metadata& metadata, const SimulateRequest& options,
                                std::vector<render::SarImage>& channel_images) {
-  const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
   geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
   const std::string unit = image::RadiometryUnit(options.db);
   // Channel 0 is `image`; the others follow (several channels).
+  std::vector<const render::SarImage*> all_channels = {&image};
+  for (const render::SarImage& c : sim.other_channels) all_channels.push_back(&c);
+  const int held = HeldBounceLayers(all_channels);
   if (sim.other_channels.empty()) {
     raster.bands.push_back(image.intensity);
     raster.band_names.push_back("total");
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+    for (int layer = 0; layer < held; ++layer) {
       raster.bands.push_back(image.bounce_layers[layer]);
-      raster.band_names.push_back(layer_names[layer]);
+      raster.band_names.push_back(kBounceLayerNames[layer]);
     }
   } else {
     channel_images.push_back(image);
@@ -643,9 +645,9 @@ geo::FloatRaster ProductRaster(const ProductSimulation& sim, const render::SarIm
       raster.band_names.push_back(material::ToString(sim.channels[k]));
     }
     for (size_t k = 0; k < channel_images.size(); ++k) {
-      for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+      for (int layer = 0; layer < held; ++layer) {
         raster.bands.push_back(channel_images[k].bounce_layers[layer]);
-        raster.band_names.push_back(material::ToString(sim.channels[k]) + "_" + layer_names[layer]);
+        raster.band_names.push_back(material::ToString(sim.channels[k]) + "_" + kBounceLayerNames[layer]);
       }
     }
     raster.metadata["GISSAR_POLARIZATIONS"] = material::ToString(sim.channels);
@@ -660,8 +662,8 @@ geo::FloatRaster ProductRaster(const ProductSimulation& sim, const render::SarIm
   raster.bands.push_back(sim.image.height_m);
   raster.band_names.push_back("height_m");
   raster.band_units.insert(raster.band_units.end(), {"deg", "deg", "m"});
-  std::string bands_text;
-  for (int b = 0; b < image_bands; ++b) bands_text += (b ? ", " : "") + std::to_string(b + 1) + " " + raster.band_names[b];
+  const std::string bands_text =
+      NumberedBands(std::vector<std::string>(raster.band_names.begin(), raster.band_names.begin() + image_bands));
   const int lon_band = image_bands + 1, lat_band = image_bands + 2;
   raster.metadata["GISSAR_BANDS"] =
       bands_text + " (" + options.radiometry + (options.db ? ", dB" : ", linear") + "); " + std::to_string(lon_band) +
@@ -676,11 +678,13 @@ geo::FloatRaster ProductRaster(const ProductSimulation& sim, const render::SarIm
 // bounce count in PREFIX_slc.tif, as `gissar simulate --coherent` writes
 // them, and PREFIX_pauli.png with the Pauli channels; returns the Pauli
 // quicklook's looks and stretch (null without it).
+// `detected_geolocation`: PREFIX.tif's geolocation arrays (ProductRaster).
 nlohmann::json WriteProductSlc(const ProductSimulationFiles& files, const ProductSimulation& sim,
                                render::SarImage& image, std::vector<render::SarImage>& channel_images,
-                               const geo::Metadata& metadata, const SimulateRequest& options) {
+                               const geo::Metadata& metadata, const SimulateRequest& options,
+                               const geo::Metadata& detected_geolocation) {
   nlohmann::json pauli_record;
-  // Located by the geolocation arrays of PREFIX.tif beside it (bands 6 and 7).
+  // Located by the geolocation arrays of PREFIX.tif beside it.
   geo::Metadata slc_metadata = metadata;
   slc_metadata["GISSAR_UNITS"] = "complex amplitude, |z|^2 = " + options.radiometry + " (linear)";
   slc_metadata["GISSAR_PHASE"] = "exp(-j 4 pi R / lambda), R = true slant range (geo2rdr on the product orbit)";
@@ -691,12 +695,13 @@ nlohmann::json WriteProductSlc(const ProductSimulationFiles& files, const Produc
   for (size_t k = 1; k < channel_images.size(); ++k) slc_images.push_back(&channel_images[k]);
   std::vector<float> no_return;  // a layer with no return
   const std::vector<geo::ComplexBand> slc_bands = SlcBands(slc_images, sim.channels, no_return, slc_metadata);
-  // Georeference: GDAL geolocation arrays = bands 6/7 of PREFIX.tif (its
-  // absolute path: GDAL 3.6 opens X_DATASET as given), and, for when the
-  // files are moved apart, a lattice of up to 8 x 8 GCPs at pixel centres
-  // with a ground point (lon, lat, ellipsoidal height).
+  // Georeference: GDAL geolocation arrays = the longitude and latitude bands
+  // of PREFIX.tif (after its image bands; by its absolute path: GDAL 3.6
+  // opens X_DATASET as given), and, for when the files are moved apart, a
+  // lattice of up to 8 x 8 GCPs at pixel centres with a ground point (lon,
+  // lat, ellipsoidal height).
   geo::Georeference slc_georeference;
-  slc_georeference.geolocation = geo::LonLatGeolocation(6, 7);
+  slc_georeference.geolocation = detected_geolocation;
   const std::string detected_path = fs::absolute(options.out_prefix + ".tif").lexically_normal().string();
   slc_georeference.geolocation["X_DATASET"] = detected_path;
   slc_georeference.geolocation["Y_DATASET"] = detected_path;
@@ -808,9 +813,16 @@ SimulateResult RunProductSimulate(const SimulateRequest& options, const std::str
   if (image.footprint.size() == image.intensity.size()) MarkOutsideFootprint(image, sim.image.image.footprint);
   geo::Metadata metadata = ProductMetadata(sim, options);
   std::vector<render::SarImage> channel_images;  // several channels: channel 0 is `image`, the others follow
-  geo::WriteFloatGeoTiff(files.tif, ProductRaster(sim, image, metadata, options, channel_images));
+  geo::Metadata detected_geolocation;  // PREFIX.tif's longitude and latitude bands, for PREFIX_slc.tif
+  {
+    const geo::FloatRaster raster = ProductRaster(sim, image, metadata, options, channel_images);
+    detected_geolocation = raster.georeference.geolocation;
+    geo::WriteFloatGeoTiff(files.tif, raster);
+  }
   nlohmann::json pauli_record;  // the Pauli quicklook's looks and stretch
-  if (options.coherent) pauli_record = WriteProductSlc(files, sim, image, channel_images, metadata, options);
+  if (options.coherent) {
+    pauli_record = WriteProductSlc(files, sim, image, channel_images, metadata, options, detected_geolocation);
+  }
   image::DbStretch stretch;
   geo::WritePng(files.png, image::DbQuicklook(image.intensity, 2.0, 98.0, &stretch), image.width, image.height, 1);
   geo::Metadata mask_metadata = metadata;

@@ -126,7 +126,7 @@ ProductSimulation SimulateProduct(const SimulateRequest& options, bool read_ampl
 // product's grid), PREFIX_mask.tif, PREFIX.png and PREFIX.json; in coherent
 // mode also PREFIX_slc.tif (CFloat32: total, single, double, triple,
 // four_or_more, |z|^2 in the output radiometry, linear; GEOLOCATION arrays
-// = bands 6 and 7 of PREFIX.tif by its absolute path, and up to 8 x 8 GCPs),
+// = the longitude and latitude bands of PREFIX.tif by its absolute path, and up to 8 x 8 GCPs),
 // which `gissar pta --image`
 // measures on the product's own grid. Several channels: PREFIX.tif and
 // PREFIX_slc.tif hold each channel's total, then each channel's bounce

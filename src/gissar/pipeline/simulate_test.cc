@@ -55,8 +55,10 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
   EXPECT_EQ(image.width, result.width);
   EXPECT_EQ(image.metadata.at("GISSAR_HEADING_DEG"), "30");
   EXPECT_EQ(image.metadata.at("GISSAR_PROJECTION_MODE"), "affine");
-  ASSERT_EQ(image.bands.size(), 5u);  // total, single, double, triple, >= 4
-  EXPECT_EQ(image.band_names[2], "double");
+  // Three bounces traced (the default): the total, then single, double and
+  // triple; no band for four or more (no path returns after four bounces).
+  ASSERT_EQ(image.band_names, (std::vector<std::string>{"total", "single", "double", "triple"}));
+  EXPECT_EQ(image.metadata.at("GISSAR_BANDS"), "1 total, 2 single, 3 double, 4 triple bounces");
   // Bare DEM (no mirror material): everything is single bounce.
   EXPECT_EQ(std::memcmp(image.bands[0].data(), image.bands[1].data(), image.bands[0].size() * sizeof(float)), 0);
   EXPECT_TRUE(image.nodata_nan);
@@ -71,16 +73,16 @@ TEST(SimulateTest, AndorraProducesEveryOutputWithProvenance) {
     const float v = image.bands[0][i];
     if (mask[i] == render::kMaskOutside) {
       ASSERT_TRUE(std::isnan(v)) << i;
-      ASSERT_TRUE(std::isnan(image.bands[4][i])) << i;
+      ASSERT_TRUE(std::isnan(image.bands[3][i])) << i;
       ++outside;
       continue;
     }
     ASSERT_LE(mask[i], 3);
     ASSERT_TRUE(std::isfinite(v)) << i;
     ASSERT_GE(v, 0.0f);
-    // Three bounces traced: nothing returns after four or more (the layer
-    // the renderer leaves empty is written as zeros inside the footprint).
-    ASSERT_EQ(image.bands[4][i], 0.0f) << i;
+    // Bare DEM: no double or triple bounce (zeros inside the footprint).
+    ASSERT_EQ(image.bands[2][i], 0.0f) << i;
+    ASSERT_EQ(image.bands[3][i], 0.0f) << i;
     positive += v > 0;
     shadow += (mask[i] & 2) != 0;
     layover += (mask[i] & 1) != 0;
@@ -157,6 +159,57 @@ TEST(SimulateTest, FailureLeavesNoOutput) {
   EXPECT_TRUE(fs::is_empty(dir));
 }
 
+// Bitwise equality of two float planes (NaN equal to NaN).
+int DifferingPixels(const std::vector<float>& a, const std::vector<float>& b) {
+  if (a.size() != b.size()) return -1;
+  int differing = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!(a[i] == b[i] || (std::isnan(a[i]) && std::isnan(b[i])))) ++differing;
+  }
+  return differing;
+}
+
+// PREFIX.tif holds the total, then the bounce counts up to the highest that
+// can return in the run: the raster engine (single bounce) writes total and
+// single; one bounce traced with a trihedral (three) writes up to triple,
+// the double band between them zero inside the footprint.
+TEST(SimulateTest, BandsStopAtTheHighestBounceCountThatCanReturn) {
+  const fs::path dir = testing::MakeTempDir();
+  SimulateRequest raster = AndorraOptions(dir, 30.0);
+  raster.engine = SimulateEngine::kRaster;
+  raster.out_prefix = (dir / "raster").string();
+  RunSimulate(raster, "test");
+  const geo::FloatRaster single = geo::ReadFloatRaster(raster.out_prefix + ".tif");
+  EXPECT_EQ(single.band_names, (std::vector<std::string>{"total", "single"}));
+  EXPECT_EQ(single.metadata.at("GISSAR_BANDS"), "1 total, 2 single bounces");
+  EXPECT_EQ(DifferingPixels(single.bands[0], single.bands[1]), 0);
+
+  nlohmann::json provenance;
+  std::ifstream(raster.out_prefix + ".json") >> provenance;
+  const double lon = provenance["scene_centre"]["lon_deg"], lat = provenance["scene_centre"]["lat_deg"];
+  const fs::path csv = dir / "reflectors.csv";
+  std::ofstream(csv) << "type,lon,lat,apex_height_m,size_m,boresight_azimuth_deg,boresight_elevation_deg\n"
+                     << "trihedral," << std::setprecision(12) << lon << "," << lat << ",0.5,3,300,40\n";
+  SimulateRequest traced = AndorraOptions(dir, 30.0);
+  traced.bounces = 1;
+  traced.reflectors = csv.string();
+  traced.out_prefix = (dir / "traced").string();
+  RunSimulate(traced, "test");
+  const geo::FloatRaster image = geo::ReadFloatRaster(traced.out_prefix + ".tif");
+  ASSERT_EQ(image.band_names, (std::vector<std::string>{"total", "single", "double", "triple"}));
+  EXPECT_EQ(image.metadata.at("GISSAR_BANDS"), "1 total, 2 single, 3 double, 4 triple bounces");
+  float triple_peak = 0.0f;
+  for (size_t i = 0; i < image.bands[0].size(); ++i) {
+    if (std::isnan(image.bands[0][i])) {
+      ASSERT_TRUE(std::isnan(image.bands[2][i])) << i;
+      continue;
+    }
+    ASSERT_EQ(image.bands[2][i], 0.0f) << i;  // no double bounce: one bounce traced, no dihedral
+    triple_peak = std::max(triple_peak, image.bands[3][i]);
+  }
+  EXPECT_GT(triple_peak, 1.0f);  // the 3 m trihedral: sigma0 about 12 in its pixel (test below)
+}
+
 TEST(SimulateTest, OutputMayNotOverwriteTheDem) {
   const fs::path dir = testing::MakeTempDir();
   fs::copy_file(testing::DataPath("andorra/andorra_srtm3_dem_filled.tif"), dir / "dem.tif");
@@ -209,8 +262,9 @@ TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
   // as the detected image's bands, adding up to the total (no noise here).
   {
     const geo::ComplexRaster slc = geo::ReadComplexRaster(dir / "coherent_slc.tif");
-    ASSERT_EQ(slc.bands.size(), 5u);
-    EXPECT_EQ(slc.band_names, (std::vector<std::string>{"total", "single", "double", "triple", "four_or_more"}));
+    // Three bounces traced and a trihedral (three): no four-or-more band.
+    ASSERT_EQ(slc.bands.size(), 4u);
+    EXPECT_EQ(slc.band_names, (std::vector<std::string>{"total", "single", "double", "triple"}));
     EXPECT_EQ(slc.band_units[0], "sqrt(m2/m2)");
     EXPECT_TRUE(slc.nodata_nan);
     double worst = 0.0, triple_power = 0.0, single_power = 0.0;
@@ -218,12 +272,12 @@ TEST(SimulateTest, RadiometryReflectorsAndCoherentOutputs) {
     for (size_t k = 0; k < slc.bands[0].size(); k += 2) {
       const float re = slc.bands[0][k], im = slc.bands[0][k + 1];
       if (std::isnan(re)) {
-        for (int b = 1; b < 5; ++b) EXPECT_TRUE(std::isnan(slc.bands[b][k]));
+        for (int b = 1; b < 4; ++b) EXPECT_TRUE(std::isnan(slc.bands[b][k]));
         continue;
       }
       ++finite;
       double sr = 0.0, si = 0.0;
-      for (int b = 1; b < 5; ++b) {
+      for (int b = 1; b < 4; ++b) {
         sr += slc.bands[b][k];
         si += slc.bands[b][k + 1];
       }
@@ -888,15 +942,6 @@ TEST(SimulateTest, HeightfieldAndBvhImagesAgreeOnAGeographicDem) {
 
 // --- Polarimetric channels (--polarization HH,VV | quad).
 
-// Bitwise equality of two float planes (NaN equal to NaN).
-int DifferingPixels(const std::vector<float>& a, const std::vector<float>& b) {
-  if (a.size() != b.size()) return -1;
-  int differing = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    if (!(a[i] == b[i] || (std::isnan(a[i]) && std::isnan(b[i])))) ++differing;
-  }
-  return differing;
-}
 
 TEST(SimulateTest, SeveralChannelsGiveNamedBandsEqualToSingleChannelRuns) {
   const fs::path dir = testing::MakeTempDir();
@@ -906,11 +951,10 @@ TEST(SimulateTest, SeveralChannelsGiveNamedBandsEqualToSingleChannelRuns) {
   o.polarization = "hh,VV";
   RunSimulate(o, "test");
   const geo::FloatRaster dual = geo::ReadFloatRaster(dir / "dual.tif");
-  ASSERT_EQ(dual.bands.size(), 10u);
-  EXPECT_EQ(dual.band_names[0], "HH");
-  EXPECT_EQ(dual.band_names[1], "VV");
-  EXPECT_EQ(dual.band_names[2], "HH_single");
-  EXPECT_EQ(dual.band_names[6], "VV_single");
+  // Three bounces traced: each channel's single, double and triple bands.
+  ASSERT_EQ(dual.bands.size(), 8u);
+  EXPECT_EQ(dual.band_names, (std::vector<std::string>{"HH", "VV", "HH_single", "HH_double", "HH_triple", "VV_single",
+                                                        "VV_double", "VV_triple"}));
   EXPECT_EQ(dual.metadata.at("GISSAR_POLARIZATIONS"), "HH,VV");
   // Bare terrain has no mirror paths: each polarimetric pass's detected image
   // is the single-channel run of its channel, bit for bit.
@@ -921,7 +965,7 @@ TEST(SimulateTest, SeveralChannelsGiveNamedBandsEqualToSingleChannelRuns) {
     const geo::FloatRaster one = geo::ReadFloatRaster(dir / (channel + ".tif"));
     const int band = channel == "HH" ? 0 : 1;
     EXPECT_EQ(DifferingPixels(dual.bands[band], one.bands[0]), 0) << channel;
-    EXPECT_EQ(DifferingPixels(dual.bands[2 + 4 * band], one.bands[1]), 0) << channel << " single bounce";
+    EXPECT_EQ(DifferingPixels(dual.bands[2 + 3 * band], one.bands[1]), 0) << channel << " single bounce";
   }
   nlohmann::json provenance;
   std::ifstream(dir / "dual.json") >> provenance;
@@ -942,7 +986,7 @@ TEST(SimulateTest, CoherentQuadWritesFourComplexChannelsAndAPauliQuicklook) {
   EXPECT_TRUE(fs::exists(dir / "quad_pauli.png"));
   EXPECT_NE(std::find(result.outputs.begin(), result.outputs.end(), dir / "quad_pauli.png"), result.outputs.end());
   const geo::ComplexRaster slc = geo::ReadComplexRaster(dir / "quad_slc.tif");
-  ASSERT_EQ(slc.bands.size(), 4u + 16u);
+  ASSERT_EQ(slc.bands.size(), 4u + 4u * 3u);  // four totals, then three bounce bands per channel
   EXPECT_EQ(slc.band_names[0], "HH");
   EXPECT_EQ(slc.band_names[1], "HV");
   EXPECT_EQ(slc.band_names[2], "VH");

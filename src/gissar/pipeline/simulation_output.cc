@@ -32,12 +32,18 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const char* const kLayerNames[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
-
 std::vector<std::string> ChannelNames(const std::vector<material::Polarization>& channels) {
   std::vector<std::string> names;
   for (const material::Polarization c : channels) names.push_back(material::ToString(c));
   return names;
+}
+
+// "four_or_more" as words (GISSAR_BANDS of one channel: "... 5 four or more
+// bounces").
+std::string SpelledBounceCounts(std::string text) {
+  const std::string name = kBounceLayerNames[render::kBounceLayers - 1];
+  if (const size_t at = text.find(name); at != std::string::npos) text.replace(at, name.size(), "four or more");
+  return text;
 }
 
 // Per channel: the share of the total power (summed over the footprint,
@@ -45,7 +51,6 @@ std::vector<std::string> ChannelNames(const std::vector<material::Polarization>&
 // share of HH is above VV's where walls and ground form dihedrals.
 nlohmann::json BounceShares(const SimulatedImage& simulated) {
   nlohmann::json shares = nlohmann::json::object();
-  const char* names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
   for (size_t k = 0; k < simulated.channels.size(); ++k) {
     const render::SarImage& c = k == 0 ? simulated.image : simulated.other_channels[k - 1];
     double layer_sum[render::kBounceLayers] = {0, 0, 0, 0}, total = 0.0;
@@ -57,7 +62,7 @@ nlohmann::json BounceShares(const SimulatedImage& simulated) {
     }
     nlohmann::json row = nlohmann::json::object();
     for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      row[names[layer]] = total > 0.0 ? layer_sum[layer] / total : 0.0;
+      row[kBounceLayerNames[layer]] = total > 0.0 ? layer_sum[layer] / total : 0.0;
     }
     shares[material::ToString(simulated.channels[k])] = row;
   }
@@ -223,10 +228,12 @@ std::string ChannelName(const std::vector<material::Polarization>& channels, siz
 
 // The raster of PREFIX.tif, its bands moved in from the channel images (no
 // copies of full-size planes; GiveBackBands returns them). One channel:
-// total, then one band per bounce count. Several: each channel's total
-// (named by its channel), then each channel's bounce bands.
+// total, then one band per bounce count the run holds (HeldBounceLayers).
+// Several: each channel's total (named by its channel), then each channel's
+// bounce bands.
 geo::FloatRaster ImageRaster(const SimulateRequest& options, const SimulatedImage& simulated,
-                             const std::vector<render::SarImage*>& channel_images, const geo::Metadata& metadata) {
+                             const std::vector<render::SarImage*>& channel_images, int held,
+                             const geo::Metadata& metadata) {
   const render::SarImage& image = simulated.image;
   const bool several = channel_images.size() > 1;
   geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
@@ -236,11 +243,12 @@ geo::FloatRaster ImageRaster(const SimulateRequest& options, const SimulatedImag
     raster.band_names.push_back(several ? ChannelName(simulated.channels, k) : "total");
   }
   for (size_t k = 0; k < channel_images.size(); ++k) {
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
+    for (int layer = 0; layer < held; ++layer) {
       raster.bands.push_back(std::move(channel_images[k]->bounce_layers[layer]));
-      raster.band_names.push_back(several ? ChannelName(simulated.channels, k) + "_" + kLayerNames[layer]
-                                          : kLayerNames[layer]);
-      // A layer with no return (more bounces than traced) shares one plane.
+      raster.band_names.push_back(several ? ChannelName(simulated.channels, k) + "_" + kBounceLayerNames[layer]
+                                          : kBounceLayerNames[layer]);
+      // A layer with no return below the highest held (a reflector's bounce
+      // count beyond those traced) shares one plane.
       if (raster.bands.back().empty() && raster.empty_band_pixels.empty()) {
         raster.empty_band_pixels = NoReturnPlane(image, options.db);
       }
@@ -249,15 +257,16 @@ geo::FloatRaster ImageRaster(const SimulateRequest& options, const SimulatedImag
   return raster;
 }
 
-// The image bands moved back from `raster` into the channel images (the
-// caller may still read the image); the raster is left without bands.
-void GiveBackBands(geo::FloatRaster& raster, const std::vector<render::SarImage*>& channel_images) {
+// The image bands moved back from `raster` (as ImageRaster laid them out,
+// `held` bounce layers per channel) into the channel images (the caller may
+// still read the image); the raster is left without bands.
+void GiveBackBands(geo::FloatRaster& raster, const std::vector<render::SarImage*>& channel_images, int held) {
   if (raster.bands.empty()) return;
   const size_t n = channel_images.size();
   for (size_t k = 0; k < n; ++k) {
     channel_images[k]->intensity = std::move(raster.bands[k]);
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      channel_images[k]->bounce_layers[layer] = std::move(raster.bands[n + k * render::kBounceLayers + layer]);
+    for (int layer = 0; layer < held; ++layer) {
+      channel_images[k]->bounce_layers[layer] = std::move(raster.bands[n + k * held + layer]);
     }
   }
   raster.bands.clear();
@@ -295,15 +304,12 @@ class TerrainLayersOnce {
 // GISSAR_BANDS (and GISSAR_POLARIZATIONS), band units, no-data and
 // overviews of PREFIX.tif.
 void DescribeImageBands(geo::FloatRaster& raster, const SimulateRequest& options, const SimulatedImage& simulated) {
+  const std::string bands_text = NumberedBands(raster.band_names);
   if (!simulated.other_channels.empty()) {  // several channels
-    std::string bands_text;
-    for (size_t k = 0; k < raster.band_names.size(); ++k) {
-      bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + raster.band_names[k];
-    }
     raster.metadata["GISSAR_BANDS"] = bands_text + " (channel totals, then each channel's bounce counts)";
     raster.metadata["GISSAR_POLARIZATIONS"] = material::ToString(simulated.channels);
   } else {
-    raster.metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces";
+    raster.metadata["GISSAR_BANDS"] = SpelledBounceCounts(bands_text) + " bounces";
   }
   if (options.incidence_band) raster.metadata["GISSAR_BANDS"] += "; last: local incidence (deg)";
   raster.band_units.assign(raster.bands.size(), raster.band_unit);
@@ -341,14 +347,14 @@ nlohmann::json GeoreferenceImage(const SimulatedImage& simulated, bool refine_fo
 // PREFIX.tif; the bands go back to the channel images whether or not the
 // write succeeds.
 void WriteImageGeoTiff(const fs::path& tif, geo::FloatRaster& raster,
-                       const std::vector<render::SarImage*>& channel_images) {
+                       const std::vector<render::SarImage*>& channel_images, int held) {
   try {
     geo::WriteFloatGeoTiff(tif, raster);
   } catch (...) {
-    GiveBackBands(raster, channel_images);
+    GiveBackBands(raster, channel_images, held);
     throw;
   }
-  GiveBackBands(raster, channel_images);
+  GiveBackBands(raster, channel_images, held);
 }
 
 // Coherent mode: PREFIX_slc.tif and, with a Pauli vector, PREFIX_pauli.png;
@@ -560,6 +566,27 @@ void WriteStacItem(const SimulateRequest& options, const SimulatedImage& simulat
 
 }  // namespace
 
+int HeldBounceLayers(std::span<const render::SarImage* const> images, bool complex) {
+  int held = 1;
+  for (const render::SarImage* image : images) {
+    for (int layer = held; layer < render::kBounceLayers; ++layer) {
+      const bool filled = complex ? image->bounce_real[layer].size() == image->real.size() && !image->real.empty()
+                                  : image->bounce_layers[layer].size() == image->intensity.size() &&
+                                        !image->intensity.empty();
+      if (filled) held = layer + 1;
+    }
+  }
+  return held;
+}
+
+std::string NumberedBands(const std::vector<std::string>& names) {
+  std::string text;
+  for (size_t k = 0; k < names.size(); ++k) {
+    text += (k ? ", " : "") + std::to_string(k + 1) + " " + names[k];
+  }
+  return text;
+}
+
 std::vector<float> NoReturnPlane(const render::SarImage& image, bool db) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const size_t n = size_t(image.width) * image.height;
@@ -587,15 +614,15 @@ std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& ima
   auto channel_name = [&](size_t k) {
     return k < channels.size() ? material::ToString(channels[k]) : std::string("VV");
   };
-  const char* layer_names[render::kBounceLayers] = {"single", "double", "triple", "four_or_more"};
+  const int held = HeldBounceLayers(images, /*complex=*/true);
   std::vector<geo::ComplexBand> slc_bands;
   for (size_t k = 0; k < images.size(); ++k) {
     slc_bands.push_back({&images[k]->real, &images[k]->imag, several ? channel_name(k) : "total"});
   }
   for (size_t k = 0; k < images.size(); ++k) {
     render::SarImage& c = *images[k];
-    for (int layer = 0; layer < render::kBounceLayers; ++layer) {
-      const std::string name = several ? channel_name(k) + "_" + layer_names[layer] : layer_names[layer];
+    for (int layer = 0; layer < held; ++layer) {
+      const std::string name = several ? channel_name(k) + "_" + kBounceLayerNames[layer] : kBounceLayerNames[layer];
       if (c.bounce_real[layer].size() != c.real.size()) {
         if (no_return.empty()) no_return = NoReturnPlane(*images[0], /*db=*/false);
         slc_bands.push_back({&no_return, &no_return, name});
@@ -604,17 +631,15 @@ std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& ima
       }
     }
   }
+  std::vector<std::string> names;
+  for (const geo::ComplexBand& band : slc_bands) names.push_back(band.name);
   if (several) {
-    std::string bands_text;
-    for (size_t k = 0; k < slc_bands.size(); ++k) {
-      bands_text += (k ? ", " : "") + std::to_string(k + 1) + " " + slc_bands[k].name;
-    }
-    metadata["GISSAR_BANDS"] = bands_text + " (complex; each channel's bounce bands add up to its total "
-                                            "before thermal noise)";
+    metadata["GISSAR_BANDS"] = NumberedBands(names) + " (complex; each channel's bounce bands add up to its total "
+                                                      "before thermal noise)";
     metadata["GISSAR_POLARIZATIONS"] = material::ToString(channels);
   } else {
-    metadata["GISSAR_BANDS"] = "1 total, 2 single, 3 double, 4 triple, 5 four or more bounces (complex; bands "
-                               "2-5 add up to band 1 before thermal noise)";
+    metadata["GISSAR_BANDS"] = SpelledBounceCounts(NumberedBands(names)) + " bounces (complex; the bounce bands add up to band 1 "
+                                                      "before thermal noise)";
   }
   return slc_bands;
 }
@@ -692,7 +717,8 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
 
   // PREFIX.tif: the image bands (moved in and back), the incidence band.
   const std::vector<render::SarImage*> channel_images = ChannelImages(simulated);
-  raster = ImageRaster(options, simulated, channel_images, metadata);
+  const int held_layers = HeldBounceLayers(channel_images);
+  raster = ImageRaster(options, simulated, channel_images, held_layers, metadata);
   TerrainLayersOnce terrain_layers(simulated);
   if (options.incidence_band) {
     const Stopwatch layers_watch;
@@ -707,7 +733,7 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
   if (!reserved.contributions_csv.empty()) {
     WriteContributions(reserved.contributions_csv, image.contributions, *simulated.geometry);
   }
-  WriteImageGeoTiff(reserved.tif, raster, channel_images);
+  WriteImageGeoTiff(reserved.tif, raster, channel_images, held_layers);
   laps.Lap("image");
 
   // The other rasters, on the same georeference.

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,22 @@ namespace gissar::pipeline {
 struct SimulateRequest;
 struct SimulatedImage;
 struct SimulateResult;
+
+// Band names of the bounce layers (render::SarImage::bounce_layers), the
+// suffixes of a channel's bounce bands (HH_single, ...).
+inline constexpr const char* kBounceLayerNames[render::kBounceLayers] = {"single", "double", "triple",
+                                                                         "four_or_more"};
+
+// How many bounce layers the outputs of `images` hold: bounce counts 1 up to
+// the highest one the render filled in any of them (a plane of the image's
+// pixels; of its complex parts when `complex`), at least 1. A run cannot
+// return at counts above that (more bounces than traced, and no reflector of
+// that order), so PREFIX.tif, PREFIX_slc.tif and Python's bands stop there; a
+// count below it the render left empty is written as NoReturnPlane.
+int HeldBounceLayers(std::span<const render::SarImage* const> images, bool complex = false);
+
+// "1 name, 2 name, ..." (GISSAR_BANDS).
+std::string NumberedBands(const std::vector<std::string>& names);
 
 // The pixels of a bounce layer the render left empty (no return of that
 // order, render::SarImage::bounce_layers), as the writers and Python give
