@@ -615,11 +615,12 @@ Georeference ReadGeoreference(const fs::path& path) {
     georeference.gcps.push_back(
         {gcps[i].dfGCPPixel, gcps[i].dfGCPLine, gcps[i].dfGCPX, gcps[i].dfGCPY, gcps[i].dfGCPZ});
   }
-  if (char** items = ds->GetMetadata("RPC")) {
-    for (int i = 0; items[i] != nullptr; ++i) {
+  for (auto [domain, items] : {std::pair{"RPC", &georeference.rpc}, std::pair{"GEOLOCATION", &georeference.geolocation}}) {
+    char** entries = ds->GetMetadata(domain);
+    for (int i = 0; entries != nullptr && entries[i] != nullptr; ++i) {
       char* key = nullptr;
-      const char* value = CPLParseNameValue(items[i], &key);
-      if (key != nullptr && value != nullptr) georeference.rpc[key] = value;
+      const char* value = CPLParseNameValue(entries[i], &key);
+      if (key != nullptr && value != nullptr) (*items)[key] = value;
       CPLFree(key);
     }
   }

@@ -101,7 +101,8 @@ void WriteByteGeoTiff(const std::filesystem::path& path, const std::vector<uint8
                       const Georeference& georeference = {}, const ByteCategories& categories = {},
                       bool overviews = true);
 
-// Reads the GCPs (as stored, in their own CRS) and the RPC domain of a raster.
+// Reads the GCPs (as stored, in their own CRS) and the RPC and GEOLOCATION
+// domains of a raster.
 // Throws InputError when missing or unreadable.
 Georeference ReadGeoreference(const std::filesystem::path& path);
 

@@ -456,6 +456,15 @@ TEST(ProductSimulateTest, CoherentQuadTrihedralOnTheAlosGrid) {
   EXPECT_EQ(slc.band_names[4], "HH_single");
   EXPECT_EQ(slc.band_names[19], "VV_four_or_more");
   EXPECT_EQ(slc.bands[1], slc.bands[2]);  // VH = HV
+  // The SLC is located by sim.tif's longitude and latitude bands, after its
+  // 20 image bands (4 channel totals and 4 x 4 bounce bands).
+  const geo::Georeference slc_georeference = geo::ReadGeoreference(dir / "sim_slc.tif");
+  EXPECT_EQ(slc_georeference.geolocation.at("X_BAND"), "21");
+  EXPECT_EQ(slc_georeference.geolocation.at("Y_BAND"), "22");
+  const geo::FloatRaster detected = geo::ReadFloatRaster(dir / "sim.tif");
+  ASSERT_EQ(detected.band_names.size(), 23u);
+  EXPECT_EQ(detected.band_names[20], "lon_deg");
+  EXPECT_EQ(detected.band_names[21], "lat_deg");
   EXPECT_TRUE(fs::exists(dir / "sim_pauli.png"));
   nlohmann::json side;
   std::ifstream(dir / "sim.json") >> side;
