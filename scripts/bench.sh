@@ -12,7 +12,8 @@
 # the same process; scene build (CDT) time and memory; raster/tracer agreement
 # on Andorra; POV-Ray side by side on a 1000 x 1000 heightfield; poses/s of
 # `gissar corridor` on Dask with 1 and 2 workers (bench/corridor_bench.py); the exact-geometry user path on
-# Andorra (500^2..4000^2, both engines) against sarsen's measured times. Runs in a few
+# Andorra (500^2..4000^2, both engines) against sarsen's measured times; the
+# pinned Andorra `evaluate` (seconds per fix). Runs in a few
 # minutes on 2 cores; the machine may be shared, so the load average is
 # recorded and ratios are always taken within one run.
 set -euo pipefail
@@ -226,6 +227,16 @@ PYTHONPATH="$B/python" run corridor "${PY:-python3}" "$ROOT/bench/corridor_bench
 say "corridor on Dask: 30 poses of 512 x 512 px at 15 m with 2 workers (issue 47)"
 PYTHONPATH="$B/python" run corridor_512 "${PY:-python3}" "$ROOT/bench/corridor_bench.py" --workers 2 --width 512 \
   --spacing 15 --poses 30 --json "$R/corridor_512.json"
+
+say "pose fixes: the Andorra pinned evaluate command of docs/navigation.md, 200 trials (issue 47)"
+# The scene as `make demo` builds it; the command as docs/navigation.md pins it.
+run andorra_scene "$GISSAR" scene build --dem "$ROOT/data/andorra/andorra_srtm3_dem_raw.tif" --fill-nodata \
+  --vectors "$ROOT/data/andorra/andorra_osm.gpkg" --quiet --out andorra_scene
+uptime > "$R/evaluate_load.txt"
+run evaluate_andorra "$GISSAR" evaluate --scene andorra_scene.gscene --trials 200 --seed 1 --search 28 --quiet \
+  --out andorra200
+cp andorra200.json "$R/evaluate_andorra.json"
+rm -f andorra_scene.* andorra_scene_* andorra200.* andorra200_*
 
 say "gissar view: a 202-pose corridor in headless chromium (bench/view_bench.py)"
 if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then

@@ -547,6 +547,26 @@ if os.path.exists(os.path.join(R, "corridor_512.json")):
         r["poses_per_s"], verdict(r["poses_per_s"] >= 4.0)))
     w("")
 
+# ---------------------------------------------------------------- pose fixes, pinned command
+if os.path.exists(os.path.join(R, "evaluate_andorra.json")):
+    e = load("evaluate_andorra.json")
+    sp, err = e["seconds_per_fix"], e["position_error_cells"]
+    wall, rss = wall_rss("evaluate_andorra")
+    w("## Pose fixes on the Andorra pinned command (`evaluate`)")
+    w("")
+    w("The scene as `make demo` builds it (%s), then the pinned command of docs/navigation.md: %s. "
+      "Load average when it started: %s." % (cmd("andorra_scene"), cmd("evaluate_andorra"),
+                                              read("evaluate_load.txt").split("load average:")[-1].strip()))
+    w("")
+    w("| trials | success | median error (cells) | p95 error (cells) | s per fix median | s per fix p95 | run wall s | peak RSS MiB |")
+    w("|---|---|---|---|---|---|---|---|")
+    w("| %d | %.1f %% | %.2f | %.2f | %.3f | %.3f | %.1f | %.0f |" % (
+        e["trials"], 100 * e["success_rate"], err["median"], err["p95"], sp["median"], sp["p95"], wall, rss / MIB))
+    w("")
+    w("Target (issue 47): ≤ 0.3 s per fix with success unchanged (200/200 before): %.3f s, %.1f %% (%s)." % (
+        sp["median"], 100 * e["success_rate"], verdict(sp["median"] <= 0.3 and e["success_rate"] >= 0.995)))
+    w("")
+
 # ---------------------------------------------------------------- gissar view
 if os.path.exists(os.path.join(R, "view.json")):
     v = load("view.json")

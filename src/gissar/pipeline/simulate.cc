@@ -406,6 +406,8 @@ render::RenderOptions RenderOptionsOf(const SimulateRequest& options, material::
   r.polarization = channel;
   r.seed = options.seed;
   r.record_contributions = !options.contributions.empty();
+  // --contributions records returns from anywhere on the terrain.
+  r.image_rays_only = !r.record_contributions;
   r.adaptive_sampling = options.adaptive_sampling;
   r.reporter = reporter;
   return r;

@@ -185,6 +185,10 @@ struct EmbreeScene::Impl {
   tbb::collaborative_once_flag once;
   std::atomic<bool> built{false};
   double build_seconds = 0.0;
+  // Tiles(): built on first use.
+  size_t triangle_count = 0;
+  std::unique_ptr<TriangleTiles> tiles;
+  tbb::collaborative_once_flag tiles_once;
   bool IsHeightfield(unsigned geometry) const { return geometry == heightfield_geometry; }
   uint32_t Triangle(unsigned geometry, uint32_t primitive, float u, float v) const {
     if (IsHeightfield(geometry)) return primitive;
@@ -456,6 +460,7 @@ EmbreeScene::EmbreeScene(const scene::TriangleMesh& mesh, const TerrainGrid& gri
     : impl_(std::make_unique<Impl>()) {
   if (mesh.triangle_count() == 0) throw InputError("scene has no triangles", "mesh");
   bounds_ = mesh.Bounds();
+  impl_->triangle_count = mesh.triangle_count();
   const size_t cells = TerrainGridCells(mesh, grid);
   if (cells > 0) {
     impl_->grid_width = grid.width;
@@ -485,6 +490,14 @@ void EmbreeScene::Build() const {
     scene->BuildScene(*impl_->pending_mesh, impl_->pending_grid, impl_->grid_cells, quality_);
     impl_->built.store(true, std::memory_order_release);
   });
+}
+
+const TriangleTiles& EmbreeScene::Tiles(const scene::TriangleMesh& mesh, size_t first) const {
+  GISSAR_CHECK(mesh.triangle_count() == impl_->triangle_count);
+  tbb::collaborative_call_once(impl_->tiles_once,
+                               [&] { impl_->tiles = std::make_unique<TriangleTiles>(mesh, first); });
+  GISSAR_CHECK(impl_->tiles->first() == first);
+  return *impl_->tiles;
 }
 
 double EmbreeScene::build_seconds() const { return impl_->build_seconds; }

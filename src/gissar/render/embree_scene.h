@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include "gissar/render/triangle_tiles.h"
 #include "gissar/scene/triangle_mesh.h"
 
 namespace gissar::render {
@@ -145,6 +146,13 @@ class EmbreeScene {
   // builds it. Queries call it; thread-safe (the first caller builds, the
   // others wait). Throws what the constructor throws.
   void Build() const;
+  // The mesh's triangles from `first` on by plan tile (TriangleTiles),
+  // built on the first call (thread-safe: the first caller builds, the
+  // others wait) and kept for the scene's life: passes repeated over many
+  // images of one scene (pose fixes) build it once. `mesh` must be the mesh
+  // the scene was built from and `first` the same at every call (CHECKed:
+  // the triangle count and `first`).
+  const TriangleTiles& Tiles(const scene::TriangleMesh& mesh, size_t first = 0) const;
 
  private:
   void BuildScene(const scene::TriangleMesh& mesh, const TerrainGrid& grid, size_t cells, BvhQuality quality);

@@ -235,6 +235,8 @@ SarImage TraceReturns(const EmbreeScene& embree, const scene::TriangleMesh& mesh
                       const RenderOptions& options) {
   RenderOptions trace_options = options;
   trace_options.record_contributions = true;
+  // Every return, wherever the tracing geometry's image ends.
+  trace_options.image_rays_only = false;
   // The phasors are formed on the product grid (step 4) from the recorded
   // returns: the tracer's own coherent planes (straight-line ranges) are
   // not needed.

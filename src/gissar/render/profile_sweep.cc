@@ -146,10 +146,10 @@ class RayAssigner {
       started_ = true;
       hi_v_ = lo_v_ = sweep_.Coordinate(from);
       const double angle = AngleOf(hi_v_);
-      hi_ = std::clamp(static_cast<int>(std::floor((angle - rays_.e0) / rays_.de)) + 1, 0, count);
+      hi_ = std::clamp(static_cast<int>(std::floor((angle - rays_.e0) / rays_.de)) + 1 - rays_.first, 0, count);
       while (hi_ > 0 && RayE(hi_ - 1) > angle) --hi_;
       while (hi_ < count && !(RayE(hi_) > angle)) ++hi_;
-      lo_ = std::clamp(static_cast<int>(std::ceil((angle - rays_.e0) / rays_.de)) - 1, -1, count - 1);
+      lo_ = std::clamp(static_cast<int>(std::ceil((angle - rays_.e0) / rays_.de)) - 1 - rays_.first, -1, count - 1);
       while (lo_ + 1 < count && RayE(lo_ + 1) < angle) ++lo_;
       while (lo_ >= 0 && !(RayE(lo_) < angle)) --lo_;
       if (rays_.frontier != nullptr) rays_.frontier->entry = hi_v_;
@@ -183,7 +183,7 @@ class RayAssigner {
   }
 
  private:
-  double RayE(int j) const { return rays_.e0 + j * rays_.de; }
+  double RayE(int j) const { return rays_.e0 + (rays_.first + j) * rays_.de; }
   double AngleOf(double v) const { return affine_ ? v : std::atan(v); }
   // Rays are compared with a profile coordinate v by RayV(j) against
   // Limit(v): in exact mode with the rays' tangents given, tangent against v
@@ -216,7 +216,7 @@ class RayAssigner {
 bool GridProfileSweep::Trace(double a_m, double e0, double de, int count, double* depth_m, uint32_t* triangle,
                              Eigen::Vector3f* normal) const {
   uint8_t ok = 0;
-  TraceLines({LineRays{a_m, e0, de, count, depth_m, triangle, normal}}, &ok);
+  TraceLines({LineRays{a_m, e0, de, 0, count, depth_m, triangle, normal}}, &ok);
   return ok != 0;
 }
 

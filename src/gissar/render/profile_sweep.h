@@ -98,11 +98,14 @@ class GridProfileSweep {
   // The rays of one azimuth line and where their hits go (Trace's arguments).
   struct LineRays {
     double a_m, e0, de;
-    int count;
+    // Ray j in [0, count) has coordinate e0 + (first + j) * de (Trace's
+    // rays with first = 0).
+    int first, count;
     double* depth_m;
     uint32_t* triangle;
     Eigen::Vector3f* normal;  // may be null
-    // Exact mode: tan(e0 + j * de) for j < count, or null (computed per ray).
+    // Exact mode: tan of ray j's coordinate for j < count, or null (computed
+    // per ray).
     const double* tan_e = nullptr;
     // When not null: the line's frontiers, recorded until the running
     // maximum reaches `frontier_above` and the running minimum

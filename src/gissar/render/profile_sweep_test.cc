@@ -189,6 +189,44 @@ TEST(GridProfileSweepTest, EveryRayHitsWhereEmbreeDoes) {
               (long long)hits, (long long)disagree, (long long)other_triangle, worst_depth);
 }
 
+// A slice of a line's rays (LineRays::first, count) gets the hits the same
+// rays get traced with all of them, bit for bit: the rays of a line need
+// not start at the bottom of the terrain (RenderOptions::image_rays_only).
+TEST(GridProfileSweepTest, ASliceOfTheRaysGetsTheirHitsBitForBit) {
+  const int w = kRoughWidth, h = kRoughHeight;
+  std::mt19937 rng(5);
+  const std::vector<Vector3f> posts = WarpedRoughPosts(rng);
+  int64_t hits = 0;
+  for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    for (double heading : {30.0, 250.0}) {
+      const auto g = sensor::SarGeometry::Covering(Options(heading, 45.0, mode), Vector3d::Zero(), posts);
+      const GridProfileSweep sweep(posts.data(), w, h, g);
+      const auto [e_lo, e_hi] = RayCoordinateExtent(posts, g);
+      const int count = 400;
+      const double de = (e_hi - e_lo) / (count - 20);
+      const double e0 = e_lo - 10 * de;
+      std::vector<double> depth(count), slice_depth(count);
+      std::vector<uint32_t> tri(count), slice_tri(count);
+      for (double a = -420.0; a <= 420.0; a += 37.0) {
+        ASSERT_TRUE(sweep.Trace(a, e0, de, count, depth.data(), tri.data()));
+        for (const auto& [first, n] : {std::pair{0, 96}, {112, 160}, {208, 192}, {384, 16}}) {
+          GridProfileSweep::LineRays line{a, e0, de, first, n, slice_depth.data(), slice_tri.data()};
+          uint8_t ok = 0;
+          sweep.TraceLines({line}, &ok);
+          ASSERT_TRUE(ok);
+          for (int j = 0; j < n; ++j) {
+            ASSERT_EQ(slice_tri[size_t(j)], tri[size_t(first + j)]) << first << " " << j;
+            if (tri[size_t(first + j)] == GridProfileSweep::kNoHit) continue;
+            ASSERT_EQ(slice_depth[size_t(j)], depth[size_t(first + j)]) << first << " " << j;
+            ++hits;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(hits, 20000);
+}
+
 // The frontiers recorded by a coarse ray grid give the hit of a ray at any
 // coordinate (the sub-rays between the grid's): on the warped rough grid
 // above, both modes, all headings, 60 random coordinates per line across
@@ -218,8 +256,8 @@ TEST(GridProfileSweepTest, FrontierHitsWhereEmbreeDoesBetweenTheRays) {
         GridProfileSweep::Frontier frontier;
         auto coordinate = [&](double e) { return affine ? e : std::tan(e); };
         for (double a = -420.0; a <= 420.0; a += 37.0) {
-          GridProfileSweep::LineRays line{a, e_lo, de, count, depth.data(), tri.data(), nullptr, nullptr,
-                                          &frontier, coordinate(e_lo - de), coordinate(e_hi + de)};
+          GridProfileSweep::LineRays line{a, e_lo, de, 0, count, depth.data(), tri.data(), nullptr, nullptr,
+                                             &frontier, coordinate(e_lo - de), coordinate(e_hi + de)};
           uint8_t ok = 0;
           sweep.TraceLines({line}, &ok);
           ASSERT_TRUE(ok);

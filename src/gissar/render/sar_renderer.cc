@@ -35,7 +35,11 @@ using Eigen::Vector3f;
 struct RayGrid {
   int n_az = 0;
   double a0 = 0.0, da = 0.0;
-  int n_el = 0;
+  // The rays traced across each line: n_el of the n_el_all the box needs,
+  // from index j_first on (a multiple of 16, so that packets hold the same
+  // rays; CullToImage). Ray j of a line has coordinate E(j) (the same
+  // double whatever j_first is) and id line * n_el_all + j_first + j.
+  int n_el = 0, n_el_all = 0, j_first = 0;
   double e0 = 0.0, de = 0.0;
   double back_off_m = 0.0;  // affine: origin plane distance behind Xc along -l
   double ray_weight = 0.0;  // 1 / rays per cell
@@ -45,7 +49,8 @@ struct RayGrid {
   // values std::cos/sin/tan give at each ray, computed once per image
   // instead of once per ray: every azimuth line shares them).
   std::vector<double> cos_e, sin_e, tan_e;
-  double E(int j) const { return e0 + j * de; }
+  double E(int j) const { return e0 + (j_first + j) * de; }
+  uint64_t RayId(int line, int j) const { return uint64_t(line) * uint64_t(n_el_all) + uint64_t(j_first + j); }
 };
 
 RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box,
@@ -82,6 +87,7 @@ RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box
   grid.de = g.mode() == sensor::ProjectionMode::kAffine ? de_m : de_m / g.slant_range_m();
   grid.e0 = lo - grid.de;
   grid.n_el = static_cast<int>(std::ceil((hi - lo) / grid.de)) + 3;
+  grid.n_el_all = grid.n_el;
   grid.back_off_m = back + 1.0;
   if (g.mode() != sensor::ProjectionMode::kAffine) {
     grid.cos_e.resize(size_t(grid.n_el));
@@ -95,6 +101,92 @@ RayGrid MakeRayGrid(const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box
     }
   }
   return grid;
+}
+
+// How far (pixels) a return spreads from its column: half the widest
+// footprint box (kMaxBoxWidthPx) and the bilinear tent's pixel, and one
+// more for rounding.
+constexpr double kReturnReachPx = 0.5 * kMaxBoxWidthPx + 2.0;
+
+// The tiles whose bounds project (affine, by `g`) onto `pixels` (column,
+// row). The projection is affine, so every point of a tile's bounds
+// projects within the bounds of its corners' projections: a triangle of any
+// other tile projects outside `pixels`.
+std::vector<size_t> TilesOnPixels(const TriangleTiles& tiles, const sensor::SarGeometry& g,
+                                  const Eigen::AlignedBox2d& pixels) {
+  GISSAR_CHECK(g.mode() == sensor::ProjectionMode::kAffine);
+  std::vector<size_t> near;
+  for (size_t k = 0; k < tiles.tile_count(); ++k) {
+    const Eigen::AlignedBox3d& b = tiles.bounds(k);
+    if (b.isEmpty()) continue;
+    Eigen::AlignedBox2d projected;
+    for (int c = 0; c < 8; ++c) {
+      projected.extend(g.Project(b.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c))));
+    }
+    if (projected.intersects(pixels)) near.push_back(k);
+  }
+  return near;
+}
+
+// The image's pixel centres [0, width - 1] x [0, height - 1] widened by
+// `cols` columns (each side; near_cols on the near side) and `rows` rows.
+Eigen::AlignedBox2d PixelWindow(const sensor::SarGeometry& g, double cols, double rows, double near_cols) {
+  return Eigen::AlignedBox2d(Eigen::Vector2d(-near_cols, -rows),
+                             Eigen::Vector2d(g.width() - 1 + cols, g.height() - 1 + rows));
+}
+
+// The triangles a walk over a mesh (the mask's ray pass) visits one by one
+// start here: after a whole terrain grid's, walked by rows (a height field
+// without holes), else at 0.
+size_t FirstTriangleWalkedAlone(const EmbreeScene& embree) {
+  const int grid_w = embree.heightfield_grid_width(), grid_h = embree.heightfield_grid_height();
+  const bool whole_grid = grid_w >= 2 && embree.heightfield_cells() == int64_t(grid_w - 1) * (grid_h - 1);
+  return whole_grid ? size_t(2 * embree.heightfield_cells()) : 0;
+}
+
+// Affine mode: `grid` narrowed to the rays whose returns can reach the
+// image (RenderOptions::image_rays_only). A ray of coordinate e, or one of
+// its sub-rays (within half a spacing of it), meets a surface of height z
+// at the slant-range offset t from the scene centre's (along l) with
+//   e n_z = z - Xc_z - t l_z - a h_z   (a: its along-track offset),
+// so when every surface within reach of the image has z in [z_lo, z_hi],
+// the rays that can meet one at columns from -0.5 - M to width - 0.5 + M
+// (M = kReturnReachPx) lie between the extremes of e over those bounds of
+// z, t and the image's rows. A single bounce returns at its hit's range, a
+// later bounce no nearer than the first hit (the way there and back is at
+// least twice the first hit's offset along l): with several bounces the
+// near bound of t is dropped (every nearer hit may return into the image).
+// The rays kept are the same rays (RayGrid::E, RayId) in the same packets
+// of 16: the image is the same, bit for bit. Unchanged when the
+// range-plane normal or the look direction is (nearly) horizontal.
+void CullToImage(const sensor::SarGeometry& g, double z_lo, double z_hi, int max_bounces, RayGrid* grid) {
+  GISSAR_CHECK(g.mode() == sensor::ProjectionMode::kAffine);
+  const Vector3d& l = g.look_direction();
+  const Vector3d& n = g.range_plane_normal();
+  const Vector3d& h = g.flight_direction();
+  const Vector3d& xc = g.scene_centre();
+  if (!(std::abs(n.z()) > 0.05) || !(std::abs(l.z()) > 1e-9)) return;
+  const double t_near = max_bounces > 1 ? -std::numeric_limits<double>::infinity()
+                                        : (-0.5 - kReturnReachPx - g.u0()) * g.range_spacing_m();
+  const double t_far = (g.width() - 0.5 + kReturnReachPx - g.u0()) * g.range_spacing_m();
+  const double a_bounds[2] = {grid->a0 - grid->da, grid->a0 + grid->n_az * grid->da};
+  double e_lo = std::numeric_limits<double>::infinity(), e_hi = -e_lo;
+  for (const double z : {z_lo, z_hi}) {
+    for (const double t : {t_near, t_far}) {
+      for (const double a : a_bounds) {
+        const double e = (z - xc.z() - t * l.z() - a * h.z()) / n.z();
+        e_lo = std::min(e_lo, e);
+        e_hi = std::max(e_hi, e);
+      }
+    }
+  }
+  // Ray j's sub-rays reach E(j) +- de / 2: one more ray each side, and one
+  // for rounding.
+  const double all = grid->n_el_all;
+  const double j_lo = std::clamp(std::floor((e_lo - grid->e0) / grid->de) - 2.0, 0.0, all);
+  const double j_end = std::clamp(std::ceil((e_hi - grid->e0) / grid->de) + 3.0, j_lo, all);
+  grid->j_first = static_cast<int>(j_lo) / 16 * 16;
+  grid->n_el = static_cast<int>(j_end) - grid->j_first;
 }
 
 // Distance along the ray to the entry of `box` (0 when starting inside);
@@ -787,6 +879,7 @@ class MaskRayPass {
   void Finish(Task& task);
   size_t WalkGrid();
   void WalkTriangles(size_t first);
+  void WalkTiles(size_t first);
 
   const EmbreeScene& embree_;
   const scene::TriangleMesh& mesh_;
@@ -945,9 +1038,8 @@ void MaskRayPass::Finish(Task& task) {
 // row (a post is a corner of six triangles) instead of once per corner.
 // Returns the number of triangles walked (0: no such grid).
 size_t MaskRayPass::WalkGrid() {
+  if (FirstTriangleWalkedAlone(embree_) == 0) return 0;
   const int grid_w = embree_.heightfield_grid_width(), grid_h = embree_.heightfield_grid_height();
-  const bool whole_grid = grid_w >= 2 && embree_.heightfield_cells() == int64_t(grid_w - 1) * (grid_h - 1);
-  if (!whole_grid) return 0;
   // With only_rows_: the wanted rows among [0, r) (wanted_before[r]), so
   // that a strip of cells whose posts' image rows (their along-track
   // coordinates alone, no projection) reach no wanted row is skipped.
@@ -1003,8 +1095,14 @@ size_t MaskRayPass::WalkGrid() {
   return size_t(2 * embree_.heightfield_cells());
 }
 
-// The mesh's triangles from `first` on, each corner projected.
+// The mesh's triangles from `first` on, each corner projected (affine
+// mode: WalkTiles).
 void MaskRayPass::WalkTriangles(size_t first) {
+  if (first >= mesh_.triangle_count()) return;
+  if (affine_) {
+    WalkTiles(first);
+    return;
+  }
   tbb::parallel_for(tbb::blocked_range<size_t>(first, mesh_.triangle_count(), 4096),
                     [&](const tbb::blocked_range<size_t>& range) {
     Task task;
@@ -1015,6 +1113,30 @@ void MaskRayPass::WalkTriangles(size_t first) {
                              mesh_.vertices[tri[2]].cast<double>()};
       const Eigen::Vector2d p[3] = {Project(v[0]), Project(v[1]), Project(v[2])};
       Triangle(task, t, v, p);
+    }
+    Finish(task);
+  });
+}
+
+// WalkTriangles in affine mode: only the triangles of the tiles
+// (EmbreeScene::Tiles) whose bounds project onto the image. The projection
+// is affine, so a triangle's projected corners lie within the bounds of its
+// tile's projected corners: the other tiles' triangles cover no pixel
+// centre (Triangle's own test; a pixel of slack for rounding). The same
+// flags and rays as a walk over every triangle.
+void MaskRayPass::WalkTiles(size_t first) {
+  const TriangleTiles& tiles = embree_.Tiles(mesh_, first);
+  const std::vector<size_t> near = TilesOnPixels(tiles, geometry_, PixelWindow(geometry_, 1.0, 1.0, 1.0));
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, near.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+    Task task;
+    for (size_t q = range.begin(); q != range.end(); ++q) {
+      for (const uint32_t* t = tiles.begin(near[q]); t != tiles.end(near[q]); ++t) {
+        const Eigen::Vector3i tri = mesh_.Triangle(*t);
+        const Vector3d v[3] = {mesh_.vertices[tri[0]].cast<double>(), mesh_.vertices[tri[1]].cast<double>(),
+                               mesh_.vertices[tri[2]].cast<double>()};
+        const Eigen::Vector2d p[3] = {Project(v[0]), Project(v[1]), Project(v[2])};
+        Triangle(task, *t, v, p);
+      }
     }
     Finish(task);
   });
@@ -1195,6 +1317,29 @@ TracePlan::TracePlan(const EmbreeScene& embree_in, const scene::TriangleMesh& me
   box = options.ray_box ? *options.ray_box : mesh.Bounds();
   grid = MakeRayGrid(geometry, box, options.rays_per_cell);
   affine = geometry.mode() == sensor::ProjectionMode::kAffine;
+  if (affine && options.image_rays_only) {
+    // The heights of the surfaces whose returns can reach the image (with
+    // one bounce, those within kReturnReachPx of its columns; with more,
+    // also every nearer one): those of the tiles there when the tiles hold
+    // every triangle (the mask's ray pass walks them anyway), else the
+    // box's.
+    double z_lo = box.min().z(), z_hi = box.max().z();
+    if (FirstTriangleWalkedAlone(embree) == 0) {
+      const TriangleTiles& tiles = embree.Tiles(mesh, 0);
+      const double near_cols =
+          options.max_bounces > 1 ? std::numeric_limits<double>::infinity() : kReturnReachPx + 0.5;
+      Eigen::AlignedBox3d near;
+      const Eigen::AlignedBox2d reach = PixelWindow(geometry, kReturnReachPx + 0.5, 1.0, near_cols);
+      for (const size_t k : TilesOnPixels(tiles, geometry, reach)) {
+        near.extend(tiles.bounds(k));
+      }
+      if (!near.isEmpty()) {
+        z_lo = near.min().z();
+        z_hi = near.max().z();
+      }
+    }
+    CullToImage(geometry, z_lo, z_hi, options.max_bounces, &grid);
+  }
   l = geometry.look_direction();
   n = geometry.range_plane_normal();
   xc = geometry.scene_centre();
@@ -1286,7 +1431,7 @@ struct Lanes {
 // A ray followed through its bounces: where it starts and where it goes
 // (ENU metres, unit direction), its path length from the sensor to
 // `origin` (metres), its beam cross-section at the first hit (m^2), the
-// product of the mirror shares so far, its id (line * n_el + j: the seed
+// product of the mirror shares so far, its id (RayGrid::RayId: the seed
 // of its micro-phases) and, in polarimetric passes, the field it carries.
 struct RayState {
   Vector3d origin, dir;
@@ -1480,14 +1625,15 @@ void BlockTracer::PrepareLines() {
   // ray: the frontiers are recorded out to there.
   const bool sub_rays = plan_.options.adaptive_sampling;
   if (sub_rays) s.frontier.resize(size_t(lines));
-  const double bottom = grid.e0 - 0.5 * grid.de, top = grid.e0 + (grid.n_el - 0.5) * grid.de;
+  const double bottom = grid.e0 + (grid.j_first - 0.5) * grid.de;
+  const double top = grid.e0 + (grid.j_first + grid.n_el - 0.5) * grid.de;
   constexpr double kNearRightAngle = 0.5 * M_PI - 1e-9;
   const double frontier_below = plan_.affine ? bottom : std::tan(std::max(bottom, -kNearRightAngle));
   const double frontier_above = plan_.affine ? top : std::tan(std::min(top, kNearRightAngle));
   std::vector<GridProfileSweep::LineRays> rays;
   for (int i = i0_; i < i1_; ++i) {
     const size_t at = size_t(i - i0_) * grid.n_el;
-    rays.push_back({plan_.AlongTrackOfLine(i), grid.e0, grid.de, grid.n_el, &s.depth[at], &s.triangle[at],
+    rays.push_back({plan_.AlongTrackOfLine(i), grid.e0, grid.de, grid.j_first, grid.n_el, &s.depth[at], &s.triangle[at],
                     &s.normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data(),
                     sub_rays ? &s.frontier[size_t(i - i0_)] : nullptr, frontier_below, frontier_above});
   }
@@ -1531,7 +1677,7 @@ void BlockTracer::SweptRays(int i, int j_begin, int j_end) {
     s.triangle = triangle;
     s.class_id = plan_.mesh.classes[triangle];
     ray.area = plan_.affine ? grid.da * grid.de_m : grid.da * grid.de * ray.travelled;
-    ray.id = uint64_t(i) * uint64_t(grid.n_el) + uint64_t(j);
+    ray.id = grid.RayId(i, j);
     WayBack(s, /*with_direction=*/later_bounces);
     if (later_bounces) {
       s.material = &plan_.materials.Get(s.class_id);
@@ -1677,7 +1823,7 @@ void BlockTracer::FollowRay(const Line& line, int j0, int k) {
   ray.origin = lanes_.origin[k];
   ray.dir = lanes_.dir[k];
   ray.travelled = lanes_.travelled[k];
-  ray.id = uint64_t(line.i) * uint64_t(grid.n_el) + uint64_t(j);
+  ray.id = grid.RayId(line.i, j);
   if (plan_.polarimetric) ray.field = TransmitField(ray.dir);
   // The first hit, from the packet.
   const float t = lanes_.packet.tfar[k];

@@ -123,6 +123,16 @@ struct RenderOptions {
   // Embree, in the same order with the same arithmetic (the same image, bit
   // for bit). False keeps the packets (for comparison).
   bool one_pass_swept_lines = true;
+  // Affine mode: only the primary rays whose returns can reach the image
+  // are traced (those whose beam, between the ray box's lowest and highest
+  // heights, passes within a footprint's reach of the image's slant-range
+  // columns; with several bounces every ray nearer than that): the same
+  // image bit for bit, and for an image of part of a large scene a fraction
+  // of the rays. Recorded contributions then hold only the traced rays'
+  // returns; false traces the whole ray box (contributions from anywhere,
+  // e.g. to re-project them onto another grid). Exact mode traces the whole
+  // box either way.
+  bool image_rays_only = true;
 
   // Throws ConfigError when rays_per_cell is below 1, above 1024 or NaN.
   void Check() const;
@@ -355,7 +365,9 @@ std::vector<PointReturn> ReflectorReturns(const OcclusionTest& occluded, const s
 // shadow exactly; *swept_rows, when given, counts those rows), and the rows
 // whose line does not cross the grid in one piece get visibility rays;
 // otherwise (also when a profile point is not beyond the sensor in ground
-// range), and when false, one visibility ray per covered centre.
+// range), and when false, one visibility ray per covered centre (in affine
+// mode only the triangles of the tiles near the image are visited:
+// EmbreeScene::Tiles, built on the first such pass over the scene).
 // *shadow_rays counts the visibility rays cast.
 std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
                                              const scene::TriangleMesh& mesh,

@@ -681,6 +681,102 @@ TEST(SarRendererTest, OnePassSweptLinesAreThePacketsBitForBit) {
   EXPECT_GT(later_bounce_pixels, 100);
 }
 
+// An affine image of part of a scene traces only the rays whose returns
+// can reach it (RenderOptions::image_rays_only): every plane, the mask and
+// the footprint are those of tracing the whole ray box, bit for bit, with
+// one bounce and with three (a partly mirror surface: later bounces from
+// hits nearer than the image), both look sides, with and without sub-rays,
+// over a triangle mesh (the heights near the image from its tiles) and over
+// the same terrain as a height field (the profile sweep; the box's heights).
+TEST(SarRendererTest, ImageRaysOnlyGiveTheWholeBoxsImageBitForBit) {
+  constexpr int kPosts = 90;
+  // The steep ridge stretched to 2.7 km in plan.
+  std::vector<Vector3f> posts = WarpedRidgePosts(0.01);
+  for (Vector3f& p : posts) p.head<2>() *= 3.0f;
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(posts, kPosts, kPosts);
+  const EmbreeScene triangles(mesh);
+  const EmbreeScene heightfield(mesh, TerrainGrid{kPosts, kPosts, {}});
+  ASSERT_FALSE(triangles.heightfield());
+  ASSERT_TRUE(heightfield.HeightfieldOnly());
+  material::MaterialTable materials;
+  materials.Set(0, material::Material{"partly_mirror", 0.5, 0.0, 1.0, 0.5});
+  int64_t later_bounce_pixels = 0, lit_pixels = 0;
+  for (const EmbreeScene* embree : {&triangles, &heightfield}) {
+    for (const auto side : {sensor::LookSide::kRight, sensor::LookSide::kLeft}) {
+      for (const double heading : {30.0, 200.0}) {
+        // 48 x 32 pixels of 2.5 m (120 m x 80 m) off the centre of the
+        // terrain.
+        sensor::SarGeometryOptions o = Options(heading, 40.0, 2.5);
+        o.look_side = side;
+        o.slant_range_m = 5000.0;
+        const sensor::SarGeometry g(o, Vector3d(120.0, -90.0, 0.0), 23.5, 15.5, 48, 32);
+        for (const int bounces : {1, 3}) {
+          for (const bool adaptive : {true, false}) {
+            RenderOptions options = Quiet(4.0);
+            options.max_bounces = bounces;
+            options.adaptive_sampling = adaptive;
+            const SarImage culled = RenderSar(*embree, mesh, materials, g, options);
+            options.image_rays_only = false;
+            const SarImage whole = RenderSar(*embree, mesh, materials, g, options);
+            const std::string what = std::string(embree == &triangles ? "mesh" : "height field") + " heading " +
+                                     std::to_string(heading) + " bounces " + std::to_string(bounces);
+            ASSERT_EQ(culled.intensity, whole.intensity) << what;
+            ASSERT_EQ(culled.bounce_layers, whole.bounce_layers) << what;
+            EXPECT_EQ(culled.mask, whole.mask) << what;
+            EXPECT_EQ(culled.footprint, whole.footprint) << what;
+            // The terrain is about 1000 pixels across: with one bounce
+            // only the rays of the image and its reach (48 + 2 x 34
+            // columns) over the terrain's height range are traced, with
+            // three also the nearer ones.
+            EXPECT_LT(culled.stats.rays, whole.stats.rays * (bounces == 1 ? 0.5 : 0.9)) << what;
+            int64_t lit = 0;
+            for (const float v : culled.intensity) lit += v > 0.0f;
+            EXPECT_GT(lit, g.width() * g.height() / 8) << what;
+            lit_pixels += lit;
+            for (size_t layer = 1; layer < culled.bounce_layers.size(); ++layer) {
+              for (const float v : culled.bounce_layers[layer]) later_bounce_pixels += v > 0.0f;
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(lit_pixels, 32 * 48 * 32 / 3);
+  EXPECT_GT(later_bounce_pixels, 100);
+}
+
+// The mask's ray pass over a triangle mesh in affine mode visits only the
+// tiles whose bounds project onto the image (EmbreeScene::Tiles): an image
+// of part of the terrain gets the codes of the same pixels of an image
+// covering it all (which visits every tile).
+TEST(SarRendererTest, MaskOfPartOfASceneIsThatOfTheWholeScenesPixels) {
+  constexpr int kPosts = 90;
+  const scene::TriangleMesh mesh = scene::MeshFromGrid(WarpedRidgePosts(0.01), kPosts, kPosts);
+  const EmbreeScene embree(mesh);
+  int64_t flagged = 0;
+  for (const auto side : {sensor::LookSide::kRight, sensor::LookSide::kLeft}) {
+    for (const double heading : {30.0, 200.0}) {
+      const sensor::SarGeometry whole =
+          RidgeGeometry(sensor::ProjectionMode::kAffine, side, heading, mesh.vertices);
+      // 60 x 40 pixels of it, from column 50 and row 70: the same pixel
+      // centres (the scene centre moved by whole pixels along l and h).
+      const int c0 = 50, r0 = 70, w = 60, h = 40;
+      ASSERT_GT(whole.width(), c0 + w);
+      ASSERT_GT(whole.height(), r0 + h);
+      const sensor::SarGeometry part(whole.options(), whole.scene_centre(), whole.u0() - c0, whole.v0() - r0, w, h);
+      const std::vector<uint8_t> whole_mask = RenderLayoverShadowMask(embree, mesh, whole);
+      const std::vector<uint8_t> part_mask = RenderLayoverShadowMask(embree, mesh, part);
+      std::vector<uint8_t> expected;
+      for (int r = 0; r < h; ++r) {
+        for (int c = 0; c < w; ++c) expected.push_back(whole_mask[size_t(r0 + r) * whole.width() + c0 + c]);
+      }
+      EXPECT_EQ(part_mask, expected) << heading;
+      for (const uint8_t m : part_mask) flagged += m != kMaskNone;
+    }
+  }
+  EXPECT_GT(flagged, 500);  // the part holds shadow and layover
+}
+
 // A grid whose first row of posts zigzags along track: the azimuth lines
 // through the zigzag cross the grid's boundary more than twice, so the
 // sweep refuses them and only their image rows get visibility rays; every
