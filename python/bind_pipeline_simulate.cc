@@ -175,23 +175,18 @@ py::dict SimulateWith(const py::kwargs& kwargs, PyReporter& reporter) {
     const size_t n = size_t(image.width) * image.height;
     const size_t count = channels.size() * (1 + size_t(held));
     py::array_t<float> all({py::ssize_t(count), py::ssize_t(image.height), py::ssize_t(image.width)});
-    std::vector<std::string> names;
     size_t band = 0;
     for (size_t k = 0; k < images.size(); ++k, ++band) {
       GISSAR_CHECK(images[k]->intensity.size() == n);
       std::copy(images[k]->intensity.begin(), images[k]->intensity.end(), all.mutable_data() + band * n);
-      names.push_back(material::ToString(channels[k]));
     }
     for (size_t k = 0; k < images.size(); ++k) {
       const py::array_t<float> layers = BounceBands(*images[k], options.db, held);
       std::copy(layers.data(), layers.data() + size_t(held) * n, all.mutable_data() + band * n);
       band += size_t(held);
-      for (int layer = 0; layer < held; ++layer) {
-        names.push_back(material::ToString(channels[k]) + "_" + pipeline::kBounceLayerNames[layer]);
-      }
     }
     out["channel_bands"] = all;
-    out["band_names"] = names;
+    out["band_names"] = pipeline::ImageBandNames(channels, images.size(), held);
   }
   return out;
 }
@@ -210,9 +205,7 @@ py::dict SimulateProduct(const std::string& product, py::kwargs kwargs) {
   render::SarImage image = sim.image.image;
   if (image.footprint.size() == image.intensity.size()) pipeline::MarkOutsideFootprint(image, sim.image.image.footprint);
   const int h = image.height, w = image.width;
-  std::vector<const render::SarImage*> channel_images = {&image};
-  for (const render::SarImage& c : sim.other_channels) channel_images.push_back(&c);
-  py::array_t<float> bands = BounceBands(image, options.db, pipeline::HeldBounceLayers(channel_images));
+  py::array_t<float> bands = BounceBands(image, options.db, pipeline::HeldBounceLayers(image, sim.other_channels));
   py::dict out;
   out["image"] = Image(image.intensity, h, w);
   out["bounces"] = bands;

@@ -624,31 +624,20 @@ geo::FloatRaster ProductRaster(const ProductSimulation& sim, const render::SarIm
   geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
   const std::string unit = image::RadiometryUnit(options.db);
   // Channel 0 is `image`; the others follow (several channels).
-  std::vector<const render::SarImage*> all_channels = {&image};
-  for (const render::SarImage& c : sim.other_channels) all_channels.push_back(&c);
-  const int held = HeldBounceLayers(all_channels);
+  const int held = HeldBounceLayers(image, sim.other_channels);
+  raster.band_names = ImageBandNames(sim.channels, 1 + sim.other_channels.size(), held);
   if (sim.other_channels.empty()) {
     raster.bands.push_back(image.intensity);
-    raster.band_names.push_back("total");
-    for (int layer = 0; layer < held; ++layer) {
-      raster.bands.push_back(image.bounce_layers[layer]);
-      raster.band_names.push_back(kBounceLayerNames[layer]);
-    }
+    for (int layer = 0; layer < held; ++layer) raster.bands.push_back(image.bounce_layers[layer]);
   } else {
     channel_images.push_back(image);
     for (render::SarImage c : sim.other_channels) {
       if (c.footprint.size() == c.intensity.size()) MarkOutsideFootprint(c, sim.image.image.footprint);
       channel_images.push_back(std::move(c));
     }
-    for (size_t k = 0; k < channel_images.size(); ++k) {
-      raster.bands.push_back(channel_images[k].intensity);
-      raster.band_names.push_back(material::ToString(sim.channels[k]));
-    }
-    for (size_t k = 0; k < channel_images.size(); ++k) {
-      for (int layer = 0; layer < held; ++layer) {
-        raster.bands.push_back(channel_images[k].bounce_layers[layer]);
-        raster.band_names.push_back(material::ToString(sim.channels[k]) + "_" + kBounceLayerNames[layer]);
-      }
+    for (const render::SarImage& c : channel_images) raster.bands.push_back(c.intensity);
+    for (const render::SarImage& c : channel_images) {
+      for (int layer = 0; layer < held; ++layer) raster.bands.push_back(c.bounce_layers[layer]);
     }
     raster.metadata["GISSAR_POLARIZATIONS"] = material::ToString(sim.channels);
   }

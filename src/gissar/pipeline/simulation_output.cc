@@ -222,10 +222,6 @@ std::vector<render::SarImage*> ChannelImages(SimulatedImage& simulated) {
   return channel_images;
 }
 
-std::string ChannelName(const std::vector<material::Polarization>& channels, size_t k) {
-  return k < channels.size() ? material::ToString(channels[k]) : std::string("VV");
-}
-
 // The raster of PREFIX.tif, its bands moved in from the channel images (no
 // copies of full-size planes; GiveBackBands returns them). One channel:
 // total, then one band per bounce count the run holds (HeldBounceLayers).
@@ -235,18 +231,13 @@ geo::FloatRaster ImageRaster(const SimulateRequest& options, const SimulatedImag
                              const std::vector<render::SarImage*>& channel_images, int held,
                              const geo::Metadata& metadata) {
   const render::SarImage& image = simulated.image;
-  const bool several = channel_images.size() > 1;
   geo::FloatRaster raster{image.width, image.height, {}, {}, metadata};
   raster.band_unit = image::RadiometryUnit(options.db);
-  for (size_t k = 0; k < channel_images.size(); ++k) {
-    raster.bands.push_back(std::move(channel_images[k]->intensity));
-    raster.band_names.push_back(several ? ChannelName(simulated.channels, k) : "total");
-  }
+  raster.band_names = ImageBandNames(simulated.channels, channel_images.size(), held);
+  for (size_t k = 0; k < channel_images.size(); ++k) raster.bands.push_back(std::move(channel_images[k]->intensity));
   for (size_t k = 0; k < channel_images.size(); ++k) {
     for (int layer = 0; layer < held; ++layer) {
       raster.bands.push_back(std::move(channel_images[k]->bounce_layers[layer]));
-      raster.band_names.push_back(several ? ChannelName(simulated.channels, k) + "_" + kBounceLayerNames[layer]
-                                          : kBounceLayerNames[layer]);
       // A layer with no return below the highest held (a reflector's bounce
       // count beyond those traced) shares one plane.
       if (raster.bands.back().empty() && raster.empty_band_pixels.empty()) {
@@ -566,6 +557,28 @@ void WriteStacItem(const SimulateRequest& options, const SimulatedImage& simulat
 
 }  // namespace
 
+int HeldBounceLayers(const render::SarImage& image, const std::vector<render::SarImage>& others, bool complex) {
+  std::vector<const render::SarImage*> images = {&image};
+  for (const render::SarImage& other : others) images.push_back(&other);
+  return HeldBounceLayers(images, complex);
+}
+
+std::vector<std::string> ImageBandNames(const std::vector<material::Polarization>& channels, size_t images,
+                                        int held) {
+  if (images <= 1) {
+    std::vector<std::string> names = {"total"};
+    names.insert(names.end(), kBounceLayerNames, kBounceLayerNames + held);
+    return names;
+  }
+  auto channel = [&](size_t k) { return k < channels.size() ? material::ToString(channels[k]) : std::string("VV"); };
+  std::vector<std::string> names;
+  for (size_t k = 0; k < images; ++k) names.push_back(channel(k));
+  for (size_t k = 0; k < images; ++k) {
+    for (int layer = 0; layer < held; ++layer) names.push_back(channel(k) + "_" + kBounceLayerNames[layer]);
+  }
+  return names;
+}
+
 int HeldBounceLayers(std::span<const render::SarImage* const> images, bool complex) {
   int held = 1;
   for (const render::SarImage* image : images) {
@@ -611,18 +624,14 @@ std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& ima
                                        std::vector<float>& no_return, geo::Metadata& metadata) {
   GISSAR_CHECK(!images.empty());
   const bool several = images.size() > 1;
-  auto channel_name = [&](size_t k) {
-    return k < channels.size() ? material::ToString(channels[k]) : std::string("VV");
-  };
   const int held = HeldBounceLayers(images, /*complex=*/true);
+  const std::vector<std::string> names = ImageBandNames(channels, images.size(), held);
   std::vector<geo::ComplexBand> slc_bands;
-  for (size_t k = 0; k < images.size(); ++k) {
-    slc_bands.push_back({&images[k]->real, &images[k]->imag, several ? channel_name(k) : "total"});
-  }
+  for (size_t k = 0; k < images.size(); ++k) slc_bands.push_back({&images[k]->real, &images[k]->imag, names[k]});
   for (size_t k = 0; k < images.size(); ++k) {
     render::SarImage& c = *images[k];
     for (int layer = 0; layer < held; ++layer) {
-      const std::string name = several ? channel_name(k) + "_" + kBounceLayerNames[layer] : kBounceLayerNames[layer];
+      const std::string& name = names[slc_bands.size()];
       if (c.bounce_real[layer].size() != c.real.size()) {
         if (no_return.empty()) no_return = NoReturnPlane(*images[0], /*db=*/false);
         slc_bands.push_back({&no_return, &no_return, name});
@@ -631,8 +640,6 @@ std::vector<geo::ComplexBand> SlcBands(const std::vector<render::SarImage*>& ima
       }
     }
   }
-  std::vector<std::string> names;
-  for (const geo::ComplexBand& band : slc_bands) names.push_back(band.name);
   if (several) {
     metadata["GISSAR_BANDS"] = NumberedBands(names) + " (complex; each channel's bounce bands add up to its total "
                                                       "before thermal noise)";

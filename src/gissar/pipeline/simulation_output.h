@@ -38,6 +38,17 @@ inline constexpr const char* kBounceLayerNames[render::kBounceLayers] = {"single
 // that order), so PREFIX.tif, PREFIX_slc.tif and Python's bands stop there; a
 // count below it the render left empty is written as NoReturnPlane.
 int HeldBounceLayers(std::span<const render::SarImage* const> images, bool complex = false);
+// The same for a first channel's `image` and the `others`.
+int HeldBounceLayers(const render::SarImage& image, const std::vector<render::SarImage>& others,
+                     bool complex = false);
+
+// The names of the image bands of PREFIX.tif and PREFIX_slc.tif (and
+// Python's band_names) for `images` channels holding `held` bounce layers:
+// one channel: "total", then kBounceLayerNames[0, held); several: each
+// channel's name (`channels`, "VV" past its end), then each channel's
+// "<channel>_<layer>" bounce bands.
+std::vector<std::string> ImageBandNames(const std::vector<material::Polarization>& channels, size_t images,
+                                        int held);
 
 // "1 name, 2 name, ..." (GISSAR_BANDS).
 std::string NumberedBands(const std::vector<std::string>& names);
