@@ -15,6 +15,7 @@
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <utility>
 
 #include "gissar/material/scattering.h"
 #include "gissar/util/check.h"
@@ -187,6 +188,25 @@ void CullToImage(const sensor::SarGeometry& g, double z_lo, double z_hi, int max
   const double j_end = std::clamp(std::ceil((e_hi - grid->e0) / grid->de) + 3.0, j_lo, all);
   grid->j_first = static_cast<int>(j_lo) / 16 * 16;
   grid->n_el = static_cast<int>(j_end) - grid->j_first;
+}
+
+// Affine mode: the lowest and highest heights of the surfaces whose returns
+// can reach the image (with one bounce, those within kReturnReachPx of its
+// columns; with more, also every nearer one): those of the tiles there
+// (EmbreeScene::Tiles) when the tiles hold every triangle (the mask's ray
+// pass walks them anyway), else `box`'s.
+std::pair<double, double> HeightsWithinReach(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                                             const sensor::SarGeometry& g, const Eigen::AlignedBox3d& box,
+                                             int max_bounces) {
+  if (FirstTriangleWalkedAlone(embree) != 0) return {box.min().z(), box.max().z()};
+  const TriangleTiles& tiles = embree.Tiles(mesh, 0);
+  const double near_cols = max_bounces > 1 ? std::numeric_limits<double>::infinity() : kReturnReachPx + 0.5;
+  Eigen::AlignedBox3d near;
+  for (const size_t k : TilesOnPixels(tiles, g, PixelWindow(g, kReturnReachPx + 0.5, 1.0, near_cols))) {
+    near.extend(tiles.bounds(k));
+  }
+  if (near.isEmpty()) return {box.min().z(), box.max().z()};
+  return {near.min().z(), near.max().z()};
 }
 
 // Distance along the ray to the entry of `box` (0 when starting inside);
@@ -1318,26 +1338,7 @@ TracePlan::TracePlan(const EmbreeScene& embree_in, const scene::TriangleMesh& me
   grid = MakeRayGrid(geometry, box, options.rays_per_cell);
   affine = geometry.mode() == sensor::ProjectionMode::kAffine;
   if (affine && options.image_rays_only) {
-    // The heights of the surfaces whose returns can reach the image (with
-    // one bounce, those within kReturnReachPx of its columns; with more,
-    // also every nearer one): those of the tiles there when the tiles hold
-    // every triangle (the mask's ray pass walks them anyway), else the
-    // box's.
-    double z_lo = box.min().z(), z_hi = box.max().z();
-    if (FirstTriangleWalkedAlone(embree) == 0) {
-      const TriangleTiles& tiles = embree.Tiles(mesh, 0);
-      const double near_cols =
-          options.max_bounces > 1 ? std::numeric_limits<double>::infinity() : kReturnReachPx + 0.5;
-      Eigen::AlignedBox3d near;
-      const Eigen::AlignedBox2d reach = PixelWindow(geometry, kReturnReachPx + 0.5, 1.0, near_cols);
-      for (const size_t k : TilesOnPixels(tiles, geometry, reach)) {
-        near.extend(tiles.bounds(k));
-      }
-      if (!near.isEmpty()) {
-        z_lo = near.min().z();
-        z_hi = near.max().z();
-      }
-    }
+    const auto [z_lo, z_hi] = HeightsWithinReach(embree, mesh, geometry, box, options.max_bounces);
     CullToImage(geometry, z_lo, z_hi, options.max_bounces, &grid);
   }
   l = geometry.look_direction();
@@ -1633,8 +1634,8 @@ void BlockTracer::PrepareLines() {
   std::vector<GridProfileSweep::LineRays> rays;
   for (int i = i0_; i < i1_; ++i) {
     const size_t at = size_t(i - i0_) * grid.n_el;
-    rays.push_back({plan_.AlongTrackOfLine(i), grid.e0, grid.de, grid.j_first, grid.n_el, &s.depth[at], &s.triangle[at],
-                    &s.normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data(),
+    rays.push_back({plan_.AlongTrackOfLine(i), grid.e0, grid.de, grid.j_first, grid.n_el, &s.depth[at],
+                    &s.triangle[at], &s.normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data(),
                     sub_rays ? &s.frontier[size_t(i - i0_)] : nullptr, frontier_below, frontier_above});
   }
   plan_.sweep->TraceLines(rays, s.swept.data());
