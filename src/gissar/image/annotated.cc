@@ -57,16 +57,23 @@ std::vector<AxisTick> AxisTicks(double origin_m, double spacing_m, int pixels, i
 
 RgbImage AnnotatedQuicklook(std::span<const float> intensity, int width, int height,
                             const QuicklookAxes& axes, const std::string& title) {
-  GISSAR_CHECK(intensity.size() == size_t(width) * height && axes.range_spacing_m > 0 &&
-               axes.azimuth_spacing_m > 0);
+  GISSAR_CHECK(intensity.size() == size_t(width) * height);
   DbStretch stretch;
-  const std::vector<uint8_t> grey = DbQuicklook(intensity, 2.0, 98.0, &stretch);
+  const std::vector<uint8_t> levels = DbQuicklook(intensity, 2.0, 98.0, &stretch);
+  const GreyImage grey = AnnotatedGreyQuicklook(levels, stretch, width, height, axes, title);
+  RgbImage out{grey.width, grey.height, std::vector<uint8_t>(grey.grey.size() * 3)};
+  for (size_t i = 0; i < grey.grey.size(); ++i) out.rgb[3 * i] = out.rgb[3 * i + 1] = out.rgb[3 * i + 2] = grey.grey[i];
+  return out;
+}
+
+GreyImage AnnotatedGreyQuicklook(std::span<const uint8_t> levels, const DbStretch& stretch, int width, int height,
+                                 const QuicklookAxes& axes, const std::string& title) {
+  GISSAR_CHECK(levels.size() == size_t(width) * height && axes.range_spacing_m > 0 &&
+               axes.azimuth_spacing_m > 0);
   const int left = 70, top = 44, bottom = 50, bar = 90;
-  cv::Mat canvas(height + top + bottom, width + left + bar + 20, CV_8UC3, cv::Scalar(255, 255, 255));
-  cv::Mat g(height, width, CV_8UC1, const_cast<uint8_t*>(grey.data())), rgb;
-  cv::cvtColor(g, rgb, cv::COLOR_GRAY2RGB);
-  rgb.copyTo(canvas(cv::Rect(left, top, width, height)));
-  const cv::Scalar black(0, 0, 0);
+  cv::Mat canvas(height + top + bottom, width + left + bar + 20, CV_8UC1, cv::Scalar(255));
+  cv::Mat(height, width, CV_8UC1, const_cast<uint8_t*>(levels.data())).copyTo(canvas(cv::Rect(left, top, width, height)));
+  const cv::Scalar black(0);
   const auto font = cv::FONT_HERSHEY_SIMPLEX;
   // Title on its own line, shrunk to fit the picture's width.
   double title_scale = 0.55;
@@ -111,7 +118,7 @@ RgbImage AnnotatedQuicklook(std::span<const float> intensity, int width, int hei
   const int bx = left + width + 20, bw = 18;
   for (int y = 0; y < height; ++y) {
     const int v = 255 - static_cast<int>(std::lround(254.0 * y / std::max(1, height - 1)));
-    cv::line(canvas, cv::Point(bx, top + y), cv::Point(bx + bw, top + y), cv::Scalar(v, v, v), 1);
+    cv::line(canvas, cv::Point(bx, top + y), cv::Point(bx + bw, top + y), cv::Scalar(v), 1);
   }
   cv::rectangle(canvas, cv::Rect(bx, top, bw, height), black, 1);
   for (int k = 0; k <= 4; ++k) {
@@ -120,7 +127,9 @@ RgbImage AnnotatedQuicklook(std::span<const float> intensity, int width, int hei
     cv::putText(canvas, Fmt(db, 1), cv::Point(bx + bw + 4, y + 4), font, 0.4, black, 1, cv::LINE_AA);
   }
   cv::putText(canvas, "dB", cv::Point(bx, top - 8), font, 0.45, black, 1, cv::LINE_AA);
-  return ToRgb(canvas);
+  GreyImage out{canvas.cols, canvas.rows, {}};
+  out.grey.assign(canvas.data, canvas.data + size_t(canvas.cols) * canvas.rows);
+  return out;
 }
 
 RgbImage KvdDiagram(double s, double theta_deg, double phi_deg, double heading_change_deg, bool heading_known) {

@@ -44,11 +44,24 @@ struct AxisTick {
 std::vector<AxisTick> AxisTicks(double origin_m, double spacing_m, int pixels, int target_ticks,
                                 std::string* unit);
 
+// A one-channel 8-bit picture, row-major.
+struct GreyImage {
+  int width = 0, height = 0;
+  std::vector<uint8_t> grey;
+};
+
 // The dB quicklook of `intensity` (width x height, linear) with a title, a
 // horizontal slant-range axis and a vertical along-track axis (ticks from
 // AxisTicks) and a grey-scale colour bar labelled in dB.
 RgbImage AnnotatedQuicklook(std::span<const float> intensity, int width, int height,
                             const QuicklookAxes& axes, const std::string& title);
+// The same picture around `levels`, the image's grey levels already
+// stretched (DbQuicklook's, width x height) with `stretch` (the colour bar's
+// labels). Every pixel of it is a grey level (the image, black text, a grey
+// colour bar): drawn in one channel, it holds the pixels of
+// AnnotatedQuicklook's channels (each the same).
+GreyImage AnnotatedGreyQuicklook(std::span<const uint8_t> levels, const DbStretch& stretch, int width, int height,
+                                 const QuicklookAxes& axes, const std::string& title);
 
 // The KvD reading of an affine F: the image plane with the rotation axis at
 // angle phi (the bas-relief axis, about which the unknown rho turns), the

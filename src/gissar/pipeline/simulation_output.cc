@@ -121,18 +121,20 @@ geo::Metadata ImageMetadata(const SimulateRequest& options, const SimulatedImage
   return metadata;
 }
 
-// PREFIX.png: every pixel, the dB stretch of `linear` (its levels into
-// `stretch`; NaN black).
-void DrawPlainQuicklook(const SimulationOutputs& reserved, const SimulatedImage& simulated,
-                        std::span<const float> linear, image::DbStretch* stretch) {
-  const render::SarImage& image = simulated.image;
-  geo::WritePng(reserved.png, image::DbQuicklook(linear, 2.0, 98.0, stretch), image.width, image.height, 1);
+// The annotated quicklook's multilook factor: above kQuicklookMaxSidePx a
+// side it shows the image multilooked by an integer factor.
+int AnnotatedQuicklookLooks(const render::SarImage& image) {
+  const int side = std::max(image.width, image.height);
+  return (side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx;
 }
 
 // PREFIX_quicklook.png: annotated (title, axes in metres, dB colour bar);
 // multilooked above kQuicklookMaxSidePx a side (a NaN pixel: no return, 0).
+// Unmultilooked, it shows `levels` stretched as `stretch` (PREFIX.png's
+// levels of `linear`: given, not computed again).
 void DrawAnnotatedQuicklook(const SimulationOutputs& reserved, const SimulatedImage& simulated,
-                            std::span<const float> linear) {
+                            std::span<const float> linear, const std::vector<uint8_t>& levels,
+                            const image::DbStretch& stretch) {
   const render::SarImage& image = simulated.image;
   const sensor::SarGeometryOptions& geometry_options = simulated.geometry_options;
   const sensor::SarGeometry& geometry = *simulated.geometry;
@@ -142,39 +144,39 @@ void DrawAnnotatedQuicklook(const SimulationOutputs& reserved, const SimulatedIm
                 geometry.azimuth_spacing_m());
   // The annotated quicklook is a picture for people: above
   // kQuicklookMaxSidePx a side, it shows the image multilooked by an
-  // integer factor (linear power averaged), its axes at the block centres.
-  const int side = std::max(image.width, image.height);
-  const int looks = (side + kQuicklookMaxSidePx - 1) / kQuicklookMaxSidePx;
-  const std::vector<float> shown =
-      looks > 1 ? image::Multilook(linear, image.height, image.width, looks, looks, image::NanPixels::kAsZero)
-                : std::vector<float>();
+  // integer factor (linear power averaged, its own stretch), its axes at the
+  // block centres.
+  const int looks = AnnotatedQuicklookLooks(image);
+  const int width = image.width / looks, height = image.height / looks;
+  image::DbStretch multilooked_stretch;
+  const std::vector<uint8_t> multilooked_levels =
+      looks > 1 ? image::DbQuicklook(image::Multilook(linear, image.height, image.width, looks, looks,
+                                                      image::NanPixels::kAsZero),
+                                     2.0, 98.0, &multilooked_stretch)
+                : std::vector<uint8_t>();
   const double dr = geometry.range_spacing_m(), da = geometry.azimuth_spacing_m();
   const double half_block = 0.5 * (looks - 1);
   // Affine geometry has parallel rays and no sensor: its range axis is
   // relative to the scene centre (a nominal slant range added to it would
   // read ranges shorter than the sensor's height).
   const bool affine = geometry_options.mode == sensor::ProjectionMode::kAffine;
-  const image::RgbImage annotated = image::AnnotatedQuicklook(
-      looks > 1 ? std::span<const float>(shown) : linear, image.width / looks, image.height / looks,
+  const image::GreyImage annotated = image::AnnotatedGreyQuicklook(
+      looks > 1 ? multilooked_levels : levels, looks > 1 ? multilooked_stretch : stretch, width, height,
       {(affine ? 0.0 : geometry.slant_range_m()) + (half_block - geometry.u0()) * dr, dr * looks,
        (half_block - geometry.v0()) * da, da * looks, affine},
       title);
-  // Every pixel of it is grey (the image, black text, a grey colour bar):
-  // written as a grey PNG, the same pixels in a third of the bytes to
-  // filter and compress.
-  if (const std::optional<std::vector<uint8_t>> grey = image::NeutralGrey(annotated)) {
-    geo::WritePng(reserved.annotated_png, *grey, annotated.width, annotated.height, 1);
-  } else {
-    geo::WritePng(reserved.annotated_png, annotated.rgb, annotated.width, annotated.height, 3);
-  }
+  geo::WritePng(reserved.annotated_png, annotated.grey, annotated.width, annotated.height, 1);
 }
 
-// The two quicklooks, from the linear values, drawn as two tasks (PNG
-// encoding is single-threaded) while the georeferencing and the GeoTIFFs are
+// The two quicklooks, from the linear values, drawn by tasks (PNG encoding
+// is single-threaded) while the georeferencing and the GeoTIFFs are
 // computed and written; on an exception the task group's destructor waits.
-// Linear values are read where they are (no copy): the image's intensity
-// buffer must outlive the tasks and stay unchanged until Wait(), wherever it
-// moves meanwhile (the writer moves it into its raster and back).
+// PREFIX.png's grey levels (the dB stretch of every pixel; NaN black) are
+// computed once: the unmultilooked annotated quicklook shows the same
+// levels. Linear values are read where they are (no copy): the image's
+// intensity buffer must outlive the tasks and stay unchanged until Wait(),
+// wherever it moves meanwhile (the writer moves it into its raster and
+// back).
 class QuicklookPictures {
  public:
   void Start(const SimulateRequest& options, const SimulatedImage& simulated, const SimulationOutputs& reserved) {
@@ -189,15 +191,14 @@ class QuicklookPictures {
     } else {
       shown_ = intensity;
     }
-    group_.run([this, &simulated, &reserved] {
+    const bool multilooked = AnnotatedQuicklookLooks(simulated.image) > 1;
+    if (multilooked) group_.run([this, &simulated, &reserved] { DrawAnnotated(simulated, reserved); });
+    group_.run([this, &simulated, &reserved, multilooked] {
       const Stopwatch watch;
-      DrawPlainQuicklook(reserved, simulated, shown_, &stretch_);
+      levels_ = image::DbQuicklook(shown_, 2.0, 98.0, &stretch_);
+      if (!multilooked) group_.run([this, &simulated, &reserved] { DrawAnnotated(simulated, reserved); });
+      geo::WritePng(reserved.png, levels_, simulated.image.width, simulated.image.height, 1);
       seconds_[0] = watch.ElapsedSeconds();
-    });
-    group_.run([this, &simulated, &reserved] {
-      const Stopwatch watch;
-      DrawAnnotatedQuicklook(reserved, simulated, shown_);
-      seconds_[1] = watch.ElapsedSeconds();
     });
   }
   // Waits for the pictures; the seconds they took (both tasks, added).
@@ -208,8 +209,15 @@ class QuicklookPictures {
   const image::DbStretch& stretch() const { return stretch_; }
 
  private:
+  void DrawAnnotated(const SimulatedImage& simulated, const SimulationOutputs& reserved) {
+    const Stopwatch watch;
+    DrawAnnotatedQuicklook(reserved, simulated, shown_, levels_, stretch_);
+    seconds_[1] = watch.ElapsedSeconds();
+  }
+
   std::vector<float> linear_;     // dB images: the linear values (NaN: 0)
   std::span<const float> shown_;  // the linear values drawn
+  std::vector<uint8_t> levels_;   // PREFIX.png's grey levels
   image::DbStretch stretch_;
   double seconds_[2] = {0.0, 0.0};
   tbb::task_group group_;  // last: destroyed (waiting) before what its task reads
@@ -441,6 +449,7 @@ nlohmann::json StatsRecord(const scene::TriangleMesh& mesh, const render::SarIma
           {"heightfield_cells", image.stats.heightfield_cells},
           {"profile_swept_lines", image.stats.profile_swept_lines},
           {"profile_swept_mask_rows", image.stats.profile_swept_mask_rows},
+          {"traced_mask_rows", image.stats.traced_mask_rows},
           {"mask_pixels", MaskPixelCounts(image.mask)}};
 }
 
@@ -486,12 +495,12 @@ nlohmann::json SamplingRecord(const render::SarImage& image) {
 
 // The provenance sidecar, short of its timings, memory and outputs.
 nlohmann::json SimulationProvenance(const SimulateRequest& options, const SimulatedImage& simulated,
+                                    const PendingInputRecord& terrain_input,
                                     const std::string& command_line, const nlohmann::json& georeference_record,
                                     const nlohmann::json& pauli_record, const image::DbStretch& stretch) {
   const Terrain& terrain = simulated.terrain;
   nlohmann::json provenance = ProvenanceHeader("simulate", command_line, options.ToJson());
-  provenance["inputs"] = nlohmann::json::array(
-      {InputFileRecord(options.scene.empty() ? options.dem : options.scene)});
+  provenance["inputs"] = nlohmann::json::array({terrain_input.Get()});
   provenance["georeference"] = georeference_record;
   provenance["terrain"] = terrain.description;
   provenance["materials"] = terrain.materials.ToJson();
@@ -706,6 +715,7 @@ void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs&
   if (options.coherent && HasPauliChannels(options)) o.pauli_png = o.files.Add(options.out_prefix + "_pauli.png");
   if (options.layers) o.layers_tif = o.files.Add(options.out_prefix + "_layers.tif");
   if (!options.contributions.empty()) o.contributions_csv = o.files.Add(options.contributions);
+  o.terrain_input = PendingInputRecord(options.scene.empty() ? options.dem : options.scene);
 }
 
 SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& simulated,
@@ -763,7 +773,8 @@ SimulateResult WriteSimulation(const SimulateRequest& options, SimulatedImage& s
 
   // The sidecars.
   nlohmann::json provenance =
-      SimulationProvenance(options, simulated, command_line, georeference_record, pauli_record, pictures.stretch());
+      SimulationProvenance(options, simulated, reserved.terrain_input, command_line, georeference_record, pauli_record,
+                           pictures.stretch());
   WriteStacItem(options, simulated, reserved, raster.georeference, provenance["created_utc"].get<std::string>());
   laps.Lap("sidecars");
   timings["write"] = step.ElapsedSeconds();

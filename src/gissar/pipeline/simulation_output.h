@@ -19,6 +19,7 @@
 #include "gissar/render/sar_renderer.h"
 #include "gissar/util/atomic_output.h"
 #include "gissar/util/progress.h"
+#include "gissar/util/provenance.h"
 
 namespace gissar::pipeline {
 
@@ -91,9 +92,13 @@ struct SimulationOutputs {
   AtomicOutputs files;
   std::filesystem::path tif, png, annotated_png, mask_tif, json, stac_json, contributions_csv, slc_tif, layers_tif,
       pauli_png;
+  // The provenance's record of the terrain input (DEM or scene), its
+  // checksum computed while the job runs.
+  PendingInputRecord terrain_input;
 };
 // Reserves PREFIX.tif, .png, _quicklook.png, _mask.tif, .json, _stac.json (STAC Item, stac.h), _slc.tif in
-// coherent mode (and _pauli.png for a coherent run with HH, VV and a cross-polarised channel), _layers.tif with `layers` and the contributions CSV when asked. Throws IoError for a missing or read-only
+// coherent mode (and _pauli.png for a coherent run with HH, VV and a cross-polarised channel), _layers.tif with `layers` and the contributions CSV when asked,
+// and starts the terrain input's record. Throws IoError for a missing or read-only
 // directory.
 void ReserveSimulationOutputs(const SimulateRequest& options, SimulationOutputs& outputs);
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "gissar/render/profile_mask.h"
 #include "gissar/scene/triangle_mesh.h"
 #include "gissar/util/check.h"
 
@@ -142,6 +143,10 @@ class RayAssigner {
   bool operator()(const GridProfileSweep::ProfilePoint& from, const GridProfileSweep::ProfilePoint& to,
                   const GridProfileSweep::Facet& facet) {
     const int count = rays_.count;
+    if (rays_.mask_row != nullptr) {
+      horizon_ = std::max(horizon_, sweep_.Elevation(from));
+      rays_.mask_row->Segment(GridProfileSweep::ProfileSegment{from, to, horizon_, facet});
+    }
     if (!started_) {
       started_ = true;
       hi_v_ = lo_v_ = sweep_.Coordinate(from);
@@ -178,7 +183,7 @@ class RayAssigner {
       }
       lo_v_ = v;
     }
-    return hi_ < count || lo_ >= 0 ||
+    return hi_ < count || lo_ >= 0 || rays_.mask_row != nullptr ||
            (rays_.frontier != nullptr && (hi_v_ < rays_.frontier_above || lo_v_ > rays_.frontier_below));
   }
 
@@ -207,6 +212,7 @@ class RayAssigner {
   double range0_;
   GridProfileSweep::LineRays rays_;
   bool started_ = false;
+  double horizon_ = -std::numeric_limits<double>::infinity();  // with rays_.mask_row
   double hi_v_ = 0.0, lo_v_ = 0.0;
   int hi_, lo_ = -1;
 };

@@ -30,6 +30,8 @@
 
 namespace gissar::render {
 
+class MaskRowPainter;  // profile_mask.h
+
 class GridProfileSweep {
  public:
   static constexpr uint32_t kNoHit = 0xFFFFFFFFu;
@@ -95,6 +97,15 @@ class GridProfileSweep {
     double entry = 0.0;  // the entry point's Coordinate
     std::vector<FrontierSegment> upper, lower;
   };
+  // The part of the profile inside one triangle, and the horizon before it:
+  // the highest Elevation of the profile from its near end to `from`. A
+  // point of the segment with an Elevation below the horizon is hidden from
+  // the radar.
+  struct ProfileSegment {
+    ProfilePoint from, to;
+    double horizon;
+    Facet facet;
+  };
   // The rays of one azimuth line and where their hits go (Trace's arguments).
   struct LineRays {
     double a_m, e0, de;
@@ -112,21 +123,17 @@ class GridProfileSweep {
     // `frontier_below` (Coordinates), or the profile ends.
     Frontier* frontier = nullptr;
     double frontier_below = 0.0, frontier_above = 0.0;
+    // When not null: given every segment of the line's profile in order
+    // away from the radar, with its horizon, as ProfileLines gives them
+    // (profile_mask.h; the walk then goes on to the profile's end whatever
+    // the rays need; none when the line misses the grid or is refused).
+    MaskRowPainter* mask_row = nullptr;
   };
   // Trace for several lines, walked in lockstep (a stretch of each in turn:
   // neighbouring lines cross the same posts, which the next line then finds
   // in cache); ok[k]: Trace's result for lines[k].
   void TraceLines(const std::vector<LineRays>& lines, uint8_t* ok) const;
 
-  // The part of the profile inside one triangle, and the horizon before it:
-  // the highest Elevation of the profile from its near end to `from`. A
-  // point of the segment with an Elevation below the horizon is hidden from
-  // the radar.
-  struct ProfileSegment {
-    ProfilePoint from, to;
-    double horizon;
-    Facet facet;
-  };
   // The profiles of `lines` lines at a_m[k] (as Trace), walked in lockstep:
   // calls segment(k, ProfileSegment) for line k's segments in order away
   // from the radar (none when the line misses the grid); ok[k]: false when
@@ -240,44 +247,64 @@ class GridProfileSweep {
 
 template <class Segment>
 void GridProfileSweep::LineWalk::Advance(int steps, Segment&& segment) {
+  if (state_ != State::kWalking) return;
   const GridProfileSweep& s = *sweep_;
-  for (int k = 0; k < steps && state_ == State::kWalking; ++k) {
-    GISSAR_CHECK(--steps_left_ >= 0);
-    const auto corners = s.Corners(c_, r_, half_);
+  // The walk's state in locals for the loop (the segment callback writes
+  // through pointers, which would otherwise force every member back to
+  // memory at each step), stored back on the way out.
+  int c = c_, r = r_, half = half_, in_edge = in_edge_;
+  std::array<int64_t, 2> in_post = in_post_;
+  std::array<PostValues, 2> in_value = in_value_;
+  ProfilePoint from = from_;
+  int64_t steps_left = steps_left_;
+  const double a_m = a_m_;
+  State state = State::kWalking;
+  for (int k = 0; k < steps; ++k) {
+    GISSAR_CHECK(--steps_left >= 0);
+    const auto corners = s.Corners(c, r, half);
     // Entry edge: corners in_edge (A) and in_edge + 1 (B); the others B-C, C-A.
-    const int64_t A = corners[size_t(in_edge_)], B = corners[size_t((in_edge_ + 1) % 3)],
-                  C = corners[size_t((in_edge_ + 2) % 3)];
-    const bool same_order = in_post_[0] == A;
-    const PostValues vA = same_order ? in_value_[0] : in_value_[1];
-    const PostValues vB = same_order ? in_value_[1] : in_value_[0];
+    const int64_t A = corners[size_t(in_edge)], B = corners[size_t((in_edge + 1) % 3)],
+                  C = corners[size_t((in_edge + 2) % 3)];
+    const bool same_order = in_post[0] == A;
+    const PostValues vA = same_order ? in_value[0] : in_value[1];
+    const PostValues vB = same_order ? in_value[1] : in_value[0];
     const PostValues vC = s.Values(C);
     int out_edge;
-    if (Crosses(vB.a, vC.a, a_m_)) {
-      out_edge = (in_edge_ + 1) % 3;
-      in_post_ = {B, C};
-      in_value_ = {vB, vC};
+    if (Crosses(vB.a, vC.a, a_m)) {
+      out_edge = (in_edge + 1) % 3;
+      in_post = {B, C};
+      in_value = {vB, vC};
     } else {
-      GISSAR_CHECK(Crosses(vC.a, vA.a, a_m_));
-      out_edge = (in_edge_ + 2) % 3;
-      in_post_ = {C, A};
-      in_value_ = {vC, vA};
+      GISSAR_CHECK(Crosses(vC.a, vA.a, a_m));
+      out_edge = (in_edge + 2) % 3;
+      in_post = {C, A};
+      in_value = {vC, vA};
     }
-    const ProfilePoint to = Crossing(in_value_[0], in_value_[1]);
-    if (!segment(from_, to, Facet{c_, r_, half_})) {
-      state_ = State::kDone;
-      return;
+    const ProfilePoint to = Crossing(in_value[0], in_value[1]);
+    if (!segment(from, to, Facet{c, r, half})) {
+      state = State::kDone;
+      break;
     }
-    const Across& next = kAcross[half_][out_edge];
-    c_ += next.dc;
-    r_ += next.dr;
-    if (c_ < 0 || r_ < 0 || c_ > s.width_ - 2 || r_ > s.height_ - 2) {  // left the grid
-      state_ = State::kDone;
-      return;
+    const Across& next = kAcross[half][out_edge];
+    c += next.dc;
+    r += next.dr;
+    if (c < 0 || r < 0 || c > s.width_ - 2 || r > s.height_ - 2) {  // left the grid
+      state = State::kDone;
+      break;
     }
-    half_ = next.half;
-    in_edge_ = next.edge;
-    from_ = to;
+    half = next.half;
+    in_edge = next.edge;
+    from = to;
   }
+  state_ = state;
+  c_ = c;
+  r_ = r;
+  half_ = half;
+  in_edge_ = in_edge;
+  in_post_ = in_post;
+  in_value_ = in_value;
+  from_ = from;
+  steps_left_ = steps_left;
 }
 
 template <class Segment>

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "gissar/render/embree_scene.h"
+#include "gissar/render/profile_mask.h"
 #include "gissar/scene/triangle_mesh.h"
 
 namespace gissar::render {
@@ -59,6 +60,18 @@ std::pair<double, double> RayCoordinateExtent(const std::vector<Vector3f>& posts
     e_hi = std::max(e_hi, e);
   }
   return {e_lo, e_hi};
+}
+
+// `count` rays spread over the terrain's extent in e (RayCoordinateExtent)
+// and ten spacings beyond it on either side: the first one's coordinate and
+// the spacing.
+struct RaysAcross {
+  double e0, de;
+};
+RaysAcross RaysAcrossTerrain(const std::vector<Vector3f>& posts, const sensor::SarGeometry& g, int count) {
+  const auto [e_lo, e_hi] = RayCoordinateExtent(posts, g);
+  const double de = (e_hi - e_lo) / (count - 20);
+  return {e_lo - 10 * de, de};
 }
 
 // The ray of coordinate e on the line at along-track a (sensor at
@@ -146,9 +159,7 @@ TEST(GridProfileSweepTest, EveryRayHitsWhereEmbreeDoes) {
         const GridProfileSweep sweep(posts.data(), w, h, g);
         const int count = 300;
         // The rays span the terrain's extent in e (metres or radians).
-        const auto [e_lo, e_hi] = RayCoordinateExtent(posts, g);
-        const double de = (e_hi - e_lo) / (count - 20);
-        const double e0 = e_lo - 10 * de;
+        const auto [e0, de] = RaysAcrossTerrain(posts, g, count);
         std::vector<double> depth(count);
         std::vector<uint32_t> tri(count);
         for (double a = -420.0; a <= 420.0; a += 37.0) {
@@ -201,16 +212,14 @@ TEST(GridProfileSweepTest, ASliceOfTheRaysGetsTheirHitsBitForBit) {
     for (double heading : {30.0, 250.0}) {
       const auto g = sensor::SarGeometry::Covering(Options(heading, 45.0, mode), Vector3d::Zero(), posts);
       const GridProfileSweep sweep(posts.data(), w, h, g);
-      const auto [e_lo, e_hi] = RayCoordinateExtent(posts, g);
       const int count = 400;
-      const double de = (e_hi - e_lo) / (count - 20);
-      const double e0 = e_lo - 10 * de;
+      const auto [e0, de] = RaysAcrossTerrain(posts, g, count);
       std::vector<double> depth(count), slice_depth(count);
       std::vector<uint32_t> tri(count), slice_tri(count);
       for (double a = -420.0; a <= 420.0; a += 37.0) {
         ASSERT_TRUE(sweep.Trace(a, e0, de, count, depth.data(), tri.data()));
         for (const auto& [first, n] : {std::pair{0, 96}, {112, 160}, {208, 192}, {384, 16}}) {
-          GridProfileSweep::LineRays line{a, e0, de, first, n, slice_depth.data(), slice_tri.data()};
+          GridProfileSweep::LineRays line{a, e0, de, first, n, slice_depth.data(), slice_tri.data(), nullptr};
           uint8_t ok = 0;
           sweep.TraceLines({line}, &ok);
           ASSERT_TRUE(ok);
@@ -225,6 +234,57 @@ TEST(GridProfileSweepTest, ASliceOfTheRaysGetsTheirHitsBitForBit) {
     }
   }
   EXPECT_GT(hits, 20000);
+}
+
+// A line traced with its mask row painted on the way (LineRays::mask_row)
+// gets the same hits, bit for bit, as without, and its painter the
+// segments the mask phase's walk (ProfileLines) gives: the row painted both
+// ways by ProfileMaskRule is the same. The warped rough grid above, both
+// modes, two headings, lines every 37 m.
+TEST(GridProfileSweepTest, AMaskRowPaintedOnTheWayIsTheProfileWalksRow) {
+  const int w = kRoughWidth, h = kRoughHeight;
+  std::mt19937 rng(7);
+  const std::vector<Vector3f> posts = WarpedRoughPosts(rng);
+  int64_t lit = 0, shadowed = 0;
+  for (const auto mode : {sensor::ProjectionMode::kAffine, sensor::ProjectionMode::kExact}) {
+    for (double heading : {30.0, 250.0}) {
+      const auto g = sensor::SarGeometry::Covering(Options(heading, 45.0, mode), Vector3d::Zero(), posts);
+      const GridProfileSweep sweep(posts.data(), w, h, g);
+      const ProfileMaskRule rule(sweep, g);
+      const int count = 400;
+      const auto [e0, de] = RaysAcrossTerrain(posts, g, count);
+      std::vector<double> depth(count), painted_depth(count);
+      std::vector<uint32_t> tri(count), painted_tri(count);
+      for (double a = -420.0; a <= 420.0; a += 37.0) {
+        ASSERT_TRUE(sweep.Trace(a, e0, de, count, depth.data(), tri.data()));
+        std::vector<uint8_t> painted_row(size_t(g.width()), 0), walked_row(size_t(g.width()), 0);
+        MaskRowPainter painter(rule, painted_row.data());
+        GridProfileSweep::LineRays line{a, e0, de, 0, count, painted_depth.data(), painted_tri.data(), nullptr};
+        line.mask_row = &painter;
+        uint8_t ok = 0;
+        sweep.TraceLines({line}, &ok);
+        ASSERT_TRUE(ok);
+        EXPECT_FALSE(painter.behind_sensor());
+        for (int j = 0; j < count; ++j) {
+          ASSERT_EQ(painted_tri[size_t(j)], tri[size_t(j)]) << j;
+          if (tri[size_t(j)] != GridProfileSweep::kNoHit) {
+            ASSERT_EQ(painted_depth[size_t(j)], depth[size_t(j)]) << j;
+          }
+        }
+        sweep.ProfileLines(&a, 1, &ok, [&](size_t, const GridProfileSweep::ProfileSegment& s) {
+          EXPECT_TRUE(rule.Paint(s, walked_row.data()));
+        });
+        ASSERT_TRUE(ok);
+        ASSERT_EQ(painted_row, walked_row) << a;
+        for (uint8_t f : walked_row) {
+          lit += (f & kLitBit) != 0;
+          shadowed += (f & kMaskShadow) != 0;
+        }
+      }
+    }
+  }
+  EXPECT_GT(lit, 3000);  // the rows compared are lit and shadowed
+  EXPECT_GT(shadowed, 100);
 }
 
 // The frontiers recorded by a coarse ray grid give the hit of a ray at any

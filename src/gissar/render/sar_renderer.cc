@@ -1,5 +1,6 @@
 #include "gissar/render/sar_renderer.h"
 
+#include "gissar/render/profile_mask.h"
 #include "gissar/render/profile_sweep.h"
 #include "gissar/render/raster_renderer.h"
 #include "gissar/render/splat.h"
@@ -683,14 +684,6 @@ constexpr double kMinSplitFootprintPx = 0.25;
 constexpr double kSkipMarginM = 1.0;
 constexpr int kMaxSubRays = 64;
 
-// Internal flags of the mask pass: a lit surface covers the pixel centre;
-// any surface does.
-constexpr uint8_t kLitBit = 8;
-constexpr uint8_t kCoveredBit = 16;
-
-// A point of a profile is hidden when the horizon before it is higher than
-// this (metres along n): the rounding of the double-precision profile.
-constexpr double kProfileShadowToleranceM = 1e-6;
 // Image rows whose profiles the mask walks in lockstep.
 constexpr int kMaskRowsInLockstep = 16;
 
@@ -712,106 +705,68 @@ std::optional<GridProfileSweep> ProfileSweepOf(const EmbreeScene& embree, const 
   return GridProfileSweep(mesh.vertices.data(), gw, gh, geometry);
 }
 
-// RenderLayoverShadowMask's flags (mask codes, kLitBit, kCoveredBit) of a
-// whole terrain grid from one profile per image row: the centres of row r
-// lie on the azimuth line through it, a centre is covered by every profile
-// segment whose slant-range span holds it (layover: more than one), and a
-// point of a segment is hidden exactly when the horizon before it (the
-// highest Elevation of the profile nearer the radar) is above it: the
-// visibility ray towards the radar runs in that plane at constant
-// Elevation (affine: offset e along n; exact: the angle seen from the
-// line's sensor, which lies in the same plane). In exact mode the point at
-// a centre is placed on its segment by the centre's column, interpolated
-// between the segment's ends (as the ray pass interpolates in the
-// projected triangle), and it is turned away, or flipped, by its own
-// direction to the sensor. `refused_rows` (one per image row): 1 where the
-// row's line does not cross the grid in one piece (its flags are left 0:
-// the ray pass finds them). False (nothing written) when the sweep does not
-// apply: no whole grid alone, or (exact) a profile point not beyond the
-// sensor in ground range.
-bool MaskByProfileSweep(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
-                        const sensor::SarGeometry& geometry, std::vector<uint8_t>* flags,
-                        std::vector<uint8_t>* refused_rows) {
-  const std::optional<GridProfileSweep> sweep = ProfileSweepOf(embree, mesh, geometry);
-  if (!sweep) return false;
-  const bool affine = geometry.mode() == sensor::ProjectionMode::kAffine;
+// Mask flags painted while the tracer walks the profiles (TracePlan::
+// mask_rule): per image row its flags (ProfileMaskRule) and its state.
+struct PaintedMaskRows {
+  enum : uint8_t { kNotPainted = 0, kPainted = 1, kRefused = 2 };
+  std::vector<uint8_t> flags;  // width x height, row-major
+  std::vector<uint8_t> state;  // per row
+  // Some segment lay behind the sensor (exact mode): none of it counts.
+  std::atomic<bool> behind_sensor{false};
+};
+
+// RenderLayoverShadowMask's flags of a whole terrain grid from one profile
+// per image row (ProfileMaskRule) through `sweep`, walked in groups of
+// kMaskRowsInLockstep rows. `painted` (or null): rows whose flags the
+// tracer painted already (their flags moved out, not walked again;
+// `traced_rows` counts those painted, not refused). `refused_rows` (one
+// per image row): 1 where the row's line does not cross the grid in one
+// piece (its flags are left 0: the ray pass finds them). False (nothing
+// written) when the sweep does not apply: (exact) a profile point not beyond
+// the sensor in ground range.
+bool MaskByProfileSweep(const GridProfileSweep& sweep, const sensor::SarGeometry& geometry,
+                        PaintedMaskRows* painted, std::vector<uint8_t>* flags,
+                        std::vector<uint8_t>* refused_rows, int64_t* traced_rows) {
   const int width = geometry.width(), height = geometry.height();
-  const Vector3d& l = geometry.look_direction();
-  const Vector3d& n = geometry.range_plane_normal();
-  const Vector3d& h = geometry.flight_direction();
-  const Vector3d to_radar = -l;
-  const Vector3d n_up = geometry.UpwardRangePlaneNormal(geometry.scene_centre());
-  const double inv_dr = 1.0 / geometry.range_spacing_m(), u0 = geometry.u0(), range0 = geometry.slant_range_m();
-  // Exact mode: every line's sensor lies at ground coordinate -range0 |l_h|
-  // (h is horizontal and normal to l); the profile must lie beyond it.
-  const double sensor_g = -range0 * std::hypot(l.x(), l.y());
-  const double up_sign = n.z() >= 0.0 ? 1.0 : -1.0;
-  // The column of a profile point.
-  auto column = [&](const GridProfileSweep::ProfilePoint& p) {
-    const double x = range0 + p.xl;
-    return affine ? p.xl * inv_dr + u0 : (std::sqrt(x * x + p.e * p.e) - range0) * inv_dr + u0;
-  };
-  flags->assign(size_t(width) * height, 0);
+  *traced_rows = 0;
+  if (painted != nullptr && painted->behind_sensor.load()) return false;
+  const ProfileMaskRule rule(sweep, geometry);
+  if (painted != nullptr) {
+    *traced_rows = std::count(painted->state.begin(), painted->state.end(), uint8_t{PaintedMaskRows::kPainted});
+    *flags = std::move(painted->flags);
+  } else {
+    flags->assign(size_t(width) * height, 0);
+  }
   refused_rows->assign(size_t(height), 0);
   std::atomic<bool> failed{false};
   // Rows in groups walked in lockstep (neighbouring rows cross the same
   // posts); each writes only its own row.
   tbb::parallel_for(tbb::blocked_range<int>(0, height, kMaskRowsInLockstep), [&](const tbb::blocked_range<int>& rows) {
     std::vector<double> a_m;
+    std::vector<int> row_of;
     std::vector<uint8_t> ok;
     for (int r0 = rows.begin(); r0 < rows.end() && !failed.load(std::memory_order_relaxed);
          r0 += kMaskRowsInLockstep) {
       const int r1 = std::min(rows.end(), r0 + kMaskRowsInLockstep);
       a_m.clear();
-      for (int r = r0; r < r1; ++r) a_m.push_back((r - geometry.v0()) * geometry.azimuth_spacing_m());
+      row_of.clear();
+      for (int r = r0; r < r1; ++r) {
+        const uint8_t state = painted != nullptr ? painted->state[size_t(r)] : uint8_t{PaintedMaskRows::kNotPainted};
+        if (state == PaintedMaskRows::kRefused) (*refused_rows)[size_t(r)] = 1;
+        if (state != PaintedMaskRows::kNotPainted) continue;
+        a_m.push_back(RowLineAlongTrack(geometry, r));
+        row_of.push_back(r);
+      }
+      if (a_m.empty()) continue;
       ok.assign(a_m.size(), 0);
       bool behind_sensor = false;
-      sweep->ProfileLines(a_m.data(), a_m.size(), ok.data(), [&](size_t k, const GridProfileSweep::ProfileSegment& s) {
-        if (!affine && !(s.from.g > sensor_g && s.to.g > sensor_g)) {
-          behind_sensor = true;
-          return;
-        }
-        const double col0 = column(s.from), col1 = column(s.to);
-        if (col0 == col1) return;  // seen edge-on: covers no centre
-        const int c_lo = std::max(0, static_cast<int>(std::ceil(std::min(col0, col1))));
-        const int c_hi = std::min(width - 1, static_cast<int>(std::floor(std::max(col0, col1))));
-        if (c_lo > c_hi) return;
-        const Vector3d normal = sweep->Normal(s.facet).cast<double>();
-        if (normal.isZero()) return;
-        const double inv = 1.0 / (col1 - col0);
-        uint8_t* row = flags->data() + size_t(r0 + int(k)) * width;
-        if (affine) {
-          const bool turned_away = normal.dot(to_radar) <= kMaskEdgeOnCos;
-          const uint8_t lit_code = kLitBit | (normal.dot(n_up) < 0.0 ? kMaskLayover : kMaskNone);
-          const double up_from = sweep->Elevation(s.from), up_to = sweep->Elevation(s.to);
-          for (int c = c_lo; c <= c_hi; ++c) {
-            const double up = up_from + (c - col0) * inv * (up_to - up_from);
-            // Hidden when the horizon before the point is above it (ties
-            // within rounding: lit, as the tracer's ray ignores its own
-            // surface).
-            const bool shadow = turned_away || s.horizon > up + kProfileShadowToleranceM;
-            row[c] |= kCoveredBit | (shadow ? kMaskShadow : lit_code);
-          }
-          return;
-        }
-        for (int c = c_lo; c <= c_hi; ++c) {
-          const double f = (c - col0) * inv;
-          const double x = range0 + s.from.xl + f * (s.to.xl - s.from.xl);  // along l from the sensor
-          const double e = s.from.e + f * (s.to.e - s.from.e);
-          const Vector3d dir = (x * l + e * n) / std::sqrt(x * x + e * e);  // sensor -> point
-          Vector3d up_normal = dir.cross(h);  // SarGeometry::UpwardRangePlaneNormal at the point
-          if (up_normal.z() < 0.0) up_normal = -up_normal;
-          const bool turned_away = normal.dot(-dir) <= kMaskEdgeOnCos;
-          // The rounding tolerance in metres along n at the point's range.
-          const bool shadow = turned_away || s.horizon > up_sign * e / x + kProfileShadowToleranceM / x;
-          row[c] |= kCoveredBit |
-                    (shadow ? kMaskShadow : uint8_t(kLitBit | (normal.dot(up_normal) < 0.0 ? kMaskLayover : kMaskNone)));
-        }
+      sweep.ProfileLines(a_m.data(), a_m.size(), ok.data(), [&](size_t k, const GridProfileSweep::ProfileSegment& s) {
+        if (!rule.Paint(s, flags->data() + size_t(row_of[k]) * width)) behind_sensor = true;
       });
       if (behind_sensor) failed = true;
       for (size_t k = 0; k < ok.size(); ++k) {
         if (ok[k]) continue;
-        const int r = r0 + int(k);
+        const int r = row_of[k];
         (*refused_rows)[size_t(r)] = 1;
         std::fill_n(flags->data() + size_t(r) * width, width, uint8_t{0});
       }
@@ -1164,17 +1119,26 @@ void MaskRayPass::WalkTiles(size_t first) {
 
 }  // namespace
 
-std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
-                                             const scene::TriangleMesh& mesh,
-                                             const sensor::SarGeometry& geometry,
-                                             int64_t* shadow_rays, std::vector<uint8_t>* lit,
-                                             std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box,
-                                             bool profile_sweep, int64_t* swept_rows) {
+namespace {
+
+// RenderLayoverShadowMask with the profile sweep `sweep` (null: by rays
+// alone) and the rows the tracer painted (`painted`, or null; their flags
+// are moved out): `traced_rows` (or null), how many rows' flags were the
+// tracer's.
+std::vector<uint8_t> LayoverShadowMask(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
+                                       const sensor::SarGeometry& geometry, int64_t* shadow_rays,
+                                       std::vector<uint8_t>* lit, std::vector<uint8_t>* covered,
+                                       const Eigen::AlignedBox3d* ray_box, const GridProfileSweep* sweep,
+                                       PaintedMaskRows* painted, int64_t* swept_rows,
+                                       int64_t* traced_rows = nullptr) {
   if (swept_rows != nullptr) *swept_rows = 0;
+  if (traced_rows != nullptr) *traced_rows = 0;
   const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
-  if (profile_sweep) {
+  if (sweep != nullptr) {
     std::vector<uint8_t> flags, refused;
-    if (MaskByProfileSweep(embree, mesh, geometry, &flags, &refused)) {
+    int64_t traced = 0;
+    if (MaskByProfileSweep(*sweep, geometry, painted, &flags, &refused, &traced)) {
+      if (traced_rows != nullptr) *traced_rows = traced;
       // Rows whose line the sweep refused: by rays.
       const int64_t refused_rows = std::count(refused.begin(), refused.end(), uint8_t{1});
       int64_t rays = 0;
@@ -1198,6 +1162,20 @@ std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
   const std::vector<std::atomic<uint8_t>>& flags = pass.flags();
   return UnpackMaskFlags([&](size_t i) { return flags[i].load(std::memory_order_relaxed); }, flags.size(), lit,
                          covered);
+}
+
+}  // namespace
+
+std::vector<uint8_t> RenderLayoverShadowMask(const EmbreeScene& embree,
+                                             const scene::TriangleMesh& mesh,
+                                             const sensor::SarGeometry& geometry,
+                                             int64_t* shadow_rays, std::vector<uint8_t>* lit,
+                                             std::vector<uint8_t>* covered, const Eigen::AlignedBox3d* ray_box,
+                                             bool profile_sweep, int64_t* swept_rows) {
+  const std::optional<GridProfileSweep> sweep =
+      profile_sweep ? ProfileSweepOf(embree, mesh, geometry) : std::nullopt;
+  return LayoverShadowMask(embree, mesh, geometry, shadow_rays, lit, covered, ray_box,
+                           sweep ? &*sweep : nullptr, nullptr, swept_rows);
 }
 
 namespace {
@@ -1228,6 +1206,9 @@ struct TracePlan {
   TracePlan(const EmbreeScene& embree_in, const scene::TriangleMesh& mesh_in,
             const material::MaterialTable& materials_in, const sensor::SarGeometry& geometry_in,
             const RenderOptions& options_in);
+  // Not copied: mask_rule refers to the plan's own sweep.
+  TracePlan(const TracePlan&) = delete;
+  TracePlan& operator=(const TracePlan&) = delete;
 
   // sigma0 (linear m^2/m^2) of class `id` (unknown classes: class 0) at
   // cos(local incidence) `cos_in`: the float table uniform in sqrt(1 - cos)
@@ -1312,6 +1293,11 @@ struct TracePlan {
   // azimuth line come from one walk along its profile (GridProfileSweep)
   // instead of a ray traversal each.
   std::optional<GridProfileSweep> sweep;
+  // With one ray line per image row (the sweep applying), each line's walk
+  // also paints its row's layover/shadow flags (ProfileMaskRule; the mask
+  // phase then walks no profile again): set, referring to `sweep`, when the
+  // lines are the rows' lines (RowLineAlongTrack).
+  std::optional<ProfileMaskRule> mask_rule;
   // Polarimetric passes (see the header): the HH-VV correlation tables are
   // needed only by a VV pass's micro-phasors (coherent, or recorded for a
   // coherent re-projection).
@@ -1340,6 +1326,10 @@ TracePlan::TracePlan(const EmbreeScene& embree_in, const scene::TriangleMesh& me
   if (affine && options.image_rays_only) {
     const auto [z_lo, z_hi] = HeightsWithinReach(embree, mesh, geometry, box, options.max_bounces);
     CullToImage(geometry, z_lo, z_hi, options.max_bounces, &grid);
+  }
+  if (sweep && grid.n_az == height && grid.da == geometry.azimuth_spacing_m() &&
+      AlongTrackOfLine(height - 1) == RowLineAlongTrack(geometry, height - 1)) {
+    mask_rule.emplace(*sweep, geometry);
   }
   l = geometry.look_direction();
   n = geometry.range_plane_normal();
@@ -1381,6 +1371,10 @@ struct TraceAccumulator {
         block_contributions(plan.options.record_contributions ? size_t(plan.n_blocks) : 0) {
     tbb::parallel_for(0, plan.planes,
                       [&](int p) { image_planes[p].assign(size_t(plan.width) * plan.height, 0.0f); });
+    if (plan.mask_rule) {
+      painted_mask.flags.assign(size_t(plan.width) * plan.height, 0);
+      painted_mask.state.assign(size_t(plan.height), PaintedMaskRows::kNotPainted);
+    }
   }
 
   std::vector<std::vector<float>> image_planes;
@@ -1388,6 +1382,8 @@ struct TraceAccumulator {
   std::vector<std::vector<Contribution>> block_contributions;
   std::array<std::mutex, 64> row_locks;
   std::atomic<int64_t> hits{0}, sub_rays{0}, swept_lines{0};
+  // The rows the tracer's walks painted (TracePlan::mask_rule).
+  PaintedMaskRows painted_mask;
 };
 
 // A block's primary hits from the profile sweep, per line: whether the
@@ -1631,15 +1627,27 @@ void BlockTracer::PrepareLines() {
   constexpr double kNearRightAngle = 0.5 * M_PI - 1e-9;
   const double frontier_below = plan_.affine ? bottom : std::tan(std::max(bottom, -kNearRightAngle));
   const double frontier_above = plan_.affine ? top : std::tan(std::min(top, kNearRightAngle));
+  // Each line's row of the mask, painted from the same walk.
+  PaintedMaskRows& painted = acc_.painted_mask;
+  std::vector<MaskRowPainter> painters;
+  if (plan_.mask_rule) {
+    painters.reserve(size_t(lines));
+    for (int i = i0_; i < i1_; ++i) painters.emplace_back(*plan_.mask_rule, painted.flags.data() + size_t(i) * plan_.width);
+  }
   std::vector<GridProfileSweep::LineRays> rays;
   for (int i = i0_; i < i1_; ++i) {
     const size_t at = size_t(i - i0_) * grid.n_el;
     rays.push_back({plan_.AlongTrackOfLine(i), grid.e0, grid.de, grid.j_first, grid.n_el, &s.depth[at],
                     &s.triangle[at], &s.normal[at], grid.tan_e.empty() ? nullptr : grid.tan_e.data(),
-                    sub_rays ? &s.frontier[size_t(i - i0_)] : nullptr, frontier_below, frontier_above});
+                    sub_rays ? &s.frontier[size_t(i - i0_)] : nullptr, frontier_below, frontier_above,
+                    painters.empty() ? nullptr : &painters[size_t(i - i0_)]});
   }
   plan_.sweep->TraceLines(rays, s.swept.data());
   for (const uint8_t swept : s.swept) swept_lines_ += swept;
+  for (size_t k = 0; k < painters.size(); ++k) {
+    if (painters[k].behind_sensor()) painted.behind_sensor = true;
+    painted.state[size_t(i0_) + k] = s.swept[k] ? PaintedMaskRows::kPainted : PaintedMaskRows::kRefused;
+  }
 }
 
 // Rays [j_begin, j_end) of swept line i, one after the other, without a
@@ -2287,18 +2295,20 @@ void ComposeImage(const TracePlan& plan, TraceAccumulator& acc, SarImage* image)
 }
 
 // Mask phase: the reflectors' point returns, the layover/shadow mask and
-// footprint (RenderLayoverShadowMask, by profile sweep where it applies)
-// and the count of lit pixels, and of those without a first-bounce return,
-// into `image` (its bounce layers composed).
-void MaskImage(const TracePlan& plan, SarImage* image) {
+// footprint (RenderLayoverShadowMask, by profile sweep where it applies,
+// the rows the tracer painted taken as they are) and the count of lit
+// pixels, and of those without a first-bounce return, into `image` (its
+// bounce layers composed).
+void MaskImage(const TracePlan& plan, TraceAccumulator& acc, SarImage* image) {
   const RenderOptions& options = plan.options;
   image->points = ReflectorReturns(plan.embree, options.reflectors, plan.geometry, options.wavelength_m,
                                    plan.polarimetric ? std::optional<material::Polarization>(options.polarization)
                                                      : std::nullopt);
   std::vector<uint8_t> lit;
-  image->mask = RenderLayoverShadowMask(plan.embree, plan.mesh, plan.geometry, &image->stats.shadow_rays, &lit,
-                                        &image->footprint, options.ray_box ? &*options.ray_box : nullptr,
-                                        options.profile_sweep, &image->stats.profile_swept_mask_rows);
+  image->mask = LayoverShadowMask(plan.embree, plan.mesh, plan.geometry, &image->stats.shadow_rays, &lit,
+                                  &image->footprint, options.ray_box ? &*options.ray_box : nullptr,
+                                  plan.sweep ? &*plan.sweep : nullptr, plan.mask_rule ? &acc.painted_mask : nullptr,
+                                  &image->stats.profile_swept_mask_rows, &image->stats.traced_mask_rows);
   for (size_t q = 0; q < lit.size(); ++q) {
     if (!lit[q]) continue;
     ++image->stats.footprint_pixels;
@@ -2325,7 +2335,7 @@ SarImage RenderSar(const EmbreeScene& embree, const scene::TriangleMesh& mesh,
   image.stats.trace_seconds = trace_watch.ElapsedSeconds();
   ComposeImage(plan, acc, &image);
   Stopwatch mask_watch;
-  MaskImage(plan, &image);
+  MaskImage(plan, acc, &image);
   image.stats.mask_seconds = mask_watch.ElapsedSeconds();
   return image;
 }

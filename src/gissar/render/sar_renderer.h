@@ -176,9 +176,13 @@ struct RenderStats {
   int64_t cells = 0;          // DEM cells projected (raster engine)
   int64_t heightfield_cells = 0;  // terrain cells traced as a height field (EmbreeScene::heightfield_cells)
   // Azimuth lines whose primary hits came from a profile sweep, and image
-  // rows whose mask did (RenderOptions::profile_sweep); 0: traced.
+  // rows whose mask did (RenderOptions::profile_sweep); 0: traced. With one
+  // ray line per image row (rays per cell below 2.25) the tracer's walk of a
+  // row's line also paints the row's mask: those rows (of the swept ones)
+  // are traced_mask_rows.
   int64_t profile_swept_lines = 0;
   int64_t profile_swept_mask_rows = 0;
+  int64_t traced_mask_rows = 0;
   double trace_seconds = 0.0;  // tracer: rays, shading, splatting, merging; raster: all
   double mask_seconds = 0.0;
   // Illuminated footprint: pixels whose centre a lit surface covers (the

@@ -568,6 +568,20 @@ TEST(SarRendererTest, ProfileSweepGivesTheTracedImageAndMask) {
         const SarImage swept = RenderSar(heightfield, mesh, UnitLambert(), g, options);
         options.profile_sweep = false;
         const SarImage traced = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+        // With one ray line per image row (rays per cell below 2.25) the
+        // tracer's walk of each line also paints the row's mask
+        // (traced_mask_rows): the rows' lines are the ray lines
+        // (RowLineAlongTrack), so the mask and footprint are those the mask
+        // phase walks itself at two lines per row, bit for bit.
+        options.profile_sweep = true;
+        options.rays_per_cell = 1.5;
+        const SarImage painted = RenderSar(heightfield, mesh, UnitLambert(), g, options);
+        EXPECT_EQ(painted.stats.traced_mask_rows, g.height()) << heading;
+        EXPECT_EQ(painted.stats.profile_swept_mask_rows, g.height()) << heading;
+        EXPECT_EQ(painted.stats.shadow_rays, 0) << heading;
+        EXPECT_EQ(swept.stats.traced_mask_rows, 0) << heading;
+        EXPECT_EQ(painted.mask, swept.mask) << heading;
+        EXPECT_EQ(painted.footprint, swept.footprint) << heading;
         const IntensityAgreement image = CompareIntensities(traced.intensity, swept.intensity);
         EXPECT_GT(image.db_pearson, 0.99999) << heading;
         EXPECT_LT(std::abs(image.mean_db_difference), 1e-3) << heading;

@@ -11,7 +11,9 @@
 #include <sstream>
 
 #include "gissar/util/atomic_output.h"
+#include "gissar/util/check.h"
 #include "gissar/util/error.h"
+#include "gissar/util/git_describe.h"
 #include "gissar/util/version.h"
 
 namespace gissar {
@@ -53,6 +55,14 @@ nlohmann::json InputFileRecord(const fs::path& path) {
   return {{"path", fs::absolute(path).lexically_normal().string()},
           {"bytes", bytes},
           {"sha256", Sha256OfFile(path)}};
+}
+
+PendingInputRecord::PendingInputRecord(const fs::path& path)
+    : record_(std::async(std::launch::async, [path] { return InputFileRecord(path); }).share()) {}
+
+nlohmann::json PendingInputRecord::Get() const {
+  GISSAR_CHECK(record_.valid());
+  return record_.get();
 }
 
 void WriteJsonFile(const nlohmann::json& value, const fs::path& path) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <future>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -20,6 +21,21 @@ std::string Sha256OfFile(const std::filesystem::path& path);
 // the file cannot be read. A GDAL in-memory raster (/vsimem/..., the Python
 // door's arrays, geo/memory_raster.h) has no file: {"path", "in_memory": true}.
 nlohmann::json InputFileRecord(const std::filesystem::path& path);
+
+// InputFileRecord of `path`, computed on a thread of its own from the
+// moment it is made (its checksum reads the whole file: a job's own work
+// overlaps it). Get() waits for the record and throws what InputFileRecord
+// threw; a default-made one has no record (Get() fails a GISSAR_CHECK).
+// Destroying it waits for the thread.
+class PendingInputRecord {
+ public:
+  PendingInputRecord() = default;
+  explicit PendingInputRecord(const std::filesystem::path& path);
+  nlohmann::json Get() const;
+
+ private:
+  std::shared_future<nlohmann::json> record_;
+};
 
 // Writes `value` pretty-printed to `path` (a plain write: callers route it
 // through AtomicOutputs). Throws IoError on failure (WriteError of

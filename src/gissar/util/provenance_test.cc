@@ -31,6 +31,19 @@ TEST(ProvenanceTest, MissingFileIsAnIoError) {
   EXPECT_THROW(Sha256OfFile("/nonexistent/gissar/file"), IoError);
 }
 
+// A record started ahead gives InputFileRecord's record (the FIPS vector's
+// checksum), and a missing file's IoError when asked for, not before.
+TEST(ProvenanceTest, PendingRecordIsTheRecordOrItsError) {
+  const auto dir = testing::MakeTempDir();
+  std::ofstream(dir / "abc.txt") << "abc";
+  const PendingInputRecord pending(dir / "abc.txt");
+  const PendingInputRecord missing(dir / "missing.tif");
+  const nlohmann::json record = pending.Get();
+  EXPECT_EQ(record["sha256"], "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(record, InputFileRecord(dir / "abc.txt"));
+  EXPECT_THROW(missing.Get(), IoError);
+}
+
 TEST(ProvenanceTest, VersionNamesTheProject) {
   EXPECT_EQ(VersionString().rfind("gissar 0.", 0), 0u);
 }
