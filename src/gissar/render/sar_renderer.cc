@@ -718,21 +718,19 @@ struct PaintedMaskRows {
 // RenderLayoverShadowMask's flags of a whole terrain grid from one profile
 // per image row (ProfileMaskRule) through `sweep`, walked in groups of
 // kMaskRowsInLockstep rows. `painted` (or null): rows whose flags the
-// tracer painted already (their flags moved out, not walked again;
-// `traced_rows` counts those painted, not refused). `refused_rows` (one
+// tracer painted already (their flags moved out, not walked again).
+// `refused_rows` (one
 // per image row): 1 where the row's line does not cross the grid in one
 // piece (its flags are left 0: the ray pass finds them). False (nothing
 // written) when the sweep does not apply: (exact) a profile point not beyond
 // the sensor in ground range.
 bool MaskByProfileSweep(const GridProfileSweep& sweep, const sensor::SarGeometry& geometry,
                         PaintedMaskRows* painted, std::vector<uint8_t>* flags,
-                        std::vector<uint8_t>* refused_rows, int64_t* traced_rows) {
+                        std::vector<uint8_t>* refused_rows) {
   const int width = geometry.width(), height = geometry.height();
-  *traced_rows = 0;
   if (painted != nullptr && painted->behind_sensor.load()) return false;
   const ProfileMaskRule rule(sweep, geometry);
   if (painted != nullptr) {
-    *traced_rows = std::count(painted->state.begin(), painted->state.end(), uint8_t{PaintedMaskRows::kPainted});
     *flags = std::move(painted->flags);
   } else {
     flags->assign(size_t(width) * height, 0);
@@ -1136,9 +1134,10 @@ std::vector<uint8_t> LayoverShadowMask(const EmbreeScene& embree, const scene::T
   const Eigen::AlignedBox3d box = ray_box != nullptr ? *ray_box : mesh.Bounds();
   if (sweep != nullptr) {
     std::vector<uint8_t> flags, refused;
-    int64_t traced = 0;
-    if (MaskByProfileSweep(*sweep, geometry, painted, &flags, &refused, &traced)) {
-      if (traced_rows != nullptr) *traced_rows = traced;
+    if (MaskByProfileSweep(*sweep, geometry, painted, &flags, &refused)) {
+      if (traced_rows != nullptr && painted != nullptr) {
+        *traced_rows = std::count(painted->state.begin(), painted->state.end(), uint8_t{PaintedMaskRows::kPainted});
+      }
       // Rows whose line the sweep refused: by rays.
       const int64_t refused_rows = std::count(refused.begin(), refused.end(), uint8_t{1});
       int64_t rays = 0;
